@@ -1,0 +1,10 @@
+"""Compiler flags shared by every Numba kernel of refraster.
+
+One place so that no kernel can quietly differ: no ``fastmath`` (a reference must be
+bit-reproducible), ``cache=True`` (cold start: a second run compiles nothing).
+``tests/test_config.py`` fails if a kernel hard-codes its own flags.
+"""
+
+JIT = dict(cache=True, nogil=True, fastmath=False)
+#: Flags for kernels that run in parallel over independent output slices (tiles, rows).
+PJIT = dict(cache=True, nogil=True, fastmath=False, parallel=True)

@@ -1,0 +1,195 @@
+"""Cameras and OpenGL's coordinate conventions, documented once.
+
+Conventions (the same as OpenGL's fixed-function pipeline):
+
+* **Eye space** is right-handed; the camera sits at the origin looking down −Z with +Y up.
+* **Matrices** are 4×4 ``float64`` applied to column vectors:
+  ``clip = proj @ view @ model @ [x, y, z, 1]``.
+* **Clip space → NDC** by dividing by ``w``; NDC is [−1, 1]³.
+* **Window space**: ``x_w = (x_ndc + 1)·W/2``, ``y_w = (y_ndc + 1)·H/2`` with y up from the bottom
+  edge (GL's window coordinates), ``depth = 0.5·z_ndc + 0.5`` in [0, 1]. Pixel centres are at
+  half-integers.
+* **Returned images** are ``(H, W, ...)`` arrays with **row 0 at the top**: the pixel whose GL
+  window centre is ``(c + 0.5, y + 0.5)`` is stored at ``[H − 1 − y, c]``.
+
+:func:`perspective`, :func:`frustum` and :func:`orthographic` build the same matrices as
+``gluPerspective``, ``glFrustum`` and ``glOrtho``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._validate import as_float_array, as_real, as_image_size, as_matrix
+
+__all__ = [
+    "look_at", "perspective", "frustum", "orthographic", "viewport", "Camera", "frame_bounds",
+]
+
+
+def look_at(eye, target, up=(0.0, 1.0, 0.0)):
+    """View matrix of a camera at ``eye`` looking at ``target`` (``gluLookAt``).
+
+    Parameters
+    ----------
+    eye, target, up : (3,) float
+        Positions in world space; ``up`` must not be parallel to ``target − eye``.
+
+    Returns
+    -------
+    (4, 4) float64 world → eye matrix.
+    """
+    eye = as_float_array(eye, "eye", shape=(3,))
+    target = as_float_array(target, "target", shape=(3,))
+    up = as_float_array(up, "up", shape=(3,))
+    f = target - eye
+    nf = np.linalg.norm(f)
+    if nf == 0.0:
+        raise ValueError("eye and target must differ")
+    f = f / nf
+    s = np.cross(f, up)
+    ns = np.linalg.norm(s)
+    if ns <= 1e-12 * max(1.0, np.linalg.norm(up)):
+        raise ValueError("up must not be parallel to the viewing direction target − eye")
+    s = s / ns
+    u = np.cross(s, f)
+    m = np.eye(4)
+    m[0, :3] = s
+    m[1, :3] = u
+    m[2, :3] = -f
+    m[:3, 3] = -m[:3, :3] @ eye
+    return m
+
+
+def frustum(left, right, bottom, top, near, far):
+    """Perspective projection of ``glFrustum``; ``0 < near < far``."""
+    l, r = as_real(left, "left"), as_real(right, "right")
+    b, t = as_real(bottom, "bottom"), as_real(top, "top")
+    n = as_real(near, "near", lo=0.0, lo_open=True)
+    f = as_real(far, "far")
+    if not f > n:
+        raise ValueError(f"far must be greater than near, got near={n}, far={f}")
+    if r == l or t == b:
+        raise ValueError("left/right and bottom/top must differ")
+    m = np.zeros((4, 4))
+    m[0, 0] = 2 * n / (r - l)
+    m[0, 2] = (r + l) / (r - l)
+    m[1, 1] = 2 * n / (t - b)
+    m[1, 2] = (t + b) / (t - b)
+    m[2, 2] = -(f + n) / (f - n)
+    m[2, 3] = -2 * f * n / (f - n)
+    m[3, 2] = -1.0
+    return m
+
+
+def perspective(fovy, aspect, near, far):
+    """Perspective projection of ``gluPerspective``; ``fovy`` in **degrees**."""
+    fovy = as_real(fovy, "fovy", lo=0.0, hi=180.0, lo_open=True, hi_open=True)
+    aspect = as_real(aspect, "aspect", lo=0.0, lo_open=True)
+    near = as_real(near, "near", lo=0.0, lo_open=True)
+    far = as_real(far, "far")
+    if not far > near:
+        raise ValueError(f"far must be greater than near, got near={near}, far={far}")
+    f = 1.0 / np.tan(np.radians(fovy) / 2.0)
+    m = np.zeros((4, 4))
+    m[0, 0] = f / aspect
+    m[1, 1] = f
+    m[2, 2] = (far + near) / (near - far)
+    m[2, 3] = 2 * far * near / (near - far)
+    m[3, 2] = -1.0
+    return m
+
+
+def orthographic(left, right, bottom, top, near, far):
+    """Orthographic projection of ``glOrtho``."""
+    l, r = as_real(left, "left"), as_real(right, "right")
+    b, t = as_real(bottom, "bottom"), as_real(top, "top")
+    n, f = as_real(near, "near"), as_real(far, "far")
+    if r == l or t == b or f == n:
+        raise ValueError("orthographic: left/right, bottom/top and near/far must differ")
+    m = np.eye(4)
+    m[0, 0] = 2 / (r - l)
+    m[1, 1] = 2 / (t - b)
+    m[2, 2] = -2 / (f - n)
+    m[0, 3] = -(r + l) / (r - l)
+    m[1, 3] = -(t + b) / (t - b)
+    m[2, 3] = -(f + n) / (f - n)
+    return m
+
+
+def viewport(width, height):
+    """NDC → window matrix (GL window coordinates, y up, depth range [0, 1])."""
+    width, height = as_image_size(width, height)
+    m = np.eye(4)
+    m[0, 0] = m[0, 3] = width / 2.0
+    m[1, 1] = m[1, 3] = height / 2.0
+    m[2, 2] = m[2, 3] = 0.5
+    return m
+
+
+def is_perspective(proj):
+    """True when ``proj`` has a perspective row (its last row is not (0, 0, 0, 1))."""
+    proj = np.asarray(proj)
+    return not (proj[3, 0] == 0 and proj[3, 1] == 0 and proj[3, 2] == 0)
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A view and projection matrix with the viewport size they are meant for."""
+
+    view: np.ndarray
+    proj: np.ndarray
+    width: int
+    height: int
+
+    def __post_init__(self):
+        object.__setattr__(self, "view", as_matrix(self.view, "view"))
+        object.__setattr__(self, "proj", as_matrix(self.proj, "proj"))
+        w, h = as_image_size(self.width, self.height)
+        object.__setattr__(self, "width", w)
+        object.__setattr__(self, "height", h)
+
+    @property
+    def kwargs(self):
+        """``dict(view=..., proj=..., width=..., height=...)`` for :func:`refraster.render`."""
+        return dict(view=self.view, proj=self.proj, width=self.width, height=self.height)
+
+    @property
+    def near_far(self):
+        """(near, far) distances recovered from the projection matrix."""
+        return near_far(self.proj)
+
+
+def near_far(proj):
+    """The near and far plane distances of a GL perspective or orthographic matrix."""
+    p = as_matrix(proj, "proj")
+    a, b = p[2, 2], p[2, 3]
+    if is_perspective(p):
+        return b / (a - 1.0), b / (a + 1.0)
+    return (b + 1.0) / a, (b - 1.0) / a
+
+
+def frame_bounds(bounds, *, width, height, fovy=35.0, direction=(1.0, 0.8, 1.4), up=(0, 1, 0),
+                 margin=1.1):
+    """A camera that frames an axis-aligned box ``bounds = [[xmin,ymin,zmin],[xmax,ymax,zmax]]``.
+
+    The eye looks at the box centre from ``direction`` at a distance where the bounding sphere
+    fits the vertical and horizontal field of view; near and far enclose the sphere.
+    """
+    bounds = as_float_array(bounds, "bounds", shape=(2, 3))
+    width, height = as_image_size(width, height)
+    centre = bounds.mean(axis=0)
+    radius = max(0.5 * float(np.linalg.norm(bounds[1] - bounds[0])), 1e-9) * margin
+    d = as_float_array(direction, "direction", shape=(3,))
+    d = d / np.linalg.norm(d)
+    aspect = width / height
+    half = np.radians(fovy) / 2
+    half_h = np.arctan(np.tan(half) * min(aspect, 1.0))
+    dist = radius / np.sin(half_h)
+    eye = centre + d * dist
+    view = look_at(eye, centre, up)
+    near = max(dist - radius * 1.05, dist * 1e-3)
+    far = dist + radius * 1.05
+    return Camera(view, perspective(fovy, aspect, near, far), width, height)

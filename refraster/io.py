@@ -1,0 +1,74 @@
+"""Atomic file writers: write to a temporary name in the same directory, then rename.
+
+A reader never sees a half-written file, and a failed write leaves the old file untouched.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["atomic_write_bytes", "write_png", "write_npz", "write_json", "to_uint8"]
+
+
+def atomic_write_bytes(path, data: bytes):
+    """Write ``data`` to ``path`` atomically (same-directory temporary file + ``os.replace``)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    return path
+
+
+def to_uint8(image):
+    """Float image in [0, 1] (clipped; NaN → 0) or uint8 → uint8."""
+    a = np.asarray(image)
+    if a.dtype == np.uint8:
+        return a
+    a = np.nan_to_num(a.astype(np.float64), nan=0.0, posinf=1.0, neginf=0.0)
+    return (np.clip(a, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+
+
+def write_png(path, image):
+    """Write an ``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)`` image (float in [0, 1], uint8 or
+    uint16) as PNG, atomically. Row 0 is the top of the picture."""
+    import imageio.v3 as iio
+    a = np.asarray(image)
+    if a.dtype != np.uint16:
+        a = to_uint8(a)
+    buf = io.BytesIO()
+    iio.imwrite(buf, np.ascontiguousarray(a), extension=".png")
+    return atomic_write_bytes(path, buf.getvalue())
+
+
+def write_npz(path, **arrays):
+    """Write arrays to a compressed ``.npz`` atomically (never object arrays: loadable without
+    pickle)."""
+    for k, v in arrays.items():
+        if np.asarray(v).dtype == object:
+            raise TypeError(f"array {k!r} has dtype object and cannot be stored without pickle")
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **{k: np.asarray(v) for k, v in arrays.items()})
+    return atomic_write_bytes(path, buf.getvalue())
+
+
+def write_json(path, obj):
+    """Write JSON (sorted keys, 2-space indent, trailing newline) atomically."""
+    text = json.dumps(obj, indent=2, sort_keys=True) + "\n"
+    return atomic_write_bytes(path, text.encode("utf-8"))

@@ -1,0 +1,103 @@
+"""Mesh arrays and trimesh interop.
+
+A mesh is given either as a ``(vertices, faces)`` pair — ``vertices (V, 3)`` float,
+``faces (F, 3)`` int — or as a :class:`trimesh.Trimesh`. :func:`as_mesh` turns both into a
+validated :class:`Mesh`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._validate import as_float_array, as_index_array
+
+__all__ = ["Mesh", "as_mesh", "as_meshes", "face_normals", "vertex_normals"]
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """Validated triangle mesh: ``vertices (V, 3) float64``, ``faces (F, 3) int64``."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    vertex_normals: np.ndarray | None = field(default=None)
+
+    @property
+    def n_faces(self):
+        return int(self.faces.shape[0])
+
+    @property
+    def n_vertices(self):
+        return int(self.vertices.shape[0])
+
+    def to_trimesh(self):
+        import trimesh
+        return trimesh.Trimesh(self.vertices, self.faces, process=False)
+
+
+def as_mesh(mesh, name="mesh"):
+    """Validate one mesh (``(vertices, faces)``, a :class:`Mesh` or a ``trimesh.Trimesh``)."""
+    if isinstance(mesh, Mesh):
+        return mesh
+    normals = None
+    if hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
+        vertices, faces = mesh.vertices, mesh.faces
+    elif isinstance(mesh, (tuple, list)) and len(mesh) in (2, 3):
+        vertices, faces = mesh[0], mesh[1]
+        if len(mesh) == 3:
+            normals = mesh[2]
+    else:
+        raise TypeError(
+            f"{name} must be a (vertices, faces) pair or a trimesh.Trimesh, "
+            f"got {type(mesh).__name__}")
+    v = as_float_array(vertices, f"{name}.vertices", shape=(None, 3))
+    f = np.asarray(faces)
+    if f.size == 0:
+        f = np.zeros((0, 3), np.int64)
+    f = as_index_array(f, f"{name}.faces", shape=(None, 3), upper=len(v))
+    if normals is not None:
+        normals = as_float_array(normals, f"{name}.normals", shape=(len(v), 3))
+    return Mesh(v, f, normals)
+
+
+def as_meshes(meshes, name="meshes"):
+    """One mesh or a sequence of meshes (draw calls, drawn in order) → list of :class:`Mesh`."""
+    if isinstance(meshes, Mesh) or hasattr(meshes, "faces"):
+        return [as_mesh(meshes, name)]
+    if isinstance(meshes, tuple) and len(meshes) in (2, 3) and not _looks_like_mesh(meshes[0]):
+        return [as_mesh(meshes, name)]
+    if isinstance(meshes, (list, tuple)):
+        return [as_mesh(m, f"{name}[{i}]") for i, m in enumerate(meshes)]
+    raise TypeError(f"{name} must be a mesh or a sequence of meshes, got {type(meshes).__name__}")
+
+
+def _looks_like_mesh(x):
+    return isinstance(x, Mesh) or hasattr(x, "faces") or (
+        isinstance(x, (tuple, list)) and len(x) in (2, 3)
+        and np.asarray(x[0], dtype=object).ndim >= 1 and np.ndim(x[0]) == 2)
+
+
+def face_normals(vertices, faces):
+    """Unit face normals ``(F, 3)`` from the right-hand rule (CCW = front); 0 for degenerate faces."""
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces, np.int64)
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n = np.where(length > 0, n / np.where(length > 0, length, 1.0), 0.0)
+    return n
+
+
+def vertex_normals(vertices, faces):
+    """Area-weighted vertex normals ``(V, 3)`` (unit; 0 for isolated vertices)."""
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces, np.int64)
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    acc = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(acc, f[:, k], n)
+    length = np.linalg.norm(acc, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(length > 0, acc / np.where(length > 0, length, 1.0), 0.0)

@@ -1,0 +1,164 @@
+"""Vertex and primitive stages, the rasterizer, the fragment stream and the resolve.
+
+Public entry points: :func:`draw` (meshes → fragments), :func:`rasterize` (clip-space
+positions → fragments), :func:`resolve` (fragments → visible fragment per pixel).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._validate import as_choice, as_float_array, as_image_size, as_index_array, as_matrix
+from ..mesh import as_meshes
+from .fragments import Fragments, concat
+from .primitive import CULL, FILL_RULES, setup_triangles, transform_vertices
+from .rasterizer import DEPTH_FUNCS, fused, stream
+from .resolve import Resolved, resolve
+
+__all__ = ["draw", "rasterize", "resolve", "Fragments", "Resolved", "concat", "DEPTH_FUNCS",
+           "prepare"]
+
+PRECISIONS = {"float32": "float32", "float64": "float64"}
+
+
+def _subpixel_bits(bits):
+    if isinstance(bits, bool) or not isinstance(bits, (int, np.integer)):
+        raise TypeError(f"subpixel_bits must be an int, got {type(bits).__name__}")
+    if int(bits) not in (4, 8):
+        raise ValueError(f"subpixel_bits must be 4 or 8, got {bits}")
+    return int(bits)
+
+
+def _models(model, n):
+    if model is None:
+        return [np.eye(4)] * n
+    arr = np.asarray(model, dtype=object if isinstance(model, (list, tuple)) else None)
+    if isinstance(model, (list, tuple)) and len(model) == n and n and np.ndim(model[0]) == 2:
+        return [as_matrix(m, f"model[{i}]") for i, m in enumerate(model)]
+    if arr.shape == (4, 4) or np.shape(model) == (4, 4):
+        m = as_matrix(model, "model")
+        return [m] * n
+    raise ValueError(f"model must be a 4×4 matrix or a list of {n} such matrices")
+
+
+class Prepared:
+    """Validated draw calls after the vertex and primitive stages."""
+
+    __slots__ = ("meshes", "models", "view", "proj", "width", "height", "triangles",
+                 "face_offsets", "fill_rule")
+
+    def split(self, prim_global):
+        """(object_id, prim_id) of global primitive indices (draw-call order)."""
+        obj = np.searchsorted(self.face_offsets[1:], prim_global, side="right")
+        return obj.astype(np.int32), (prim_global - self.face_offsets[obj]).astype(np.int32)
+
+
+def prepare(meshes, *, view, proj, width, height, model=None, cull="none", precision="float32",
+            subpixel_bits=8, fill_rule="llvmpipe"):
+    """Validate draw calls and run the vertex and primitive stages (shared by draw and render)."""
+    meshes = as_meshes(meshes)
+    view = as_matrix(view, "view")
+    proj = as_matrix(proj, "proj")
+    width, height = as_image_size(width, height)
+    cull_code = as_choice(cull, "cull", CULL)
+    prec = as_choice(precision, "precision", PRECISIONS)
+    bits = _subpixel_bits(subpixel_bits)
+    rule = as_choice(fill_rule, "fill_rule", FILL_RULES)
+    models = _models(model, len(meshes))
+    clips, faces, offsets = [], [], [0]
+    vbase = 0
+    for m, mm in zip(meshes, models):
+        mvp = proj @ view @ mm
+        if not np.all(np.isfinite(mvp)):
+            raise ValueError("proj @ view @ model overflows to non-finite values")
+        clips.append(transform_vertices(m.vertices, mvp, prec).astype(np.float64))
+        faces.append(m.faces + vbase)
+        vbase += m.n_vertices
+        offsets.append(offsets[-1] + m.n_faces)
+    clip = np.concatenate(clips) if clips else np.zeros((0, 4))
+    face = np.concatenate(faces) if faces else np.zeros((0, 3), np.int64)
+    p = Prepared()
+    p.meshes, p.models, p.view, p.proj = meshes, models, view, proj
+    p.width, p.height, p.fill_rule = width, height, rule
+    p.face_offsets = np.asarray(offsets, np.int64)
+    p.triangles = setup_triangles(clip, face, width, height, cull=cull_code, subpixel_bits=bits)
+    return p
+
+
+def _fragments_from(prep, pixel, depth, tri, bary):
+    st = prep.triangles
+    prim_global = st.prim[tri]
+    obj, prim = prep.split(prim_global)
+    return Fragments(pixel, depth, prim, obj, bary, st.front[tri], prep.width, prep.height,
+                     meshes=prep.meshes, models=prep.models, view=prep.view, proj=prep.proj)
+
+
+def draw(meshes, *, view, proj, width, height, model=None, cull="none", precision="float32",
+         subpixel_bits=8, fill_rule="llvmpipe"):
+    """Draw meshes (one or a sequence of draw calls, in order) into a fragment stream.
+
+    Parameters
+    ----------
+    meshes : mesh or sequence of meshes
+        ``(vertices (V, 3), faces (F, 3))`` pairs or ``trimesh.Trimesh`` objects.
+    view, proj : (4, 4) float
+        World → eye and eye → clip matrices (OpenGL conventions, :mod:`refraster.camera`).
+    width, height : int
+        Viewport size in pixels.
+    model : (4, 4) float or list of them, optional
+        Object → world matrix, one for all meshes or one per mesh.
+    cull : {"none", "back", "front"}
+        Face culling; front faces are counter-clockwise as the picture is seen.
+    precision : {"float32", "float64"}
+        Vertex-stage arithmetic (float32 as a GPU's vertex shader by default).
+    subpixel_bits : {8, 4}
+        Fixed-point snapping of window positions.
+    fill_rule : {"llvmpipe", "bottom-left", "top-left"}
+        Which triangle owns a pixel centre exactly on a shared edge.
+
+    Returns
+    -------
+    Fragments
+        With ``meshes``, ``models``, ``view`` and ``proj`` attached, so ``interpolate`` and
+        ``world_position`` work.
+    """
+    prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
+                   cull=cull, precision=precision, subpixel_bits=subpixel_bits,
+                   fill_rule=fill_rule)
+    pixel, depth, tri, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
+    return _fragments_from(prep, pixel, depth, tri, bary)
+
+
+def rasterize(clip_positions, faces, width, height, *, cull="none", subpixel_bits=8,
+              fill_rule="llvmpipe"):
+    """Rasterize triangles given in clip space into a fragment stream.
+
+    Parameters
+    ----------
+    clip_positions : (V, 4) float
+        Homogeneous clip coordinates (as ``gl_Position``); float32 values are used exactly.
+    faces : (F, 3) int
+        Vertex indices; the primitive id of a fragment is its face's row.
+    width, height : int
+    cull, subpixel_bits, fill_rule
+        As in :func:`draw`.
+
+    Returns
+    -------
+    Fragments
+        ``object_id`` is 0; no meshes are attached.
+    """
+    c = as_float_array(clip_positions, "clip_positions", shape=(None, 4))
+    f = np.asarray(faces)
+    if f.size == 0:
+        f = np.zeros((0, 3), np.int64)
+    f = as_index_array(f, "faces", shape=(None, 3), upper=len(c))
+    width, height = as_image_size(width, height)
+    cull_code = as_choice(cull, "cull", CULL)
+    bits = _subpixel_bits(subpixel_bits)
+    rule = as_choice(fill_rule, "fill_rule", FILL_RULES)
+    st = setup_triangles(c, f, width, height, cull=cull_code, subpixel_bits=bits)
+    pixel, depth, tri, bary, _ = stream(st, fill_rule=rule)
+    prim = st.prim[tri].astype(np.int32)
+    return Fragments(pixel, depth, prim, np.zeros(len(prim), np.int32), bary, st.front[tri],
+                     width, height)

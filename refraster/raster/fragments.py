@@ -1,0 +1,177 @@
+"""The fragment stream: what the rasterizer emits and every fragment stage consumes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["Fragments", "concat"]
+
+_FIELDS = ("pixel", "depth", "prim_id", "object_id", "bary", "front_facing")
+
+
+class Fragments:
+    """A stream of ``N`` fragments as a struct of arrays.
+
+    Attributes
+    ----------
+    pixel : (N,) int64
+        Flat index into an ``(H, W)`` image, row-major, row 0 at the top.
+    depth : (N,) float32
+        Window depth in [0, 1], linear in screen space.
+    prim_id : (N,) int32
+        Face index within its mesh.
+    object_id : (N,) int32
+        Draw-call index (0 for :func:`refraster.rasterize`).
+    bary : (N, 3) float32
+        Perspective-correct barycentrics in the original face (clipped pieces included).
+    front_facing : (N,) bool
+        Counter-clockwise in window space, as the picture is seen.
+    width, height : int
+    meshes : list of Mesh or None
+        The meshes drawn (set by :func:`refraster.draw`), for :meth:`interpolate`.
+    models, view, proj : model matrices per mesh, view and projection (set by ``draw``).
+
+    Within each pixel, fragments appear in draw order (draw call, then primitive index), which
+    is the order :func:`refraster.resolve` needs. Across pixels the order is by tile, then
+    primitive, then row and column, and is a documented implementation detail.
+    """
+
+    def __init__(self, pixel, depth, prim_id, object_id, bary, front_facing, width, height,
+                 meshes=None, models=None, view=None, proj=None):
+        self.pixel = pixel
+        self.depth = depth
+        self.prim_id = prim_id
+        self.object_id = object_id
+        self.bary = bary
+        self.front_facing = front_facing
+        self.width = int(width)
+        self.height = int(height)
+        self.meshes = meshes
+        self.models = models
+        self.view = view
+        self.proj = proj
+
+    def __len__(self):
+        return int(self.pixel.shape[0])
+
+    def __repr__(self):
+        return f"Fragments(n={len(self)}, width={self.width}, height={self.height})"
+
+    @property
+    def row(self):
+        return self.pixel // self.width
+
+    @property
+    def col(self):
+        return self.pixel % self.width
+
+    def _like(self, **arrays):
+        return Fragments(**arrays, width=self.width, height=self.height, meshes=self.meshes,
+                         models=self.models, view=self.view, proj=self.proj)
+
+    def select(self, mask):
+        """The sub-stream where ``mask`` (bool ``(N,)``, or an index array) holds; order kept."""
+        mask = np.asarray(mask)
+        if mask.dtype == np.bool_ and mask.shape != (len(self),):
+            raise ValueError(f"mask must have shape ({len(self)},), got {mask.shape}")
+        return self._like(**{f: getattr(self, f)[mask] for f in _FIELDS})
+
+    def interpolate(self, attr):
+        """Interpolate per-vertex attributes with the perspective-correct barycentrics.
+
+        ``attr`` is one ``(V, C)`` or ``(V,)`` array (one mesh) or a list with one per mesh.
+        Returns ``(N, C)`` (or ``(N,)``) float64.
+        """
+        if self.meshes is None:
+            raise ValueError("these fragments carry no meshes; produce them with refraster.draw")
+        return _interpolate(self.meshes, attr, self.object_id, self.prim_id,
+                            self.bary.astype(np.float64))
+
+    def world_position(self):
+        """World-space position of every fragment, ``(N, 3)`` float64 (model matrices applied)."""
+        return self._position(space="world")
+
+    def eye_position(self):
+        """Eye-space position of every fragment, ``(N, 3)`` float64."""
+        return self._position(space="eye")
+
+    def object_position(self):
+        """Object-space position (the mesh's own coordinates), ``(N, 3)`` float64."""
+        return self._position(space="object")
+
+    def _position(self, space):
+        if self.meshes is None:
+            raise ValueError("these fragments carry no meshes; produce them with refraster.draw")
+        attrs = []
+        for k, m in enumerate(self.meshes):
+            v = m.vertices
+            if space != "object":
+                mat = self.models[k] if space == "world" else self.view @ self.models[k]
+                v = v @ mat[:3, :3].T + mat[:3, 3]
+            attrs.append(v)
+        return _interpolate(self.meshes, attrs, self.object_id, self.prim_id,
+                            self.bary.astype(np.float64))
+
+
+def _interpolate(meshes, attr, object_id, prim_id, bary):
+    if not isinstance(attr, (list, tuple)):
+        if len(meshes) != 1:
+            raise ValueError(f"attr must be a list with one array per mesh ({len(meshes)} meshes)")
+        attr = [attr]
+    if len(attr) != len(meshes):
+        raise ValueError(f"attr has {len(attr)} arrays for {len(meshes)} meshes")
+    arrays = []
+    for k, (a, m) in enumerate(zip(attr, meshes)):
+        a = np.asarray(a, np.float64)
+        if a.shape[0] != m.n_vertices or a.ndim not in (1, 2):
+            raise ValueError(f"attr[{k}] must have shape ({m.n_vertices}, C), got {a.shape}")
+        arrays.append(a)
+    scalar = arrays[0].ndim == 1
+    if any((a.ndim == 1) != scalar for a in arrays):
+        raise ValueError("attr arrays must all be (V,) or all be (V, C)")
+    arrays = [a[:, None] if scalar else a for a in arrays]
+    c = arrays[0].shape[1]
+    if any(a.shape[1] != c for a in arrays):
+        raise ValueError("attr arrays must have the same number of components")
+    out = np.zeros((len(prim_id), c))
+    for k, (a, m) in enumerate(zip(arrays, meshes)):
+        sel = np.flatnonzero(object_id == k)
+        if sel.size == 0:
+            continue
+        tri = m.faces[prim_id[sel]]
+        b = bary[sel]
+        out[sel] = (b[:, 0:1] * a[tri[:, 0]] + b[:, 1:2] * a[tri[:, 1]]) + b[:, 2:3] * a[tri[:, 2]]
+    return out[:, 0] if scalar else out
+
+
+def concat(streams):
+    """Concatenate fragment streams drawn one after another (the result keeps draw order).
+
+    All streams must have the same size; mesh lists are concatenated and object ids offset so
+    they stay unique when the streams carry meshes.
+    """
+    streams = list(streams)
+    if not streams:
+        raise ValueError("streams must not be empty")
+    w, h = streams[0].width, streams[0].height
+    for s in streams:
+        if (s.width, s.height) != (w, h):
+            raise ValueError("all streams must have the same width and height")
+    have = all(s.meshes is not None for s in streams)
+    arrays = {f: [] for f in _FIELDS}
+    meshes, models = [], []
+    offset = 0
+    for s in streams:
+        for f in _FIELDS:
+            a = getattr(s, f)
+            if f == "object_id" and have:
+                a = a + np.int32(offset)
+            arrays[f].append(a)
+        if have:
+            meshes += list(s.meshes)
+            models += list(s.models)
+            offset += len(s.meshes)
+    out = {f: np.concatenate(v) for f, v in arrays.items()}
+    first = streams[0]
+    return Fragments(**out, width=w, height=h, meshes=meshes if have else None,
+                     models=models if have else None, view=first.view, proj=first.proj)
