@@ -11,8 +11,12 @@ The primitive stage turns each face into zero or more *screen triangles*:
    plane ``z ≤ w``, ``w ≥ W_EPS`` and a guard band ``|x|, |y| ≤ g·w`` that keeps window
    coordinates within ``GUARD_PIXELS`` of the viewport centre, so that fixed-point edge functions
    cannot overflow int64 however far away a vertex is (1e30 included). An intersection point is
-   always computed from the inside endpoint towards the outside one, so the two triangles sharing
-   an edge get bit-identical new vertices. Every output vertex carries its barycentric
+   computed from the edge's endpoint nearer the plane (a property of the edge, so the two
+   triangles sharing an edge get bit-identical new vertices), and the coordinate the plane
+   constrains is then set exactly onto the plane. The remaining coordinates carry float64
+   rounding at the scale of the larger of the new point and the near endpoint: an edge whose
+   both endpoints lie ~1e30 away is placed only to ~1e14 (as on any float GPU, or worse).
+   Every output vertex carries its barycentric
    coordinates **in the original triangle**, so pieces keep the original primitive id and
    barycentrics;
 3. perspective divide and viewport transform in float32 (``x·(1/w)·W/2 + W/2``, as Mesa's draw
@@ -108,6 +112,26 @@ def _outcode(x, y, z, w, gx, gy):
 
 
 @njit(**JIT)
+def _onto_plane(k, p, m, gx, gy):
+    # the new vertex lies on plane k exactly: set the coordinate the plane constrains
+    w = p[m, 3]
+    if k == 0:
+        p[m, 2] = -w
+    elif k == 1:
+        p[m, 2] = w
+    elif k == 2:
+        p[m, 3] = W_EPS
+    elif k == 3:
+        p[m, 0] = gx * w
+    elif k == 4:
+        p[m, 0] = -gx * w
+    elif k == 5:
+        p[m, 1] = gy * w
+    else:
+        p[m, 1] = -gy * w
+
+
+@njit(**JIT)
 def _clip_polygon(poly, tmp, n, planes, gx, gy):
     """Clip the polygon ``poly[:n]`` against every plane whose bit is set in ``planes``."""
     for k in range(7):
@@ -123,14 +147,19 @@ def _clip_polygon(poly, tmp, n, planes, gx, gy):
                     tmp[m, c] = poly[i, c]
                 m += 1
             if (di >= 0.0) != (dj >= 0.0):
-                # always interpolate from the inside endpoint: shared edges clip identically
-                if di >= 0.0:
+                # Interpolate from the endpoint nearer the plane (ties: the inside one), a
+                # property of the edge, not of the triangle: both triangles sharing an edge get
+                # the same bits. Starting from the near end keeps the error at the scale of the
+                # new point rather than of a far-away (1e30) endpoint.
+                ai, aj = abs(di), abs(dj)
+                if ai < aj or (ai == aj and di >= 0.0):
                     a, b, da, db = i, j, di, dj
                 else:
                     a, b, da, db = j, i, dj, di
                 t = da / (da - db)
                 for c in range(7):
                     tmp[m, c] = poly[a, c] + t * (poly[b, c] - poly[a, c])
+                _onto_plane(k, tmp, m, gx, gy)
                 m += 1
         n = m
         for i in range(n):

@@ -1,0 +1,92 @@
+"""Slow, obvious reference versions of refraster's kernels, for bit-for-bit comparisons.
+
+Written from the documented rules, not from the kernels: plain Python integers for the edge
+functions, NumPy scalars for the float formulas.
+"""
+
+import numpy as np
+
+
+def vertex_stage32(vertices, mvp):
+    """clip = ((m0·x + m1·y) + m2·z) + m3 in float32."""
+    m = mvp.astype(np.float32)
+    v = vertices.astype(np.float32)
+    out = np.zeros((len(v), 4), np.float32)
+    for r in range(4):
+        out[:, r] = ((m[r, 0] * v[:, 0] + m[r, 1] * v[:, 1]) + m[r, 2] * v[:, 2]) + m[r, 3]
+    return out
+
+
+def window_fixed(clip_row, width, height, bits):
+    """Snapped fixed-point window position and float32 depth of one clip-space vertex."""
+    x, y, z, w = (np.float32(c) for c in clip_row)
+    rw = np.float32(1.0) / w
+    hw, hh, half = np.float32(width / 2), np.float32(height / 2), np.float32(0.5)
+    xw = x * rw * hw + hw
+    yw = y * rw * hh + hh
+    zw = z * rw * half + half
+    s = np.float32(1 << bits)
+    return int(np.rint((xw - half) * s)), int(np.rint((yw - half) * s)), float(zw), 1.0 / float(w)
+
+
+def raster_unclipped(clip, faces, width, height, bits=8, rule="bottom-left", cull="none"):
+    """Fragments of faces that need no clipping: list of
+    (face, row, col, depth float32, bary float32[3], front)."""
+    frags = []
+    one = 1 << bits
+    for fi, f in enumerate(faces):
+        verts = [window_fixed(clip[i], width, height, bits) for i in f]
+        X = [v[0] for v in verts]
+        Y = [v[1] for v in verts]
+        area = (X[1] - X[0]) * (Y[2] - Y[0]) - (X[2] - X[0]) * (Y[1] - Y[0])
+        if area == 0:
+            continue
+        front = area > 0
+        if (cull == "back" and not front) or (cull == "front" and front):
+            continue
+        order = [0, 1, 2] if front else [0, 2, 1]
+        X = [X[k] for k in order]
+        Y = [Y[k] for k in order]
+        Z = [verts[k][2] for k in order]
+        IW = [verts[k][3] for k in order]
+        B = np.eye(3)[order]
+        area = abs(area)
+        for py in range(height):
+            for px in range(width):
+                cx, cy = px * one, py * one
+                es = []
+                inside = True
+                for k in range(3):
+                    a, b = (k + 1) % 3, (k + 2) % 3
+                    dx, dy = X[b] - X[a], Y[b] - Y[a]
+                    e = dx * (cy - Y[a]) - dy * (cx - X[a])
+                    if rule == "bottom-left":
+                        owns = dy < 0 or (dy == 0 and dx > 0)
+                    else:
+                        owns = dy < 0 or (dy == 0 and dx < 0)
+                    if e < 0 or (e == 0 and not owns):
+                        inside = False
+                    es.append(e)
+                if not inside:
+                    continue
+                inv_area = 1.0 / float(area)
+                lam = [float(e) * inv_area for e in es]
+                z = lam[0] * Z[0] + lam[1] * Z[1] + lam[2] * Z[2]
+                z = np.float32(min(max(z, 0.0), 1.0))
+                q = [float(e) * iw for e, iw in zip(es, IW)]
+                s = q[0] + q[1] + q[2]
+                bary = np.array([(q[0] * B[0, j] + q[1] * B[1, j] + q[2] * B[2, j]) / s
+                                 for j in range(3)], np.float32)
+                frags.append((fi, height - 1 - py, px, z, bary, front))
+    return frags
+
+
+def resolve_less(frags_sorted, width, height):
+    """Depth test LESS in the given order: (H, W) face index and depth."""
+    depth = np.ones((height, width), np.float32)
+    face = np.full((height, width), -1)
+    for fi, row, col, z, _, _ in frags_sorted:
+        if z < depth[row, col]:
+            depth[row, col] = z
+            face[row, col] = fi
+    return face, depth

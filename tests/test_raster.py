@@ -1,0 +1,356 @@
+"""The foundation: vertex/primitive stages, rasterizer, fragment stream, resolve, G-buffer."""
+
+import hashlib
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+from hypothesis import given, settings, strategies as st
+
+import refraster as rf
+from refraster.raster.primitive import setup_triangles, transform_vertices
+from refraster.raster.rasterizer import DEPTH_FUNCS, fused, stream
+
+import naive
+
+VIEW = rf.look_at([0.3, 0.4, 3.0], [0, 0, 0])
+PROJ = rf.perspective(50, 4 / 3, 0.5, 10.0)
+
+
+def _random_soup(rng, n, spread=1.0):
+    v = rng.uniform(-spread, spread, (3 * n, 3))
+    return v, np.arange(3 * n).reshape(n, 3)
+
+
+# ---------------------------------------------------------------- NumPy twin, bit for bit
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("rule", ["bottom-left", "top-left"])
+def test_stream_matches_naive_twin(seed, rule):
+    rng = np.random.default_rng(seed)
+    v, f = _random_soup(rng, 12, 0.9)
+    # snap some vertices to pixel centres so the fill rule's ties are exercised
+    w, h = 24, 20
+    mvp = PROJ @ VIEW
+    clip = transform_vertices(v, mvp)
+    frags = rf.rasterize(clip, f, w, h, fill_rule=rule)
+    ref = naive.raster_unclipped(clip, f, w, h, rule=rule)
+    got = sorted(zip(frags.prim_id.tolist(), frags.row.tolist(), frags.col.tolist(),
+                     frags.depth.tolist(), map(tuple, frags.bary.tolist()),
+                     frags.front_facing.tolist()))
+    want = sorted((a, b, c, float(d), tuple(e.tolist()), bool(g)) for a, b, c, d, e, g in ref)
+    assert got == want
+
+
+def test_vertex_stage_matches_twin():
+    rng = np.random.default_rng(1)
+    v = rng.normal(size=(500, 3)) * 10
+    mvp = PROJ @ VIEW
+    assert transform_vertices(v, mvp).tobytes() == naive.vertex_stage32(v, mvp).tobytes()
+
+
+def test_fill_rule_on_shared_pixel_centres():
+    # two triangles sharing a diagonal that passes exactly through pixel centres:
+    # each centre on it is drawn exactly once
+    w = h = 8
+    # window coords: a square (0,0)-(8,8); the diagonal passes through (k+.5, k+.5)
+    def ndc(x, y):
+        return [2 * x / w - 1, 2 * y / h - 1, 0.0, 1.0]
+    clip = np.array([ndc(0.5, 0.5), ndc(7.5, 0.5), ndc(7.5, 7.5), ndc(0.5, 7.5)], np.float32)
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    fr = rf.rasterize(clip, faces, w, h)
+    counts = np.bincount(fr.pixel, minlength=w * h)
+    assert counts.max() == 1
+    # pixel centres on the diagonal belong to the upper-left triangle (the diagonal is its
+    # ... bottom-right edge? no: for face 1 (0,2,3) the diagonal runs 0->2 upward = right edge;
+    # for face 0 it is the edge 2->0 going down = left edge) -> face 0 owns them
+    diag = [(h - 1 - k) * w + k for k in range(1, 7)]
+    owner = {p: pr for p, pr in zip(fr.pixel.tolist(), fr.prim_id.tolist())}
+    assert all(owner[p] == 0 for p in diag)
+    # bottom edge y=0.5 (row 7 from top) owned by face 0, left edge x=0.5 by face 1
+    assert owner[(h - 1) * w + 3] == 0
+    assert owner[3 * w + 0] == 1
+    # top edge y=7.5 and right edge x=7.5 are not owned
+    assert 0 * w + 3 not in owner or owner.get(0 * w + 3) is None
+    assert (3 * w + 7) not in owner
+
+
+# ---------------------------------------------------------------- fused path == stream + resolve
+
+@pytest.mark.parametrize("func", sorted(DEPTH_FUNCS))
+def test_fused_equals_stream_and_resolve(func):
+    rng = np.random.default_rng(7)
+    v, f = _random_soup(rng, 60, 1.5)
+    clear = 0.0 if func in ("greater", "gequal") else 1.0
+    prep = rf.raster.prepare((v, f), view=VIEW, proj=PROJ, width=40, height=30)
+    depth, tri, bary = fused(prep.triangles, depth_func=DEPTH_FUNCS[func], clear_depth=clear)
+    pixel, fd, ftri, fbary, _ = stream(prep.triangles)
+    frags = rf.Fragments(pixel, fd, ftri, np.zeros_like(ftri), fbary, np.zeros(len(ftri), bool),
+                         40, 30)
+    res = rf.resolve(frags, depth_func=func, clear_depth=clear)
+    assert res.depth.tobytes() == depth.tobytes()
+    win_tri = np.where(res.winner >= 0, ftri[res.winner], -1)
+    assert np.array_equal(win_tri, tri)
+    m = res.winner.ravel() >= 0
+    assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes()
+
+
+def test_render_paths_agree():
+    m = trimesh.creation.torus(1.0, 0.35)
+    kw = dict(view=VIEW, proj=PROJ, width=64, height=48)
+    a = rf.render(m, **kw)
+    b = rf.render(m, fragment_stage=lambda fr: np.ones(len(fr), bool), **kw)
+    for k, x in a.arrays().items():
+        assert x.tobytes() == b.arrays()[k].tobytes(), k
+
+
+# ---------------------------------------------------------------- resolve semantics
+
+def test_draw_order_ties():
+    quad = (np.array([[-3, -3, 0], [3, -3, 0], [3, 3, 0], [-3, 3, 0]], float),
+            np.array([[0, 1, 2], [0, 2, 3]]))
+    view = rf.look_at([0, 0, 2], [0, 0, 0])
+    kw = dict(view=view, proj=PROJ, width=16, height=12)
+    a = rf.render([quad, quad], depth_func="less", **kw)
+    assert set(np.unique(a.object_id)) == {0}
+    b = rf.render([quad, quad], depth_func="lequal", **kw)
+    assert set(np.unique(b.object_id)) == {1}
+    fr = rf.draw([quad, quad], **kw)
+    r = rf.resolve(fr, depth_func="less", keep=fr.object_id == 1)
+    assert set(fr.object_id[r.winner[r.winner >= 0]]) == {1}
+    r = rf.resolve(fr, depth_func="always", depth_write=False)
+    assert set(fr.object_id[r.winner[r.winner >= 0]]) == {1}
+    assert np.all(r.depth == 1.0)
+    r = rf.resolve(fr, depth_func="never")
+    assert np.all(r.winner == -1)
+
+
+def test_closer_object_wins_regardless_of_order():
+    s1 = trimesh.creation.icosphere(2, radius=0.5)
+    s2 = trimesh.creation.icosphere(2, radius=0.5)
+    s2.apply_translation([0, 0, -1.5])
+    kw = dict(view=rf.look_at([0, 0, 3], [0, 0, 0]), proj=PROJ, width=32, height=24)
+    a = rf.render([s1, s2], **kw)
+    b = rf.render([s2, s1], **kw)
+    assert np.array_equal(a.depth, b.depth)
+    assert np.all(a.object_id[a.mask] == 0) and np.all(b.object_id[b.mask] == 1)
+
+
+# ---------------------------------------------------------------- watertightness
+
+@st.composite
+def closed_meshes(draw):
+    kind = draw(st.sampled_from(["sphere", "box", "torus", "capsule"]))
+    seed = draw(st.integers(0, 2**31 - 1))
+    rng = np.random.default_rng(seed)
+    if kind == "sphere":
+        m = trimesh.creation.icosphere(int(rng.integers(0, 3)), radius=rng.uniform(0.3, 1.0))
+    elif kind == "box":
+        m = trimesh.creation.box(rng.uniform(0.2, 1.5, 3))
+    elif kind == "torus":
+        m = trimesh.creation.torus(0.7, rng.uniform(0.1, 0.3), major_sections=int(rng.integers(6, 24)),
+                                   minor_sections=int(rng.integers(4, 12)))
+    else:
+        m = trimesh.creation.capsule(rng.uniform(0.2, 1.0), rng.uniform(0.1, 0.5))
+    rot = trimesh.transformations.random_rotation_matrix(rng.uniform(size=3))
+    m.apply_transform(rot)
+    eye = rng.normal(size=3)
+    eye = eye / np.linalg.norm(eye) * rng.uniform(3.0, 6.0)
+    w, h = int(rng.integers(8, 70)), int(rng.integers(8, 70))
+    persp = bool(rng.integers(0, 2))
+    proj = rf.perspective(rng.uniform(30, 70), w / h, 0.5, 20) if persp else \
+        rf.orthographic(-1.3, 1.3, -1.3, 1.3, 0.5, 20)
+    up = [0, 1, 0] if abs(eye[1]) < 0.99 * np.linalg.norm(eye) else [1, 0, 0]
+    return kind, m, rf.look_at(eye, [0, 0, 0], up), proj, w, h
+
+
+@settings(max_examples=40, deadline=None)
+@given(closed_meshes())
+def test_watertight_closed_meshes(case):
+    kind, m, view, proj, w, h = case
+    fr = rf.draw(m, view=view, proj=proj, width=w, height=h)
+    front = np.bincount(fr.pixel[fr.front_facing], minlength=w * h)
+    back = np.bincount(fr.pixel[~fr.front_facing], minlength=w * h)
+    assert np.array_equal(front, back)
+    if kind in ("sphere", "box"):
+        assert front.max(initial=0) <= 1
+
+
+# ---------------------------------------------------------------- clipping
+
+def test_near_plane_crossing_keeps_original_barycentrics():
+    # a big floor crossing the near plane under a perspective camera
+    floor = (np.array([[-5, -1, -8], [5, -1, -8], [5, -1, 4], [-5, -1, 4]], float),
+             np.array([[0, 1, 2], [0, 2, 3]]))
+    view = np.eye(4)
+    proj = rf.perspective(60, 1.0, 0.5, 20)
+    fr = rf.draw(floor, view=view, proj=proj, width=40, height=40)
+    assert len(fr) > 0 and fr.bary.min() >= -1e-6
+    p = fr.eye_position()
+    assert np.all(-p[:, 2] >= 0.5 - 1e-4)       # nothing in front of the near plane
+    # re-project each fragment's eye position: it must land on its pixel centre
+    c = np.c_[p, np.ones(len(p))] @ proj.T
+    xw = (c[:, 0] / c[:, 3] + 1) * 20
+    yw = (c[:, 1] / c[:, 3] + 1) * 20
+    assert np.abs(xw - (fr.col + 0.5)).max() < 2e-3
+    assert np.abs(yw - (40 - fr.row - 0.5)).max() < 2e-3
+    zw = 0.5 * c[:, 2] / c[:, 3] + 0.5
+    assert np.abs(zw - fr.depth).max() < 2e-5
+
+
+@pytest.mark.parametrize("far", [1e6, 1e30])
+def test_huge_triangles(far):
+    # one triangle covering the whole viewport with vertices far away, and a half-plane
+    w, h = 20, 16
+    clip = np.array([[-far, -far, 0, 1], [far, -far, 0, 1], [0, far, 0, 1]], np.float32)
+    fr = rf.rasterize(clip, [[0, 1, 2]], w, h)
+    assert np.array_equal(np.sort(fr.pixel), np.arange(w * h))
+    half = np.array([[-far, -far, 0, 1], [0.0, -far, 0, 1], [0.0, far, 0, 1]], np.float32)
+    fr = rf.rasterize(half, [[0, 1, 2]], w, h)
+    # left half of the screen (x_ndc < 0 ⇒ columns 0..9) and nothing else, up to the diagonal
+    # edge's slope, which at this distance is vertical within the viewport
+    assert fr.col.max() == w // 2 - 1
+    assert len(np.unique(fr.pixel)) == len(fr)
+
+
+def test_behind_camera_and_degenerate_give_nothing():
+    view = rf.look_at([0, 0, 3], [0, 0, 0])
+    behind = (np.array([[0, 0, 5], [1, 0, 5], [0, 1, 5]], float), np.array([[0, 1, 2]]))
+    assert len(rf.draw(behind, view=view, proj=PROJ, width=8, height=8)) == 0
+    degen = (np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], float), np.array([[0, 1, 2], [0, 0, 0]]))
+    assert len(rf.draw(degen, view=view, proj=PROJ, width=8, height=8)) == 0
+    empty = (np.zeros((0, 3)), np.zeros((0, 3), int))
+    fb = rf.render(empty, view=view, proj=PROJ, width=8, height=6)
+    assert fb.depth.shape == (6, 8) and np.all(fb.depth == 1) and np.all(fb.prim_id == -1)
+    assert np.all(np.isinf(fb.eye_depth))
+
+
+def test_culling():
+    m = trimesh.creation.icosphere(2)
+    kw = dict(view=rf.look_at([0, 0, 3], [0, 0, 0]), proj=PROJ, width=32, height=24)
+    fb = rf.draw(m, cull="back", **kw)
+    assert fb.front_facing.all() and len(fb) > 0
+    fb = rf.draw(m, cull="front", **kw)
+    assert not fb.front_facing.any() and len(fb) > 0
+
+
+# ---------------------------------------------------------------- G-buffer
+
+def test_gbuffer_sphere_analytic():
+    r = 1.0
+    m = trimesh.creation.icosphere(5, radius=r)
+    view = rf.look_at([0, 0, 4], [0, 0, 0])
+    fb = rf.render(m, view=view, proj=PROJ, width=64, height=48, normals="smooth")
+    pos = fb.eye_position()[fb.mask]
+    centre = np.array([0, 0, -4.0])
+    d = np.linalg.norm(pos - centre, axis=1)
+    assert np.abs(d - r).max() < 2e-3
+    n = fb.normal[fb.mask]
+    assert np.abs(np.linalg.norm(n, axis=1) - 1).max() < 1e-5
+    radial = (pos - centre) / d[:, None]
+    assert np.min(np.sum(radial * n, axis=1)) > 0.999
+    assert np.all(fb.front_facing[fb.mask])
+    assert np.allclose(fb.eye_depth[fb.mask], -pos[:, 2], atol=1e-5)
+    lin = rf.normalized_linear_depth(fb, 3.0, 5.0)
+    assert lin[~fb.mask].min() == 1.0 and 0.0 <= lin[fb.mask].min() < 0.01
+    uv = fb.interpolate(m.vertices[:, :2])
+    assert np.allclose(uv[fb.mask], pos[:, :2], atol=2e-3)
+
+
+def test_orthographic_depth_linear():
+    quad = (np.array([[-1, -1, -2], [1, -1, -4], [1, 1, -4], [-1, 1, -2]], float),
+            np.array([[0, 1, 2], [0, 2, 3]]))
+    proj = rf.orthographic(-1, 1, -1, 1, 1, 5)
+    fb = rf.render(quad, view=np.eye(4), proj=proj, width=16, height=16)
+    pos = fb.eye_position()
+    want = 0.5 * ((-2 * (-pos[..., 2]) + 6) / -4) + 0.5   # glOrtho: z_ndc = (-2 z_e - (f+n))/(f-n)
+    want = 0.5 * ((2 * (-pos[..., 2]) - 6) / 4) + 0.5
+    assert np.abs(fb.depth - want).max() < 2e-6
+
+
+# ---------------------------------------------------------------- determinism
+
+_DET_SCRIPT = r"""
+import hashlib, numpy as np, trimesh, refraster as rf
+m = trimesh.creation.torus(1.0, 0.3, major_sections=96, minor_sections=48)
+rng = np.random.default_rng(3)
+v = rng.uniform(-2, 2, (3000, 3)); f = np.arange(3000).reshape(1000, 3)
+view = rf.look_at([0.5, 1.0, 4.0], [0, 0, 0]); proj = rf.perspective(50, 1.5, 0.3, 20)
+h = hashlib.sha256()
+fb = rf.render([m, (v, f)], view=view, proj=proj, width=333, height=222, normals="smooth")
+for a in fb.arrays().values():
+    h.update(a.tobytes())
+fr = rf.draw([m, (v, f)], view=view, proj=proj, width=333, height=222)
+for a in (fr.pixel, fr.depth, fr.bary, fr.prim_id, fr.object_id, fr.front_facing):
+    h.update(a.tobytes())
+print(h.hexdigest())
+"""
+
+
+def test_deterministic_across_thread_counts():
+    out = []
+    for threads in ("1", "2", "2"):
+        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
+        r = subprocess.run([sys.executable, "-c", _DET_SCRIPT], env=env, capture_output=True,
+                           text=True, timeout=600)
+        assert r.returncode == 0, r.stderr
+        out.append(r.stdout.strip())
+    assert out[0] == out[1] == out[2]
+
+
+# ---------------------------------------------------------------- bad input
+
+GOOD = dict(view=VIEW, proj=PROJ, width=8, height=8)
+TRI = (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float), np.array([[0, 1, 2]]))
+
+
+@pytest.mark.parametrize("kwargs, exc, word", [
+    (dict(view=np.full((4, 4), np.nan)), ValueError, "view"),
+    (dict(proj=np.eye(3)), ValueError, "proj"),
+    (dict(width=0), ValueError, "width"),
+    (dict(height=-3), ValueError, "height"),
+    (dict(width=10**9), ValueError, "width"),
+    (dict(width=2.5), TypeError, "width"),
+    (dict(cull="sideways"), ValueError, "cull"),
+    (dict(depth_func="lesser"), ValueError, "depth_func"),
+    (dict(model=np.full((4, 4), np.inf)), ValueError, "model"),
+    (dict(subpixel_bits=7), ValueError, "subpixel_bits"),
+])
+def test_bad_render_arguments(kwargs, exc, word):
+    with pytest.raises(exc, match=word):
+        rf.render(TRI, **{**GOOD, **kwargs})
+
+
+@pytest.mark.parametrize("mesh, exc, word", [
+    ((np.array([[0, 0, np.nan], [1, 0, 0], [0, 1, 0]]), [[0, 1, 2]]), ValueError, "vertices"),
+    ((np.array([[0, 0, np.inf], [1, 0, 0], [0, 1, 0]]), [[0, 1, 2]]), ValueError, "vertices"),
+    ((TRI[0], [[0, 1, 3]]), ValueError, "faces"),
+    ((TRI[0], [[0, 1, -1]]), ValueError, "faces"),
+    ((TRI[0], [[0.0, 1.0, 2.0]]), TypeError, "faces"),
+    ((TRI[0], [[0, 1]]), ValueError, "faces"),
+    ((TRI[0][:, :2], [[0, 1, 2]]), ValueError, "vertices"),
+    ("mesh.obj", TypeError, "mesh"),
+    (((np.array([["a", "b", "c"]]), [[0, 0, 0]])), TypeError, "vertices"),
+])
+def test_bad_meshes(mesh, exc, word):
+    with pytest.raises(exc, match=word):
+        rf.render(mesh, **GOOD)
+
+
+def test_bad_rasterize_and_resolve_arguments():
+    with pytest.raises(ValueError, match="clip_positions"):
+        rf.rasterize(np.zeros((3, 3)), [[0, 1, 2]], 4, 4)
+    with pytest.raises(ValueError, match="clip_positions"):
+        rf.rasterize(np.full((3, 4), np.nan), [[0, 1, 2]], 4, 4)
+    fr = rf.draw(TRI, **GOOD)
+    with pytest.raises(ValueError, match="keep"):
+        rf.resolve(fr, keep=np.ones(len(fr) + 1, bool))
+    with pytest.raises(TypeError, match="keep"):
+        rf.resolve(fr, keep=np.ones(len(fr)))
+    with pytest.raises(ValueError, match="clear_depth"):
+        rf.resolve(fr, clear_depth=2.0)
+    with pytest.raises(ValueError, match="fragment_stage"):
+        rf.render(TRI, fragment_stage=lambda f: np.ones(3), **GOOD)
