@@ -10,6 +10,7 @@ from ._validate import as_choice, as_float_array, as_real
 from .mesh import face_normals, vertex_normals
 from .raster import DEPTH_FUNCS, Fragments, prepare, resolve
 from .raster.fragments import _interpolate
+from .raster.gbuffer import finalize
 from .raster.rasterizer import fused
 
 __all__ = ["Framebuffer", "render", "normalized_linear_depth", "PALETTE"]
@@ -111,16 +112,15 @@ class Framebuffer:
         m = win >= 0
         idx = win[m]
         h, w = win.shape
-        prim = np.full((h, w), -1, np.int32)
-        obj = np.full((h, w), -1, np.int32)
+        offsets = np.cumsum([0] + [mesh.n_faces for mesh in frags.meshes])
+        prim_global = np.full((h, w), -1, np.int64)
         front = np.zeros((h, w), np.bool_)
         bary = np.zeros((h, w, 3), np.float32)
-        prim[m] = frags.prim_id[idx]
-        obj[m] = frags.object_id[idx]
+        prim_global[m] = offsets[frags.object_id[idx]] + frags.prim_id[idx]
         front[m] = frags.front_facing[idx]
         bary[m] = frags.bary[idx]
-        return _build(frags.meshes, frags.models, frags.view, frags.proj, resolved.depth, prim,
-                      obj, front, bary, normals, background)
+        return _build(frags.meshes, frags.models, frags.view, frags.proj, resolved.depth,
+                      prim_global, offsets, front, bary, normals, background)
 
 
 def _eye_positions(meshes, models, view, obj, prim, bary):
@@ -153,53 +153,35 @@ def _normals_per_mesh(meshes, normals):
             for k, (n, m) in enumerate(zip(normals, meshes))]
 
 
-def _build(meshes, models, view, proj, depth, prim, obj, front, bary, normals, background):
+def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, bary, normals,
+           background):
+    """Finalize the G-buffer from the visible primitive (global index over all draw calls,
+    −1 background) and its barycentrics."""
     h, w = depth.shape
-    m = prim >= 0
-    o, p, b = obj[m], prim[m], bary[m].astype(np.float64)
-    pos = _eye_positions(meshes, models, view, o, p, b)
-    eye_depth = np.full((h, w), np.inf, np.float32)
-    eye_depth[m] = -pos[:, 2]
     vn = _normals_per_mesh(meshes, normals)
-    nrm = np.zeros((len(p), 3))
-    for k, (mesh, model) in enumerate(zip(meshes, models)):
-        sel = np.flatnonzero(o == k)
-        if sel.size == 0:
-            continue
-        nm = _normal_matrix(view, model)
-        if vn is None:
-            fn = face_normals(mesh.vertices, mesh.faces)[p[sel]]
-            nrm[sel] = fn @ nm.T
-        else:
-            tri = mesh.faces[p[sel]]
-            vv = vn[k] @ nm.T
-            bb = b[sel]
-            nrm[sel] = (bb[:, 0:1] * vv[tri[:, 0]] + bb[:, 1:2] * vv[tri[:, 1]]) \
-                + bb[:, 2:3] * vv[tri[:, 2]]
-    length = np.linalg.norm(nrm, axis=1, keepdims=True)
-    nrm = np.where(length > 0, nrm / np.where(length > 0, length, 1.0), 0.0)
+    vertices = np.concatenate([m.vertices for m in meshes]) if meshes else np.zeros((0, 3))
+    vbase = np.cumsum([0] + [m.n_vertices for m in meshes])
+    faces = (np.concatenate([m.faces + vbase[k] for k, m in enumerate(meshes)])
+             if meshes else np.zeros((0, 3), np.int64))
+    vnormals = np.concatenate(vn) if vn is not None and meshes else np.zeros((1, 3))
+    n = max(len(meshes), 1)
+    mv = np.zeros((n, 4, 4))
+    nmat = np.zeros((n, 3, 3))
+    for k, model in enumerate(models):
+        mv[k] = view @ model
+        if face_offsets[k + 1] > face_offsets[k]:
+            nmat[k] = _normal_matrix(view, model)
+    eye_depth = np.zeros((h, w), np.float32)
     normal = np.zeros((h, w, 3), np.float32)
-    normal[m] = nrm
-    color = np.empty((h, w, 3), np.float32)
-    color[...] = np.asarray(background, np.float32)
-    color[m] = _shade(nrm, pos, o)
+    prim = np.zeros((h, w), np.int32)
+    obj = np.zeros((h, w), np.int32)
+    color = np.zeros((h, w, 3), np.float32)
+    finalize(prim_global, bary, vertices, faces, vnormals, vn is not None,
+             np.asarray(face_offsets, np.int64), mv, nmat, PALETTE,
+             np.asarray(background, np.float64), eye_depth, normal, prim, obj, color)
     return Framebuffer(depth=depth, eye_depth=eye_depth, normal=normal, prim_id=prim,
                        object_id=obj, front_facing=front, barycentric=bary, color=color,
                        view=view, proj=proj, meshes=meshes, models=models)
-
-
-def _shade(n, pos, obj):
-    """Two-sided headlight Blinn–Phong (light at the eye)."""
-    v = -pos
-    vl = np.linalg.norm(v, axis=1, keepdims=True)
-    v = np.where(vl > 0, v / np.where(vl > 0, vl, 1.0), np.array([0.0, 0.0, 1.0]))
-    ndv = np.sum(n * v, axis=1, keepdims=True)
-    ns = np.where(ndv < 0, -n, n)
-    diff = np.clip(np.abs(ndv), 0.0, 1.0)
-    spec = diff ** 48  # light at the eye: the half vector is the view vector
-    base = PALETTE[obj % len(PALETTE)]
-    del ns
-    return np.clip(base * (0.18 + 0.72 * diff) + 0.22 * spec, 0.0, 1.0)
 
 
 def render(meshes, *, view, proj, width, height, normals=None, cull="none", depth_func="less",
@@ -247,21 +229,18 @@ def render(meshes, *, view, proj, width, height, normals=None, cull="none", dept
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
                    cull=cull, precision=precision, subpixel_bits=subpixel_bits,
                    fill_rule=fill_rule)
-    vn_check = _normals_per_mesh(prep.meshes, normals)
-    del vn_check
     if fragment_stage is None:
         depth, tri, bary = fused(prep.triangles, fill_rule=prep.fill_rule,
                                  depth_func=DEPTH_FUNCS[depth_func.lower()], clear_depth=clear)
         h, w = depth.shape
-        m = tri >= 0
         st = prep.triangles
-        obj_m, prim_m = prep.split(st.prim[tri[m]])
-        prim = np.full((h, w), -1, np.int32)
-        obj = np.full((h, w), -1, np.int32)
+        m = tri >= 0
+        prim_global = np.full((h, w), -1, np.int64)
         front = np.zeros((h, w), np.bool_)
-        prim[m], obj[m], front[m] = prim_m, obj_m, st.front[tri[m]]
-        return _build(prep.meshes, prep.models, prep.view, prep.proj, depth, prim, obj, front,
-                      bary.reshape(h, w, 3), normals, bg)
+        prim_global[m] = st.prim[tri[m]]
+        front[m] = st.front[tri[m]]
+        return _build(prep.meshes, prep.models, prep.view, prep.proj, depth, prim_global,
+                      prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg)
     from .raster import _fragments_from
     from .raster.rasterizer import stream
     pixel, depth, tri, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
