@@ -230,15 +230,10 @@ def render(meshes, *, view, proj, width, height, normals=None, cull="none", dept
                    cull=cull, precision=precision, subpixel_bits=subpixel_bits,
                    fill_rule=fill_rule)
     if fragment_stage is None:
-        depth, tri, bary = fused(prep.triangles, fill_rule=prep.fill_rule,
-                                 depth_func=DEPTH_FUNCS[depth_func.lower()], clear_depth=clear)
+        depth, prim_global, front, bary = fused(
+            prep.triangles, fill_rule=prep.fill_rule, depth_func=DEPTH_FUNCS[depth_func.lower()],
+            clear_depth=clear)
         h, w = depth.shape
-        st = prep.triangles
-        m = tri >= 0
-        prim_global = np.full((h, w), -1, np.int64)
-        front = np.zeros((h, w), np.bool_)
-        prim_global[m] = st.prim[tri[m]]
-        front[m] = st.front[tri[m]]
         return _build(prep.meshes, prep.models, prep.view, prep.proj, depth, prim_global,
                       prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg)
     from .raster import _fragments_from

@@ -86,14 +86,17 @@ def test_fused_equals_stream_and_resolve(func):
     v, f = _random_soup(rng, 60, 1.5)
     clear = 0.0 if func in ("greater", "gequal") else 1.0
     prep = rf.raster.prepare((v, f), view=VIEW, proj=PROJ, width=40, height=30)
-    depth, tri, bary = fused(prep.triangles, depth_func=DEPTH_FUNCS[func], clear_depth=clear)
+    depth, prim, front, bary = fused(prep.triangles, depth_func=DEPTH_FUNCS[func],
+                                     clear_depth=clear)
     pixel, fd, ftri, fbary, _ = stream(prep.triangles)
     frags = rf.Fragments(pixel, fd, ftri, np.zeros_like(ftri), fbary, np.zeros(len(ftri), bool),
                          40, 30)
     res = rf.resolve(frags, depth_func=func, clear_depth=clear)
     assert res.depth.tobytes() == depth.tobytes()
-    win_tri = np.where(res.winner >= 0, ftri[res.winner], -1)
-    assert np.array_equal(win_tri, tri)
+    st = prep.triangles
+    win_tri = ftri[res.winner]
+    assert np.array_equal(np.where(res.winner >= 0, st.prim[win_tri], -1), prim)
+    assert np.array_equal(np.where(res.winner >= 0, st.front[win_tri], False), front)
     m = res.winner.ravel() >= 0
     assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes()
 

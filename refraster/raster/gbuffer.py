@@ -49,18 +49,17 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
             b0 = np.float64(bary[r, c, 0])
             b1 = np.float64(bary[r, c, 1])
             b2 = np.float64(bary[r, c, 2])
-            p = np.zeros(3)
-            for j in range(3):
-                p[j] = (b0 * vertices[i0, j] + b1 * vertices[i1, j]) + b2 * vertices[i2, j]
-            e = np.zeros(3)
-            for j in range(3):
-                e[j] = ((mv[k, j, 0] * p[0] + mv[k, j, 1] * p[1]) + mv[k, j, 2] * p[2]) \
-                    + mv[k, j, 3]
-            eye_depth[r, c] = np.float32(-e[2])
-            n = np.zeros(3)
+            px = (b0 * vertices[i0, 0] + b1 * vertices[i1, 0]) + b2 * vertices[i2, 0]
+            py = (b0 * vertices[i0, 1] + b1 * vertices[i1, 1]) + b2 * vertices[i2, 1]
+            pz = (b0 * vertices[i0, 2] + b1 * vertices[i1, 2]) + b2 * vertices[i2, 2]
+            ex = ((mv[k, 0, 0] * px + mv[k, 0, 1] * py) + mv[k, 0, 2] * pz) + mv[k, 0, 3]
+            ey = ((mv[k, 1, 0] * px + mv[k, 1, 1] * py) + mv[k, 1, 2] * pz) + mv[k, 1, 3]
+            ez = ((mv[k, 2, 0] * px + mv[k, 2, 1] * py) + mv[k, 2, 2] * pz) + mv[k, 2, 3]
+            eye_depth[r, c] = np.float32(-ez)
             if smooth:
-                for j in range(3):
-                    n[j] = (b0 * vnormals[i0, j] + b1 * vnormals[i1, j]) + b2 * vnormals[i2, j]
+                nx = (b0 * vnormals[i0, 0] + b1 * vnormals[i1, 0]) + b2 * vnormals[i2, 0]
+                ny = (b0 * vnormals[i0, 1] + b1 * vnormals[i1, 1]) + b2 * vnormals[i2, 1]
+                nz = (b0 * vnormals[i0, 2] + b1 * vnormals[i1, 2]) + b2 * vnormals[i2, 2]
             else:
                 ax = vertices[i1, 0] - vertices[i0, 0]
                 ay = vertices[i1, 1] - vertices[i0, 1]
@@ -68,23 +67,25 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
                 bx = vertices[i2, 0] - vertices[i0, 0]
                 by = vertices[i2, 1] - vertices[i0, 1]
                 bz = vertices[i2, 2] - vertices[i0, 2]
-                n[0] = ay * bz - az * by
-                n[1] = az * bx - ax * bz
-                n[2] = ax * by - ay * bx
-            ne = np.zeros(3)
-            for j in range(3):
-                ne[j] = (nmat[k, j, 0] * n[0] + nmat[k, j, 1] * n[1]) + nmat[k, j, 2] * n[2]
-            length = np.sqrt(ne[0] * ne[0] + ne[1] * ne[1] + ne[2] * ne[2])
+                nx = ay * bz - az * by
+                ny = az * bx - ax * bz
+                nz = ax * by - ay * bx
+            mx = (nmat[k, 0, 0] * nx + nmat[k, 0, 1] * ny) + nmat[k, 0, 2] * nz
+            my = (nmat[k, 1, 0] * nx + nmat[k, 1, 1] * ny) + nmat[k, 1, 2] * nz
+            mz = (nmat[k, 2, 0] * nx + nmat[k, 2, 1] * ny) + nmat[k, 2, 2] * nz
+            length = np.sqrt(mx * mx + my * my + mz * mz)
             if length > 0.0:
-                for j in range(3):
-                    ne[j] /= length
-            for j in range(3):
-                normal[r, c, j] = np.float32(ne[j])
+                mx /= length
+                my /= length
+                mz /= length
+            normal[r, c, 0] = np.float32(mx)
+            normal[r, c, 1] = np.float32(my)
+            normal[r, c, 2] = np.float32(mz)
             # two-sided headlight: light at the eye, so the half vector is the view vector
-            vl = np.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+            vl = np.sqrt(ex * ex + ey * ey + ez * ez)
             ndv = 1.0
             if vl > 0.0:
-                ndv = -(ne[0] * e[0] + ne[1] * e[1] + ne[2] * e[2]) / vl
+                ndv = -(mx * ex + my * ey + mz * ez) / vl
             d = min(abs(ndv), 1.0)
             s = d ** SHININESS
             pk = k % palette.shape[0]

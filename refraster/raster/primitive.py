@@ -171,110 +171,99 @@ def _clip_polygon(poly, tmp, n, planes, gx, gy):
 
 
 @njit(**JIT)
-def _to_window(poly, n, width, height, scale, X, Y, Z, IW):
+def _window(x, y, z, w, hw, hh, scale):
+    """Divide, viewport and snap one vertex (float32, as Mesa's draw module)."""
+    half = np.float32(0.5)
+    x = np.float32(x)
+    y = np.float32(y)
+    z = np.float32(z)
+    w = np.float32(w)
+    rw = np.float32(1.0) / w
+    xw = x * rw * hw + hw
+    yw = y * rw * hh + hh
+    zw = z * rw * half + half
+    return (np.int64(np.rint((xw - half) * scale)), np.int64(np.rint((yw - half) * scale)),
+            zw, 1.0 / np.float64(w))
+
+
+@njit(**PJIT)
+def _vertex_pass(c, width, height, bits, gx, gy, vX, vY, vZ, vIW, vcode):
     hw = np.float32(width * 0.5)
     hh = np.float32(height * 0.5)
-    half = np.float32(0.5)
-    s = np.float32(scale)
-    for i in range(n):
-        x = np.float32(poly[i, 0])
-        y = np.float32(poly[i, 1])
-        z = np.float32(poly[i, 2])
-        w = np.float32(poly[i, 3])
-        rw = np.float32(1.0) / w
-        xw = x * rw * hw + hw
-        yw = y * rw * hh + hh
-        zw = z * rw * half + half
-        X[i] = np.int64(np.rint((xw - half) * s))
-        Y[i] = np.int64(np.rint((yw - half) * s))
-        Z[i] = zw
-        IW[i] = 1.0 / np.float64(w)
+    scale = np.float32(1 << bits)
+    for i in prange(c.shape[0]):
+        code = _outcode(c[i, 0], c[i, 1], c[i, 2], c[i, 3], gx, gy)
+        vcode[i] = code
+        if code == 0:
+            vX[i], vY[i], vZ[i], vIW[i] = _window(c[i, 0], c[i, 1], c[i, 2], c[i, 3], hw, hh,
+                                                  scale)
 
 
 @njit(**JIT)
-def _face(c, f, i, poly, tmp, X, Y, Z, IW, width, height, bits, gx, gy, cull):
-    """Clip face ``i`` and project it; returns the polygon's vertex count and its doubled area."""
-    ia, ib, ic = f[i, 0], f[i, 1], f[i, 2]
-    code_and = 127
-    code_or = 0
-    for k, v in enumerate((ia, ib, ic)):
-        poly[k, 0] = c[v, 0]
-        poly[k, 1] = c[v, 1]
-        poly[k, 2] = c[v, 2]
-        poly[k, 3] = c[v, 3]
+def _area(X, Y, i, j, k):
+    return (X[j] - X[i]) * (Y[k] - Y[i]) - (X[k] - X[i]) * (Y[j] - Y[i])
+
+
+@njit(**JIT)
+def _bbox(X, Y, i, j, k, bits, width, height):
+    one = np.int64(1) << bits
+    xmin = min(X[i], X[j], X[k])
+    xmax = max(X[i], X[j], X[k])
+    ymin = min(Y[i], Y[j], Y[k])
+    ymax = max(Y[i], Y[j], Y[k])
+    # pixel centres sit at integer multiples of 2^bits (the half-pixel offset is in X, Y)
+    return (max((xmin + one - 1) >> bits, 0), min(xmax >> bits, width - 1),
+            max((ymin + one - 1) >> bits, 0), min(ymax >> bits, height - 1))
+
+
+@njit(**JIT)
+def _store(t, X, Y, Z, IW, i, j, k, prim, front, box, area, bslot,
+           oX, oY, oZ, oIW, oprim, ofront, obox, oarea, obidx):
+    """Write one counter-clockwise screen triangle (vertices i, j, k of the scratch arrays)."""
+    for s, v in enumerate((i, j, k)):
+        oX[t, s] = X[v]
+        oY[t, s] = Y[v]
+        oZ[t, s] = Z[v]
+        oIW[t, s] = IW[v]
+    oprim[t] = prim
+    ofront[t] = front
+    for s in range(4):
+        obox[t, s] = box[s]
+    oarea[t] = area
+    obidx[t] = bslot
+
+
+@njit(**JIT)
+def _clipped_face(c, f, i, codes, poly, tmp, X, Y, Z, IW, width, height, bits, gx, gy):
+    """Clip face ``i`` and project the polygon; returns its vertex count and doubled area."""
+    for k in range(3):
+        v = f[i, k]
+        for j in range(4):
+            poly[k, j] = c[v, j]
         for j in range(3):
             poly[k, 4 + j] = 1.0 if j == k else 0.0
-        oc = _outcode(c[v, 0], c[v, 1], c[v, 2], c[v, 3], gx, gy)
-        code_and &= oc
-        code_or |= oc
-    if code_and != 0:
-        return 0, 0
-    n = 3
-    if code_or != 0:
-        n = _clip_polygon(poly, tmp, 3, code_or, gx, gy)
-        if n < 3:
-            return 0, 0
-    _to_window(poly, n, width, height, float(1 << bits), X, Y, Z, IW)
-    area = np.int64(0)
+    n = _clip_polygon(poly, tmp, 3, codes, gx, gy)
+    if n < 3:
+        return 0, np.int64(0)
+    hw = np.float32(width * 0.5)
+    hh = np.float32(height * 0.5)
+    scale = np.float32(1 << bits)
+    for k in range(n):
+        X[k], Y[k], Z[k], IW[k] = _window(poly[k, 0], poly[k, 1], poly[k, 2], poly[k, 3], hw,
+                                          hh, scale)
+    total = np.int64(0)
     for k in range(1, n - 1):
-        area += (X[k] - X[0]) * (Y[k + 1] - Y[0]) - (X[k + 1] - X[0]) * (Y[k] - Y[0])
-    if area == 0:
-        return 0, 0
-    if (cull == 1 and area < 0) or (cull == 2 and area > 0):
-        return 0, 0
-    return n, area
-
-
-@njit(**JIT)
-def _emit(n, total, X, Y, Z, IW, poly, prim, bits, width, height, o, write,
-          oX, oY, oZ, oIW, oB, oprim, ofront, obox, oarea):
-    """Fan-triangulate one projected polygon; returns the number of screen triangles."""
-    cnt = 0
-    one = np.int64(1) << bits
-    for k in range(1, n - 1):
-        idx = (0, k, k + 1)
-        a = (X[k] - X[0]) * (Y[k + 1] - Y[0]) - (X[k + 1] - X[0]) * (Y[k] - Y[0])
-        if a == 0 or (a > 0) != (total > 0):
-            continue  # snapped to a sliver that flipped or vanished
-        xmin = min(X[0], X[k], X[k + 1])
-        xmax = max(X[0], X[k], X[k + 1])
-        ymin = min(Y[0], Y[k], Y[k + 1])
-        ymax = max(Y[0], Y[k], Y[k + 1])
-        # pixel centres sit at integer multiples of 2^bits (the half-pixel offset is in X, Y)
-        px0 = max((xmin + one - 1) >> bits, 0)
-        px1 = min(xmax >> bits, width - 1)
-        py0 = max((ymin + one - 1) >> bits, 0)
-        py1 = min(ymax >> bits, height - 1)
-        if px0 > px1 or py0 > py1:
-            continue
-        if write:
-            t = o + cnt
-            for s in range(3):
-                # stored counter-clockwise: swap the last two vertices of a clockwise triangle
-                src = idx[s] if a > 0 or s == 0 else idx[3 - s]
-                oX[t, s] = X[src]
-                oY[t, s] = Y[src]
-                oZ[t, s] = Z[src]
-                oIW[t, s] = IW[src]
-                for j in range(3):
-                    oB[t, s, j] = poly[src, 4 + j]
-            oprim[t] = prim
-            ofront[t] = total > 0
-            obox[t, 0] = px0
-            obox[t, 1] = px1
-            obox[t, 2] = py0
-            obox[t, 3] = py1
-            oarea[t] = a if a > 0 else -a
-        cnt += 1
-    return cnt
+        total += _area(X, Y, 0, k, k + 1)
+    return n, total
 
 
 _CHUNK = 4096
 
 
 @njit(**PJIT)
-def _setup_pass(c, f, width, height, bits, gx, gy, cull, counts, offsets, write,
-                oX, oY, oZ, oIW, oB, oprim, ofront, obox, oarea):
+def _face_pass(c, f, vX, vY, vZ, vIW, vcode, width, height, bits, gx, gy, cull,
+               counts, offsets, bcounts, boffsets, write,
+               oX, oY, oZ, oIW, oprim, ofront, obox, oarea, obidx, oB):
     nf = f.shape[0]
     nchunks = (nf + _CHUNK - 1) // _CHUNK
     for ch in prange(nchunks):
@@ -282,31 +271,76 @@ def _setup_pass(c, f, width, height, bits, gx, gy, cull, counts, offsets, write,
         tmp = np.zeros((_MAXV, 7))
         X = np.zeros(_MAXV, np.int64)
         Y = np.zeros(_MAXV, np.int64)
-        Z = np.zeros(_MAXV)
+        Z = np.zeros(_MAXV, np.float32)
         IW = np.zeros(_MAXV)
+        box = np.zeros(4, np.int64)
         o = offsets[ch]
+        ob = boffsets[ch]
         for i in range(ch * _CHUNK, min(nf, (ch + 1) * _CHUNK)):
-            n, total = _face(c, f, i, poly, tmp, X, Y, Z, IW, width, height, bits, gx, gy, cull)
-            if n == 0:
+            a, b, d = f[i, 0], f[i, 1], f[i, 2]
+            if vcode[a] & vcode[b] & vcode[d]:
                 continue
-            o += _emit(n, total, X, Y, Z, IW, poly, i, bits, width, height, o, write,
-                       oX, oY, oZ, oIW, oB, oprim, ofront, obox, oarea)
+            codes = vcode[a] | vcode[b] | vcode[d]
+            if codes == 0:
+                # the common case: no clipping, window positions from the vertex pass
+                X[0], X[1], X[2] = vX[a], vX[b], vX[d]
+                Y[0], Y[1], Y[2] = vY[a], vY[b], vY[d]
+                area = _area(X, Y, 0, 1, 2)
+                if area == 0 or (cull == 1 and area < 0) or (cull == 2 and area > 0):
+                    continue
+                box[0], box[1], box[2], box[3] = _bbox(X, Y, 0, 1, 2, bits, width, height)
+                if box[0] > box[1] or box[2] > box[3]:
+                    continue
+                if write:
+                    Z[0], Z[1], Z[2] = vZ[a], vZ[b], vZ[d]
+                    IW[0], IW[1], IW[2] = vIW[a], vIW[b], vIW[d]
+                    if area > 0:
+                        _store(o, X, Y, Z, IW, 0, 1, 2, i, True, box, area, -1,
+                               oX, oY, oZ, oIW, oprim, ofront, obox, oarea, obidx)
+                    else:
+                        _store(o, X, Y, Z, IW, 0, 2, 1, i, False, box, -area, -1,
+                               oX, oY, oZ, oIW, oprim, ofront, obox, oarea, obidx)
+                o += 1
+                continue
+            n, total = _clipped_face(c, f, i, codes, poly, tmp, X, Y, Z, IW, width, height,
+                                     bits, gx, gy)
+            if n == 0 or total == 0 or (cull == 1 and total < 0) or (cull == 2 and total > 0):
+                continue
+            for k in range(1, n - 1):
+                area = _area(X, Y, 0, k, k + 1)
+                if area == 0 or (area > 0) != (total > 0):
+                    continue  # snapped to a sliver that flipped or vanished
+                box[0], box[1], box[2], box[3] = _bbox(X, Y, 0, k, k + 1, bits, width, height)
+                if box[0] > box[1] or box[2] > box[3]:
+                    continue
+                if write:
+                    j1, j2 = (k, k + 1) if area > 0 else (k + 1, k)
+                    _store(o, X, Y, Z, IW, 0, j1, j2, i, total > 0, box, abs(area), ob,
+                           oX, oY, oZ, oIW, oprim, ofront, obox, oarea, obidx)
+                    for s, v in enumerate((0, j1, j2)):
+                        for j in range(3):
+                            oB[ob, s, j] = poly[v, 4 + j]
+                o += 1
+                ob += 1
         if not write:
             counts[ch] = o - offsets[ch]
+            bcounts[ch] = ob - boffsets[ch]
 
 
 class ScreenTriangles:
     """Set-up triangles ready for rasterization (struct of arrays, ``T`` triangles).
 
-    ``x, y (T, 3) int64`` snapped window coordinates (GL y-up, half-pixel offset removed, pixel
-    centres on multiples of ``2^subpixel_bits``), counter-clockwise; ``z (T, 3)`` window depth;
-    ``inv_w (T, 3)`` 1/w; ``bary (T, 3, 3)`` each vertex's barycentrics in the original face;
-    ``prim (T,) int64`` the original face index (in input order, so sorting by it is draw order);
-    ``front (T,) bool``; ``bbox (T, 4) int64`` inclusive pixel ranges ``x0, x1, y0, y1``;
-    ``area (T,) int64`` doubled area in fixed point.
+    ``x, y (T, 3) int32`` snapped window coordinates (GL y-up, half-pixel offset removed, pixel
+    centres on multiples of ``2^subpixel_bits``), counter-clockwise; ``z (T, 3) float32`` window
+    depth; ``inv_w (T, 3)`` 1/w; ``prim (T,) int64`` the original face index (in input order, so
+    sorting by it is draw order); ``front (T,) bool``; ``bbox (T, 4) int32`` inclusive pixel
+    ranges ``x0, x1, y0, y1``; ``area (T,) int64`` doubled area in fixed point;
+    ``bary_index (T,) int32``: −1 for an unclipped face (its vertices are the face's own, in
+    order ``0, 1, 2`` or ``0, 2, 1`` for clockwise faces — see ``front``), else a row of
+    ``bary (Tc, 3, 3)``, each vertex's barycentrics in the original face.
     """
 
-    __slots__ = ("x", "y", "z", "inv_w", "bary", "prim", "front", "bbox", "area",
+    __slots__ = ("x", "y", "z", "inv_w", "prim", "front", "bbox", "area", "bary_index", "bary",
                  "width", "height", "subpixel_bits")
 
     def __len__(self):
@@ -319,22 +353,34 @@ def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8):
     f = np.ascontiguousarray(faces, dtype=np.int64)
     gx = 2.0 * GUARD_PIXELS / width
     gy = 2.0 * GUARD_PIXELS / height
-    nchunks = (len(f) + _CHUNK - 1) // _CHUNK
-    counts = np.zeros(max(nchunks, 1), np.int64)
-    offsets = np.zeros(max(nchunks, 1), np.int64)
-    dummy = _alloc(0)
-    _setup_pass(c, f, width, height, subpixel_bits, gx, gy, cull, counts, offsets, False, *dummy)
+    nv = len(c)
+    vX = np.zeros(nv, np.int64)
+    vY = np.zeros(nv, np.int64)
+    vZ = np.zeros(nv, np.float32)
+    vIW = np.zeros(nv)
+    vcode = np.zeros(nv, np.int64)
+    _vertex_pass(c, width, height, subpixel_bits, gx, gy, vX, vY, vZ, vIW, vcode)
+    nchunks = max((len(f) + _CHUNK - 1) // _CHUNK, 1)
+    counts = np.zeros(nchunks, np.int64)
+    offsets = np.zeros(nchunks, np.int64)
+    bcounts = np.zeros(nchunks, np.int64)
+    boffsets = np.zeros(nchunks, np.int64)
+    args = (c, f, vX, vY, vZ, vIW, vcode, width, height, subpixel_bits, gx, gy, cull,
+            counts, offsets, bcounts, boffsets)
+    _face_pass(*args, False, *_alloc(0, 0))
     offsets[1:] = np.cumsum(counts)[:-1]
-    total = int(counts.sum())
-    out = _alloc(total)
-    _setup_pass(c, f, width, height, subpixel_bits, gx, gy, cull, counts, offsets, True, *out)
+    boffsets[1:] = np.cumsum(bcounts)[:-1]
+    out = _alloc(int(counts.sum()), int(bcounts.sum()))
+    _face_pass(*args, True, *out)
     st = ScreenTriangles()
-    (st.x, st.y, st.z, st.inv_w, st.bary, st.prim, st.front, st.bbox, st.area) = out
+    (st.x, st.y, st.z, st.inv_w, st.prim, st.front, st.bbox, st.area, st.bary_index,
+     st.bary) = out
     st.width, st.height, st.subpixel_bits = width, height, subpixel_bits
     return st
 
 
-def _alloc(t):
-    return (np.zeros((t, 3), np.int64), np.zeros((t, 3), np.int64), np.zeros((t, 3)),
-            np.zeros((t, 3)), np.zeros((t, 3, 3)), np.zeros(t, np.int64), np.zeros(t, np.bool_),
-            np.zeros((t, 4), np.int64), np.zeros(t, np.int64))
+def _alloc(t, tc):
+    return (np.zeros((t, 3), np.int32), np.zeros((t, 3), np.int32), np.zeros((t, 3), np.float32),
+            np.zeros((t, 3)), np.zeros(t, np.int64), np.zeros(t, np.bool_),
+            np.zeros((t, 4), np.int32), np.zeros(t, np.int64), np.zeros(t, np.int32),
+            np.zeros((tc, 3, 3)))

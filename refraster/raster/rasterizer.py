@@ -93,14 +93,16 @@ def _edge_setup(X, Y, t, k, bits, rule, px, py):
     """Edge k of triangle t: (value at pixel (px, py) minus bias, step in x, step in y, bias)."""
     a = (k + 1) % 3
     b = (k + 2) % 3
-    dx = X[t, b] - X[t, a]
-    dy = Y[t, b] - Y[t, a]
+    xa = np.int64(X[t, a])
+    ya = np.int64(Y[t, a])
+    dx = np.int64(X[t, b]) - xa
+    dy = np.int64(Y[t, b]) - ya
     if rule == 0:
         owns = dy < 0 or (dy == 0 and dx > 0)   # left or bottom edge
     else:
         owns = dy < 0 or (dy == 0 and dx < 0)   # left or top edge
     bias = np.int64(0) if owns else np.int64(1)
-    e = dx * ((py << bits) - Y[t, a]) - dy * ((px << bits) - X[t, a]) - bias
+    e = dx * ((np.int64(py) << bits) - ya) - dy * ((np.int64(px) << bits) - xa) - bias
     return e, -(dy << bits), dx << bits, bias
 
 
@@ -109,7 +111,7 @@ def fragment_depth(Z, t, e0, e1, e2, inv_area):
     l0 = np.float64(e0) * inv_area
     l1 = np.float64(e1) * inv_area
     l2 = np.float64(e2) * inv_area
-    z = l0 * Z[t, 0] + l1 * Z[t, 1] + l2 * Z[t, 2]
+    z = l0 * np.float64(Z[t, 0]) + l1 * np.float64(Z[t, 1]) + l2 * np.float64(Z[t, 2])
     if z < 0.0:
         z = 0.0
     elif z > 1.0:
@@ -118,18 +120,29 @@ def fragment_depth(Z, t, e0, e1, e2, inv_area):
 
 
 @njit(**JIT)
-def fragment_bary(IW, B, t, e0, e1, e2, out, o):
+def fragment_bary(IW, BI, B, front, t, e0, e1, e2, out, o):
     q0 = np.float64(e0) * IW[t, 0]
     q1 = np.float64(e1) * IW[t, 1]
     q2 = np.float64(e2) * IW[t, 2]
     s = q0 + q1 + q2
+    k = BI[t]
+    if k < 0:
+        # an unclipped face: its own vertices, in order 0, 1, 2 (front) or 0, 2, 1 (back)
+        out[o, 0] = np.float32(q0 / s)
+        if front[t]:
+            out[o, 1] = np.float32(q1 / s)
+            out[o, 2] = np.float32(q2 / s)
+        else:
+            out[o, 1] = np.float32(q2 / s)
+            out[o, 2] = np.float32(q1 / s)
+        return
     for j in range(3):
-        out[o, j] = np.float32((q0 * B[t, 0, j] + q1 * B[t, 1, j] + q2 * B[t, 2, j]) / s)
+        out[o, j] = np.float32((q0 * B[k, 0, j] + q1 * B[k, 1, j] + q2 * B[k, 2, j]) / s)
 
 
 @njit(**PJIT)
-def _stream_pass(X, Y, Z, IW, B, bbox, area, starts, lists, ntx, width, height, bits, rule,
-                 write, counts, offsets, o_pixel, o_depth, o_tri, o_bary):
+def _stream_pass(X, Y, Z, IW, BI, B, front, bbox, area, starts, lists, ntx, width, height,
+                 bits, rule, write, counts, offsets, o_pixel, o_depth, o_tri, o_bary):
     ntiles = starts.shape[0] - 1
     for tile in prange(ntiles):
         tx0 = (tile % ntx) << TILE_SHIFT
@@ -159,7 +172,7 @@ def _stream_pass(X, Y, Z, IW, B, bbox, area, starts, lists, ntx, width, height, 
                             o_tri[o] = t
                             o_depth[o] = fragment_depth(Z, t, e0 + b0, e1 + b1, e2 + b2,
                                                         inv_area)
-                            fragment_bary(IW, B, t, e0 + b0, e1 + b1, e2 + b2, o_bary, o)
+                            fragment_bary(IW, BI, B, front, t, e0 + b0, e1 + b1, e2 + b2, o_bary, o)
                         o += 1
                     e0 += sx0
                     e1 += sx1
@@ -181,7 +194,7 @@ def stream(st, *, fill_rule=0):
     ntiles = ntx * nty
     counts = np.zeros(ntiles, np.int64)
     offsets = np.zeros(ntiles, np.int64)
-    args = (st.x, st.y, st.z, st.inv_w, st.bary, st.bbox, st.area, starts, lists, ntx,
+    args = (st.x, st.y, st.z, st.inv_w, st.bary_index, st.bary, st.front, st.bbox, st.area, starts, lists, ntx,
             st.width, st.height, st.subpixel_bits, fill_rule)
     z = (np.zeros(0, np.int64), np.zeros(0, np.float32), np.zeros(0, np.int64),
          np.zeros((0, 3), np.float32))
@@ -196,8 +209,8 @@ def stream(st, *, fill_rule=0):
 
 
 @njit(**PJIT)
-def _fused_pass(X, Y, Z, IW, B, bbox, area, starts, lists, ntx, width, height, bits, rule,
-                func, clear, o_depth, o_tri, o_bary):
+def _fused_pass(X, Y, Z, IW, BI, B, front, prim, bbox, area, starts, lists, ntx, width, height,
+                bits, rule, func, clear, o_depth, o_prim, o_front, o_bary):
     ntiles = starts.shape[0] - 1
     for tile in prange(ntiles):
         tx0 = (tile % ntx) << TILE_SHIFT
@@ -239,28 +252,30 @@ def _fused_pass(X, Y, Z, IW, B, bbox, area, starts, lists, ntx, width, height, b
             for x in range(tx0, tx1 + 1):
                 t = win[y - ty0, x - tx0]
                 o_depth[row, x] = zbuf[y - ty0, x - tx0]
-                o_tri[row, x] = t
+                o_prim[row, x] = prim[t] if t >= 0 else -1
                 if t >= 0:
+                    o_front[row, x] = front[t]
                     e0, _, _, b0 = _edge_setup(X, Y, t, 0, bits, rule, x, y)
                     e1, _, _, b1 = _edge_setup(X, Y, t, 1, bits, rule, x, y)
                     e2, _, _, b2 = _edge_setup(X, Y, t, 2, bits, rule, x, y)
-                    fragment_bary(IW, B, t, e0 + b0, e1 + b1, e2 + b2, o_bary,
+                    fragment_bary(IW, BI, B, front, t, e0 + b0, e1 + b1, e2 + b2, o_bary,
                                   row * width + x)
 
 
 def fused(st, *, fill_rule=0, depth_func=1, clear_depth=1.0):
     """Rasterize and depth-resolve in one pass (no fragment stream, depth writes on).
 
-    Returns ``(depth (H, W) float32, tri (H, W) int64, bary (H·W, 3) float32)``; bit-identical
-    to :func:`stream` followed by :func:`refraster.raster.resolve.resolve` with the same
-    ``depth_func`` (a test checks it).
+    Returns ``(depth (H, W) float32, prim (H, W) int64 face index or −1, front (H, W) bool,
+    bary (H·W, 3) float32)``; bit-identical to :func:`stream` followed by
+    :func:`refraster.raster.resolve.resolve` with the same ``depth_func`` (a test checks it).
     """
     ntx, nty, starts, lists = bin_triangles(st.bbox, st.width, st.height)
     h, w = st.height, st.width
     depth = np.zeros((h, w), np.float32)
-    tri = np.zeros((h, w), np.int64)
+    prim = np.zeros((h, w), np.int64)
+    front = np.zeros((h, w), np.bool_)
     bary = np.zeros((h * w, 3), np.float32)
-    _fused_pass(st.x, st.y, st.z, st.inv_w, st.bary, st.bbox, st.area, starts, lists, ntx, w, h,
-                st.subpixel_bits, fill_rule, depth_func, np.float32(clear_depth), depth, tri,
-                bary)
-    return depth, tri, bary
+    _fused_pass(st.x, st.y, st.z, st.inv_w, st.bary_index, st.bary, st.front, st.prim, st.bbox,
+                st.area, starts, lists, ntx, w, h, st.subpixel_bits, fill_rule, depth_func,
+                np.float32(clear_depth), depth, prim, front, bary)
+    return depth, prim, front, bary
