@@ -1,0 +1,185 @@
+"""Rasterizer speed: the G-buffer pass beside Mesa's llvmpipe, measured in the same run.
+
+    python -m benchmarks.raster [--quick] [--repeats N]
+
+Cases (1024×768): icospheres of 81,920 and 1,310,720 faces and the crank. refraster renders the
+full G-buffer (``refraster.render``: depth, eye depth, normal, ids, facing, barycentrics, colour)
+with 2 threads and with 1; llvmpipe renders depth + normal + id + facing in its own process
+with ``LP_NUM_THREADS`` = 2 or 1 and ``GLIBC_TUNABLES=glibc.malloc.trim_threshold=4294967296``,
+timed as draw + glFinish + read-back into reused arrays. Compile time is reported apart (the
+first call in a fresh cache directory minus a steady-state call), and the stage breakdown of one
+frame (vertex, setup, binning + rasterization + resolve, G-buffer) follows the table. Peak memory
+of the 1.3M-face frame and of a 4096×4096 frame is measured with tracemalloc.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import subprocess
+import sys
+import tempfile
+import time
+import tracemalloc
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+W, H = 1024, 768
+TUNED = "glibc.malloc.trim_threshold=4294967296"
+
+
+def _cases(quick):
+    import trimesh
+    from refraster import scenes
+    cases = [("icosphere 81,920", trimesh.creation.icosphere(6))]
+    if not quick:
+        cases.append(("icosphere 1,310,720", trimesh.creation.icosphere(8)))
+    cases.append(("crank", scenes.crank()))
+    return cases
+
+
+def _camera(mesh):
+    import refraster as rf
+    cam = rf.camera.frame_bounds(mesh.bounds, width=W, height=H, margin=1.0)
+    return cam.view, cam.proj
+
+
+def _time(fn, repeats):
+    fn()
+    ts = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        ts.append((time.perf_counter() - t0) * 1e3)
+    return float(np.median(ts))
+
+
+def _refraster_worker(path, threads, repeats):
+    """Time refraster in a subprocess with NUMBA_NUM_THREADS set (prints JSON)."""
+    code = f"""
+import json, time, numpy as np, refraster as rf
+z = np.load({str(path)!r}, allow_pickle=False)
+mesh = (z['vertices'].astype(np.float64), z['faces'].astype(np.int64))
+view, proj = z['view'], z['proj']
+def frame():
+    rf.render(mesh, view=view, proj=proj, width={W}, height={H})
+frame()
+ts = []
+for _ in range({repeats}):
+    t0 = time.perf_counter(); frame(); ts.append((time.perf_counter() - t0) * 1e3)
+print(json.dumps(dict(median_ms=float(np.median(ts)), times_ms=ts)))
+"""
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                       cwd=ROOT, timeout=1800)
+    if r.returncode != 0:
+        raise RuntimeError(r.stderr)
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def _llvmpipe(path, threads, repeats):
+    env = dict(os.environ, LP_NUM_THREADS=str(threads), GLIBC_TUNABLES=TUNED)
+    r = subprocess.run([sys.executable, "-m", "benchmarks._gl_gbuffer", str(path), "--repeats",
+                        str(repeats)], env=env, capture_output=True, text=True, cwd=ROOT,
+                       timeout=1800)
+    if r.returncode != 0:
+        return None
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def _stages(mesh, view, proj, repeats):
+    import refraster as rf
+    from refraster.framebuffer import _build
+    from refraster.mesh import as_meshes
+    from refraster.raster.primitive import setup_triangles, transform_vertices
+    from refraster.raster.rasterizer import fused
+    m = as_meshes(mesh)[0]
+    mvp = proj @ view
+    t_vertex = _time(lambda: transform_vertices(m.vertices, mvp), repeats)
+    clip = transform_vertices(m.vertices, mvp).astype(np.float64)
+    t_setup = _time(lambda: setup_triangles(clip, m.faces, W, H), repeats)
+    st = setup_triangles(clip, m.faces, W, H)
+    t_raster = _time(lambda: fused(st), repeats)
+    depth, prim, front, bary = fused(st)
+    offsets = np.array([0, m.n_faces])
+    t_gbuf = _time(lambda: _build([m], [np.eye(4)], view, proj, depth, prim, offsets, front,
+                                  bary.reshape(H, W, 3), None, np.ones(3)), repeats)
+    t_total = _time(lambda: rf.render(m, view=view, proj=proj, width=W, height=H), repeats)
+    return dict(vertex=t_vertex, setup=t_setup, raster=t_raster, gbuffer=t_gbuf, total=t_total,
+                triangles=len(st))
+
+
+def _compile_time():
+    """First render in a fresh NUMBA_CACHE_DIR minus a steady-state render, in a subprocess."""
+    code = """
+import time, trimesh, refraster as rf
+m = trimesh.creation.icosphere(3)
+kw = dict(view=rf.look_at([0, 0, 3], [0, 0, 0]), proj=rf.perspective(45, 4/3, .5, 10),
+          width=256, height=192)
+t0 = time.perf_counter(); rf.render(m, **kw); first = time.perf_counter() - t0
+t0 = time.perf_counter(); rf.render(m, **kw); second = time.perf_counter() - t0
+print(first * 1e3, second * 1e3)
+"""
+    out = []
+    with tempfile.TemporaryDirectory() as cache:
+        for _ in range(2):
+            env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+            r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                               text=True, cwd=ROOT, timeout=900)
+            out.append([float(x) for x in r.stdout.split()])
+    return out  # [[cold first, steady], [cached first, steady]]
+
+
+def _memory(mesh, view, proj, w, h):
+    import refraster as rf
+    rf.render(mesh, view=view, proj=proj, width=64, height=48)
+    tracemalloc.start()
+    rf.render(mesh, view=view, proj=proj, width=w, height=h)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    return peak / 2**20
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="skip the 1.3M-face case")
+    ap.add_argument("--repeats", type=int, default=7)
+    a = ap.parse_args(argv)
+    rows, stage_rows = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, mesh in _cases(a.quick):
+            view, proj = _camera(mesh)
+            path = pathlib.Path(tmp) / "scene.npz"
+            np.savez(path, vertices=np.asarray(mesh.vertices), faces=np.asarray(mesh.faces),
+                     view=view, proj=proj, mvp=proj @ view, mv=view, width=W, height=H)
+            for threads in (2, 1):
+                rr = _refraster_worker(path, threads, a.repeats)
+                gl = _llvmpipe(path, threads, a.repeats)
+                rows.append((name, len(mesh.faces), threads, rr["median_ms"],
+                             gl["median_ms"] if gl else float("nan")))
+            stage_rows.append((name, _stages(mesh, view, proj, a.repeats)))
+        big = _cases(False)[1][1] if not a.quick else None
+    print(f"refraster {W}x{H} G-buffer vs llvmpipe (median ms/frame, {a.repeats} repeats)")
+    print(f"{'case':22} {'faces':>9} {'thr':>3} {'refraster':>10} {'llvmpipe':>9} {'ratio':>6}"
+          f" {'Mtri/s':>7} {'Mpx/s':>7}")
+    for name, faces, thr, ms, gl in rows:
+        print(f"{name:22} {faces:9d} {thr:3d} {ms:10.1f} {gl:9.1f} {ms / gl:6.2f}"
+              f" {faces / ms / 1e3:7.1f} {W * H / ms / 1e3:7.1f}")
+    print("\nstage breakdown, 2 threads (ms): vertex | setup | bin+raster+resolve | G-buffer | total")
+    for name, s in stage_rows:
+        print(f"{name:22} {s['vertex']:7.2f} {s['setup']:7.2f} {s['raster']:7.2f}"
+              f" {s['gbuffer']:7.2f} {s['total']:7.2f}   ({s['triangles']} screen triangles)")
+    (cold, steady), (cached, steady2) = _compile_time()
+    print(f"\ncompile: first render in a fresh cache {cold:.0f} ms (steady {steady:.1f} ms); "
+          f"first render with the cache filled {cached:.0f} ms (steady {steady2:.1f} ms)")
+    if big is not None:
+        view, proj = _camera(big)
+        print(f"peak traced memory, 1.3M faces at {W}x{H}: {_memory(big, view, proj, W, H):.0f} MiB;"
+              f" at 4096x4096: {_memory(big, view, proj, 4096, 4096):.0f} MiB")
+
+
+if __name__ == "__main__":
+    main()
