@@ -238,8 +238,8 @@ def render(meshes, *, view, proj, width, height, normals=None, cull="none", dept
                       prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg)
     from .raster import _fragments_from
     from .raster.rasterizer import stream
-    pixel, depth, tri, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
-    frags = _fragments_from(prep, pixel, depth, tri, bary)
+    pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
+    frags = _fragments_from(prep, pixel, depth, prim, front, bary)
     keep = fragment_stage(frags)
     keep = np.asarray(keep)
     if keep.dtype != np.bool_ or keep.shape != (len(frags),):

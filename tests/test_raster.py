@@ -84,19 +84,21 @@ def test_fill_rule_on_shared_pixel_centres():
 def test_fused_equals_stream_and_resolve(func):
     rng = np.random.default_rng(7)
     v, f = _random_soup(rng, 60, 1.5)
+    # plus large triangles crossing the near plane and the guard band (clipped pieces)
+    v2, f2 = _random_soup(rng, 8, 40.0)
+    v = np.concatenate([v, v2 + [0, 0, 3.0]])
+    f = np.concatenate([f, f2 + len(f) * 3])
     clear = 0.0 if func in ("greater", "gequal") else 1.0
     prep = rf.raster.prepare((v, f), view=VIEW, proj=PROJ, width=40, height=30)
+    assert len(prep.triangles.clipped) > 0
     depth, prim, front, bary = fused(prep.triangles, depth_func=DEPTH_FUNCS[func],
                                      clear_depth=clear)
-    pixel, fd, ftri, fbary, _ = stream(prep.triangles)
-    frags = rf.Fragments(pixel, fd, ftri, np.zeros_like(ftri), fbary, np.zeros(len(ftri), bool),
-                         40, 30)
+    pixel, fd, fprim, ffront, fbary, _ = stream(prep.triangles)
+    frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, 40, 30)
     res = rf.resolve(frags, depth_func=func, clear_depth=clear)
     assert res.depth.tobytes() == depth.tobytes()
-    st = prep.triangles
-    win_tri = ftri[res.winner]
-    assert np.array_equal(np.where(res.winner >= 0, st.prim[win_tri], -1), prim)
-    assert np.array_equal(np.where(res.winner >= 0, st.front[win_tri], False), front)
+    assert np.array_equal(np.where(res.winner >= 0, fprim[res.winner], -1), prim)
+    assert np.array_equal(np.where(res.winner >= 0, ffront[res.winner], False), front)
     m = res.winner.ravel() >= 0
     assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes()
 

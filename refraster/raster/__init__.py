@@ -85,11 +85,9 @@ def prepare(meshes, *, view, proj, width, height, model=None, cull="none", preci
     return p
 
 
-def _fragments_from(prep, pixel, depth, tri, bary):
-    st = prep.triangles
-    prim_global = st.prim[tri]
+def _fragments_from(prep, pixel, depth, prim_global, front, bary):
     obj, prim = prep.split(prim_global)
-    return Fragments(pixel, depth, prim, obj, bary, st.front[tri], prep.width, prep.height,
+    return Fragments(pixel, depth, prim, obj, bary, front, prep.width, prep.height,
                      meshes=prep.meshes, models=prep.models, view=prep.view, proj=prep.proj)
 
 
@@ -125,8 +123,8 @@ def draw(meshes, *, view, proj, width, height, model=None, cull="none", precisio
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
                    cull=cull, precision=precision, subpixel_bits=subpixel_bits,
                    fill_rule=fill_rule)
-    pixel, depth, tri, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
-    return _fragments_from(prep, pixel, depth, tri, bary)
+    pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
+    return _fragments_from(prep, pixel, depth, prim, front, bary)
 
 
 def rasterize(clip_positions, faces, width, height, *, cull="none", subpixel_bits=8,
@@ -158,7 +156,7 @@ def rasterize(clip_positions, faces, width, height, *, cull="none", subpixel_bit
     bits = _subpixel_bits(subpixel_bits)
     rule = as_choice(fill_rule, "fill_rule", FILL_RULES)
     st = setup_triangles(c, f, width, height, cull=cull_code, subpixel_bits=bits)
-    pixel, depth, tri, bary, _ = stream(st, fill_rule=rule)
-    prim = st.prim[tri].astype(np.int32)
-    return Fragments(pixel, depth, prim, np.zeros(len(prim), np.int32), bary, st.front[tri],
+    pixel, depth, prim, front, bary, _ = stream(st, fill_rule=rule)
+    return Fragments(pixel, depth, prim.astype(np.int32), np.zeros(len(prim), np.int32), bary,
+                     front,
                      width, height)

@@ -259,13 +259,47 @@ def _clipped_face(c, f, i, codes, poly, tmp, X, Y, Z, IW, width, height, bits, g
 
 _CHUNK = 4096
 
+#: Per-face status after the primitive stage.
+SKIP, SIMPLE, CLIPPED = 0, 1, 2
+
 
 @njit(**PJIT)
-def _face_pass(c, f, vX, vY, vZ, vIW, vcode, width, height, bits, gx, gy, cull,
-               counts, offsets, bcounts, boffsets, write,
+def _classify(f, vX, vY, vcode, width, height, bits, cull, status, fbox):
+    """Faces that need no clipping are set up in the rasterizer from the vertex pass's window
+    positions (status SIMPLE, with their pixel bounding box); faces crossing a clip plane get
+    status CLIPPED; culled, degenerate, rejected or centre-less faces SKIP."""
+    for i in prange(f.shape[0]):
+        a, b, d = f[i, 0], f[i, 1], f[i, 2]
+        status[i] = SKIP
+        if vcode[a] & vcode[b] & vcode[d]:
+            continue
+        if vcode[a] | vcode[b] | vcode[d]:
+            status[i] = CLIPPED
+            continue
+        x0, x1, x2 = vX[a], vX[b], vX[d]
+        y0, y1, y2 = vY[a], vY[b], vY[d]
+        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        if area == 0 or (cull == 1 and area < 0) or (cull == 2 and area > 0):
+            continue
+        one = np.int64(1) << bits
+        bx0 = max((min(x0, x1, x2) + one - 1) >> bits, 0)
+        bx1 = min(max(x0, x1, x2) >> bits, width - 1)
+        by0 = max((min(y0, y1, y2) + one - 1) >> bits, 0)
+        by1 = min(max(y0, y1, y2) >> bits, height - 1)
+        if bx0 > bx1 or by0 > by1:
+            continue
+        status[i] = SIMPLE
+        fbox[i, 0] = bx0
+        fbox[i, 1] = bx1
+        fbox[i, 2] = by0
+        fbox[i, 3] = by1
+
+
+@njit(**PJIT)
+def _clip_pass(c, f, idx, width, height, bits, gx, gy, cull, counts, offsets, write,
                oX, oY, oZ, oIW, oprim, ofront, obox, oarea, obidx, oB):
-    nf = f.shape[0]
-    nchunks = (nf + _CHUNK - 1) // _CHUNK
+    n_idx = idx.shape[0]
+    nchunks = (n_idx + _CHUNK - 1) // _CHUNK
     for ch in prange(nchunks):
         poly = np.zeros((_MAXV, 7))
         tmp = np.zeros((_MAXV, 7))
@@ -275,33 +309,12 @@ def _face_pass(c, f, vX, vY, vZ, vIW, vcode, width, height, bits, gx, gy, cull,
         IW = np.zeros(_MAXV)
         box = np.zeros(4, np.int64)
         o = offsets[ch]
-        ob = boffsets[ch]
-        for i in range(ch * _CHUNK, min(nf, (ch + 1) * _CHUNK)):
-            a, b, d = f[i, 0], f[i, 1], f[i, 2]
-            if vcode[a] & vcode[b] & vcode[d]:
-                continue
-            codes = vcode[a] | vcode[b] | vcode[d]
-            if codes == 0:
-                # the common case: no clipping, window positions from the vertex pass
-                X[0], X[1], X[2] = vX[a], vX[b], vX[d]
-                Y[0], Y[1], Y[2] = vY[a], vY[b], vY[d]
-                area = _area(X, Y, 0, 1, 2)
-                if area == 0 or (cull == 1 and area < 0) or (cull == 2 and area > 0):
-                    continue
-                box[0], box[1], box[2], box[3] = _bbox(X, Y, 0, 1, 2, bits, width, height)
-                if box[0] > box[1] or box[2] > box[3]:
-                    continue
-                if write:
-                    Z[0], Z[1], Z[2] = vZ[a], vZ[b], vZ[d]
-                    IW[0], IW[1], IW[2] = vIW[a], vIW[b], vIW[d]
-                    if area > 0:
-                        _store(o, X, Y, Z, IW, 0, 1, 2, i, True, box, area, -1,
-                               oX, oY, oZ, oIW, oprim, ofront, obox, oarea, obidx)
-                    else:
-                        _store(o, X, Y, Z, IW, 0, 2, 1, i, False, box, -area, -1,
-                               oX, oY, oZ, oIW, oprim, ofront, obox, oarea, obidx)
-                o += 1
-                continue
+        for r in range(ch * _CHUNK, min(n_idx, (ch + 1) * _CHUNK)):
+            i = idx[r]
+            codes = 0
+            for k in range(3):
+                v = f[i, k]
+                codes |= _outcode(c[v, 0], c[v, 1], c[v, 2], c[v, 3], gx, gy)
             n, total = _clipped_face(c, f, i, codes, poly, tmp, X, Y, Z, IW, width, height,
                                      bits, gx, gy)
             if n == 0 or total == 0 or (cull == 1 and total < 0) or (cull == 2 and total > 0):
@@ -315,40 +328,55 @@ def _face_pass(c, f, vX, vY, vZ, vIW, vcode, width, height, bits, gx, gy, cull,
                     continue
                 if write:
                     j1, j2 = (k, k + 1) if area > 0 else (k + 1, k)
-                    _store(o, X, Y, Z, IW, 0, j1, j2, i, total > 0, box, abs(area), ob,
+                    _store(o, X, Y, Z, IW, 0, j1, j2, i, total > 0, box, abs(area), o,
                            oX, oY, oZ, oIW, oprim, ofront, obox, oarea, obidx)
                     for s, v in enumerate((0, j1, j2)):
                         for j in range(3):
-                            oB[ob, s, j] = poly[v, 4 + j]
+                            oB[o, s, j] = poly[v, 4 + j]
                 o += 1
-                ob += 1
         if not write:
             counts[ch] = o - offsets[ch]
-            bcounts[ch] = ob - boffsets[ch]
 
 
 class ScreenTriangles:
-    """Set-up triangles ready for rasterization (struct of arrays, ``T`` triangles).
+    """Set-up pieces of clipped faces (struct of arrays, ``T`` triangles).
 
     ``x, y (T, 3) int32`` snapped window coordinates (GL y-up, half-pixel offset removed, pixel
     centres on multiples of ``2^subpixel_bits``), counter-clockwise; ``z (T, 3) float32`` window
-    depth; ``inv_w (T, 3)`` 1/w; ``prim (T,) int64`` the original face index (in input order, so
-    sorting by it is draw order); ``front (T,) bool``; ``bbox (T, 4) int32`` inclusive pixel
-    ranges ``x0, x1, y0, y1``; ``area (T,) int64`` doubled area in fixed point;
-    ``bary_index (T,) int32``: −1 for an unclipped face (its vertices are the face's own, in
-    order ``0, 1, 2`` or ``0, 2, 1`` for clockwise faces — see ``front``), else a row of
-    ``bary (Tc, 3, 3)``, each vertex's barycentrics in the original face.
+    depth; ``inv_w (T, 3)`` 1/w; ``prim (T,) int64`` the original face index (ascending: draw
+    order); ``front (T,) bool``; ``bbox (T, 4) int32`` inclusive pixel ranges ``x0, x1, y0,
+    y1``; ``area (T,) int64`` doubled area in fixed point; ``bary (T, 3, 3)`` each vertex's
+    barycentrics in the original face (``bary_index`` is the row, kept for the kernels).
     """
 
-    __slots__ = ("x", "y", "z", "inv_w", "prim", "front", "bbox", "area", "bary_index", "bary",
-                 "width", "height", "subpixel_bits")
+    __slots__ = ("x", "y", "z", "inv_w", "prim", "front", "bbox", "area", "bary_index", "bary")
 
     def __len__(self):
         return int(self.prim.shape[0])
 
 
+class Primitives:
+    """Output of the primitive stage, input of the rasterizer.
+
+    ``faces (F, 3)``; per vertex the snapped window position ``vx, vy`` (int64), window depth
+    ``vz`` (float32) and ``v_inv_w`` (valid where the vertex is inside every clip plane);
+    per face ``status`` (``SKIP``, ``SIMPLE``, ``CLIPPED``) and ``bbox (F, 4) int32`` for simple
+    faces; ``clipped``, the :class:`ScreenTriangles` of the clipped faces' pieces. A simple face
+    is set up inside the rasterizer, per tile, from the per-vertex arrays — the same integer and
+    float operations as a stored triangle, so nothing about the result depends on where it was
+    set up.
+    """
+
+    __slots__ = ("faces", "vx", "vy", "vz", "v_inv_w", "status", "bbox", "clipped", "width",
+                 "height", "subpixel_bits")
+
+    @property
+    def n_faces(self):
+        return int(self.faces.shape[0])
+
+
 def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8):
-    """Run the primitive stage on validated arrays; returns :class:`ScreenTriangles`."""
+    """Run the primitive stage on validated arrays; returns :class:`Primitives`."""
     c = np.ascontiguousarray(clip, dtype=np.float64)
     f = np.ascontiguousarray(faces, dtype=np.int64)
     gx = 2.0 * GUARD_PIXELS / width
@@ -360,27 +388,32 @@ def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8):
     vIW = np.zeros(nv)
     vcode = np.zeros(nv, np.int64)
     _vertex_pass(c, width, height, subpixel_bits, gx, gy, vX, vY, vZ, vIW, vcode)
-    nchunks = max((len(f) + _CHUNK - 1) // _CHUNK, 1)
+    status = np.zeros(len(f), np.int8)
+    fbox = np.zeros((len(f), 4), np.int32)
+    _classify(f, vX, vY, vcode, width, height, subpixel_bits, cull, status, fbox)
+    idx = np.flatnonzero(status == CLIPPED)
+    nchunks = max((len(idx) + _CHUNK - 1) // _CHUNK, 1)
     counts = np.zeros(nchunks, np.int64)
     offsets = np.zeros(nchunks, np.int64)
-    bcounts = np.zeros(nchunks, np.int64)
-    boffsets = np.zeros(nchunks, np.int64)
-    args = (c, f, vX, vY, vZ, vIW, vcode, width, height, subpixel_bits, gx, gy, cull,
-            counts, offsets, bcounts, boffsets)
-    _face_pass(*args, False, *_alloc(0, 0))
-    offsets[1:] = np.cumsum(counts)[:-1]
-    boffsets[1:] = np.cumsum(bcounts)[:-1]
-    out = _alloc(int(counts.sum()), int(bcounts.sum()))
-    _face_pass(*args, True, *out)
+    args = (c, f, idx, width, height, subpixel_bits, gx, gy, cull, counts, offsets)
+    if len(idx):
+        _clip_pass(*args, False, *_alloc(0))
+        offsets[1:] = np.cumsum(counts)[:-1]
+    out = _alloc(int(counts.sum()))
+    if len(idx):
+        _clip_pass(*args, True, *out)
     st = ScreenTriangles()
     (st.x, st.y, st.z, st.inv_w, st.prim, st.front, st.bbox, st.area, st.bary_index,
      st.bary) = out
-    st.width, st.height, st.subpixel_bits = width, height, subpixel_bits
-    return st
+    p = Primitives()
+    p.faces, p.vx, p.vy, p.vz, p.v_inv_w = f, vX, vY, vZ, vIW
+    p.status, p.bbox, p.clipped = status, fbox, st
+    p.width, p.height, p.subpixel_bits = width, height, subpixel_bits
+    return p
 
 
-def _alloc(t, tc):
+def _alloc(t):
     return (np.zeros((t, 3), np.int32), np.zeros((t, 3), np.int32), np.zeros((t, 3), np.float32),
             np.zeros((t, 3)), np.zeros(t, np.int64), np.zeros(t, np.bool_),
             np.zeros((t, 4), np.int32), np.zeros(t, np.int64), np.zeros(t, np.int32),
-            np.zeros((tc, 3, 3)))
+            np.zeros((t, 3, 3)))

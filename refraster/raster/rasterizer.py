@@ -1,8 +1,9 @@
 """The rasterizer: fixed-point edge functions over tiles.
 
 Coverage
-    Each screen triangle (counter-clockwise, snapped to ``1/2^b`` pixel, pixel centres on integer
-    multiples of ``2^b``; see :mod:`refraster.raster.primitive`) has three integer edge functions
+    Each triangle (snapped to ``1/2^b`` pixel, pixel centres on integer multiples of ``2^b``;
+    see :mod:`refraster.raster.primitive`) is made counter-clockwise (a clockwise face swaps its
+    last two vertices) and gets three integer edge functions
     ``E_k(p) = (X_b − X_a)(p_y − Y_a) − (Y_b − Y_a)(p_x − X_a)`` for the edge a→b opposite
     vertex k. A pixel centre is covered when every ``E_k > 0``, or ``E_k = 0`` on an edge the fill
     rule owns. With ``fill_rule="llvmpipe"`` (alias ``"bottom-left"``) a centre on an edge belongs
@@ -15,13 +16,15 @@ Coverage
 Interpolation (identical formulas in the fragment-stream and fused paths)
     ``λ_k = E_k · (1 / area)`` in float64; window depth ``z = λ0 z0 + λ1 z1 + λ2 z2`` (linear in
     screen space, as GL), clamped to [0, 1] and rounded to float32; perspective-correct
-    barycentrics in the original face ``b = Σ_k q_k B_k / Σ_k q_k`` with ``q_k = E_k / w_k``,
-    rounded to float32.
+    barycentrics in the original face ``b = Σ_k q_k B_k / Σ_k q_k`` with ``q_k = E_k / w_k``
+    (``B`` the identity, up to the clockwise swap, for an unclipped face), rounded to float32.
 
 Tiles
-    The viewport is cut into ``TILE × TILE`` pixel tiles; triangles are binned to the tiles their
-    bounding box touches, in primitive order. Tiles are processed in parallel; each writes only
-    its own output range, so the result is bit-identical for any thread count.
+    The viewport is cut into ``TILE × TILE`` pixel tiles; primitives are binned to the tiles
+    their bounding box touches, in primitive order (a clipped face's pieces at its place).
+    Unclipped faces are set up inside the tile from the per-vertex window positions. Tiles are
+    processed in parallel; each writes only its own output range, so the result is
+    bit-identical for any thread count.
 """
 
 from __future__ import annotations
@@ -30,9 +33,11 @@ import numpy as np
 from numba import njit, prange
 
 from .._config import JIT, PJIT
+from .primitive import CLIPPED, SIMPLE
 
 TILE_SHIFT = 5
 TILE = 1 << TILE_SHIFT
+_BIN_CHUNK = 8192
 
 DEPTH_FUNCS = {"never": 0, "less": 1, "equal": 2, "lequal": 3, "greater": 4, "notequal": 5,
                "gequal": 6, "always": 7}
@@ -56,47 +61,99 @@ def depth_test(func, z, ref):
     return func == 7
 
 
-@njit(**JIT)
-def _bin_count(bbox, ntx, counts):
-    for t in range(bbox.shape[0]):
-        for ty in range(bbox[t, 2] >> TILE_SHIFT, (bbox[t, 3] >> TILE_SHIFT) + 1):
-            for tx in range(bbox[t, 0] >> TILE_SHIFT, (bbox[t, 1] >> TILE_SHIFT) + 1):
-                counts[ty * ntx + tx] += 1
-
+# ------------------------------------------------------------------------------------ binning
 
 @njit(**JIT)
-def _bin_fill(bbox, ntx, cursor, lists):
-    for t in range(bbox.shape[0]):
-        for ty in range(bbox[t, 2] >> TILE_SHIFT, (bbox[t, 3] >> TILE_SHIFT) + 1):
-            for tx in range(bbox[t, 0] >> TILE_SHIFT, (bbox[t, 1] >> TILE_SHIFT) + 1):
-                k = ty * ntx + tx
-                lists[cursor[k]] = t
-                cursor[k] += 1
+def _pieces(sprim, i):
+    """Range of clipped pieces of face ``i`` (``sprim`` ascending)."""
+    return np.searchsorted(sprim, i, side="left"), np.searchsorted(sprim, i, side="right")
 
 
-def bin_triangles(bbox, width, height):
-    """Tile lists: ``starts (ntiles + 1,)`` and ``lists`` of triangle indices in order."""
-    ntx = (width + TILE - 1) >> TILE_SHIFT
-    nty = (height + TILE - 1) >> TILE_SHIFT
-    counts = np.zeros(ntx * nty, np.int64)
-    _bin_count(bbox, ntx, counts)
-    starts = np.zeros(ntx * nty + 1, np.int64)
-    np.cumsum(counts, out=starts[1:])
-    cursor = starts[:-1].copy()
+@njit(**JIT)
+def _add(box, ntx, counts, lists, cursor, item, fill):
+    for ty in range(box[2] >> TILE_SHIFT, (box[3] >> TILE_SHIFT) + 1):
+        for tx in range(box[0] >> TILE_SHIFT, (box[1] >> TILE_SHIFT) + 1):
+            t = ty * ntx + tx
+            if fill:
+                lists[cursor[t]] = item
+                cursor[t] += 1
+            else:
+                counts[t] += 1
+
+
+@njit(**PJIT)
+def _bin_pass(status, fbox, sprim, sbox, ntx, ntiles, counts, starts, lists, fill):
+    """Per chunk of faces: count (fill=False) or write (fill=True) tile lists. ``counts`` is
+    ``(nchunks, ntiles)``; chunk c of tile t writes from ``starts[c, t]``, so the lists are in
+    primitive order whatever the thread count."""
+    nf = status.shape[0]
+    nchunks = (nf + _BIN_CHUNK - 1) // _BIN_CHUNK
+    for ch in prange(nchunks):
+        cursor = starts[ch].copy() if fill else starts[0]
+        cnt = counts[ch]
+        for i in range(ch * _BIN_CHUNK, min(nf, (ch + 1) * _BIN_CHUNK)):
+            s = status[i]
+            if s == SIMPLE:
+                _add(fbox[i], ntx, cnt, lists, cursor, i, fill)
+            elif s == CLIPPED:
+                lo, hi = _pieces(sprim, i)
+                for k in range(lo, hi):
+                    _add(sbox[k], ntx, cnt, lists, cursor, -(k + 1), fill)
+
+
+def bin_primitives(prims):
+    """Tile lists: ``(ntx, nty, starts (ntiles + 1,), lists)``; an item ``i ≥ 0`` is simple face
+    ``i``, an item ``−(k + 1)`` clipped piece ``k``; each list is in primitive order."""
+    w, h = prims.width, prims.height
+    ntx = (w + TILE - 1) >> TILE_SHIFT
+    nty = (h + TILE - 1) >> TILE_SHIFT
+    ntiles = ntx * nty
+    nchunks = max((prims.n_faces + _BIN_CHUNK - 1) // _BIN_CHUNK, 1)
+    counts = np.zeros((nchunks, ntiles), np.int64)
+    st = prims.clipped
+    starts2 = np.zeros((nchunks, ntiles), np.int64)
+    lists = np.zeros(0, np.int64)
+    _bin_pass(prims.status, prims.bbox, st.prim, st.bbox, ntx, ntiles, counts, starts2, lists,
+              False)
+    per_tile = counts.sum(axis=0)
+    starts = np.zeros(ntiles + 1, np.int64)
+    np.cumsum(per_tile, out=starts[1:])
+    starts2[:] = starts[:-1][None, :] + np.cumsum(counts, axis=0) - counts
     lists = np.zeros(int(starts[-1]), np.int64)
-    _bin_fill(bbox, ntx, cursor, lists)
+    _bin_pass(prims.status, prims.bbox, st.prim, st.bbox, ntx, ntiles, counts, starts2, lists,
+              True)
     return ntx, nty, starts, lists
 
 
+# ------------------------------------------------------------------- per-triangle set-up
+
 @njit(**JIT)
-def _edge_setup(X, Y, t, k, bits, rule, px, py):
-    """Edge k of triangle t: (value at pixel (px, py) minus bias, step in x, step in y, bias)."""
-    a = (k + 1) % 3
-    b = (k + 2) % 3
-    xa = np.int64(X[t, a])
-    ya = np.int64(Y[t, a])
-    dx = np.int64(X[t, b]) - xa
-    dy = np.int64(Y[t, b]) - ya
+def _load(item, f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox, sarea):
+    """Set up one binned item as a counter-clockwise triangle:
+    ``(x0, y0, x1, y1, x2, y2, z0, z1, z2, iw0, iw1, iw2, area, prim, front, piece, box)``;
+    ``piece`` is −1 for an unclipped face."""
+    if item >= 0:
+        a, b, d = f[item, 0], f[item, 1], f[item, 2]
+        x0, y0, x1, y1, x2, y2 = vX[a], vY[a], vX[b], vY[b], vX[d], vY[d]
+        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        front = area > 0
+        if not front:
+            b, d = d, b
+            x1, y1, x2, y2 = x2, y2, x1, y1
+            area = -area
+        return (x0, y0, x1, y1, x2, y2, vZ[a], vZ[b], vZ[d], vIW[a], vIW[b], vIW[d], area,
+                item, front, -1, fbox[item])
+    k = -item - 1
+    return (np.int64(sX[k, 0]), np.int64(sY[k, 0]), np.int64(sX[k, 1]), np.int64(sY[k, 1]),
+            np.int64(sX[k, 2]), np.int64(sY[k, 2]), sZ[k, 0], sZ[k, 1], sZ[k, 2], sIW[k, 0],
+            sIW[k, 1], sIW[k, 2], sarea[k], sprim[k], sfront[k], k, sbox[k])
+
+
+@njit(**JIT)
+def _edge(xa, ya, xb, yb, bits, rule, px, py):
+    """Edge a→b: (value at pixel (px, py) minus bias, step in x, step in y, bias)."""
+    dx = xb - xa
+    dy = yb - ya
     if rule == 0:
         owns = dy < 0 or (dy == 0 and dx > 0)   # left or bottom edge
     else:
@@ -107,11 +164,11 @@ def _edge_setup(X, Y, t, k, bits, rule, px, py):
 
 
 @njit(**JIT)
-def fragment_depth(Z, t, e0, e1, e2, inv_area):
+def fragment_depth(z0, z1, z2, e0, e1, e2, inv_area):
     l0 = np.float64(e0) * inv_area
     l1 = np.float64(e1) * inv_area
     l2 = np.float64(e2) * inv_area
-    z = l0 * np.float64(Z[t, 0]) + l1 * np.float64(Z[t, 1]) + l2 * np.float64(Z[t, 2])
+    z = l0 * np.float64(z0) + l1 * np.float64(z1) + l2 * np.float64(z2)
     if z < 0.0:
         z = 0.0
     elif z > 1.0:
@@ -120,16 +177,15 @@ def fragment_depth(Z, t, e0, e1, e2, inv_area):
 
 
 @njit(**JIT)
-def fragment_bary(IW, BI, B, front, t, e0, e1, e2, out, o):
-    q0 = np.float64(e0) * IW[t, 0]
-    q1 = np.float64(e1) * IW[t, 1]
-    q2 = np.float64(e2) * IW[t, 2]
+def fragment_bary(iw0, iw1, iw2, piece, front, B, e0, e1, e2, out, o):
+    q0 = np.float64(e0) * iw0
+    q1 = np.float64(e1) * iw1
+    q2 = np.float64(e2) * iw2
     s = q0 + q1 + q2
-    k = BI[t]
-    if k < 0:
+    if piece < 0:
         # an unclipped face: its own vertices, in order 0, 1, 2 (front) or 0, 2, 1 (back)
         out[o, 0] = np.float32(q0 / s)
-        if front[t]:
+        if front:
             out[o, 1] = np.float32(q1 / s)
             out[o, 2] = np.float32(q2 / s)
         else:
@@ -137,12 +193,16 @@ def fragment_bary(IW, BI, B, front, t, e0, e1, e2, out, o):
             out[o, 2] = np.float32(q1 / s)
         return
     for j in range(3):
-        out[o, j] = np.float32((q0 * B[k, 0, j] + q1 * B[k, 1, j] + q2 * B[k, 2, j]) / s)
+        out[o, j] = np.float32((q0 * B[piece, 0, j] + q1 * B[piece, 1, j]
+                                + q2 * B[piece, 2, j]) / s)
 
+
+# ------------------------------------------------------------------------------ kernels
 
 @njit(**PJIT)
-def _stream_pass(X, Y, Z, IW, BI, B, front, bbox, area, starts, lists, ntx, width, height,
-                 bits, rule, write, counts, offsets, o_pixel, o_depth, o_tri, o_bary):
+def _stream_pass(f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox, sarea, B,
+                 starts, lists, ntx, width, height, bits, rule, write, counts, offsets,
+                 o_pixel, o_depth, o_prim, o_front, o_bary):
     ntiles = starts.shape[0] - 1
     for tile in prange(ntiles):
         tx0 = (tile % ntx) << TILE_SHIFT
@@ -151,28 +211,32 @@ def _stream_pass(X, Y, Z, IW, BI, B, front, bbox, area, starts, lists, ntx, widt
         ty1 = min(ty0 + TILE, height) - 1
         o = offsets[tile]
         for j in range(starts[tile], starts[tile + 1]):
-            t = lists[j]
-            x0 = max(bbox[t, 0], tx0)
-            x1 = min(bbox[t, 1], tx1)
-            y0 = max(bbox[t, 2], ty0)
-            y1 = min(bbox[t, 3], ty1)
-            if x0 > x1 or y0 > y1:
+            (x0, y0, x1, y1, x2, y2, z0, z1, z2, iw0, iw1, iw2, area, prim, front, piece,
+             box) = _load(lists[j], f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront,
+                          sbox, sarea)
+            bx0 = max(np.int64(box[0]), tx0)
+            bx1 = min(np.int64(box[1]), tx1)
+            by0 = max(np.int64(box[2]), ty0)
+            by1 = min(np.int64(box[3]), ty1)
+            if bx0 > bx1 or by0 > by1:
                 continue
-            r0, sx0, sy0, b0 = _edge_setup(X, Y, t, 0, bits, rule, x0, y0)
-            r1, sx1, sy1, b1 = _edge_setup(X, Y, t, 1, bits, rule, x0, y0)
-            r2, sx2, sy2, b2 = _edge_setup(X, Y, t, 2, bits, rule, x0, y0)
-            inv_area = 1.0 / np.float64(area[t])
-            for y in range(y0, y1 + 1):
+            r0, sx0, sy0, b0 = _edge(x1, y1, x2, y2, bits, rule, bx0, by0)
+            r1, sx1, sy1, b1 = _edge(x2, y2, x0, y0, bits, rule, bx0, by0)
+            r2, sx2, sy2, b2 = _edge(x0, y0, x1, y1, bits, rule, bx0, by0)
+            inv_area = 1.0 / np.float64(area)
+            for y in range(by0, by1 + 1):
                 e0, e1, e2 = r0, r1, r2
                 row = (height - 1 - y) * width
-                for x in range(x0, x1 + 1):
+                for x in range(bx0, bx1 + 1):
                     if e0 >= 0 and e1 >= 0 and e2 >= 0:
                         if write:
                             o_pixel[o] = row + x
-                            o_tri[o] = t
-                            o_depth[o] = fragment_depth(Z, t, e0 + b0, e1 + b1, e2 + b2,
+                            o_prim[o] = prim
+                            o_front[o] = front
+                            o_depth[o] = fragment_depth(z0, z1, z2, e0 + b0, e1 + b1, e2 + b2,
                                                         inv_area)
-                            fragment_bary(IW, BI, B, front, t, e0 + b0, e1 + b1, e2 + b2, o_bary, o)
+                            fragment_bary(iw0, iw1, iw2, piece, front, B, e0 + b0, e1 + b1,
+                                          e2 + b2, o_bary, o)
                         o += 1
                     e0 += sx0
                     e1 += sx1
@@ -184,33 +248,40 @@ def _stream_pass(X, Y, Z, IW, BI, B, front, bbox, area, starts, lists, ntx, widt
             counts[tile] = o - offsets[tile]
 
 
-def stream(st, *, fill_rule=0):
-    """Rasterize set-up triangles into a fragment stream.
+def _geometry(prims):
+    st = prims.clipped
+    return (prims.faces, prims.vx, prims.vy, prims.vz, prims.v_inv_w, prims.bbox, st.x, st.y,
+            st.z, st.inv_w, st.prim, st.front, st.bbox, st.area, st.bary)
 
-    Returns ``(pixel, depth, tri, bary, tile_offsets)``: ``tri`` indexes the screen triangles;
-    fragments are grouped by tile, and within a tile ordered by triangle, then row, then column.
+
+def stream(prims, *, fill_rule=0):
+    """Rasterize the primitive stage's output into a fragment stream.
+
+    Returns ``(pixel, depth, prim, front, bary, tile_offsets)``: fragments grouped by tile, and
+    within a tile ordered by primitive, then row, then column.
     """
-    ntx, nty, starts, lists = bin_triangles(st.bbox, st.width, st.height)
+    ntx, nty, starts, lists = bin_primitives(prims)
     ntiles = ntx * nty
     counts = np.zeros(ntiles, np.int64)
     offsets = np.zeros(ntiles, np.int64)
-    args = (st.x, st.y, st.z, st.inv_w, st.bary_index, st.bary, st.front, st.bbox, st.area, starts, lists, ntx,
-            st.width, st.height, st.subpixel_bits, fill_rule)
+    args = (*_geometry(prims), starts, lists, ntx, prims.width, prims.height,
+            prims.subpixel_bits, fill_rule)
     z = (np.zeros(0, np.int64), np.zeros(0, np.float32), np.zeros(0, np.int64),
-         np.zeros((0, 3), np.float32))
+         np.zeros(0, np.bool_), np.zeros((0, 3), np.float32))
     _stream_pass(*args, False, counts, offsets, *z)
     tile_offsets = np.zeros(ntiles + 1, np.int64)
     np.cumsum(counts, out=tile_offsets[1:])
     n = int(tile_offsets[-1])
     out = (np.zeros(n, np.int64), np.zeros(n, np.float32), np.zeros(n, np.int64),
-           np.zeros((n, 3), np.float32))
+           np.zeros(n, np.bool_), np.zeros((n, 3), np.float32))
     _stream_pass(*args, True, counts, tile_offsets[:-1].copy(), *out)
     return (*out, tile_offsets)
 
 
 @njit(**PJIT)
-def _fused_pass(X, Y, Z, IW, BI, B, front, prim, bbox, area, starts, lists, ntx, width, height,
-                bits, rule, func, clear, o_depth, o_prim, o_front, o_bary):
+def _fused_pass(f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox, sarea, B,
+                starts, lists, ntx, width, height, bits, rule, func, clear,
+                o_depth, o_prim, o_front, o_bary):
     ntiles = starts.shape[0] - 1
     for tile in prange(ntiles):
         tx0 = (tile % ntx) << TILE_SHIFT
@@ -220,27 +291,29 @@ def _fused_pass(X, Y, Z, IW, BI, B, front, prim, bbox, area, starts, lists, ntx,
         zbuf = np.full((TILE, TILE), clear, np.float32)
         win = np.full((TILE, TILE), -1, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
-            t = lists[j]
-            x0 = max(bbox[t, 0], tx0)
-            x1 = min(bbox[t, 1], tx1)
-            y0 = max(bbox[t, 2], ty0)
-            y1 = min(bbox[t, 3], ty1)
-            if x0 > x1 or y0 > y1:
+            (x0, y0, x1, y1, x2, y2, z0, z1, z2, iw0, iw1, iw2, area, prim, front, piece,
+             box) = _load(lists[j], f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront,
+                          sbox, sarea)
+            bx0 = max(np.int64(box[0]), tx0)
+            bx1 = min(np.int64(box[1]), tx1)
+            by0 = max(np.int64(box[2]), ty0)
+            by1 = min(np.int64(box[3]), ty1)
+            if bx0 > bx1 or by0 > by1:
                 continue
-            r0, sx0, sy0, b0 = _edge_setup(X, Y, t, 0, bits, rule, x0, y0)
-            r1, sx1, sy1, b1 = _edge_setup(X, Y, t, 1, bits, rule, x0, y0)
-            r2, sx2, sy2, b2 = _edge_setup(X, Y, t, 2, bits, rule, x0, y0)
-            inv_area = 1.0 / np.float64(area[t])
-            for y in range(y0, y1 + 1):
+            r0, sx0, sy0, b0 = _edge(x1, y1, x2, y2, bits, rule, bx0, by0)
+            r1, sx1, sy1, b1 = _edge(x2, y2, x0, y0, bits, rule, bx0, by0)
+            r2, sx2, sy2, b2 = _edge(x0, y0, x1, y1, bits, rule, bx0, by0)
+            inv_area = 1.0 / np.float64(area)
+            for y in range(by0, by1 + 1):
                 e0, e1, e2 = r0, r1, r2
                 ly = y - ty0
-                for x in range(x0, x1 + 1):
+                for x in range(bx0, bx1 + 1):
                     if e0 >= 0 and e1 >= 0 and e2 >= 0:
-                        z = fragment_depth(Z, t, e0 + b0, e1 + b1, e2 + b2, inv_area)
+                        z = fragment_depth(z0, z1, z2, e0 + b0, e1 + b1, e2 + b2, inv_area)
                         lx = x - tx0
                         if depth_test(func, z, zbuf[ly, lx]):
                             zbuf[ly, lx] = z
-                            win[ly, lx] = t
+                            win[ly, lx] = lists[j]
                     e0 += sx0
                     e1 += sx1
                     e2 += sx2
@@ -250,32 +323,36 @@ def _fused_pass(X, Y, Z, IW, BI, B, front, prim, bbox, area, starts, lists, ntx,
         for y in range(ty0, ty1 + 1):
             row = height - 1 - y
             for x in range(tx0, tx1 + 1):
-                t = win[y - ty0, x - tx0]
                 o_depth[row, x] = zbuf[y - ty0, x - tx0]
-                o_prim[row, x] = prim[t] if t >= 0 else -1
-                if t >= 0:
-                    o_front[row, x] = front[t]
-                    e0, _, _, b0 = _edge_setup(X, Y, t, 0, bits, rule, x, y)
-                    e1, _, _, b1 = _edge_setup(X, Y, t, 1, bits, rule, x, y)
-                    e2, _, _, b2 = _edge_setup(X, Y, t, 2, bits, rule, x, y)
-                    fragment_bary(IW, BI, B, front, t, e0 + b0, e1 + b1, e2 + b2, o_bary,
-                                  row * width + x)
+                item = win[y - ty0, x - tx0]
+                if item == -1:
+                    o_prim[row, x] = -1
+                    continue
+                (x0, y0, x1, y1, x2, y2, z0, z1, z2, iw0, iw1, iw2, area, prim, front, piece,
+                 box) = _load(item, f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront,
+                              sbox, sarea)
+                o_prim[row, x] = prim
+                o_front[row, x] = front
+                e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
+                e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
+                e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
+                fragment_bary(iw0, iw1, iw2, piece, front, B, e0 + b0, e1 + b1, e2 + b2,
+                              o_bary, row * width + x)
 
 
-def fused(st, *, fill_rule=0, depth_func=1, clear_depth=1.0):
+def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0):
     """Rasterize and depth-resolve in one pass (no fragment stream, depth writes on).
 
     Returns ``(depth (H, W) float32, prim (H, W) int64 face index or −1, front (H, W) bool,
     bary (H·W, 3) float32)``; bit-identical to :func:`stream` followed by
     :func:`refraster.raster.resolve.resolve` with the same ``depth_func`` (a test checks it).
     """
-    ntx, nty, starts, lists = bin_triangles(st.bbox, st.width, st.height)
-    h, w = st.height, st.width
+    ntx, nty, starts, lists = bin_primitives(prims)
+    h, w = prims.height, prims.width
     depth = np.zeros((h, w), np.float32)
     prim = np.zeros((h, w), np.int64)
     front = np.zeros((h, w), np.bool_)
     bary = np.zeros((h * w, 3), np.float32)
-    _fused_pass(st.x, st.y, st.z, st.inv_w, st.bary_index, st.bary, st.front, st.prim, st.bbox,
-                st.area, starts, lists, ntx, w, h, st.subpixel_bits, fill_rule, depth_func,
-                np.float32(clear_depth), depth, prim, front, bary)
+    _fused_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits, fill_rule,
+                depth_func, np.float32(clear_depth), depth, prim, front, bary)
     return depth, prim, front, bary
