@@ -45,7 +45,7 @@ class Prepared:
     """Validated draw calls after the vertex and primitive stages."""
 
     __slots__ = ("meshes", "models", "view", "proj", "width", "height", "triangles",
-                 "face_offsets", "fill_rule")
+                 "face_offsets", "fill_rule", "clip")
 
     def split(self, prim_global):
         """(object_id, prim_id) of global primitive indices (draw-call order)."""
@@ -81,6 +81,7 @@ def prepare(meshes, *, view, proj, width, height, model=None, cull="none", preci
     p.meshes, p.models, p.view, p.proj = meshes, models, view, proj
     p.width, p.height, p.fill_rule = width, height, rule
     p.face_offsets = np.asarray(offsets, np.int64)
+    p.clip = clip
     p.triangles = setup_triangles(clip, face, width, height, cull=cull_code, subpixel_bits=bits)
     return p
 

@@ -359,7 +359,7 @@ class Primitives:
     """Output of the primitive stage, input of the rasterizer.
 
     ``faces (F, 3)``; per vertex the snapped window position ``vx, vy`` (int64), window depth
-    ``vz`` (float32) and ``v_inv_w`` (valid where the vertex is inside every clip plane);
+    ``vz`` (float32) and ``v_inv_w`` (valid where the vertex's clip outcode ``vcode`` is 0);
     per face ``status`` (``SKIP``, ``SIMPLE``, ``CLIPPED``) and ``bbox (F, 4) int32`` for simple
     faces; ``clipped``, the :class:`ScreenTriangles` of the clipped faces' pieces. A simple face
     is set up inside the rasterizer, per tile, from the per-vertex arrays — the same integer and
@@ -367,8 +367,8 @@ class Primitives:
     set up.
     """
 
-    __slots__ = ("faces", "vx", "vy", "vz", "v_inv_w", "status", "bbox", "clipped", "width",
-                 "height", "subpixel_bits")
+    __slots__ = ("faces", "vx", "vy", "vz", "v_inv_w", "vcode", "status", "bbox", "clipped",
+                 "width", "height", "subpixel_bits")
 
     @property
     def n_faces(self):
@@ -406,7 +406,7 @@ def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8):
     (st.x, st.y, st.z, st.inv_w, st.prim, st.front, st.bbox, st.area, st.bary_index,
      st.bary) = out
     p = Primitives()
-    p.faces, p.vx, p.vy, p.vz, p.v_inv_w = f, vX, vY, vZ, vIW
+    p.faces, p.vx, p.vy, p.vz, p.v_inv_w, p.vcode = f, vX, vY, vZ, vIW, vcode
     p.status, p.bbox, p.clipped = status, fbox, st
     p.width, p.height, p.subpixel_bits = width, height, subpixel_bits
     return p

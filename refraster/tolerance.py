@@ -1,0 +1,427 @@
+"""What a conformant GPU may do differently: coverage masks and value intervals.
+
+A golden image that a conformant GPU fails is a flaky test. This module derives, from the
+geometry, where another implementation is allowed to differ from refraster, in the spirit of the
+Khronos conformance verifier's full / partial / none coverage:
+
+**Coverage** ``(H, W) int8``: ``MUST`` (2) — every allowed rasterizer covers the pixel centre;
+``MAY`` (1) — some allowed rasterizer does and some does not; ``MUST_NOT`` (0) — none does.
+**Ids** ``id_may (H, W) bool``: the visible primitive may differ (near an edge between two
+visible triangles, or where two surfaces are within the depth tolerance of each other).
+
+Allowed variation (documented in ``docs/tolerance.md``): 4 to 8 sub-pixel bits, either fill
+rule (bottom-left or top-left), float32 vertex and viewport arithmetic in any order (with or
+without FMA, division or reciprocal). A pixel centre is "may" when it lies within ``ε`` of an
+edge of a triangle that is relevant there (in front of, or within ``depth_eps`` of, the visible
+surface; or anywhere on the background), where
+
+``ε = √2 · (2^−(b_min+1) + 2^−(b_ref+1)) + ε_float``
+
+is the largest distance an edge can move: each vertex is snapped to within half a grid step,
+by the candidate (``b_min = 4``) and by the reference (``b_ref = 8``), and
+``ε_float = 4 ulp_f32(max window coordinate) + 8 · 2^−24 · max(W, H)`` covers float32 viewport
+and transform rounding; an edge with an endpoint far from the origin (a huge triangle) adds
+``4 ulp_f32`` of that endpoint's coordinate, and a piece of a clipped face adds the float32
+rounding of clipping its original clip coordinates (``4 ulp_f32(R)·max(W, H)/2 / w``), so an
+edge between two vertices at 1e30 — which no float renderer can place — makes its whole
+neighbourhood "may". Coverage is "may" only near edges that can change coverage: border
+edges (one face), fold and silhouette edges (two faces of opposite facing) and edges of
+non-manifold fans; an edge shared by two faces of the same facing keeps the pixel covered
+whatever the snapping (shared vertices snap identically), so there only the id is "may".
+
+Two surfaces are a depth tie (the id "may" differ) when their depths at a pixel differ by at
+most the larger of their faces' depth slacks ``depth_eps + 16·2^−24·|∇z|·R``, ``R`` the largest
+window coordinate of the face's vertices: a float32 plane equation set up from vertices ``R``
+pixels away carries that much rounding (huge triangles).
+
+**Value intervals**: depth ``[lo, hi]`` = ``z ∓ (slack + 1.5 · g · ε)`` with ``g`` the
+visible face's depth gradient ``|∇z|`` per pixel (or, for clipped faces, the largest depth step
+to a 4-neighbour of the same primitive): moving the vertices by up to ε moves the plane's depth
+at a pixel by up to ``|∇z| · ε`` to first order;
+normals: ``normal_tol`` radians; colour: ``color_tol`` per channel. Where the id may differ the
+intervals are unbounded.
+
+Technique boundaries (a clip surface, the cutaway surface, a parity decision) are handled by
+:func:`decision_may`: a pixel is "may" where a fragment in front of (or within ``depth_eps`` of)
+the visible surface has a decision value within ``eps`` of its threshold.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ._config import JIT
+from ._validate import as_real
+from .raster import prepare, resolve
+from .raster.primitive import CLIPPED, SIMPLE
+from .raster.rasterizer import stream
+
+__all__ = ["MUST_NOT", "MAY", "MUST", "Tolerance", "tolerance", "decision_may", "edge_epsilon",
+           "check"]
+
+MUST_NOT, MAY, MUST = 0, 1, 2
+#: Depth difference two surfaces need to be ordered the same by any conformant depth buffer
+#: (float32 transform + interpolation; refraster vs llvmpipe agree within 2e-5, docs/oracles.md).
+DEPTH_EPS = 4e-5
+#: Angle (radians) within which eye-space normals of the same face must agree.
+NORMAL_TOL = 2e-3
+#: Per-channel colour tolerance of the simple shade where the id must agree.
+COLOR_TOL = 2.0 / 255.0
+
+
+def edge_epsilon(width, height, *, min_bits=4, ref_bits=8):
+    """The largest distance (pixels) an edge may move between allowed rasterizers."""
+    snap = np.sqrt(2.0) * (2.0 ** -(min_bits + 1) + 2.0 ** -(ref_bits + 1))
+    m = float(max(width, height))
+    ulp = np.spacing(np.float32(m))
+    return float(snap + 4.0 * ulp + 8.0 * 2.0 ** -24 * m)
+
+
+@dataclass(eq=False)
+class Tolerance:
+    """Per-pixel allowances for one scene (all ``(H, W, …)``, row 0 at the top)."""
+
+    coverage: np.ndarray      # int8: MUST_NOT / MAY / MUST
+    id_may: np.ndarray        # bool
+    depth_lo: np.ndarray      # float32
+    depth_hi: np.ndarray      # float32
+    eps: float
+    depth_eps: float
+    normal_tol: float = NORMAL_TOL
+    color_tol: float = COLOR_TOL
+
+    def arrays(self):
+        return dict(coverage=self.coverage, id_may=self.id_may, depth_lo=self.depth_lo,
+                    depth_hi=self.depth_hi)
+
+
+@njit(**JIT)
+def _plane_z(x0, y0, z0, x1, y1, z1, x2, y2, z2, px, py):
+    """Depth of the triangle's plane at (px, py); the vertices' minimum when degenerate."""
+    d = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+    if d == 0.0:
+        return min(z0, z1, z2)
+    a = ((px - x0) * (y2 - y0) - (x2 - x0) * (py - y0)) / d
+    b = ((x1 - x0) * (py - y0) - (px - x0) * (y1 - y0)) / d
+    return z0 + a * (z1 - z0) + b * (z2 - z0)
+
+
+@njit(**JIT)
+def _mark_edge(xa, ya, xb, yb, tri, eps, depth_eps, winz, covered, boundary, id_may, cov_may):
+    """Mark pixel centres within eps (widened for far endpoints) of the segment a–b."""
+    x0, y0, z0, x1, y1, z1, x2, y2, z2 = tri
+    h, w = winz.shape
+    # float32 window positions far from the origin carry rounding at their own scale
+    big = min(max(abs(xa), abs(ya), abs(xb), abs(yb)), 1e30)
+    eps = eps + 4.0 * np.float64(np.spacing(np.float32(big)))
+    eps = min(eps, 2.0 * (w + h))  # beyond this everything is marked; keeps the ints in range
+    ylo = max(int(np.floor(min(ya, yb) - eps)), 0)
+    yhi = min(int(np.ceil(max(ya, yb) + eps)), h - 1)
+    dx = xb - xa
+    dy = yb - ya
+    ll = dx * dx + dy * dy
+    for y in range(ylo, yhi + 1):
+        # x-range of the segment's part within eps of this row, widened by eps
+        if dy != 0.0:
+            t0 = min(max((y - eps - ya) / dy, 0.0), 1.0)
+            t1 = min(max((y + eps - ya) / dy, 0.0), 1.0)
+            xs0 = xa + t0 * dx
+            xs1 = xa + t1 * dx
+        else:
+            xs0 = xa
+            xs1 = xb
+        xlo = max(int(np.floor(min(xs0, xs1) - eps)), 0)
+        xhi = min(int(np.ceil(max(xs0, xs1) + eps)), w - 1)
+        row = h - 1 - y
+        for x in range(xlo, xhi + 1):
+            t = 0.0
+            if ll > 0.0:
+                t = min(max(((x - xa) * dx + (y - ya) * dy) / ll, 0.0), 1.0)
+            ex = xa + t * dx - x
+            ey = ya + t * dy - y
+            if ex * ex + ey * ey > eps * eps:
+                continue
+            if covered[row, x]:
+                zt = _plane_z(x0, y0, z0, x1, y1, z1, x2, y2, z2, np.float64(x), np.float64(y))
+                if zt > winz[row, x] + depth_eps:
+                    continue
+            id_may[row, x] = True
+            if boundary:
+                cov_may[row, x] = True
+
+
+@njit(**JIT)
+def _mark_faces(f, vX, vY, vZ, vcode, status, cull, edge_boundary, scale, sX, sY, sZ, sprim,
+                seps, fslack, eps, winz, covered, id_may, cov_may):
+    tri = np.zeros(9)
+    for i in range(f.shape[0]):
+        if status[i] == CLIPPED:
+            continue
+        a, b, d = f[i, 0], f[i, 1], f[i, 2]
+        if vcode[a] | vcode[b] | vcode[d]:
+            continue
+        x0, y0 = vX[a] / scale, vY[a] / scale
+        x1, y1 = vX[b] / scale, vY[b] / scale
+        x2, y2 = vX[d] / scale, vY[d] / scale
+        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        if status[i] != SIMPLE and ((cull == 1 and area < 0) or (cull == 2 and area > 0)):
+            continue  # culled, and not edge-on: no allowed rasterizer draws it
+        tri[0], tri[1], tri[2] = x0, y0, vZ[a]
+        tri[3], tri[4], tri[5] = x1, y1, vZ[b]
+        tri[6], tri[7], tri[8] = x2, y2, vZ[d]
+        xs = (x0, x1, x2)
+        ys = (y0, y1, y2)
+        for k in range(3):
+            _mark_edge(xs[k], ys[k], xs[(k + 1) % 3], ys[(k + 1) % 3], tri, eps, fslack[i],
+                       winz, covered, edge_boundary[i, k], id_may, cov_may)
+    for k in range(sprim.shape[0]):
+        for j in range(3):
+            tri[3 * j] = sX[k, j] / scale
+            tri[3 * j + 1] = sY[k, j] / scale
+            tri[3 * j + 2] = sZ[k, j]
+        for j in range(3):
+            _mark_edge(tri[3 * j], tri[3 * j + 1], tri[3 * ((j + 1) % 3)],
+                       tri[3 * ((j + 1) % 3) + 1], tri, eps + seps[k], fslack[sprim[k]],
+                       winz, covered, True, id_may, cov_may)
+
+
+def _edge_boundary(faces, front):
+    """(F, 3) bool: may edge k (from vertex k to k+1) of each face change coverage?
+
+    False only for an edge shared by exactly two faces of the same facing."""
+    f = np.asarray(faces, np.int64)
+    nf = len(f)
+    if nf == 0:
+        return np.zeros((0, 3), np.bool_)
+    a = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
+    b = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
+    key = np.minimum(a, b) * (int(f.max()) + 1) + np.maximum(a, b)
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    start = np.r_[True, ks[1:] != ks[:-1]]
+    group = np.cumsum(start) - 1
+    count = np.bincount(group)
+    face_of = order % nf
+    fr = front[face_of]
+    nfront = np.bincount(group, weights=fr.astype(np.float64))
+    interior = (count[group] == 2) & ((nfront[group] == 0) | (nfront[group] == 2))
+    out = np.ones(3 * nf, np.bool_)
+    out[order] = ~interior
+    return out.reshape(3, nf).T.copy()
+
+
+def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps=None,
+              depth_eps=DEPTH_EPS, min_bits=4):
+    """Coverage masks, id masks and depth intervals for rendering ``meshes`` (as
+    :func:`refraster.render` would, with ``depth_func="less"``).
+
+    Parameters
+    ----------
+    meshes, view, proj, width, height, model, cull
+        As :func:`refraster.render`.
+    eps : float, optional
+        Edge tolerance in pixels; default :func:`edge_epsilon` (4 to 8 sub-pixel bits).
+    depth_eps : float
+        Window-depth tolerance for depth ties and depth intervals.
+    min_bits : int
+        Coarsest sub-pixel precision allowed (4 by default).
+
+    Returns
+    -------
+    Tolerance
+    """
+    prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
+                   cull=cull)
+    w, h = prep.width, prep.height
+    eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
+    depth_eps = as_real(depth_eps, "depth_eps", lo=0.0)
+    pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
+    from .raster import Fragments
+    frags = Fragments(pixel, depth, prim, np.zeros(len(prim), np.int32), bary, front, w, h)
+    res = resolve(frags)
+    win = res.winner
+    covered = win >= 0
+    winz = res.depth.astype(np.float64)
+    vis_prim = np.where(covered, prim[np.maximum(win, 0)], -1)
+    p = prep.triangles
+    face_front = _face_facing(p)
+    fslack = _face_depth_slack(p, depth_eps)
+    if len(p.clipped):
+        # clipped faces: the depth of a new vertex carries float32 clipping rounding too
+        c = prep.clip[p.faces[p.clipped.prim]]
+        r = np.abs(c).max(axis=(1, 2)).astype(np.float32)
+        w_min = 1.0 / p.clipped.inv_w.max(axis=1)
+        extra = np.zeros(len(fslack))
+        np.maximum.at(extra, p.clipped.prim, 4.0 * np.spacing(r).astype(np.float64) / w_min)
+        fslack += extra
+    id_may = np.zeros((h, w), np.bool_)
+    cov_may = np.zeros((h, w), np.bool_)
+    _mark_faces(p.faces, p.vx, p.vy, p.vz, p.vcode, p.status, {"none": 0, "back": 1,
+                "front": 2}[cull.lower()], _edge_boundary(p.faces, face_front),
+                float(1 << p.subpixel_bits), p.clipped.x, p.clipped.y, p.clipped.z,
+                p.clipped.prim, _piece_epsilon(prep), fslack, eps, winz, covered, id_may,
+                cov_may)
+    # depth ties: another primitive within the depth slack of the visible one
+    vis_flat = vis_prim.ravel()[pixel]
+    zw = res.depth.ravel()[pixel].astype(np.float64)
+    slack_i = np.maximum(fslack[prim], fslack[np.maximum(vis_flat, 0)])
+    tie = (np.abs(depth.astype(np.float64) - zw) <= slack_i) & (prim != vis_flat)
+    id_may.ravel()[pixel[tie]] = True
+    coverage = np.where(covered, MUST, MUST_NOT).astype(np.int8)
+    coverage[cov_may] = MAY
+    g = np.maximum(_depth_step(res.depth, vis_prim), _plane_gradient(p, vis_prim))
+    # moving the vertices by up to eps moves the plane's depth at a pixel by up to |∇z|·eps
+    # (first order; 1.5× for the second-order terms)
+    slack = np.where(vis_prim >= 0, fslack[np.maximum(vis_prim, 0)], depth_eps) + 1.5 * g * eps
+    lo = np.where(covered, res.depth - slack, 0.0).astype(np.float32)
+    hi = np.where(covered, res.depth + slack, 1.0).astype(np.float32)
+    lo[id_may] = 0.0
+    hi[id_may] = 1.0
+    return Tolerance(coverage=coverage, id_may=id_may, depth_lo=lo, depth_hi=hi, eps=eps,
+                     depth_eps=depth_eps)
+
+
+def _piece_epsilon(prep):
+    """Extra edge tolerance (pixels) of each clipped piece: its new vertices were computed from
+    clip coordinates of magnitude ``R``, which float32 clipping places only to
+    ``ulp_f32(R) · max(W, H)/2 / w`` pixels (``w`` the piece's smallest clip w)."""
+    st = prep.triangles.clipped
+    if len(st) == 0:
+        return np.zeros(0)
+    c = prep.clip[prep.triangles.faces[st.prim]]          # (T, 3, 4)
+    r = np.abs(c).max(axis=(1, 2)).astype(np.float32)
+    w_min = 1.0 / st.inv_w.max(axis=1)
+    return 4.0 * np.spacing(r).astype(np.float64) * max(prep.width, prep.height) / 2 / w_min
+
+
+def _face_depth_slack(prims, depth_eps):
+    """Per-face window-depth tolerance: ``depth_eps + 16·2^−24 · |∇z| · R``.
+
+    A GPU evaluates the depth plane in float32 from vertex positions of magnitude ``R`` (window
+    pixels); the plane's constant term then carries rounding of ``|∇z| · R`` times a few ulp,
+    which for a triangle with a vertex 1e6 px away is far above ``depth_eps``."""
+    f = prims.faces
+    nf = len(f)
+    slack = np.full(nf, depth_eps)
+    if nf == 0:
+        return slack
+    scale = float(1 << prims.subpixel_bits)
+
+    def grad_radius(x, y, z):
+        area = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+        ok = area != 0
+        area = np.where(ok, area, 1.0)
+        zx = (z[:, 1] - z[:, 0]) * (y[:, 2] - y[:, 0]) - (z[:, 2] - z[:, 0]) * (y[:, 1] - y[:, 0])
+        zy = (x[:, 1] - x[:, 0]) * (z[:, 2] - z[:, 0]) - (x[:, 2] - x[:, 0]) * (z[:, 1] - z[:, 0])
+        g = np.where(ok, np.hypot(zx, zy) / np.abs(area), 0.0)
+        r = np.maximum(np.abs(x).max(axis=1), np.abs(y).max(axis=1))
+        return g * r
+
+    simple = prims.vcode[f].max(axis=1) == 0
+    fs = f[simple]
+    gr = grad_radius(prims.vx[fs] / scale, prims.vy[fs] / scale, prims.vz[fs].astype(np.float64))
+    slack[simple] += 16.0 * 2.0 ** -24 * gr
+    st = prims.clipped
+    if len(st):
+        gr = grad_radius(st.x / scale, st.y / scale, st.z.astype(np.float64))
+        extra = np.zeros(nf)
+        np.maximum.at(extra, st.prim, 16.0 * 2.0 ** -24 * gr)
+        slack += extra
+    return slack
+
+
+def _face_facing(prims):
+    """Facing of every face from its snapped window area (clipped faces: their pieces')."""
+    f = prims.faces
+    X, Y = prims.vx, prims.vy
+    area = (X[f[:, 1]] - X[f[:, 0]]) * (Y[f[:, 2]] - Y[f[:, 0]]) \
+        - (X[f[:, 2]] - X[f[:, 0]]) * (Y[f[:, 1]] - Y[f[:, 0]])
+    front = area > 0
+    st = prims.clipped
+    front[st.prim] = st.front
+    return front
+
+
+def _plane_gradient(prims, vis_prim):
+    """|∇z| (window depth per pixel) of the visible face's plane; 0 for clipped faces."""
+    g = np.zeros(vis_prim.shape)
+    m = vis_prim >= 0
+    face = vis_prim[m]
+    f = prims.faces[face]
+    ok = (prims.vcode[f].max(axis=1) == 0)
+    scale = float(1 << prims.subpixel_bits)
+    x = prims.vx[f] / scale
+    y = prims.vy[f] / scale
+    z = prims.vz[f].astype(np.float64)
+    area = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+    ok &= area != 0
+    area = np.where(ok, area, 1.0)
+    zx = ((z[:, 1] - z[:, 0]) * (y[:, 2] - y[:, 0]) - (z[:, 2] - z[:, 0]) * (y[:, 1] - y[:, 0]))
+    zy = ((x[:, 1] - x[:, 0]) * (z[:, 2] - z[:, 0]) - (x[:, 2] - x[:, 0]) * (z[:, 1] - z[:, 0]))
+    g[m] = np.where(ok, np.hypot(zx, zy) / np.abs(area), 0.0)
+    return g
+
+
+def _depth_step(depth, prim):
+    d = depth.astype(np.float64)
+    g = np.zeros_like(d)
+    for axis in (0, 1):
+        diff = np.abs(np.diff(d, axis=axis))
+        same = (np.diff(prim, axis=axis) == 0) & (np.take(prim, range(prim.shape[axis] - 1),
+                                                          axis=axis) >= 0)
+        diff = np.where(same, diff, 0.0)
+        pad_lo = [(0, 0), (0, 0)]
+        pad_hi = [(0, 0), (0, 0)]
+        pad_lo[axis] = (1, 0)
+        pad_hi[axis] = (0, 1)
+        g = np.maximum(g, np.maximum(np.pad(diff, pad_lo), np.pad(diff, pad_hi)))
+    return g
+
+
+def decision_may(frags, resolved, decision, eps, *, depth_eps=DEPTH_EPS):
+    """Pixels where a technique's per-fragment decision is within ``eps`` of its threshold.
+
+    ``decision (N,)``: a signed value whose sign decides the fragment's fate (a clip surface's
+    g(P), the cutaway's ``z − D(x)``, the distance to the nearest LDI layer). A pixel is "may"
+    where any fragment in front of, or within ``depth_eps`` of, the visible surface (or any
+    fragment, on a background pixel) has ``|decision| ≤ eps``.
+    """
+    decision = np.asarray(decision, np.float64)
+    if decision.shape != (len(frags),):
+        raise ValueError(f"decision must have shape ({len(frags)},), got {decision.shape}")
+    eps = as_real(eps, "eps", lo=0.0)
+    zvis = resolved.depth.ravel()[frags.pixel].astype(np.float64)
+    covered = resolved.winner.ravel()[frags.pixel] >= 0
+    relevant = ~covered | (frags.depth <= zvis + depth_eps)
+    near = relevant & (np.abs(decision) <= eps)
+    out = np.zeros(frags.height * frags.width, np.bool_)
+    out[frags.pixel[near]] = True
+    return out.reshape(frags.height, frags.width)
+
+
+def check(tol, *, prim_id=None, depth=None, reference_prim_id=None):
+    """Pixels of a candidate outside the allowances: a dict of ``(H, W)`` bool masks.
+
+    ``coverage``: covered where MUST_NOT or uncovered where MUST (from ``prim_id`` ≥ 0, or
+    ``depth`` < 1 when no ids are given); ``prim_id``: differs from ``reference_prim_id`` where
+    the id must agree; ``depth``: outside ``[depth_lo, depth_hi]`` where covered in both.
+    """
+    out = {}
+    if prim_id is not None:
+        cand_cov = np.asarray(prim_id) >= 0
+    elif depth is not None:
+        cand_cov = np.asarray(depth) < 1.0
+    else:
+        raise ValueError("check needs prim_id or depth")
+    out["coverage"] = ((tol.coverage == MUST) & ~cand_cov) | ((tol.coverage == MUST_NOT) & cand_cov)
+    if prim_id is not None and reference_prim_id is not None:
+        both = cand_cov & (np.asarray(reference_prim_id) >= 0)
+        out["prim_id"] = both & ~tol.id_may & (np.asarray(prim_id) != reference_prim_id)
+    if depth is not None:
+        d = np.asarray(depth, np.float32)
+        ref_cov = tol.coverage == MUST
+        out["depth"] = ref_cov & cand_cov & ((d < tol.depth_lo) | (d > tol.depth_hi))
+    return out
