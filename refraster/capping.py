@@ -1,0 +1,517 @@
+"""Cap surfaces for 2.5D clip surfaces (Trapp & Döllner, Sec. 5; MATH.md §1.2).
+
+A cap closes the cut a clip surface leaves in a solid. Two ways to make one:
+
+* **Tessellated** (the paper's): a grid mesh over the part of the surface that crosses the
+  solid's bounding box, one vertex per offset-map texel centre (or ``subdivision``² per texel),
+  each vertex displaced exactly as the clip test displaces the surface,
+  ``X = O + aU + bV − Sz·OM(a·Sx, b·Sy)·N`` (MATH.md §1.2, the −N sign). Its fragments are
+  kept where the volumetric parity test says *inside* (MATH.md §2.2). Between vertices the
+  triangles are flat while the clip test's bilinear surface is not: that is the mismatch the
+  paper names in Sec. 6.3.
+* **Exact**: per pixel, the view ray is intersected with the zero set ``g = 0`` of the clip
+  function itself. Inside one texel cell the bilinear height along a ray is a quadratic in the
+  ray parameter, so every crossing is a root of a quadratic; the first root inside the solid
+  (and not clipped by another surface) is the cap point.
+
+Shading (:func:`shade_caps`): the surface's normal map and occlusion map (MATH.md §1.2b) lit by
+a headlight, over a flat colour, a section hatch, or a procedural solid texture (marble, wood,
+noise) evaluated at the world position.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ._config import JIT, PJIT
+from ._validate import as_choice, as_float_array, as_real
+from .mesh import Mesh
+from .offsetmaps import WRAP_MODES, _texture2d_linear, _wrap_texel, sample
+
+__all__ = ["CAP_STYLES", "check_watertight", "cap_mesh", "exact_caps", "shade_caps",
+           "solid_texture", "MAX_CAP_VERTICES"]
+
+#: Largest cap grid accepted (vertices); a larger one almost always means a surface whose
+#: texture tile is far smaller than the solid.
+MAX_CAP_VERTICES = 1 << 23
+CAP_STYLES = ("diffuse", "hatch", "marble", "wood", "noise")
+
+
+def check_watertight(mesh, name="mesh"):
+    """Raise ``ValueError`` unless ``mesh`` is closed: after merging vertices at equal
+    positions, every undirected edge must be shared by exactly two faces.
+
+    Capping needs a closed solid: the parity test is meaningless for an open surface.
+    """
+    v, f = mesh.vertices, mesh.faces
+    if f.shape[0] == 0:
+        raise ValueError(f"{name} has no faces; caps need a closed (watertight) solid")
+    # merge vertices at bit-equal positions; 1D keys keep the sorts cheap on large meshes
+    rows = np.ascontiguousarray(v + 0.0).view(np.dtype((np.void, v.dtype.itemsize * 3)))
+    _, ids = np.unique(rows.ravel(), return_inverse=True)
+    ff = ids.reshape(-1)[f].astype(np.int64)
+    edges = np.sort(np.concatenate([ff[:, [0, 1]], ff[:, [1, 2]], ff[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges[:, 0] * (int(ids.max()) + 1) + edges[:, 1], return_counts=True)
+    bad = int(np.count_nonzero(counts != 2))
+    if bad:
+        raise ValueError(
+            f"{name} is not watertight: {bad} edge(s) are not shared by exactly two faces; "
+            "caps need a closed solid (render with caps=False, or repair the mesh)")
+
+
+def _bounds_slab(surface, bounds):
+    """(a, b, w) ranges of the box's corners in the surface frame: a, b as in MATH.md §1.2,
+    w = N·(X − O)."""
+    lo, hi = bounds
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                        for z in (lo[2], hi[2])])
+    d = corners - surface.origin
+    a = d @ surface.u_hat / surface.u_length
+    b = d @ surface.v_hat / surface.v_length
+    w = d @ surface.normal
+    return (a.min(), a.max()), (b.min(), b.max()), (w.min(), w.max())
+
+
+def _displacement_range(surface):
+    """[lo, hi] of −Sz·h over the map: where the surface can lie along N."""
+    sz = surface.scale[2]
+    h0, h1 = float(surface.offset_map.min()), float(surface.offset_map.max())
+    vals = (-sz * h0, -sz * h1)
+    return min(vals), max(vals)
+
+
+def cap_mesh(surface, bounds, *, subdivision=1):
+    """The tessellated cap of ``surface`` over a solid's bounding box.
+
+    Parameters
+    ----------
+    surface : ClipSurface
+    bounds : (2, 3) float
+        World-space bounding box (min, max) of the solid.
+    subdivision : int
+        Grid vertices per texel along each axis (1: one vertex at every texel centre).
+
+    Returns
+    -------
+    Mesh or None
+        ``None`` when the box does not reach the surface. Vertices lie on the lattice
+        ``a = (i/subdivision + ½) / (Sx·W)``, ``b = (j/subdivision + ½) / (Sy·H)`` covering the
+        box's projection plus one cell, displaced by ``−Sz·OM(a·Sx, b·Sy)·N`` (the same sampler
+        as the clip test). Each cell is split along its (i, j)–(i+1, j+1) diagonal; faces are
+        counter-clockwise seen from −N (front-facing for a viewer of the cut).
+    """
+    bounds = as_float_array(bounds, "bounds", shape=(2, 3))
+    if isinstance(subdivision, bool) or not isinstance(subdivision, (int, np.integer)) \
+            or not 1 <= subdivision <= 64:
+        raise ValueError(f"subdivision must be an int in [1, 64], got {subdivision!r}")
+    (a0, a1), (b0, b1), (w0, w1) = _bounds_slab(surface, bounds)
+    d0, d1 = _displacement_range(surface)
+    if w1 < d0 or w0 > d1:
+        return None
+    rows, cols = surface.offset_map.shape
+    sx, sy, sz = surface.scale
+    ka = sx * cols * subdivision  # lattice steps per unit of a
+    kb = sy * rows * subdivision
+    i = np.arange(math.floor(a0 * ka - 0.5 * subdivision) - 1,
+                  math.ceil(a1 * ka - 0.5 * subdivision) + 2)
+    j = np.arange(math.floor(b0 * kb - 0.5 * subdivision) - 1,
+                  math.ceil(b1 * kb - 0.5 * subdivision) + 2)
+    if i.size * j.size > MAX_CAP_VERTICES:
+        raise ValueError(
+            f"the cap grid would have {i.size * j.size} vertices (> {MAX_CAP_VERTICES}): the "
+            "offset map's texels are tiny against the solid; lower Sx, Sy or the map's size")
+    a = (i / subdivision + 0.5) / (sx * cols)
+    b = (j / subdivision + 0.5) / (sy * rows)
+    bb, aa = np.meshgrid(b, a, indexing="ij")
+    h = sample(surface.offset_map, np.stack([aa.ravel() * sx, bb.ravel() * sy], 1),
+               wrap=surface.wrap)
+    verts = (surface.origin + aa.reshape(-1, 1) * surface.u + bb.reshape(-1, 1) * surface.v
+             - (sz * h)[:, None] * surface.normal)
+    nj, ni = bb.shape
+    idx = np.arange(nj * ni).reshape(nj, ni)
+    v00, v10 = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    v01, v11 = idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    # (Û, V̂) is counter-clockwise seen from +N, so reverse it for the −N side.
+    faces = np.concatenate([np.stack([v00, v11, v10], 1), np.stack([v00, v01, v11], 1)])
+    return Mesh(np.ascontiguousarray(verts), np.ascontiguousarray(faces, np.int64))
+
+
+# --------------------------------------------------------------------------------------------
+# exact caps: ray – height-field intersection
+
+
+@njit(**JIT)
+def _quadratic_roots(c0, c1, c2, length):
+    """Roots of c0 + c1·x + c2·x² in [0, length]: ``(n, r1, r2)`` with r1 ≤ r2 the first n."""
+    n = 0
+    r_a = 0.0
+    r_b = 0.0
+    scale = abs(c0) + abs(c1) * length + abs(c2) * length * length
+    if abs(c2) * length * length <= 1e-14 * scale:
+        if c1 != 0.0:
+            x = -c0 / c1
+            if 0.0 <= x <= length:
+                r_a = x
+                n = 1
+    else:
+        disc = c1 * c1 - 4.0 * c2 * c0
+        if disc >= 0.0:
+            q = -0.5 * (c1 + math.copysign(math.sqrt(disc), c1))
+            r1 = q / c2
+            r2 = c0 / q if q != 0.0 else r1
+            if r1 > r2:
+                r1, r2 = r2, r1
+            if 0.0 <= r1 <= length:
+                r_a = r1
+                n = 1
+            if 0.0 <= r2 <= length and (n == 0 or r2 > r_a):
+                if n == 0:
+                    r_a = r2
+                else:
+                    r_b = r2
+                n += 1
+    g_end = c0 + (c1 + c2 * length) * length
+    if n == 0 and (c0 < 0.0) != (g_end < 0.0):
+        # A sign change the closed form lost to rounding: bisect.
+        lo, hi = 0.0, length
+        for _ in range(80):
+            mid = 0.5 * (lo + hi)
+            gm = c0 + (c1 + c2 * mid) * mid
+            if (gm < 0.0) == (c0 < 0.0):
+                lo = mid
+            else:
+                hi = mid
+        r_a = 0.5 * (lo + hi)
+        n = 1
+    return n, r_a, r_b
+
+
+@njit(**PJIT)
+def _ray_roots_kernel(origin, direction, tau_range, tau_start, params, tex, mode, w_lo, w_hi,
+                      roots, count, finished):
+    """For each ray, the next ``roots.shape[1]`` crossings of g = 0 after ``tau_start``.
+
+    The ray X(τ) = origin + τ·direction is walked cell by cell through the lattice of texel
+    centres (x = s·W − ½, y = t·H − ½); inside a cell g is quadratic in τ.
+    """
+    rows, cols = tex.shape
+    max_roots = roots.shape[1]
+    for r in prange(origin.shape[0]):
+        count[r] = 0
+        finished[r] = True
+        ox = origin[r, 0] - params[0]
+        oy = origin[r, 1] - params[1]
+        oz = origin[r, 2] - params[2]
+        dx, dy, dz = direction[r, 0], direction[r, 1], direction[r, 2]
+        s0 = ((ox * params[3] + oy * params[4] + oz * params[5]) / params[12]) * params[14]
+        s1 = ((dx * params[3] + dy * params[4] + dz * params[5]) / params[12]) * params[14]
+        t0 = ((ox * params[6] + oy * params[7] + oz * params[8]) / params[13]) * params[15]
+        t1 = ((dx * params[6] + dy * params[7] + dz * params[8]) / params[13]) * params[15]
+        w0 = ox * params[9] + oy * params[10] + oz * params[11]
+        w1 = dx * params[9] + dy * params[10] + dz * params[11]
+        sz = params[16]
+        lo = max(tau_range[r, 0], tau_start[r])
+        hi = tau_range[r, 1]
+        # Only the slab w ∈ [w_lo, w_hi] can hold g = 0.
+        if w1 != 0.0:
+            ta = (w_lo - w0) / w1
+            tb = (w_hi - w0) / w1
+            if ta > tb:
+                ta, tb = tb, ta
+            pad = 1e-9 * (abs(ta) + abs(tb) + 1.0)
+            lo = max(lo, ta - pad)
+            hi = min(hi, tb + pad)
+        elif not (w_lo - 1e-12 <= w0 <= w_hi + 1e-12):
+            continue
+        if not lo < hi:
+            continue
+        x0 = s0 * cols - 0.5
+        x1 = s1 * cols
+        y0 = t0 * rows - 0.5
+        y1 = t1 * rows
+        tau = lo
+        ci = np.int64(math.floor(min(max(x0 + x1 * tau, -4e15), 4e15)))
+        cj = np.int64(math.floor(min(max(y0 + y1 * tau, -4e15), 4e15)))
+        step_i = 1 if x1 > 0 else -1
+        step_j = 1 if y1 > 0 else -1
+        last = tau_start[r]
+        steps_left = np.int64(abs(x1) * (hi - lo) + abs(y1) * (hi - lo)) + 4
+        while tau < hi and steps_left > 0:
+            steps_left -= 1
+            tx = math.inf
+            if x1 != 0.0:
+                tx = ((ci + (1 if x1 > 0 else 0)) - x0) / x1
+            ty = math.inf
+            if y1 != 0.0:
+                ty = ((cj + (1 if y1 > 0 else 0)) - y0) / y1
+            tau_exit = min(tx, ty, hi)
+            if tau_exit > tau:
+                i0 = _wrap_texel(ci, cols, mode)
+                i1 = _wrap_texel(ci + 1, cols, mode)
+                j0 = _wrap_texel(cj, rows, mode)
+                j1 = _wrap_texel(cj + 1, rows, mode)
+                h00, h10 = tex[j0, i0], tex[j0, i1]
+                h01, h11 = tex[j1, i0], tex[j1, i1]
+                e1 = h10 - h00
+                e2 = h01 - h00
+                e3 = (h11 - h10) - (h01 - h00)
+                a0 = (x0 + x1 * tau) - ci
+                b0 = (y0 + y1 * tau) - cj
+                k0 = h00 + e1 * a0 + e2 * b0 + e3 * a0 * b0
+                k1 = e1 * x1 + e2 * y1 + e3 * (a0 * y1 + x1 * b0)
+                k2 = e3 * x1 * y1
+                c0 = (w0 + w1 * tau) + sz * k0
+                c1 = w1 + sz * k1
+                c2 = sz * k2
+                n, x_a, x_b = _quadratic_roots(c0, c1, c2, tau_exit - tau)
+                for q in range(n):
+                    root = tau + (x_a if q == 0 else x_b)
+                    if root - last > 1e-12 * (1.0 + abs(root)):
+                        if count[r] == max_roots:
+                            finished[r] = False
+                            break
+                        roots[r, count[r]] = root
+                        count[r] += 1
+                        last = root
+                if not finished[r]:
+                    break
+            if tx <= ty:
+                ci += step_i
+            if ty <= tx:
+                cj += step_j
+            tau = max(tau, tau_exit)
+
+
+def _ray_box(origin, direction, lo, hi):
+    """τ range of each ray inside the box (empty: lo > hi), slab method."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / direction
+        t1 = (lo - origin) * inv
+        t2 = (hi - origin) * inv
+    tmin = np.where(np.isnan(t1), -np.inf, np.minimum(t1, t2))
+    tmax = np.where(np.isnan(t1), np.inf, np.maximum(t1, t2))
+    # a ray parallel to a slab: inside it for all τ or for none
+    par = direction == 0.0
+    inside = (origin >= lo) & (origin <= hi)
+    tmin = np.where(par, np.where(inside, -np.inf, np.inf), tmin)
+    tmax = np.where(par, np.where(inside, np.inf, -np.inf), tmax)
+    return np.stack([np.maximum(tmin.max(axis=1), 0.0), np.minimum(tmax.min(axis=1), 1.0)], 1)
+
+
+def pixel_rays(view, proj, width, height):
+    """World-space rays through the pixel centres: origin on the near plane, ``direction`` =
+    far point − near point (so τ ∈ [0, 1] spans the view volume). Row 0 is the top."""
+    inv = np.linalg.inv(proj @ view)
+    rows, cols = np.mgrid[0:height, 0:width]
+    x = 2.0 * (cols.ravel() + 0.5) / width - 1.0
+    y = 2.0 * ((height - 1 - rows.ravel()) + 0.5) / height - 1.0
+    near = np.stack([x, y, -np.ones_like(x), np.ones_like(x)], 1) @ inv.T
+    far = np.stack([x, y, np.ones_like(x), np.ones_like(x)], 1) @ inv.T
+    near = near[:, :3] / near[:, 3:]
+    far = far[:, :3] / far[:, 3:]
+    return near, far - near
+
+
+def exact_caps(surfaces, solids, tests, *, view, proj, width, height, max_roots=8):
+    """Per-pixel exact caps by ray – height-field intersection (see the module docstring).
+
+    Parameters
+    ----------
+    surfaces : list of ClipSurface (world space)
+    solids : list of Mesh (world space)
+    tests : list of objects with ``contains(points (N, 3)) -> (N,) bool`` (one per solid: the
+        volumetric parity test)
+    view, proj, width, height
+        The camera.
+    max_roots : int
+        Crossings examined per ray and round (more rounds run where needed).
+
+    Returns
+    -------
+    tau : (H·W,) float64 ray parameter of the nearest cap point (inf: none)
+    which : (H·W, 2) int64 (solid index, surface index) of that cap (−1: none)
+    origin, direction : the rays (see :func:`pixel_rays`)
+    """
+    from .clipsurface import clip_mask
+    origin, direction = pixel_rays(view, proj, width, height)
+    n = origin.shape[0]
+    best = np.full(n, np.inf)
+    which = np.full((n, 2), -1, np.int64)
+    for m, (solid, test) in enumerate(zip(solids, tests)):
+        lo, hi = solid.vertices.min(axis=0), solid.vertices.max(axis=0)
+        pad = 1e-9 * (1.0 + np.abs(np.stack([lo, hi])).max())
+        box = _ray_box(origin, direction, lo - pad, hi + pad)
+        hit = np.flatnonzero(box[:, 0] < box[:, 1])
+        for k, surface in enumerate(surfaces):
+            if not surface.enabled or hit.size == 0:
+                continue
+            w_lo, w_hi = _displacement_range(surface)
+            params = surface.params
+            tex = np.ascontiguousarray(surface.offset_map)
+            mode = WRAP_MODES[surface.wrap]
+            rays = hit
+            start = np.full(rays.size, -np.inf)
+            while rays.size:
+                roots = np.full((rays.size, max_roots), np.inf)
+                count = np.zeros(rays.size, np.int64)
+                finished = np.zeros(rays.size, np.bool_)
+                _ray_roots_kernel(origin[rays], direction[rays], box[rays], start, params, tex,
+                                  mode, w_lo, w_hi, roots, count, finished)
+                rr, cc = np.nonzero(np.isfinite(roots))
+                pts = origin[rays[rr]] + roots[rr, cc, None] * direction[rays[rr]]
+                ok = test.contains(pts) & ~clip_mask(pts, surfaces,
+                                                     skip=np.full(len(pts), k, np.int64))
+                accepted = np.full(rays.size, np.inf)
+                # rr is ascending and cc ascending within a ray: the first accepted root wins
+                np.minimum.at(accepted, rr[ok], roots[rr[ok], cc[ok]])
+                got = np.isfinite(accepted)
+                better = got & (accepted < best[rays])
+                best[rays[better]] = accepted[better]
+                which[rays[better]] = (m, k)
+                again = ~got & ~finished
+                start = np.where(count > 0, roots[np.arange(rays.size), np.maximum(count - 1, 0)],
+                                 start)[again]
+                rays = rays[again]
+    return best, which, origin, direction
+
+
+# --------------------------------------------------------------------------------------------
+# shading
+
+
+def _hash3(ix, iy, iz, seed):
+    """Deterministic lattice hash → [0, 1) (integer mixing, no global state)."""
+    h = (ix.astype(np.int64) * 73856093) ^ (iy.astype(np.int64) * 19349663) \
+        ^ (iz.astype(np.int64) * 83492791) ^ (int(seed) * 2654435761)
+    h = (h ^ (h >> 13)) * 1274126177
+    h = h ^ (h >> 16)
+    return (h & 0xFFFFFF).astype(np.float64) / float(0x1000000)
+
+
+def _value_noise3(p, seed=0):
+    """Smooth 3D value noise in [0, 1] at points ``p (N, 3)`` (lattice spacing 1)."""
+    f = np.floor(p)
+    i = f.astype(np.int64)
+    t = p - f
+    t = t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
+    out = np.zeros(len(p))
+    for dx in (0, 1):
+        wx = t[:, 0] if dx else 1.0 - t[:, 0]
+        for dy in (0, 1):
+            wy = t[:, 1] if dy else 1.0 - t[:, 1]
+            for dz in (0, 1):
+                wz = t[:, 2] if dz else 1.0 - t[:, 2]
+                out += wx * wy * wz * _hash3(i[:, 0] + dx, i[:, 1] + dy, i[:, 2] + dz, seed)
+    return out
+
+
+def _turbulence(p, octaves=4, seed=0):
+    total, amp, norm = np.zeros(len(p)), 1.0, 0.0
+    for k in range(octaves):
+        total += amp * _value_noise3(p * (2.0 ** k), seed + k)
+        norm += amp
+        amp *= 0.5
+    return total / norm
+
+
+def solid_texture(points, kind, *, frequency=4.0, color=(0.8, 0.3, 0.25), seed=0):
+    """Procedural solid 3D textures (Trapp & Döllner Fig. 11; Perlin-style) at world points.
+
+    Parameters
+    ----------
+    points : (N, 3) float
+    kind : {"marble", "wood", "noise"}
+        marble: ``½ + ½·sin(f·x + 6·turbulence)`` veins; wood: rings around the z axis,
+        ``frac(f·r + 2·turbulence)``; noise: 4-octave value noise.
+    frequency : float
+        Features per world unit.
+    color : (3,) float
+        The texture's dark colour (mixed with white).
+
+    Returns
+    -------
+    (N, 3) float64 colours in [0, 1].
+    """
+    p = as_float_array(points, "points", shape=(None, 3))
+    kind = as_choice(kind, "kind", {"marble": "marble", "wood": "wood", "noise": "noise"})
+    f = as_real(frequency, "frequency", lo=0.0, lo_open=True)
+    c = as_float_array(color, "color", shape=(3,))
+    q = p * f
+    turb = _turbulence(q, seed=seed)
+    if kind == "marble":
+        v = 0.5 + 0.5 * np.sin(q[:, 0] + 6.0 * turb)
+        v = v ** 0.5
+    elif kind == "wood":
+        r = np.hypot(q[:, 0], q[:, 1])
+        v = (r + 2.0 * turb) % 1.0
+        v = 0.35 + 0.65 * v ** 2
+    else:
+        v = turb
+    return np.clip((1.0 - v)[:, None] * c + v[:, None] * np.ones(3), 0.0, 1.0)
+
+
+def shade_caps(points, surface_index, surfaces, normal_maps, occlusion_maps, *, view, style,
+               color, hatch_spacing, frequency):
+    """Colour and eye-space normal of cap points.
+
+    Parameters
+    ----------
+    points : (N, 3) float world positions on the caps
+    surface_index : (N,) int which surface each cap belongs to
+    surfaces : list of ClipSurface
+    normal_maps, occlusion_maps : per surface, (H, W, 3) and (H, W) (MATH.md §1.2b)
+    view : (4, 4) world → eye
+    style : one of :data:`CAP_STYLES`
+    color : (3,) base colour; hatch_spacing : world distance of hatch lines; frequency : solid
+        texture frequency
+
+    Returns
+    -------
+    color (N, 3) float64 and normal (N, 3) float64, eye space, unit.
+
+    Notes
+    -----
+    The normal is the normal map sampled bilinearly (each component, with the surface's wrap
+    mode) at ``(s, t)`` and renormalized, turned from the (Û, V̂, N) frame into eye space.
+    Lighting: a headlight, ``shade = occlusion·(0.25 + 0.75·|n·v|)``. The hatch is a 45° section
+    hatch in the surface's (Û, V̂) plane whose lines thicken where the shade is dark.
+    """
+    n_pts = len(points)
+    colour = np.zeros((n_pts, 3))
+    normal = np.zeros((n_pts, 3))
+    lin = view[:3, :3]
+    normal_matrix = np.linalg.inv(lin).T
+    for k, surface in enumerate(surfaces):
+        sel = np.flatnonzero(surface_index == k)
+        if sel.size == 0:
+            continue
+        p = points[sel]
+        st = surface.texcoords(p)
+        nl = np.stack([sample(np.ascontiguousarray((normal_maps[k][..., c] + 1.0) * 0.5), st,
+                              wrap=surface.wrap) * 2.0 - 1.0 for c in range(3)], 1)
+        nl /= np.linalg.norm(nl, axis=1, keepdims=True)
+        frame = np.stack([surface.u_hat, surface.v_hat, surface.normal], 1)  # columns
+        nw = nl @ frame.T
+        ne = nw @ normal_matrix.T
+        ne /= np.linalg.norm(ne, axis=1, keepdims=True)
+        pe = p @ lin.T + view[:3, 3]
+        v = -pe / np.maximum(np.linalg.norm(pe, axis=1, keepdims=True), 1e-300)
+        ndv = np.abs(np.sum(ne * v, axis=1))
+        occ = sample(occlusion_maps[k], st, wrap=surface.wrap)
+        shade = occ * (0.25 + 0.75 * ndv)
+        if style == "diffuse":
+            col = np.asarray(color)[None, :] * shade[:, None]
+        elif style == "hatch":
+            d = p - surface.origin
+            x = (d @ surface.u_hat + d @ surface.v_hat) / (np.sqrt(2.0) * hatch_spacing)
+            ink = (x % 1.0) < 0.15 + 0.6 * (1.0 - shade)
+            col = np.where(ink[:, None], np.asarray(color)[None, :] * 0.35,
+                           np.ones(3)[None, :] * (0.55 + 0.45 * shade[:, None]))
+        else:
+            col = solid_texture(p, style, frequency=frequency, color=color) * shade[:, None]
+        colour[sel] = np.clip(col, 0.0, 1.0)
+        normal[sel] = ne
+    return colour, normal
