@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit, prange
+
+from .._config import PJIT
 
 __all__ = ["Fragments", "concat"]
 
@@ -133,15 +136,26 @@ def _interpolate(meshes, attr, object_id, prim_id, bary):
     c = arrays[0].shape[1]
     if any(a.shape[1] != c for a in arrays):
         raise ValueError("attr arrays must have the same number of components")
+    values = np.ascontiguousarray(np.concatenate(arrays)) if arrays else np.zeros((0, c))
+    vbase = np.cumsum([0] + [m.n_vertices for m in meshes])
+    faces = np.ascontiguousarray(np.concatenate([m.faces + vbase[k] for k, m in enumerate(meshes)])
+                                 if meshes else np.zeros((0, 3), np.int64))
+    fbase = np.cumsum([0] + [m.n_faces for m in meshes]).astype(np.int64)
     out = np.zeros((len(prim_id), c))
-    for k, (a, m) in enumerate(zip(arrays, meshes)):
-        sel = np.flatnonzero(object_id == k)
-        if sel.size == 0:
-            continue
-        tri = m.faces[prim_id[sel]]
-        b = bary[sel]
-        out[sel] = (b[:, 0:1] * a[tri[:, 0]] + b[:, 1:2] * a[tri[:, 1]]) + b[:, 2:3] * a[tri[:, 2]]
+    _interpolate_kernel(np.ascontiguousarray(object_id), np.ascontiguousarray(prim_id),
+                        np.ascontiguousarray(bary, dtype=np.float64), faces, fbase, values, out)
     return out[:, 0] if scalar else out
+
+
+@njit(**PJIT)
+def _interpolate_kernel(object_id, prim_id, bary, faces, fbase, values, out):
+    """``out[i] = (b0·a[v0] + b1·a[v1]) + b2·a[v2]`` for the vertices of fragment i's face."""
+    for i in prange(prim_id.shape[0]):
+        g = fbase[object_id[i]] + prim_id[i]
+        v0, v1, v2 = faces[g, 0], faces[g, 1], faces[g, 2]
+        b0, b1, b2 = bary[i, 0], bary[i, 1], bary[i, 2]
+        for j in range(values.shape[1]):
+            out[i, j] = (b0 * values[v0, j] + b1 * values[v1, j]) + b2 * values[v2, j]
 
 
 def concat(streams):
