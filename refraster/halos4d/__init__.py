@@ -1,0 +1,25 @@
+"""Volumetric halos for surfaces in 4D (Wang, Yan, Fu, Hanson, Heng, EuroVis 2013).
+
+Stages, one module each: :mod:`.surfaces` (uv-sampled 4D surfaces with tangents),
+:mod:`.transforms` (rotations in six planes, 4D → 3D projection with 4D depth),
+:mod:`.thicken` (view-dependent thickening, prisms → tetrahedra, Eq. 3),
+:mod:`.slicing` (cross-sections and voxelization), :mod:`.render` (the frame). See
+``docs/halos4d.md`` and MATH.md §5.
+"""
+
+from .render import HaloGeometry, HaloRender, prepare, render_halos, slice_alpha
+from .slicing import SliceTriangles, slice_tetrahedra, voxel_centres, voxelize
+from .surfaces import (Surface4D, calabi_yau_quartic, fermat_surface, figure1_scene, merge,
+                       product_polynomial, quadratic_fermat, spun_trefoil, twist_spun_trefoil,
+                       uv_surface)
+from .thicken import halo_depth, prism_tetrahedra, thicken, thickening_normals
+from .transforms import PLANES, Projection, compose, hanson_view, project, rotate_3d, rotation
+
+__all__ = [
+    "HaloGeometry", "HaloRender", "prepare", "render_halos", "slice_alpha",
+    "SliceTriangles", "slice_tetrahedra", "voxel_centres", "voxelize",
+    "Surface4D", "calabi_yau_quartic", "fermat_surface", "figure1_scene", "merge",
+    "product_polynomial", "quadratic_fermat", "spun_trefoil", "twist_spun_trefoil", "uv_surface",
+    "halo_depth", "prism_tetrahedra", "thicken", "thickening_normals",
+    "PLANES", "Projection", "compose", "hanson_view", "project", "rotate_3d", "rotation",
+]

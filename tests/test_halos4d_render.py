@@ -1,0 +1,359 @@
+"""Slicing, voxelization and the halo render (Wang et al. Sec. 4.6; MATH.md §5.4–5.6)."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+import refraster
+import refraster.halos4d as h
+from refraster.halos4d import render as hr
+from refraster.halos4d import slicing as hs
+
+
+# ----------------------------------------------------------------------------- brute force
+def brute_force_voxelize(v, tets, shape, bounds):
+    """Point-in-tetrahedron test of every voxel centre against every tetrahedron (NumPy), with
+    the documented tie rule; returns (smallest claiming index, claim count)."""
+    zc, yc, xc = h.voxel_centres(shape, bounds)
+    Z, Y, X = np.meshgrid(zc, yc, xc, indexing="ij")
+    out = np.full(shape, -1, np.int32)
+    claims = np.zeros(shape, np.int32)
+    for t in range(len(tets)):
+        inside = np.ones(shape, bool)
+        ok = True
+        for m in range(4):
+            i, j, k = sorted(int(tets[t, q]) for q in range(4) if q != m)
+            a, b = v[j] - v[i], v[k] - v[i]
+            n = np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                          a[0] * b[1] - a[1] * b[0]])
+            vm = v[tets[t, m]]
+            om = (n[0] * (vm[0] - v[i, 0]) + n[1] * (vm[1] - v[i, 1])) + n[2] * (vm[2] - v[i, 2])
+            if om == 0.0:
+                ok = False
+                break
+            sg = 1.0 if om > 0 else -1.0
+            nin = sg * n
+            owned = nin[0] > 0 or (nin[0] == 0 and (nin[1] > 0 or (nin[1] == 0 and nin[2] > 0)))
+            o = ((n[0] * (X - v[i, 0]) + n[1] * (Y - v[i, 1])) + n[2] * (Z - v[i, 2])) * sg
+            inside &= (o > 0) | ((o == 0) & owned)
+        if not ok:
+            continue
+        claims += inside
+        out[inside & (out < 0)] = t
+    return out, claims
+
+
+def slab_mesh(seed=0, n=30, rho=0.08):
+    """A conforming tetrahedral slab: a random Delaunay triangulation of a tilted square,
+    thickened by ± rho along its normal and split with prism_tetrahedra."""
+    from scipy.spatial import Delaunay
+    rng = np.random.default_rng(seed)
+    uv = np.concatenate([rng.random((n - 4, 2)), [[0, 0], [1, 0], [0, 1], [1, 1]]])
+    faces = Delaunay(uv).simplices.astype(np.int64)
+    e1 = np.array([1.0, 0.0, 0.35])
+    e2 = np.array([0.0, 1.0, -0.2])
+    nrm = np.cross(e1, e2)
+    nrm /= np.linalg.norm(nrm)
+    base = uv[:, :1] * e1 + uv[:, 1:] * e2
+    verts, _ = h.thicken(base, np.tile(nrm, (len(base), 1)), rho)
+    return verts, h.prism_tetrahedra(faces, len(base)), (e1, e2, nrm)
+
+
+def cross2(a, b):
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def random_tets(rng, k=12):
+    v = rng.random((4 * k, 3))
+    return v, np.arange(4 * k).reshape(k, 4)
+
+
+# ----------------------------------------------------------------------------- voxelize
+def test_voxelize_exact_equals_brute_force_on_random_tets():
+    rng = np.random.default_rng(5)
+    v, t = random_tets(rng)
+    shape, bounds = (9, 13, 11), [[0, 0, 0], [1, 1, 1]]
+    got, claims = h.voxelize(v, t, shape, bounds, snap=False, return_claims=True)
+    want, wclaims = brute_force_voxelize(v, t, shape, bounds)
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(claims, wclaims)
+    assert (got >= 0).sum() > 50
+
+
+def test_voxelize_exact_equals_brute_force_on_prism_mesh_with_ties():
+    v, t, _ = slab_mesh()
+    # bounds chosen so that voxel centres fall on vertex coordinates: ties do occur
+    v = np.round(v * 16) / 16
+    shape, bounds = (16, 16, 16), [[-0.03125, -0.03125, -0.53125], [0.96875, 0.96875, 0.46875]]
+    got, claims = h.voxelize(v, t, shape, bounds, snap=False, return_claims=True)
+    want, wclaims = brute_force_voxelize(v, t, shape, bounds)
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(claims, wclaims)
+
+
+def test_voxelize_independent_oracle_scipy_barycentric(oracle):
+    """Away from faces (|barycentric| > 1e-9) the classification agrees with barycentric
+    coordinates solved by LAPACK."""
+    oracle("scipy")
+    rng = np.random.default_rng(11)
+    v, t = random_tets(rng, 8)
+    shape, bounds = (10, 10, 10), [[0, 0, 0], [1, 1, 1]]
+    got = h.voxelize(v, t, shape, bounds, snap=False)
+    zc, yc, xc = h.voxel_centres(shape, bounds)
+    Z, Y, X = np.meshgrid(zc, yc, xc, indexing="ij")
+    p = np.stack([X, Y, Z], axis=-1).reshape(-1, 3)
+    first = np.full(len(p), -1)
+    clear = np.ones(len(p), bool)
+    for k in range(len(t)):
+        a = v[t[k]]
+        m = np.column_stack([a[1] - a[0], a[2] - a[0], a[3] - a[0]])
+        lam = np.linalg.solve(m, (p - a[0]).T).T
+        bary = np.column_stack([1 - lam.sum(axis=1), lam])
+        clear &= np.abs(bary).min(axis=1) > 1e-9
+        inside = bary.min(axis=1) > 0
+        first[inside & (first < 0)] = k
+    np.testing.assert_array_equal(got.reshape(-1)[clear], first[clear])
+
+
+@pytest.mark.parametrize("snap", [False, True])
+def test_conforming_slab_each_voxel_claimed_once(snap):
+    v, t, (e1, e2, nrm) = slab_mesh(seed=2)
+    shape, bounds = (40, 40, 40), [[-0.1, -0.1, -0.5], [1.1, 1.1, 0.5]]
+    got, claims = h.voxelize(v, t, shape, bounds, snap=snap, return_claims=True)
+    assert claims.max() == 1
+    # centres strictly inside the slab (off its boundary by a margin) are claimed
+    zc, yc, xc = h.voxel_centres(shape, bounds)
+    Z, Y, X = np.meshgrid(zc, yc, xc, indexing="ij")
+    p = np.stack([X, Y, Z], axis=-1)
+    m = np.column_stack([e1, e2, nrm])
+    a, b, c = np.moveaxis(np.linalg.solve(m, p.reshape(-1, 3).T).reshape(3, *shape), 0, 0)
+    interior = (a > 0.02) & (a < 0.98) & (b > 0.02) & (b < 0.98) & (np.abs(c) < 0.08 - 0.01)
+    assert interior.sum() > 500
+    assert np.all(claims[interior] == 1)
+
+
+def test_voxelize_snapped_agrees_with_exact():
+    v, t, _ = slab_mesh(seed=4)
+    shape, bounds = (32, 48, 48), [[-0.1, -0.1, -0.5], [1.1, 1.1, 0.5]]
+    a = h.voxelize(v, t, shape, bounds, snap=False)
+    b = h.voxelize(v, t, shape, bounds, snap=True)
+    agree = np.mean(a == b)
+    assert agree >= 0.999, agree
+    # occupancy differs only at the slab's boundary, by a sliver
+    assert abs(int((a >= 0).sum()) - int((b >= 0).sum())) < 0.01 * (a >= 0).sum()
+
+
+def test_voxelize_bad_inputs():
+    v, t = random_tets(np.random.default_rng(0), 2)
+    with pytest.raises(ValueError, match="shape N"):
+        h.voxelize(v, t, (0, 4, 4), [[0, 0, 0], [1, 1, 1]])
+    with pytest.raises(ValueError, match="shape N"):
+        h.voxelize(v, t, (10**6, 4, 4), [[0, 0, 0], [1, 1, 1]])
+    with pytest.raises(ValueError, match="bounds"):
+        h.voxelize(v, t, (2, 4, 4), [[0, 0, 0], [1, 0, 1]])
+    with pytest.raises(ValueError, match="tets"):
+        h.voxelize(v, t + 100, (2, 4, 4), [[0, 0, 0], [1, 1, 1]])
+    with pytest.raises(ValueError, match="non-finite"):
+        h.voxelize(np.full_like(v, np.nan), t, (2, 4, 4), [[0, 0, 0], [1, 1, 1]])
+    with pytest.raises(TypeError, match="snap"):
+        h.voxelize(v, t, (2, 4, 4), [[0, 0, 0], [1, 1, 1]], snap="yes")
+
+
+# ----------------------------------------------------------------------------- slicing
+def test_slice_hand_values():
+    """Unit tetrahedron cut at z = 0.5: the triangle of the lone top vertex, λ = 0.5."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    att = np.array([[0.0], [0.0], [0.0], [2.0]])
+    s = h.slice_tetrahedra(v, [[0, 1, 2, 3]], [0.5], att)
+    assert len(s) == 1
+    np.testing.assert_allclose(s.xy[0], [[0, 0], [0.5, 0], [0, 0.5]])
+    np.testing.assert_allclose(s.attr[0, :, 0], [1.0, 1.0, 1.0])
+    # a plane through a vertex: s = 0 counts as positive, so z = 1 still cuts (a point, area 0)
+    # and z = 0 gives the base triangle
+    assert len(h.slice_tetrahedra(v, [[0, 1, 2, 3]], [0.0])) == 0
+    assert len(h.slice_tetrahedra(v, [[0, 1, 2, 3]], [1.0])) == 1
+
+
+def test_slice_quad_is_split_in_two_and_area_matches():
+    # a tetrahedron with two vertices on each side of z = 0.5
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 1], [0, 0, 1.0]])
+    s = h.slice_tetrahedra(v, [[0, 1, 2, 3]], [0.5])
+    assert len(s) == 2
+    area = 0.5 * np.abs(cross2(s.xy[:, 1] - s.xy[:, 0], s.xy[:, 2] - s.xy[:, 0])).sum()
+    # the section is the square with corners (0, 0), (0.5, 0), (0.5, 0.5), (0, 0.5)
+    assert area == pytest.approx(0.25)
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 10**6))
+def test_slice_area_integrates_to_volume(seed):
+    """Σ slice areas · Δz → tetrahedron volume (midpoint rule, exact for quadratics)."""
+    rng = np.random.default_rng(seed)
+    v = rng.random((4, 3))
+    vol = abs(np.linalg.det(v[1:] - v[0])) / 6
+    n = 400
+    c = (np.arange(n) + 0.5) / n
+    s = h.slice_tetrahedra(v, [[0, 1, 2, 3]], c)
+    area = 0.5 * np.abs(cross2(s.xy[:, 1] - s.xy[:, 0], s.xy[:, 2] - s.xy[:, 0]))
+    assert area.sum() / n == pytest.approx(vol, rel=2e-3, abs=1e-6)
+
+
+def test_slices_grouped_in_draw_order():
+    v, t, _ = slab_mesh()
+    c = np.linspace(-0.3, 0.3, 17)
+    s = h.slice_tetrahedra(v, t, c)
+    for k in range(len(c)):
+        seg = s.tet[s.starts[k]:s.starts[k + 1]]
+        assert np.all(np.diff(seg) >= 0)
+        assert np.all(s.slice[s.starts[k]:s.starts[k + 1]] == k)
+
+
+# ----------------------------------------------------------------------------- the fill kernel
+def test_fused_fill_equals_foundation_rasterizer():
+    """Coverage and barycentrics of the fused per-slice fill equal refraster.rasterize."""
+    v, t, _ = slab_mesh(seed=7)
+    bounds = np.array([[-0.1, -0.1, -0.5], [1.1, 1.1, 0.5]])
+    st_ = hs._slice(v[:, 2].copy(), t, np.array([-0.05, 0.0, 0.07]), np.zeros((len(v), 0)),
+                    hs.ortho_ndc(v, bounds))
+    w, hgt = 53, 47
+    X, Y, order, bbox, valid = hs.setup_window(st_.xy, w, hgt)
+    xy = st_.xy.reshape(-1, 2)
+    clip = np.column_stack([xy, np.zeros(len(xy)), np.ones(len(xy))])
+    fr = refraster.rasterize(clip, np.arange(len(xy)).reshape(-1, 3), w, hgt)
+    mine = []
+    for j in np.flatnonzero(valid):
+        for py in range(bbox[j, 2], bbox[j, 3] + 1):
+            for px in range(bbox[j, 0], bbox[j, 1] + 1):
+                cov, e0, e1, e2 = hs.covered(X, Y, j, px, py, 8)
+                if cov:
+                    mine.append((j, (hgt - 1 - py) * w + px))
+    mine = sorted(mine)
+    theirs = sorted(zip(fr.prim_id.tolist(), fr.pixel.tolist()))
+    assert len(mine) > 100
+    assert mine == theirs
+
+
+def fig1(w_values=None):
+    return h.figure1_scene(10) if w_values is None else h.figure1_scene(10, w_values=w_values)
+
+
+KW = dict(width=48, height=40, slices=20, rho=0.08, delta_d=1.0, delta_t=0.2,
+          rotation=h.compose(("zx", 0.5), ("yz", -0.6)))
+
+
+def test_engines_bit_identical():
+    s = fig1()
+    for halos in (True, False):
+        a = h.render_halos(s, volume=True, halos=halos, **KW)
+        b = h.render_halos(s, volume=True, halos=halos, engine="reference", **KW)
+        assert a.image.tobytes() == b.image.tobytes()
+        np.testing.assert_array_equal(a.volume, b.volume)
+
+
+def test_halo_grows_with_4d_depth_difference():
+    """Fig. 1: the carved part of the white patch grows monotonically with Δw."""
+    # carved where the white core meets the strip's halo at w_s <= u < δt + Δw/δd
+    kw = {**KW, "width": 64, "height": 56, "slices": 32, "rho": 0.1, "surface_width": 0.2,
+          "delta_t": 0.3}
+    carved = []
+    for w in (0.0, 0.1, 0.2, 0.3, 0.4, 0.5):
+        r = h.render_halos(fig1([w]), volume=True, **kw)
+        carved.append(int((r.volume == hr.CARVED).sum()))
+    assert carved[0] == 0
+    assert all(a < b for a, b in zip(carved, carved[1:])), carved
+    assert carved[5] > 2 * carved[1]
+
+
+def test_halo_carves_only_the_farther_surface():
+    kw = {**KW, "width": 96, "height": 80, "slices": 32, "rho": 0.1}
+
+    def counts(w, halos):
+        img = h.render_halos(fig1([w]), halos=halos, **kw).image
+        red = (img[..., 0] > 0.2) & (img[..., 1] < 0.5 * img[..., 0])
+        white = (img.min(axis=2) > 0.2) & (img.max(axis=2) - img.min(axis=2) < 0.05)
+        return int(red.sum()), int(white.sum())
+
+    # strip 0.5 behind the white patch in 4D: halos take red pixels, white ones are not lost
+    red_h, white_h = counts(-0.5, True)
+    red_0, white_0 = counts(-0.5, False)
+    assert red_h < red_0 - 10 and white_h >= white_0
+    # strip 0.5 in front: halos take white pixels, red ones are not lost
+    red_h, white_h = counts(0.5, True)
+    red_0, white_0 = counts(0.5, False)
+    assert white_h < white_0 - 10 and red_h >= red_0
+
+
+def test_opacity_independent_of_slice_count():
+    """A face-on square: accumulated alpha ≈ opacity for any N (within slice sampling)."""
+    sq = h.uv_surface(lambda u, v: np.stack([u, v, 0 * u, 0 * u], axis=-1), (-1, 1), (-1, 1), 4, 4)
+    alphas = []
+    for n in (8, 16, 64):
+        r = h.render_halos(sq, width=24, height=24, slices=n, rho=0.2, surface_width=0.5,
+                           opacity=0.8, margin=0.2)
+        alphas.append(float(r.alpha[12, 12]))
+    np.testing.assert_allclose(alphas, 0.8, atol=0.08)
+
+
+def test_render_stereo_and_volume_shapes():
+    r = h.render_halos(fig1(), stereo=True, **KW)
+    gap = max(2, 48 // 32)
+    assert r.image.shape == (40, 2 * 48 + gap, 3)
+    assert not np.array_equal(r.image[:, :48], r.image[:, 48 + gap:])
+    v = h.render_halos(fig1(), volume=True, **KW)
+    assert v.volume.shape == (20, 40, 48) and v.volume.dtype == np.int8
+    assert np.all(np.isin(v.volume, [0, 1, 2, 3]))
+    # perspective works too
+    p = h.render_halos(fig1(), projection="perspective", **KW)
+    assert p.alpha.max() > 0
+
+
+def test_render_bad_inputs():
+    s = fig1()
+    for bad in (0, -3, 10**6):
+        with pytest.raises(ValueError, match="slices"):
+            h.render_halos(s, width=8, height=8, slices=bad)
+    with pytest.raises(TypeError, match="slices"):
+        h.render_halos(s, width=8, height=8, slices=2.5)
+    for name in ("rho", "delta_d", "delta_t", "opacity", "surface_width"):
+        with pytest.raises(ValueError, match=name):
+            h.render_halos(s, width=8, height=8, slices=4, **{name: float("nan")})
+    with pytest.raises(TypeError, match="surface"):
+        h.render_halos(np.zeros((3, 4)), width=8, height=8)
+    with pytest.raises(ValueError, match="engine"):
+        h.render_halos(s, width=8, height=8, engine="gpu")
+    with pytest.raises(ValueError, match="volume"):
+        h.render_halos(s, width=8, height=8, stereo=True, volume=True)
+    with pytest.raises(ValueError, match="width"):
+        h.render_halos(s, width=0, height=8)
+
+
+def test_degenerate_faces_are_skipped_with_a_count():
+    s = fig1()
+    f = np.concatenate([s.faces, [[0, 0, 1], [2, 3, 3]]])
+    s2 = h.Surface4D(s.vertices, f, s.tangents, s.colors)
+    r = h.render_halos(s2, **KW)
+    assert r.stats["degenerate_faces"] == 2
+    assert r.image.tobytes() == h.render_halos(s, **KW).image.tobytes()
+
+
+def test_render_deterministic_across_runs_and_threads(tmp_path):
+    code = textwrap.dedent("""
+        import sys, numpy as np
+        import refraster.halos4d as h
+        s = h.spun_trefoil(40, 16)
+        r = h.render_halos(s, rotation=h.compose(("zw", 0.6), ("yz", 0.4)), width=64,
+                           height=64, slices=32, volume=True)
+        np.save(sys.argv[1], np.concatenate([r.image.ravel(), r.volume.ravel()]))
+    """)
+    outs = []
+    for threads in ("1", "2", "2"):
+        p = tmp_path / f"out{len(outs)}.npy"
+        env = {**os.environ, "NUMBA_NUM_THREADS": threads}
+        subprocess.run([sys.executable, "-c", code, str(p)], check=True, env=env)
+        outs.append(np.load(p, allow_pickle=False).tobytes())
+    assert outs[0] == outs[1] == outs[2]
