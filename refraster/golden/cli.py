@@ -1,0 +1,143 @@
+"""``golden generate`` and ``golden compare`` on the command line.
+
+::
+
+    refraster golden generate --out DIR [--scene NAME ...] [--scene-file SCENE.toml ...]
+                              [--update] [--list]
+    refraster golden compare GOLDEN_DIR CANDIDATE_DIR [--report DIR]
+                             [--profile exact|conformant] [--tolerance [SCENE:][BUFFER.]KEY=VALUE ...]
+                             [--scene NAME ...] [--json FILE]
+
+Exit status: 0 pass (or generated), 1 a comparison failed, 2 unusable input (bad arguments, a
+golden that cannot be read, a candidate file missing, corrupt or of the wrong shape). The
+``refraster`` command adds these with :func:`register`; ``python -m refraster.golden.cli`` runs
+them alone (:func:`main`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .compare import EXIT_PASS, EXIT_UNUSABLE, GoldenError
+from .tolerance import PROFILES
+
+__all__ = ["register", "main"]
+
+
+def _error(args, prog, exc):
+    if getattr(args, "debug", False):
+        raise exc
+    print(f"{prog}: error: {' '.join(str(exc).split()) or type(exc).__name__}", file=sys.stderr)
+    return EXIT_UNUSABLE
+
+
+def _say(args, message):
+    if not getattr(args, "quiet", False):
+        print(message, file=sys.stderr)
+
+
+def _cmd_generate(args):
+    from .generate import generate
+    from .scenes import available_scenes
+    if args.list:
+        for name, entry in available_scenes().items():
+            print(f"{name:<28} {entry.technique:<12} {entry.description}")
+        return EXIT_PASS
+    if args.out is None:
+        return _error(args, "golden generate", ValueError("--out DIR is required"))
+    try:
+        manifest = generate(args.out, args.scene or None, update=args.update,
+                            scene_files=args.scene_file or (),
+                            progress=lambda name: _say(args, f"rendering {name}"))
+    except (ValueError, TypeError, OSError) as exc:
+        return _error(args, "golden generate", exc)
+    _say(args, f"wrote {len(manifest['scenes'])} scene(s) and {len(manifest['files'])} files "
+               f"to {args.out}")
+    return EXIT_PASS
+
+
+def _cmd_compare(args):
+    from .. import io as rio
+    from .compare import compare
+    try:
+        result = compare(args.golden_dir, args.candidate_dir, report=args.report,
+                         profile=args.profile, tolerances=args.tolerance or (),
+                         scenes=args.scene or None)
+        if args.json is not None:
+            rio.write_json(args.json, result.to_json())
+    except (GoldenError, ValueError, OSError) as exc:
+        return _error(args, "golden compare", exc)
+    if not getattr(args, "quiet", False):
+        print(result.summary())
+        for line in result.failures():
+            print(f"FAIL {line}", file=sys.stderr)
+        if result.report_dir is not None:
+            print(f"report: {result.report_dir / 'index.html'}")
+    return result.exit_code
+
+
+def register(subparsers):
+    """Add the ``golden`` command (``generate`` and ``compare``) to an argparse subparsers
+    object; each sets ``func`` to a handler ``func(args) -> exit status``."""
+    golden = subparsers.add_parser(
+        "golden", help="generate golden images or compare a backend against them",
+        description="Golden images: reference buffers a GPU backend is compared against.")
+    sub = golden.add_subparsers(dest="golden_command", metavar="{generate,compare}")
+    golden.set_defaults(func=lambda args: _error(
+        args, "golden", ValueError("a subcommand is required: generate or compare")))
+
+    g = sub.add_parser("generate", help="render the golden scenes into DIR")
+    g.add_argument("--out", metavar="DIR", help="golden directory to write")
+    g.add_argument("--scene", metavar="NAME", action="append",
+                   help="a registered scene (repeatable; default: all)")
+    g.add_argument("--scene-file", metavar="TOML", action="append",
+                   help="a TOML scene description (repeatable)")
+    g.add_argument("--update", action="store_true",
+                   help="replace an existing golden directory (other scenes are kept)")
+    g.add_argument("--list", action="store_true", help="list the registered scenes and exit")
+    g.set_defaults(func=_cmd_generate)
+
+    c = sub.add_parser("compare", help="compare CANDIDATE_DIR against GOLDEN_DIR")
+    c.add_argument("golden_dir", metavar="GOLDEN_DIR")
+    c.add_argument("candidate_dir", metavar="CANDIDATE_DIR")
+    c.add_argument("--report", metavar="DIR", help="write an HTML report into DIR")
+    c.add_argument("--profile", choices=PROFILES, default="exact",
+                   help="tolerance profile from the manifest (default: exact)")
+    c.add_argument("--tolerance", metavar="[SCENE:][BUFFER.]KEY=VALUE", action="append",
+                   help="override a tolerance (repeatable), e.g. color.max_flip_mean=0.02")
+    c.add_argument("--scene", metavar="NAME", action="append",
+                   help="compare only this scene (repeatable)")
+    c.add_argument("--json", metavar="FILE", help="write the metrics as JSON")
+    c.set_defaults(func=_cmd_compare)
+    return golden
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        self.print_usage(sys.stderr)
+        print(f"{self.prog}: error: {message}", file=sys.stderr)
+        raise SystemExit(EXIT_UNUSABLE)
+
+
+def main(argv=None):
+    """Standalone entry point: ``main(["golden", "compare", GOLDEN, CANDIDATE])`` or, without
+    the leading ``golden``, ``main(["compare", GOLDEN, CANDIDATE])``; returns the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    first = next((i for i, a in enumerate(argv) if a not in ("-q", "--quiet", "--debug")),
+                 len(argv))
+    if argv[first:first + 1] != ["golden"]:
+        argv.insert(first, "golden")
+    parser = _Parser(prog="refraster")
+    parser.add_argument("-q", "--quiet", action="store_true")
+    parser.add_argument("--debug", action="store_true")
+    register(parser.add_subparsers(dest="command"))
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:
+        return int(exc.code or 0)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,149 @@
+"""Scene packages: what a GPU backend loads to render a golden scene without Python.
+
+Layout (paths relative to the package directory; ``docs/golden-schema.md`` has every field)::
+
+    scene.json            camera, viewport, raster state, draws, shading, maps, parameters
+    meshes/<draw>.ply     binary little-endian PLY: float32 x y z [nx ny nz], int32 faces
+    maps/<map>.npy        exact map values (NumPy .npy, no pickle)
+    maps/<map>.png        16-bit PNG of the same map (see its "png_encoding")
+
+Vertices are float32 in the PLY and the golden was rendered from exactly those values
+(:func:`refraster.golden.scenes.prepare_draws`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from .. import io as rio
+from ..camera import is_perspective, near_far
+from ..framebuffer import PALETTE
+from ..raster.gbuffer import AMBIENT, DIFFUSE, SHININESS, SPECULAR
+from .schema import SCENE_SCHEMA, SCENE_SCHEMA_VERSION, validate
+
+__all__ = ["export_package", "scene_document", "npz_bytes", "npy_bytes", "sha256_file",
+           "SHADING"]
+
+#: The shading of :attr:`refraster.Framebuffer.color` as numbers (``scene.json`` "shading").
+SHADING = dict(model="headlight", ambient=AMBIENT, diffuse=DIFFUSE, specular=SPECULAR,
+               shininess=SHININESS, palette=PALETTE.tolist())
+
+
+def npy_bytes(array):
+    """``.npy`` bytes of ``array`` (never pickled)."""
+    buf = io.BytesIO()
+    np.lib.format.write_array(buf, np.ascontiguousarray(array), allow_pickle=False)
+    return buf.getvalue()
+
+
+def npz_bytes(arrays):
+    """A compressed ``.npz`` of ``arrays`` whose bytes depend on the arrays only.
+
+    ``numpy.savez_compressed`` stamps each member with the current time, so two runs would hash
+    differently; here every member has the zip epoch (1980-01-01) and keys are sorted.
+    """
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for key in sorted(arrays):
+            a = np.asarray(arrays[key])
+            if a.dtype == object:
+                raise TypeError(f"array {key!r} has dtype object and cannot be stored "
+                                "without pickle")
+            info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = 0o644 << 16
+            zf.writestr(info, npy_bytes(a))
+    return buf.getvalue()
+
+
+def sha256_file(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _ply_bytes(draw):
+    import trimesh
+    mesh = trimesh.Trimesh(draw.mesh.vertices, draw.mesh.faces, process=False)
+    if draw.normals is not None:
+        mesh.vertex_normals = draw.normals
+    return trimesh.exchange.ply.export_ply(mesh, encoding="binary",
+                                           vertex_normal=draw.normals is not None,
+                                           include_attributes=False)
+
+
+def _map_png(values):
+    """16-bit PNG encoding of a map: unorm16, snorm16 or range16 (with its range)."""
+    a = np.asarray(values, np.float64)
+    if not np.all(np.isfinite(a)):
+        raise ValueError("maps must be finite to be exported as PNG")
+    lo, hi = (float(a.min()), float(a.max())) if a.size else (0.0, 1.0)
+    if lo >= 0.0 and hi <= 1.0:
+        enc, x = "unorm16: value = png / 65535", a
+    elif lo >= -1.0 and hi <= 1.0:
+        enc, x = "snorm16: value = png / 65535 * 2 - 1", a * 0.5 + 0.5
+    else:
+        hi = hi if hi > lo else lo + 1.0
+        enc = f"range16: value = {lo!r} + png / 65535 * ({hi!r} - {lo!r})"
+        x = (a - lo) / (hi - lo)
+    png = (np.clip(x, 0.0, 1.0) * 65535.0 + 0.5).astype(np.uint16)
+    if png.ndim == 3 and png.shape[2] == 2:
+        png = np.concatenate([png, np.zeros(png.shape[:2] + (1,), np.uint16)], axis=2)
+    return png, enc
+
+
+def scene_document(name, scene, raster, map_entries):
+    """The ``scene.json`` document of a :class:`GoldenScene` (validated against the schema)."""
+    cam = scene.camera
+    near, far = near_far(cam.proj)
+    doc = {
+        "schema": "refraster.scene",
+        "schema_version": SCENE_SCHEMA_VERSION,
+        "name": name,
+        "technique": scene.technique,
+        "description": scene.description,
+        "viewport": {"width": cam.width, "height": cam.height},
+        "camera": {"view": cam.view.tolist(), "projection": cam.proj.tolist(),
+                   "kind": "perspective" if is_perspective(cam.proj) else "orthographic",
+                   "near": float(near), "far": float(far)},
+        "raster": dict(raster),
+        "draws": [{"object_id": k, "name": d.name, "mesh": f"meshes/{d.name}.ply",
+                   "model": np.asarray(d.model, np.float64).tolist(),
+                   "n_vertices": d.mesh.n_vertices, "n_faces": d.mesh.n_faces}
+                  for k, d in enumerate(scene.draws)],
+        "shading": {**SHADING, "background": [1.0, 1.0, 1.0]},
+        "maps": map_entries,
+        "parameters": scene.parameters,
+    }
+    return validate(doc, SCENE_SCHEMA)
+
+
+def export_package(directory, name, scene, raster):
+    """Write the scene package of ``scene`` into ``directory``; return the files written
+    (paths relative to ``directory``, POSIX)."""
+    directory = Path(directory)
+    written = []
+    for d in scene.draws:
+        rel = f"meshes/{d.name}.ply"
+        rio.atomic_write_bytes(directory / rel, _ply_bytes(d))
+        written.append(rel)
+    map_entries = {}
+    for key in sorted(scene.maps):
+        values = np.asarray(scene.maps[key])
+        png, encoding = _map_png(values)
+        rio.atomic_write_bytes(directory / f"maps/{key}.npy", npy_bytes(values))
+        rio.write_png(directory / f"maps/{key}.png", png)
+        written += [f"maps/{key}.npy", f"maps/{key}.png"]
+        map_entries[key] = {"npy": f"maps/{key}.npy", "png": f"maps/{key}.png",
+                            "shape": list(values.shape), "dtype": str(values.dtype),
+                            "png_encoding": encoding}
+    rio.write_json(directory / "scene.json", scene_document(name, scene, raster, map_entries))
+    written.append("scene.json")
+    return written

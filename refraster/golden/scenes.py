@@ -1,0 +1,406 @@
+"""The golden scene registry, the plain-rendering scenes and the TOML scene format.
+
+A scene is a name bound to a function that returns a :class:`GoldenScene`: the draws (meshes
+and model matrices), the camera, the raster state, the buffers refraster computed and the
+technique parameters. A technique registers its scenes with the :func:`register_scene`
+decorator in a module listed in :data:`SCENE_MODULES`::
+
+    from refraster.golden import GoldenScene, register_scene, prepare_draws
+
+    @register_scene("edges_crank", technique="edges", description="C1 + id edges of the crank")
+    def _edges_crank():
+        draws = prepare_draws([Draw("crank", solid("crank"))])
+        ...
+        return GoldenScene(technique="edges", camera=cam, draws=draws,
+                           buffers={"edge": edge_map}, parameters={"threshold": 0.1})
+
+Every mesh is rounded to float32 (:func:`prepare_draws`) *before* it is rendered, because the
+scene package stores float32 PLY vertices: what a GPU backend loads is exactly what refraster
+drew.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .._validate import as_choice, as_float_array, as_matrix
+from ..camera import Camera, frame_bounds, look_at, orthographic, perspective
+from ..mesh import Mesh, as_mesh, vertex_normals
+
+__all__ = [
+    "Draw", "GoldenScene", "SceneEntry", "SCENES", "SCENE_MODULES", "TECHNIQUES",
+    "register_scene", "register_technique", "prepare_draws", "render_scene", "available_scenes",
+    "load_scene_file", "DEFAULT_RASTER",
+]
+
+#: Raster state of every golden unless a scene overrides a field (``scene.json`` "raster").
+DEFAULT_RASTER = dict(subpixel_bits=8, fill_rule="llvmpipe", precision="float32", cull="none",
+                      depth_func="less", front_face="ccw", clear_depth=1.0, normals="flat")
+
+#: Modules imported by :func:`available_scenes`; each registers its scenes on import.
+SCENE_MODULES = ("refraster.golden.technique_scenes",)
+
+_NAME = re.compile(r"^[a-z0-9][a-z0-9_]*$")
+
+
+@dataclass(frozen=True)
+class Draw:
+    """One draw call: a mesh (``(vertices, faces)``, :class:`~refraster.mesh.Mesh` or
+    ``trimesh.Trimesh``), its model matrix and, after :func:`prepare_draws`, its vertex
+    normals when the scene is smooth-shaded."""
+
+    name: str
+    mesh: object
+    model: np.ndarray = field(default_factory=lambda: np.eye(4))
+    normals: np.ndarray | None = None
+
+
+@dataclass
+class GoldenScene:
+    """What a scene function returns.
+
+    Attributes
+    ----------
+    technique : str
+        ``"render"`` for plain rendering, else the technique's module name.
+    camera : refraster.camera.Camera
+    draws : list of Draw
+        From :func:`prepare_draws` (float32-exact vertices).
+    buffers : dict of str → ndarray
+        ``(H, W)`` or ``(H, W, C)`` arrays, row 0 at the top; the golden.
+    parameters : dict
+        Every technique parameter, JSON-serialisable.
+    raster : dict
+        Overrides of :data:`DEFAULT_RASTER`.
+    maps : dict of str → ndarray
+        Offset maps, textures… exported as ``.npy`` and PNG in the package.
+    kinds : dict of str → str
+        Buffer kind overrides (see :data:`refraster.golden.buffers.KINDS`).
+    tolerances : dict
+        ``{buffer: {profile: {key: value}}}`` overrides of the default tolerances.
+    """
+
+    technique: str
+    camera: Camera
+    draws: list
+    buffers: dict
+    parameters: dict = field(default_factory=dict)
+    raster: dict = field(default_factory=dict)
+    maps: dict = field(default_factory=dict)
+    kinds: dict = field(default_factory=dict)
+    tolerances: dict = field(default_factory=dict)
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class SceneEntry:
+    name: str
+    technique: str
+    description: str
+    build: object
+
+
+#: name → :class:`SceneEntry`, in registration order.
+SCENES: dict = {}
+#: technique name → ``fn(draws, camera, raster, parameters) -> (buffers, parameters)``, for
+#: TOML scenes.
+TECHNIQUES: dict = {}
+
+
+def register_scene(name, *, technique, description=""):
+    """Decorator: register ``fn() -> GoldenScene`` as the golden scene ``name``.
+
+    ``name`` is lower-case ``[a-z0-9_]`` (it becomes a directory name). Registering a name twice
+    is an error.
+    """
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise ValueError(f"scene name must match {_NAME.pattern}, got {name!r}")
+    if name in SCENES:
+        raise ValueError(f"golden scene {name!r} is already registered")
+
+    def decorator(fn):
+        if not callable(fn):
+            raise TypeError("register_scene decorates a function returning a GoldenScene")
+        SCENES[name] = SceneEntry(name, technique, description, fn)
+        return fn
+
+    return decorator
+
+
+def register_technique(name):
+    """Decorator: make technique ``name`` available to TOML scenes (``technique = "name"``)."""
+    def decorator(fn):
+        if name in TECHNIQUES:
+            raise ValueError(f"technique {name!r} is already registered")
+        TECHNIQUES[name] = fn
+        return fn
+    return decorator
+
+
+def available_scenes():
+    """Import :data:`SCENE_MODULES` (each registers its scenes) and return :data:`SCENES`."""
+    for module in SCENE_MODULES:
+        importlib.import_module(module)
+    return SCENES
+
+
+def _float32_exact(a):
+    return np.asarray(a, np.float64).astype(np.float32).astype(np.float64)
+
+
+def prepare_draws(draws, *, normals="flat"):
+    """Round each draw's vertices to float32 (the PLY precision) and, for ``"smooth"``,
+    compute area-weighted vertex normals of the rounded mesh, also float32-exact.
+
+    Returns a new list of :class:`Draw` whose ``mesh`` is a :class:`~refraster.mesh.Mesh`.
+    """
+    normals = as_choice(normals, "normals", ("flat", "smooth"))
+    out = []
+    for i, d in enumerate(draws):
+        if not isinstance(d, Draw):
+            raise TypeError(f"draws[{i}] must be a Draw, got {type(d).__name__}")
+        if not _NAME.match(d.name):
+            raise ValueError(f"draws[{i}].name must match {_NAME.pattern}, got {d.name!r}")
+        m = as_mesh(d.mesh, f"draws[{i}].mesh")
+        v = _float32_exact(m.vertices)
+        vn = _float32_exact(vertex_normals(v, m.faces)) if normals == "smooth" else None
+        out.append(Draw(d.name, Mesh(v, m.faces), as_matrix(d.model, f"draws[{i}].model"), vn))
+    if len({d.name for d in out}) != len(out):
+        raise ValueError("draw names must be unique within a scene")
+    return out
+
+
+def raster_state(overrides):
+    """:data:`DEFAULT_RASTER` updated with ``overrides`` (unknown keys are an error)."""
+    unknown = set(overrides) - set(DEFAULT_RASTER)
+    if unknown:
+        raise ValueError(f"unknown raster fields {sorted(unknown)}; known: {sorted(DEFAULT_RASTER)}")
+    return {**DEFAULT_RASTER, **overrides}
+
+
+def render_draws(draws, camera, raster):
+    """Render prepared draws with ``raster`` state; returns a :class:`refraster.Framebuffer`."""
+    from .. import render
+    smooth = raster["normals"] == "smooth"
+    return render([d.mesh for d in draws], **camera.kwargs, model=[d.model for d in draws],
+                  normals=[d.normals for d in draws] if smooth else "flat",
+                  cull=raster["cull"], depth_func=raster["depth_func"],
+                  precision=raster["precision"], subpixel_bits=raster["subpixel_bits"],
+                  fill_rule=raster["fill_rule"], clear_depth=raster["clear_depth"])
+
+
+@register_technique("render")
+def _render_technique(draws, camera, raster, parameters):
+    if parameters:
+        raise ValueError(f"technique 'render' takes no parameters, got {sorted(parameters)}")
+    return render_draws(draws, camera, raster).arrays(), {}
+
+
+def render_scene(draws, camera, *, description="", **raster):
+    """A plain-rendering :class:`GoldenScene`: prepare ``draws``, render every G-buffer
+    channel (:meth:`refraster.Framebuffer.arrays`)."""
+    state = raster_state(raster)
+    prepared = prepare_draws(draws, normals=state["normals"])
+    buffers, params = _render_technique(prepared, camera, state, {})
+    return GoldenScene(technique="render", camera=camera, draws=prepared, buffers=buffers,
+                       parameters=params, raster=raster, description=description)
+
+
+# --- the plain-rendering scenes: canonical solids, fixed cameras --------------------------------
+
+def _framed(meshes, width, height, direction, margin=1.0, fovy=35.0):
+    lo = np.min([np.asarray(m.vertices).min(axis=0) for m in meshes], axis=0)
+    hi = np.max([np.asarray(m.vertices).max(axis=0) for m in meshes], axis=0)
+    return frame_bounds(np.stack([lo, hi]), width=width, height=height, fovy=fovy,
+                        direction=direction, margin=margin)
+
+
+def _translate(x, y, z):
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+def _rotate_x(degrees):
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    m = np.eye(4)
+    m[1:3, 1:3] = [[c, -s], [s, c]]
+    return m
+
+
+def _solid_scene(solid_name, *, width=160, height=120, direction=(1.0, 0.8, 1.4), **raster):
+    from ..scenes import solid
+    mesh = solid(solid_name)
+    return render_scene([Draw(solid_name, mesh)], _framed([mesh], width, height, direction),
+                        **raster)
+
+
+@register_scene("render_cube", technique="render",
+                description="Cube, flat normals, perspective, no culling.")
+def _render_cube():
+    return _solid_scene("cube")
+
+
+@register_scene("render_icosphere_smooth", technique="render",
+                description="Icosphere (1 280 faces), smooth vertex normals, back-face culling.")
+def _render_icosphere_smooth():
+    return _solid_scene("icosphere", normals="smooth", cull="back")
+
+
+@register_scene("render_torus_ortho", technique="render",
+                description="Torus under an orthographic camera, flat normals.")
+def _render_torus_ortho():
+    from ..scenes import solid
+    mesh = solid("torus")
+    view = look_at((0.0, 2.2, 2.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+    camera = Camera(view, orthographic(-1.6, 1.6, -1.2, 1.2, 0.5, 6.0), 160, 120)
+    return render_scene([Draw("torus", mesh)], camera)
+
+
+@register_scene("render_fluted_column", technique="render",
+                description="Fluted column (thin flutes: many near-edge pixel centres).")
+def _render_fluted_column():
+    return _solid_scene("fluted_column", width=120, height=160, direction=(1.0, 0.3, 1.2))
+
+
+@register_scene("render_nested_shells", technique="render",
+                description="Nested shells seen from outside, front-face culling (inner shells "
+                            "show through the culled outer surface).")
+def _render_nested_shells():
+    return _solid_scene("nested_shells", cull="front")
+
+
+@register_scene("render_building", technique="render",
+                description="Building (manifold3d boolean result), flat normals.")
+def _render_building():
+    return _solid_scene("building", direction=(1.2, 0.9, 1.6))
+
+
+@register_scene("render_crank", technique="render",
+                description="Crank (about 100k faces, sub-pixel triangles).")
+def _render_crank():
+    return _solid_scene("crank", width=192, height=144, direction=(0.8, 1.0, 1.5))
+
+
+@register_scene("render_multi_draw", technique="render",
+                description="Three draw calls with model matrices: object ids and palette "
+                            "colours; the torus passes through the cube.")
+def _render_multi_draw():
+    from ..scenes import solid
+    draws = [Draw("cube", solid("cube"), _translate(-0.6, 0.0, 0.0)),
+             Draw("torus", solid("torus", quick=True), _translate(0.2, 0.0, 0.0) @ _rotate_x(70)),
+             Draw("icosphere", solid("icosphere", quick=True), _translate(1.5, 0.3, -0.4))]
+    view = look_at((1.0, 2.5, 5.0), (0.4, 0.0, 0.0))
+    camera = Camera(view, perspective(35.0, 160 / 120, 2.0, 9.0), 160, 120)
+    return render_scene(draws, camera)
+
+
+# --- TOML scenes ---------------------------------------------------------------------------------
+
+_CAMERA_KEYS = {"kind", "eye", "target", "up", "fovy", "near", "far", "extent", "direction",
+                "margin"}
+
+
+def _toml_camera(spec, meshes, width, height, where):
+    def num(key, default=None):
+        value = spec.get(key, default)
+        if value is None:
+            raise ValueError(f"{where}: [camera] needs {key!r}")
+        return value
+
+    kind = spec.get("kind", "frame")
+    if kind == "frame":
+        lo = np.min([m.vertices.min(axis=0) for m in meshes], axis=0)
+        hi = np.max([m.vertices.max(axis=0) for m in meshes], axis=0)
+        return frame_bounds(np.stack([lo, hi]), width=width, height=height,
+                            fovy=num("fovy", 35.0), direction=num("direction", (1.0, 0.8, 1.4)),
+                            up=num("up", (0.0, 1.0, 0.0)), margin=num("margin", 1.1))
+    view = look_at(num("eye"), num("target"), num("up", (0.0, 1.0, 0.0)))
+    if kind == "perspective":
+        proj = perspective(num("fovy"), width / height, num("near"), num("far"))
+    elif kind == "orthographic":
+        left, right, bottom, top = as_float_array(num("extent"), f"{where}: camera.extent",
+                                                  shape=(4,))
+        proj = orthographic(left, right, bottom, top, num("near"), num("far"))
+    else:
+        raise ValueError(f"{where}: camera.kind must be 'frame', 'perspective' or "
+                         f"'orthographic', got {kind!r}")
+    return Camera(view, proj, width, height)
+
+
+def load_scene_file(path):
+    """Read a TOML scene description and return its :class:`SceneEntry` (not registered).
+
+    See ``docs/golden.md`` for the format. Mesh paths are relative to the TOML file; any format
+    trimesh reads (PLY, OBJ, STL, glTF…) works, or ``solid = "crank"`` names a canonical solid.
+    """
+    path = Path(path)
+    try:
+        spec = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ValueError(f"cannot read scene file {path}: {exc}") from exc
+    where = str(path)
+    name = spec.get("name", path.stem)
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise ValueError(f"{where}: name must match {_NAME.pattern}, got {name!r}")
+    technique = spec.get("technique", "render")
+    if technique not in TECHNIQUES:
+        raise ValueError(f"{where}: unknown technique {technique!r}; "
+                         f"known: {sorted(TECHNIQUES)}")
+    known = {"name", "description", "technique", "viewport", "camera", "raster", "draw",
+             "parameters"}
+    if set(spec) - known:
+        raise ValueError(f"{where}: unknown tables/keys {sorted(set(spec) - known)}")
+    if not spec.get("draw"):
+        raise ValueError(f"{where}: at least one [[draw]] table is needed")
+    for i, d in enumerate(spec["draw"]):
+        extra = set(d) - {"mesh", "solid", "name", "model"}
+        if extra:
+            raise ValueError(f"{where}: draw[{i}] has unknown keys {sorted(extra)}")
+    extra = set(spec.get("camera", {})) - _CAMERA_KEYS
+    if extra:
+        raise ValueError(f"{where}: [camera] has unknown keys {sorted(extra)}")
+    extra = set(spec.get("viewport", {})) - {"width", "height"}
+    if extra:
+        raise ValueError(f"{where}: [viewport] has unknown keys {sorted(extra)}")
+    raster_state(spec.get("raster", {}))
+
+    def build():
+        import trimesh
+
+        from ..scenes import solid
+        draws = []
+        for i, d in enumerate(spec["draw"]):
+            if ("mesh" in d) == ("solid" in d):
+                raise ValueError(f"{where}: draw[{i}] needs exactly one of 'mesh' or 'solid'")
+            if "solid" in d:
+                mesh = solid(d["solid"])
+                default_name = d["solid"]
+            else:
+                mesh_path = (path.parent / d["mesh"])
+                try:
+                    mesh = trimesh.load(mesh_path, force="mesh", process=False)
+                except Exception as exc:  # trimesh raises many kinds for unreadable files
+                    raise ValueError(f"{where}: cannot load mesh {mesh_path}: {exc}") from exc
+                default_name = re.sub(r"[^a-z0-9_]", "_", Path(d["mesh"]).stem.lower())
+            draws.append(Draw(d.get("name", f"{default_name}_{i}" if i else default_name), mesh,
+                              np.asarray(d.get("model", np.eye(4)), np.float64)))
+        viewport = spec.get("viewport", {})
+        width, height = int(viewport.get("width", 320)), int(viewport.get("height", 240))
+        state = raster_state(spec.get("raster", {}))
+        prepared = prepare_draws(draws, normals=state["normals"])
+        camera = _toml_camera(spec.get("camera", {}), [d.mesh for d in prepared], width,
+                              height, where)
+        buffers, params = TECHNIQUES[technique](prepared, camera, state,
+                                                spec.get("parameters", {}))
+        return GoldenScene(technique=technique, camera=camera, draws=prepared, buffers=buffers,
+                           parameters=params, raster=spec.get("raster", {}),
+                           description=spec.get("description", ""))
+
+    return SceneEntry(name, technique, spec.get("description", ""), build)

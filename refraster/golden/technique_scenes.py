@@ -1,0 +1,59 @@
+"""Golden scenes of the techniques whose public entry points exist: edge maps
+(:mod:`refraster.edges`) and 2.5D clip surfaces with caps (:mod:`refraster.clipsurface`).
+
+Each scene's parameters name every argument the technique was called with, so a GPU
+implementation can reproduce the frame from the scene package.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .scenes import Draw, GoldenScene, _framed, prepare_draws, raster_state, register_scene, \
+    render_draws
+
+
+@register_scene("edges_building", technique="edges",
+                description="Edge map (Nienhaus & Döllner): diagonal normal filter in RGB, "
+                            "second-order diagonal depth filter and id edges in A.")
+def _edges_building():
+    from ..edges import edge_map
+    from ..scenes import solid
+    state = raster_state({})
+    draws = prepare_draws([Draw("building", solid("building"))])
+    camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
+    fb = render_draws(draws, camera, state)
+    lo, hi = draws[0].mesh.vertices.min(axis=0), draws[0].mesh.vertices.max(axis=0)
+    params = dict(bounds=[lo.tolist(), hi.tolist()], normal_filter="diagonal",
+                  depth_filter="diagonal2", ids=True, inner_threshold=0.1,
+                  profile_threshold=0.03, width=1, k_n=1.0, k_z=1.0)
+    edges = edge_map(fb, **{**params, "bounds": np.array(params["bounds"])})
+    return GoldenScene(technique="edges", camera=camera, draws=draws,
+                       buffers={**fb.arrays(), "edge_map": edges}, parameters=params)
+
+
+@register_scene("clipsurface_building", technique="clipsurface",
+                description="Building cut by a 2.5D clip surface with a Perlin offset map "
+                            "(N = −z: the front half is removed), diffuse caps (Trapp & "
+                            "Döllner).")
+def _clipsurface_building():
+    from ..clipsurface import ClipSurface, render_clipped
+    from ..offsetmaps import perlin_noise
+    from ..scenes import solid
+    state = raster_state({})
+    draws = prepare_draws([Draw("building", solid("building"))])
+    camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
+    offset_map = perlin_noise((64, 64), seed=1)
+    surface = dict(origin=[0.0, 0.0, 3.5], u=[0.0, 6.25, 0.0], v=[10.0, 0.0, 0.0],
+                   scale=[1.0, 1.0, 0.8], wrap="repeat", enabled=True)
+    caps = dict(caps=True, cap_style="diffuse", cap_mode="mesh", cap_color=[0.8, 0.3, 0.25],
+                subdivision=1, vds_resolution=512, space="world")
+    fb = render_clipped([d.mesh for d in draws],
+                        ClipSurface(surface["origin"], surface["u"], surface["v"],
+                                    surface["scale"], offset_map, wrap=surface["wrap"]),
+                        **camera.kwargs, **caps, cull=state["cull"],
+                        precision=state["precision"])
+    return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
+                       buffers={**fb.arrays(), "cap_mask": fb.cap_mask},
+                       parameters={"surfaces": [{**surface, "offset_map": "offset_map"}], **caps},
+                       maps={"offset_map": offset_map})
