@@ -26,6 +26,10 @@ def atomic_write_bytes(path, data: bytes):
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
+        # mkstemp creates 0600; a written file should have the usual permissions
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -57,15 +61,28 @@ def write_png(path, image):
     return atomic_write_bytes(path, buf.getvalue())
 
 
-def write_npz(path, **arrays):
-    """Write arrays to a compressed ``.npz`` atomically (never object arrays: loadable without
-    pickle)."""
-    for k, v in arrays.items():
-        if np.asarray(v).dtype == object:
-            raise TypeError(f"array {k!r} has dtype object and cannot be stored without pickle")
+def npz_bytes(arrays):
+    """A compressed ``.npz`` as bytes, identical for identical arrays (fixed member timestamps,
+    sorted names; no object arrays, so it loads without pickle)."""
+    import zipfile
     buf = io.BytesIO()
-    np.savez_compressed(buf, **{k: np.asarray(v) for k, v in arrays.items()})
-    return atomic_write_bytes(path, buf.getvalue())
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for name in sorted(arrays):
+            a = np.asarray(arrays[name])
+            if a.dtype == object:
+                raise TypeError(f"array {name!r} has dtype object and cannot be stored without "
+                                "pickle")
+            member = io.BytesIO()
+            np.lib.format.write_array(member, np.ascontiguousarray(a), allow_pickle=False)
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            zf.writestr(info, member.getvalue())
+    return buf.getvalue()
+
+
+def write_npz(path, **arrays):
+    """Write arrays to a compressed ``.npz`` atomically; the bytes depend only on the arrays."""
+    return atomic_write_bytes(path, npz_bytes(arrays))
 
 
 def write_json(path, obj):
