@@ -26,7 +26,8 @@ def window_fixed(clip_row, width, height, bits):
     yw = y * rw * hh + hh
     zw = z * rw * half + half
     s = np.float32(1 << bits)
-    return int(np.rint((xw - half) * s)), int(np.rint((yw - half) * s)), float(zw), 1.0 / float(w)
+    return (int(np.rint((xw - half) * s)), int(np.rint((yw - half) * s)), float(zw), 1.0 / float(w),
+            float(xw), float(yw))
 
 
 def raster_unclipped(clip, faces, width, height, bits=8, rule="bottom-left", cull="none"):
@@ -49,6 +50,9 @@ def raster_unclipped(clip, faces, width, height, bits=8, rule="bottom-left", cul
         Y = [Y[k] for k in order]
         Z = [verts[k][2] for k in order]
         IW = [verts[k][3] for k in order]
+        FX = [verts[k][4] for k in order]
+        FY = [verts[k][5] for k in order]
+        farea = (FX[1] - FX[0]) * (FY[2] - FY[0]) - (FX[2] - FX[0]) * (FY[1] - FY[0])
         B = np.eye(3)[order]
         area = abs(area)
         for py in range(height):
@@ -69,11 +73,21 @@ def raster_unclipped(clip, faces, width, height, bits=8, rule="bottom-left", cul
                     es.append(e)
                 if not inside:
                     continue
-                inv_area = 1.0 / float(area)
-                lam = [float(e) * inv_area for e in es]
+                if farea > 0:
+                    # interpolation from the unsnapped positions at the pixel centre
+                    cx, cy = px + 0.5, py + 0.5
+                    inv = 1.0 / farea
+                    lam = []
+                    for k in range(3):
+                        a, b = (k + 1) % 3, (k + 2) % 3
+                        lam.append(((FX[b] - FX[a]) * (cy - FY[a])
+                                    - (FY[b] - FY[a]) * (cx - FX[a])) * inv)
+                else:
+                    inv_area = 1.0 / float(area)
+                    lam = [float(e) * inv_area for e in es]
                 z = lam[0] * Z[0] + lam[1] * Z[1] + lam[2] * Z[2]
                 z = np.float32(min(max(z, 0.0), 1.0))
-                q = [float(e) * iw for e, iw in zip(es, IW)]
+                q = [lk * iw for lk, iw in zip(lam, IW)]
                 s = q[0] + q[1] + q[2]
                 bary = np.array([(q[0] * B[0, j] + q[1] * B[1, j] + q[2] * B[2, j]) / s
                                  for j in range(3)], np.float32)

@@ -183,11 +183,11 @@ def _window(x, y, z, w, hw, hh, scale):
     yw = y * rw * hh + hh
     zw = z * rw * half + half
     return (np.int64(np.rint((xw - half) * scale)), np.int64(np.rint((yw - half) * scale)),
-            zw, 1.0 / np.float64(w))
+            zw, 1.0 / np.float64(w), xw, yw)
 
 
 @njit(**PJIT)
-def _vertex_pass(c, width, height, bits, gx, gy, vX, vY, vZ, vIW, vcode):
+def _vertex_pass(c, width, height, bits, gx, gy, vX, vY, vZ, vIW, vXf, vYf, vcode):
     hw = np.float32(width * 0.5)
     hh = np.float32(height * 0.5)
     scale = np.float32(1 << bits)
@@ -195,8 +195,8 @@ def _vertex_pass(c, width, height, bits, gx, gy, vX, vY, vZ, vIW, vcode):
         code = _outcode(c[i, 0], c[i, 1], c[i, 2], c[i, 3], gx, gy)
         vcode[i] = code
         if code == 0:
-            vX[i], vY[i], vZ[i], vIW[i] = _window(c[i, 0], c[i, 1], c[i, 2], c[i, 3], hw, hh,
-                                                  scale)
+            (vX[i], vY[i], vZ[i], vIW[i], vXf[i],
+             vYf[i]) = _window(c[i, 0], c[i, 1], c[i, 2], c[i, 3], hw, hh, scale)
 
 
 @njit(**JIT)
@@ -217,14 +217,16 @@ def _bbox(X, Y, i, j, k, bits, width, height):
 
 
 @njit(**JIT)
-def _store(t, X, Y, Z, IW, i, j, k, prim, front, box, area, bslot,
-           oX, oY, oZ, oIW, oprim, ofront, obox, oarea, obidx):
+def _store(t, X, Y, Z, IW, XF, YF, i, j, k, prim, front, box, area, bslot,
+           oX, oY, oZ, oIW, oXf, oYf, oprim, ofront, obox, oarea, obidx):
     """Write one counter-clockwise screen triangle (vertices i, j, k of the scratch arrays)."""
     for s, v in enumerate((i, j, k)):
         oX[t, s] = X[v]
         oY[t, s] = Y[v]
         oZ[t, s] = Z[v]
         oIW[t, s] = IW[v]
+        oXf[t, s] = XF[v]
+        oYf[t, s] = YF[v]
     oprim[t] = prim
     ofront[t] = front
     for s in range(4):
@@ -234,7 +236,8 @@ def _store(t, X, Y, Z, IW, i, j, k, prim, front, box, area, bslot,
 
 
 @njit(**JIT)
-def _clipped_face(c, f, i, codes, poly, tmp, X, Y, Z, IW, width, height, bits, gx, gy):
+def _clipped_face(c, f, i, codes, poly, tmp, X, Y, Z, IW, XF, YF, width, height, bits, gx,
+                  gy):
     """Clip face ``i`` and project the polygon; returns its vertex count and doubled area."""
     for k in range(3):
         v = f[i, k]
@@ -249,8 +252,8 @@ def _clipped_face(c, f, i, codes, poly, tmp, X, Y, Z, IW, width, height, bits, g
     hh = np.float32(height * 0.5)
     scale = np.float32(1 << bits)
     for k in range(n):
-        X[k], Y[k], Z[k], IW[k] = _window(poly[k, 0], poly[k, 1], poly[k, 2], poly[k, 3], hw,
-                                          hh, scale)
+        X[k], Y[k], Z[k], IW[k], XF[k], YF[k] = _window(poly[k, 0], poly[k, 1], poly[k, 2],
+                                                        poly[k, 3], hw, hh, scale)
     total = np.int64(0)
     for k in range(1, n - 1):
         total += _area(X, Y, 0, k, k + 1)
@@ -297,7 +300,7 @@ def _classify(f, vX, vY, vcode, width, height, bits, cull, status, fbox):
 
 @njit(**PJIT)
 def _clip_pass(c, f, idx, width, height, bits, gx, gy, cull, counts, offsets, write,
-               oX, oY, oZ, oIW, oprim, ofront, obox, oarea, obidx, oB):
+               oX, oY, oZ, oIW, oXf, oYf, oprim, ofront, obox, oarea, obidx, oB):
     n_idx = idx.shape[0]
     nchunks = (n_idx + _CHUNK - 1) // _CHUNK
     for ch in prange(nchunks):
@@ -307,6 +310,8 @@ def _clip_pass(c, f, idx, width, height, bits, gx, gy, cull, counts, offsets, wr
         Y = np.zeros(_MAXV, np.int64)
         Z = np.zeros(_MAXV, np.float32)
         IW = np.zeros(_MAXV)
+        XF = np.zeros(_MAXV, np.float32)
+        YF = np.zeros(_MAXV, np.float32)
         box = np.zeros(4, np.int64)
         o = offsets[ch]
         for r in range(ch * _CHUNK, min(n_idx, (ch + 1) * _CHUNK)):
@@ -315,8 +320,8 @@ def _clip_pass(c, f, idx, width, height, bits, gx, gy, cull, counts, offsets, wr
             for k in range(3):
                 v = f[i, k]
                 codes |= _outcode(c[v, 0], c[v, 1], c[v, 2], c[v, 3], gx, gy)
-            n, total = _clipped_face(c, f, i, codes, poly, tmp, X, Y, Z, IW, width, height,
-                                     bits, gx, gy)
+            n, total = _clipped_face(c, f, i, codes, poly, tmp, X, Y, Z, IW, XF, YF, width,
+                                     height, bits, gx, gy)
             if n == 0 or total == 0 or (cull == 1 and total < 0) or (cull == 2 and total > 0):
                 continue
             for k in range(1, n - 1):
@@ -328,8 +333,8 @@ def _clip_pass(c, f, idx, width, height, bits, gx, gy, cull, counts, offsets, wr
                     continue
                 if write:
                     j1, j2 = (k, k + 1) if area > 0 else (k + 1, k)
-                    _store(o, X, Y, Z, IW, 0, j1, j2, i, total > 0, box, abs(area), o,
-                           oX, oY, oZ, oIW, oprim, ofront, obox, oarea, obidx)
+                    _store(o, X, Y, Z, IW, XF, YF, 0, j1, j2, i, total > 0, box, abs(area), o,
+                           oX, oY, oZ, oIW, oXf, oYf, oprim, ofront, obox, oarea, obidx)
                     for s, v in enumerate((0, j1, j2)):
                         for j in range(3):
                             oB[o, s, j] = poly[v, 4 + j]
@@ -343,13 +348,15 @@ class ScreenTriangles:
 
     ``x, y (T, 3) int32`` snapped window coordinates (GL y-up, half-pixel offset removed, pixel
     centres on multiples of ``2^subpixel_bits``), counter-clockwise; ``z (T, 3) float32`` window
-    depth; ``inv_w (T, 3)`` 1/w; ``prim (T,) int64`` the original face index (ascending: draw
+    depth; ``inv_w (T, 3)`` 1/w; ``xf, yf (T, 3) float32`` the unsnapped window coordinates
+    (interpolation uses these); ``prim (T,) int64`` the original face index (ascending: draw
     order); ``front (T,) bool``; ``bbox (T, 4) int32`` inclusive pixel ranges ``x0, x1, y0,
     y1``; ``area (T,) int64`` doubled area in fixed point; ``bary (T, 3, 3)`` each vertex's
     barycentrics in the original face (``bary_index`` is the row, kept for the kernels).
     """
 
-    __slots__ = ("x", "y", "z", "inv_w", "prim", "front", "bbox", "area", "bary_index", "bary")
+    __slots__ = ("x", "y", "z", "inv_w", "xf", "yf", "prim", "front", "bbox", "area",
+                 "bary_index", "bary")
 
     def __len__(self):
         return int(self.prim.shape[0])
@@ -359,7 +366,8 @@ class Primitives:
     """Output of the primitive stage, input of the rasterizer.
 
     ``faces (F, 3)``; per vertex the snapped window position ``vx, vy`` (int64), window depth
-    ``vz`` (float32) and ``v_inv_w`` (valid where the vertex's clip outcode ``vcode`` is 0);
+    ``vz`` (float32), ``v_inv_w`` and the unsnapped window position ``vxf, vyf`` (float32; valid
+    where the vertex's clip outcode ``vcode`` is 0);
     per face ``status`` (``SKIP``, ``SIMPLE``, ``CLIPPED``) and ``bbox (F, 4) int32`` for simple
     faces; ``clipped``, the :class:`ScreenTriangles` of the clipped faces' pieces. A simple face
     is set up inside the rasterizer, per tile, from the per-vertex arrays — the same integer and
@@ -367,8 +375,8 @@ class Primitives:
     set up.
     """
 
-    __slots__ = ("faces", "vx", "vy", "vz", "v_inv_w", "vcode", "status", "bbox", "clipped",
-                 "width", "height", "subpixel_bits")
+    __slots__ = ("faces", "vx", "vy", "vz", "v_inv_w", "vxf", "vyf", "vcode", "status", "bbox",
+                 "clipped", "width", "height", "subpixel_bits")
 
     @property
     def n_faces(self):
@@ -386,8 +394,10 @@ def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8):
     vY = np.zeros(nv, np.int64)
     vZ = np.zeros(nv, np.float32)
     vIW = np.zeros(nv)
+    vXf = np.zeros(nv, np.float32)
+    vYf = np.zeros(nv, np.float32)
     vcode = np.zeros(nv, np.int64)
-    _vertex_pass(c, width, height, subpixel_bits, gx, gy, vX, vY, vZ, vIW, vcode)
+    _vertex_pass(c, width, height, subpixel_bits, gx, gy, vX, vY, vZ, vIW, vXf, vYf, vcode)
     status = np.zeros(len(f), np.int8)
     fbox = np.zeros((len(f), 4), np.int32)
     _classify(f, vX, vY, vcode, width, height, subpixel_bits, cull, status, fbox)
@@ -403,10 +413,11 @@ def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8):
     if len(idx):
         _clip_pass(*args, True, *out)
     st = ScreenTriangles()
-    (st.x, st.y, st.z, st.inv_w, st.prim, st.front, st.bbox, st.area, st.bary_index,
-     st.bary) = out
+    (st.x, st.y, st.z, st.inv_w, st.xf, st.yf, st.prim, st.front, st.bbox, st.area,
+     st.bary_index, st.bary) = out
     p = Primitives()
     p.faces, p.vx, p.vy, p.vz, p.v_inv_w, p.vcode = f, vX, vY, vZ, vIW, vcode
+    p.vxf, p.vyf = vXf, vYf
     p.status, p.bbox, p.clipped = status, fbox, st
     p.width, p.height, p.subpixel_bits = width, height, subpixel_bits
     return p
@@ -414,6 +425,7 @@ def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8):
 
 def _alloc(t):
     return (np.zeros((t, 3), np.int32), np.zeros((t, 3), np.int32), np.zeros((t, 3), np.float32),
-            np.zeros((t, 3)), np.zeros(t, np.int64), np.zeros(t, np.bool_),
+            np.zeros((t, 3)), np.zeros((t, 3), np.float32), np.zeros((t, 3), np.float32),
+            np.zeros(t, np.int64), np.zeros(t, np.bool_),
             np.zeros((t, 4), np.int32), np.zeros(t, np.int64), np.zeros(t, np.int32),
             np.zeros((t, 3, 3)))

@@ -14,10 +14,15 @@ Coverage
     int64 arithmetic, stepped incrementally across the tile.
 
 Interpolation (identical formulas in the fragment-stream and fused paths)
-    ``λ_k = E_k · (1 / area)`` in float64; window depth ``z = λ0 z0 + λ1 z1 + λ2 z2`` (linear in
-    screen space, as GL), clamped to [0, 1] and rounded to float32; perspective-correct
-    barycentrics in the original face ``b = Σ_k q_k B_k / Σ_k q_k`` with ``q_k = E_k / w_k``
-    (``B`` the identity, up to the clockwise swap, for an unclipped face), rounded to float32.
+    Snapping decides coverage only; attributes are interpolated from the **unsnapped** float32
+    window positions, as Mesa sets up its attribute planes: ``λ_k`` = the float64 edge function
+    of the unsnapped triangle at the pixel centre times ``1 / its doubled area`` (falling back to
+    the snapped edge functions when snapping flipped or flattened a sliver); window depth
+    ``z = λ0 z0 + λ1 z1 + λ2 z2`` (linear in screen space, as GL), clamped to [0, 1] and rounded
+    to float32; perspective-correct barycentrics in the original face
+    ``b = Σ_k q_k B_k / Σ_k q_k`` with ``q_k = λ_k / w_k`` (``B`` the identity, up to the
+    clockwise swap, for an unclipped face), rounded to float32. A covered centre just outside the
+    unsnapped triangle extrapolates, as on a GPU.
 
 Tiles
     The viewport is cut into ``TILE × TILE`` pixel tiles; primitives are binned to the tiles
@@ -128,10 +133,11 @@ def bin_primitives(prims):
 # ------------------------------------------------------------------- per-triangle set-up
 
 @njit(**JIT)
-def _load(item, f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox, sarea):
-    """Set up one binned item as a counter-clockwise triangle:
-    ``(x0, y0, x1, y1, x2, y2, z0, z1, z2, iw0, iw1, iw2, area, prim, front, piece, box)``;
-    ``piece`` is −1 for an unclipped face."""
+def _load(item, f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront,
+          sbox, sarea):
+    """Set up one binned item as a counter-clockwise triangle: its snapped positions (coverage),
+    unsnapped positions (interpolation), depths, 1/w, doubled snapped area, face, facing, piece
+    (−1 for an unclipped face) and pixel bounding box."""
     if item >= 0:
         a, b, d = f[item, 0], f[item, 1], f[item, 2]
         x0, y0, x1, y1, x2, y2 = vX[a], vY[a], vX[b], vY[b], vX[d], vY[d]
@@ -141,12 +147,39 @@ def _load(item, f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox, 
             b, d = d, b
             x1, y1, x2, y2 = x2, y2, x1, y1
             area = -area
-        return (x0, y0, x1, y1, x2, y2, vZ[a], vZ[b], vZ[d], vIW[a], vIW[b], vIW[d], area,
-                item, front, -1, fbox[item])
+        return (x0, y0, x1, y1, x2, y2,
+                np.float64(vXf[a]), np.float64(vYf[a]), np.float64(vXf[b]), np.float64(vYf[b]),
+                np.float64(vXf[d]), np.float64(vYf[d]),
+                vZ[a], vZ[b], vZ[d], vIW[a], vIW[b], vIW[d], area, item, front, -1, fbox[item])
     k = -item - 1
     return (np.int64(sX[k, 0]), np.int64(sY[k, 0]), np.int64(sX[k, 1]), np.int64(sY[k, 1]),
-            np.int64(sX[k, 2]), np.int64(sY[k, 2]), sZ[k, 0], sZ[k, 1], sZ[k, 2], sIW[k, 0],
-            sIW[k, 1], sIW[k, 2], sarea[k], sprim[k], sfront[k], k, sbox[k])
+            np.int64(sX[k, 2]), np.int64(sY[k, 2]),
+            np.float64(sXf[k, 0]), np.float64(sYf[k, 0]), np.float64(sXf[k, 1]),
+            np.float64(sYf[k, 1]), np.float64(sXf[k, 2]), np.float64(sYf[k, 2]),
+            sZ[k, 0], sZ[k, 1], sZ[k, 2], sIW[k, 0], sIW[k, 1], sIW[k, 2], sarea[k], sprim[k],
+            sfront[k], k, sbox[k])
+
+
+@njit(**JIT)
+def _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2):
+    """1 / doubled area of the unsnapped triangle, or 0 when snapping flipped or flattened it
+    (then the snapped edge functions interpolate)."""
+    a = (fx1 - fx0) * (fy2 - fy0) - (fx2 - fx0) * (fy1 - fy0)
+    return 1.0 / a if a > 0.0 else 0.0
+
+
+@njit(**JIT)
+def lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y, e0, e1, e2, inv_area):
+    """Screen-space barycentrics of pixel (x, y): from the **unsnapped** positions at the pixel
+    centre, as Mesa sets up its attribute planes (snapping decides coverage only)."""
+    if inv_af > 0.0:
+        cx = np.float64(x) + 0.5
+        cy = np.float64(y) + 0.5
+        l0 = ((fx2 - fx1) * (cy - fy1) - (fy2 - fy1) * (cx - fx1)) * inv_af
+        l1 = ((fx0 - fx2) * (cy - fy2) - (fy0 - fy2) * (cx - fx2)) * inv_af
+        l2 = ((fx1 - fx0) * (cy - fy0) - (fy1 - fy0) * (cx - fx0)) * inv_af
+        return l0, l1, l2
+    return np.float64(e0) * inv_area, np.float64(e1) * inv_area, np.float64(e2) * inv_area
 
 
 @njit(**JIT)
@@ -164,10 +197,7 @@ def _edge(xa, ya, xb, yb, bits, rule, px, py):
 
 
 @njit(**JIT)
-def fragment_depth(z0, z1, z2, e0, e1, e2, inv_area):
-    l0 = np.float64(e0) * inv_area
-    l1 = np.float64(e1) * inv_area
-    l2 = np.float64(e2) * inv_area
+def fragment_depth(z0, z1, z2, l0, l1, l2):
     z = l0 * np.float64(z0) + l1 * np.float64(z1) + l2 * np.float64(z2)
     if z < 0.0:
         z = 0.0
@@ -177,10 +207,10 @@ def fragment_depth(z0, z1, z2, e0, e1, e2, inv_area):
 
 
 @njit(**JIT)
-def fragment_bary(iw0, iw1, iw2, piece, front, B, e0, e1, e2, out, o):
-    q0 = np.float64(e0) * iw0
-    q1 = np.float64(e1) * iw1
-    q2 = np.float64(e2) * iw2
+def fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, out, o):
+    q0 = l0 * iw0
+    q1 = l1 * iw1
+    q2 = l2 * iw2
     s = q0 + q1 + q2
     if piece < 0:
         # an unclipped face: its own vertices, in order 0, 1, 2 (front) or 0, 2, 1 (back)
@@ -200,7 +230,8 @@ def fragment_bary(iw0, iw1, iw2, piece, front, B, e0, e1, e2, out, o):
 # ------------------------------------------------------------------------------ kernels
 
 @njit(**PJIT)
-def _stream_pass(f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox, sarea, B,
+def _stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront,
+                 sbox, sarea, B,
                  starts, lists, ntx, width, height, bits, rule, write, counts, offsets,
                  o_pixel, o_depth, o_prim, o_front, o_bary):
     ntiles = starts.shape[0] - 1
@@ -211,9 +242,10 @@ def _stream_pass(f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox,
         ty1 = min(ty0 + TILE, height) - 1
         o = offsets[tile]
         for j in range(starts[tile], starts[tile + 1]):
-            (x0, y0, x1, y1, x2, y2, z0, z1, z2, iw0, iw1, iw2, area, prim, front, piece,
-             box) = _load(lists[j], f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront,
-                          sbox, sarea)
+            (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2,
+             area, prim, front, piece, box) = _load(lists[j], f, vX, vY, vZ, vIW, vXf, vYf,
+                                                    fbox, sX, sY, sZ, sIW, sXf, sYf, sprim,
+                                                    sfront, sbox, sarea)
             bx0 = max(np.int64(box[0]), tx0)
             bx1 = min(np.int64(box[1]), tx1)
             by0 = max(np.int64(box[2]), ty0)
@@ -224,6 +256,7 @@ def _stream_pass(f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox,
             r1, sx1, sy1, b1 = _edge(x2, y2, x0, y0, bits, rule, bx0, by0)
             r2, sx2, sy2, b2 = _edge(x0, y0, x1, y1, bits, rule, bx0, by0)
             inv_area = 1.0 / np.float64(area)
+            inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
             for y in range(by0, by1 + 1):
                 e0, e1, e2 = r0, r1, r2
                 row = (height - 1 - y) * width
@@ -233,10 +266,10 @@ def _stream_pass(f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox,
                             o_pixel[o] = row + x
                             o_prim[o] = prim
                             o_front[o] = front
-                            o_depth[o] = fragment_depth(z0, z1, z2, e0 + b0, e1 + b1, e2 + b2,
-                                                        inv_area)
-                            fragment_bary(iw0, iw1, iw2, piece, front, B, e0 + b0, e1 + b1,
-                                          e2 + b2, o_bary, o)
+                            l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
+                                                 e0 + b0, e1 + b1, e2 + b2, inv_area)
+                            o_depth[o] = fragment_depth(z0, z1, z2, l0, l1, l2)
+                            fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary, o)
                         o += 1
                     e0 += sx0
                     e1 += sx1
@@ -250,8 +283,9 @@ def _stream_pass(f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox,
 
 def _geometry(prims):
     st = prims.clipped
-    return (prims.faces, prims.vx, prims.vy, prims.vz, prims.v_inv_w, prims.bbox, st.x, st.y,
-            st.z, st.inv_w, st.prim, st.front, st.bbox, st.area, st.bary)
+    return (prims.faces, prims.vx, prims.vy, prims.vz, prims.v_inv_w, prims.vxf, prims.vyf,
+            prims.bbox, st.x, st.y, st.z, st.inv_w, st.xf, st.yf, st.prim, st.front, st.bbox,
+            st.area, st.bary)
 
 
 def stream(prims, *, fill_rule=0):
@@ -279,7 +313,8 @@ def stream(prims, *, fill_rule=0):
 
 
 @njit(**PJIT)
-def _fused_pass(f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox, sarea, B,
+def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront,
+                sbox, sarea, B,
                 starts, lists, ntx, width, height, bits, rule, func, clear,
                 o_depth, o_prim, o_front, o_bary):
     ntiles = starts.shape[0] - 1
@@ -291,9 +326,10 @@ def _fused_pass(f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox, 
         zbuf = np.full((TILE, TILE), clear, np.float32)
         win = np.full((TILE, TILE), -1, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
-            (x0, y0, x1, y1, x2, y2, z0, z1, z2, iw0, iw1, iw2, area, prim, front, piece,
-             box) = _load(lists[j], f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront,
-                          sbox, sarea)
+            (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2,
+             area, prim, front, piece, box) = _load(lists[j], f, vX, vY, vZ, vIW, vXf, vYf,
+                                                    fbox, sX, sY, sZ, sIW, sXf, sYf, sprim,
+                                                    sfront, sbox, sarea)
             bx0 = max(np.int64(box[0]), tx0)
             bx1 = min(np.int64(box[1]), tx1)
             by0 = max(np.int64(box[2]), ty0)
@@ -304,12 +340,15 @@ def _fused_pass(f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox, 
             r1, sx1, sy1, b1 = _edge(x2, y2, x0, y0, bits, rule, bx0, by0)
             r2, sx2, sy2, b2 = _edge(x0, y0, x1, y1, bits, rule, bx0, by0)
             inv_area = 1.0 / np.float64(area)
+            inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
             for y in range(by0, by1 + 1):
                 e0, e1, e2 = r0, r1, r2
                 ly = y - ty0
                 for x in range(bx0, bx1 + 1):
                     if e0 >= 0 and e1 >= 0 and e2 >= 0:
-                        z = fragment_depth(z0, z1, z2, e0 + b0, e1 + b1, e2 + b2, inv_area)
+                        l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
+                                             e0 + b0, e1 + b1, e2 + b2, inv_area)
+                        z = fragment_depth(z0, z1, z2, l0, l1, l2)
                         lx = x - tx0
                         if depth_test(func, z, zbuf[ly, lx]):
                             zbuf[ly, lx] = z
@@ -328,16 +367,20 @@ def _fused_pass(f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront, sbox, 
                 if item == -1:
                     o_prim[row, x] = -1
                     continue
-                (x0, y0, x1, y1, x2, y2, z0, z1, z2, iw0, iw1, iw2, area, prim, front, piece,
-                 box) = _load(item, f, vX, vY, vZ, vIW, fbox, sX, sY, sZ, sIW, sprim, sfront,
-                              sbox, sarea)
+                (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
+                 iw2, area, prim, front, piece, box) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf,
+                                                             fbox, sX, sY, sZ, sIW, sXf, sYf,
+                                                             sprim, sfront, sbox, sarea)
                 o_prim[row, x] = prim
                 o_front[row, x] = front
                 e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
                 e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
                 e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
-                fragment_bary(iw0, iw1, iw2, piece, front, B, e0 + b0, e1 + b1, e2 + b2,
-                              o_bary, row * width + x)
+                l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2,
+                                     _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2), x, y,
+                                     e0 + b0, e1 + b1, e2 + b2, 1.0 / np.float64(area))
+                fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary,
+                              row * width + x)
 
 
 def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0):
