@@ -98,6 +98,9 @@ def _build_parser():
                                    "and whether the llvmpipe oracle (moderngl + EGL) works.")
     _common(i, top=False)
     i.set_defaults(func=_cmd_info)
+
+    from .golden.cli import register as register_golden
+    register_golden(sub)
     return p
 
 
@@ -407,7 +410,7 @@ def main(argv=None):
     try:
         args = _build_parser().parse_args(argv)
         if args.command is None:
-            raise CLIError("a command is required: render, gallery or info "
+            raise CLIError("a command is required: render, gallery, info or golden "
                            f"(see '{PROG} --help')")
         return args.func(args)
     except KeyboardInterrupt:
