@@ -221,7 +221,7 @@ def test_fused_fill_equals_foundation_rasterizer():
     st_ = hs._slice(v[:, 2].copy(), t, np.array([-0.05, 0.0, 0.07]), np.zeros((len(v), 0)),
                     hs.ortho_ndc(v, bounds))
     w, hgt = 53, 47
-    X, Y, order, bbox, valid = hs.setup_window(st_.xy, w, hgt)
+    X, Y, order, bbox, valid, _, _ = hs.setup_window(st_.xy, w, hgt)
     xy = st_.xy.reshape(-1, 2)
     clip = np.column_stack([xy, np.zeros(len(xy)), np.ones(len(xy))])
     fr = refraster.rasterize(clip, np.arange(len(xy)).reshape(-1, 3), w, hgt)

@@ -35,6 +35,7 @@ from numba import njit, prange
 
 from .._config import JIT, PJIT
 from .._validate import as_choice, as_float_array, as_image_size, as_matrix, as_real
+from ..raster.rasterizer import _inv_float_area, lambdas
 from .slicing import MAX_SLICES, SUBPIXEL_BITS, _slice, ortho_ndc, setup_window
 from .surfaces import Surface4D
 from .thicken import prism_tetrahedra, thicken, thickening_normals
@@ -189,7 +190,8 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
 
 
 @njit(**PJIT)
-def _render_bands(X, Y, order, bbox, area, tri_slice, band_starts, band_lists, attr, width,
+def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_lists, attr,
+                  width,
                   height, bits, band_rows, delta_t, delta_d, surface_width, eps, alpha, halos,
                   want_volume, out_rgb, out_a, volume):
     nbands = band_starts.shape[0] - 1
@@ -221,7 +223,11 @@ def _render_bands(X, Y, order, bbox, area, tri_slice, band_starts, band_lists, a
             lr1 = max(lr1, rb - r0)
             c0 = min(c0, x0)
             c1 = max(c1, x1)
-            s = np.float64(area[j])
+            inv_area = 1.0 / np.float64(area[j])
+            fx0, fy0 = XF[j, 0], YF[j, 0]
+            fx1, fy1 = XF[j, 1], YF[j, 1]
+            fx2, fy2 = XF[j, 2], YF[j, 2]
+            inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
             # stored vertex k is original vertex order[j, k]
             swap = order[j, 1] != 1
             # edge k (opposite stored vertex k): value at (x0, py), x step, ownership bias
@@ -245,10 +251,14 @@ def _render_bands(X, Y, order, bbox, area, tri_slice, band_starts, band_lists, a
                 e2 = dx2 * ((py << bits) - Y[j, 0]) - dy2 * ((x0 << bits) - X[j, 0])
                 for px in range(x0, x1 + 1):
                     if e0 - bias0 >= 0 and e1 - bias1 >= 0 and e2 - bias2 >= 0:
-                        # barycentrics as the foundation's fragment stream: float32(E_k / ΣE)
-                        q0 = np.float64(np.float32(np.float64(e0) / s))
-                        q1 = np.float64(np.float32(np.float64(e1) / s))
-                        q2 = np.float64(np.float32(np.float64(e2) / s))
+                        # barycentrics as the foundation's fragment stream (w = 1):
+                        # float32(λ_k / Σλ), λ from the unsnapped positions
+                        l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, px, py,
+                                             e0, e1, e2, inv_area)
+                        sl = l0 + l1 + l2
+                        q0 = np.float64(np.float32(l0 / sl))
+                        q1 = np.float64(np.float32(l1 / sl))
+                        q2 = np.float64(np.float32(l2 / sl))
                         if swap:
                             q1, q2 = q2, q1
                         t = q0 * attr[j, 0, 1] + q1 * attr[j, 1, 1] + q2 * attr[j, 2, 1]
@@ -281,7 +291,7 @@ def _render_bands(X, Y, order, bbox, area, tri_slice, band_starts, band_lists, a
 
 
 def _fused(st, width, height, params, want_volume):
-    X, Y, order, bbox, valid = setup_window(st.xy, width, height)
+    X, Y, order, bbox, valid, XF, YF = setup_window(st.xy, width, height)
     area = ((X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0]))
     n = len(st.starts) - 1
     nbands = (height + BAND_ROWS - 1) // BAND_ROWS
@@ -289,7 +299,7 @@ def _fused(st, width, height, params, want_volume):
     rgb = np.zeros((height, width, 3))
     a = np.zeros((height, width))
     vol = np.zeros((n, height, width) if want_volume else (1, 1, 1), np.int8)
-    _render_bands(X, Y, order, bbox, area, st.slice, band_starts, band_lists, st.attr, width,
+    _render_bands(X, Y, XF, YF, order, bbox, area, st.slice, band_starts, band_lists, st.attr, width,
                   height, SUBPIXEL_BITS, BAND_ROWS, *params, want_volume, rgb, a, vol)
     return rgb, a, (vol if want_volume else None), int(np.count_nonzero(~valid))
 

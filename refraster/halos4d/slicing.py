@@ -266,12 +266,14 @@ def _slice(z, tets, centres, attr, xy):
 
 # ----------------------------------------------------------------------------- window setup
 @njit(**PJIT)
-def window_setup(ndc, width, height, bits, X, Y, order, bbox, valid):
+def window_setup(ndc, width, height, bits, X, Y, XF, YF, order, bbox, valid):
     """The foundation's viewport transform, snapping and triangle set-up, for w = 1 triangles.
 
     Replicates :mod:`refraster.raster.primitive` bit for bit (float32 ``x·W/2 + W/2``, minus the
     half-pixel offset, ``rint`` to ``1/2^bits``; zero-area triangles dropped; clockwise ones
     stored with their last two vertices swapped, ``order`` mapping stored → original vertex).
+    ``XF, YF`` keep the unsnapped float32 window positions, from which the foundation
+    interpolates.
     """
     hw = np.float32(width * 0.5)
     hh = np.float32(height * 0.5)
@@ -281,6 +283,8 @@ def window_setup(ndc, width, height, bits, X, Y, order, bbox, valid):
     for t in prange(ndc.shape[0]):
         xs = np.zeros(3, np.int64)
         ys = np.zeros(3, np.int64)
+        xf = np.zeros(3)
+        yf = np.zeros(3)
         for v in range(3):
             x = np.float32(ndc[t, v, 0])
             y = np.float32(ndc[t, v, 1])
@@ -289,6 +293,8 @@ def window_setup(ndc, width, height, bits, X, Y, order, bbox, valid):
             yw = y * rw * hh + hh
             xs[v] = np.int64(np.rint((xw - half) * s))
             ys[v] = np.int64(np.rint((yw - half) * s))
+            xf[v] = xw
+            yf[v] = yw
         a = (xs[1] - xs[0]) * (ys[2] - ys[0]) - (xs[2] - xs[0]) * (ys[1] - ys[0])
         if a == 0:
             valid[t] = False
@@ -297,6 +303,8 @@ def window_setup(ndc, width, height, bits, X, Y, order, bbox, valid):
             src = v if a > 0 or v == 0 else 3 - v
             X[t, v] = xs[src]
             Y[t, v] = ys[src]
+            XF[t, v] = xf[src]
+            YF[t, v] = yf[src]
             order[t, v] = src
         xmin = min(xs[0], xs[1], xs[2])
         xmax = max(xs[0], xs[1], xs[2])
@@ -314,10 +322,13 @@ def setup_window(ndc, width, height, bits=SUBPIXEL_BITS):
     X = np.zeros((n, 3), np.int64)
     Y = np.zeros((n, 3), np.int64)
     order = np.zeros((n, 3), np.int64)
+    XF = np.zeros((n, 3))
+    YF = np.zeros((n, 3))
     bbox = np.zeros((n, 4), np.int64)
     valid = np.zeros(n, np.bool_)
-    window_setup(np.ascontiguousarray(ndc), width, height, bits, X, Y, order, bbox, valid)
-    return X, Y, order, bbox, valid
+    window_setup(np.ascontiguousarray(ndc), width, height, bits, X, Y, XF, YF, order, bbox,
+                 valid)
+    return X, Y, order, bbox, valid, XF, YF
 
 
 @njit(**JIT)
@@ -495,7 +506,7 @@ def voxelize(vertices, tets, shape, bounds, snap=True, *, return_claims=False):
     zc, yc, xc = voxel_centres((n, h, w), b)
     if snap:
         st = _slice(v[:, 2].copy(), tt, zc, np.zeros((len(v), 0)), ortho_ndc(v, b))
-        X, Y, _, bbox, valid = setup_window(st.xy, w, h)
+        X, Y, _, bbox, valid, _, _ = setup_window(st.xy, w, h)
         _voxelize_snapped(X, Y, bbox, valid, st.tet, st.starts, w, h, SUBPIXEL_BITS, out, claims)
     else:
         _voxelize_exact(v, tt, zc, yc, xc, out, claims)
