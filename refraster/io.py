@@ -73,7 +73,8 @@ def npz_bytes(arrays):
                 raise TypeError(f"array {name!r} has dtype object and cannot be stored without "
                                 "pickle")
             member = io.BytesIO()
-            np.lib.format.write_array(member, np.ascontiguousarray(a), allow_pickle=False)
+            np.lib.format.write_array(member, a if a.flags.c_contiguous else a.copy(order="C"),
+                                    allow_pickle=False)
             info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
             info.compress_type = zipfile.ZIP_DEFLATED
             zf.writestr(info, member.getvalue())

@@ -112,15 +112,42 @@ def test_all_mode_keeps_every_fragment_sorted():
         assert np.all(lay.index[1:][tie] > lay.index[:-1][tie])
 
 
+#: A pixel centre this close (pixels) to an edge of either differing primitive is an exact tie
+#: whose owner depends on the clipper's arithmetic: llvmpipe clips triangles that cross the
+#: viewport against its x/y planes in float32, so their new vertices move the edge off the
+#: centre one way or the other (docs/oracles.md). Such pixels are counted apart.
+TIE_MARGIN = 1.0 / 128.0
+
+
+def _edge_distance(clip, face, width, height, row, col):
+    """Distance (pixels) from the centre of (row, col) to the nearest edge of a face whose
+    vertices are all in front of the eye; inf otherwise."""
+    c = clip[face].astype(np.float64)
+    if np.any(c[:, 3] <= 0):
+        return np.inf
+    x = (c[:, 0] / c[:, 3] + 1) * width / 2
+    y = (c[:, 1] / c[:, 3] + 1) * height / 2
+    px, py = col + 0.5, height - 1 - row + 0.5
+    best = np.inf
+    for k in range(3):
+        ax, ay, bx, by = x[k], y[k], x[(k + 1) % 3], y[(k + 1) % 3]
+        dx, dy = bx - ax, by - ay
+        ll = dx * dx + dy * dy
+        t = 0.0 if ll == 0 else min(max(((px - ax) * dx + (py - ay) * dy) / ll, 0.0), 1.0)
+        best = min(best, np.hypot(ax + t * dx - px, ay + t * dy - py))
+    return best
+
+
 def test_matches_llvmpipe_classic_peel(oracle):
     """Layer by layer against llvmpipe's two-texture peel with a 32-bit float depth.
 
     The huge-coordinate scenes are left out: there llvmpipe's own coverage is wrong on some
     pixels (tests/test_llvmpipe_oracle.py adjudicates them exactly), which shifts every later
-    layer.
+    layer. A pixel whose layers differ because of an exact edge tie (``TIE_MARGIN``) is a tie,
+    not a disagreement; ties stay a small fraction.
     """
     llvmpipe = oracle("oracles.llvmpipe")
-    total = differ = 0
+    total = differ = ties = 0
     for sc in SCENES:
         if "huge" in sc.name:
             continue
@@ -128,6 +155,8 @@ def test_matches_llvmpipe_classic_peel(oracle):
         gl = llvmpipe.peel(draws, sc.width, sc.height)
         ours = peel(sc.meshes, view=sc.view, proj=sc.proj, width=sc.width, height=sc.height)
         k = max(len(gl), len(ours))
+        tied = np.zeros((sc.height, sc.width), bool)
+        bad = np.zeros((k, sc.height, sc.width), bool)
         for layer in range(k):
             a = (gl.object_id[layer], gl.prim_id[layer]) if layer < len(gl) else None
             b = (ours.object_id[layer], ours.prim_id[layer]) if layer < len(ours) else None
@@ -136,9 +165,23 @@ def test_matches_llvmpipe_classic_peel(oracle):
             either = ga | gb
             same = ga & gb & (a[0] == b[0]) & (a[1] == b[1]) if a and b else ~either
             total += int(either.sum())
-            differ += int((either & ~same).sum())
+            bad[layer] = either & ~same
+            for r, c in np.argwhere(bad[layer] & ~tied):
+                for ids in (a, b):
+                    if ids is None or ids[1][r, c] < 0:
+                        continue
+                    obj, prim = ids[0][r, c], ids[1][r, c]
+                    clip, faces = draws[obj]
+                    if _edge_distance(clip, faces[prim], sc.width, sc.height, r, c) \
+                            <= TIE_MARGIN:
+                        tied[r, c] = True
+        # a tie shifts every later layer of its pixel: count the pixel's differences as ties
+        ties += int((bad & tied[None]).sum())
+        differ += int((bad & ~tied[None]).sum())
     assert total > 50_000
-    assert 1.0 - differ / total >= 0.9999, (differ, total)
+    assert ties <= 0.001 * total, (ties, total)
+    print(f"peel vs llvmpipe: {total} layer texels, {differ} differ, {ties} ties")
+    assert 1.0 - differ / total >= 0.9999, (differ, ties, total)
 
 
 # ------------------------------------------------------------------------- parity test

@@ -29,6 +29,10 @@ SNAP_MARGIN = 1.0 / 128.0
 MIN_AGREEMENT = 0.9999
 DEPTH_TOL = 2e-5
 BARY_TOL = 1e-3
+#: Sub-pixel triangles: llvmpipe evaluates attribute planes in float32 as a0 + dadx·x + dady·y
+#: with |∇b| ~ 1/(triangle size) ~ 20 per pixel and x, y ~ 100 px, so its own rounding reaches
+#: ~8 ulp · |∇b| · R ≈ 2e-3 there (refraster evaluates in float64 from the same positions).
+BARY_TOL_SUBPIXEL = 5e-3
 #: Triangles with a clip coordinate beyond this are left out of the depth and barycentric
 #: comparison: float32 clip coordinates near 1e6 carry ~0.06 absolute error, so depth near the
 #: near plane is ill-conditioned for both renderers (docs/oracles.md).
@@ -275,7 +279,8 @@ def test_depth_facing_barycentrics_where_ids_agree(oracle):
         db = np.abs(gl.barycentric[both] - ours["bary"][both])
         worst[sc.name] = (dz.max(initial=0.0), db.max(initial=0.0))
     bad_depth = {k: v[0] for k, v in worst.items() if v[0] > DEPTH_TOL}
-    bad_bary = {k: v[1] for k, v in worst.items() if v[1] > BARY_TOL}
+    bad_bary = {k: v[1] for k, v in worst.items()
+                if v[1] > (BARY_TOL_SUBPIXEL if "subpixel" in k else BARY_TOL)}
     assert not bad_depth, f"depth differs by more than {DEPTH_TOL}: {bad_depth}"
     assert not bad_bary, f"barycentrics differ by more than {BARY_TOL}: {bad_bary}"
 
