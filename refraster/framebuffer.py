@@ -159,11 +159,15 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
     −1 background) and its barycentrics."""
     h, w = depth.shape
     vn = _normals_per_mesh(meshes, normals)
-    vertices = np.concatenate([m.vertices for m in meshes]) if meshes else np.zeros((0, 3))
-    vbase = np.cumsum([0] + [m.n_vertices for m in meshes])
-    faces = (np.concatenate([m.faces + vbase[k] for k, m in enumerate(meshes)])
-             if meshes else np.zeros((0, 3), np.int64))
-    vnormals = np.concatenate(vn) if vn is not None and meshes else np.zeros((1, 3))
+    if len(meshes) == 1:
+        vertices, faces = meshes[0].vertices, meshes[0].faces
+    else:
+        vertices = np.concatenate([m.vertices for m in meshes]) if meshes else np.zeros((0, 3))
+        vbase = np.cumsum([0] + [m.n_vertices for m in meshes])
+        faces = (np.concatenate([m.faces + vbase[k] for k, m in enumerate(meshes)])
+                 if meshes else np.zeros((0, 3), np.int64))
+    vnormals = (vn[0] if len(vn) == 1 else np.concatenate(vn)) if vn is not None and meshes \
+        else np.zeros((1, 3))
     n = max(len(meshes), 1)
     mv = np.zeros((n, 4, 4))
     nmat = np.zeros((n, 3, 3))

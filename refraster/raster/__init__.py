@@ -72,11 +72,13 @@ def prepare(meshes, *, view, proj, width, height, model=None, cull="none", preci
         if not np.all(np.isfinite(mvp)):
             raise ValueError("proj @ view @ model overflows to non-finite values")
         clips.append(transform_vertices(m.vertices, mvp, prec).astype(np.float64))
-        faces.append(m.faces + vbase)
+        faces.append(m.faces + vbase if vbase else m.faces)
         vbase += m.n_vertices
         offsets.append(offsets[-1] + m.n_faces)
-    clip = np.concatenate(clips) if clips else np.zeros((0, 4))
-    face = np.concatenate(faces) if faces else np.zeros((0, 3), np.int64)
+    # one draw call (the common case) needs no copies
+    clip = clips[0] if len(clips) == 1 else (np.concatenate(clips) if clips else np.zeros((0, 4)))
+    face = faces[0] if len(faces) == 1 else (np.concatenate(faces) if faces
+                                             else np.zeros((0, 3), np.int64))
     p = Prepared()
     p.meshes, p.models, p.view, p.proj = meshes, models, view, proj
     p.width, p.height, p.fill_rule = width, height, rule

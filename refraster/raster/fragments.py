@@ -142,6 +142,14 @@ def _interpolate(meshes, attr, object_id, prim_id, bary):
                                  if meshes else np.zeros((0, 3), np.int64))
     fbase = np.cumsum([0] + [m.n_faces for m in meshes]).astype(np.int64)
     out = np.zeros((len(prim_id), c))
+    object_id = np.asarray(object_id)
+    prim_id = np.asarray(prim_id)
+    own = (object_id >= 0) & (object_id < len(meshes))
+    if own.any():
+        limit = np.diff(fbase)[object_id[own]]
+        p = prim_id[own]
+        if p.min() < 0 or np.any(p >= limit):
+            raise ValueError("prim_id out of range for its mesh")
     _interpolate_kernel(np.ascontiguousarray(object_id), np.ascontiguousarray(prim_id),
                         np.ascontiguousarray(bary, dtype=np.float64), faces, fbase, values, out)
     return out[:, 0] if scalar else out
@@ -149,9 +157,14 @@ def _interpolate(meshes, attr, object_id, prim_id, bary):
 
 @njit(**PJIT)
 def _interpolate_kernel(object_id, prim_id, bary, faces, fbase, values, out):
-    """``out[i] = (b0·a[v0] + b1·a[v1]) + b2·a[v2]`` for the vertices of fragment i's face."""
+    """``out[i] = (b0·a[v0] + b1·a[v1]) + b2·a[v2]`` for the vertices of fragment i's face;
+    fragments of objects outside the mesh list are left 0."""
+    nobj = fbase.shape[0] - 1
     for i in prange(prim_id.shape[0]):
-        g = fbase[object_id[i]] + prim_id[i]
+        k = object_id[i]
+        if k < 0 or k >= nobj:
+            continue  # not one of these meshes (e.g. a cap drawn by another stage): left 0
+        g = fbase[k] + prim_id[i]
         v0, v1, v2 = faces[g, 0], faces[g, 1], faces[g, 2]
         b0, b1, b2 = bary[i, 0], bary[i, 1], bary[i, 2]
         for j in range(values.shape[1]):
