@@ -104,3 +104,55 @@ def resolve_less(frags_sorted, width, height):
             depth[row, col] = z
             face[row, col] = fi
     return face, depth
+
+
+def jump_flood(z, slope, steps, sampling=(1.0, 1.0), floor_slope=None, floor_normal=None):
+    """Jump flooding of the cutaway function as documented in refraster.cutaway.flood and
+    MATH.md D-C5, pixel by pixel in Python floats (IEEE double, no fused multiply-add): per step
+    k every pixel p takes, among its own seed and the seeds held by p + k·{−1, 0, 1}², the one
+    with the largest C_s(p) = z(s) − m(s, p)·‖p − s‖ (ties: smaller row-major index), reading the
+    previous step's seeds only. Returns (D, seed (row, col) per pixel, −1 where none)."""
+    h, w = z.shape
+    slope = np.broadcast_to(np.asarray(slope, dtype=float), (h, w))
+    sy, sx = (float(v) for v in sampling)
+
+    def value(i, j, s):
+        si, sj = divmod(s, w)
+        dy = (i - si) * sy
+        dx = (j - sj) * sx
+        d = float(np.sqrt(dy * dy + dx * dx))
+        if d == 0.0:
+            return float(z[si, sj])
+        m = float(slope[si, sj])
+        if floor_slope is not None:
+            a = -(dx * float(floor_normal[si, sj, 0]) - dy * float(floor_normal[si, sj, 1])) / d
+            if a > 0.0:
+                a = min(a, 1.0)
+                m = (1.0 - a) * m + a * float(floor_slope[si, sj])
+        return float(z[si, sj]) - m * d
+
+    seed = [[i * w + j if z[i, j] > -np.inf else -1 for j in range(w)] for i in range(h)]
+    for k in steps:
+        new = [[-1] * w for _ in range(h)]
+        for i in range(h):
+            for j in range(w):
+                best = seed[i][j]
+                best_c = value(i, j, best) if best >= 0 else -np.inf
+                for qi in (i - k, i, i + k):
+                    for qj in (j - k, j, j + k):
+                        if 0 <= qi < h and 0 <= qj < w and seed[qi][qj] >= 0:
+                            s = seed[qi][qj]
+                            c = value(i, j, s)
+                            if c > best_c or (c == best_c and s < best):
+                                best, best_c = s, c
+                new[i][j] = best
+        seed = new
+    flat = np.array(seed, dtype=np.int64)
+    d = np.full((h, w), -np.inf)
+    for i in range(h):
+        for j in range(w):
+            if flat[i, j] >= 0:
+                d[i, j] = value(i, j, int(flat[i, j]))
+    rc = np.stack([flat // w, flat % w], axis=-1)
+    rc[flat < 0] = -1
+    return d, rc

@@ -11,6 +11,8 @@ from hypothesis import given, settings, strategies as st
 from refraster.cutaway import VARIANTS, chamfer, exact, jump_flood
 from refraster.cutaway.flood import step_schedule
 
+from naive import jump_flood as jump_flood_twin
+
 
 def naive(z, m, sampling=(1.0, 1.0), floor_slope=None, floor_normal=None):
     """max over seeds of z(s) − m(s)·‖x − s‖ by NumPy broadcasting (ties: first in row-major)."""
@@ -200,6 +202,31 @@ def test_jfa_properties(h, w, seed, variant):
     dist = np.sqrt((i - s[..., 0]) ** 2 + (j - s[..., 1]) ** 2.0)
     np.testing.assert_allclose(d, z[s[..., 0], s[..., 1]] - m[s[..., 0], s[..., 1]] * dist,
                                atol=1e-12)
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_jump_flood_matches_pixel_by_pixel_reference(variant):
+    # the vectorized row sweeps against tests/naive.py's pixel-by-pixel loop, bit for bit: odd
+    # sizes and 1×N, scalar and per-seed slopes, non-square pixels, the floor term, and a grid of
+    # equal seeds with an integer slope (many exact ties)
+    rng = np.random.default_rng(17)
+    grid = np.full((15, 12), -np.inf)
+    grid[1::4, 2::3] = 0.5
+    cases = [(grid, 1.0, (1.0, 1.0), False)]
+    for h, w in [(1, 9), (7, 1), (5, 6), (13, 10), (16, 16), (11, 23)]:
+        z = random_seeds(rng, h, w, 0.15)
+        cases += [(z, 0.37, (1.0, 1.0), False), (z, rng.uniform(0, 2, (h, w)), (1.0, 1.7), False),
+                  (z, rng.uniform(0, 2, (h, w)), (0.4, 1.3), True)]
+    for z, m, sampling, directional in cases:
+        kw = dict(sampling=sampling)
+        if directional:
+            kw.update(floor_slope=rng.uniform(0, 4, z.shape),
+                      floor_normal=rng.normal(size=z.shape + (2,)))
+        ref_d, ref_s = jump_flood_twin(z, m, step_schedule(*z.shape, variant), **kw)
+        d, s = jump_flood(z, m, variant=variant, return_seeds=True, **kw)
+        assert d.tobytes() == ref_d.tobytes()
+        assert s.tobytes() == ref_s.tobytes()
+        assert jump_flood(z, m, variant=variant, **kw).tobytes() == ref_d.tobytes()
 
 
 # --------------------------------------------------------------------------------- determinism

@@ -62,9 +62,9 @@ def step_schedule(height, width, variant):
 # kernels
 
 
-#: Columns of the per-seed record table: pixel row and column, depth z(s), slope m_e(s), floor
-#: slope m_f(s), projected floor normal (x, y up). One record per pixel, indexed by the row-major
-#: flat index, so a candidate's seed is one gather.
+#: Columns of the per-seed record table of :func:`exact`: pixel row and column, depth z(s), slope
+#: m_e(s), floor slope m_f(s), projected floor normal (x, y up). One record per pixel, indexed by
+#: the row-major flat index, so a seed is one gather.
 _ROW, _COL, _Z, _ME, _MF, _NX, _NY = range(7)
 #: Eight columns (one unused) make a record exactly one 64-byte cache line.
 _RECORD = 8
@@ -88,45 +88,143 @@ def _cutaway_function(i, j, s, seeds, sy, sx, directional):
     return seeds[s, _Z] - m * d
 
 
+@njit(**JIT)
+def _offsets(fi, fj, s, w, inv_w, sy, sx):
+    """(dy, dx, ‖x − s‖) from the seed with flat index s to the pixel (fi, fj): the very operations
+    of :func:`_cutaway_function`. The seed's row comes from its flat index in floating point:
+    (s + 0.5)/W lies ≥ 0.5/W from an integer, far more than the rounding error of (s + 0.5)·(1/W)
+    for an image of at most MAX_PIXELS pixels, so the floor is exact (and so is col = s − row·W)."""
+    f = float(s)
+    r = np.floor((f + 0.5) * inv_w)
+    dy = (fi - r) * sy
+    dx = (fj - (f - r * w)) * sx
+    return dy, dx, np.sqrt(dy * dy + dx * dx)
+
+
+@njit(**JIT)
+def _value(fi, fj, s, z, me, w, inv_w, sy, sx):
+    """C_s(x) of :func:`_cutaway_function` without the directional term, for the seed with flat
+    index s, depth z and slope m_e at the pixel (fi, fj)."""
+    dy, dx, d = _offsets(fi, fj, s, w, inv_w, sy, sx)
+    return z if d == 0.0 else z - me * d
+
+
+@njit(**JIT)
+def _value_directional(fi, fj, s, z, me, mf, nx, ny, w, inv_w, sy, sx):
+    """C_s(x) of :func:`_cutaway_function` with the directional slope, as selects."""
+    dy, dx, d = _offsets(fi, fj, s, w, inv_w, sy, sx)
+    # at d = 0 the value is z whatever a is: divide by 1 there (no ZeroDivisionError)
+    a = -(dx * nx - dy * ny) / (d if d != 0.0 else 1.0)
+    a1 = min(a, 1.0)
+    m = (1.0 - a1) * me + a1 * mf if a > 0.0 else me
+    return z if d == 0.0 else z - m * d
+
+
+@njit(**JIT)
+def _better(s, c, best, best_c):
+    """The tie rule: the candidate seed s with value c beats the best so far if it is a seed and
+    its C is larger, or equal with a smaller flat index. A strict order, so the result does not
+    depend on the order in which the candidates are visited."""
+    return (s >= 0) & ((c > best_c) | ((c == best_c) & (s < best)))
+
+
+# The row loops below are branch-free (selects only) and touch at most five arrays, few enough
+# for LLVM's runtime alias checks, so that it vectorizes them (AVX2/AVX-512, no fastmath needed).
+
+@njit(**JIT)
+def _own(fi, lab, values, best, best_c, w, inv_w, sy, sx):
+    """Each pixel's own seed is its first best (value −inf where it holds none)."""
+    z, me = values[0], values[1]
+    if values.shape[0] == 5:
+        mf, nx, ny = values[2], values[3], values[4]
+        for j in range(lab.shape[0]):
+            best_c[j] = _value_directional(fi, float(j), lab[j], z[j], me[j], mf[j], nx[j], ny[j],
+                                           w, inv_w, sy, sx)
+    else:
+        for j in range(lab.shape[0]):
+            best_c[j] = _value(fi, float(j), lab[j], z[j], me[j], w, inv_w, sy, sx)
+    for j in range(lab.shape[0]):
+        best[j] = lab[j]
+        best_c[j] = best_c[j] if lab[j] >= 0 else -np.inf
+
+
+@njit(**JIT)
+def _sweep(fi, j0, lab, z, me, best, best_c, w, inv_w, sy, sx):
+    """One candidate offset along a row: the seeds ``lab[j]`` (flat index, −1: none) with
+    parameters ``z[j]``, ``me[j]`` compete at the pixels (fi, j0 + j)."""
+    for j in range(lab.shape[0]):
+        s = lab[j]
+        c = _value(fi, float(j0 + j), s, z[j], me[j], w, inv_w, sy, sx)
+        take = _better(s, c, best[j], best_c[j])
+        best_c[j] = c if take else best_c[j]
+        best[j] = s if take else best[j]
+
+
+@njit(**JIT)
+def _sweep_directional(fi, j0, lab, values, a, b, c, best, best_c, w, inv_w, sy, sx):
+    """:func:`_sweep` with the directional slope, the seeds' parameters being columns a … b − 1
+    of ``values``; in two loops (values into the scratch ``c``, then the tie rule), as one loop
+    would read too many arrays to be vectorized."""
+    z, me, mf = values[0, a:b], values[1, a:b], values[2, a:b]
+    nx, ny = values[3, a:b], values[4, a:b]
+    for j in range(lab.shape[0]):
+        c[j] = _value_directional(fi, float(j0 + j), lab[j], z[j], me[j], mf[j], nx[j], ny[j],
+                                  w, inv_w, sy, sx)
+    for j in range(lab.shape[0]):
+        s = lab[j]
+        take = _better(s, c[j], best[j], best_c[j])
+        best_c[j] = c[j] if take else best_c[j]
+        best[j] = s if take else best[j]
+
+
+@njit(**JIT)
+def _carry(lab, seed_values, values):
+    """Gather each pixel's seed parameters so that the next pass reads them as contiguous rows
+    (a gather inside the candidate loops would stop LLVM from vectorizing them)."""
+    for f in range(seed_values.shape[0]):
+        for j in range(lab.shape[0]):
+            values[f, j] = seed_values[f, max(lab[j], 0)]
+
+
 @njit(**PJIT)
-def _jump_flood_pass(src, dst, k, seeds, sy, sx, directional):
-    """One jump-flood pass with step k: read the seeds held by the 9 candidates p + k·{−1,0,1}²
-    from ``src`` and write each pixel's best seed to ``dst`` (ping-pong: no pixel reads a value
-    written in the same pass, so rows are independent)."""
+def _jump_flood_pass(k, src, src_values, dst, dst_values, seed_values, out, sy, sx):
+    """One jump-flood pass with step k: each pixel keeps the best of its own seed and the seeds
+    its 8 candidates p + k·{−1,0,1}² \\ {p} hold in ``src``, and writes it to ``dst`` (ping-pong:
+    no pixel reads a value written in the same pass, so rows are independent).
+
+    ``src`` holds flat seed indices (−1: none); ``src_values`` (H, F, W) the parameters of each
+    pixel's seed (F = 2: z, m_e; F = 5 adds m_f, n_x, n_y for the directional constraint) and
+    ``seed_values`` (F, H·W) the same per seed. A row is one sweep per candidate offset over the
+    columns where that candidate lies inside the image. The last pass (``out`` of shape (H, W))
+    writes D to ``out`` instead of carrying the parameters on."""
     h, w = src.shape
+    inv_w = 1.0 / w
+    fw = float(w)
+    last = out.shape[0] == h
     for i in prange(h):
-        for j in range(w):
-            # the pixel's own seed first: most neighbours share it and are then skipped
-            best = src[i, j]
-            best_c = -np.inf
-            if best >= 0:
-                best_c = _cutaway_function(i, j, best, seeds, sy, sx, directional)
-            for oi in range(-1, 2):
-                qi = i + oi * k
-                if qi < 0 or qi >= h:
+        fi = float(i)
+        best = dst[i]
+        best_c = out[i] if last else np.empty(w)
+        _own(fi, src[i], src_values[i], best, best_c, fw, inv_w, sy, sx)
+        c = np.empty(w)
+        for oi in range(-1, 2):
+            qi = i + oi * k
+            if qi < 0 or qi >= h:
+                continue
+            for oj in range(-1, 2):
+                lo = max(0, -oj * k)
+                hi = min(w, w - oj * k)
+                if (oi == 0 and oj == 0) or lo >= hi:
                     continue
-                for oj in range(-1, 2):
-                    qj = j + oj * k
-                    if qj < 0 or qj >= w:
-                        continue
-                    s = src[qi, qj]
-                    # C_s ≤ z(s) since m ≥ 0: a seed lying below the best value cannot win
-                    if s < 0 or s == best or seeds[s, _Z] < best_c:
-                        continue
-                    c = _cutaway_function(i, j, s, seeds, sy, sx, directional)
-                    if c > best_c or (c == best_c and s < best):
-                        best_c = c
-                        best = s
-            dst[i, j] = best
-
-
-@njit(**PJIT)
-def _evaluate(seed, out, seeds, sy, sx, directional):
-    h, w = seed.shape
-    for i in prange(h):
-        for j in range(w):
-            if seed[i, j] >= 0:
-                out[i, j] = _cutaway_function(i, j, seed[i, j], seeds, sy, sx, directional)
+                a, b = lo + oj * k, hi + oj * k
+                if src_values.shape[1] == 5:
+                    _sweep_directional(fi, lo, src[qi, a:b], src_values[qi], a, b, c[lo:hi],
+                                       best[lo:hi], best_c[lo:hi], fw, inv_w, sy, sx)
+                else:
+                    _sweep(fi, lo, src[qi, a:b], src_values[qi, 0, a:b], src_values[qi, 1, a:b],
+                           best[lo:hi], best_c[lo:hi], fw, inv_w, sy, sx)
+        if not last:
+            _carry(dst[i], seed_values, dst_values[i])
 
 
 @njit(**PJIT)
@@ -230,19 +328,26 @@ def _prepare(seed_depth, slope, sampling, floor_slope, floor_normal):
     sy, sx = _as_sampling(sampling)
     if (floor_slope is None) != (floor_normal is None):
         raise ValueError("floor_slope and floor_normal must be given together")
-    directional = floor_slope is not None
-    if directional:
-        slope_f = _as_slope(floor_slope, z.shape, "floor_slope")
+    fields = [z, slope_e]
+    if floor_slope is not None:
         n_proj = as_float_array(floor_normal, "floor_normal", shape=z.shape + (2,))
-    else:
-        slope_f = slope_e
-        n_proj = np.zeros(z.shape + (2,))
-    seeds = np.zeros((z.size, _RECORD))
-    rows, cols = np.indices(z.shape)
-    for col, values in ((_ROW, rows), (_COL, cols), (_Z, z), (_ME, slope_e), (_MF, slope_f),
-                        (_NX, n_proj[..., 0]), (_NY, n_proj[..., 1])):
-        seeds[:, col] = values.ravel()
-    return z, seeds, sy, sx, directional
+        fields += [_as_slope(floor_slope, z.shape, "floor_slope"), n_proj[..., 0], n_proj[..., 1]]
+    # the seed parameters, one row per field (z, m_e[, m_f, n_x, n_y]), indexed by flat index
+    params = np.stack([f.ravel() for f in fields])
+    return z, params, sy, sx
+
+
+def _records(params, width):
+    """The per-seed record table of :func:`_cutaway_function` (one row per flat index)."""
+    n = params.shape[1]
+    seeds = np.zeros((n, _RECORD))
+    seeds[:, _ROW], seeds[:, _COL] = np.divmod(np.arange(n), width)
+    seeds[:, _Z] = params[0]
+    seeds[:, _ME] = params[1]
+    seeds[:, _MF] = params[1]
+    if params.shape[0] == 5:
+        seeds[:, _MF], seeds[:, _NX], seeds[:, _NY] = params[2:]
+    return seeds, params.shape[0] == 5
 
 
 def _result(out, seed, return_seeds):
@@ -300,19 +405,28 @@ def jump_flood(seed_depth, slope, *, variant="jfa", sampling=1.0, floor_slope=No
     seed's C at itself). Each pass reads one seed buffer and writes another (ping-pong), rows in
     parallel, so the result does not depend on the thread count. Ties go to the seed with the
     smaller row-major index. Jump flooding is not exact: compare with :func:`exact`.
+
+    Each pixel carries its seed's parameters (z, m, …) beside the seed's index, so a pass is, per
+    row, one branch-free sweep per candidate offset over contiguous memory, which LLVM vectorizes;
+    C is computed with the same floating-point operations as :func:`exact`, and the result is
+    bit-identical to the plain per-pixel loop (``tests/naive.py``).
     """
-    z, seeds, sy, sx, directional = _prepare(seed_depth, slope, sampling, floor_slope,
-                                             floor_normal)
+    z, params, sy, sx = _prepare(seed_depth, slope, sampling, floor_slope, floor_normal)
     variant = as_choice(variant, "variant", VARIANTS)
     h, w = z.shape
-    flat = np.arange(h * w, dtype=np.int32).reshape(h, w)
-    src = np.where(z > -np.inf, flat, -1).astype(np.int32)
+    src = np.where(z > -np.inf, np.arange(h * w, dtype=np.int32).reshape(h, w), np.int32(-1))
+    # each pixel's seed parameters, (H, F, W): a row's fields are contiguous for the sweeps (a
+    # copy even where the transpose is a view: the passes overwrite it while reading ``params``)
+    src_values = params.reshape(-1, h, w).transpose(1, 0, 2).copy()
     dst = np.full_like(src, -1)
-    for k in step_schedule(h, w, variant):
-        _jump_flood_pass(src, dst, k, seeds, sy, sx, directional)
-        src, dst = dst, src
+    dst_values = np.zeros_like(src_values)
     out = np.full(z.shape, -np.inf)
-    _evaluate(src, out, seeds, sy, sx, directional)
+    schedule = step_schedule(h, w, variant)
+    for n, k in enumerate(schedule):
+        target = out if n == len(schedule) - 1 else out[:0]
+        _jump_flood_pass(k, src, src_values, dst, dst_values, params, target, sy, sx)
+        src, dst = dst, src
+        src_values, dst_values = dst_values, src_values
     return _result(out, src, return_seeds)
 
 
@@ -326,11 +440,12 @@ def exact(seed_depth, slope, *, sampling=1.0, floor_slope=None, floor_normal=Non
     Notes
     -----
     The reference for :func:`jump_flood` and :func:`chamfer` (MATH.md D-C5: "test against brute
-    force"). It evaluates C with the very same kernel, so where a jump-flood variant finds the
-    optimal seed the two agree bit for bit. Ties go to the smaller row-major seed index.
+    force"). It evaluates C with the very same floating-point operations, so where a jump-flood
+    variant finds the optimal seed the two agree bit for bit. Ties go to the smaller row-major
+    seed index.
     """
-    z, seeds, sy, sx, directional = _prepare(seed_depth, slope, sampling, floor_slope,
-                                             floor_normal)
+    z, params, sy, sx = _prepare(seed_depth, slope, sampling, floor_slope, floor_normal)
+    seeds, directional = _records(params, z.shape[1])
     seed_list = np.flatnonzero(z > -np.inf).astype(np.int32)
     seed = np.full(z.shape, -1, dtype=np.int32)
     out = np.full(z.shape, -np.inf)
