@@ -60,7 +60,7 @@ from .raster.primitive import CLIPPED, SIMPLE
 from .raster.rasterizer import stream
 
 __all__ = ["MUST_NOT", "MAY", "MUST", "Tolerance", "tolerance", "decision_may", "edge_epsilon",
-           "check"]
+           "edge_may", "facing_may", "check"]
 
 MUST_NOT, MAY, MUST = 0, 1, 2
 #: Depth difference two surfaces need to be ordered the same by any conformant depth buffer
@@ -425,3 +425,76 @@ def check(tol, *, prim_id=None, depth=None, reference_prim_id=None):
         ref_cov = tol.coverage == MUST
         out["depth"] = ref_cov & cand_cov & ((d < tol.depth_lo) | (d > tol.depth_hi))
     return out
+
+
+def edge_may(meshes, *, view, proj, width, height, model=None, cull="none", eps=None,
+             min_bits=4):
+    """Pixels within ``eps`` of *any* edge of a drawn triangle, whatever lies in front of it.
+
+    For techniques that make hidden surfaces visible (a clip surface removes the front ones), the
+    depth relevance of :func:`tolerance` does not hold; this is its conservative twin: every
+    non-culled triangle's edges count. Returns ``(id_may, coverage_may)``, ``(H, W)`` bool each
+    (``coverage_may`` only near border, fold and silhouette edges, as in :func:`tolerance`).
+    """
+    prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
+                   cull=cull)
+    w, h = prep.width, prep.height
+    eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
+    p = prep.triangles
+    id_may = np.zeros((h, w), np.bool_)
+    cov_may = np.zeros((h, w), np.bool_)
+    nothing = np.zeros((h, w), np.bool_)   # no visible surface: every edge is relevant
+    _mark_faces(p.faces, p.vx, p.vy, p.vz, p.vcode, p.status,
+                {"none": 0, "back": 1, "front": 2}[cull.lower()],
+                _edge_boundary(p.faces, _face_facing(p)), float(1 << p.subpixel_bits),
+                p.clipped.x, p.clipped.y, p.clipped.z, p.clipped.prim, _piece_epsilon(prep),
+                np.full(len(p.faces), DEPTH_EPS), eps, np.ones((h, w)), nothing, id_may,
+                cov_may)
+    return id_may, cov_may
+
+
+def facing_may(meshes, *, view, proj, width, height, model=None, eps=None, min_bits=4):
+    """Pixels of faces whose facing may flip between allowed rasterizers, and near their edges.
+
+    :func:`tolerance` keeps coverage "must" across an edge shared by two faces of the same
+    facing, taken from the reference's snapped positions. A sliver whose doubled window area
+    ``A`` is within ``ε·P + 3ε²`` of zero (``P`` its perimeter: the first-order change of ``A``
+    when each vertex moves by up to ``ε``) can change facing — or become degenerate — at 4
+    sub-pixel bits: it is culled, or folds over its neighbour, and the pixels it covered may be
+    uncovered or show another primitive. Every point of such a face lies within its inradius
+    ``A/P ≤ 4ε`` of an edge, so marking all of its edges with ``5ε`` covers it.
+
+    Returns ``(id_may, coverage_may)`` ``(H, W)`` bool (faces with a vertex behind the eye are
+    left to :func:`tolerance`'s clipped-piece handling).
+    """
+    prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model)
+    w, h = prep.width, prep.height
+    eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
+    c = prep.clip
+    f = prep.triangles.faces
+    wc = c[:, 3]
+    ok = np.all(wc[f] > 0, axis=1)
+    safe = np.where(wc > 0, wc, 1.0)
+    x = (c[:, 0] / safe + 1.0) * 0.5 * w
+    y = (c[:, 1] / safe + 1.0) * 0.5 * h
+    xf, yf = x[f], y[f]
+    area = ((xf[:, 1] - xf[:, 0]) * (yf[:, 2] - yf[:, 0])
+            - (xf[:, 2] - xf[:, 0]) * (yf[:, 1] - yf[:, 0]))
+    perim = sum(np.hypot(xf[:, (k + 1) % 3] - xf[:, k], yf[:, (k + 1) % 3] - yf[:, k])
+                for k in range(3))
+    fragile = ok & (np.abs(area) <= eps * perim + 3.0 * eps * eps)
+    id_may = np.zeros((h, w), np.bool_)
+    cov_may = np.zeros((h, w), np.bool_)
+    if not fragile.any():
+        return id_may, cov_may
+    from .mesh import Mesh
+    obj, local = prep.split(np.flatnonzero(fragile))
+    draws = np.unique(obj)
+    # each fragile face on its own: all its edges are border edges (coverage may change)
+    alone = []
+    for o in draws:
+        m = prep.meshes[o]
+        corners = m.vertices[m.faces[local[obj == o]]].reshape(-1, 3)
+        alone.append(Mesh(corners, np.arange(len(corners)).reshape(-1, 3)))
+    return edge_may(alone, view=view, proj=proj, width=w, height=h,
+                    model=[prep.models[o] for o in draws], cull="none", eps=5.0 * eps)

@@ -516,7 +516,8 @@ def test_cli_exit_codes_and_register(gold, tmp_path, capsys):
         b["object_id"][b["object_id"] >= 0] += 1
 
     cand = candidate_from(gold, tmp_path, edit)
-    assert cli.main(["compare", str(gold), str(cand), "--json", str(tmp_path / "m.json")]) == 1
+    assert cli.main(["compare", str(gold), str(cand), "--mode", "exact",
+                     "--json", str(tmp_path / "m.json")]) == 1
     err = capsys.readouterr().err
     assert "FAIL render_cube/object_id: fraction_over" in err
     report = json.loads((tmp_path / "m.json").read_text())

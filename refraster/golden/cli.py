@@ -3,10 +3,14 @@
 ::
 
     refraster golden generate --out DIR [--scene NAME ...] [--scene-file SCENE.toml ...]
-                              [--update] [--list]
-    refraster golden compare GOLDEN_DIR CANDIDATE_DIR [--report DIR]
+                              [--update] [--list] [--sweep KEY=V1,V2 ...] [--size WxH ...]
+                              [--workers N | --scheduler ADDRESS]
+    refraster golden compare GOLDEN_DIR CANDIDATE_DIR [--report DIR] [--mode tolerant|exact]
                              [--profile exact|conformant] [--tolerance [SCENE:][BUFFER.]KEY=VALUE ...]
                              [--scene NAME ...] [--json FILE]
+
+``compare`` is tolerant by default when the golden stores allowances (coverage masks and value
+intervals), bit-exact otherwise; ``--profile`` alone selects a metric profile as before.
 
 Exit status: 0 pass (or generated), 1 a comparison failed, 2 unusable input (bad arguments, a
 golden that cannot be read, a candidate file missing, corrupt or of the wrong shape). The
@@ -19,7 +23,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .compare import EXIT_PASS, EXIT_UNUSABLE, GoldenError
+from .compare import EXIT_PASS, EXIT_UNUSABLE, MODES, GoldenError
 from .tolerance import PROFILES
 
 __all__ = ["register", "main"]
@@ -46,12 +50,28 @@ def _cmd_generate(args):
         return EXIT_PASS
     if args.out is None:
         return _error(args, "golden generate", ValueError("--out DIR is required"))
+    from .generate import GenerationError
+    if args.workers is not None and args.scheduler is not None:
+        return _error(args, "golden generate",
+                      ValueError("--workers and --scheduler exclude each other"))
+    quiet = getattr(args, "quiet", False)
+    retried = []
+
+    def on_retry(name, reason):
+        retried.append(name)
+        _say(args, f"retrying {name} once: {reason}")
+
     try:
         manifest = generate(args.out, args.scene or None, update=args.update,
-                            scene_files=args.scene_file or (),
-                            progress=lambda name: _say(args, f"rendering {name}"))
-    except (ValueError, TypeError, OSError) as exc:
+                            scene_files=args.scene_file or (), sweeps=args.sweep or (),
+                            sizes=args.size or (), workers=args.workers or 1,
+                            scheduler=args.scheduler, progress_bar=not quiet,
+                            on_retry=on_retry)
+    except (ValueError, TypeError, OSError, GenerationError) as exc:
         return _error(args, "golden generate", exc)
+    if retried:
+        _say(args, f"{len(retried)} scene(s) were retried once and then succeeded: "
+                   f"{', '.join(retried)}")
     _say(args, f"wrote {len(manifest['scenes'])} scene(s) and {len(manifest['files'])} files "
                f"to {args.out}")
     return EXIT_PASS
@@ -60,9 +80,19 @@ def _cmd_generate(args):
 def _cmd_compare(args):
     from .. import io as rio
     from .compare import compare
+    from .compare import has_allowances, load_manifest
+    mode = args.mode
+    if mode is None and args.profile is None:
+        # tolerant by default once the golden stores allowances
+        try:
+            manifest = load_manifest(args.golden_dir, verify=False)
+            names = [n for n in (args.scene or manifest["scenes"]) if n in manifest["scenes"]]
+            mode = "tolerant" if names and has_allowances(manifest, names) else "exact"
+        except GoldenError:
+            mode = "exact"   # compare reports what is wrong with the golden
     try:
         result = compare(args.golden_dir, args.candidate_dir, report=args.report,
-                         profile=args.profile, tolerances=args.tolerance or (),
+                         profile=args.profile, mode=mode, tolerances=args.tolerance or (),
                          scenes=args.scene or None)
         if args.json is not None:
             rio.write_json(args.json, result.to_json())
@@ -96,14 +126,28 @@ def register(subparsers):
     g.add_argument("--update", action="store_true",
                    help="replace an existing golden directory (other scenes are kept)")
     g.add_argument("--list", action="store_true", help="list the registered scenes and exit")
+    g.add_argument("--sweep", metavar="KEY=V1,V2", action="append",
+                   help="pass every value of KEY to the scene functions (repeatable: every "
+                        "combination); scenes are named <scene>__<key>_<value>")
+    g.add_argument("--size", metavar="WxH", action="append",
+                   help="render at this resolution too (repeatable); scenes are named "
+                        "<scene>__<W>x<H>")
+    g.add_argument("--workers", metavar="N", type=int,
+                   help="render on a Dask LocalCluster of N processes (N > 1)")
+    g.add_argument("--scheduler", metavar="ADDRESS",
+                   help="render on an existing Dask cluster (e.g. tcp://host:8786)")
     g.set_defaults(func=_cmd_generate)
 
     c = sub.add_parser("compare", help="compare CANDIDATE_DIR against GOLDEN_DIR")
     c.add_argument("golden_dir", metavar="GOLDEN_DIR")
     c.add_argument("candidate_dir", metavar="CANDIDATE_DIR")
     c.add_argument("--report", metavar="DIR", help="write an HTML report into DIR")
-    c.add_argument("--profile", choices=PROFILES, default="exact",
-                   help="tolerance profile from the manifest (default: exact)")
+    c.add_argument("--mode", choices=MODES, default=None,
+                   help="tolerant: coverage masks and value intervals stored in the golden; "
+                        "exact: bit-exact (default: tolerant when the golden stores "
+                        "allowances, else exact)")
+    c.add_argument("--profile", choices=PROFILES, default=None,
+                   help="compare with this metric profile from the manifest instead")
     c.add_argument("--tolerance", metavar="[SCENE:][BUFFER.]KEY=VALUE", action="append",
                    help="override a tolerance (repeatable), e.g. color.max_flip_mean=0.02")
     c.add_argument("--scene", metavar="NAME", action="append",

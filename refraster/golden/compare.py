@@ -30,7 +30,7 @@ from .tolerance import PROFILES, apply_overrides, parse_override
 __all__ = ["GoldenError", "CandidateError", "BufferResult", "SceneResult", "Comparison",
            "compare", "load_manifest", "load_candidate", "pixel_error", "position_deviation",
            "local_variation",
-           "buffer_metrics", "EXIT_PASS", "EXIT_FAIL", "EXIT_UNUSABLE"]
+           "buffer_metrics", "EXIT_PASS", "EXIT_FAIL", "EXIT_UNUSABLE", "MODES", "has_allowances"]
 
 EXIT_PASS, EXIT_FAIL, EXIT_UNUSABLE = 0, 1, 2
 
@@ -54,6 +54,9 @@ def _manifest_paths(manifest):
         for key in ("package", "buffers_file"):
             if key in scene:
                 yield f"$.scenes.{name}.{key}", scene[key]
+        allowances = scene.get("allowances")
+        if isinstance(allowances, dict) and "file" in allowances:
+            yield f"$.scenes.{name}.allowances.file", allowances["file"]
         buffers = scene.get("buffers")
         for bname, buf in (buffers.items() if isinstance(buffers, dict) else ()):
             if isinstance(buf, dict) and "preview" in buf:
@@ -125,6 +128,24 @@ def _load_npz(path, error):
                 return {k: z[k] for k in z.files}
     except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError) as exc:
         raise error(f"cannot read {path}: {type(exc).__name__}: {exc}") from None
+
+
+def _allowance_arrays(root, name, entry):
+    spec = entry["allowances"]
+    arrays = _load_npz(_inside(root, spec["file"], name), GoldenError)
+    for key, a_spec in spec["arrays"].items():
+        a = arrays.get(key)
+        if a is None or list(a.shape) != a_spec["shape"] or str(a.dtype) != a_spec["dtype"]:
+            raise GoldenError(f"golden {spec['file']}: array {key!r} does not match the "
+                              f"manifest ({a_spec['dtype']} {a_spec['shape']})")
+    for key, b in entry["buffers"].items():
+        t = b.get("tolerant", {})
+        needed = [t[k] for k in ("lo", "hi", "angle", "may") if k in t]
+        needed += ["id_may"] + (["coverage"] if "coverage" in t.get("checks", ()) else [])
+        missing = [n for n in needed if n not in arrays]
+        if missing:
+            raise GoldenError(f"golden {spec['file']}: buffer {key!r} needs arrays {missing}")
+    return arrays
 
 
 def _reference(root, name, entry):
@@ -284,7 +305,7 @@ def _flip(reference, candidate):
     return float(mean), np.asarray(fmap)
 
 
-def buffer_metrics(reference, candidate, kind, tolerance, *, step=0.0):
+def buffer_metrics(reference, candidate, kind, tolerance, *, step=0.0, forgive=None):
     """Metrics and pass/fail checks of one buffer.
 
     Parameters
@@ -296,6 +317,8 @@ def buffer_metrics(reference, candidate, kind, tolerance, *, step=0.0):
         See :mod:`refraster.golden.tolerance`.
     step : float
         Quantisation step of the candidate's encoding; the threshold is raised to it.
+    forgive : (H, W) bool, optional
+        Pixels forgiven whatever their error (a tolerant golden's "may" region).
 
     Returns
     -------
@@ -317,6 +340,8 @@ def buffer_metrics(reference, candidate, kind, tolerance, *, step=0.0):
     radius = int(tolerance["deviation_radius"])
     forgiven = (position_deviation(reference, candidate, thr, radius) & over
                 if radius > 0 and over.any() else np.zeros_like(over))
+    if forgive is not None:
+        forgiven |= over & np.asarray(forgive, np.bool_)
     unforgiven = over & ~forgiven
     mse = float(np.mean(err_el ** 2)) if err_el.size else 0.0
     p = peak(reference, kind)
@@ -336,7 +361,7 @@ def buffer_metrics(reference, candidate, kind, tolerance, *, step=0.0):
                             "candidate": np.asarray(candidate)[r, c].tolist()}
     images = {"error": err, "over": over, "forgiven": forgiven, "flip": None}
     checks = []
-    if radius == 0:
+    if radius == 0 and forgive is None:
         checks.append(("fraction_over", metrics["fraction_over"], tolerance["max_fraction"],
                        "<="))
     else:
@@ -400,6 +425,7 @@ class Comparison:
     profile: str
     scenes: list
     report_dir: Path | None = None
+    mode: str = "profile"
 
     @property
     def exit_code(self):
@@ -416,7 +442,10 @@ class Comparison:
                 lines.append(f"{s.name}: unusable candidate: {s.error}")
             for b in s.buffers:
                 for c in b.checks:
-                    if not c["ok"]:
+                    if not c["ok"] and "detail" in c:
+                        lines.append(f"{s.name}/{b.name}: {c['metric']} = {c['value']} > "
+                                     f"{c['limit']} ({c['detail']}; worst {b.metrics['worst']})")
+                    elif not c["ok"]:
                         bad = ">" if c["op"] == "<=" else "<"
                         lines.append(f"{s.name}/{b.name}: {c['metric']} = {c['value']:.6g} "
                                      f"{bad} {c['limit']:.6g} ({b.metrics['n_over']} of "
@@ -427,8 +456,8 @@ class Comparison:
 
     def summary(self):
         """A plain-text table: one line per scene and buffer."""
-        lines = [f"golden {self.golden_dir} vs candidate {self.candidate_dir} "
-                 f"(profile {self.profile})"]
+        how = "mode tolerant" if self.mode == "tolerant" else f"profile {self.profile}"
+        lines = [f"golden {self.golden_dir} vs candidate {self.candidate_dir} ({how})"]
         for s in self.scenes:
             lines.append(f"{s.name}: {s.status.upper()}" + (f" ({s.error})" if s.error else ""))
             for b in s.buffers:
@@ -452,7 +481,7 @@ class Comparison:
             return x
         return clean({
             "golden_dir": str(self.golden_dir), "candidate_dir": str(self.candidate_dir),
-            "profile": self.profile, "exit_code": self.exit_code,
+            "profile": self.profile, "mode": self.mode, "exit_code": self.exit_code,
             "scenes": {s.name: {"status": s.status, "error": s.error, "buffers": {
                 b.name: {"kind": b.kind, "source": b.source, "passed": b.passed,
                          "tolerance": b.tolerance, "metrics": b.metrics, "checks": b.checks}
@@ -471,8 +500,16 @@ def _check_overrides(overrides, manifest, names):
                               "scene has")
 
 
-def compare(golden_dir, candidate_dir, *, report=None, profile="exact", tolerances=(),
-            scenes=None):
+MODES = ("tolerant", "exact")
+
+
+def has_allowances(manifest, names):
+    """Whether every scene in ``names`` has stored allowances (a tolerant compare is possible)."""
+    return all("allowances" in manifest["scenes"][n] for n in names)
+
+
+def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=(),
+            scenes=None, mode=None, buffers=None):
     """Compare a candidate directory against a golden directory.
 
     Parameters
@@ -480,12 +517,23 @@ def compare(golden_dir, candidate_dir, *, report=None, profile="exact", toleranc
     golden_dir, candidate_dir : path
     report : path, optional
         Write an HTML report there (:func:`refraster.golden.report.write_report`).
-    profile : str
-        Tolerance profile stored in the manifest: ``"exact"`` or ``"conformant"``.
+    profile : str, optional
+        Tolerance profile stored in the manifest: ``"exact"`` or ``"conformant"`` (the
+        per-buffer metric thresholds). Given alone, it selects that profile's compare.
     tolerances : sequence of str
-        Overrides ``[SCENE:][BUFFER.]KEY=VALUE`` applied after the profile, in order.
+        Overrides ``[SCENE:][BUFFER.]KEY=VALUE`` applied after the profile, in order (in
+        tolerant mode: to the buffers that fall back to the conformant profile).
     scenes : sequence of str, optional
         Compare only these scenes (default: all of the manifest).
+    mode : {"tolerant", "exact"}, optional
+        ``"tolerant"``: the stored coverage masks and value intervals
+        (:mod:`refraster.golden.allowance`); buffers without an interval use the
+        ``conformant`` profile with the "may" pixels forgiven. ``"exact"``: bit-exact. Default
+        (neither ``mode`` nor ``profile``): ``"exact"``, so that code written for the
+        profiles keeps its meaning; the command line defaults to tolerant
+        (:mod:`refraster.golden.cli`).
+    buffers : sequence of str, optional
+        Compare only these buffers (default: all of each scene).
 
     Returns
     -------
@@ -498,11 +546,25 @@ def compare(golden_dir, candidate_dir, *, report=None, profile="exact", toleranc
         The golden directory, the arguments or the report directory are unusable.
     """
     golden_dir, candidate_dir = Path(golden_dir), Path(candidate_dir)
+    if mode is not None and mode not in MODES:
+        raise GoldenError(f"mode must be one of {MODES}, got {mode!r}")
+    if profile is not None and profile not in PROFILES:
+        raise GoldenError(f"profile must be one of {PROFILES}, got {profile!r}")
+    if mode == "tolerant" and profile is not None:
+        raise GoldenError("mode 'tolerant' uses the stored allowances (and the 'conformant' "
+                          "profile where a buffer has none); do not also pass a profile")
+    if mode == "exact" and profile not in (None, "exact"):
+        raise GoldenError(f"mode 'exact' is the 'exact' profile; got profile {profile!r}")
+    if mode is None:
+        mode = "profile"
+        profile = profile or "exact"
+    elif mode == "exact":
+        mode, profile = "profile", "exact"
+    else:
+        profile = "conformant"
     if not candidate_dir.is_dir():
         raise GoldenError(f"candidate directory {candidate_dir} does not exist")
     manifest = load_manifest(golden_dir)
-    if profile not in PROFILES:
-        raise GoldenError(f"profile must be one of {PROFILES}, got {profile!r}")
     try:
         overrides = [parse_override(t) for t in tolerances]
     except ValueError as exc:
@@ -512,6 +574,21 @@ def compare(golden_dir, candidate_dir, *, report=None, profile="exact", toleranc
     if unknown:
         raise GoldenError(f"scene(s) {unknown} are not in the golden; it has "
                           f"{sorted(manifest['scenes'])}")
+    if mode == "tolerant" and not has_allowances(manifest, names):
+        bare = [n for n in names if "allowances" not in manifest["scenes"][n]]
+        raise GoldenError(f"scene(s) {bare} have no stored allowances (a golden written before "
+                          "they existed); regenerate it or compare with --mode exact")
+    if buffers is not None:
+        buffers = list(buffers)
+        for n in names:
+            missing = [b for b in buffers if b not in manifest["scenes"][n]["buffers"]]
+            if missing:
+                raise GoldenError(f"scene {n!r} has no buffer(s) {missing}; it has "
+                                  f"{sorted(manifest['scenes'][n]['buffers'])}")
+        manifest = json.loads(json.dumps(manifest))
+        for n in names:
+            specs = manifest["scenes"][n]["buffers"]
+            manifest["scenes"][n]["buffers"] = {k: specs[k] for k in specs if k in buffers}
     _check_overrides(overrides, manifest, names)
     if report is not None:
         from .report import check_report_dir
@@ -520,6 +597,7 @@ def compare(golden_dir, candidate_dir, *, report=None, profile="exact", toleranc
     for name in names:
         entry = manifest["scenes"][name]
         ref = _reference(golden_dir, name, entry)
+        allow = _allowance_arrays(golden_dir, name, entry) if mode == "tolerant" else None
         try:
             cand = load_candidate(candidate_dir, name, entry["buffers"])
         except CandidateError as exc:
@@ -535,12 +613,23 @@ def compare(golden_dir, candidate_dir, *, report=None, profile="exact", toleranc
             except ValueError as exc:
                 raise GoldenError(str(exc)) from None
             a, source, step = cand[key]
-            metrics, checks, images = buffer_metrics(ref[key], a, spec["kind"], tol, step=step)
+            if allow is not None:
+                from .allowance import tolerant_metrics
+                clear = entry["parameters"]["raster"].get("clear_depth", 1.0)
+                metrics, checks, images = tolerant_metrics(
+                    key, ref[key], a, spec["kind"], spec["tolerant"], allow, clear_depth=clear,
+                    fallback=tol, step=step)
+                tol = {**tol, "tolerant": spec["tolerant"]}
+            else:
+                metrics, checks, images = buffer_metrics(ref[key], a, spec["kind"], tol,
+                                                         step=step)
             buffers.append(BufferResult(key, spec["kind"], source, tol, metrics, checks,
                                         ref[key], a, images))
         status = "pass" if all(b.passed for b in buffers) else "fail"
         results.append(SceneResult(name, status, buffers))
-    comparison = Comparison(golden_dir, candidate_dir, profile, results)
+    comparison = Comparison(golden_dir, candidate_dir, "tolerant" if mode == "tolerant"
+                            else profile, results, mode="tolerant" if mode == "tolerant"
+                            else "profile")
     if report is not None:
         from .report import write_report
         comparison.report_dir = write_report(report, comparison, manifest)

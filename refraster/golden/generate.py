@@ -14,9 +14,11 @@ replaced only with ``update=True`` (and then scenes that were not regenerated ar
 
 from __future__ import annotations
 
+import inspect
 import json
 import os
 import platform
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -31,7 +33,8 @@ from .scenes import DEFAULT_RASTER, GoldenScene, available_scenes, raster_state
 from .schema import MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION, validate
 from .tolerance import default_tolerances
 
-__all__ = ["generate", "versions", "swap_directory"]
+__all__ = ["generate", "versions", "swap_directory", "suite", "render_task", "parse_sweep",
+           "parse_size", "GenerationError"]
 
 
 def versions():
@@ -78,9 +81,12 @@ def _check_scene(name, scene):
 
 def _write_scene(root, name, scene):
     """Write one scene under ``root``; return its manifest entry."""
+    from .allowance import scene_allowances
     raster = raster_state(scene.raster)
     export_package(root / name / "package", name, scene, raster)
     rio.atomic_write_bytes(root / name / "buffers.npz", npz_bytes(scene.buffers))
+    arrays, info, tolerant = scene_allowances(scene, raster)
+    rio.atomic_write_bytes(root / name / "tolerance.npz", npz_bytes(arrays))
     buffers = {}
     for key in sorted(scene.buffers):
         a = np.asarray(scene.buffers[key])
@@ -89,10 +95,198 @@ def _write_scene(root, name, scene):
         rio.write_png(root / rel, preview(a, kind, preview_range(a, kind)))
         buffers[key] = {"shape": list(a.shape), "dtype": str(a.dtype), "kind": kind,
                         "preview": rel,
-                        "tolerance": default_tolerances(key, kind, scene.tolerances.get(key))}
+                        "tolerance": default_tolerances(key, kind, scene.tolerances.get(key)),
+                        "tolerant": tolerant[key]}
+    allowances = {"file": f"{name}/tolerance.npz", **info,
+                  "arrays": {k: {"shape": list(v.shape), "dtype": str(v.dtype)}
+                             for k, v in sorted(arrays.items())}}
     return {"technique": scene.technique, "description": scene.description,
             "package": f"{name}/package/scene.json", "buffers_file": f"{name}/buffers.npz",
-            "buffers": buffers, "parameters": {"raster": raster, "technique": scene.parameters}}
+            "buffers": buffers, "parameters": {"raster": raster, "technique": scene.parameters},
+            "allowances": allowances}
+
+
+# --- suites: scenes × parameter sweeps × resolutions ---------------------------------------------
+
+_SLUG = re.compile(r"[^a-z0-9]+")
+
+
+def _slug(value):
+    return _SLUG.sub("_", str(value).lower()).strip("_") or "x"
+
+
+def parse_sweep(text):
+    """``KEY=V1,V2,…`` → ``(key, [values])``; values are int, float or str (``true``/``false``
+    are bools)."""
+    if not isinstance(text, str) or "=" not in text:
+        raise ValueError(f"a sweep looks like KEY=V1,V2,..., got {text!r}")
+    key, values = text.split("=", 1)
+    key = key.strip()
+    if not re.match(r"^[a-z_][a-z0-9_]*$", key):
+        raise ValueError(f"sweep key must be a lower-case identifier, got {key!r}")
+    out = []
+    for v in values.split(","):
+        v = v.strip()
+        if not v:
+            raise ValueError(f"empty value in sweep {text!r}")
+        low = v.lower()
+        if low in ("true", "false"):
+            out.append(low == "true")
+            continue
+        for conv in (int, float):
+            try:
+                out.append(conv(v))
+                break
+            except ValueError:
+                continue
+        else:
+            out.append(v)
+    return key, out
+
+
+def parse_size(text):
+    """``WxH`` → ``(width, height)``."""
+    m = re.match(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$", str(text))
+    if not m or int(m.group(1)) < 1 or int(m.group(2)) < 1:
+        raise ValueError(f"a size looks like WIDTHxHEIGHT (e.g. 64x48), got {text!r}")
+    return int(m.group(1)), int(m.group(2))
+
+
+def _takes(fn, key):
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):
+        return False
+    return key in sig.parameters or any(p.kind == p.VAR_KEYWORD
+                                        for p in sig.parameters.values())
+
+
+def suite(entries, *, sweeps=(), sizes=()):
+    """Expand scenes × parameter sweeps × resolutions into tasks.
+
+    Parameters
+    ----------
+    entries : dict of str → SceneEntry
+    sweeps : sequence of ``(key, values)``
+        Keyword arguments passed to the scene functions, every combination.
+    sizes : sequence of ``(width, height)``
+        Passed as ``width=`` and ``height=``.
+
+    Returns
+    -------
+    list of ``(name, entry, params)``
+        ``name`` is the scene's own without sweeps or sizes, else
+        ``<scene>__<key>_<value>…__<W>x<H>``.
+    """
+    combos = [{}]
+    for key, values in sweeps:
+        combos = [{**c, key: v} for c in combos for v in values]
+    size_list = list(sizes) or [None]
+    tasks = []
+    for name, entry in entries.items():
+        for combo in combos:
+            for size in size_list:
+                params = dict(combo)
+                parts = [f"{k}_{_slug(v)}" for k, v in combo.items()]
+                if size is not None:
+                    params.update(width=size[0], height=size[1])
+                    parts.append(f"{size[0]}x{size[1]}")
+                for key in params:
+                    if not _takes(entry.build, key):
+                        raise ValueError(f"scene {name!r} does not take parameter {key!r} "
+                                         "(sweeps and sizes apply to scenes whose function "
+                                         "accepts them)")
+                tasks.append(("__".join([name, *parts]), entry, params))
+    names = [t[0] for t in tasks]
+    if len(set(names)) != len(names):
+        raise ValueError("the suite gives two scenes the same name; use distinct sweep values")
+    return tasks
+
+
+def render_task(name, entry, params):
+    """Build and write one scene (in a private temporary directory) and return
+    ``(name, manifest entry, {relative path: bytes})``: the unit of work of a serial or a
+    distributed run, so both write the same bytes."""
+    scene = entry.build(**params)
+    _check_scene(name, scene)
+    if not scene.description:
+        scene.description = entry.description
+    with tempfile.TemporaryDirectory(prefix="refraster-golden-task-") as tmp:
+        root = Path(tmp)
+        item = _write_scene(root, name, scene)
+        if params:
+            item["parameters"]["variant"] = {"scene": entry.name, **params}
+        files = {p.relative_to(root).as_posix(): p.read_bytes()
+                 for p in sorted(root.rglob("*")) if p.is_file()}
+    return name, item, files
+
+
+class GenerationError(RuntimeError):
+    """A scene failed twice (once and its retry) in a distributed run."""
+
+
+def _run_serial(tasks, progress, bar):
+    for name, entry, params in tasks:
+        if progress is not None:
+            progress(name)
+        yield render_task(name, entry, params)
+        bar.update(1)
+
+
+def _open_client(workers, scheduler):
+    import logging
+
+    import dask
+    from dask.distributed import Client, LocalCluster
+    if scheduler is not None:
+        return Client(scheduler), None
+    # a worker that dies takes its task down: report it and retry once ourselves instead of
+    # letting the scheduler re-run it silently
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=":0", silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def _run_distributed(tasks, workers, scheduler, progress, bar, on_retry):
+    from dask.distributed import as_completed
+    client, cluster = _open_client(workers, scheduler)
+    try:
+        by_key = {}
+        futures = []
+        for task in tasks:
+            fut = client.submit(render_task, *task, pure=False)
+            by_key[fut.key] = (task, 0)
+            futures.append(fut)
+        failed = []
+        pending = as_completed(futures, with_results=False)
+        for fut in pending:
+            task, attempt = by_key.pop(fut.key)
+            try:
+                result = fut.result()
+            except Exception as exc:  # anything a scene or a dying worker raises
+                reason = f"{type(exc).__name__}: {exc}"
+                if attempt == 0:
+                    if on_retry is not None:
+                        on_retry(task[0], reason)
+                    again = client.submit(render_task, *task, pure=False)
+                    by_key[again.key] = (task, 1)
+                    pending.add(again)
+                else:
+                    failed.append(f"{task[0]}: {reason}")
+                    bar.update(1)
+                continue
+            if progress is not None:
+                progress(task[0])
+            bar.update(1)
+            yield result
+        if failed:
+            raise GenerationError("scene(s) failed twice (the first failure was retried): "
+                                  + "; ".join(failed))
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
 
 
 def _old_manifest(out):
@@ -100,7 +294,16 @@ def _old_manifest(out):
     return load_manifest(out)
 
 
-def generate(out, scenes=None, *, update=False, scene_files=(), progress=None):
+class _NoBar:
+    def update(self, n):
+        pass
+
+    def close(self):
+        pass
+
+
+def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, sweeps=(),
+             sizes=(), workers=1, scheduler=None, progress_bar=False, on_retry=None):
     """Render ``scenes`` (names; default all registered) and write a golden directory ``out``.
 
     Parameters
@@ -116,15 +319,32 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None):
     scene_files : sequence of paths
         TOML scene descriptions (:func:`refraster.golden.load_scene_file`), added to the run.
     progress : callable, optional
-        ``progress(name)`` before each scene.
+        ``progress(name)`` before each scene (serial) or when it is done (distributed).
+    sweeps : sequence of ``(key, values)`` or ``"KEY=V1,V2"`` strings
+        Parameter sweeps: every combination is passed to every scene function (:func:`suite`).
+    sizes : sequence of ``(width, height)`` or ``"WxH"`` strings
+        Resolutions, passed as ``width=`` / ``height=``.
+    workers : int
+        More than 1: render on a Dask ``LocalCluster`` of that many single-threaded processes.
+    scheduler : str, optional
+        Address of a running Dask scheduler to render on instead (``workers`` is ignored).
+    progress_bar : bool
+        Show a tqdm progress bar on stderr.
+    on_retry : callable, optional
+        ``on_retry(name, reason)`` when a distributed task failed and is run once more. A task
+        that fails twice makes the whole run fail (:class:`GenerationError`).
 
     Returns
     -------
     dict
-        The manifest written.
+        The manifest written; byte-identical whether serial or distributed.
     """
     from .scenes import load_scene_file
     out = Path(out)
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers must be an int >= 1, got {workers!r}")
+    sweeps = [parse_sweep(x) if isinstance(x, str) else (x[0], list(x[1])) for x in sweeps]
+    sizes = [parse_size(x) if isinstance(x, str) else tuple(x) for x in sizes]
     registry = available_scenes()
     if scenes is None:
         names = [] if scene_files else list(registry)
@@ -141,6 +361,8 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None):
         entries[entry.name] = entry
     if not entries:
         raise ValueError("no scenes to generate")
+    tasks = suite(entries, sweeps=sweeps, sizes=sizes)
+    generated = {t[0] for t in tasks}
     old = None
     if out.exists() or out.is_symlink():
         if not update:
@@ -151,16 +373,20 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None):
         old = _old_manifest(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    bar = _NoBar()
+    if progress_bar:
+        from tqdm import tqdm
+        bar = tqdm(total=len(tasks), desc="golden", unit="scene")
     try:
         manifest_scenes = {}
-        for name, entry in entries.items():
-            if progress is not None:
-                progress(name)
-            scene = entry.build()
-            _check_scene(name, scene)
-            if not scene.description:
-                scene.description = entry.description
-            manifest_scenes[name] = _write_scene(tmp, name, scene)
+        if scheduler is not None or workers > 1:
+            results = _run_distributed(tasks, workers, scheduler, progress, bar, on_retry)
+        else:
+            results = _run_serial(tasks, progress, bar)
+        for name, item, files in results:
+            for rel, data in files.items():
+                rio.atomic_write_bytes(tmp / rel, data)
+            manifest_scenes[name] = item
         if old is not None:
             for name, item in old["scenes"].items():
                 if name not in manifest_scenes:
@@ -171,7 +397,7 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None):
             files[path.relative_to(tmp).as_posix()] = sha256_file(path)
         if old is not None:
             for rel, digest in old["files"].items():
-                if rel in files and rel.split("/")[0] not in entries and files[rel] != digest:
+                if rel in files and rel.split("/")[0] not in generated and files[rel] != digest:
                     raise ValueError(f"{out / rel} does not match its sha256 in the manifest; "
                                      "the old golden is corrupt, not updating it")
         manifest = {
@@ -189,4 +415,6 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None):
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    finally:
+        bar.close()
     return manifest

@@ -59,9 +59,12 @@ def difference_image(error):
     return _ramp(t)
 
 
-def mask_image(reference_preview, over, forgiven):
-    """Faded reference; forgiven pixels yellow, failing pixels red."""
+def mask_image(reference_preview, over, forgiven, may=None):
+    """Faded reference; the tolerant "may" region light blue, forgiven pixels yellow, failing
+    pixels (outside the allowance) red."""
     img = (reference_preview.astype(np.float64) * 0.3 + 255.0 * 0.7).astype(np.uint8)
+    if may is not None:
+        img[may] = (150, 200, 255)
     img[forgiven] = (240, 190, 0)
     img[over & ~forgiven] = (220, 0, 0)
     return img
@@ -111,7 +114,8 @@ def _buffer_html(root, scene, b):
     rio.write_png(root / f"{stem}__candidate.png", preview(b.candidate, b.kind, vr))
     rio.write_png(root / f"{stem}__difference.png", difference_image(b.images["error"]))
     rio.write_png(root / f"{stem}__mask.png",
-                  mask_image(ref_png, b.images["over"], b.images["forgiven"]))
+                  mask_image(ref_png, b.images["over"], b.images["forgiven"],
+                             b.images.get("may")))
     flip = None
     if b.images["flip"] is not None:
         flip = f"{stem}__flip.png"
@@ -127,7 +131,9 @@ def _buffer_html(root, scene, b):
         _figure(f"{stem}__reference.png", "reference", w, h, zoom),
         _figure(f"{stem}__candidate.png", "candidate", w, h, zoom),
         _figure(f"{stem}__difference.png", f"difference (max {_fmt(m['max_abs'])})", w, h, zoom),
-        _figure(f"{stem}__mask.png", "error mask: red fails, yellow forgiven", w, h, zoom),
+        _figure(f"{stem}__mask.png",
+                "error mask: red outside the allowance, yellow allowed, blue may-region"
+                if "may" in b.images else "error mask: red fails, yellow forgiven", w, h, zoom),
         _figure(flip, "FLIP" + (f" (mean {_fmt(m.get('flip_mean'))})" if flip else ""),
                 w, h, zoom),
     ])

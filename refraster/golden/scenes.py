@@ -1,6 +1,8 @@
 """The golden scene registry, the plain-rendering scenes and the TOML scene format.
 
-A scene is a name bound to a function that returns a :class:`GoldenScene`: the draws (meshes
+A scene is a name bound to a function that returns a :class:`GoldenScene` (the plain-rendering
+scenes take keyword arguments ``width``, ``height`` and any raster field, so that a suite can
+sweep them: :func:`refraster.golden.generate.suite`): the draws (meshes
 and model matrices), the camera, the raster state, the buffers refraster computed and the
 technique parameters. A technique registers its scenes with the :func:`register_scene`
 decorator in a module listed in :data:`SCENE_MODULES`::
@@ -84,6 +86,17 @@ class GoldenScene:
         Buffer kind overrides (see :data:`refraster.golden.buffers.KINDS`).
     tolerances : dict
         ``{buffer: {profile: {key: value}}}`` overrides of the default tolerances.
+    geometry : bool
+        True when the G-buffer channels among ``buffers`` are what
+        :func:`refraster.render` makes of ``draws`` (then the geometric allowances of
+        :func:`refraster.tolerance.tolerance` apply); False for techniques that change
+        visibility (a clip surface), whose allowances are dilated instead
+        (:mod:`refraster.golden.allowance`).
+    may : (H, W) bool, optional
+        The technique's own "may" pixels, e.g. :func:`refraster.tolerance.decision_may` of its
+        per-fragment decision.
+    may_radius : int
+        Pixels the "may" region grows by for technique buffers: their filters' footprint.
     """
 
     technique: str
@@ -96,6 +109,9 @@ class GoldenScene:
     kinds: dict = field(default_factory=dict)
     tolerances: dict = field(default_factory=dict)
     description: str = ""
+    geometry: bool = True
+    may: np.ndarray | None = None
+    may_radius: int = 1
 
 
 @dataclass(frozen=True)
@@ -243,62 +259,65 @@ def _solid_scene(solid_name, *, width=160, height=120, direction=(1.0, 0.8, 1.4)
 
 @register_scene("render_cube", technique="render",
                 description="Cube, flat normals, perspective, no culling.")
-def _render_cube():
-    return _solid_scene("cube")
+def _render_cube(**params):
+    return _solid_scene("cube", **params)
 
 
 @register_scene("render_icosphere_smooth", technique="render",
                 description="Icosphere (1 280 faces), smooth vertex normals, back-face culling.")
-def _render_icosphere_smooth():
-    return _solid_scene("icosphere", normals="smooth", cull="back")
+def _render_icosphere_smooth(**params):
+    return _solid_scene("icosphere", **{"normals": "smooth", "cull": "back", **params})
 
 
 @register_scene("render_torus_ortho", technique="render",
                 description="Torus under an orthographic camera, flat normals.")
-def _render_torus_ortho():
+def _render_torus_ortho(width=160, height=120, **raster):
     from ..scenes import solid
     mesh = solid("torus")
     view = look_at((0.0, 2.2, 2.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
-    camera = Camera(view, orthographic(-1.6, 1.6, -1.2, 1.2, 0.5, 6.0), 160, 120)
-    return render_scene([Draw("torus", mesh)], camera)
+    half = 1.2 * width / height
+    camera = Camera(view, orthographic(-half, half, -1.2, 1.2, 0.5, 6.0), width, height)
+    return render_scene([Draw("torus", mesh)], camera, **raster)
 
 
 @register_scene("render_fluted_column", technique="render",
                 description="Fluted column (thin flutes: many near-edge pixel centres).")
-def _render_fluted_column():
-    return _solid_scene("fluted_column", width=120, height=160, direction=(1.0, 0.3, 1.2))
+def _render_fluted_column(**params):
+    return _solid_scene("fluted_column", **{"width": 120, "height": 160,
+                                             "direction": (1.0, 0.3, 1.2), **params})
 
 
 @register_scene("render_nested_shells", technique="render",
                 description="Nested shells seen from outside, front-face culling (inner shells "
                             "show through the culled outer surface).")
-def _render_nested_shells():
-    return _solid_scene("nested_shells", cull="front")
+def _render_nested_shells(**params):
+    return _solid_scene("nested_shells", **{"cull": "front", **params})
 
 
 @register_scene("render_building", technique="render",
                 description="Building (manifold3d boolean result), flat normals.")
-def _render_building():
-    return _solid_scene("building", direction=(1.2, 0.9, 1.6))
+def _render_building(**params):
+    return _solid_scene("building", **{"direction": (1.2, 0.9, 1.6), **params})
 
 
 @register_scene("render_crank", technique="render",
                 description="Crank (about 100k faces, sub-pixel triangles).")
-def _render_crank():
-    return _solid_scene("crank", width=192, height=144, direction=(0.8, 1.0, 1.5))
+def _render_crank(**params):
+    return _solid_scene("crank", **{"width": 192, "height": 144, "direction": (0.8, 1.0, 1.5),
+                                    **params})
 
 
 @register_scene("render_multi_draw", technique="render",
                 description="Three draw calls with model matrices: object ids and palette "
                             "colours; the torus passes through the cube.")
-def _render_multi_draw():
+def _render_multi_draw(width=160, height=120, **raster):
     from ..scenes import solid
     draws = [Draw("cube", solid("cube"), _translate(-0.6, 0.0, 0.0)),
              Draw("torus", solid("torus", quick=True), _translate(0.2, 0.0, 0.0) @ _rotate_x(70)),
              Draw("icosphere", solid("icosphere", quick=True), _translate(1.5, 0.3, -0.4))]
     view = look_at((1.0, 2.5, 5.0), (0.4, 0.0, 0.0))
-    camera = Camera(view, perspective(35.0, 160 / 120, 2.0, 9.0), 160, 120)
-    return render_scene(draws, camera)
+    camera = Camera(view, perspective(35.0, width / height, 2.0, 9.0), width, height)
+    return render_scene(draws, camera, **raster)
 
 
 # --- TOML scenes ---------------------------------------------------------------------------------

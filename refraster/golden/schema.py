@@ -148,6 +148,46 @@ _TOLERANCE = {
     },
 }
 
+_ARRAY_NAME = {"type": "string", "pattern": r"^[a-z0-9][a-z0-9_]*$"}
+
+#: Per buffer: which tolerant checks apply and which arrays of ``tolerance.npz`` they read
+#: (optional; added without a version bump).
+_TOLERANT = {
+    "type": "object",
+    "required": ["checks"],
+    "additionalProperties": False,
+    "properties": {
+        "checks": {"type": "array", "minItems": 1,
+                   "items": {"enum": ["coverage", "id", "interval", "angle", "masked"]}},
+        "lo": _ARRAY_NAME, "hi": _ARRAY_NAME, "angle": _ARRAY_NAME, "may": _ARRAY_NAME,
+    },
+}
+
+#: Per scene: the allowance arrays (``<scene>/tolerance.npz``) and how they were derived.
+_ALLOWANCES = {
+    "type": "object",
+    "required": ["file", "method", "eps", "depth_eps", "normal_tol", "color_tol", "may_radius",
+                 "min_subpixel_bits", "arrays"],
+    "additionalProperties": False,
+    "properties": {
+        "file": _RELPATH,
+        "method": {"enum": ["geometry", "decision", "dilated"]},
+        "eps": {"type": "number", "minimum": 0},
+        "depth_eps": {"type": "number", "minimum": 0},
+        "normal_tol": {"type": "number", "minimum": 0},
+        "color_tol": {"type": "number", "minimum": 0},
+        "may_radius": {"type": "integer", "minimum": 0},
+        "min_subpixel_bits": {"type": "integer", "minimum": 0},
+        "arrays": {
+            "type": "object", "propertyNames": _ARRAY_NAME,
+            "additionalProperties": {
+                "type": "object", "required": ["shape", "dtype"], "additionalProperties": False,
+                "properties": {"shape": _SHAPE, "dtype": {"enum": ["int8", "bool", "float32"]}},
+            },
+        },
+    },
+}
+
 #: ``manifest.json``: the index of a golden directory.
 MANIFEST_SCHEMA = {
     "$id": "refraster.golden",
@@ -200,9 +240,11 @@ MANIFEST_SCHEMA = {
                                     "propertyNames": _NAME,
                                     "additionalProperties": _TOLERANCE,
                                 },
+                                "tolerant": _TOLERANT,
                             },
                         },
                     },
+                    "allowances": _ALLOWANCES,
                 },
             },
         },

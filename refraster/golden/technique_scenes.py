@@ -28,8 +28,11 @@ def _edges_building():
                   depth_filter="diagonal2", ids=True, inner_threshold=0.1,
                   profile_threshold=0.03, width=1, k_n=1.0, k_z=1.0)
     edges = edge_map(fb, **{**params, "bounds": np.array(params["bounds"])})
+    # the diagonal second-order depth filter reads pixels up to 2 away: a "may" pixel of the
+    # G-buffer may change the edge map that far
     return GoldenScene(technique="edges", camera=camera, draws=draws,
-                       buffers={**fb.arrays(), "edge_map": edges}, parameters=params)
+                       buffers={**fb.arrays(), "edge_map": edges}, parameters=params,
+                       may_radius=2)
 
 
 @register_scene("clipsurface_building", technique="clipsurface",
@@ -48,12 +51,44 @@ def _clipsurface_building():
                    scale=[1.0, 1.0, 0.8], wrap="repeat", enabled=True)
     caps = dict(caps=True, cap_style="diffuse", cap_mode="mesh", cap_color=[0.8, 0.3, 0.25],
                 subdivision=1, vds_resolution=512, space="world")
-    fb = render_clipped([d.mesh for d in draws],
-                        ClipSurface(surface["origin"], surface["u"], surface["v"],
-                                    surface["scale"], offset_map, wrap=surface["wrap"]),
-                        **camera.kwargs, **caps, cull=state["cull"],
-                        precision=state["precision"])
+    clip = ClipSurface(surface["origin"], surface["u"], surface["v"], surface["scale"],
+                       offset_map, wrap=surface["wrap"])
+    fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs, **caps,
+                        cull=state["cull"], precision=state["precision"])
     return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
                        buffers={**fb.arrays(), "cap_mask": fb.cap_mask},
                        parameters={"surfaces": [{**surface, "offset_map": "offset_map"}], **caps},
-                       maps={"offset_map": offset_map})
+                       maps={"offset_map": offset_map}, geometry=False,
+                       may=_clip_decision_may(draws, camera, clip, fb.cap_mask))
+
+
+def _clip_decision_may(draws, camera, clip, cap_mask):
+    """Pixels where the clip decision ``g(P) ≥ 0`` may go either way on a conformant GPU.
+
+    A sample moved by the edge ε (pixels) moves ``P`` by ``ε · s`` in the world (``s``: world
+    size of a pixel at the fragment's eye depth) and ``g`` by up to ``|∇g| · ε · s``; ``∇g`` is
+    taken by central differences of ``g`` itself (offset-map slopes included). So the decision
+    ``g / (|∇g| · s)`` in pixels is compared with 1.5 ε. Caps lie on the surface's zero set and
+    their triangles are not among the scene's draws: every cap pixel's id may differ (their
+    coverage follows the solid's inside test, whose boundary is the same decision boundary).
+    """
+    from .. import draw, resolve
+    from ..camera import is_perspective
+    from ..clipsurface import clip_function
+    from ..tolerance import decision_may, edge_epsilon
+    from .allowance import dilate
+    frags = draw([d.mesh for d in draws], **camera.kwargs, model=[d.model for d in draws])
+    pos = frags.world_position()
+    g = clip_function(pos, clip)
+    h = 1e-4 * max(1.0, float(np.abs(pos).max()))
+    grad = np.stack([(clip_function(pos + h * e, clip) - clip_function(pos - h * e, clip))
+                     / (2 * h) for e in np.eye(3)], axis=1)
+    proj = camera.proj
+    if is_perspective(proj):
+        pixel = -frags.eye_position()[:, 2] * 2.0 / (proj[1, 1] * camera.height)
+    else:
+        pixel = np.full(len(frags), 2.0 / (proj[1, 1] * camera.height))
+    scale = np.maximum(np.linalg.norm(grad, axis=1) * pixel, 1e-12)
+    eps = edge_epsilon(camera.width, camera.height)
+    res = resolve(frags, keep=g >= 0)
+    return decision_may(frags, res, g / scale, 1.5 * eps) | dilate(cap_mask, 1)
