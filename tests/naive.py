@@ -85,7 +85,14 @@ def raster_unclipped(clip, faces, width, height, bits=8, rule="bottom-left", cul
                 else:
                     inv_area = 1.0 / float(area)
                     lam = [float(e) * inv_area for e in es]
-                z = lam[0] * Z[0] + lam[1] * Z[1] + lam[2] * Z[2]
+                if farea > 0:
+                    # the depth plane through the unsnapped vertices
+                    a, b = Z[1] - Z[0], Z[2] - Z[0]
+                    dzdx = (a * (FY[2] - FY[0]) - b * (FY[1] - FY[0])) * (1.0 / farea)
+                    dzdy = (b * (FX[1] - FX[0]) - a * (FX[2] - FX[0])) * (1.0 / farea)
+                    z = Z[0] + dzdx * ((px + 0.5) - FX[0]) + dzdy * ((py + 0.5) - FY[0])
+                else:
+                    z = lam[0] * Z[0] + lam[1] * Z[1] + lam[2] * Z[2]
                 z = np.float32(min(max(z, 0.0), 1.0))
                 q = [lk * iw for lk, iw in zip(lam, IW)]
                 s = q[0] + q[1] + q[2]

@@ -9,7 +9,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1] / "refraster"
 
 
 def test_flags():
-    for flags in (cfg.JIT, cfg.PJIT):
+    for flags in (cfg.JIT, cfg.PJIT, cfg.IJIT):
         assert flags["cache"] is True
         assert flags["fastmath"] is False
 
@@ -20,8 +20,8 @@ def test_no_kernel_hard_codes_flags():
         text = path.read_text()
         for m in re.finditer(r"@(?:numba\.)?(?:njit|jit|vectorize|guvectorize|stencil)\b(\([^)]*\))?", text):
             args = (m.group(1) or "").strip("()").strip()
-            if args not in ("**JIT", "**PJIT"):
+            if args not in ("**JIT", "**PJIT", "**IJIT"):
                 bad.append(f"{path.relative_to(ROOT)}: {m.group(0)}")
         if re.search(r"fastmath\s*=\s*True", text):
             bad.append(f"{path.relative_to(ROOT)}: fastmath=True")
-    assert not bad, "kernels must use @njit(**JIT) or @njit(**PJIT):\n" + "\n".join(bad)
+    assert not bad, "kernels must use @njit(**JIT), @njit(**PJIT) or @njit(**IJIT):\n" + "\n".join(bad)

@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .._config import JIT, PJIT
+from .._config import IJIT, JIT, PJIT
 
 #: Window coordinates are kept within this many pixels of the viewport centre by clipping.
 GUARD_PIXELS = float(1 << 20)
@@ -84,7 +84,7 @@ def transform_vertices(vertices, mvp, precision="float32"):
     return out
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def _plane_dist(k, x, y, z, w, gx, gy):
     # signed distance to clip plane k; inside when >= 0
     if k == 0:
@@ -102,7 +102,7 @@ def _plane_dist(k, x, y, z, w, gx, gy):
     return gy * w + y         # guard band bottom
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def _outcode(x, y, z, w, gx, gy):
     code = 0
     for k in range(7):
@@ -111,7 +111,7 @@ def _outcode(x, y, z, w, gx, gy):
     return code
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def _onto_plane(k, p, m, gx, gy):
     # the new vertex lies on plane k exactly: set the coordinate the plane constrains
     w = p[m, 3]
@@ -170,7 +170,7 @@ def _clip_polygon(poly, tmp, n, planes, gx, gy):
     return n
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def _window(x, y, z, w, hw, hh, scale):
     """Divide, viewport and snap one vertex (float32, as Mesa's draw module)."""
     half = np.float32(0.5)
@@ -199,12 +199,12 @@ def _vertex_pass(c, width, height, bits, gx, gy, vX, vY, vZ, vIW, vXf, vYf, vcod
              vYf[i]) = _window(c[i, 0], c[i, 1], c[i, 2], c[i, 3], hw, hh, scale)
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def _area(X, Y, i, j, k):
     return (X[j] - X[i]) * (Y[k] - Y[i]) - (X[k] - X[i]) * (Y[j] - Y[i])
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def _bbox(X, Y, i, j, k, bits, width, height):
     one = np.int64(1) << bits
     xmin = min(X[i], X[j], X[k])
@@ -216,7 +216,7 @@ def _bbox(X, Y, i, j, k, bits, width, height):
             max((ymin + one - 1) >> bits, 0), min(ymax >> bits, height - 1))
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def _store(t, X, Y, Z, IW, XF, YF, i, j, k, prim, front, box, area, bslot,
            oX, oY, oZ, oIW, oXf, oYf, oprim, ofront, obox, oarea, obidx):
     """Write one counter-clockwise screen triangle (vertices i, j, k of the scratch arrays)."""

@@ -15,11 +15,12 @@ Coverage
 
 Interpolation (identical formulas in the fragment-stream and fused paths)
     Snapping decides coverage only; attributes are interpolated from the **unsnapped** float32
-    window positions, as Mesa sets up its attribute planes: ``λ_k`` = the float64 edge function
-    of the unsnapped triangle at the pixel centre times ``1 / its doubled area`` (falling back to
-    the snapped edge functions when snapping flipped or flattened a sliver); window depth
-    ``z = λ0 z0 + λ1 z1 + λ2 z2`` (linear in screen space, as GL), clamped to [0, 1] and rounded
-    to float32; perspective-correct barycentrics in the original face
+    window positions, as Mesa sets up its attribute planes: window depth from the plane through
+    the unsnapped vertices, ``z = z0 + dz/dx·(x + ½ − x0) + dz/dy·(y + ½ − y0)`` in float64
+    (linear in screen space, as GL), clamped to [0, 1] and rounded to float32; ``λ_k`` = the
+    float64 edge function of the unsnapped triangle at the pixel centre times
+    ``1 / its doubled area`` (both fall back to the snapped edge functions when snapping
+    flipped or flattened a sliver); perspective-correct barycentrics in the original face
     ``b = Σ_k q_k B_k / Σ_k q_k`` with ``q_k = λ_k / w_k`` (``B`` the identity, up to the
     clockwise swap, for an unclipped face), rounded to float32. A covered centre just outside the
     unsnapped triangle extrapolates, as on a GPU.
@@ -37,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .._config import JIT, PJIT
+from .._config import IJIT, JIT, PJIT
 from .primitive import CLIPPED, SIMPLE
 
 TILE_SHIFT = 5
@@ -48,7 +49,7 @@ DEPTH_FUNCS = {"never": 0, "less": 1, "equal": 2, "lequal": 3, "greater": 4, "no
                "gequal": 6, "always": 7}
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def depth_test(func, z, ref):
     """OpenGL's depth comparison of an incoming ``z`` against the stored ``ref``."""
     if func == 1:
@@ -68,13 +69,13 @@ def depth_test(func, z, ref):
 
 # ------------------------------------------------------------------------------------ binning
 
-@njit(**JIT)
+@njit(**IJIT)
 def _pieces(sprim, i):
     """Range of clipped pieces of face ``i`` (``sprim`` ascending)."""
     return np.searchsorted(sprim, i, side="left"), np.searchsorted(sprim, i, side="right")
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def _add(box, ntx, counts, lists, cursor, item, fill):
     for ty in range(box[2] >> TILE_SHIFT, (box[3] >> TILE_SHIFT) + 1):
         for tx in range(box[0] >> TILE_SHIFT, (box[1] >> TILE_SHIFT) + 1):
@@ -132,12 +133,22 @@ def bin_primitives(prims):
 
 # ------------------------------------------------------------------- per-triangle set-up
 
-@njit(**JIT)
-def _load(item, f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront,
-          sbox, sarea):
+@njit(**IJIT)
+def _box(item, fbox, sbox):
+    """Pixel bounding box ``(x0, x1, y0, y1)`` of a binned item."""
+    if item >= 0:
+        return (np.int64(fbox[item, 0]), np.int64(fbox[item, 1]), np.int64(fbox[item, 2]),
+                np.int64(fbox[item, 3]))
+    k = -item - 1
+    return (np.int64(sbox[k, 0]), np.int64(sbox[k, 1]), np.int64(sbox[k, 2]),
+            np.int64(sbox[k, 3]))
+
+
+@njit(**IJIT)
+def _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront, sarea):
     """Set up one binned item as a counter-clockwise triangle: its snapped positions (coverage),
-    unsnapped positions (interpolation), depths, 1/w, doubled snapped area, face, facing, piece
-    (−1 for an unclipped face) and pixel bounding box."""
+    unsnapped positions (interpolation), depths, 1/w, doubled snapped area, face, facing and
+    piece (−1 for an unclipped face)."""
     if item >= 0:
         a, b, d = f[item, 0], f[item, 1], f[item, 2]
         x0, y0, x1, y1, x2, y2 = vX[a], vY[a], vX[b], vY[b], vX[d], vY[d]
@@ -150,17 +161,17 @@ def _load(item, f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
         return (x0, y0, x1, y1, x2, y2,
                 np.float64(vXf[a]), np.float64(vYf[a]), np.float64(vXf[b]), np.float64(vYf[b]),
                 np.float64(vXf[d]), np.float64(vYf[d]),
-                vZ[a], vZ[b], vZ[d], vIW[a], vIW[b], vIW[d], area, item, front, -1, fbox[item])
+                vZ[a], vZ[b], vZ[d], vIW[a], vIW[b], vIW[d], area, item, front, -1)
     k = -item - 1
     return (np.int64(sX[k, 0]), np.int64(sY[k, 0]), np.int64(sX[k, 1]), np.int64(sY[k, 1]),
             np.int64(sX[k, 2]), np.int64(sY[k, 2]),
             np.float64(sXf[k, 0]), np.float64(sYf[k, 0]), np.float64(sXf[k, 1]),
             np.float64(sYf[k, 1]), np.float64(sXf[k, 2]), np.float64(sYf[k, 2]),
             sZ[k, 0], sZ[k, 1], sZ[k, 2], sIW[k, 0], sIW[k, 1], sIW[k, 2], sarea[k], sprim[k],
-            sfront[k], k, sbox[k])
+            sfront[k], k)
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2):
     """1 / doubled area of the unsnapped triangle, or 0 when snapping flipped or flattened it
     (then the snapped edge functions interpolate)."""
@@ -168,7 +179,7 @@ def _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2):
     return 1.0 / a if a > 0.0 else 0.0
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y, e0, e1, e2, inv_area):
     """Screen-space barycentrics of pixel (x, y): from the **unsnapped** positions at the pixel
     centre, as Mesa sets up its attribute planes (snapping decides coverage only)."""
@@ -182,7 +193,7 @@ def lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y, e0, e1, e2, inv_area):
     return np.float64(e0) * inv_area, np.float64(e1) * inv_area, np.float64(e2) * inv_area
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def _edge(xa, ya, xb, yb, bits, rule, px, py):
     """Edge a→b: (value at pixel (px, py) minus bias, step in x, step in y, bias)."""
     dx = xb - xa
@@ -196,9 +207,28 @@ def _edge(xa, ya, xb, yb, bits, rule, px, py):
     return e, -(dy << bits), dx << bits, bias
 
 
-@njit(**JIT)
-def fragment_depth(z0, z1, z2, l0, l1, l2):
-    z = l0 * np.float64(z0) + l1 * np.float64(z1) + l2 * np.float64(z2)
+@njit(**IJIT)
+def depth_plane(fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, inv_af):
+    """Gradient ``(dz/dx, dz/dy)`` of the window-depth plane through the unsnapped vertices."""
+    if inv_af <= 0.0:
+        return 0.0, 0.0
+    a = np.float64(z1) - np.float64(z0)
+    b = np.float64(z2) - np.float64(z0)
+    return ((a * (fy2 - fy0) - b * (fy1 - fy0)) * inv_af,
+            (b * (fx1 - fx0) - a * (fx2 - fx0)) * inv_af)
+
+
+@njit(**IJIT)
+def fragment_depth(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, x, y, e0, e1, e2, inv_area):
+    """Window depth at the centre of pixel (x, y): the plane through the unsnapped vertices,
+    ``z0 + dz/dx·(x + ½ − x0) + dz/dy·(y + ½ − y0)`` (the snapped edge functions' barycentrics
+    when snapping flattened the triangle), clamped to [0, 1], rounded to float32."""
+    if inv_af > 0.0:
+        z = np.float64(z0) + dzdx * ((np.float64(x) + 0.5) - fx0) \
+            + dzdy * ((np.float64(y) + 0.5) - fy0)
+    else:
+        z = (np.float64(e0) * inv_area * np.float64(z0) + np.float64(e1) * inv_area
+             * np.float64(z1) + np.float64(e2) * inv_area * np.float64(z2))
     if z < 0.0:
         z = 0.0
     elif z > 1.0:
@@ -206,7 +236,7 @@ def fragment_depth(z0, z1, z2, l0, l1, l2):
     return np.float32(z)
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, out, o):
     q0 = l0 * iw0
     q1 = l1 * iw1
@@ -242,21 +272,23 @@ def _stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, 
         ty1 = min(ty0 + TILE, height) - 1
         o = offsets[tile]
         for j in range(starts[tile], starts[tile + 1]):
-            (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2,
-             area, prim, front, piece, box) = _load(lists[j], f, vX, vY, vZ, vIW, vXf, vYf,
-                                                    fbox, sX, sY, sZ, sIW, sXf, sYf, sprim,
-                                                    sfront, sbox, sarea)
-            bx0 = max(np.int64(box[0]), tx0)
-            bx1 = min(np.int64(box[1]), tx1)
-            by0 = max(np.int64(box[2]), ty0)
-            by1 = min(np.int64(box[3]), ty1)
+            item = lists[j]
+            bx0, bx1, by0, by1 = _box(item, fbox, sbox)
+            bx0 = max(bx0, tx0)
+            bx1 = min(bx1, tx1)
+            by0 = max(by0, ty0)
+            by1 = min(by1, ty1)
             if bx0 > bx1 or by0 > by1:
                 continue
+            (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2,
+             area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
+                                               sIW, sXf, sYf, sprim, sfront, sarea)
             r0, sx0, sy0, b0 = _edge(x1, y1, x2, y2, bits, rule, bx0, by0)
             r1, sx1, sy1, b1 = _edge(x2, y2, x0, y0, bits, rule, bx0, by0)
             r2, sx2, sy2, b2 = _edge(x0, y0, x1, y1, bits, rule, bx0, by0)
             inv_area = 1.0 / np.float64(area)
             inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
+            dzdx, dzdy = depth_plane(fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, inv_af)
             for y in range(by0, by1 + 1):
                 e0, e1, e2 = r0, r1, r2
                 row = (height - 1 - y) * width
@@ -266,9 +298,11 @@ def _stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, 
                             o_pixel[o] = row + x
                             o_prim[o] = prim
                             o_front[o] = front
+                            o_depth[o] = fragment_depth(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af,
+                                                        x, y, e0 + b0, e1 + b1, e2 + b2,
+                                                        inv_area)
                             l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
                                                  e0 + b0, e1 + b1, e2 + b2, inv_area)
-                            o_depth[o] = fragment_depth(z0, z1, z2, l0, l1, l2)
                             fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary, o)
                         o += 1
                     e0 += sx0
@@ -326,33 +360,34 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
         zbuf = np.full((TILE, TILE), clear, np.float32)
         win = np.full((TILE, TILE), -1, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
-            (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2,
-             area, prim, front, piece, box) = _load(lists[j], f, vX, vY, vZ, vIW, vXf, vYf,
-                                                    fbox, sX, sY, sZ, sIW, sXf, sYf, sprim,
-                                                    sfront, sbox, sarea)
-            bx0 = max(np.int64(box[0]), tx0)
-            bx1 = min(np.int64(box[1]), tx1)
-            by0 = max(np.int64(box[2]), ty0)
-            by1 = min(np.int64(box[3]), ty1)
+            item = lists[j]
+            bx0, bx1, by0, by1 = _box(item, fbox, sbox)
+            bx0 = max(bx0, tx0)
+            bx1 = min(bx1, tx1)
+            by0 = max(by0, ty0)
+            by1 = min(by1, ty1)
             if bx0 > bx1 or by0 > by1:
                 continue
+            (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2,
+             area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
+                                               sIW, sXf, sYf, sprim, sfront, sarea)
             r0, sx0, sy0, b0 = _edge(x1, y1, x2, y2, bits, rule, bx0, by0)
             r1, sx1, sy1, b1 = _edge(x2, y2, x0, y0, bits, rule, bx0, by0)
             r2, sx2, sy2, b2 = _edge(x0, y0, x1, y1, bits, rule, bx0, by0)
             inv_area = 1.0 / np.float64(area)
             inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
+            dzdx, dzdy = depth_plane(fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, inv_af)
             for y in range(by0, by1 + 1):
                 e0, e1, e2 = r0, r1, r2
                 ly = y - ty0
                 for x in range(bx0, bx1 + 1):
                     if e0 >= 0 and e1 >= 0 and e2 >= 0:
-                        l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
-                                             e0 + b0, e1 + b1, e2 + b2, inv_area)
-                        z = fragment_depth(z0, z1, z2, l0, l1, l2)
+                        z = fragment_depth(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, x, y,
+                                           e0 + b0, e1 + b1, e2 + b2, inv_area)
                         lx = x - tx0
                         if depth_test(func, z, zbuf[ly, lx]):
                             zbuf[ly, lx] = z
-                            win[ly, lx] = lists[j]
+                            win[ly, lx] = item
                     e0 += sx0
                     e1 += sx1
                     e2 += sx2
@@ -368,9 +403,9 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                     o_prim[row, x] = -1
                     continue
                 (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
-                 iw2, area, prim, front, piece, box) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf,
-                                                             fbox, sX, sY, sZ, sIW, sXf, sYf,
-                                                             sprim, sfront, sbox, sarea)
+                 iw2, area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX,
+                                                        sY, sZ, sIW, sXf, sYf, sprim, sfront,
+                                                        sarea)
                 o_prim[row, x] = prim
                 o_front[row, x] = front
                 e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
