@@ -5,8 +5,8 @@
 Cases (1024×768): icospheres of 81,920 and 1,310,720 faces and the crank. refraster renders the
 full G-buffer (``refraster.render``: depth, eye depth, normal, ids, facing, barycentrics, colour)
 with 2 threads and with 1; llvmpipe renders depth + normal + id + facing in its own process
-with ``LP_NUM_THREADS`` = 2 or 1 and ``GLIBC_TUNABLES=glibc.malloc.trim_threshold=4294967296``,
-timed as draw + glFinish + read-back into reused arrays. Compile time is reported apart (the
+with ``LP_NUM_THREADS`` = 2 or 1, timed as draw + glFinish + read-back into reused arrays.
+Both run in processes of their own with the same ``GLIBC_TUNABLES`` (:data:`TUNED`). Compile time is reported apart (the
 first call in a fresh cache directory minus a steady-state call), and the stage breakdown of one
 frame (vertex, setup, binning + rasterization + resolve, G-buffer) follows the table. Peak memory
 of the 1.3M-face frame and of a 4096×4096 frame is measured with tracemalloc.
@@ -28,7 +28,10 @@ import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 W, H = 1024, 768
-TUNED = "glibc.malloc.trim_threshold=4294967296"
+#: Both renderers run in processes of their own with the same glibc malloc tuning: freed frame
+#: buffers stay mapped, so a new frame's outputs are not page-faulted in again (for llvmpipe
+#: ../shared/LLVMPIPE.md measured ~40 %; for refraster's fresh output arrays about the same).
+TUNED = "glibc.malloc.trim_threshold=4294967296:glibc.malloc.mmap_threshold=33554432"
 
 
 def _cases(quick):
@@ -72,7 +75,7 @@ for _ in range({repeats}):
     t0 = time.perf_counter(); frame(); ts.append((time.perf_counter() - t0) * 1e3)
 print(json.dumps(dict(median_ms=float(np.median(ts)), times_ms=ts)))
 """
-    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), GLIBC_TUNABLES=TUNED)
     r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                        cwd=ROOT, timeout=1800)
     if r.returncode != 0:
@@ -162,7 +165,8 @@ def main(argv=None):
                              gl["median_ms"] if gl else float("nan")))
             stage_rows.append((name, _stages(mesh, view, proj, a.repeats)))
         big = _cases(False)[1][1] if not a.quick else None
-    print(f"refraster {W}x{H} G-buffer vs llvmpipe (median ms/frame, {a.repeats} repeats)")
+    print(f"refraster {W}x{H} G-buffer vs llvmpipe (median ms/frame, {a.repeats} repeats; "
+          f"both processes with GLIBC_TUNABLES={TUNED})")
     print(f"{'case':22} {'faces':>9} {'thr':>3} {'refraster':>10} {'llvmpipe':>9} {'ratio':>6}"
           f" {'Mtri/s':>7} {'Mpx/s':>7}")
     for name, faces, thr, ms, gl in rows:

@@ -11,7 +11,9 @@ Coverage
     y-up window space) or a **bottom** edge (``dy = 0, dx > 0``), as the picture is seen;
     ``"top-left"`` (Direct3D's rule as the picture is seen) owns left and top edges. The tie
     rule is a bias of 0 or 1 subtracted from ``E_k`` so the test is ``E_k − bias ≥ 0`` in exact
-    int64 arithmetic, stepped incrementally across the tile.
+    int64 arithmetic. Each row's exact span (where all three are ≥ 0) is solved for first, so
+    the scan skips the bounding box's empty corners (long slivers cost their area, not their
+    box); values inside the span are stepped incrementally.
 
 Interpolation (identical formulas in the fragment-stream and fused paths)
     Snapping decides coverage only; attributes are interpolated from the **unsnapped** float32
@@ -208,6 +210,30 @@ def _edge(xa, ya, xb, yb, bits, rule, px, py):
 
 
 @njit(**IJIT)
+def _span1(r, sx, lo, hi):
+    """Narrow [lo, hi] (offsets from the row's first pixel) to where r + sx·k ≥ 0."""
+    if sx > 0:
+        if r < 0:
+            lo = max(lo, -(r // sx))          # ceil(−r / sx)
+    elif sx < 0:
+        if r < 0:
+            return lo, lo - 1
+        hi = min(hi, r // (-sx))              # floor(r / −sx)
+    elif r < 0:
+        return lo, lo - 1
+    return lo, hi
+
+
+@njit(**IJIT)
+def row_span(r0, sx0, r1, sx1, r2, sx2, n):
+    """Offsets ``[a, b]`` within a row of ``n`` pixels where all three (biased) edge functions
+    are ≥ 0: the row's exact span, so the scan skips the bounding box's empty corners."""
+    a, b = _span1(r0, sx0, 0, n - 1)
+    a, b = _span1(r1, sx1, a, b)
+    return _span1(r2, sx2, a, b)
+
+
+@njit(**IJIT)
 def depth_plane(fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, inv_af):
     """Gradient ``(dz/dx, dz/dy)`` of the window-depth plane through the unsnapped vertices."""
     if inv_af <= 0.0:
@@ -290,9 +316,12 @@ def _stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, 
             inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
             dzdx, dzdy = depth_plane(fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, inv_af)
             for y in range(by0, by1 + 1):
-                e0, e1, e2 = r0, r1, r2
+                a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
+                e0 = r0 + sx0 * a
+                e1 = r1 + sx1 * a
+                e2 = r2 + sx2 * a
                 row = (height - 1 - y) * width
-                for x in range(bx0, bx1 + 1):
+                for x in range(bx0 + a, bx0 + b + 1):
                     if e0 >= 0 and e1 >= 0 and e2 >= 0:
                         if write:
                             o_pixel[o] = row + x
@@ -378,9 +407,12 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
             inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
             dzdx, dzdy = depth_plane(fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, inv_af)
             for y in range(by0, by1 + 1):
-                e0, e1, e2 = r0, r1, r2
+                a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
+                e0 = r0 + sx0 * a
+                e1 = r1 + sx1 * a
+                e2 = r2 + sx2 * a
                 ly = y - ty0
-                for x in range(bx0, bx1 + 1):
+                for x in range(bx0 + a, bx0 + b + 1):
                     if e0 >= 0 and e1 >= 0 and e2 >= 0:
                         z = fragment_depth(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, x, y,
                                            e0 + b0, e1 + b1, e2 + b2, inv_area)
