@@ -92,3 +92,64 @@ def _clip_decision_may(draws, camera, clip, cap_mask):
     eps = edge_epsilon(camera.width, camera.height)
     res = resolve(frags, keep=g >= 0)
     return decision_may(frags, res, g / scale, 1.5 * eps) | dilate(cap_mask, 1)
+
+
+@register_scene("ldi_nested_shells", technique="ldi",
+                description="Layered depth image of the nested shells by classic depth peeling "
+                            "(Trapp & Döllner Sec. 5.2): per-layer window depth, primitive id "
+                            "and facing, stacked along the last axis (layer 0 = nearest), and the "
+                            "layer count.")
+def _ldi_nested_shells():
+    from ..ldi import peel
+    from ..scenes import solid
+    state = raster_state({})
+    draws = prepare_draws([Draw("nested_shells", solid("nested_shells", quick=True))])
+    camera = _framed([d.mesh for d in draws], 96, 72, (1.2, 0.9, 1.6))
+    params = dict(mode="peel", max_layers=None)
+    layers = peel([d.mesh for d in draws], **camera.kwargs, model=[d.model for d in draws],
+                  cull=state["cull"], **params)
+    buffers = {
+        "layer_depth": np.ascontiguousarray(np.moveaxis(layers.depth, 0, -1)),
+        "layer_prim_id": np.ascontiguousarray(np.moveaxis(layers.prim_id, 0, -1)),
+        "layer_front_facing": np.ascontiguousarray(np.moveaxis(layers.front_facing, 0, -1)),
+        "layer_count": np.asarray(layers.count, np.int32),
+    }
+    # a hidden layer changes wherever any triangle's edge passes (every edge is marked by the
+    # technique allowance); the layers' depths are window depths
+    return GoldenScene(technique="ldi", camera=camera, draws=draws, buffers=buffers,
+                       parameters=params, kinds={"layer_depth": "unorm"}, geometry=False)
+
+
+@register_scene("cutaway_shells", technique="cutaway",
+                description="Adaptive cutaway (Burns & Finkelstein): the innermost of the nested "
+                            "shells as the object of interest inside the outer shells, jump "
+                            "flooding variant jfa+1, θ = 30°, perspective compensation, edge "
+                            "compression 0.1, dilation, outlines and ghost lines.")
+def _cutaway_shells():
+    from ..cutaway import render_cutaway
+    from ..scenes import icosphere, solid
+    state = raster_state({})
+    outer = solid("nested_shells", quick=True)
+    inner = icosphere(subdivisions=2, radius=0.3)
+    draws = prepare_draws([Draw("outer_shells", outer), Draw("interest", inner)])
+    camera = _framed([d.mesh for d in draws], 96, 72, (1.2, 0.9, 1.6))
+    params = dict(angle=float(np.pi / 6), variant="jfa+1", perspective_compensation=True,
+                  edge_compression=0.1, dilation=True, outlines=True, interest=["interest"],
+                  secondary=["outer_shells"])
+    fb = render_cutaway([draws[1].mesh], [draws[0].mesh], **camera.kwargs,
+                        angle=params["angle"], variant=params["variant"],
+                        perspective_compensation=params["perspective_compensation"],
+                        edge_compression=params["edge_compression"],
+                        dilation=params["dilation"], outlines=params["outlines"])
+    buffers = {**fb.arrays(), "cutaway_depth": fb.cutaway_depth, "cut_mask": fb.cut_mask,
+               "ghost": fb.ghost}
+    # the cut decision z < D(x) is free within a pixel of where the cut region changes
+    cut = np.asarray(fb.cut_mask, np.bool_)
+    edge = np.zeros_like(cut)
+    edge[1:, :] |= cut[1:, :] != cut[:-1, :]
+    edge[:-1, :] |= cut[1:, :] != cut[:-1, :]
+    edge[:, 1:] |= cut[:, 1:] != cut[:, :-1]
+    edge[:, :-1] |= cut[:, 1:] != cut[:, :-1]
+    return GoldenScene(technique="cutaway", camera=camera, draws=draws, buffers=buffers,
+                       parameters=params, kinds={"cutaway_depth": "unorm", "ghost": "unorm"},
+                       geometry=False, may=edge, may_radius=2)
