@@ -104,7 +104,7 @@ def _ldi_nested_shells():
     from ..scenes import solid
     state = raster_state({})
     draws = prepare_draws([Draw("nested_shells", solid("nested_shells", quick=True))])
-    camera = _framed([d.mesh for d in draws], 96, 72, (1.2, 0.9, 1.6))
+    camera = _framed([d.mesh for d in draws], 256, 192, (1.2, 0.9, 1.6))
     params = dict(mode="peel", max_layers=None)
     layers = peel([d.mesh for d in draws], **camera.kwargs, model=[d.model for d in draws],
                   cull=state["cull"], **params)
