@@ -308,7 +308,9 @@ def smooth_threshold(tone, threshold, *, softness=0.1):
         raise ValueError(f"tone {i.shape} and threshold {t.shape} do not broadcast") from None
     if eps == 0.0:
         return (diff > 0.0).astype(np.float32)
-    return np.clip(diff / eps + 0.5, 0.0, 1.0).astype(np.float32)
+    # a tiny (even subnormal) ramp overflows to ±inf, which the clamp turns into the hard step
+    with np.errstate(over="ignore"):
+        return np.clip(diff / eps + 0.5, 0.0, 1.0).astype(np.float32)
 
 
 def hatching(normal, *, light=DEFAULT_LIGHT, strokes=None, softness=0.1, ambient=0.15,
