@@ -245,7 +245,8 @@ def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps
     win = res.winner
     covered = win >= 0
     winz = res.depth.astype(np.float64)
-    vis_prim = np.where(covered, prim[np.maximum(win, 0)], -1)
+    vis_prim = (np.where(covered, prim[np.maximum(win, 0)], -1) if len(prim)
+                else np.full(win.shape, -1, np.int64))
     p = prep.triangles
     face_front = _face_facing(p)
     fslack = _face_depth_slack(p, depth_eps)
@@ -275,7 +276,8 @@ def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps
     g = np.maximum(_depth_step(res.depth, vis_prim), _plane_gradient(p, vis_prim))
     # moving the vertices by up to eps moves the plane's depth at a pixel by up to |∇z|·eps
     # (first order; 1.5× for the second-order terms)
-    slack = np.where(vis_prim >= 0, fslack[np.maximum(vis_prim, 0)], depth_eps) + 1.5 * g * eps
+    base = fslack[np.maximum(vis_prim, 0)] if len(fslack) else np.full(vis_prim.shape, depth_eps)
+    slack = np.where(vis_prim >= 0, base, depth_eps) + 1.5 * g * eps
     lo = np.where(covered, res.depth - slack, 0.0).astype(np.float32)
     hi = np.where(covered, res.depth + slack, 1.0).astype(np.float32)
     lo[id_may] = 0.0

@@ -1,4 +1,4 @@
-"""Golden scenes of the layered-depth-image and cutaway techniques (issue 10)."""
+"""Golden scenes of the layered-depth-image, cutaway and 4D-halo techniques (issue 10)."""
 
 import numpy as np
 import pytest
@@ -8,7 +8,7 @@ from refraster.golden.generate import generate
 
 from test_golden import candidate_from
 
-SCENES = ["ldi_nested_shells", "cutaway_shells"]
+SCENES = ["ldi_nested_shells", "cutaway_shells", "halos4d_figure1"]
 
 
 @pytest.fixture(scope="module")
@@ -23,6 +23,10 @@ def test_generate_and_self_compare(gold):
     assert sorted(m["scenes"]) == sorted(SCENES)
     assert {"layer_depth", "layer_prim_id", "layer_count"} <= set(m["scenes"]["ldi_nested_shells"]["buffers"])
     assert {"cutaway_depth", "cut_mask", "ghost"} <= set(m["scenes"]["cutaway_shells"]["buffers"])
+    assert {"color", "alpha"} <= set(m["scenes"]["halos4d_figure1"]["buffers"])
+    # the 4D surface travels in the package as exact .npy maps
+    assert (gold / "halos4d_figure1" / "package" / "maps" / "surface_vertices4d.npy").exists() \
+        or any(p.name == "surface_vertices4d.npy" for p in (gold / "halos4d_figure1").rglob("*"))
     for mode in ("exact", "tolerant"):
         result = compare(gold, gold, mode=mode)
         assert result.exit_code == 0, result.summary()

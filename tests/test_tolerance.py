@@ -114,3 +114,8 @@ def test_decision_may():
     assert may.sum() > 0 and np.ptp(rows) <= 6     # a thin band around the plane y = 0
     with pytest.raises(ValueError, match="decision"):
         decision_may(frags, res, y[:-1], 0.02)
+
+
+def test_empty_scene_must_not_be_covered():
+    tol = tolerance([], **KW)
+    assert np.all(tol.coverage == MUST_NOT) and not tol.id_may.any()

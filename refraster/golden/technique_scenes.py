@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..camera import Camera
 from .scenes import Draw, GoldenScene, _framed, prepare_draws, raster_state, register_scene, \
     render_draws
 
@@ -153,3 +154,41 @@ def _cutaway_shells():
     return GoldenScene(technique="cutaway", camera=camera, draws=draws, buffers=buffers,
                        parameters=params, kinds={"cutaway_depth": "unorm", "ghost": "unorm"},
                        geometry=False, may=edge, may_radius=2)
+
+
+@register_scene("halos4d_figure1", technique="halos4d",
+                description="Volumetric halos for surfaces in 4D (Wang et al., Fig. 1): a white "
+                            "square patch at w = 0 crossed by five coloured patches at w = 0.1 … "
+                            "0.5, turned in the zx and yz planes, 48 slices, composited colour and "
+                            "accumulated opacity. The 4D surface travels as maps (vertices (V, 4), "
+                            "faces, per-vertex tangents and colours), the rotation as a parameter.")
+def _halos4d_figure1():
+    from ..camera import orthographic
+    from ..halos4d import compose, figure1_scene, render_halos
+    surface = figure1_scene(n=12)
+    rot = compose(("zx", 0.5), ("yz", -1.0))
+    params = dict(rotation=rot.tolist(), projection="orthographic", slices=48, delta_t=0.3,
+                  surface_width=0.3, opacity=0.9, halos=True, margin=0.05, width=128,
+                  height=128, background=[0.0, 0.0, 0.0])
+    out = render_halos(surface, rotation=rot, projection="orthographic", width=128, height=128,
+                       slices=48, delta_t=0.3, surface_width=0.3, opacity=0.9, halos=True)
+    params["rho"] = out.stats.get("rho") if isinstance(out.stats.get("rho"), float) else None
+    params["screen_bounds"] = np.asarray(out.bounds).tolist()
+    camera = Camera(np.eye(4), orthographic(-1, 1, -1, 1, -1, 1), 128, 128)
+    # slicing moves a surface's boundary by up to a slice spacing: every pixel where the
+    # opacity changes between neighbours may differ
+    a = np.asarray(out.alpha, np.float64)
+    edge = np.zeros(a.shape, np.bool_)
+    step = 0.02
+    edge[1:, :] |= np.abs(a[1:, :] - a[:-1, :]) > step
+    edge[:-1, :] |= np.abs(a[1:, :] - a[:-1, :]) > step
+    edge[:, 1:] |= np.abs(a[:, 1:] - a[:, :-1]) > step
+    edge[:, :-1] |= np.abs(a[:, 1:] - a[:, :-1]) > step
+    maps = {"surface_vertices4d": surface.vertices, "surface_faces": surface.faces,
+            "surface_tangents": surface.tangents.reshape(len(surface.vertices), 8),
+            "surface_colors": surface.colors}
+    return GoldenScene(technique="halos4d", camera=camera, draws=[],
+                       buffers={"color": np.asarray(out.image, np.float32),
+                                "alpha": np.asarray(out.alpha, np.float32)},
+                       parameters=params, maps=maps, kinds={"alpha": "unorm"},
+                       geometry=False, may=edge, may_radius=1)

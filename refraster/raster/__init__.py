@@ -30,7 +30,7 @@ def _subpixel_bits(bits):
 
 
 def _models(model, n):
-    if model is None:
+    if model is None or (n == 0 and isinstance(model, (list, tuple)) and len(model) == 0):
         return [np.eye(4)] * n
     arr = np.asarray(model, dtype=object if isinstance(model, (list, tuple)) else None)
     if isinstance(model, (list, tuple)) and len(model) == n and n and np.ndim(model[0]) == 2:
