@@ -21,6 +21,7 @@ noise) evaluated at the world position.
 
 from __future__ import annotations
 
+import hashlib
 import math
 
 import numpy as np
@@ -40,6 +41,19 @@ MAX_CAP_VERTICES = 1 << 23
 CAP_STYLES = ("diffuse", "hatch", "marble", "wood", "noise")
 
 
+#: Content digests of meshes already found watertight (rendering the same solid frame after
+#: frame checks it once; the digest covers every byte of the vertices and faces).
+_WATERTIGHT = set()
+
+
+def _digest(v, f):
+    h = hashlib.blake2b(digest_size=16)
+    for a in (np.ascontiguousarray(v), np.ascontiguousarray(f)):
+        h.update(str((a.dtype, a.shape)).encode())
+        h.update(a.data)
+    return h.digest()
+
+
 def check_watertight(mesh, name="mesh"):
     """Raise ``ValueError`` unless ``mesh`` is closed: after merging vertices at equal
     positions, every undirected edge must be shared by exactly two faces.
@@ -47,6 +61,9 @@ def check_watertight(mesh, name="mesh"):
     Capping needs a closed solid: the parity test is meaningless for an open surface.
     """
     v, f = mesh.vertices, mesh.faces
+    key = _digest(v, f)
+    if key in _WATERTIGHT:
+        return
     if f.shape[0] == 0:
         raise ValueError(f"{name} has no faces; caps need a closed (watertight) solid")
     # merge vertices at bit-equal positions; 1D keys keep the sorts cheap on large meshes
@@ -60,6 +77,9 @@ def check_watertight(mesh, name="mesh"):
         raise ValueError(
             f"{name} is not watertight: {bad} edge(s) are not shared by exactly two faces; "
             "caps need a closed solid (render with caps=False, or repair the mesh)")
+    if len(_WATERTIGHT) > 64:
+        _WATERTIGHT.clear()
+    _WATERTIGHT.add(key)
 
 
 def _bounds_slab(surface, bounds):
