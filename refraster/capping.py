@@ -30,7 +30,7 @@ from numba import njit, prange
 from ._config import JIT, PJIT
 from ._validate import as_choice, as_float_array, as_real
 from .mesh import Mesh
-from .offsetmaps import WRAP_MODES, _texture2d_linear, _wrap_texel, sample
+from .offsetmaps import WRAP_MODES, _wrap_texel, sample
 
 __all__ = ["CAP_STYLES", "check_watertight", "cap_mesh", "exact_caps", "shade_caps",
            "solid_texture", "MAX_CAP_VERTICES"]

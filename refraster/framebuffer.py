@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._validate import as_choice, as_float_array, as_real
-from .mesh import face_normals, vertex_normals
+from .mesh import vertex_normals
 from .raster import DEPTH_FUNCS, Fragments, prepare, resolve
 from .raster.fragments import _interpolate
 from .raster.gbuffer import finalize

@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["atomic_write_bytes", "write_png", "write_npz", "write_json", "to_uint8"]
+__all__ = ["atomic_write_bytes", "write_png", "write_npz", "write_json", "to_uint8", "npy_bytes",
+           "npz_bytes"]
 
 
 def atomic_write_bytes(path, data: bytes):
@@ -61,23 +62,37 @@ def write_png(path, image):
     return atomic_write_bytes(path, buf.getvalue())
 
 
+def npy_bytes(array):
+    """``.npy`` bytes of ``array`` (never pickled; 0-d arrays stay 0-d)."""
+    a = np.asarray(array)
+    if a.dtype == object:
+        raise TypeError("an array of dtype object cannot be stored without pickle")
+    buf = io.BytesIO()
+    np.lib.format.write_array(buf, a if a.flags.c_contiguous else a.copy(order="C"),
+                              allow_pickle=False)
+    return buf.getvalue()
+
+
 def npz_bytes(arrays):
-    """A compressed ``.npz`` as bytes, identical for identical arrays (fixed member timestamps,
-    sorted names; no object arrays, so it loads without pickle)."""
+    """A compressed ``.npz`` of ``arrays`` whose bytes depend on the arrays only.
+
+    ``numpy.savez_compressed`` stamps each member with the current time, so two runs would hash
+    differently; here every member has the zip epoch (1980-01-01), mode 0644, and names are
+    sorted. No object arrays: the file loads without pickle.
+    """
     import zipfile
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
         for name in sorted(arrays):
-            a = np.asarray(arrays[name])
-            if a.dtype == object:
-                raise TypeError(f"array {name!r} has dtype object and cannot be stored without "
-                                "pickle")
-            member = io.BytesIO()
-            np.lib.format.write_array(member, a if a.flags.c_contiguous else a.copy(order="C"),
-                                    allow_pickle=False)
+            try:
+                data = npy_bytes(arrays[name])
+            except TypeError:
+                raise TypeError(f"array {name!r} has dtype object and cannot be stored "
+                                "without pickle") from None
             info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
             info.compress_type = zipfile.ZIP_DEFLATED
-            zf.writestr(info, member.getvalue())
+            info.external_attr = 0o644 << 16
+            zf.writestr(info, data)
     return buf.getvalue()
 
 

@@ -1,6 +1,5 @@
 """The foundation: vertex/primitive stages, rasterizer, fragment stream, resolve, G-buffer."""
 
-import hashlib
 import os
 import subprocess
 import sys
@@ -11,7 +10,7 @@ import trimesh
 from hypothesis import given, settings, strategies as st
 
 import refraster as rf
-from refraster.raster.primitive import setup_triangles, transform_vertices
+from refraster.raster.primitive import transform_vertices
 from refraster.raster.rasterizer import DEPTH_FUNCS, fused, stream
 
 import naive

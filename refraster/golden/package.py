@@ -14,13 +14,12 @@ Vertices are float32 in the PLY and the golden was rendered from exactly those v
 from __future__ import annotations
 
 import hashlib
-import io
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from .. import io as rio
+from ..io import npy_bytes, npz_bytes
 from ..camera import is_perspective, near_far
 from ..framebuffer import PALETTE
 from ..raster.gbuffer import AMBIENT, DIFFUSE, SHININESS, SPECULAR
@@ -32,33 +31,6 @@ __all__ = ["export_package", "scene_document", "npz_bytes", "npy_bytes", "sha256
 #: The shading of :attr:`refraster.Framebuffer.color` as numbers (``scene.json`` "shading").
 SHADING = dict(model="headlight", ambient=AMBIENT, diffuse=DIFFUSE, specular=SPECULAR,
                shininess=SHININESS, palette=PALETTE.tolist())
-
-
-def npy_bytes(array):
-    """``.npy`` bytes of ``array`` (never pickled)."""
-    buf = io.BytesIO()
-    np.lib.format.write_array(buf, np.ascontiguousarray(array), allow_pickle=False)
-    return buf.getvalue()
-
-
-def npz_bytes(arrays):
-    """A compressed ``.npz`` of ``arrays`` whose bytes depend on the arrays only.
-
-    ``numpy.savez_compressed`` stamps each member with the current time, so two runs would hash
-    differently; here every member has the zip epoch (1980-01-01) and keys are sorted.
-    """
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
-        for key in sorted(arrays):
-            a = np.asarray(arrays[key])
-            if a.dtype == object:
-                raise TypeError(f"array {key!r} has dtype object and cannot be stored "
-                                "without pickle")
-            info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            info.compress_type = zipfile.ZIP_DEFLATED
-            info.external_attr = 0o644 << 16
-            zf.writestr(info, npy_bytes(a))
-    return buf.getvalue()
 
 
 def sha256_file(path):

@@ -129,7 +129,6 @@ def _ldi_nested_shells():
 def _cutaway_shells():
     from ..cutaway import render_cutaway
     from ..scenes import icosphere, solid
-    state = raster_state({})
     outer = solid("nested_shells", quick=True)
     inner = icosphere(subdivisions=2, radius=0.3)
     draws = prepare_draws([Draw("outer_shells", outer), Draw("interest", inner)])

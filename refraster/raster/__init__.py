@@ -12,7 +12,7 @@ from .._validate import as_choice, as_float_array, as_image_size, as_index_array
 from ..mesh import as_meshes
 from .fragments import Fragments, concat
 from .primitive import CULL, FILL_RULES, setup_triangles, transform_vertices
-from .rasterizer import DEPTH_FUNCS, fused, stream
+from .rasterizer import DEPTH_FUNCS, stream
 from .resolve import Resolved, resolve
 
 __all__ = ["draw", "rasterize", "resolve", "Fragments", "Resolved", "concat", "DEPTH_FUNCS",

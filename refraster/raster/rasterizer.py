@@ -40,7 +40,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .._config import IJIT, JIT, PJIT
+from .._config import IJIT, PJIT
 from .primitive import CLIPPED, SIMPLE
 
 TILE_SHIFT = 5
