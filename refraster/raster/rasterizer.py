@@ -283,6 +283,25 @@ def fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, out, o):
                                 + q2 * B[piece, 2, j]) / s)
 
 
+@njit(**IJIT)
+def _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront, sarea,
+           bits, rule, px, py):
+    """Everything the tile loops need of one binned triangle: its three edge functions at pixel
+    (px, py) with their steps and biases, unsnapped positions, depths, 1/w, face, facing, piece,
+    1/area (snapped and unsnapped) and the depth plane's gradient."""
+    (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2,
+     area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
+                                       sIW, sXf, sYf, sprim, sfront, sarea)
+    r0, sx0, sy0, b0 = _edge(x1, y1, x2, y2, bits, rule, px, py)
+    r1, sx1, sy1, b1 = _edge(x2, y2, x0, y0, bits, rule, px, py)
+    r2, sx2, sy2, b2 = _edge(x0, y0, x1, y1, bits, rule, px, py)
+    inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
+    dzdx, dzdy = depth_plane(fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, inv_af)
+    return (r0, sx0, sy0, b0, r1, sx1, sy1, b1, r2, sx2, sy2, b2, fx0, fy0, fx1, fy1, fx2, fy2,
+            z0, z1, z2, iw0, iw1, iw2, prim, front, piece, 1.0 / np.float64(area), inv_af, dzdx,
+            dzdy)
+
+
 # ------------------------------------------------------------------------------ kernels
 
 @njit(**PJIT)
@@ -306,15 +325,10 @@ def _stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, 
             by1 = min(by1, ty1)
             if bx0 > bx1 or by0 > by1:
                 continue
-            (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2,
-             area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
-                                               sIW, sXf, sYf, sprim, sfront, sarea)
-            r0, sx0, sy0, b0 = _edge(x1, y1, x2, y2, bits, rule, bx0, by0)
-            r1, sx1, sy1, b1 = _edge(x2, y2, x0, y0, bits, rule, bx0, by0)
-            r2, sx2, sy2, b2 = _edge(x0, y0, x1, y1, bits, rule, bx0, by0)
-            inv_area = 1.0 / np.float64(area)
-            inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
-            dzdx, dzdy = depth_plane(fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, inv_af)
+            (r0, sx0, sy0, b0, r1, sx1, sy1, b1, r2, sx2, sy2, b2, fx0, fy0, fx1, fy1, fx2, fy2,
+             z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx,
+             dzdy) = _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
+                            sfront, sarea, bits, rule, bx0, by0)
             for y in range(by0, by1 + 1):
                 a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
                 e0 = r0 + sx0 * a
@@ -397,15 +411,10 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
             by1 = min(by1, ty1)
             if bx0 > bx1 or by0 > by1:
                 continue
-            (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2,
-             area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
-                                               sIW, sXf, sYf, sprim, sfront, sarea)
-            r0, sx0, sy0, b0 = _edge(x1, y1, x2, y2, bits, rule, bx0, by0)
-            r1, sx1, sy1, b1 = _edge(x2, y2, x0, y0, bits, rule, bx0, by0)
-            r2, sx2, sy2, b2 = _edge(x0, y0, x1, y1, bits, rule, bx0, by0)
-            inv_area = 1.0 / np.float64(area)
-            inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
-            dzdx, dzdy = depth_plane(fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, inv_af)
+            (r0, sx0, sy0, b0, r1, sx1, sy1, b1, r2, sx2, sy2, b2, fx0, fy0, fx1, fy1, fx2, fy2,
+             z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx,
+             dzdy) = _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
+                            sfront, sarea, bits, rule, bx0, by0)
             for y in range(by0, by1 + 1):
                 a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
                 e0 = r0 + sx0 * a
