@@ -7,19 +7,11 @@ built once beforehand (the paper's preprocessing step) and timed on its own line
 
 from __future__ import annotations
 
-import statistics
 import time
 
 import numpy as np
 
-
-def _median_ms(fn, repeats):
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append((time.perf_counter() - t) * 1e3)
-    return statistics.median(times)
+from benchmarks._timing import median_ms
 
 
 def main(repeats=5):
@@ -68,7 +60,7 @@ def main(repeats=5):
     base = None
     print(f"{'case':28s} | {'refraster ms':>12s} | {'anchor ms':>10s} | {'ratio':>6s} | compile ms")
     for name, fn in cases:
-        ms = _median_ms(fn, repeats)
+        ms = median_ms(fn, repeats)
         base = base or ms
         print(f"{name:28s} | {ms:12.1f} | {base:10.1f} | {ms / base:6.2f} | "
               f"{max(first[name] - ms, 0.0):.0f}")

@@ -17,24 +17,10 @@ depth), float32, measured in the same run. Compile time = first call minus the m
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 
-
-def _median_ms(fn, repeats):
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append((time.perf_counter() - t0) * 1e3)
-    return float(np.median(times))
-
-
-def _first_ms(fn):
-    t0 = time.perf_counter()
-    fn()
-    return (time.perf_counter() - t0) * 1e3
+from benchmarks._timing import first_ms, median_ms
 
 
 def main(argv=None):
@@ -61,7 +47,7 @@ def main(argv=None):
         return [skimage.filters.sobel(ch) for ch in channels]
 
     anchor()
-    theirs = _median_ms(anchor, repeats)
+    theirs = median_ms(anchor, repeats)
     cases = [
         ("edge_map(gbuffer): normals + depth + ids", lambda: edges.edge_map(gb)),
         ("edge_map(framebuffer): G-buffer build included", lambda: edges.edge_map(fb)),
@@ -76,8 +62,8 @@ def main(argv=None):
           "compile ms |")
     print("|---|---|---|---|---|")
     for name, fn in cases:
-        first = _first_ms(fn)
-        ours = _median_ms(fn, repeats)
+        first = first_ms(fn)
+        ours = median_ms(fn, repeats)
         print(f"| {name} | {ours:.1f} | {theirs:.1f} | {ours / theirs:.2f} | "
               f"{max(first - ours, 0.0):.0f} |")
 

@@ -17,20 +17,7 @@ import time
 
 import numpy as np
 
-
-def _median_ms(fn, repeats):
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append((time.perf_counter() - t0) * 1e3)
-    return float(np.median(times))
-
-
-def _first_ms(fn):
-    t0 = time.perf_counter()
-    fn()
-    return (time.perf_counter() - t0) * 1e3
+from benchmarks._timing import first_ms, median_ms
 
 
 def bench_peel(size, subdivisions, repeats):
@@ -48,8 +35,8 @@ def bench_peel(size, subdivisions, repeats):
     def run():
         return peel(meshes, max_layers=8, **cam)
 
-    first = _first_ms(run)
-    ours = _median_ms(run, repeats)
+    first = first_ms(run)
+    ours = median_ms(run, repeats)
     lay = run()
     mvp = cam["proj"] @ cam["view"]
     draws = [(transform_vertices(v, mvp), f) for v, f in meshes]
@@ -71,12 +58,12 @@ def bench_contains(n_points, n_trimesh, resolution, quick):
     t0 = time.perf_counter()
     vds = VolumetricDepthSprite.from_mesh(mesh, resolution, axis="x")
     build = (time.perf_counter() - t0) * 1e3
-    first = _first_ms(lambda: vds.contains(pts[:10]))
-    ours = _median_ms(lambda: vds.contains(pts), 5)
+    first = first_ms(lambda: vds.contains(pts[:10]))
+    ours = median_ms(lambda: vds.contains(pts), 5)
     sub = pts[:n_trimesh]
     tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
     tm.contains(sub[:10])  # builds trimesh's ray acceleration structure outside the timing
-    theirs = _median_ms(lambda: tm.contains(sub), 3)
+    theirs = median_ms(lambda: tm.contains(sub), 3)
     per_ours = ours / n_points * 1e6
     per_theirs = theirs / n_trimesh * 1e6
     return dict(case=f"contains, crank {len(mesh.faces)} faces, VDS {resolution}² (x)",

@@ -21,10 +21,11 @@ import pathlib
 import subprocess
 import sys
 import tempfile
-import time
 import tracemalloc
 
 import numpy as np
+
+from benchmarks._timing import median_ms
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 W, H = 1024, 768
@@ -48,16 +49,6 @@ def _camera(mesh):
     import refraster as rf
     cam = rf.camera.frame_bounds(mesh.bounds, width=W, height=H, margin=1.0)
     return cam.view, cam.proj
-
-
-def _time(fn, repeats):
-    fn()
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        ts.append((time.perf_counter() - t0) * 1e3)
-    return float(np.median(ts))
 
 
 def _refraster_worker(path, threads, repeats):
@@ -101,16 +92,18 @@ def _stages(mesh, view, proj, repeats):
     from refraster.raster.rasterizer import fused
     m = as_meshes(mesh)[0]
     mvp = proj @ view
-    t_vertex = _time(lambda: transform_vertices(m.vertices, mvp), repeats)
+    t_vertex = median_ms(lambda: transform_vertices(m.vertices, mvp), repeats, warmup=True)
     clip = transform_vertices(m.vertices, mvp).astype(np.float64)
-    t_setup = _time(lambda: setup_triangles(clip, m.faces, W, H), repeats)
+    t_setup = median_ms(lambda: setup_triangles(clip, m.faces, W, H), repeats, warmup=True)
     st = setup_triangles(clip, m.faces, W, H)
-    t_raster = _time(lambda: fused(st), repeats)
+    t_raster = median_ms(lambda: fused(st), repeats, warmup=True)
     depth, prim, front, bary = fused(st)
     offsets = np.array([0, m.n_faces])
-    t_gbuf = _time(lambda: _build([m], [np.eye(4)], view, proj, depth, prim, offsets, front,
-                                  bary.reshape(H, W, 3), None, np.ones(3)), repeats)
-    t_total = _time(lambda: rf.render(m, view=view, proj=proj, width=W, height=H), repeats)
+    t_gbuf = median_ms(lambda: _build([m], [np.eye(4)], view, proj, depth, prim, offsets, front,
+                                      bary.reshape(H, W, 3), None, np.ones(3)), repeats,
+                       warmup=True)
+    t_total = median_ms(lambda: rf.render(m, view=view, proj=proj, width=W, height=H), repeats,
+                        warmup=True)
     return dict(vertex=t_vertex, setup=t_setup, raster=t_raster, gbuffer=t_gbuf, total=t_total,
                 triangles=int((st.status == 1).sum()) + len(st.clipped))
 

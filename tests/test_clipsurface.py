@@ -1,8 +1,5 @@
 """The clip test of 2.5D clip surfaces and relief clip planes (MATH.md §1.1, D1–D8)."""
 
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -11,6 +8,7 @@ from hypothesis import given, settings, strategies as st
 from refraster import offsetmaps as om
 from refraster.camera import look_at
 from refraster.clipsurface import ClipSurface, ReliefClipPlane, clip_function, clip_mask
+from determinism import outputs_by_thread_count
 
 
 def naive_g(p, surface):
@@ -174,9 +172,5 @@ sys.stdout.write(np.packbits(clip_mask(p, cs)).tobytes().hex())
 
 
 def test_deterministic_across_thread_counts():
-    outs = []
-    for threads in ("1", "2", "2"):
-        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
-        outs.append(subprocess.run([sys.executable, "-c", _DETERMINISM], env=env, check=True,
-                                   capture_output=True, text=True).stdout)
+    outs = outputs_by_thread_count(_DETERMINISM)
     assert outs[0] == outs[1] == outs[2] and len(outs[0]) > 1000

@@ -1,8 +1,5 @@
 """Jump flooding of the cutaway function (refraster.cutaway.flood): MATH.md §4.1, D-C1, D-C5."""
 
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -12,6 +9,7 @@ from refraster.cutaway import VARIANTS, chamfer, exact, jump_flood
 from refraster.cutaway.flood import step_schedule
 
 from naive import jump_flood as jump_flood_twin
+from determinism import outputs_by_thread_count
 
 
 def naive(z, m, sampling=(1.0, 1.0), floor_slope=None, floor_normal=None):
@@ -246,12 +244,7 @@ print(hashlib.sha256(b"".join(a.tobytes() + b.tobytes() for a, b in out)).hexdig
 
 
 def test_bit_identical_across_runs_and_threads():
-    digests = set()
-    for threads in ("1", "2", "2"):
-        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
-        res = subprocess.run([sys.executable, "-c", _SCRIPT], env=env, capture_output=True,
-                             text=True, check=True)
-        digests.add(res.stdout.strip())
+    digests = set(outputs_by_thread_count(_SCRIPT))
     assert len(digests) == 1
 
 

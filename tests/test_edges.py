@@ -1,8 +1,5 @@
 """Edge enhancement: G-buffer, discontinuity filters, edge map, object-space classification."""
 
-import os
-import subprocess
-import sys
 from functools import lru_cache
 
 import numpy as np
@@ -12,6 +9,7 @@ from hypothesis import given, settings, strategies as st
 
 import refraster as rf
 from refraster import edges
+from determinism import outputs_by_thread_count
 
 # ---------------------------------------------------------------- NumPy twins (clamp-to-edge)
 
@@ -652,10 +650,5 @@ print(h.hexdigest())
 
 
 def test_deterministic_across_runs_and_thread_counts():
-    digests = set()
-    for threads in ("1", "2", "2"):
-        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
-        out = subprocess.run([sys.executable, "-c", _SCRIPT], env=env, capture_output=True,
-                             text=True, check=True)
-        digests.add(out.stdout.strip())
+    digests = set(outputs_by_thread_count(_SCRIPT))
     assert len(digests) == 1

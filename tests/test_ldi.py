@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import textwrap
 import warnings
 
@@ -17,6 +14,7 @@ from refraster import ldi
 from refraster.ldi import NonWatertightWarning, VolumetricDepthSprite, peel, peel_fragments
 from refraster.scenes import crank, icosphere, nested_shells, torus
 from oracles import scenes as S
+from determinism import outputs_by_thread_count
 
 SCENES = S.random_scenes(26)
 RES = 96
@@ -444,11 +442,6 @@ _SCRIPT = textwrap.dedent("""
 
 
 def test_deterministic_across_runs_and_thread_counts():
-    digests = set()
-    for threads in ("1", "2", "2"):
-        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
-        out = subprocess.run([sys.executable, "-c", _SCRIPT], env=env, capture_output=True,
-                             text=True, check=True)
-        digests.add(out.stdout.strip())
+    digests = set(outputs_by_thread_count(_SCRIPT))
     assert len(digests) == 1
 

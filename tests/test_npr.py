@@ -1,14 +1,12 @@
 """NPR styles and the edge-map compositing (Nienhaus & Döllner Sec. 5)."""
 
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
 from refraster import npr
+from determinism import outputs_by_thread_count
 
 
 def _normals(*rows):
@@ -177,10 +175,5 @@ print(hashlib.sha256(npr.cartoon_map(img, mask=mask).tobytes()).hexdigest())
 
 
 def test_cartoon_map_deterministic_across_thread_counts():
-    digests = set()
-    for threads in ("1", "2", "2"):
-        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
-        out = subprocess.run([sys.executable, "-c", _SCRIPT], env=env, capture_output=True,
-                             text=True, check=True)
-        digests.add(out.stdout.strip())
+    digests = set(outputs_by_thread_count(_SCRIPT))
     assert len(digests) == 1

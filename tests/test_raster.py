@@ -1,8 +1,5 @@
 """The foundation: vertex/primitive stages, rasterizer, fragment stream, resolve, G-buffer."""
 
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -14,6 +11,7 @@ from refraster.raster.primitive import transform_vertices
 from refraster.raster.rasterizer import DEPTH_FUNCS, fused, stream
 
 import naive
+from determinism import outputs_by_thread_count
 
 VIEW = rf.look_at([0.3, 0.4, 3.0], [0, 0, 0])
 PROJ = rf.perspective(50, 4 / 3, 0.5, 10.0)
@@ -295,13 +293,7 @@ print(h.hexdigest())
 
 
 def test_deterministic_across_thread_counts():
-    out = []
-    for threads in ("1", "2", "2"):
-        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
-        r = subprocess.run([sys.executable, "-c", _DET_SCRIPT], env=env, capture_output=True,
-                           text=True, timeout=600)
-        assert r.returncode == 0, r.stderr
-        out.append(r.stdout.strip())
+    out = outputs_by_thread_count(_DET_SCRIPT)
     assert out[0] == out[1] == out[2]
 
 

@@ -1,0 +1,22 @@
+"""Wall-clock helpers shared by the benchmarks (milliseconds)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+
+def first_ms(fn):
+    """Time of one call (the first call of a kernel includes loading or compiling it)."""
+    t0 = time.perf_counter()
+    fn()
+    return (time.perf_counter() - t0) * 1e3
+
+
+def median_ms(fn, repeats, *, warmup=False):
+    """Median of ``repeats`` calls; ``warmup`` makes one untimed call first."""
+    if warmup:
+        fn()
+    times = [first_ms(fn) for _ in range(repeats)]
+    return float(np.median(times))
