@@ -21,7 +21,6 @@ noise) evaluated at the world position.
 
 from __future__ import annotations
 
-import hashlib
 import math
 
 import numpy as np
@@ -30,10 +29,10 @@ from numba import njit, prange
 from ._config import JIT, PJIT
 from ._validate import as_choice, as_float_array, as_real
 from .mesh import Mesh
-from .offsetmaps import WRAP_MODES, _wrap_texel, sample
+from .offsetmaps import WRAP_MODES, _wrap_texel, sample, texture2d_flat
 
-__all__ = ["CAP_STYLES", "check_watertight", "cap_mesh", "exact_caps", "shade_caps",
-           "solid_texture", "MAX_CAP_VERTICES"]
+__all__ = ["CAP_STYLES", "check_watertight", "cap_mesh", "cull_cap", "exact_caps", "light_caps",
+           "shade_caps", "solid_texture", "MAX_CAP_VERTICES"]
 
 #: Largest cap grid accepted (vertices); a larger one almost always means a surface whose
 #: texture tile is far smaller than the solid.
@@ -41,17 +40,19 @@ MAX_CAP_VERTICES = 1 << 23
 CAP_STYLES = ("diffuse", "hatch", "marble", "wood", "noise")
 
 
-#: Content digests of meshes already found watertight (rendering the same solid frame after
-#: frame checks it once; the digest covers every byte of the vertices and faces).
-_WATERTIGHT = set()
+#: Copies of the meshes already found watertight, newest last. Rendering the same solid frame
+#: after frame checks it once; a later mesh counts as checked only when its arrays equal a
+#: copy's bit for bit (a memory comparison, far cheaper than the check or a hash).
+_WATERTIGHT = []
+_WATERTIGHT_SIZE = 8
 
 
-def _digest(v, f):
-    h = hashlib.blake2b(digest_size=16)
-    for a in (np.ascontiguousarray(v), np.ascontiguousarray(f)):
-        h.update(str((a.dtype, a.shape)).encode())
-        h.update(a.data)
-    return h.digest()
+def _known_watertight(v, f):
+    for kv, kf in _WATERTIGHT:
+        if kv.shape == v.shape and kf.shape == f.shape and kv.dtype == v.dtype \
+                and kf.dtype == f.dtype and np.array_equal(kv, v) and np.array_equal(kf, f):
+            return True
+    return False
 
 
 def check_watertight(mesh, name="mesh"):
@@ -61,8 +62,7 @@ def check_watertight(mesh, name="mesh"):
     Capping needs a closed solid: the parity test is meaningless for an open surface.
     """
     v, f = mesh.vertices, mesh.faces
-    key = _digest(v, f)
-    if key in _WATERTIGHT:
+    if _known_watertight(v, f):
         return
     if f.shape[0] == 0:
         raise ValueError(f"{name} has no faces; caps need a closed (watertight) solid")
@@ -77,9 +77,9 @@ def check_watertight(mesh, name="mesh"):
         raise ValueError(
             f"{name} is not watertight: {bad} edge(s) are not shared by exactly two faces; "
             "caps need a closed solid (render with caps=False, or repair the mesh)")
-    if len(_WATERTIGHT) > 64:
-        _WATERTIGHT.clear()
-    _WATERTIGHT.add(key)
+    if len(_WATERTIGHT) >= _WATERTIGHT_SIZE:
+        _WATERTIGHT.pop(0)
+    _WATERTIGHT.append((np.array(v), np.array(f)))
 
 
 def _bounds_slab(surface, bounds):
@@ -157,6 +157,80 @@ def cap_mesh(surface, bounds, *, subdivision=1):
     # (Û, V̂) is counter-clockwise seen from +N, so reverse it for the −N side.
     faces = np.concatenate([np.stack([v00, v11, v10], 1), np.stack([v00, v01, v11], 1)])
     return Mesh(np.ascontiguousarray(verts), np.ascontiguousarray(faces, np.int64))
+
+
+@njit(**PJIT)
+def _footprint_kernel(verts, faces, mats, depth, count, start, cstart, hw, margin, votes):
+    """votes[f] = number of the sprite's LDIs in which face f may hold a point the parity
+    test calls inside: some texel of its (s, t) box, widened by one texel and ``margin`` of
+    its size, has layers and a first layer at or before the box's far r and, for an even
+    count, a last layer at or after its near r (widened alike)."""
+    for fi in prange(faces.shape[0]):
+        n_in = 0
+        for ld in range(mats.shape[0]):
+            m = mats[ld]
+            h = hw[ld, 0]
+            w = hw[ld, 1]
+            s0 = t0 = r0 = np.inf
+            s1 = t1 = r1 = -np.inf
+            for c in range(3):
+                v = faces[fi, c]
+                x, y, z = verts[v, 0], verts[v, 1], verts[v, 2]
+                ts = ((m[0, 0] * x + m[0, 1] * y) + m[0, 2] * z) + m[0, 3]
+                tt = ((m[1, 0] * x + m[1, 1] * y) + m[1, 2] * z) + m[1, 3]
+                tr = ((m[2, 0] * x + m[2, 1] * y) + m[2, 2] * z) + m[2, 3]
+                s0, s1 = min(s0, ts), max(s1, ts)
+                t0, t1 = min(t0, tt), max(t1, tt)
+                r0, r1 = min(r0, tr), max(r1, tr)
+            ds = margin * (s1 - s0) + 1.0 / w
+            dt = margin * (t1 - t0) + 1.0 / h
+            dr = margin * (r1 - r0) + 1e-6
+            r0 -= dr
+            r1 += dr
+            c0 = max(int(math.floor((s0 - ds) * w)), 0)
+            c1 = min(int(math.floor((s1 + ds) * w)), w - 1)
+            j0 = max(int(math.floor((t0 - dt) * h)), 0)
+            j1 = min(int(math.floor((t1 + dt) * h)), h - 1)
+            hit = False
+            for j in range(j0, j1 + 1):
+                row = h - 1 - j
+                for col in range(c0, c1 + 1):
+                    texel = row * w + col
+                    k = count[cstart[ld] + texel]
+                    if k == 0:
+                        continue
+                    first = depth[start[ld] + texel]
+                    last = depth[start[ld] + (k - 1) * h * w + texel]
+                    if first <= r1 and (last >= r0 or (k & 1) == 1):
+                        hit = True
+                        break
+                if hit:
+                    break
+            if hit:
+                n_in += 1
+        votes[fi] = n_in
+
+
+#: Widening of a cap face's box in the footprint test, as a fraction of its size: fragments
+#: may be interpolated a little outside their triangle (a covered centre outside the unsnapped
+#: triangle extrapolates).
+FOOTPRINT_MARGIN = 0.05
+
+
+def cull_cap(cap, sprite):
+    """The faces of a cap mesh that can show anything: those whose box in the sprite's texture
+    space (widened by one texel and :data:`FOOTPRINT_MARGIN`) reaches layers of the solid in
+    a majority of its axes. The others' fragments would all fail the parity test. Unused
+    vertices are dropped. Returns a :class:`Mesh` (possibly without faces)."""
+    mats, depth, sign, count, start, cstart, hw = sprite.packed()
+    votes = np.zeros(cap.n_faces, np.int64)
+    _footprint_kernel(np.ascontiguousarray(cap.vertices), np.ascontiguousarray(cap.faces),
+                      mats, depth, count, start, cstart, hw, FOOTPRINT_MARGIN, votes)
+    faces = cap.faces[votes * 2 > len(mats)]
+    used = np.unique(faces)
+    remap = np.zeros(cap.n_vertices, np.int64)
+    remap[used] = np.arange(used.size)
+    return Mesh(np.ascontiguousarray(cap.vertices[used]), np.ascontiguousarray(remap[faces]))
 
 
 # --------------------------------------------------------------------------------------------
@@ -473,20 +547,124 @@ def solid_texture(points, kind, *, frequency=4.0, color=(0.8, 0.3, 0.25), seed=0
     return np.clip((1.0 - v)[:, None] * c + v[:, None] * np.ones(3), 0.0, 1.0)
 
 
-def shade_caps(points, surface_index, surfaces, normal_maps, occlusion_maps, *, view, style,
-               color, hatch_spacing, frequency):
+@njit(**PJIT)
+def _cap_light_kernel(points, which, params, wrap, nx, ny, nz, occ, offset, shape, view, nmat,
+                      shade, normal):
+    """Per cap point: (s, t) of its surface, the normal map sampled per component and
+    renormalized, turned (Û, V̂, N) → world → eye; shade = occlusion·(0.25 + 0.75·|n·v|)."""
+    for i in prange(points.shape[0]):
+        k = which[i]
+        dx = points[i, 0] - params[k, 0]
+        dy = points[i, 1] - params[k, 1]
+        dz = points[i, 2] - params[k, 2]
+        s = ((dx * params[k, 3] + dy * params[k, 4] + dz * params[k, 5]) / params[k, 12]) \
+            * params[k, 14]
+        t = ((dx * params[k, 6] + dy * params[k, 7] + dz * params[k, 8]) / params[k, 13]) \
+            * params[k, 15]
+        h, w, o, mode = shape[k, 0], shape[k, 1], offset[k], wrap[k]
+        a = texture2d_flat(nx, o, h, w, s, t, mode)
+        b = texture2d_flat(ny, o, h, w, s, t, mode)
+        c = texture2d_flat(nz, o, h, w, s, t, mode)
+        length = math.sqrt(a * a + b * b + c * c)
+        if length > 0.0:
+            a /= length
+            b /= length
+            c /= length
+        wx = a * params[k, 3] + b * params[k, 6] + c * params[k, 9]
+        wy = a * params[k, 4] + b * params[k, 7] + c * params[k, 10]
+        wz = a * params[k, 5] + b * params[k, 8] + c * params[k, 11]
+        ex = nmat[0, 0] * wx + nmat[0, 1] * wy + nmat[0, 2] * wz
+        ey = nmat[1, 0] * wx + nmat[1, 1] * wy + nmat[1, 2] * wz
+        ez = nmat[2, 0] * wx + nmat[2, 1] * wy + nmat[2, 2] * wz
+        length = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if length > 0.0:
+            ex /= length
+            ey /= length
+            ez /= length
+        px = view[0, 0] * points[i, 0] + view[0, 1] * points[i, 1] + view[0, 2] * points[i, 2] \
+            + view[0, 3]
+        py = view[1, 0] * points[i, 0] + view[1, 1] * points[i, 1] + view[1, 2] * points[i, 2] \
+            + view[1, 3]
+        pz = view[2, 0] * points[i, 0] + view[2, 1] * points[i, 1] + view[2, 2] * points[i, 2] \
+            + view[2, 3]
+        vl = max(math.sqrt(px * px + py * py + pz * pz), 1e-300)
+        ndv = abs(ex * px + ey * py + ez * pz) / vl
+        shade[i] = texture2d_flat(occ, o, h, w, s, t, mode) * (0.25 + 0.75 * ndv)
+        normal[i, 0] = ex
+        normal[i, 1] = ey
+        normal[i, 2] = ez
+
+
+@njit(**PJIT)
+def _hatch_kernel(points, which, params, spacing, shade, color, out):
+    """45° section hatch in each surface's (Û, V̂) plane, thicker where the shade is dark:
+    ink where frac((d·Û + d·V̂) / (√2·spacing)) < 0.15 + 0.6·(1 − shade), d = P − O."""
+    for i in prange(points.shape[0]):
+        k = which[i]
+        dx = points[i, 0] - params[k, 0]
+        dy = points[i, 1] - params[k, 1]
+        dz = points[i, 2] - params[k, 2]
+        x = ((dx * params[k, 3] + dy * params[k, 4] + dz * params[k, 5])
+             + (dx * params[k, 6] + dy * params[k, 7] + dz * params[k, 8])) \
+            / (math.sqrt(2.0) * spacing)
+        x = x - math.floor(x)
+        if x < 0.15 + 0.6 * (1.0 - shade[i]):
+            for c in range(3):
+                out[i, c] = min(max(color[c] * 0.35, 0.0), 1.0)
+        else:
+            v = min(max(0.55 + 0.45 * shade[i], 0.0), 1.0)
+            for c in range(3):
+                out[i, c] = v
+
+
+def _shading_maps(surface, radius):
+    """The surface's normal-map components and occlusion map, flat, made once per surface."""
+    key = ("shading", radius)
+    if key not in surface._derived:
+        n = surface.normal_map()
+        maps = tuple(np.ascontiguousarray(a).reshape(-1) for a in
+                     (n[..., 0], n[..., 1], n[..., 2], surface.occlusion_map(radius=radius)))
+        for m in maps:
+            m.setflags(write=False)
+        surface._derived[key] = maps
+    return surface._derived[key]
+
+
+def light_caps(points, surface_index, surfaces, *, view, occlusion_radius=None):
+    """Eye-space normal ``(N, 3)`` and shade ``(N,)`` of cap points (see :func:`shade_caps`)."""
+    from .clipsurface import _Packed
+    packed = _Packed(surfaces)
+    maps = [_shading_maps(s, occlusion_radius) if s.enabled else
+            tuple(np.zeros(s.offset_map.size) for _ in range(4)) for s in surfaces]
+    flat = [np.concatenate([m[c] for m in maps]) if len(maps) > 1 else maps[0][c]
+            for c in range(4)]
+    n = len(points)
+    shade = np.zeros(n)
+    normal = np.zeros((n, 3))
+    if n:
+        nmat = np.linalg.inv(view[:3, :3]).T
+        _cap_light_kernel(np.ascontiguousarray(points, np.float64),
+                          np.ascontiguousarray(surface_index, np.int64), packed.params,
+                          packed.wrap, *flat, packed.offset, packed.shape,
+                          np.ascontiguousarray(view), nmat, shade, normal)
+    return normal, shade
+
+
+def shade_caps(points, surface_index, surfaces, *, view, style, color, hatch_spacing,
+               frequency, occlusion_radius=None):
     """Colour and eye-space normal of cap points.
 
     Parameters
     ----------
     points : (N, 3) float world positions on the caps
     surface_index : (N,) int which surface each cap belongs to
-    surfaces : list of ClipSurface
-    normal_maps, occlusion_maps : per surface, (H, W, 3) and (H, W) (MATH.md §1.2b)
+    surfaces : list of ClipSurface (their normal and occlusion maps, MATH.md §1.2b, are used)
     view : (4, 4) world → eye
     style : one of :data:`CAP_STYLES`
     color : (3,) base colour; hatch_spacing : world distance of hatch lines; frequency : solid
         texture frequency
+    occlusion_radius : float, optional
+        Radius of the occlusion maps (:func:`refraster.offsetmaps.occlusion_map`).
 
     Returns
     -------
@@ -499,39 +677,19 @@ def shade_caps(points, surface_index, surfaces, normal_maps, occlusion_maps, *, 
     Lighting: a headlight, ``shade = occlusion·(0.25 + 0.75·|n·v|)``. The hatch is a 45° section
     hatch in the surface's (Û, V̂) plane whose lines thicken where the shade is dark.
     """
-    n_pts = len(points)
-    colour = np.zeros((n_pts, 3))
-    normal = np.zeros((n_pts, 3))
-    lin = view[:3, :3]
-    normal_matrix = np.linalg.inv(lin).T
-    for k, surface in enumerate(surfaces):
-        sel = np.flatnonzero(surface_index == k)
-        if sel.size == 0:
-            continue
-        p = points[sel]
-        st = surface.texcoords(p)
-        nl = np.stack([sample(np.ascontiguousarray((normal_maps[k][..., c] + 1.0) * 0.5), st,
-                              wrap=surface.wrap) * 2.0 - 1.0 for c in range(3)], 1)
-        nl /= np.linalg.norm(nl, axis=1, keepdims=True)
-        frame = np.stack([surface.u_hat, surface.v_hat, surface.normal], 1)  # columns
-        nw = nl @ frame.T
-        ne = nw @ normal_matrix.T
-        ne /= np.linalg.norm(ne, axis=1, keepdims=True)
-        pe = p @ lin.T + view[:3, 3]
-        v = -pe / np.maximum(np.linalg.norm(pe, axis=1, keepdims=True), 1e-300)
-        ndv = np.abs(np.sum(ne * v, axis=1))
-        occ = sample(occlusion_maps[k], st, wrap=surface.wrap)
-        shade = occ * (0.25 + 0.75 * ndv)
-        if style == "diffuse":
-            col = np.asarray(color)[None, :] * shade[:, None]
-        elif style == "hatch":
-            d = p - surface.origin
-            x = (d @ surface.u_hat + d @ surface.v_hat) / (np.sqrt(2.0) * hatch_spacing)
-            ink = (x % 1.0) < 0.15 + 0.6 * (1.0 - shade)
-            col = np.where(ink[:, None], np.asarray(color)[None, :] * 0.35,
-                           np.ones(3)[None, :] * (0.55 + 0.45 * shade[:, None]))
-        else:
-            col = solid_texture(p, style, frequency=frequency, color=color) * shade[:, None]
-        colour[sel] = np.clip(col, 0.0, 1.0)
-        normal[sel] = ne
-    return colour, normal
+    points = np.ascontiguousarray(points, np.float64)
+    surface_index = np.asarray(surface_index, np.int64)
+    normal, shade = light_caps(points, surface_index, surfaces, view=view,
+                               occlusion_radius=occlusion_radius)
+    color = np.asarray(color, np.float64)
+    if style == "diffuse":
+        col = color[None, :] * shade[:, None]
+    elif style == "hatch":
+        from .clipsurface import _Packed
+        col = np.zeros((len(points), 3))
+        if len(points):
+            _hatch_kernel(points, surface_index, _Packed(surfaces).params, float(hatch_spacing),
+                          shade, color, col)
+    else:
+        col = solid_texture(points, style, frequency=frequency, color=color) * shade[:, None]
+    return np.clip(col, 0.0, 1.0), normal

@@ -24,11 +24,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit, prange
 
-from ._config import JIT, PJIT
+from ._config import IJIT, JIT, PJIT
 from ._validate import as_choice, as_float_array, as_matrix, as_real
 from .framebuffer import Framebuffer
-from .offsetmaps import (WRAP_MODES, _texture2d_linear, as_offset_map, as_wrap, normal_map,
-                         occlusion_map)
+from .ldi import parity_at
+from .raster.gbuffer import _object_of
+from .raster.rasterizer import (TILE, TILE_SHIFT, _box, _geometry, _setup, bin_primitives,
+                                fragment_depth, lambdas, perspective_bary, row_span, write_tile)
+from .offsetmaps import (WRAP_MODES, as_offset_map, as_wrap, normal_map, occlusion_map,
+                         texture2d_flat)
 
 __all__ = ["ClipSurface", "ReliefClipPlane", "ClippedFramebuffer", "as_surfaces",
            "clip_function", "clip_mask", "render_clipped"]
@@ -287,9 +291,10 @@ class _Packed:
         return self.params, self.wrap, self.enabled, self.maps, self.offset, self.shape
 
 
-@njit(**JIT)
-def _g(px, py, pz, params, k, tex, mode):
-    """g(P) = N·(P − O) + Sz·OM(s, t) of surface ``k`` (MATH.md §1.1)."""
+@njit(**IJIT)
+def _g(px, py, pz, params, k, maps, offset, shape, mode):
+    """g(P) = N·(P − O) + Sz·OM(s, t) of surface ``k`` (MATH.md §1.1); its map is
+    ``maps[offset[k]:]``, ``shape[k]`` texels."""
     dx = px - params[k, 0]
     dy = py - params[k, 1]
     dz = pz - params[k, 2]
@@ -297,34 +302,194 @@ def _g(px, py, pz, params, k, tex, mode):
         * params[k, 14]
     t = ((dx * params[k, 6] + dy * params[k, 7] + dz * params[k, 8]) / params[k, 13]) \
         * params[k, 15]
-    h = _texture2d_linear(tex, s, t, mode)
+    h = texture2d_flat(maps, offset[k], shape[k, 0], shape[k, 1], s, t, mode)
     return (dx * params[k, 9] + dy * params[k, 10] + dz * params[k, 11]) + params[k, 16] * h
 
 
-@njit(**JIT)
-def _map_of(maps, offset, shape, k):
-    return maps[offset[k]:offset[k] + shape[k, 0] * shape[k, 1]].reshape(
-        (shape[k, 0], shape[k, 1]))
+@njit(**IJIT)
+def clipped_at(px, py, pz, skip, params, wrap, enabled, maps, offset, shape):
+    """True when any enabled surface ``k ≠ skip`` has ``g(P) < 0`` (the fragment is discarded)."""
+    for k in range(params.shape[0]):
+        if enabled[k] and k != skip:
+            if _g(px, py, pz, params, k, maps, offset, shape, wrap[k]) < 0.0:
+                return True
+    return False
 
 
 @njit(**PJIT)
 def _clip_kernel(points, skip, params, wrap, enabled, maps, offset, shape, out):
     """out[n] = any enabled surface k ≠ skip[n] has g(points[n]) < 0."""
     for n in prange(points.shape[0]):
-        clipped = False
-        for k in range(params.shape[0]):
-            if enabled[k] and k != skip[n]:
-                tex = _map_of(maps, offset, shape, k)
-                if _g(points[n, 0], points[n, 1], points[n, 2], params, k, tex, wrap[k]) < 0.0:
-                    clipped = True
-                    break
-        out[n] = clipped
+        out[n] = clipped_at(points[n, 0], points[n, 1], points[n, 2], skip[n], params, wrap,
+                            enabled, maps, offset, shape)
 
 
 @njit(**PJIT)
-def _g_kernel(points, params, k, tex, mode, out):
+def _g_kernel(points, params, maps, offset, shape, mode, out):
     for n in prange(points.shape[0]):
-        out[n] = _g(points[n, 0], points[n, 1], points[n, 2], params, k, tex, mode)
+        out[n] = _g(points[n, 0], points[n, 1], points[n, 2], params, 0, maps, offset, shape,
+                    mode)
+
+
+# ------------------------------------------------------------- fused clip-and-cap pass
+
+@njit(**IJIT)
+def _keep(b0, b1, b2, i0, i1, i2, tv, wv, separate, skip, solid, params, wrap, enabled, maps,
+          offset, shape, v_first, v_mat, v_depth, v_sign, v_count, v_start, v_cstart, v_hw):
+    """The clip stage of one fragment (``render_clipped``'s ``stage`` for a single fragment):
+    interpolate its test-space and world positions, discard it where an enabled surface other
+    than ``skip`` clips it, and a cap fragment of ``solid`` also where the volumetric parity
+    test (majority over the sprite's axes) says outside."""
+    c0 = np.float64(b0)
+    c1 = np.float64(b1)
+    c2 = np.float64(b2)
+    px = (c0 * tv[i0, 0] + c1 * tv[i1, 0]) + c2 * tv[i2, 0]
+    py = (c0 * tv[i0, 1] + c1 * tv[i1, 1]) + c2 * tv[i2, 1]
+    pz = (c0 * tv[i0, 2] + c1 * tv[i1, 2]) + c2 * tv[i2, 2]
+    if clipped_at(px, py, pz, skip, params, wrap, enabled, maps, offset, shape):
+        return False
+    if solid < 0:
+        return True
+    if separate:
+        px = (c0 * wv[i0, 0] + c1 * wv[i1, 0]) + c2 * wv[i2, 0]
+        py = (c0 * wv[i0, 1] + c1 * wv[i1, 1]) + c2 * wv[i2, 1]
+        pz = (c0 * wv[i0, 2] + c1 * wv[i1, 2]) + c2 * wv[i2, 2]
+    votes = 0
+    for ld in range(v_first[solid], v_first[solid + 1]):
+        if parity_at(px, py, pz, v_mat[ld], v_depth, v_sign, v_count, v_start[ld],
+                     v_cstart[ld], v_hw[ld, 0], v_hw[ld, 1], False):
+            votes += 1
+    return votes * 2 > v_first[solid + 1] - v_first[solid]
+
+
+@njit(**PJIT)
+def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim,
+                     sfront, sbox, sarea, B, starts, lists, ntx, width, height, bits, rule,
+                     face_offsets, n_solids, n_surf, tv, wv, separate, params, wrap, enabled,
+                     maps, offset, shape, v_first, v_mat, v_depth, v_sign, v_count, v_start,
+                     v_cstart, v_hw, o_depth, o_prim, o_front, o_bary):
+    """The rasterizer's fused tile pass (``GL_LESS``, clear 1) with the clip stage between
+    rasterization and the depth test. A fragment that fails the depth test is left untested
+    (it cannot change the tile whether discarded or not), so the result equals the fragment
+    stream + stage + resolve exactly."""
+    ntiles = starts.shape[0] - 1
+    for tile in prange(ntiles):
+        tx0 = (tile % ntx) << TILE_SHIFT
+        ty0 = (tile // ntx) << TILE_SHIFT
+        tx1 = min(tx0 + TILE, width) - 1
+        ty1 = min(ty0 + TILE, height) - 1
+        zbuf = np.full((TILE, TILE), np.float32(1.0), np.float32)
+        win = np.full((TILE, TILE), -1, np.int64)
+        for j in range(starts[tile], starts[tile + 1]):
+            item = lists[j]
+            bx0, bx1, by0, by1 = _box(item, fbox, sbox)
+            bx0 = max(bx0, tx0)
+            bx1 = min(bx1, tx1)
+            by0 = max(by0, ty0)
+            by1 = min(by1, ty1)
+            if bx0 > bx1 or by0 > by1:
+                continue
+            (r0, sx0, sy0, b0, r1, sx1, sy1, b1, r2, sx2, sy2, b2, fx0, fy0, fx1, fy1, fx2, fy2,
+             z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx,
+             dzdy) = _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
+                            sfront, sarea, bits, rule, bx0, by0)
+            obj = _object_of(face_offsets, prim)
+            skip = -1
+            solid = -1
+            if obj >= n_solids:   # a cap of solid m and surface k: object M + m·K + k
+                skip = (obj - n_solids) % n_surf
+                solid = (obj - n_solids) // n_surf
+            i0 = f[prim, 0]
+            i1 = f[prim, 1]
+            i2 = f[prim, 2]
+            for y in range(by0, by1 + 1):
+                a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
+                e0 = r0 + sx0 * a
+                e1 = r1 + sx1 * a
+                e2 = r2 + sx2 * a
+                ly = y - ty0
+                for x in range(bx0 + a, bx0 + b + 1):
+                    if e0 >= 0 and e1 >= 0 and e2 >= 0:
+                        z = fragment_depth(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, x, y,
+                                           e0 + b0, e1 + b1, e2 + b2, inv_area)
+                        lx = x - tx0
+                        if z < zbuf[ly, lx]:
+                            l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
+                                                 e0 + b0, e1 + b1, e2 + b2, inv_area)
+                            c0, c1, c2 = perspective_bary(iw0, iw1, iw2, piece, front, B, l0,
+                                                          l1, l2)
+                            if _keep(c0, c1, c2, i0, i1, i2, tv, wv, separate, skip, solid,
+                                     params, wrap, enabled, maps, offset, shape, v_first, v_mat,
+                                     v_depth, v_sign, v_count, v_start, v_cstart, v_hw):
+                                zbuf[ly, lx] = z
+                                win[ly, lx] = item
+                    e0 += sx0
+                    e1 += sx1
+                    e2 += sx2
+                r0 += sy0
+                r1 += sy1
+                r2 += sy2
+        write_tile(zbuf, win, tx0, ty0, tx1, ty1, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
+                   sIW, sXf, sYf, sprim, sfront, sarea, B, width, height, bits, rule, o_depth,
+                   o_prim, o_front, o_bary)
+
+
+def _pack_sprites(tests):
+    """The sprites of all solids as one set of flat arrays for :func:`_fused_clip_pass`."""
+    parts = [t.packed() for t in tests]
+    first = np.zeros(len(parts) + 1, np.int64)
+    np.cumsum([len(p[0]) for p in parts], out=first[1:])
+    if len(parts) == 1:
+        return (first, *parts[0])
+    mats = np.concatenate([p[0] for p in parts])
+    depth = np.concatenate([p[1] for p in parts])
+    sign = np.concatenate([p[2] for p in parts])
+    count = np.concatenate([p[3] for p in parts])
+    dbase = np.cumsum([0] + [len(p[1]) for p in parts[:-1]])
+    cbase = np.cumsum([0] + [len(p[3]) for p in parts[:-1]])
+    start = np.concatenate([p[4] + b for p, b in zip(parts, dbase)])
+    cstart = np.concatenate([p[5] + b for p, b in zip(parts, cbase)])
+    hw = np.concatenate([p[6] for p in parts])
+    for a in (depth, sign, count):
+        a.setflags(write=False)
+    return first, mats, depth, sign, count, start, cstart, hw
+
+
+_NO_SPRITES = None
+
+
+def _no_sprites():
+    """Empty sprite arrays (typed as the real ones) for a pass without caps."""
+    global _NO_SPRITES
+    if _NO_SPRITES is None:
+        arrays = [np.zeros(0, np.float32), np.zeros(0, np.int8), np.zeros(0, np.int32)]
+        for a in arrays:
+            a.setflags(write=False)
+        _NO_SPRITES = (np.zeros(1, np.int64), np.zeros((0, 4, 4)), *arrays,
+                       np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 2), np.int64))
+    return _NO_SPRITES
+
+
+def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests):
+    """Rasterize, clip, parity-test and depth-resolve the prepared draw calls in one pass.
+
+    Returns ``(depth, prim_global, front, bary)`` as :func:`refraster.raster.rasterizer.fused`.
+    """
+    prims = prep.triangles
+    ntx, _, starts, lists = bin_primitives(prims)
+    h, w = prims.height, prims.width
+    depth = np.zeros((h, w), np.float32)
+    prim = np.zeros((h, w), np.int64)
+    front = np.zeros((h, w), np.bool_)
+    bary = np.zeros((h * w, 3), np.float32)
+    packed = _Packed(surfaces)
+    sprites = _pack_sprites(tests) if tests else _no_sprites()
+    separate = world_vertices is not test_vertices
+    _fused_clip_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits,
+                     prep.fill_rule, prep.face_offsets, n_solids, max(len(surfaces), 1),
+                     test_vertices, world_vertices, separate, *packed.args(), *sprites,
+                     depth, prim, front, bary)
+    return depth, prim, front, bary
 
 
 def _surfaces_in_space(surfaces, space, view):
@@ -363,7 +528,8 @@ def clip_function(points, surface, *, space="world", view=None):
     points = as_float_array(points, "points", shape=(None, 3))
     (surface,) = _surfaces_in_space([surface], space, view)
     out = np.zeros(points.shape[0])
-    _g_kernel(points, surface.params[None, :], 0, surface.offset_map,
+    packed = _Packed([surface])
+    _g_kernel(points, packed.params, packed.maps, packed.offset, packed.shape,
               WRAP_MODES[surface.wrap], out)
     return out
 
@@ -417,16 +583,26 @@ class ClippedFramebuffer(Framebuffer):
     ----------------
     cap_mask : (H, W) bool
         Pixels showing a cap.
+    cap_points : (C, 3) float64
+        World position of each cap pixel, in row-major order of ``cap_mask``.
     cap_position : (H, W, 3) float64
-        World position of the cap point (NaN elsewhere).
+        The same as an image, NaN elsewhere (made on first use).
     n_solids, n_surfaces : int
         M and K: a cap of solid m and surface k has ``object_id = M + m·K + k``.
     """
 
     cap_mask: np.ndarray = field(default=None, repr=False)
-    cap_position: np.ndarray = field(default=None, repr=False)
+    cap_points: np.ndarray = field(default=None, repr=False)
     n_solids: int = 0
     n_surfaces: int = 0
+
+    @property
+    def cap_position(self):
+        if getattr(self, "_cap_position", None) is None:
+            out = np.full(self.cap_mask.shape + (3,), np.nan)
+            out[self.cap_mask] = self.cap_points
+            self._cap_position = out
+        return self._cap_position
 
     def eye_position(self):
         """Eye-space position of the visible surface (caps included), NaN background."""
@@ -434,8 +610,7 @@ class ClippedFramebuffer(Framebuffer):
         solid = self.mask & ~self.cap_mask
         sub = Framebuffer.eye_position(self)
         out[solid] = sub[solid]
-        cap = self.cap_position[self.cap_mask]
-        out[self.cap_mask] = cap @ self.view[:3, :3].T + self.view[:3, 3]
+        out[self.cap_mask] = self.cap_points @ self.view[:3, :3].T + self.view[:3, 3]
         return out
 
 
@@ -453,6 +628,77 @@ def _solid_tests(world_solids, vds, resolution):
         return tests
     from .ldi import VolumetricDepthSprite
     return [VolumetricDepthSprite.from_mesh(m, resolution=resolution) for m in world_solids]
+
+
+def _stage(n_solids, surfaces, tests, space, view):
+    """``render_clipped``'s clip stage as a ``fragment_stage`` over the fragment stream (what
+    :func:`_fused_clip_pass` equals, and the path for duck-typed parity tests)."""
+    n_surf = max(len(surfaces), 1)
+
+    def stage(frags):
+        obj = frags.object_id
+        keep = np.ones(len(frags), np.bool_)
+        pos = frags.world_position()
+        test_pos = frags.eye_position() if space == "eye" else pos
+        is_cap = obj >= n_solids
+        skip = np.where(is_cap, (obj - n_solids) % n_surf, -1).astype(np.int64)
+        keep &= ~clip_mask(test_pos, surfaces, space=space, view=view, skip=skip)
+        for m in range(n_solids if tests is not None and is_cap.any() else 0):
+            sel = np.flatnonzero(keep & is_cap & ((obj - n_solids) // n_surf == m))
+            if sel.size:
+                keep[sel] = tests[m].contains(pos[sel])
+        return keep
+
+    return stage
+
+
+def _concat_vertices(vertices):
+    if len(vertices) == 1:
+        return np.ascontiguousarray(vertices[0], np.float64)
+    return np.ascontiguousarray(np.concatenate(vertices), np.float64) if vertices \
+        else np.zeros((0, 3))
+
+
+#: Whether render_clipped uses the fused tile pass when it can (tests switch it off to compare
+#: with the fragment stream and the Python stage, which it must equal bit for bit).
+_USE_FUSED = True
+
+#: Cap meshes kept per surface (keyed by the solid's bounds and the subdivision).
+_CAP_CACHE_SIZE = 8
+
+
+def _cached_cap(surface, bounds, subdivision, sprite=None):
+    """:func:`refraster.capping.cap_mesh`, made once per surface, bounds and subdivision (a
+    surface is immutable; the cached mesh's arrays are read-only). With a volumetric depth
+    sprite, only the faces that can pass its parity test (:func:`refraster.capping.cull_cap`),
+    made once per sprite too."""
+    import weakref
+
+    from . import capping
+    cache = surface._derived
+
+    def put(key, value):
+        caps = [k for k in cache if k[0] == "cap"]
+        if len(caps) >= _CAP_CACHE_SIZE:
+            del cache[caps[0]]
+        if value is not None:
+            value.vertices.setflags(write=False)
+            value.faces.setflags(write=False)
+        cache[key] = value
+
+    key = ("cap", bounds.tobytes(), subdivision)
+    if key not in cache:
+        put(key, capping.cap_mesh(surface, bounds, subdivision=subdivision))
+    cap = cache[key]
+    if sprite is None or cap is None:
+        return cap
+    culled_key = key + (id(sprite),)
+    entry = cache.get(culled_key)
+    if entry is None or entry[0]() is not sprite:
+        culled = capping.cull_cap(cap, sprite)
+        put(culled_key, culled)
+        cache[culled_key] = (weakref.ref(sprite), culled)
+    return cache[culled_key][1]
 
 
 def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
@@ -515,9 +761,11 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
     so at equal depth the solid wins.
     """
     from . import capping
-    from .framebuffer import render
-    from .mesh import Mesh, as_meshes
-    from .raster import _models
+    from .framebuffer import _build, render
+    from .ldi import VolumetricDepthSprite
+    from .mesh import Mesh, as_meshes, bounds
+    from .raster import _models, prepare
+    from .raster.fragments import _interpolate, vertices_in
 
     solids = as_meshes(meshes)
     surfaces = as_surfaces(surfaces)
@@ -534,8 +782,8 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
                                     and normals.lower() in ("flat", "smooth")):
         raise ValueError("normals must be None, 'flat' or 'smooth' for render_clipped")
     models = _models(model, len(solids))
-    world = [Mesh(s.vertices @ mm[:3, :3].T + mm[:3, 3], s.faces)
-             for s, mm in zip(solids, models)]
+    world = [Mesh(v, s.faces) if v is not s.vertices else s
+             for s, v in zip(solids, vertices_in(solids, models, None, "world"))]
     n_solids, n_surf = len(solids), len(surfaces)
     do_caps = caps and any(s.enabled for s in surfaces)
     tests = None
@@ -543,53 +791,62 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
         for i, w in enumerate(world):
             capping.check_watertight(w, f"meshes[{i}]")
         tests = _solid_tests(world, vds, vds_resolution)
-    lo = np.min([w.vertices.min(axis=0) for w in world if w.n_vertices], axis=0) \
+    boxes = [bounds(w.vertices) if w.n_vertices else None for w in world]
+    lo = np.min([b[0] for b in boxes if b is not None], axis=0) \
         if any(w.n_vertices for w in world) else np.zeros(3)
-    hi = np.max([w.vertices.max(axis=0) for w in world if w.n_vertices], axis=0) \
+    hi = np.max([b[1] for b in boxes if b is not None], axis=0) \
         if any(w.n_vertices for w in world) else np.ones(3)
     spacing = (0.015 * float(np.linalg.norm(hi - lo)) or 0.01) if hatch_spacing is None \
         else as_real(hatch_spacing, "hatch_spacing", lo=0.0, lo_open=True)
 
+    fused = _USE_FUSED and (not do_caps or mode != "mesh" or all(
+        isinstance(t, VolumetricDepthSprite) for t in tests))
     draw_list, draw_models = list(solids), list(models)
     if do_caps and mode == "mesh":
         empty = Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64))
-        for w in world:
-            bounds = np.stack([w.vertices.min(axis=0), w.vertices.max(axis=0)])
+        for m, box in enumerate(boxes):
+            sprite = tests[m] if isinstance(tests[m], VolumetricDepthSprite) else None
             for s in surfaces:
-                cap = capping.cap_mesh(s, bounds, subdivision=subdivision) if s.enabled else None
+                cap = _cached_cap(s, box, subdivision, sprite) \
+                    if s.enabled and box is not None else None
                 draw_list.append(empty if cap is None else cap)
                 draw_models.append(np.eye(4))
 
-    def stage(frags):
-        obj = frags.object_id
-        keep = np.ones(len(frags), np.bool_)
-        pos = frags.world_position()
-        test_pos = frags.eye_position() if space == "eye" else pos
-        is_cap = obj >= n_solids
-        skip = np.where(is_cap, (obj - n_solids) % max(n_surf, 1), -1).astype(np.int64)
-        keep &= ~clip_mask(test_pos, surfaces, space=space, view=view, skip=skip)
-        for m in range(n_solids if is_cap.any() else 0):
-            sel = np.flatnonzero(keep & is_cap & ((obj - n_solids) // n_surf == m))
-            if sel.size:
-                keep[sel] = tests[m].contains(pos[sel])
-        return keep
-
-    fb = render(draw_list, view=view, proj=proj, width=width, height=height, normals=normals,
-                cull=cull, model=draw_models, precision=precision, fragment_stage=stage,
-                background=background)
+    bg = as_float_array(background, "background", shape=(3,))
+    cap_tests = tests if do_caps and mode == "mesh" else None
+    if not fused:
+        # duck-typed parity tests: the fragment stream with a Python stage
+        fb = render(draw_list, view=view, proj=proj, width=width, height=height,
+                    normals=normals, cull=cull, model=draw_models, precision=precision,
+                    fragment_stage=_stage(n_solids, surfaces, cap_tests, space, view),
+                    background=bg)
+    else:
+        prep = prepare(draw_list, view=view, proj=proj, width=width, height=height, cull=cull,
+                       model=draw_models, precision=precision)
+        tv = _concat_vertices(vertices_in(prep.meshes, prep.models, view, space))
+        wv = tv if space == "world" else _concat_vertices(
+            vertices_in(prep.meshes, prep.models, view, "world"))
+        depth, prim_global, front, bary = _fused_clip(
+            prep, tv, wv, n_solids, _surfaces_in_space(surfaces, space, view), cap_tests)
+        h, w = depth.shape
+        fb = _build(prep.meshes, prep.models, view, proj, depth, prim_global, prep.face_offsets,
+                    front, bary.reshape(h, w, 3), normals, bg)
     h, w = fb.depth.shape
     cap_mask = fb.object_id >= n_solids
-    cap_position = np.full((h, w, 3), np.nan)
     out = ClippedFramebuffer(**{f: getattr(fb, f) for f in (
         "depth", "eye_depth", "normal", "prim_id", "object_id", "front_facing", "barycentric",
         "color", "view", "proj", "meshes", "models")}, cap_mask=cap_mask,
-        cap_position=cap_position, n_solids=n_solids, n_surfaces=n_surf)
+        cap_points=np.zeros((0, 3)), n_solids=n_solids, n_surfaces=n_surf)
     if not do_caps:
         return out
-    inv_view = np.linalg.inv(view)
     if mode == "mesh":
-        eye = Framebuffer.eye_position(fb)[cap_mask]
-        cap_position[cap_mask] = eye @ inv_view[:3, :3].T + inv_view[:3, 3]
+        # the caps are drawn in world space (identity model)
+        flat = np.flatnonzero(cap_mask)
+        cap_meshes = fb.meshes[n_solids:]
+        out.cap_points = _interpolate(
+            cap_meshes, [m.vertices for m in cap_meshes],
+            fb.object_id.reshape(-1)[flat] - n_solids, fb.prim_id.reshape(-1)[flat],
+            fb.barycentric.reshape(-1, 3)[flat].astype(np.float64))
     else:
         tau, which, origin, direction = capping.exact_caps(
             surfaces, world, tests, view=view, proj=proj, width=width, height=height)
@@ -603,7 +860,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
         m_k = which[flat]
         r, c = np.divmod(flat, w)
         cap_mask[r, c] = True
-        cap_position[r, c] = pts
+        out.cap_points = pts  # row-major order, as cap_mask lists them
         out.depth[r, c] = depth
         eye = pts @ view[:3, :3].T + view[:3, 3]
         out.eye_depth[r, c] = -eye[:, 2]
@@ -622,13 +879,11 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
         out.prim_id[r, c] = texel
         out.front_facing[r, c] = facing
         out.barycentric[r, c] = 0.0
-    which_surface = (out.object_id[cap_mask] - n_solids) % n_surf
-    normal_maps = [s.normal_map() if s.enabled else None for s in surfaces]
-    occlusion_maps = [s.occlusion_map(radius=occlusion_radius) if s.enabled else None
-                      for s in surfaces]
-    col, nrm = capping.shade_caps(cap_position[cap_mask], which_surface, surfaces, normal_maps,
-                                  occlusion_maps, view=view, style=style, color=color,
-                                  hatch_spacing=spacing, frequency=freq)
-    out.color[cap_mask] = col
-    out.normal[cap_mask] = nrm
+        flat = np.flatnonzero(cap_mask)
+    which_surface = (out.object_id.reshape(-1)[flat] - n_solids) % n_surf
+    col, nrm = capping.shade_caps(out.cap_points, which_surface, surfaces, view=view,
+                                  style=style, color=color, hatch_spacing=spacing,
+                                  frequency=freq, occlusion_radius=occlusion_radius)
+    out.color.reshape(-1, 3)[flat] = col
+    out.normal.reshape(-1, 3)[flat] = nrm
     return out

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from ._config import JIT, PJIT
+from ._config import IJIT, JIT, PJIT
 from ._validate import as_choice, as_float_array, as_size
 from .mesh import as_mesh
 
@@ -133,31 +133,40 @@ def _fill_layers(order, offsets, count, depth, prim, obj, front, out_index, out_
             out_front[layer, p] = front[i]
 
 
+@njit(**IJIT)
+def parity_at(x, y, z, m, depth, sign, count, start, cstart, h, w, nonzero):
+    """MATH.md §2.2 for one world point: T = M·P; inside iff T ∈ [0,1]³ and the number of
+    layers with d_j ≤ T_r at the nearest texel is odd (nonzero: Σ sign_j over them ≠ 0).
+    ``depth`` and ``sign`` hold the ``(d, h, w)`` layers row-major from ``start``, ``count``
+    the ``(h, w)`` layer counts from ``cstart``."""
+    ts = ((m[0, 0] * x + m[0, 1] * y) + m[0, 2] * z) + m[0, 3]
+    tt = ((m[1, 0] * x + m[1, 1] * y) + m[1, 2] * z) + m[1, 3]
+    tr = ((m[2, 0] * x + m[2, 1] * y) + m[2, 2] * z) + m[2, 3]
+    if not (0.0 <= ts <= 1.0 and 0.0 <= tt <= 1.0 and 0.0 <= tr <= 1.0):
+        return False
+    col = min(int(ts * w), w - 1)
+    row = h - 1 - min(int(tt * h), h - 1)
+    texel = row * w + col
+    acc = 0
+    for layer in range(count[cstart + texel]):
+        i = start + layer * (h * w) + texel
+        if depth[i] <= tr:
+            acc += sign[i] if nonzero else 1
+        else:
+            break
+    return acc != 0 if nonzero else (acc & 1) == 1
+
+
 @njit(**PJIT)
 def _parity_test(points, m, depth, sign, count, nonzero, out):
-    """MATH.md §2.2 for each point: T = M·P; inside iff T ∈ [0,1]³ and the number of layers
-    with d_j ≤ T_r at the nearest texel is odd (nonzero: Σ sign_j over them ≠ 0)."""
-    h = depth.shape[1]
-    w = depth.shape[2]
+    """:func:`parity_at` for each point of one LDI."""
+    d, h, w = depth.shape
+    flat_depth = depth.reshape(-1)
+    flat_sign = sign.reshape(-1)
+    flat_count = count.reshape(-1)
     for i in prange(points.shape[0]):
-        x = points[i, 0]
-        y = points[i, 1]
-        z = points[i, 2]
-        ts = ((m[0, 0] * x + m[0, 1] * y) + m[0, 2] * z) + m[0, 3]
-        tt = ((m[1, 0] * x + m[1, 1] * y) + m[1, 2] * z) + m[1, 3]
-        tr = ((m[2, 0] * x + m[2, 1] * y) + m[2, 2] * z) + m[2, 3]
-        if not (0.0 <= ts <= 1.0 and 0.0 <= tt <= 1.0 and 0.0 <= tr <= 1.0):
-            out[i] = False
-            continue
-        col = min(int(ts * w), w - 1)
-        row = h - 1 - min(int(tt * h), h - 1)
-        acc = 0
-        for layer in range(count[row, col]):
-            if depth[layer, row, col] <= tr:
-                acc += sign[layer, row, col] if nonzero else 1
-            else:
-                break
-        out[i] = acc != 0 if nonzero else (acc & 1) == 1
+        out[i] = parity_at(points[i, 0], points[i, 1], points[i, 2], m, flat_depth, flat_sign,
+                           flat_count, 0, 0, h, w, nonzero)
 
 
 # ----------------------------------------------------------------------------- peeling
@@ -369,6 +378,10 @@ class VolumetricDepthSprite:
         self.scale = float(scale)
         self._ldis = tuple(ldis)
         self.axes = "".join(ldi.axis for ldi in self._ldis)
+        for ldi in self._ldis:  # a sprite is immutable: kernels may keep views of its arrays
+            for arr in (ldi.basis, ldi.matrix, ldi.depth, ldi.sign, ldi.count):
+                arr.setflags(write=False)
+        self._flat = None
 
     # the paper's names for the (first) LDI
     @property
@@ -514,6 +527,26 @@ class VolumetricDepthSprite:
             _parity_test(pts, ldi.matrix, ldi.depth, ldi.sign, ldi.count, code == 1, out)
             votes += out
         return votes * 2 > len(self._ldis)
+
+    def packed(self):
+        """The sprite's LDIs for a kernel (internal): ``(matrices (L, 4, 4), depth (Σ d·h·w,)
+        float32, sign int8, count (Σ h·w,) int32, start (L,), count start (L,), shape (L, 2) =
+        (h, w))``, views of the sprite's arrays when it has one axis; made once."""
+        if self._flat is None:
+            ldis = self._ldis
+            def cat(arrays):
+                flat = [np.ascontiguousarray(a).reshape(-1) for a in arrays]
+                out = flat[0] if len(flat) == 1 else np.concatenate(flat)
+                out.setflags(write=False)
+                return out
+            sizes = np.array([ldi.depth.size for ldi in ldis], np.int64)
+            csizes = np.array([ldi.count.size for ldi in ldis], np.int64)
+            self._flat = (np.stack([ldi.matrix for ldi in ldis]), cat([x.depth for x in ldis]),
+                          cat([x.sign for x in ldis]), cat([x.count for x in ldis]),
+                          np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64),
+                          np.concatenate([[0], np.cumsum(csizes)[:-1]]).astype(np.int64),
+                          np.array([ldi.count.shape for ldi in ldis], np.int64))
+        return self._flat
 
     def fragment_stage(self, *, rule="parity"):
         """A ``fragment_stage`` for :func:`refraster.render`: keep fragments inside the solid.

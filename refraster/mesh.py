@@ -10,10 +10,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
+from ._config import JIT
 from ._validate import as_float_array, as_index_array
 
-__all__ = ["Mesh", "as_mesh", "as_meshes", "face_normals", "vertex_normals"]
+__all__ = ["Mesh", "as_mesh", "as_meshes", "bounds", "face_normals", "vertex_normals"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,3 +103,28 @@ def vertex_normals(vertices, faces):
     length = np.linalg.norm(acc, axis=1, keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(length > 0, acc / np.where(length > 0, length, 1.0), 0.0)
+
+
+@njit(**JIT)
+def _bounds(v, out):
+    for j in range(3):
+        out[0, j] = v[0, j]
+        out[1, j] = v[0, j]
+    for i in range(1, v.shape[0]):
+        for j in range(3):
+            x = v[i, j]
+            if x < out[0, j]:
+                out[0, j] = x
+            if x > out[1, j]:
+                out[1, j] = x
+
+
+def bounds(vertices):
+    """Axis-aligned bounding box ``(2, 3)`` (min, max) of ``(V, 3)`` vertices, V ≥ 1 (one
+    pass; NumPy's ``min(axis=0)`` on an ``(V, 3)`` array is several times slower)."""
+    v = np.ascontiguousarray(vertices, np.float64)
+    if v.ndim != 2 or v.shape[1] != 3 or v.shape[0] == 0:
+        raise ValueError(f"vertices must be a non-empty (V, 3) array, got shape {v.shape}")
+    out = np.zeros((2, 3))
+    _bounds(v, out)
+    return out

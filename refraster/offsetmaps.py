@@ -20,7 +20,7 @@ import numbers
 import numpy as np
 from numba import njit, prange
 
-from ._config import JIT, PJIT
+from ._config import IJIT, JIT, PJIT
 from ._validate import as_choice, as_float_array, as_real
 
 __all__ = [
@@ -116,7 +116,7 @@ def load_offset_map(path, *, channel=None):
 # texture2D with GL_LINEAR filtering
 
 
-@njit(**JIT)
+@njit(**IJIT)
 def _wrap_texel(i, size, mode):
     """Texel index ``i`` wrapped as OpenGL 4.6 Table 8.20 says."""
     if mode == _REPEAT:
@@ -128,10 +128,10 @@ def _wrap_texel(i, size, mode):
     return (size - 1) - mirrored
 
 
-@njit(**JIT)
-def _texture2d_linear(tex, s, t, mode):
-    """``texture2D(tex, vec2(s, t)).x`` with GL_LINEAR: u = s·W, i0 = ⌊u − ½⌋, α = frac(u − ½)."""
-    height, width = tex.shape
+@njit(**IJIT)
+def texture2d_flat(maps, start, height, width, s, t, mode):
+    """``texture2D(tex, vec2(s, t)).x`` with GL_LINEAR for a ``height × width`` map stored
+    row-major at ``maps[start:]``: u = s·W, i0 = ⌊u − ½⌋, α = frac(u − ½)."""
     x = s * width - 0.5
     y = t * height - 0.5
     x = min(max(x, -_COORD_LIMIT), _COORD_LIMIT)
@@ -140,12 +140,27 @@ def _texture2d_linear(tex, s, t, mode):
     fy = math.floor(y)
     alpha = x - fx
     beta = y - fy
-    i0 = _wrap_texel(np.int64(fx), width, mode)
-    i1 = _wrap_texel(np.int64(fx) + 1, width, mode)
-    j0 = _wrap_texel(np.int64(fy), height, mode)
-    j1 = _wrap_texel(np.int64(fy) + 1, height, mode)
-    return ((1.0 - alpha) * (1.0 - beta) * tex[j0, i0] + alpha * (1.0 - beta) * tex[j0, i1]
-            + (1.0 - alpha) * beta * tex[j1, i0] + alpha * beta * tex[j1, i1])
+    if mode == _REPEAT:
+        # the same texels as _wrap_texel, with one modulo per axis instead of two
+        i0 = np.int64(fx) % width
+        i1 = i0 + 1 if i0 + 1 < width else np.int64(0)
+        j0 = np.int64(fy) % height
+        j1 = j0 + 1 if j0 + 1 < height else np.int64(0)
+    else:
+        i0 = _wrap_texel(np.int64(fx), width, mode)
+        i1 = _wrap_texel(np.int64(fx) + 1, width, mode)
+        j0 = _wrap_texel(np.int64(fy), height, mode)
+        j1 = _wrap_texel(np.int64(fy) + 1, height, mode)
+    r0 = start + j0 * width
+    r1 = start + j1 * width
+    return ((1.0 - alpha) * (1.0 - beta) * maps[r0 + i0] + alpha * (1.0 - beta) * maps[r0 + i1]
+            + (1.0 - alpha) * beta * maps[r1 + i0] + alpha * beta * maps[r1 + i1])
+
+
+@njit(**IJIT)
+def _texture2d_linear(tex, s, t, mode):
+    """:func:`texture2d_flat` of a C-contiguous ``(H, W)`` map."""
+    return texture2d_flat(tex.reshape(-1), 0, tex.shape[0], tex.shape[1], s, t, mode)
 
 
 @njit(**PJIT)

@@ -262,6 +262,12 @@ kw = dict(view=look_at([1.5, 1.2, 2.2], [0, 0, 0]), proj=perspective(35, 4 / 3, 
 for mode in ("mesh", "exact"):
     fb = render_clipped(box, cs, cap_mode=mode, **kw)
     sys.stdout.write(fb.depth.tobytes().hex() + fb.color.tobytes().hex())
+# the fused tile pass (a volumetric depth sprite as the parity test)
+from refraster.ldi import VolumetricDepthSprite
+kw["vds"] = [VolumetricDepthSprite.from_mesh(box, resolution=64)]
+fb = render_clipped(box, cs, **kw)
+assert fb.cap_mask.any()
+sys.stdout.write(fb.depth.tobytes().hex() + fb.color.tobytes().hex() + fb.prim_id.tobytes().hex())
 """
 
 

@@ -105,15 +105,27 @@ class Fragments:
     def _position(self, space):
         if self.meshes is None:
             raise ValueError("these fragments carry no meshes; produce them with refraster.draw")
-        attrs = []
-        for k, m in enumerate(self.meshes):
-            v = m.vertices
-            if space != "object":
-                mat = self.models[k] if space == "world" else self.view @ self.models[k]
-                v = v @ mat[:3, :3].T + mat[:3, 3]
-            attrs.append(v)
+        attrs = vertices_in(self.meshes, self.models, self.view, space)
         return _interpolate(self.meshes, attrs, self.object_id, self.prim_id,
                             self.bary.astype(np.float64))
+
+
+def vertices_in(meshes, models, view, space):
+    """Each mesh's vertices in ``space`` ("object", "world" or "eye"): ``v·Lᵀ + t`` with
+    ``M = model`` (world) or ``view @ model`` (eye); an identity M leaves them as they are
+    (the product would give the same values)."""
+    out = []
+    for k, m in enumerate(meshes):
+        v = m.vertices
+        if space != "object":
+            mat = models[k] if space == "world" else view @ models[k]
+            if not np.array_equal(mat, _EYE4):
+                v = v @ mat[:3, :3].T + mat[:3, 3]
+        out.append(v)
+    return out
+
+
+_EYE4 = np.eye(4)
 
 
 def _interpolate(meshes, attr, object_id, prim_id, bary):

@@ -40,7 +40,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .._config import IJIT, PJIT
+from .._config import IJIT, JIT, PJIT
 from .primitive import CLIPPED, SIMPLE
 
 TILE_SHIFT = 5
@@ -263,24 +263,29 @@ def fragment_depth(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, x, y, e0, e1, e2, i
 
 
 @njit(**IJIT)
-def fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, out, o):
+def perspective_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2):
+    """Perspective-correct barycentrics ``(b0, b1, b2)`` (float32) in the original face from the
+    screen-space ``λ`` of a set-up triangle (vertex order restored for a clockwise face)."""
     q0 = l0 * iw0
     q1 = l1 * iw1
     q2 = l2 * iw2
     s = q0 + q1 + q2
     if piece < 0:
         # an unclipped face: its own vertices, in order 0, 1, 2 (front) or 0, 2, 1 (back)
-        out[o, 0] = np.float32(q0 / s)
         if front:
-            out[o, 1] = np.float32(q1 / s)
-            out[o, 2] = np.float32(q2 / s)
-        else:
-            out[o, 1] = np.float32(q2 / s)
-            out[o, 2] = np.float32(q1 / s)
-        return
-    for j in range(3):
-        out[o, j] = np.float32((q0 * B[piece, 0, j] + q1 * B[piece, 1, j]
-                                + q2 * B[piece, 2, j]) / s)
+            return np.float32(q0 / s), np.float32(q1 / s), np.float32(q2 / s)
+        return np.float32(q0 / s), np.float32(q2 / s), np.float32(q1 / s)
+    return (np.float32((q0 * B[piece, 0, 0] + q1 * B[piece, 1, 0] + q2 * B[piece, 2, 0]) / s),
+            np.float32((q0 * B[piece, 0, 1] + q1 * B[piece, 1, 1] + q2 * B[piece, 2, 1]) / s),
+            np.float32((q0 * B[piece, 0, 2] + q1 * B[piece, 1, 2] + q2 * B[piece, 2, 2]) / s))
+
+
+@njit(**IJIT)
+def fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, out, o):
+    b0, b1, b2 = perspective_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2)
+    out[o, 0] = b0
+    out[o, 1] = b1
+    out[o, 2] = b2
 
 
 @njit(**IJIT)
@@ -300,6 +305,36 @@ def _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
     return (r0, sx0, sy0, b0, r1, sx1, sy1, b1, r2, sx2, sy2, b2, fx0, fy0, fx1, fy1, fx2, fy2,
             z0, z1, z2, iw0, iw1, iw2, prim, front, piece, 1.0 / np.float64(area), inv_af, dzdx,
             dzdy)
+
+
+@njit(**JIT)
+def write_tile(zbuf, win, tx0, ty0, tx1, ty1, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW,
+               sXf, sYf, sprim, sfront, sarea, B, width, height, bits, rule, o_depth, o_prim,
+               o_front, o_bary):
+    """Write one resolved tile (its depth buffer and winning item per pixel, −1 none) to the
+    image-sized outputs: depth, face, facing and the winner's perspective-correct barycentrics
+    (recomputed exactly as the fragment stream computes them)."""
+    for y in range(ty0, ty1 + 1):
+        row = height - 1 - y
+        for x in range(tx0, tx1 + 1):
+            o_depth[row, x] = zbuf[y - ty0, x - tx0]
+            item = win[y - ty0, x - tx0]
+            if item == -1:
+                o_prim[row, x] = -1
+                continue
+            (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
+             iw2, area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX,
+                                                    sY, sZ, sIW, sXf, sYf, sprim, sfront,
+                                                    sarea)
+            o_prim[row, x] = prim
+            o_front[row, x] = front
+            e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
+            e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
+            e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
+            l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2,
+                                 _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2), x, y,
+                                 e0 + b0, e1 + b1, e2 + b2, 1.0 / np.float64(area))
+            fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary, row * width + x)
 
 
 # ------------------------------------------------------------------------------ kernels
@@ -435,28 +470,9 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 r0 += sy0
                 r1 += sy1
                 r2 += sy2
-        for y in range(ty0, ty1 + 1):
-            row = height - 1 - y
-            for x in range(tx0, tx1 + 1):
-                o_depth[row, x] = zbuf[y - ty0, x - tx0]
-                item = win[y - ty0, x - tx0]
-                if item == -1:
-                    o_prim[row, x] = -1
-                    continue
-                (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
-                 iw2, area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX,
-                                                        sY, sZ, sIW, sXf, sYf, sprim, sfront,
-                                                        sarea)
-                o_prim[row, x] = prim
-                o_front[row, x] = front
-                e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
-                e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
-                e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
-                l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2,
-                                     _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2), x, y,
-                                     e0 + b0, e1 + b1, e2 + b2, 1.0 / np.float64(area))
-                fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary,
-                              row * width + x)
+        write_tile(zbuf, win, tx0, ty0, tx1, ty1, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
+                   sIW, sXf, sYf, sprim, sfront, sarea, B, width, height, bits, rule, o_depth,
+                   o_prim, o_front, o_bary)
 
 
 def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0):

@@ -1,0 +1,179 @@
+"""The fused clip-and-cap tile pass against the fragment stream with the Python clip stage.
+
+``render_clipped`` evaluates the clip test and the volumetric parity test inside the
+rasterizer's tile loop when the parity tests are volumetric depth sprites; otherwise (or with
+``clipsurface._USE_FUSED`` off) it draws a fragment stream and runs the stage in NumPy. Both must
+give the same bits. Cap culling (``capping.cull_cap``) must not change a pixel either.
+"""
+
+import numpy as np
+import pytest
+import trimesh
+
+import refraster
+from refraster import capping, clipsurface
+from refraster import offsetmaps as om
+from refraster.camera import frame_bounds, look_at, perspective
+from refraster.clipsurface import ClipSurface, render_clipped
+from refraster.ldi import VolumetricDepthSprite
+from refraster.mesh import Mesh, bounds
+from refraster.scenes import crank
+
+FIELDS = ("depth", "eye_depth", "normal", "prim_id", "object_id", "front_facing", "barycentric",
+          "color", "cap_mask", "cap_points")
+
+
+class Wrapped:
+    """A duck-typed parity test: forces the fragment-stream path (and no cap culling)."""
+
+    def __init__(self, sprite):
+        self.sprite = sprite
+
+    def contains(self, points):
+        return self.sprite.contains(points)
+
+
+def staged(monkeypatch, *args, **kwargs):
+    with monkeypatch.context() as m:
+        m.setattr(clipsurface, "_USE_FUSED", False)
+        return render_clipped(*args, **kwargs)
+
+
+def assert_same(a, b, fields=FIELDS):
+    for f in fields:
+        x, y = getattr(a, f), getattr(b, f)
+        assert x.dtype == y.dtype and x.shape == y.shape, f
+        assert np.array_equal(x, y, equal_nan=x.dtype.kind == "f"), f
+
+
+def _frame(n):
+    n = np.asarray(n, float) / np.linalg.norm(n)
+    u = np.cross(n, [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    return u, np.cross(n, u)
+
+
+@pytest.fixture(scope="module")
+def crank_scene():
+    mesh = crank()
+    lo, hi = mesh.bounds
+    u, v = _frame([0.0, 0.25, -1.0])
+    ext = float(np.linalg.norm(hi - lo))
+    ragged = ClipSurface((lo + hi) / 2, ext * u, ext * v, (1.0, 1.0, 0.6),
+                         om.perlin_noise(64, seed=1))
+    u2, v2 = _frame([1.0, 0.1, 0.2])
+    second = ClipSurface((lo + hi) / 2 + [0.3 * (hi - lo)[0], 0, 0], ext * u2, ext * v2,
+                         (2.0, 2.0, 0.05), om.sinusoid(32, periods=(3, 1)),
+                         wrap="mirrored_repeat")
+    cam = frame_bounds(mesh.bounds, width=200, height=150, direction=(0.3, 0.7, 1.0))
+    sprite = VolumetricDepthSprite.from_mesh(mesh, resolution=256)
+    return mesh, ragged, second, cam, sprite
+
+
+@pytest.mark.parametrize("space", ["world", "eye"])
+@pytest.mark.parametrize("two", [False, True], ids=["one surface", "two surfaces"])
+def test_fused_equals_stream_on_the_crank(crank_scene, monkeypatch, space, two):
+    mesh, ragged, second, cam, sprite = crank_scene
+    surfaces = [ragged, second] if two else ragged
+    kw = dict(**cam.kwargs, vds=[sprite], cap_style="hatch", space=space)
+    fused = render_clipped(mesh, surfaces, **kw)
+    ref = staged(monkeypatch, mesh, surfaces, **kw)
+    assert fused.cap_mask.sum() > 200
+    assert_same(fused, ref)
+
+
+def test_fused_equals_stream_without_caps(crank_scene, monkeypatch):
+    mesh, ragged, second, cam, _ = crank_scene
+    kw = dict(**cam.kwargs, caps=False)
+    fused = render_clipped(mesh, [ragged, second.replace(enabled=False)], **kw)
+    ref = staged(monkeypatch, mesh, [ragged, second.replace(enabled=False)], **kw)
+    assert_same(fused, ref)
+    plain = refraster.render(mesh, **cam.kwargs)
+    assert (fused.mask < plain.mask).any()           # the surface removed something
+
+
+def test_fused_equals_stream_for_two_solids_with_models_and_three_axes(monkeypatch):
+    box = trimesh.creation.box((1.0, 1.0, 1.0))
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.6)
+    m0 = np.eye(4)
+    m1 = np.eye(4)
+    m1[:3, 3] = [1.3, 0.2, -0.3]
+    m1[:3, :3] = trimesh.transformations.rotation_matrix(0.4, [0, 1, 1])[:3, :3]
+    cs = ClipSurface([0.5, 0.0, 0.0], [0, 3.0, 0], [3.0, 0, 0], (2, 2, 0.3),
+                     om.perlin_noise(32, seed=3))
+    world = [Mesh(np.asarray(box.vertices), np.asarray(box.faces)),
+             Mesh(np.asarray(ball.vertices) @ m1[:3, :3].T + m1[:3, 3], np.asarray(ball.faces))]
+    sprites = [VolumetricDepthSprite.from_mesh(world[0], resolution=64, axis="xyz"),
+               VolumetricDepthSprite.from_mesh(world[1], resolution=64)]
+    kw = dict(view=look_at([2.0, 1.5, 3.0], [0.6, 0, 0]), proj=perspective(40, 4 / 3, 0.5, 10),
+              width=160, height=120, model=[m0, m1], vds=sprites, cap_style="diffuse",
+              normals="smooth")
+    fused = render_clipped([box, ball], cs, **kw)
+    ref = staged(monkeypatch, [box, ball], cs, **kw)
+    assert set(np.unique(fused.object_id[fused.cap_mask])) == {2, 3}
+    assert_same(fused, ref)
+
+
+def test_cap_culling_changes_no_pixel(crank_scene):
+    """Culled caps (sprite given) against the whole cap grid (duck-typed test, no culling):
+    every buffer equal except the caps' face indices, which count the kept faces."""
+    mesh, ragged, _, cam, sprite = crank_scene
+    kw = dict(**cam.kwargs, cap_style="marble")
+    culled = render_clipped(mesh, ragged, vds=[sprite], **kw)
+    whole = render_clipped(mesh, ragged, vds=[Wrapped(sprite)], **kw)
+    assert_same(culled, whole, [f for f in FIELDS if f != "prim_id"])
+    solid = culled.mask & ~culled.cap_mask
+    assert np.array_equal(culled.prim_id[solid], whole.prim_id[solid])
+    full = capping.cap_mesh(ragged, bounds(mesh.vertices))
+    kept = capping.cull_cap(full, sprite)
+    assert 0 < kept.n_faces < 0.6 * full.n_faces
+
+
+def test_cull_cap_keeps_faces_reaching_the_solid():
+    """Brute force on a small case: a face is dropped only if no point sampled on it (with a
+    small margin) is inside the solid by the parity test."""
+    box = Mesh(*(np.asarray(a) for a in (trimesh.creation.box((1, 1, 1)).vertices,
+                                         trimesh.creation.box((1, 1, 1)).faces)))
+    sprite = VolumetricDepthSprite.from_mesh(box, resolution=32)
+    cs = ClipSurface([0.1, 0, 0], [0, 2.0, 0.4], [0, -0.4, 2.0], (1, 1, 0.4),
+                     om.perlin_noise(12, seed=5))
+    cap = capping.cap_mesh(cs, bounds(box.vertices))
+    kept = capping.cull_cap(cap, sprite)
+    kept_keys = {tuple(np.round(kept.vertices[f].mean(axis=0), 12)) for f in kept.faces}
+    rng = np.random.default_rng(0)
+    w = rng.dirichlet((1, 1, 1), size=64)
+    for f in cap.faces:
+        key = tuple(np.round(cap.vertices[f].mean(axis=0), 12))
+        if key in kept_keys:
+            continue
+        pts = w @ cap.vertices[f]
+        assert not sprite.contains(pts).any()
+
+
+def test_clipped_framebuffer_cap_position_image(crank_scene):
+    mesh, ragged, _, cam, sprite = crank_scene
+    fb = render_clipped(mesh, ragged, **cam.kwargs, vds=[sprite])
+    img = fb.cap_position
+    assert img.shape == fb.depth.shape + (3,)
+    assert np.array_equal(img[fb.cap_mask], fb.cap_points)
+    assert np.isnan(img[~fb.cap_mask]).all()
+    eye = fb.eye_position()[fb.cap_mask]
+    np.testing.assert_allclose(-eye[:, 2], fb.eye_depth[fb.cap_mask], rtol=1e-6)
+
+
+def test_bounds_matches_numpy():
+    v = np.random.default_rng(1).normal(size=(1001, 3))
+    np.testing.assert_array_equal(bounds(v), np.stack([v.min(axis=0), v.max(axis=0)]))
+    with pytest.raises(ValueError, match="vertices"):
+        bounds(np.zeros((0, 3)))
+
+
+def test_watertight_memo_sees_changed_arrays():
+    box = trimesh.creation.box((1.0, 1.0, 1.0))
+    v = np.array(box.vertices)
+    f = np.array(box.faces)
+    capping.check_watertight(Mesh(v, f))
+    capping.check_watertight(Mesh(v, f))          # remembered
+    f[-1] = f[0]                                  # now two faces are the same, one edge open
+    with pytest.raises(ValueError, match="watertight"):
+        capping.check_watertight(Mesh(v, f))
