@@ -26,13 +26,13 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ._config import JIT, PJIT
+from ._config import IJIT, JIT, PJIT
 from ._validate import as_choice, as_float_array, as_real
 from .mesh import Mesh
-from .offsetmaps import WRAP_MODES, _wrap_texel, sample, texture2d_flat
+from .offsetmaps import WRAP_MODES, _wrap_texel, bilinear, bilinear_taps, sample
 
 __all__ = ["CAP_STYLES", "check_watertight", "cap_mesh", "cull_cap", "exact_caps", "light_caps",
-           "shade_caps", "solid_texture", "MAX_CAP_VERTICES"]
+           "shade_cap_pixels", "shade_caps", "solid_texture", "MAX_CAP_VERTICES"]
 
 #: Largest cap grid accepted (vertices); a larger one almost always means a surface whose
 #: texture tile is far smaller than the solid.
@@ -547,49 +547,78 @@ def solid_texture(points, kind, *, frequency=4.0, color=(0.8, 0.3, 0.25), seed=0
     return np.clip((1.0 - v)[:, None] * c + v[:, None] * np.ones(3), 0.0, 1.0)
 
 
+@njit(**IJIT)
+def _light_at(x, y, z, k, params, wrap, nx, ny, nz, occ, offset, shape, view, nmat):
+    """One cap point on surface k: (s, t), the normal map sampled per component and
+    renormalized, turned (Û, V̂, N) → world → eye; shade = occlusion·(0.25 + 0.75·|n·v|).
+    Returns the eye-space normal and the shade."""
+    dx = x - params[k, 0]
+    dy = y - params[k, 1]
+    dz = z - params[k, 2]
+    s = ((dx * params[k, 3] + dy * params[k, 4] + dz * params[k, 5]) / params[k, 12]) \
+        * params[k, 14]
+    t = ((dx * params[k, 6] + dy * params[k, 7] + dz * params[k, 8]) / params[k, 13]) \
+        * params[k, 15]
+    taps = bilinear_taps(offset[k], shape[k, 0], shape[k, 1], s, t, wrap[k])
+    a = bilinear(nx, taps)
+    b = bilinear(ny, taps)
+    c = bilinear(nz, taps)
+    length = math.sqrt(a * a + b * b + c * c)
+    if length > 0.0:
+        a /= length
+        b /= length
+        c /= length
+    wx = a * params[k, 3] + b * params[k, 6] + c * params[k, 9]
+    wy = a * params[k, 4] + b * params[k, 7] + c * params[k, 10]
+    wz = a * params[k, 5] + b * params[k, 8] + c * params[k, 11]
+    ex = nmat[0, 0] * wx + nmat[0, 1] * wy + nmat[0, 2] * wz
+    ey = nmat[1, 0] * wx + nmat[1, 1] * wy + nmat[1, 2] * wz
+    ez = nmat[2, 0] * wx + nmat[2, 1] * wy + nmat[2, 2] * wz
+    length = math.sqrt(ex * ex + ey * ey + ez * ez)
+    if length > 0.0:
+        ex /= length
+        ey /= length
+        ez /= length
+    px = view[0, 0] * x + view[0, 1] * y + view[0, 2] * z + view[0, 3]
+    py = view[1, 0] * x + view[1, 1] * y + view[1, 2] * z + view[1, 3]
+    pz = view[2, 0] * x + view[2, 1] * y + view[2, 2] * z + view[2, 3]
+    vl = max(math.sqrt(px * px + py * py + pz * pz), 1e-300)
+    ndv = abs(ex * px + ey * py + ez * pz) / vl
+    return ex, ey, ez, bilinear(occ, taps) * (0.25 + 0.75 * ndv)
+
+
+@njit(**IJIT)
+def _hatch_at(x, y, z, k, params, spacing, shade):
+    """45° section hatch in surface k's (Û, V̂) plane, thicker where the shade is dark: ink
+    where frac((d·Û + d·V̂) / (√2·spacing)) < 0.15 + 0.6·(1 − shade), d = P − O."""
+    dx = x - params[k, 0]
+    dy = y - params[k, 1]
+    dz = z - params[k, 2]
+    u = ((dx * params[k, 3] + dy * params[k, 4] + dz * params[k, 5])
+         + (dx * params[k, 6] + dy * params[k, 7] + dz * params[k, 8])) \
+        / (math.sqrt(2.0) * spacing)
+    return u - math.floor(u) < 0.15 + 0.6 * (1.0 - shade)
+
+
+@njit(**IJIT)
+def _style_color(style, ink, shade, color, c):
+    """Channel c of a diffuse (0) or hatched (1) cap colour, clipped to [0, 1]."""
+    if style == 0:
+        v = color[c] * shade
+    elif ink:
+        v = color[c] * 0.35
+    else:
+        v = 0.55 + 0.45 * shade
+    return min(max(v, 0.0), 1.0)
+
+
 @njit(**PJIT)
 def _cap_light_kernel(points, which, params, wrap, nx, ny, nz, occ, offset, shape, view, nmat,
                       shade, normal):
-    """Per cap point: (s, t) of its surface, the normal map sampled per component and
-    renormalized, turned (Û, V̂, N) → world → eye; shade = occlusion·(0.25 + 0.75·|n·v|)."""
     for i in prange(points.shape[0]):
-        k = which[i]
-        dx = points[i, 0] - params[k, 0]
-        dy = points[i, 1] - params[k, 1]
-        dz = points[i, 2] - params[k, 2]
-        s = ((dx * params[k, 3] + dy * params[k, 4] + dz * params[k, 5]) / params[k, 12]) \
-            * params[k, 14]
-        t = ((dx * params[k, 6] + dy * params[k, 7] + dz * params[k, 8]) / params[k, 13]) \
-            * params[k, 15]
-        h, w, o, mode = shape[k, 0], shape[k, 1], offset[k], wrap[k]
-        a = texture2d_flat(nx, o, h, w, s, t, mode)
-        b = texture2d_flat(ny, o, h, w, s, t, mode)
-        c = texture2d_flat(nz, o, h, w, s, t, mode)
-        length = math.sqrt(a * a + b * b + c * c)
-        if length > 0.0:
-            a /= length
-            b /= length
-            c /= length
-        wx = a * params[k, 3] + b * params[k, 6] + c * params[k, 9]
-        wy = a * params[k, 4] + b * params[k, 7] + c * params[k, 10]
-        wz = a * params[k, 5] + b * params[k, 8] + c * params[k, 11]
-        ex = nmat[0, 0] * wx + nmat[0, 1] * wy + nmat[0, 2] * wz
-        ey = nmat[1, 0] * wx + nmat[1, 1] * wy + nmat[1, 2] * wz
-        ez = nmat[2, 0] * wx + nmat[2, 1] * wy + nmat[2, 2] * wz
-        length = math.sqrt(ex * ex + ey * ey + ez * ez)
-        if length > 0.0:
-            ex /= length
-            ey /= length
-            ez /= length
-        px = view[0, 0] * points[i, 0] + view[0, 1] * points[i, 1] + view[0, 2] * points[i, 2] \
-            + view[0, 3]
-        py = view[1, 0] * points[i, 0] + view[1, 1] * points[i, 1] + view[1, 2] * points[i, 2] \
-            + view[1, 3]
-        pz = view[2, 0] * points[i, 0] + view[2, 1] * points[i, 1] + view[2, 2] * points[i, 2] \
-            + view[2, 3]
-        vl = max(math.sqrt(px * px + py * py + pz * pz), 1e-300)
-        ndv = abs(ex * px + ey * py + ez * pz) / vl
-        shade[i] = texture2d_flat(occ, o, h, w, s, t, mode) * (0.25 + 0.75 * ndv)
+        ex, ey, ez, sh = _light_at(points[i, 0], points[i, 1], points[i, 2], which[i], params,
+                                   wrap, nx, ny, nz, occ, offset, shape, view, nmat)
+        shade[i] = sh
         normal[i, 0] = ex
         normal[i, 1] = ey
         normal[i, 2] = ez
@@ -597,24 +626,43 @@ def _cap_light_kernel(points, which, params, wrap, nx, ny, nz, occ, offset, shap
 
 @njit(**PJIT)
 def _hatch_kernel(points, which, params, spacing, shade, color, out):
-    """45° section hatch in each surface's (Û, V̂) plane, thicker where the shade is dark:
-    ink where frac((d·Û + d·V̂) / (√2·spacing)) < 0.15 + 0.6·(1 − shade), d = P − O."""
     for i in prange(points.shape[0]):
-        k = which[i]
-        dx = points[i, 0] - params[k, 0]
-        dy = points[i, 1] - params[k, 1]
-        dz = points[i, 2] - params[k, 2]
-        x = ((dx * params[k, 3] + dy * params[k, 4] + dz * params[k, 5])
-             + (dx * params[k, 6] + dy * params[k, 7] + dz * params[k, 8])) \
-            / (math.sqrt(2.0) * spacing)
-        x = x - math.floor(x)
-        if x < 0.15 + 0.6 * (1.0 - shade[i]):
+        ink = _hatch_at(points[i, 0], points[i, 1], points[i, 2], which[i], params, spacing,
+                        shade[i])
+        for c in range(3):
+            out[i, c] = _style_color(1, ink, shade[i], color, c)
+
+
+@njit(**PJIT)
+def _cap_pixels_kernel(flat, obj, prim, bary, n_solids, n_surf, faces, face_offsets, verts,
+                       params, wrap, nx, ny, nz, occ, offset, shape, view, nmat, style, color,
+                       spacing, points, shade, out_color, out_normal):
+    """The mesh caps' pixels in one pass: world position interpolated from the cap face
+    (``(b0·V0 + b1·V1) + b2·V2``, as :meth:`Fragments.world_position`), lighting, and for
+    the diffuse and hatch styles the colour, written into the G-buffer (``flat`` pixels)."""
+    for i in prange(flat.shape[0]):
+        p = flat[i]
+        g = face_offsets[obj[p]] + prim[p]
+        v0 = faces[g, 0]
+        v1 = faces[g, 1]
+        v2 = faces[g, 2]
+        b0 = np.float64(bary[p, 0])
+        b1 = np.float64(bary[p, 1])
+        b2 = np.float64(bary[p, 2])
+        for j in range(3):
+            points[i, j] = (b0 * verts[v0, j] + b1 * verts[v1, j]) + b2 * verts[v2, j]
+        k = (obj[p] - n_solids) % n_surf
+        ex, ey, ez, sh = _light_at(points[i, 0], points[i, 1], points[i, 2], k, params, wrap,
+                                   nx, ny, nz, occ, offset, shape, view, nmat)
+        shade[i] = sh
+        out_normal[p, 0] = ex
+        out_normal[p, 1] = ey
+        out_normal[p, 2] = ez
+        if style <= 1:
+            ink = style == 1 and _hatch_at(points[i, 0], points[i, 1], points[i, 2], k, params,
+                                           spacing, sh)
             for c in range(3):
-                out[i, c] = min(max(color[c] * 0.35, 0.0), 1.0)
-        else:
-            v = min(max(0.55 + 0.45 * shade[i], 0.0), 1.0)
-            for c in range(3):
-                out[i, c] = v
+                out_color[p, c] = _style_color(style, ink, sh, color, c)
 
 
 def _shading_maps(surface, radius):
@@ -630,24 +678,58 @@ def _shading_maps(surface, radius):
     return surface._derived[key]
 
 
-def light_caps(points, surface_index, surfaces, *, view, occlusion_radius=None):
-    """Eye-space normal ``(N, 3)`` and shade ``(N,)`` of cap points (see :func:`shade_caps`)."""
-    from .clipsurface import _Packed
-    packed = _Packed(surfaces)
+def _lighting_args(surfaces, view, occlusion_radius, packed=None):
+    """Kernel arguments of the cap lighting: parameter table, wrap codes, the normal-map
+    components and occlusion maps (flat), offsets, shapes, view and normal matrix."""
+    if packed is None:
+        from .clipsurface import _Packed
+        packed = _Packed(surfaces)
     maps = [_shading_maps(s, occlusion_radius) if s.enabled else
             tuple(np.zeros(s.offset_map.size) for _ in range(4)) for s in surfaces]
     flat = [np.concatenate([m[c] for m in maps]) if len(maps) > 1 else maps[0][c]
             for c in range(4)]
+    view = np.ascontiguousarray(view, np.float64)
+    return (packed.params, packed.wrap, *flat, packed.offset, packed.shape, view,
+            np.linalg.inv(view[:3, :3]).T)
+
+
+def light_caps(points, surface_index, surfaces, *, view, occlusion_radius=None):
+    """Eye-space normal ``(N, 3)`` and shade ``(N,)`` of cap points (see :func:`shade_caps`)."""
     n = len(points)
     shade = np.zeros(n)
     normal = np.zeros((n, 3))
     if n:
-        nmat = np.linalg.inv(view[:3, :3]).T
         _cap_light_kernel(np.ascontiguousarray(points, np.float64),
-                          np.ascontiguousarray(surface_index, np.int64), packed.params,
-                          packed.wrap, *flat, packed.offset, packed.shape,
-                          np.ascontiguousarray(view), nmat, shade, normal)
+                          np.ascontiguousarray(surface_index, np.int64),
+                          *_lighting_args(surfaces, view, occlusion_radius), shade, normal)
     return normal, shade
+
+
+def shade_cap_pixels(flat, gbuffer, n_solids, n_surf, faces, face_offsets, vertices, surfaces,
+                     *, view, style, color, hatch_spacing, frequency, occlusion_radius=None,
+                     packed=None):
+    """:func:`shade_caps` for the mesh caps' pixels of a G-buffer, in place: ``flat`` lists
+    the cap pixels (row-major), ``faces``/``vertices`` are all draw calls' (world space for
+    the caps), ``face_offsets`` the draw calls' first faces. Writes ``color`` and ``normal``
+    and returns the cap points ``(C, 3)`` (world)."""
+    n = len(flat)
+    points = np.zeros((n, 3))
+    shade = np.zeros(n)
+    if n == 0:
+        return points
+    code = {"diffuse": 0, "hatch": 1}.get(style, 2)
+    color_img = gbuffer.color.reshape(-1, 3)
+    normal_img = gbuffer.normal.reshape(-1, 3)
+    _cap_pixels_kernel(flat, gbuffer.object_id.reshape(-1), gbuffer.prim_id.reshape(-1),
+                       gbuffer.barycentric.reshape(-1, 3), n_solids, n_surf, faces,
+                       face_offsets, vertices,
+                       *_lighting_args(surfaces, view, occlusion_radius, packed), code,
+                       np.asarray(color, np.float64), float(hatch_spacing), points, shade,
+                       color_img, normal_img)
+    if code == 2:
+        col = solid_texture(points, style, frequency=frequency, color=color) * shade[:, None]
+        color_img[flat] = np.clip(col, 0.0, 1.0)
+    return points
 
 
 def shade_caps(points, surface_index, surfaces, *, view, style, color, hatch_spacing,

@@ -19,6 +19,7 @@ and closes the cuts with cap surfaces (:mod:`refraster.capping`).
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -29,6 +30,7 @@ from ._validate import as_choice, as_float_array, as_matrix, as_real
 from .framebuffer import Framebuffer
 from .ldi import parity_at
 from .raster.gbuffer import _object_of
+from .raster.primitive import SIMPLE, SKIP
 from .raster.rasterizer import (TILE, TILE_SHIFT, _box, _geometry, _setup, bin_primitives,
                                 fragment_depth, lambdas, perspective_bary, row_span, write_tile)
 from .offsetmaps import (WRAP_MODES, as_offset_map, as_wrap, normal_map, occlusion_map,
@@ -147,6 +149,13 @@ class ClipSurface:
         row[_ULEN], row[_VLEN] = self.u_length, self.v_length
         row[_SX], row[_SY], row[_SZ] = self.scale
         return row
+
+    @property
+    def height_range(self):
+        """(min, max) of the offset map (cached)."""
+        if "range" not in self._derived:
+            self._derived["range"] = (float(self.offset_map.min()), float(self.offset_map.max()))
+        return self._derived["range"]
 
     @property
     def texel_size(self):
@@ -283,9 +292,14 @@ class _Packed:
             self.shape[i] = s.offset_map.shape
             self.offset[i] = pos
             pos += s.offset_map.size
-        self.maps = np.zeros(pos)
-        for i, s in enumerate(surfaces):
-            self.maps[self.offset[i]:self.offset[i] + s.offset_map.size] = s.offset_map.ravel()
+        if k == 1:   # the common case: the map itself (C-contiguous, read-only)
+            self.maps = surfaces[0].offset_map.reshape(-1)
+        else:
+            self.maps = np.zeros(pos)
+            for i, s in enumerate(surfaces):
+                self.maps[self.offset[i]:self.offset[i] + s.offset_map.size] = \
+                    s.offset_map.ravel()
+            self.maps.setflags(write=False)
 
     def args(self):
         return self.params, self.wrap, self.enabled, self.maps, self.offset, self.shape
@@ -365,7 +379,8 @@ def _keep(b0, b1, b2, i0, i1, i2, tv, wv, separate, skip, solid, params, wrap, e
 @njit(**PJIT)
 def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim,
                      sfront, sbox, sarea, B, starts, lists, ntx, width, height, bits, rule,
-                     face_offsets, n_solids, n_surf, tv, wv, separate, params, wrap, enabled,
+                     face_offsets, n_solids, n_surf, needs_test, tv, wv, separate, params,
+                     wrap, enabled,
                      maps, offset, shape, v_first, v_mat, v_depth, v_sign, v_count, v_start,
                      v_cstart, v_hw, o_depth, o_prim, o_front, o_bary):
     """The rasterizer's fused tile pass (``GL_LESS``, clear 1) with the clip stage between
@@ -402,6 +417,7 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
             i0 = f[prim, 0]
             i1 = f[prim, 1]
             i2 = f[prim, 2]
+            test = item < 0 or needs_test[item]
             for y in range(by0, by1 + 1):
                 a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
                 e0 = r0 + sx0 * a
@@ -413,7 +429,10 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
                         z = fragment_depth(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, x, y,
                                            e0 + b0, e1 + b1, e2 + b2, inv_area)
                         lx = x - tx0
-                        if z < zbuf[ly, lx]:
+                        if z < zbuf[ly, lx] and not test:
+                            zbuf[ly, lx] = z
+                            win[ly, lx] = item
+                        elif z < zbuf[ly, lx]:
                             l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
                                                  e0 + b0, e1 + b1, e2 + b2, inv_area)
                             c0, c1, c2 = perspective_bary(iw0, iw1, iw2, piece, front, B, l0,
@@ -432,6 +451,101 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
         write_tile(zbuf, win, tx0, ty0, tx1, ty1, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
                    sIW, sXf, sYf, sprim, sfront, sarea, B, width, height, bits, rule, o_depth,
                    o_prim, o_front, o_bary)
+
+
+#: Relative margin of the per-face classification (:func:`_classify_faces`): far above the
+#: rounding of the float32 barycentrics (6e-8) the per-fragment test works from.
+_CLASSIFY_MARGIN = 1e-6
+
+
+@njit(**IJIT)
+def _corner_sums(x0, y0, x1, y1, x2, y2, iw0, iw1, iw2, a0, a1, a2, px, py):
+    """At window point (px, py): Σ q_i·a_i and Σ |q_i| with q_i = λ_i·(1/w_i), λ the
+    barycentrics of the unsnapped triangle (whose doubled signed area is handled by the
+    caller's sign)."""
+    l0 = (x2 - x1) * (py - y1) - (y2 - y1) * (px - x1)
+    l1 = (x0 - x2) * (py - y2) - (y0 - y2) * (px - x2)
+    l2 = (x1 - x0) * (py - y0) - (y1 - y0) * (px - x0)
+    q0 = l0 * iw0
+    q1 = l1 * iw1
+    q2 = l2 * iw2
+    return q0 * a0 + q1 * a1 + q2 * a2, abs(q0) + abs(q1) + abs(q2), q0 + q1 + q2
+
+
+@njit(**PJIT)
+def _classify_faces(f, vX, vY, vXf, vYf, vIW, status, fbox, face_offsets, n_solids, n_surf,
+                    tv, params, enabled, h_lo, h_hi, out_status, needs_test):
+    """Per simple face, decide over its pixel box whether the clip stage can change anything:
+    ``out_status = SKIP`` where some enabled surface (other than a cap's own) clips every
+    fragment the face can produce; ``needs_test = False`` where every enabled surface keeps
+    all of them (and the face is no cap, which always needs the parity test).
+
+    Why this is exact: g's plane part is affine in the position and the offset term lies in
+    [h_lo, h_hi]; a fragment's position is ``P = Σ q_i V_i / Σ q_i`` with ``q_i = λ_i / w_i``
+    and the λ_i affine in the window position, so the sign of ``Σ q_i (N·(V_i − O) + h)`` over
+    the covered pixel centres is bounded by its values at the box's four corner centres
+    (the snapped triangle's centres all lie in the box; λ is the unsnapped triangle's, as the
+    rasterizer interpolates). A margin covers the float32 rounding of the barycentrics.
+    Clipped pieces of faces are left to the per-fragment test."""
+    for i in prange(f.shape[0]):
+        out_status[i] = status[i]
+        needs_test[i] = True
+        if status[i] != SIMPLE:
+            continue
+        a, b, c = f[i, 0], f[i, 1], f[i, 2]
+        area = (vX[b] - vX[a]) * (vY[c] - vY[a]) - (vX[c] - vX[a]) * (vY[b] - vY[a])
+        x0, y0 = np.float64(vXf[a]), np.float64(vYf[a])
+        x1, y1 = np.float64(vXf[b]), np.float64(vYf[b])
+        x2, y2 = np.float64(vXf[c]), np.float64(vYf[c])
+        af = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        if not ((area > 0 and af > 0.0) or (area < 0 and af < 0.0)):
+            continue   # the rasterizer interpolates from the snapped triangle here
+        sgn = 1.0 if af > 0.0 else -1.0
+        obj = _object_of(face_offsets, i)
+        skip = (obj - n_solids) % n_surf if obj >= n_solids else -1
+        kept_by_all = obj < n_solids
+        for k in range(params.shape[0]):
+            if not enabled[k] or k == skip:
+                continue
+            p0 = ((tv[a, 0] - params[k, 0]) * params[k, 9] + (tv[a, 1] - params[k, 1])
+                  * params[k, 10]) + (tv[a, 2] - params[k, 2]) * params[k, 11]
+            p1 = ((tv[b, 0] - params[k, 0]) * params[k, 9] + (tv[b, 1] - params[k, 1])
+                  * params[k, 10]) + (tv[b, 2] - params[k, 2]) * params[k, 11]
+            p2 = ((tv[c, 0] - params[k, 0]) * params[k, 9] + (tv[c, 1] - params[k, 1])
+                  * params[k, 10]) + (tv[c, 2] - params[k, 2]) * params[k, 11]
+            # bound on the terms whose rounding the margin must cover: the fragment's
+            # barycentrics need not sum to 1 exactly, which shifts N·P by up to |N·V|, |N·O|
+            mag = max(abs(tv[a, 0]) + abs(tv[a, 1]) + abs(tv[a, 2]),
+                      abs(tv[b, 0]) + abs(tv[b, 1]) + abs(tv[b, 2]),
+                      abs(tv[c, 0]) + abs(tv[c, 1]) + abs(tv[c, 2])) \
+                + abs(params[k, 0]) + abs(params[k, 1]) + abs(params[k, 2])
+            scale = max(abs(p0), abs(p1), abs(p2)) + mag + max(abs(h_lo[k]), abs(h_hi[k])) \
+                + 1e-300
+            clipped = True
+            kept = True
+            for corner in range(4):
+                px = np.float64(fbox[i, corner & 1]) + 0.5
+                py = np.float64(fbox[i, 2 + (corner >> 1)]) + 0.5
+                hi_sum, q_abs, q_sum = _corner_sums(x0, y0, x1, y1, x2, y2, vIW[a], vIW[b],
+                                                    vIW[c], p0 + h_hi[k], p1 + h_hi[k],
+                                                    p2 + h_hi[k], px, py)
+                lo_sum, _, _ = _corner_sums(x0, y0, x1, y1, x2, y2, vIW[a], vIW[b], vIW[c],
+                                            p0 + h_lo[k], p1 + h_lo[k], p2 + h_lo[k], px, py)
+                tol = _CLASSIFY_MARGIN * q_abs * scale
+                if not sgn * q_sum > tol / scale:
+                    clipped = False
+                    kept = False
+                    break
+                if not sgn * hi_sum < -tol:
+                    clipped = False
+                if not sgn * lo_sum > tol:
+                    kept = False
+            if clipped:
+                out_status[i] = SKIP
+                break
+            if not kept:
+                kept_by_all = False
+        needs_test[i] = not kept_by_all
 
 
 def _pack_sprites(tests):
@@ -476,17 +590,30 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests):
     Returns ``(depth, prim_global, front, bary)`` as :func:`refraster.raster.rasterizer.fused`.
     """
     prims = prep.triangles
+    packed = _Packed(surfaces)
+    n_surf = max(len(surfaces), 1)
+    h_lo = np.zeros(len(surfaces))
+    h_hi = np.zeros(len(surfaces))
+    for k, srf in enumerate(surfaces):
+        ends = srf.scale[2] * np.array(srf.height_range)
+        h_lo[k], h_hi[k] = ends.min(), ends.max()
+    status = np.empty_like(prims.status)
+    needs_test = np.empty(prims.n_faces, np.bool_)
+    _classify_faces(prims.faces, prims.vx, prims.vy, prims.vxf, prims.vyf, prims.v_inv_w,
+                    prims.status, prims.bbox, prep.face_offsets, n_solids, n_surf, test_vertices,
+                    packed.params, packed.enabled, h_lo, h_hi, status, needs_test)
+    prims = copy.copy(prims)
+    prims.status = status
     ntx, _, starts, lists = bin_primitives(prims)
     h, w = prims.height, prims.width
     depth = np.zeros((h, w), np.float32)
     prim = np.zeros((h, w), np.int64)
     front = np.zeros((h, w), np.bool_)
     bary = np.zeros((h * w, 3), np.float32)
-    packed = _Packed(surfaces)
     sprites = _pack_sprites(tests) if tests else _no_sprites()
     separate = world_vertices is not test_vertices
     _fused_clip_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits,
-                     prep.fill_rule, prep.face_offsets, n_solids, max(len(surfaces), 1),
+                     prep.fill_rule, prep.face_offsets, n_solids, n_surf, needs_test,
                      test_vertices, world_vertices, separate, *packed.args(), *sprites,
                      depth, prim, front, bary)
     return depth, prim, front, bary
@@ -813,6 +940,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
                 draw_models.append(np.eye(4))
 
     bg = as_float_array(background, "background", shape=(3,))
+    geometry = None
     cap_tests = tests if do_caps and mode == "mesh" else None
     if not fused:
         # duck-typed parity tests: the fragment stream with a Python stage
@@ -829,8 +957,10 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
         depth, prim_global, front, bary = _fused_clip(
             prep, tv, wv, n_solids, _surfaces_in_space(surfaces, space, view), cap_tests)
         h, w = depth.shape
+        identity = all(np.array_equal(m, np.eye(4)) for m in prep.models)
+        geometry = (tv, prep.triangles.faces) if identity and space == "world" else None
         fb = _build(prep.meshes, prep.models, view, proj, depth, prim_global, prep.face_offsets,
-                    front, bary.reshape(h, w, 3), normals, bg)
+                    front, bary.reshape(h, w, 3), normals, bg, geometry)
     h, w = fb.depth.shape
     cap_mask = fb.object_id >= n_solids
     out = ClippedFramebuffer(**{f: getattr(fb, f) for f in (
@@ -840,13 +970,18 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
     if not do_caps:
         return out
     if mode == "mesh":
-        # the caps are drawn in world space (identity model)
-        flat = np.flatnonzero(cap_mask)
-        cap_meshes = fb.meshes[n_solids:]
-        out.cap_points = _interpolate(
-            cap_meshes, [m.vertices for m in cap_meshes],
-            fb.object_id.reshape(-1)[flat] - n_solids, fb.prim_id.reshape(-1)[flat],
-            fb.barycentric.reshape(-1, 3)[flat].astype(np.float64))
+        # the caps are drawn in world space (identity model): interpolate, light and colour
+        # their pixels in one pass
+        if geometry is None:
+            vbase = np.cumsum([0] + [m.n_vertices for m in fb.meshes])
+            geometry = (_concat_vertices([m.vertices for m in fb.meshes]),
+                        np.concatenate([m.faces + vbase[k] for k, m in enumerate(fb.meshes)]))
+        face_offsets = np.cumsum([0] + [m.n_faces for m in fb.meshes]).astype(np.int64)
+        out.cap_points = capping.shade_cap_pixels(
+            np.flatnonzero(cap_mask), out, n_solids, n_surf, geometry[1], face_offsets,
+            geometry[0], surfaces, view=view, style=style, color=color, hatch_spacing=spacing,
+            frequency=freq, occlusion_radius=occlusion_radius)
+        return out
     else:
         tau, which, origin, direction = capping.exact_caps(
             surfaces, world, tests, view=view, proj=proj, width=width, height=height)

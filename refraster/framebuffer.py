@@ -154,12 +154,15 @@ def _normals_per_mesh(meshes, normals):
 
 
 def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, bary, normals,
-           background):
+           background, geometry=None):
     """Finalize the G-buffer from the visible primitive (global index over all draw calls,
-    −1 background) and its barycentrics."""
+    −1 background) and its barycentrics. ``geometry``: the draw calls' vertices and faces
+    already concatenated (faces indexing the concatenation), when the caller has them."""
     h, w = depth.shape
     vn = _normals_per_mesh(meshes, normals)
-    if len(meshes) == 1:
+    if geometry is not None:
+        vertices, faces = geometry
+    elif len(meshes) == 1:
         vertices, faces = meshes[0].vertices, meshes[0].faces
     else:
         vertices = np.concatenate([m.vertices for m in meshes]) if meshes else np.zeros((0, 3))

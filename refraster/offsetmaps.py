@@ -129,9 +129,9 @@ def _wrap_texel(i, size, mode):
 
 
 @njit(**IJIT)
-def texture2d_flat(maps, start, height, width, s, t, mode):
-    """``texture2D(tex, vec2(s, t)).x`` with GL_LINEAR for a ``height × width`` map stored
-    row-major at ``maps[start:]``: u = s·W, i0 = ⌊u − ½⌋, α = frac(u − ½)."""
+def bilinear_taps(start, height, width, s, t, mode):
+    """GL_LINEAR's four texels (flat indices from ``start``, row-major ``height × width``) and
+    weights at ``(s, t)``: u = s·W, i0 = ⌊u − ½⌋, α = frac(u − ½), wrapped per ``mode``."""
     x = s * width - 0.5
     y = t * height - 0.5
     x = min(max(x, -_COORD_LIMIT), _COORD_LIMIT)
@@ -153,8 +153,22 @@ def texture2d_flat(maps, start, height, width, s, t, mode):
         j1 = _wrap_texel(np.int64(fy) + 1, height, mode)
     r0 = start + j0 * width
     r1 = start + j1 * width
-    return ((1.0 - alpha) * (1.0 - beta) * maps[r0 + i0] + alpha * (1.0 - beta) * maps[r0 + i1]
-            + (1.0 - alpha) * beta * maps[r1 + i0] + alpha * beta * maps[r1 + i1])
+    return (r0 + i0, r0 + i1, r1 + i0, r1 + i1, (1.0 - alpha) * (1.0 - beta),
+            alpha * (1.0 - beta), (1.0 - alpha) * beta, alpha * beta)
+
+
+@njit(**IJIT)
+def bilinear(maps, taps):
+    """Combine four texels of ``maps`` with :func:`bilinear_taps`' weights."""
+    a, b, c, d, wa, wb, wc, wd = taps
+    return wa * maps[a] + wb * maps[b] + wc * maps[c] + wd * maps[d]
+
+
+@njit(**IJIT)
+def texture2d_flat(maps, start, height, width, s, t, mode):
+    """``texture2D(tex, vec2(s, t)).x`` with GL_LINEAR for a ``height × width`` map stored
+    row-major at ``maps[start:]``."""
+    return bilinear(maps, bilinear_taps(start, height, width, s, t, mode))
 
 
 @njit(**IJIT)
