@@ -20,3 +20,13 @@ def median_ms(fn, repeats, *, warmup=False):
         fn()
     times = [first_ms(fn) for _ in range(repeats)]
     return float(np.median(times))
+
+
+def interleaved_medians(fns, repeats):
+    """Median ms of each function, timed in rounds (one call of each per round), so that a
+    slow spell of a shared machine falls on all of them alike."""
+    times = [[] for _ in fns]
+    for _ in range(repeats):
+        for k, fn in enumerate(fns):
+            times[k].append(first_ms(fn))
+    return [float(np.median(t)) for t in times]

@@ -563,11 +563,8 @@ def _light_at(x, y, z, k, params, wrap, nx, ny, nz, occ, offset, shape, view, nm
     a = bilinear(nx, taps)
     b = bilinear(ny, taps)
     c = bilinear(nz, taps)
-    length = math.sqrt(a * a + b * b + c * c)
-    if length > 0.0:
-        a /= length
-        b /= length
-        c /= length
+    # the map's normal needs no normalizing of its own: only the eye-space one's direction
+    # is kept (the normal matrix is linear)
     wx = a * params[k, 3] + b * params[k, 6] + c * params[k, 9]
     wy = a * params[k, 4] + b * params[k, 7] + c * params[k, 10]
     wz = a * params[k, 5] + b * params[k, 8] + c * params[k, 11]
@@ -576,9 +573,10 @@ def _light_at(x, y, z, k, params, wrap, nx, ny, nz, occ, offset, shape, view, nm
     ez = nmat[2, 0] * wx + nmat[2, 1] * wy + nmat[2, 2] * wz
     length = math.sqrt(ex * ex + ey * ey + ez * ez)
     if length > 0.0:
-        ex /= length
-        ey /= length
-        ez /= length
+        inv = 1.0 / length
+        ex *= inv
+        ey *= inv
+        ez *= inv
     px = view[0, 0] * x + view[0, 1] * y + view[0, 2] * z + view[0, 3]
     py = view[1, 0] * x + view[1, 1] * y + view[1, 2] * z + view[1, 3]
     pz = view[2, 0] * x + view[2, 1] * y + view[2, 2] * z + view[2, 3]

@@ -459,17 +459,12 @@ _CLASSIFY_MARGIN = 1e-6
 
 
 @njit(**IJIT)
-def _corner_sums(x0, y0, x1, y1, x2, y2, iw0, iw1, iw2, a0, a1, a2, px, py):
-    """At window point (px, py): Σ q_i·a_i and Σ |q_i| with q_i = λ_i·(1/w_i), λ the
-    barycentrics of the unsnapped triangle (whose doubled signed area is handled by the
-    caller's sign)."""
-    l0 = (x2 - x1) * (py - y1) - (y2 - y1) * (px - x1)
-    l1 = (x0 - x2) * (py - y2) - (y0 - y2) * (px - x2)
-    l2 = (x1 - x0) * (py - y0) - (y1 - y0) * (px - x0)
-    q0 = l0 * iw0
-    q1 = l1 * iw1
-    q2 = l2 * iw2
-    return q0 * a0 + q1 * a1 + q2 * a2, abs(q0) + abs(q1) + abs(q2), q0 + q1 + q2
+def _corner_q(x0, y0, x1, y1, x2, y2, iw0, iw1, iw2, px, py):
+    """``q_i = λ_i·(1/w_i)`` at window point (px, py), λ the unnormalized barycentrics of the
+    unsnapped triangle (the caller handles the sign of its area)."""
+    return (((x2 - x1) * (py - y1) - (y2 - y1) * (px - x1)) * iw0,
+            ((x0 - x2) * (py - y2) - (y0 - y2) * (px - x2)) * iw1,
+            ((x1 - x0) * (py - y0) - (y1 - y0) * (px - x0)) * iw2)
 
 
 @njit(**PJIT)
@@ -504,6 +499,15 @@ def _classify_faces(f, vX, vY, vXf, vYf, vIW, status, fbox, face_offsets, n_soli
         obj = _object_of(face_offsets, i)
         skip = (obj - n_solids) % n_surf if obj >= n_solids else -1
         kept_by_all = obj < n_solids
+        bx0 = np.float64(fbox[i, 0]) + 0.5
+        bx1 = np.float64(fbox[i, 1]) + 0.5
+        by0 = np.float64(fbox[i, 2]) + 0.5
+        by1 = np.float64(fbox[i, 3]) + 0.5
+        iw0, iw1, iw2 = vIW[a], vIW[b], vIW[c]
+        qs = (_corner_q(x0, y0, x1, y1, x2, y2, iw0, iw1, iw2, bx0, by0),
+              _corner_q(x0, y0, x1, y1, x2, y2, iw0, iw1, iw2, bx1, by0),
+              _corner_q(x0, y0, x1, y1, x2, y2, iw0, iw1, iw2, bx0, by1),
+              _corner_q(x0, y0, x1, y1, x2, y2, iw0, iw1, iw2, bx1, by1))
         for k in range(params.shape[0]):
             if not enabled[k] or k == skip:
                 continue
@@ -524,22 +528,21 @@ def _classify_faces(f, vX, vY, vXf, vYf, vIW, status, fbox, face_offsets, n_soli
             clipped = True
             kept = True
             for corner in range(4):
-                px = np.float64(fbox[i, corner & 1]) + 0.5
-                py = np.float64(fbox[i, 2 + (corner >> 1)]) + 0.5
-                hi_sum, q_abs, q_sum = _corner_sums(x0, y0, x1, y1, x2, y2, vIW[a], vIW[b],
-                                                    vIW[c], p0 + h_hi[k], p1 + h_hi[k],
-                                                    p2 + h_hi[k], px, py)
-                lo_sum, _, _ = _corner_sums(x0, y0, x1, y1, x2, y2, vIW[a], vIW[b], vIW[c],
-                                            p0 + h_lo[k], p1 + h_lo[k], p2 + h_lo[k], px, py)
+                q0, q1, q2 = qs[corner]
+                q_abs = abs(q0) + abs(q1) + abs(q2)
                 tol = _CLASSIFY_MARGIN * q_abs * scale
-                if not sgn * q_sum > tol / scale:
+                if not sgn * (q0 + q1 + q2) > _CLASSIFY_MARGIN * q_abs:
                     clipped = False
                     kept = False
                     break
-                if not sgn * hi_sum < -tol:
+                base = q0 * p0 + q1 * p1 + q2 * p2
+                q_sum = q0 + q1 + q2
+                if not sgn * (base + q_sum * h_hi[k]) < -tol:
                     clipped = False
-                if not sgn * lo_sum > tol:
+                if not sgn * (base + q_sum * h_lo[k]) > tol:
                     kept = False
+                if not (clipped or kept):
+                    break
             if clipped:
                 out_status[i] = SKIP
                 break

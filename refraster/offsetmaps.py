@@ -129,6 +129,18 @@ def _wrap_texel(i, size, mode):
 
 
 @njit(**IJIT)
+def _repeat(i, size):
+    """``i mod size`` (in [0, size)); one add or subtract for |i| < 2·size."""
+    if i < 0:
+        i += size
+        return i if i >= 0 else i % size
+    if i >= size:
+        i -= size
+        return i if i < size else i % size
+    return i
+
+
+@njit(**IJIT)
 def bilinear_taps(start, height, width, s, t, mode):
     """GL_LINEAR's four texels (flat indices from ``start``, row-major ``height × width``) and
     weights at ``(s, t)``: u = s·W, i0 = ⌊u − ½⌋, α = frac(u − ½), wrapped per ``mode``."""
@@ -141,10 +153,10 @@ def bilinear_taps(start, height, width, s, t, mode):
     alpha = x - fx
     beta = y - fy
     if mode == _REPEAT:
-        # the same texels as _wrap_texel, with one modulo per axis instead of two
-        i0 = np.int64(fx) % width
+        # the same texels as _wrap_texel, without an integer division within a tile's reach
+        i0 = _repeat(np.int64(fx), width)
         i1 = i0 + 1 if i0 + 1 < width else np.int64(0)
-        j0 = np.int64(fy) % height
+        j0 = _repeat(np.int64(fy), height)
         j1 = j0 + 1 if j0 + 1 < height else np.int64(0)
     else:
         i0 = _wrap_texel(np.int64(fx), width, mode)
