@@ -609,10 +609,10 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests):
     prims.status = status
     ntx, _, starts, lists = bin_primitives(prims)
     h, w = prims.height, prims.width
-    depth = np.zeros((h, w), np.float32)
-    prim = np.zeros((h, w), np.int64)
-    front = np.zeros((h, w), np.bool_)
-    bary = np.zeros((h * w, 3), np.float32)
+    depth = np.empty((h, w), np.float32)     # the post-pass writes every element
+    prim = np.empty((h, w), np.int64)
+    front = np.empty((h, w), np.bool_)
+    bary = np.empty((h * w, 3), np.float32)
     sprites = _pack_sprites(tests) if tests else _no_sprites()
     separate = world_vertices is not test_vertices
     _fused_clip_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits,

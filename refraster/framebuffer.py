@@ -178,11 +178,12 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
         mv[k] = view @ model
         if face_offsets[k + 1] > face_offsets[k]:
             nmat[k] = _normal_matrix(view, model)
-    eye_depth = np.zeros((h, w), np.float32)
-    normal = np.zeros((h, w, 3), np.float32)
-    prim = np.zeros((h, w), np.int32)
-    obj = np.zeros((h, w), np.int32)
-    color = np.zeros((h, w, 3), np.float32)
+    # finalize writes every element (background included), so no zero-filling
+    eye_depth = np.empty((h, w), np.float32)
+    normal = np.empty((h, w, 3), np.float32)
+    prim = np.empty((h, w), np.int32)
+    obj = np.empty((h, w), np.int32)
+    color = np.empty((h, w, 3), np.float32)
     finalize(prim_global, bary, vertices, faces, vnormals, vn is not None,
              np.asarray(face_offsets, np.int64), mv, nmat, PALETTE,
              np.asarray(background, np.float64), eye_depth, normal, prim, obj, color)

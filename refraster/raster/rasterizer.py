@@ -311,9 +311,9 @@ def _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
 def write_tile(zbuf, win, tx0, ty0, tx1, ty1, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW,
                sXf, sYf, sprim, sfront, sarea, B, width, height, bits, rule, o_depth, o_prim,
                o_front, o_bary):
-    """Write one resolved tile (its depth buffer and winning item per pixel, −1 none) to the
-    image-sized outputs: depth, face, facing and the winner's perspective-correct barycentrics
-    (recomputed exactly as the fragment stream computes them)."""
+    """The post-pass of :func:`_fused_pass` as a function, for the technique kernels that
+    resolve tiles the same way (the clip pass measured faster calling it than inlining it;
+    the plain pass the other way round): every pixel of the tile is written."""
     for y in range(ty0, ty1 + 1):
         row = height - 1 - y
         for x in range(tx0, tx1 + 1):
@@ -321,6 +321,11 @@ def write_tile(zbuf, win, tx0, ty0, tx1, ty1, f, vX, vY, vZ, vIW, vXf, vYf, sX, 
             item = win[y - ty0, x - tx0]
             if item == -1:
                 o_prim[row, x] = -1
+                o_front[row, x] = False
+                o = row * width + x
+                o_bary[o, 0] = 0.0
+                o_bary[o, 1] = 0.0
+                o_bary[o, 2] = 0.0
                 continue
             (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
              iw2, area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX,
@@ -470,9 +475,37 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 r0 += sy0
                 r1 += sy1
                 r2 += sy2
-        write_tile(zbuf, win, tx0, ty0, tx1, ty1, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
-                   sIW, sXf, sYf, sprim, sfront, sarea, B, width, height, bits, rule, o_depth,
-                   o_prim, o_front, o_bary)
+        # write the resolved tile: depth, face, facing and the winner's barycentrics
+        # (recomputed exactly as the stream computes them); −1, False, 0 where none won; every
+        # pixel is written. Written out here, not called: as a function (Numba cannot inline
+        # a loop into a prange body) the post-pass ran ~20 % slower.
+        for y in range(ty0, ty1 + 1):
+            row = height - 1 - y
+            for x in range(tx0, tx1 + 1):
+                o_depth[row, x] = zbuf[y - ty0, x - tx0]
+                item = win[y - ty0, x - tx0]
+                if item == -1:
+                    o_prim[row, x] = -1
+                    o_front[row, x] = False
+                    o = row * width + x
+                    o_bary[o, 0] = 0.0
+                    o_bary[o, 1] = 0.0
+                    o_bary[o, 2] = 0.0
+                    continue
+                (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
+                 iw2, area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX,
+                                                        sY, sZ, sIW, sXf, sYf, sprim, sfront,
+                                                        sarea)
+                o_prim[row, x] = prim
+                o_front[row, x] = front
+                e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
+                e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
+                e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
+                l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2,
+                                     _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2), x, y,
+                                     e0 + b0, e1 + b1, e2 + b2, 1.0 / np.float64(area))
+                fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary,
+                              row * width + x)
 
 
 def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0):
@@ -484,10 +517,11 @@ def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0):
     """
     ntx, nty, starts, lists = bin_primitives(prims)
     h, w = prims.height, prims.width
-    depth = np.zeros((h, w), np.float32)
-    prim = np.zeros((h, w), np.int64)
-    front = np.zeros((h, w), np.bool_)
-    bary = np.zeros((h * w, 3), np.float32)
+    # every element is written by the kernel's post-pass, so no zero-filling
+    depth = np.empty((h, w), np.float32)
+    prim = np.empty((h, w), np.int64)
+    front = np.empty((h, w), np.bool_)
+    bary = np.empty((h * w, 3), np.float32)
     _fused_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits, fill_rule,
                 depth_func, np.float32(clear_depth), depth, prim, front, bary)
     return depth, prim, front, bary
