@@ -56,7 +56,8 @@ def _refraster_worker(path, threads, repeats):
     code = f"""
 import json, time, numpy as np, refraster as rf
 z = np.load({str(path)!r}, allow_pickle=False)
-mesh = (z['vertices'].astype(np.float64), z['faces'].astype(np.int64))
+# validated once, as llvmpipe's mesh is uploaded once (render() skips the checks for a Mesh)
+mesh = rf.mesh.as_mesh((z['vertices'].astype(np.float64), z['faces'].astype(np.int64)))
 view, proj = z['view'], z['proj']
 def frame():
     rf.render(mesh, view=view, proj=proj, width={W}, height={H})

@@ -31,7 +31,7 @@ from .framebuffer import Framebuffer
 from .ldi import parity_at
 from .raster.gbuffer import _object_of
 from .raster.primitive import SIMPLE, SKIP
-from .raster.rasterizer import (TILE, TILE_SHIFT, _box, _geometry, _setup, bin_primitives,
+from .raster.rasterizer import (TILE_SHIFT, _box, _geometry, _setup, bin_primitives,
                                 fragment_depth, lambdas, perspective_bary, row_span, write_tile)
 from .offsetmaps import (WRAP_MODES, as_offset_map, as_wrap, normal_map, occlusion_map,
                          texture2d_flat)
@@ -382,19 +382,21 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
                      face_offsets, n_solids, n_surf, needs_test, tv, wv, separate, params,
                      wrap, enabled,
                      maps, offset, shape, v_first, v_mat, v_depth, v_sign, v_count, v_start,
-                     v_cstart, v_hw, o_depth, o_prim, o_front, o_bary):
+                     v_cstart, v_hw, tile_shift, o_depth, o_prim, o_front, o_bary):
     """The rasterizer's fused tile pass (``GL_LESS``, clear 1) with the clip stage between
     rasterization and the depth test. A fragment that fails the depth test is left untested
     (it cannot change the tile whether discarded or not), so the result equals the fragment
-    stream + stage + resolve exactly."""
+    stream + stage + resolve exactly. The tile size comes in as an argument, not as the
+    rasterizer's constant: Numba's cache does not see another module's constants change."""
     ntiles = starts.shape[0] - 1
     for tile in prange(ntiles):
-        tx0 = (tile % ntx) << TILE_SHIFT
-        ty0 = (tile // ntx) << TILE_SHIFT
-        tx1 = min(tx0 + TILE, width) - 1
-        ty1 = min(ty0 + TILE, height) - 1
-        zbuf = np.full((TILE, TILE), np.float32(1.0), np.float32)
-        win = np.full((TILE, TILE), -1, np.int64)
+        size = 1 << tile_shift
+        tx0 = (tile % ntx) << tile_shift
+        ty0 = (tile // ntx) << tile_shift
+        tx1 = min(tx0 + size, width) - 1
+        ty1 = min(ty0 + size, height) - 1
+        zbuf = np.full((size, size), np.float32(1.0), np.float32)
+        win = np.full((size, size), -1, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
             bx0, bx1, by0, by1 = _box(item, fbox, sbox)
@@ -618,7 +620,7 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests):
     _fused_clip_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits,
                      prep.fill_rule, prep.face_offsets, n_solids, n_surf, needs_test,
                      test_vertices, world_vertices, separate, *packed.args(), *sprites,
-                     depth, prim, front, bary)
+                     TILE_SHIFT, depth, prim, front, bary)
     return depth, prim, front, bary
 
 

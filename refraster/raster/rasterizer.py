@@ -43,7 +43,7 @@ from numba import njit, prange
 from .._config import IJIT, JIT, PJIT
 from .primitive import CLIPPED, SIMPLE
 
-TILE_SHIFT = 5
+TILE_SHIFT = 6
 TILE = 1 << TILE_SHIFT
 _BIN_CHUNK = 8192
 
