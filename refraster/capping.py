@@ -162,9 +162,9 @@ def cap_mesh(surface, bounds, *, subdivision=1):
 @njit(**PJIT)
 def _footprint_kernel(verts, faces, mats, depth, count, start, cstart, hw, margin, votes):
     """votes[f] = number of the sprite's LDIs in which face f may hold a point the parity
-    test calls inside: some texel of its (s, t) box, widened by one texel and ``margin`` of
-    its size, has layers and a first layer at or before the box's far r and, for an even
-    count, a last layer at or after its near r (widened alike)."""
+    test calls inside: at some texel of its (s, t) box, widened by one texel and ``margin``
+    of its size, its r range (widened alike) meets an inside segment ``[d_2j, d_2j+1]`` of
+    the layers (the last one open-ended for an odd count)."""
     for fi in prange(faces.shape[0]):
         n_in = 0
         for ld in range(mats.shape[0]):
@@ -197,12 +197,16 @@ def _footprint_kernel(verts, faces, mats, depth, count, start, cstart, hw, margi
                 for col in range(c0, c1 + 1):
                     texel = row * w + col
                     k = count[cstart[ld] + texel]
-                    if k == 0:
-                        continue
-                    first = depth[start[ld] + texel]
-                    last = depth[start[ld] + (k - 1) * h * w + texel]
-                    if first <= r1 and (last >= r0 or (k & 1) == 1):
-                        hit = True
+                    # inside segments of the parity test: [d_2j, d_2j+1), and [d_k-1, ∞) for
+                    # an odd count; the face may be inside where its r range meets one
+                    for j in range(0, k, 2):
+                        enter = depth[start[ld] + j * h * w + texel]
+                        if enter > r1:
+                            break
+                        if j + 1 == k or depth[start[ld] + (j + 1) * h * w + texel] >= r0:
+                            hit = True
+                            break
+                    if hit:
                         break
                 if hit:
                     break

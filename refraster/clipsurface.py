@@ -19,7 +19,6 @@ and closes the cuts with cap surfaces (:mod:`refraster.capping`).
 
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,9 +29,9 @@ from ._validate import as_choice, as_float_array, as_matrix, as_real
 from .framebuffer import Framebuffer
 from .ldi import parity_at
 from .raster.gbuffer import _object_of
-from .raster.primitive import SIMPLE, SKIP
-from .raster.rasterizer import (TILE_SHIFT, _box, _geometry, _setup, bin_primitives,
-                                fragment_depth, lambdas, perspective_bary, row_span, write_tile)
+from .raster.rasterizer import (TILE_SHIFT, _box, _edge, _geometry, _inv_float_area, _load,
+                                _setup, bin_primitives, fragment_bary, fragment_depth, lambdas,
+                                perspective_bary, row_span)
 from .offsetmaps import (WRAP_MODES, as_offset_map, as_wrap, normal_map, occlusion_map,
                          texture2d_flat)
 
@@ -379,7 +378,7 @@ def _keep(b0, b1, b2, i0, i1, i2, tv, wv, separate, skip, solid, params, wrap, e
 @njit(**PJIT)
 def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim,
                      sfront, sbox, sarea, B, starts, lists, ntx, width, height, bits, rule,
-                     face_offsets, n_solids, n_surf, needs_test, tv, wv, separate, params,
+                     face_offsets, n_solids, n_surf, h_lo, h_hi, tv, wv, separate, params,
                      wrap, enabled,
                      maps, offset, shape, v_first, v_mat, v_depth, v_sign, v_count, v_start,
                      v_cstart, v_hw, tile_shift, o_depth, o_prim, o_front, o_bary):
@@ -419,7 +418,15 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
             i0 = f[prim, 0]
             i1 = f[prim, 1]
             i2 = f[prim, 2]
-            test = item < 0 or needs_test[item]
+            test = True
+            if piece < 0 and inv_af > 0.0:   # interpolated from the unsnapped triangle
+                cls = _box_class(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, i0,
+                                 i1 if front else i2, i2 if front else i1, tv, skip, solid >= 0,
+                                 params, enabled, h_lo, h_hi, bx0 + 0.5, bx1 + 0.5, by0 + 0.5,
+                                 by1 + 0.5)
+                if cls == 0:
+                    continue
+                test = cls == 2
             for y in range(by0, by1 + 1):
                 a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
                 e0 = r0 + sx0 * a
@@ -450,12 +457,37 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
                 r0 += sy0
                 r1 += sy1
                 r2 += sy2
-        write_tile(zbuf, win, tx0, ty0, tx1, ty1, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
-                   sIW, sXf, sYf, sprim, sfront, sarea, B, width, height, bits, rule, o_depth,
-                   o_prim, o_front, o_bary)
+        # the rasterizer's _fused_pass post-pass, written out (see there)
+        for y in range(ty0, ty1 + 1):
+            row = height - 1 - y
+            for x in range(tx0, tx1 + 1):
+                o_depth[row, x] = zbuf[y - ty0, x - tx0]
+                item = win[y - ty0, x - tx0]
+                if item == -1:
+                    o_prim[row, x] = -1
+                    o_front[row, x] = False
+                    o = row * width + x
+                    o_bary[o, 0] = 0.0
+                    o_bary[o, 1] = 0.0
+                    o_bary[o, 2] = 0.0
+                    continue
+                (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
+                 iw2, area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX,
+                                                        sY, sZ, sIW, sXf, sYf, sprim, sfront,
+                                                        sarea)
+                o_prim[row, x] = prim
+                o_front[row, x] = front
+                e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
+                e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
+                e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
+                l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2,
+                                     _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2), x, y,
+                                     e0 + b0, e1 + b1, e2 + b2, 1.0 / np.float64(area))
+                fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary,
+                              row * width + x)
 
 
-#: Relative margin of the per-face classification (:func:`_classify_faces`): far above the
+#: Relative margin of the per-box classification (:func:`_box_class`): far above the
 #: rounding of the float32 barycentrics (6e-8) the per-fragment test works from.
 _CLASSIFY_MARGIN = 1e-6
 
@@ -469,88 +501,63 @@ def _corner_q(x0, y0, x1, y1, x2, y2, iw0, iw1, iw2, px, py):
             ((x1 - x0) * (py - y0) - (y1 - y0) * (px - x0)) * iw2)
 
 
-@njit(**PJIT)
-def _classify_faces(f, vX, vY, vXf, vYf, vIW, status, fbox, face_offsets, n_solids, n_surf,
-                    tv, params, enabled, h_lo, h_hi, out_status, needs_test):
-    """Per simple face, decide over its pixel box whether the clip stage can change anything:
-    ``out_status = SKIP`` where some enabled surface (other than a cap's own) clips every
-    fragment the face can produce; ``needs_test = False`` where every enabled surface keeps
-    all of them (and the face is no cap, which always needs the parity test).
+@njit(**IJIT)
+def _box_class(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, c0, c1, c2, tv, skip, is_cap, params,
+               enabled, h_lo, h_hi, px0, px1, py0, py1):
+    """What the clip stage can do to the fragments of one triangle inside a pixel box:
+    0 — some enabled surface (other than a cap's own) clips all of them; 1 — every enabled
+    surface keeps all of them and the triangle is no cap (so no test is needed); 2 — test
+    each fragment.
 
     Why this is exact: g's plane part is affine in the position and the offset term lies in
     [h_lo, h_hi]; a fragment's position is ``P = Σ q_i V_i / Σ q_i`` with ``q_i = λ_i / w_i``
-    and the λ_i affine in the window position, so the sign of ``Σ q_i (N·(V_i − O) + h)`` over
-    the covered pixel centres is bounded by its values at the box's four corner centres
-    (the snapped triangle's centres all lie in the box; λ is the unsnapped triangle's, as the
-    rasterizer interpolates). A margin covers the float32 rounding of the barycentrics.
-    Clipped pieces of faces are left to the per-fragment test."""
-    for i in prange(f.shape[0]):
-        out_status[i] = status[i]
-        needs_test[i] = True
-        if status[i] != SIMPLE:
+    and λ affine in window space (the counter-clockwise, unsnapped triangle's, as the
+    rasterizer interpolates: ``(fx, fy)``, ``iw`` and the vertices ``c0, c1, c2`` in that
+    order), so the sign of ``Σ q_i (N·(V_i − O) + h)`` over the box's pixel centres is bounded
+    by its values at the four corner centres ``(px, py)``. A margin covers the float32
+    rounding of the barycentrics and their sum's distance from 1."""
+    qs = (_corner_q(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, px0, py0),
+          _corner_q(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, px1, py0),
+          _corner_q(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, px0, py1),
+          _corner_q(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, px1, py1))
+    kept_by_all = not is_cap
+    for k in range(params.shape[0]):
+        if not enabled[k] or k == skip:
             continue
-        a, b, c = f[i, 0], f[i, 1], f[i, 2]
-        area = (vX[b] - vX[a]) * (vY[c] - vY[a]) - (vX[c] - vX[a]) * (vY[b] - vY[a])
-        x0, y0 = np.float64(vXf[a]), np.float64(vYf[a])
-        x1, y1 = np.float64(vXf[b]), np.float64(vYf[b])
-        x2, y2 = np.float64(vXf[c]), np.float64(vYf[c])
-        af = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-        if not ((area > 0 and af > 0.0) or (area < 0 and af < 0.0)):
-            continue   # the rasterizer interpolates from the snapped triangle here
-        sgn = 1.0 if af > 0.0 else -1.0
-        obj = _object_of(face_offsets, i)
-        skip = (obj - n_solids) % n_surf if obj >= n_solids else -1
-        kept_by_all = obj < n_solids
-        bx0 = np.float64(fbox[i, 0]) + 0.5
-        bx1 = np.float64(fbox[i, 1]) + 0.5
-        by0 = np.float64(fbox[i, 2]) + 0.5
-        by1 = np.float64(fbox[i, 3]) + 0.5
-        iw0, iw1, iw2 = vIW[a], vIW[b], vIW[c]
-        qs = (_corner_q(x0, y0, x1, y1, x2, y2, iw0, iw1, iw2, bx0, by0),
-              _corner_q(x0, y0, x1, y1, x2, y2, iw0, iw1, iw2, bx1, by0),
-              _corner_q(x0, y0, x1, y1, x2, y2, iw0, iw1, iw2, bx0, by1),
-              _corner_q(x0, y0, x1, y1, x2, y2, iw0, iw1, iw2, bx1, by1))
-        for k in range(params.shape[0]):
-            if not enabled[k] or k == skip:
-                continue
-            p0 = ((tv[a, 0] - params[k, 0]) * params[k, 9] + (tv[a, 1] - params[k, 1])
-                  * params[k, 10]) + (tv[a, 2] - params[k, 2]) * params[k, 11]
-            p1 = ((tv[b, 0] - params[k, 0]) * params[k, 9] + (tv[b, 1] - params[k, 1])
-                  * params[k, 10]) + (tv[b, 2] - params[k, 2]) * params[k, 11]
-            p2 = ((tv[c, 0] - params[k, 0]) * params[k, 9] + (tv[c, 1] - params[k, 1])
-                  * params[k, 10]) + (tv[c, 2] - params[k, 2]) * params[k, 11]
-            # bound on the terms whose rounding the margin must cover: the fragment's
-            # barycentrics need not sum to 1 exactly, which shifts N·P by up to |N·V|, |N·O|
-            mag = max(abs(tv[a, 0]) + abs(tv[a, 1]) + abs(tv[a, 2]),
-                      abs(tv[b, 0]) + abs(tv[b, 1]) + abs(tv[b, 2]),
-                      abs(tv[c, 0]) + abs(tv[c, 1]) + abs(tv[c, 2])) \
-                + abs(params[k, 0]) + abs(params[k, 1]) + abs(params[k, 2])
-            scale = max(abs(p0), abs(p1), abs(p2)) + mag + max(abs(h_lo[k]), abs(h_hi[k])) \
-                + 1e-300
-            clipped = True
-            kept = True
-            for corner in range(4):
-                q0, q1, q2 = qs[corner]
-                q_abs = abs(q0) + abs(q1) + abs(q2)
-                tol = _CLASSIFY_MARGIN * q_abs * scale
-                if not sgn * (q0 + q1 + q2) > _CLASSIFY_MARGIN * q_abs:
-                    clipped = False
-                    kept = False
-                    break
-                base = q0 * p0 + q1 * p1 + q2 * p2
-                q_sum = q0 + q1 + q2
-                if not sgn * (base + q_sum * h_hi[k]) < -tol:
-                    clipped = False
-                if not sgn * (base + q_sum * h_lo[k]) > tol:
-                    kept = False
-                if not (clipped or kept):
-                    break
-            if clipped:
-                out_status[i] = SKIP
+        p0 = ((tv[c0, 0] - params[k, 0]) * params[k, 9] + (tv[c0, 1] - params[k, 1])
+              * params[k, 10]) + (tv[c0, 2] - params[k, 2]) * params[k, 11]
+        p1 = ((tv[c1, 0] - params[k, 0]) * params[k, 9] + (tv[c1, 1] - params[k, 1])
+              * params[k, 10]) + (tv[c1, 2] - params[k, 2]) * params[k, 11]
+        p2 = ((tv[c2, 0] - params[k, 0]) * params[k, 9] + (tv[c2, 1] - params[k, 1])
+              * params[k, 10]) + (tv[c2, 2] - params[k, 2]) * params[k, 11]
+        # bound on the terms whose rounding the margin must cover: the fragment's
+        # barycentrics need not sum to 1 exactly, which shifts N·P by up to |N·V|, |N·O|
+        mag = max(abs(tv[c0, 0]) + abs(tv[c0, 1]) + abs(tv[c0, 2]),
+                  abs(tv[c1, 0]) + abs(tv[c1, 1]) + abs(tv[c1, 2]),
+                  abs(tv[c2, 0]) + abs(tv[c2, 1]) + abs(tv[c2, 2])) \
+            + abs(params[k, 0]) + abs(params[k, 1]) + abs(params[k, 2])
+        scale = max(abs(p0), abs(p1), abs(p2)) + mag + max(abs(h_lo[k]), abs(h_hi[k])) + 1e-300
+        clipped = True
+        kept = True
+        for corner in range(4):
+            q0, q1, q2 = qs[corner]
+            q_abs = abs(q0) + abs(q1) + abs(q2)
+            q_sum = q0 + q1 + q2
+            if not q_sum > _CLASSIFY_MARGIN * q_abs:
+                return 2
+            tol = _CLASSIFY_MARGIN * q_abs * scale
+            base = q0 * p0 + q1 * p1 + q2 * p2
+            if not base + q_sum * h_hi[k] < -tol:
+                clipped = False
+            if not base + q_sum * h_lo[k] > tol:
+                kept = False
+            if not (clipped or kept):
                 break
-            if not kept:
-                kept_by_all = False
-        needs_test[i] = not kept_by_all
+        if clipped:
+            return 0
+        if not kept:
+            kept_by_all = False
+    return 1 if kept_by_all else 2
 
 
 def _pack_sprites(tests):
@@ -602,13 +609,6 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests):
     for k, srf in enumerate(surfaces):
         ends = srf.scale[2] * np.array(srf.height_range)
         h_lo[k], h_hi[k] = ends.min(), ends.max()
-    status = np.empty_like(prims.status)
-    needs_test = np.empty(prims.n_faces, np.bool_)
-    _classify_faces(prims.faces, prims.vx, prims.vy, prims.vxf, prims.vyf, prims.v_inv_w,
-                    prims.status, prims.bbox, prep.face_offsets, n_solids, n_surf, test_vertices,
-                    packed.params, packed.enabled, h_lo, h_hi, status, needs_test)
-    prims = copy.copy(prims)
-    prims.status = status
     ntx, _, starts, lists = bin_primitives(prims)
     h, w = prims.height, prims.width
     depth = np.empty((h, w), np.float32)     # the post-pass writes every element
@@ -618,7 +618,7 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests):
     sprites = _pack_sprites(tests) if tests else _no_sprites()
     separate = world_vertices is not test_vertices
     _fused_clip_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits,
-                     prep.fill_rule, prep.face_offsets, n_solids, n_surf, needs_test,
+                     prep.fill_rule, prep.face_offsets, n_solids, n_surf, h_lo, h_hi,
                      test_vertices, world_vertices, separate, *packed.args(), *sprites,
                      TILE_SHIFT, depth, prim, front, bary)
     return depth, prim, front, bary

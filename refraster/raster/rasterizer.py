@@ -40,7 +40,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .._config import IJIT, JIT, PJIT
+from .._config import IJIT, PJIT
 from .primitive import CLIPPED, SIMPLE
 
 TILE_SHIFT = 6
@@ -305,41 +305,6 @@ def _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
     return (r0, sx0, sy0, b0, r1, sx1, sy1, b1, r2, sx2, sy2, b2, fx0, fy0, fx1, fy1, fx2, fy2,
             z0, z1, z2, iw0, iw1, iw2, prim, front, piece, 1.0 / np.float64(area), inv_af, dzdx,
             dzdy)
-
-
-@njit(**JIT)
-def write_tile(zbuf, win, tx0, ty0, tx1, ty1, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW,
-               sXf, sYf, sprim, sfront, sarea, B, width, height, bits, rule, o_depth, o_prim,
-               o_front, o_bary):
-    """The post-pass of :func:`_fused_pass` as a function, for the technique kernels that
-    resolve tiles the same way (the clip pass measured faster calling it than inlining it;
-    the plain pass the other way round): every pixel of the tile is written."""
-    for y in range(ty0, ty1 + 1):
-        row = height - 1 - y
-        for x in range(tx0, tx1 + 1):
-            o_depth[row, x] = zbuf[y - ty0, x - tx0]
-            item = win[y - ty0, x - tx0]
-            if item == -1:
-                o_prim[row, x] = -1
-                o_front[row, x] = False
-                o = row * width + x
-                o_bary[o, 0] = 0.0
-                o_bary[o, 1] = 0.0
-                o_bary[o, 2] = 0.0
-                continue
-            (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
-             iw2, area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX,
-                                                    sY, sZ, sIW, sXf, sYf, sprim, sfront,
-                                                    sarea)
-            o_prim[row, x] = prim
-            o_front[row, x] = front
-            e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
-            e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
-            e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
-            l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2,
-                                 _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2), x, y,
-                                 e0 + b0, e1 + b1, e2 + b2, 1.0 / np.float64(area))
-            fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary, row * width + x)
 
 
 # ------------------------------------------------------------------------------ kernels
