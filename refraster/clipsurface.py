@@ -29,9 +29,9 @@ from ._validate import as_choice, as_float_array, as_matrix, as_real
 from .framebuffer import Framebuffer
 from .ldi import parity_at
 from .raster.gbuffer import _object_of
-from .raster.rasterizer import (TILE_SHIFT, _box, _edge, _geometry, _inv_float_area, _load,
-                                _setup, bin_primitives, fragment_bary, fragment_depth, lambdas,
-                                perspective_bary, row_span)
+from .raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box, _edge, _geometry, _inv_float_area,
+                                _load, _setup, bin_primitives, fragment_bary, fragment_depth,
+                                lambdas, perspective_bary, row_span)
 from .offsetmaps import (WRAP_MODES, as_offset_map, as_wrap, normal_map, occlusion_map,
                          texture2d_flat)
 
@@ -395,7 +395,7 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
         tx1 = min(tx0 + size, width) - 1
         ty1 = min(ty0 + size, height) - 1
         zbuf = np.full((size, size), np.float32(1.0), np.float32)
-        win = np.full((size, size), -1, np.int64)
+        win = np.full((size, size), NO_ITEM, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
             bx0, bx1, by0, by1 = _box(item, fbox, sbox)
@@ -463,7 +463,7 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
             for x in range(tx0, tx1 + 1):
                 o_depth[row, x] = zbuf[y - ty0, x - tx0]
                 item = win[y - ty0, x - tx0]
-                if item == -1:
+                if item == NO_ITEM:
                     o_prim[row, x] = -1
                     o_front[row, x] = False
                     o = row * width + x

@@ -177,3 +177,23 @@ def test_watertight_memo_sees_changed_arrays():
     f[-1] = f[0]                                  # now two faces are the same, one edge open
     with pytest.raises(ValueError, match="watertight"):
         capping.check_watertight(Mesh(v, f))
+
+
+@pytest.mark.parametrize("cull", ["none", "back"])
+def test_fused_equals_stream_with_near_plane_clipping(monkeypatch, cull):
+    """A camera inside the box's bounding sphere: the near plane cuts faces into pieces, which
+    the fused pass tests fragment by fragment (no box classification for pieces)."""
+    box = trimesh.creation.box((2.0, 2.0, 2.0))
+    cs = ClipSurface([0.2, 0.0, 0.0], [0, 4.0, 0], [0, 0, 4.0], (1, 1, 0.5),
+                     om.perlin_noise(32, seed=7))
+    sprite = VolumetricDepthSprite.from_mesh(box, resolution=128)
+    kw = dict(view=look_at([1.6, 0.4, 1.3], [0.0, 0.0, -0.5]),
+              proj=perspective(70, 4 / 3, 0.9, 10), width=160, height=120, vds=[sprite],
+              cull=cull, cap_style="wood")
+    prep = refraster.raster.prepare(box, view=kw["view"], proj=kw["proj"], width=160,
+                                    height=120)
+    assert len(prep.triangles.clipped) > 0          # the near plane does cut faces
+    fused = render_clipped(box, cs, **kw)
+    ref = staged(monkeypatch, box, cs, **kw)
+    assert fused.cap_mask.any() and fused.mask.any()
+    assert_same(fused, ref)

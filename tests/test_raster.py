@@ -100,6 +100,29 @@ def test_fused_equals_stream_and_resolve(func):
     assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes()
 
 
+def test_fused_keeps_the_first_clipped_piece():
+    """Regression: the fused pass once marked "no winner" with −1, which is also the binned
+    item of clipped piece 0, so that piece's pixels came out as background (ids, normal,
+    colour) under a written depth. A camera inside a box's bounding sphere: the near plane cuts
+    faces, and piece 0 is visible."""
+    import trimesh
+    box = trimesh.creation.box((2.0, 2.0, 2.0))
+    view = rf.look_at([1.6, 0.4, 1.3], [0.0, 0.0, -0.5])
+    proj = rf.perspective(70, 4 / 3, 0.9, 10)
+    prep = rf.raster.prepare(box, view=view, proj=proj, width=160, height=120)
+    st = prep.triangles
+    depth, prim, front, bary = fused(st)
+    pixel, fd, fprim, ffront, fbary, _ = stream(st)
+    frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, 160, 120)
+    res = rf.resolve(frags)
+    want = np.where(res.winner >= 0, fprim[res.winner], -1)
+    assert np.count_nonzero(want == st.clipped.prim[0]) > 100   # piece 0's face is visible
+    assert np.array_equal(want, prim)
+    assert np.array_equal(prim >= 0, depth < 1.0)
+    fb = rf.render(box, view=view, proj=proj, width=160, height=120)
+    assert np.array_equal(fb.mask, fb.depth < 1.0)
+
+
 def test_render_paths_agree():
     m = trimesh.creation.torus(1.0, 0.35)
     kw = dict(view=VIEW, proj=PROJ, width=64, height=48)

@@ -47,6 +47,10 @@ TILE_SHIFT = 6
 TILE = 1 << TILE_SHIFT
 _BIN_CHUNK = 8192
 
+#: "No fragment won this pixel" in a tile's winner buffer. Binned items are faces (≥ 0) and
+#: clipped pieces −(k + 1) (≤ −1: piece 0 *is* −1), so the sentinel lies below every piece.
+NO_ITEM = -(1 << 62)
+
 DEPTH_FUNCS = {"never": 0, "less": 1, "equal": 2, "lequal": 3, "greater": 4, "notequal": 5,
                "gequal": 6, "always": 7}
 
@@ -406,7 +410,7 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
         tx1 = min(tx0 + TILE, width) - 1
         ty1 = min(ty0 + TILE, height) - 1
         zbuf = np.full((TILE, TILE), clear, np.float32)
-        win = np.full((TILE, TILE), -1, np.int64)
+        win = np.full((TILE, TILE), NO_ITEM, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
             bx0, bx1, by0, by1 = _box(item, fbox, sbox)
@@ -449,7 +453,7 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
             for x in range(tx0, tx1 + 1):
                 o_depth[row, x] = zbuf[y - ty0, x - tx0]
                 item = win[y - ty0, x - tx0]
-                if item == -1:
+                if item == NO_ITEM:
                     o_prim[row, x] = -1
                     o_front[row, x] = False
                     o = row * width + x
