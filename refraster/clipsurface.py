@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit, prange
 
-from ._config import IJIT, JIT, PJIT
+from ._config import IJIT, PJIT
 from ._validate import as_choice, as_float_array, as_matrix, as_real
 from .framebuffer import Framebuffer
 from .ldi import parity_at
@@ -897,7 +897,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
     from .ldi import VolumetricDepthSprite
     from .mesh import Mesh, as_meshes, bounds
     from .raster import _models, prepare
-    from .raster.fragments import _interpolate, vertices_in
+    from .raster.fragments import vertices_in
 
     solids = as_meshes(meshes)
     surfaces = as_surfaces(surfaces)

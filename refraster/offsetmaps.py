@@ -20,7 +20,7 @@ import numbers
 import numpy as np
 from numba import njit, prange
 
-from ._config import IJIT, JIT, PJIT
+from ._config import IJIT, PJIT
 from ._validate import as_choice, as_float_array, as_real
 
 __all__ = [
