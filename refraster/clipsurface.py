@@ -29,9 +29,9 @@ from ._validate import as_choice, as_float_array, as_matrix, as_real
 from .framebuffer import Framebuffer
 from .ldi import parity_at
 from .raster.gbuffer import _object_of
-from .raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box, _edge, _geometry, _inv_float_area,
+from .raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box_in_tile, _edge, _geometry, _inv_float_area,
                                 _load, _setup, bin_primitives, fragment_bary, fragment_depth,
-                                lambdas, perspective_bary, row_span)
+                                lambdas, perspective_bary, row_span, tile_rect)
 from .offsetmaps import (WRAP_MODES, as_offset_map, as_wrap, normal_map, occlusion_map,
                          texture2d_flat)
 
@@ -390,19 +390,12 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
     ntiles = starts.shape[0] - 1
     for tile in prange(ntiles):
         size = 1 << tile_shift
-        tx0 = (tile % ntx) << tile_shift
-        ty0 = (tile // ntx) << tile_shift
-        tx1 = min(tx0 + size, width) - 1
-        ty1 = min(ty0 + size, height) - 1
+        tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, tile_shift, width, height)
         zbuf = np.full((size, size), np.float32(1.0), np.float32)
         win = np.full((size, size), NO_ITEM, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
-            bx0, bx1, by0, by1 = _box(item, fbox, sbox)
-            bx0 = max(bx0, tx0)
-            bx1 = min(bx1, tx1)
-            by0 = max(by0, ty0)
-            by1 = min(by1, ty1)
+            bx0, bx1, by0, by1 = _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1)
             if bx0 > bx1 or by0 > by1:
                 continue
             (r0, sx0, sy0, b0, r1, sx1, sy1, b1, r2, sx2, sy2, b2, fx0, fy0, fx1, fy1, fx2, fy2,
@@ -809,28 +802,30 @@ def _cached_cap(surface, bounds, subdivision, sprite=None):
     from . import capping
     cache = surface._derived
 
-    def put(key, value):
+    def put(key, mesh, value):
         caps = [k for k in cache if k[0] == "cap"]
         if len(caps) >= _CAP_CACHE_SIZE:
             del cache[caps[0]]
-        if value is not None:
-            value.vertices.setflags(write=False)
-            value.faces.setflags(write=False)
+        if mesh is not None:
+            mesh.vertices.setflags(write=False)
+            mesh.faces.setflags(write=False)
         cache[key] = value
 
     key = ("cap", bounds.tobytes(), subdivision)
-    if key not in cache:
-        put(key, capping.cap_mesh(surface, bounds, subdivision=subdivision))
-    cap = cache[key]
+    cap = cache.get(key, False)
+    if cap is False:
+        cap = capping.cap_mesh(surface, bounds, subdivision=subdivision)
+        put(key, cap, cap)
     if sprite is None or cap is None:
         return cap
+    # the sprite is held weakly: an id can be reused once its sprite is gone
     culled_key = key + (id(sprite),)
     entry = cache.get(culled_key)
     if entry is None or entry[0]() is not sprite:
         culled = capping.cull_cap(cap, sprite)
-        put(culled_key, culled)
-        cache[culled_key] = (weakref.ref(sprite), culled)
-    return cache[culled_key][1]
+        entry = (weakref.ref(sprite), culled)
+        put(culled_key, culled, entry)
+    return entry[1]
 
 
 def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,

@@ -151,6 +151,23 @@ def _box(item, fbox, sbox):
 
 
 @njit(**IJIT)
+def _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1):
+    """An item's pixel box clipped to the tile ``[tx0, tx1] × [ty0, ty1]`` (empty when
+    ``x0 > x1`` or ``y0 > y1``)."""
+    bx0, bx1, by0, by1 = _box(item, fbox, sbox)
+    return max(bx0, tx0), min(bx1, tx1), max(by0, ty0), min(by1, ty1)
+
+
+@njit(**IJIT)
+def tile_rect(tile, ntx, shift, width, height):
+    """Pixel rectangle ``(x0, x1, y0, y1)`` (inclusive) of tile number ``tile`` in a row-major
+    grid of ``ntx`` tiles per row, ``2^shift`` pixels square, clipped to the viewport."""
+    x0 = (tile % ntx) << shift
+    y0 = (tile // ntx) << shift
+    return x0, min(x0 + (1 << shift), width) - 1, y0, min(y0 + (1 << shift), height) - 1
+
+
+@njit(**IJIT)
 def _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront, sarea):
     """Set up one binned item as a counter-clockwise triangle: its snapped positions (coverage),
     unsnapped positions (interpolation), depths, 1/w, doubled snapped area, face, facing and
@@ -320,18 +337,11 @@ def _stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, 
                  o_pixel, o_depth, o_prim, o_front, o_bary):
     ntiles = starts.shape[0] - 1
     for tile in prange(ntiles):
-        tx0 = (tile % ntx) << TILE_SHIFT
-        ty0 = (tile // ntx) << TILE_SHIFT
-        tx1 = min(tx0 + TILE, width) - 1
-        ty1 = min(ty0 + TILE, height) - 1
+        tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
         o = offsets[tile]
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
-            bx0, bx1, by0, by1 = _box(item, fbox, sbox)
-            bx0 = max(bx0, tx0)
-            bx1 = min(bx1, tx1)
-            by0 = max(by0, ty0)
-            by1 = min(by1, ty1)
+            bx0, bx1, by0, by1 = _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1)
             if bx0 > bx1 or by0 > by1:
                 continue
             (r0, sx0, sy0, b0, r1, sx1, sy1, b1, r2, sx2, sy2, b2, fx0, fy0, fx1, fy1, fx2, fy2,
@@ -405,19 +415,12 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 o_depth, o_prim, o_front, o_bary):
     ntiles = starts.shape[0] - 1
     for tile in prange(ntiles):
-        tx0 = (tile % ntx) << TILE_SHIFT
-        ty0 = (tile // ntx) << TILE_SHIFT
-        tx1 = min(tx0 + TILE, width) - 1
-        ty1 = min(ty0 + TILE, height) - 1
+        tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
         zbuf = np.full((TILE, TILE), clear, np.float32)
         win = np.full((TILE, TILE), NO_ITEM, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
-            bx0, bx1, by0, by1 = _box(item, fbox, sbox)
-            bx0 = max(bx0, tx0)
-            bx1 = min(bx1, tx1)
-            by0 = max(by0, ty0)
-            by1 = min(by1, ty1)
+            bx0, bx1, by0, by1 = _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1)
             if bx0 > bx1 or by0 > by1:
                 continue
             (r0, sx0, sy0, b0, r1, sx1, sy1, b1, r2, sx2, sy2, b2, fx0, fy0, fx1, fy1, fx2, fy2,
