@@ -133,11 +133,7 @@ def _load_npz(path, error):
 def _allowance_arrays(root, name, entry):
     spec = entry["allowances"]
     arrays = _load_npz(_inside(root, spec["file"], name), GoldenError)
-    for key, a_spec in spec["arrays"].items():
-        a = arrays.get(key)
-        if a is None or list(a.shape) != a_spec["shape"] or str(a.dtype) != a_spec["dtype"]:
-            raise GoldenError(f"golden {spec['file']}: array {key!r} does not match the "
-                              f"manifest ({a_spec['dtype']} {a_spec['shape']})")
+    _check_arrays(arrays, spec["arrays"], spec["file"], "array")
     for key, b in entry["buffers"].items():
         t = b.get("tolerant", {})
         needed = [t[k] for k in ("lo", "hi", "angle", "may") if k in t]
@@ -150,12 +146,17 @@ def _allowance_arrays(root, name, entry):
 
 def _reference(root, name, entry):
     arrays = _load_npz(_inside(root, entry["buffers_file"], name), GoldenError)
-    for key, spec in entry["buffers"].items():
+    _check_arrays(arrays, entry["buffers"], entry["buffers_file"], "buffer")
+    return arrays
+
+
+def _check_arrays(arrays, specs, file, kind):
+    """Every array the manifest lists is in ``arrays`` with its dtype and shape."""
+    for key, spec in specs.items():
         a = arrays.get(key)
         if a is None or list(a.shape) != spec["shape"] or str(a.dtype) != spec["dtype"]:
-            raise GoldenError(f"golden {entry['buffers_file']}: buffer {key!r} does not match "
-                              f"the manifest ({spec['dtype']} {spec['shape']})")
-    return arrays
+            raise GoldenError(f"golden {file}: {kind} {key!r} does not match the manifest "
+                              f"({spec['dtype']} {spec['shape']})")
 
 
 # --- the candidate -------------------------------------------------------------------------------
