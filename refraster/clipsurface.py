@@ -29,9 +29,9 @@ from ._validate import as_choice, as_float_array, as_matrix, as_real
 from .framebuffer import Framebuffer
 from .ldi import parity_at
 from .raster.gbuffer import _object_of
-from .raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box_in_tile, _edge, _geometry, _inv_float_area,
-                                _load, _setup, bin_primitives, fragment_bary, fragment_depth,
-                                lambdas, perspective_bary, row_span, tile_rect)
+from .raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box_in_tile, _geometry, _setup,
+                                bin_primitives, fragment_depth, lambdas, perspective_bary,
+                                resolved_buffers, row_span, tile_rect, write_winner)
 from .offsetmaps import (WRAP_MODES, as_offset_map, as_wrap, normal_map, occlusion_map,
                          texture2d_flat)
 
@@ -389,6 +389,8 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
     rasterizer's constant: Numba's cache does not see another module's constants change."""
     ntiles = starts.shape[0] - 1
     for tile in prange(ntiles):
+        if starts[tile] == starts[tile + 1]:
+            continue   # nothing binned: the tile keeps resolved_buffers' clear values
         size = 1 << tile_shift
         tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, tile_shift, width, height)
         zbuf = np.full((size, size), np.float32(1.0), np.float32)
@@ -454,30 +456,12 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
         for y in range(ty0, ty1 + 1):
             row = height - 1 - y
             for x in range(tx0, tx1 + 1):
-                o_depth[row, x] = zbuf[y - ty0, x - tx0]
                 item = win[y - ty0, x - tx0]
-                if item == NO_ITEM:
-                    o_prim[row, x] = -1
-                    o_front[row, x] = False
-                    o = row * width + x
-                    o_bary[o, 0] = 0.0
-                    o_bary[o, 1] = 0.0
-                    o_bary[o, 2] = 0.0
-                    continue
-                (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
-                 iw2, area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX,
-                                                        sY, sZ, sIW, sXf, sYf, sprim, sfront,
-                                                        sarea)
-                o_prim[row, x] = prim
-                o_front[row, x] = front
-                e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
-                e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
-                e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
-                l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2,
-                                     _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2), x, y,
-                                     e0 + b0, e1 + b1, e2 + b2, 1.0 / np.float64(area))
-                fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary,
-                              row * width + x)
+                if item != NO_ITEM:
+                    o_depth[row, x] = zbuf[y - ty0, x - tx0]
+                    write_winner(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf,
+                                 sprim, sfront, sarea, B, bits, rule, x, y, row, width, o_prim,
+                                 o_front, o_bary)
 
 
 #: Relative margin of the per-box classification (:func:`_box_class`): far above the
@@ -604,10 +588,7 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests):
         h_lo[k], h_hi[k] = ends.min(), ends.max()
     ntx, _, starts, lists = bin_primitives(prims)
     h, w = prims.height, prims.width
-    depth = np.empty((h, w), np.float32)     # the post-pass writes every element
-    prim = np.empty((h, w), np.int64)
-    front = np.empty((h, w), np.bool_)
-    bary = np.empty((h * w, 3), np.float32)
+    depth, prim, front, bary = resolved_buffers(h, w, 1.0)
     sprites = _pack_sprites(tests) if tests else _no_sprites()
     separate = world_vertices is not test_vertices
     _fused_clip_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits,
@@ -963,9 +944,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
                     front, bary.reshape(h, w, 3), normals, bg, geometry)
     h, w = fb.depth.shape
     cap_mask = fb.object_id >= n_solids
-    out = ClippedFramebuffer(**{f: getattr(fb, f) for f in (
-        "depth", "eye_depth", "normal", "prim_id", "object_id", "front_facing", "barycentric",
-        "color", "view", "proj", "meshes", "models")}, cap_mask=cap_mask,
+    out = ClippedFramebuffer(**fb.fields(), cap_mask=cap_mask,
         cap_points=np.zeros((0, 3)), n_solids=n_solids, n_surfaces=n_surf)
     if not do_caps:
         return out

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -10,7 +11,7 @@ from ._validate import as_choice, as_float_array, as_real
 from .mesh import vertex_normals
 from .raster import DEPTH_FUNCS, Fragments, prepare, resolve
 from .raster.fragments import _interpolate
-from .raster.gbuffer import finalize
+from .raster.gbuffer import finalize, shade
 from .raster.rasterizer import fused
 
 __all__ = ["Framebuffer", "render", "normalized_linear_depth", "PALETTE"]
@@ -44,7 +45,9 @@ class Framebuffer:
         Perspective-correct barycentrics in the visible face; 0 background.
     color : float32 (H, W, 3)
         Headlight Blinn–Phong shading of :data:`PALETTE` colours by ``object_id``
-        (two-sided); ``background`` elsewhere.
+        (two-sided); ``background`` elsewhere. :func:`render` shades it when it is first
+        read (a G-buffer pass that never reads it does not pay for it); the result is the
+        same either way, and once read it is an ordinary array (writes to it stay).
     """
 
     depth: np.ndarray
@@ -96,6 +99,14 @@ class Framebuffer:
                                 self.prim_id[m], self.barycentric[m].astype(np.float64))
         return out
 
+    def fields(self):
+        """The dataclass fields as a dict, ``color`` as stored (not shaded if it is still
+        pending): for building a subclass's framebuffer from this one."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(Framebuffer)
+               if f.name != "color"}
+        out["color"] = self.__dict__["_color"]
+        return out
+
     def arrays(self):
         """The buffers as a dict (for ``.npz`` export)."""
         return dict(depth=self.depth, eye_depth=self.eye_depth, normal=self.normal,
@@ -121,6 +132,36 @@ class Framebuffer:
         bary[m] = frags.bary[idx]
         return _build(frags.meshes, frags.models, frags.view, frags.proj, resolved.depth,
                       prim_global, offsets, front, bary, normals, background)
+
+
+class _PendingShade:
+    """The inputs of :func:`refraster.raster.gbuffer.shade`, kept until ``color`` is read."""
+
+    __slots__ = ("args", "shape")
+
+    def __init__(self, shape, *args):
+        self.shape = shape
+        self.args = args
+
+    def __call__(self):
+        color = np.empty(self.shape, np.float32)   # shade writes every element
+        shade(*self.args, color)
+        return color
+
+
+def _get_color(self):
+    color = self.__dict__["_color"]
+    if isinstance(color, _PendingShade):
+        color = self.__dict__["_color"] = color()
+    return color
+
+
+def _set_color(self, value):
+    self.__dict__["_color"] = value
+
+
+# a property over the dataclass field, so the generated __init__ stores through the setter
+Framebuffer.color = property(_get_color, _set_color, doc="Shaded colour (H, W, 3) float32.")
 
 
 def _eye_positions(meshes, models, view, obj, prim, bary):
@@ -178,15 +219,17 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
         mv[k] = view @ model
         if face_offsets[k + 1] > face_offsets[k]:
             nmat[k] = _normal_matrix(view, model)
-    # finalize writes every element (background included), so no zero-filling
-    eye_depth = np.empty((h, w), np.float32)
-    normal = np.empty((h, w, 3), np.float32)
-    prim = np.empty((h, w), np.int32)
-    obj = np.empty((h, w), np.int32)
-    color = np.empty((h, w, 3), np.float32)
-    finalize(prim_global, bary, vertices, faces, vnormals, vn is not None,
-             np.asarray(face_offsets, np.int64), mv, nmat, PALETTE,
-             np.asarray(background, np.float64), eye_depth, normal, prim, obj, color)
+    # the background is filled here (NumPy's fills beat writing it pixel by pixel)
+    eye_depth = np.full((h, w), np.inf, np.float32)
+    normal = np.zeros((h, w, 3), np.float32)
+    prim = np.full((h, w), -1, np.int32)
+    obj = np.full((h, w), -1, np.int32)
+    offsets = np.asarray(face_offsets, np.int64)
+    finalize(prim_global, bary, vertices, faces, vnormals, vn is not None, offsets, mv, nmat,
+             eye_depth, normal, prim, obj)
+    color = _PendingShade((h, w, 3), prim_global, bary, vertices, faces, vnormals,
+                          vn is not None, offsets, mv, nmat, PALETTE,
+                          np.asarray(background, np.float64))
     return Framebuffer(depth=depth, eye_depth=eye_depth, normal=normal, prim_id=prim,
                        object_id=obj, front_facing=front, barycentric=bary, color=color,
                        view=view, proj=proj, meshes=meshes, models=models)

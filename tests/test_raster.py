@@ -123,6 +123,48 @@ def test_fused_keeps_the_first_clipped_piece():
     assert np.array_equal(fb.mask, fb.depth < 1.0)
 
 
+def test_fused_background_keeps_the_clear_values():
+    """The fused pass writes only the pixels a fragment won; the rest (tiles with nothing
+    binned included) hold the clear depth, face −1, facing False and zero barycentrics."""
+    rng = np.random.default_rng(3)
+    v, f = _random_soup(rng, 12, 0.4)
+    prep = rf.raster.prepare((v, f), view=VIEW, proj=PROJ, width=300, height=200)
+    depth, prim, front, bary = fused(prep.triangles, depth_func=DEPTH_FUNCS["always"],
+                                     clear_depth=0.625)
+    bg = prim < 0
+    assert 0 < bg.sum() < bg.size - 100
+    # some tiles have nothing binned at all
+    from refraster.raster.rasterizer import bin_primitives
+    _, _, starts, _ = bin_primitives(prep.triangles)
+    assert (np.diff(starts) == 0).any()
+    assert np.all(depth[bg] == np.float32(0.625)) and not front[bg].any()
+    assert not bary[bg.ravel()].any()
+    pixel, fd, fprim, ffront, fbary, _ = stream(prep.triangles)
+    frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, 300, 200)
+    res = rf.resolve(frags, depth_func="always", clear_depth=0.625)
+    assert res.depth.tobytes() == depth.tobytes()
+
+
+def test_color_is_shaded_when_first_read():
+    """render() leaves the default colour pending until it is read; once read it is a plain
+    array, and the fused and the fragment-stream paths shade the same bytes."""
+    from refraster.framebuffer import _PendingShade
+    m = trimesh.creation.torus(1.0, 0.35)
+    kw = dict(view=VIEW, proj=PROJ, width=64, height=48, background=(0.1, 0.2, 0.3))
+    fb = rf.render(m, **kw)
+    assert isinstance(fb.__dict__["_color"], _PendingShade)
+    assert isinstance(fb.fields()["color"], _PendingShade)   # copying fields does not shade
+    color = fb.color
+    assert color.dtype == np.float32 and color.shape == (48, 64, 3)
+    assert fb.color is color and isinstance(fb.__dict__["_color"], np.ndarray)
+    assert np.all(color[~fb.mask] == np.float32([0.1, 0.2, 0.3]))
+    assert np.all(color[fb.mask] > 0.0)
+    fb.color[0, 0] = 5.0
+    assert fb.color[0, 0, 0] == 5.0 and fb.arrays()["color"][0, 0, 0] == 5.0
+    streamed = rf.render(m, fragment_stage=lambda fr: np.ones(len(fr), bool), **kw)
+    assert rf.render(m, **kw).color.tobytes() == streamed.color.tobytes()
+
+
 def test_render_paths_agree():
     m = trimesh.creation.torus(1.0, 0.35)
     kw = dict(view=VIEW, proj=PROJ, width=64, height=48)

@@ -4,7 +4,7 @@ cutaway surface, shade their exposed interiors as cut surfaces, outline them, an
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -273,7 +273,7 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
     image = color.astype(np.float64) * (1.0 - ghost[..., None]) + 0.35 * ghost[..., None]
     image[edge] = 0.0
 
-    base = {f.name: getattr(fb, f.name) for f in fields(_fb.Framebuffer)}
+    base = fb.fields()
     base.update(normal=normal, color=color)
     return CutawayFramebuffer(
         **base, cutaway_depth=(0.5 * d_ndc + 0.5).astype(np.float32), cutaway_buffer=buffer,

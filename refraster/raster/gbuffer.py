@@ -1,5 +1,6 @@
-"""G-buffer finalization: from the visible primitive and barycentrics to eye depth, normal,
-ids and a simple shade, per pixel (parallel over rows; each row writes only itself)."""
+"""G-buffer finalization: from the visible primitive and barycentrics to eye depth, normal and
+ids, and (on demand) a simple shade, per pixel (parallel over rows; each row writes only
+itself)."""
 
 from __future__ import annotations
 
@@ -25,63 +26,86 @@ def _object_of(face_offsets, g):
     return lo
 
 
+@njit(**IJIT)
+def _surface(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, mv, nmat):
+    """Eye-space position and unit normal (float64) of face ``g`` of draw call ``k`` at
+    barycentrics ``(b0, b1, b2)``."""
+    i0 = faces[g, 0]
+    i1 = faces[g, 1]
+    i2 = faces[g, 2]
+    px = (b0 * vertices[i0, 0] + b1 * vertices[i1, 0]) + b2 * vertices[i2, 0]
+    py = (b0 * vertices[i0, 1] + b1 * vertices[i1, 1]) + b2 * vertices[i2, 1]
+    pz = (b0 * vertices[i0, 2] + b1 * vertices[i1, 2]) + b2 * vertices[i2, 2]
+    ex = ((mv[k, 0, 0] * px + mv[k, 0, 1] * py) + mv[k, 0, 2] * pz) + mv[k, 0, 3]
+    ey = ((mv[k, 1, 0] * px + mv[k, 1, 1] * py) + mv[k, 1, 2] * pz) + mv[k, 1, 3]
+    ez = ((mv[k, 2, 0] * px + mv[k, 2, 1] * py) + mv[k, 2, 2] * pz) + mv[k, 2, 3]
+    if smooth:
+        nx = (b0 * vnormals[i0, 0] + b1 * vnormals[i1, 0]) + b2 * vnormals[i2, 0]
+        ny = (b0 * vnormals[i0, 1] + b1 * vnormals[i1, 1]) + b2 * vnormals[i2, 1]
+        nz = (b0 * vnormals[i0, 2] + b1 * vnormals[i1, 2]) + b2 * vnormals[i2, 2]
+    else:
+        ax = vertices[i1, 0] - vertices[i0, 0]
+        ay = vertices[i1, 1] - vertices[i0, 1]
+        az = vertices[i1, 2] - vertices[i0, 2]
+        bx = vertices[i2, 0] - vertices[i0, 0]
+        by = vertices[i2, 1] - vertices[i0, 1]
+        bz = vertices[i2, 2] - vertices[i0, 2]
+        nx = ay * bz - az * by
+        ny = az * bx - ax * bz
+        nz = ax * by - ay * bx
+    mx = (nmat[k, 0, 0] * nx + nmat[k, 0, 1] * ny) + nmat[k, 0, 2] * nz
+    my = (nmat[k, 1, 0] * nx + nmat[k, 1, 1] * ny) + nmat[k, 1, 2] * nz
+    mz = (nmat[k, 2, 0] * nx + nmat[k, 2, 1] * ny) + nmat[k, 2, 2] * nz
+    length = np.sqrt(mx * mx + my * my + mz * mz)
+    if length > 0.0:
+        mx /= length
+        my /= length
+        mz /= length
+    return ex, ey, ez, mx, my, mz
+
+
 @njit(**PJIT)
 def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv, nmat,
-             palette, background, eye_depth, normal, prim_id, object_id, color):
+             eye_depth, normal, prim_id, object_id):
+    """Eye depth, normal and ids of the covered pixels (``prim_global ≥ 0``); the caller has
+    filled the background (+inf, 0, −1, −1)."""
     h, w = prim_global.shape
     for r in prange(h):
         for c in range(w):
             g = prim_global[r, c]
             if g < 0:
-                eye_depth[r, c] = np.inf
-                prim_id[r, c] = -1
-                object_id[r, c] = -1
-                for j in range(3):
-                    normal[r, c, j] = 0.0
-                    color[r, c, j] = background[j]
                 continue
             k = _object_of(face_offsets, g)
             prim_id[r, c] = g - face_offsets[k]
             object_id[r, c] = k
-            i0 = faces[g, 0]
-            i1 = faces[g, 1]
-            i2 = faces[g, 2]
-            b0 = np.float64(bary[r, c, 0])
-            b1 = np.float64(bary[r, c, 1])
-            b2 = np.float64(bary[r, c, 2])
-            px = (b0 * vertices[i0, 0] + b1 * vertices[i1, 0]) + b2 * vertices[i2, 0]
-            py = (b0 * vertices[i0, 1] + b1 * vertices[i1, 1]) + b2 * vertices[i2, 1]
-            pz = (b0 * vertices[i0, 2] + b1 * vertices[i1, 2]) + b2 * vertices[i2, 2]
-            ex = ((mv[k, 0, 0] * px + mv[k, 0, 1] * py) + mv[k, 0, 2] * pz) + mv[k, 0, 3]
-            ey = ((mv[k, 1, 0] * px + mv[k, 1, 1] * py) + mv[k, 1, 2] * pz) + mv[k, 1, 3]
-            ez = ((mv[k, 2, 0] * px + mv[k, 2, 1] * py) + mv[k, 2, 2] * pz) + mv[k, 2, 3]
+            ex, ey, ez, mx, my, mz = _surface(
+                g, k, np.float64(bary[r, c, 0]), np.float64(bary[r, c, 1]),
+                np.float64(bary[r, c, 2]), vertices, faces, vnormals, smooth, mv, nmat)
             eye_depth[r, c] = np.float32(-ez)
-            if smooth:
-                nx = (b0 * vnormals[i0, 0] + b1 * vnormals[i1, 0]) + b2 * vnormals[i2, 0]
-                ny = (b0 * vnormals[i0, 1] + b1 * vnormals[i1, 1]) + b2 * vnormals[i2, 1]
-                nz = (b0 * vnormals[i0, 2] + b1 * vnormals[i1, 2]) + b2 * vnormals[i2, 2]
-            else:
-                ax = vertices[i1, 0] - vertices[i0, 0]
-                ay = vertices[i1, 1] - vertices[i0, 1]
-                az = vertices[i1, 2] - vertices[i0, 2]
-                bx = vertices[i2, 0] - vertices[i0, 0]
-                by = vertices[i2, 1] - vertices[i0, 1]
-                bz = vertices[i2, 2] - vertices[i0, 2]
-                nx = ay * bz - az * by
-                ny = az * bx - ax * bz
-                nz = ax * by - ay * bx
-            mx = (nmat[k, 0, 0] * nx + nmat[k, 0, 1] * ny) + nmat[k, 0, 2] * nz
-            my = (nmat[k, 1, 0] * nx + nmat[k, 1, 1] * ny) + nmat[k, 1, 2] * nz
-            mz = (nmat[k, 2, 0] * nx + nmat[k, 2, 1] * ny) + nmat[k, 2, 2] * nz
-            length = np.sqrt(mx * mx + my * my + mz * mz)
-            if length > 0.0:
-                mx /= length
-                my /= length
-                mz /= length
             normal[r, c, 0] = np.float32(mx)
             normal[r, c, 1] = np.float32(my)
             normal[r, c, 2] = np.float32(mz)
-            # two-sided headlight: light at the eye, so the half vector is the view vector
+
+
+@njit(**PJIT)
+def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv, nmat,
+          palette, background, color):
+    """The default colour: a two-sided headlight Blinn–Phong shade of the palette colour of
+    each pixel's draw call, from the same float64 position and normal :func:`finalize` rounds;
+    ``background`` where nothing was drawn. Every element of ``color`` is written."""
+    h, w = prim_global.shape
+    for r in prange(h):
+        for c in range(w):
+            g = prim_global[r, c]
+            if g < 0:
+                for j in range(3):
+                    color[r, c, j] = background[j]
+                continue
+            k = _object_of(face_offsets, g)
+            ex, ey, ez, mx, my, mz = _surface(
+                g, k, np.float64(bary[r, c, 0]), np.float64(bary[r, c, 1]),
+                np.float64(bary[r, c, 2]), vertices, faces, vnormals, smooth, mv, nmat)
+            # light at the eye, so the half vector is the view vector
             vl = np.sqrt(ex * ex + ey * ey + ez * ez)
             ndv = 1.0
             if vl > 0.0:
