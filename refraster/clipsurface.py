@@ -367,12 +367,18 @@ def _keep(b0, b1, b2, i0, i1, i2, tv, wv, separate, skip, solid, params, wrap, e
         px = (c0 * wv[i0, 0] + c1 * wv[i1, 0]) + c2 * wv[i2, 0]
         py = (c0 * wv[i0, 1] + c1 * wv[i1, 1]) + c2 * wv[i2, 1]
         pz = (c0 * wv[i0, 2] + c1 * wv[i1, 2]) + c2 * wv[i2, 2]
+    # majority vote, decided as soon as either side has it
+    n = v_first[solid + 1] - v_first[solid]
     votes = 0
     for ld in range(v_first[solid], v_first[solid + 1]):
         if parity_at(px, py, pz, v_mat[ld], v_depth, v_sign, v_count, v_start[ld],
                      v_cstart[ld], v_hw[ld, 0], v_hw[ld, 1], False):
             votes += 1
-    return votes * 2 > v_first[solid + 1] - v_first[solid]
+            if votes * 2 > n:
+                return True
+        elif (ld - v_first[solid] + 1 - votes) * 2 >= n:
+            return False
+    return votes * 2 > n
 
 
 @njit(**PJIT)
@@ -940,8 +946,10 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
         h, w = depth.shape
         identity = all(np.array_equal(m, np.eye(4)) for m in prep.models)
         geometry = (tv, prep.triangles.faces) if identity and space == "world" else None
+        # the mesh caps' pixels are coloured by shade_cap_pixels below, not by the default
         fb = _build(prep.meshes, prep.models, view, proj, depth, prim_global, prep.face_offsets,
-                    front, bary.reshape(h, w, 3), normals, bg, geometry)
+                    front, bary.reshape(h, w, 3), normals, bg, geometry,
+                    prep.face_offsets[n_solids] if do_caps and mode == "mesh" else None)
     h, w = fb.depth.shape
     cap_mask = fb.object_id >= n_solids
     out = ClippedFramebuffer(**fb.fields(), cap_mask=cap_mask,

@@ -195,10 +195,12 @@ def _normals_per_mesh(meshes, normals):
 
 
 def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, bary, normals,
-           background, geometry=None):
+           background, geometry=None, n_shaded=None):
     """Finalize the G-buffer from the visible primitive (global index over all draw calls,
     −1 background) and its barycentrics. ``geometry``: the draw calls' vertices and faces
-    already concatenated (faces indexing the concatenation), when the caller has them."""
+    already concatenated (faces indexing the concatenation), when the caller has them.
+    ``n_shaded``: only pixels of the first ``n_shaded`` faces get the default colour (the
+    others the background), for a caller that colours the rest itself."""
     h, w = depth.shape
     vn = _normals_per_mesh(meshes, normals)
     if geometry is not None:
@@ -228,7 +230,8 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
     finalize(prim_global, bary, vertices, faces, vnormals, vn is not None, offsets, mv, nmat,
              eye_depth, normal, prim, obj)
     color = _PendingShade((h, w, 3), prim_global, bary, vertices, faces, vnormals,
-                          vn is not None, offsets, mv, nmat, PALETTE,
+                          vn is not None, offsets, mv, nmat,
+                          int(offsets[-1]) if n_shaded is None else int(n_shaded), PALETTE,
                           np.asarray(background, np.float64))
     return Framebuffer(depth=depth, eye_depth=eye_depth, normal=normal, prim_id=prim,
                        object_id=obj, front_facing=front, barycentric=bary, color=color,

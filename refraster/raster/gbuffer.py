@@ -89,15 +89,16 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
 
 @njit(**PJIT)
 def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv, nmat,
-          palette, background, color):
+          n_shaded, palette, background, color):
     """The default colour: a two-sided headlight Blinn–Phong shade of the palette colour of
     each pixel's draw call, from the same float64 position and normal :func:`finalize` rounds;
-    ``background`` where nothing was drawn. Every element of ``color`` is written."""
+    ``background`` where nothing was drawn and where the visible face is not one of the first
+    ``n_shaded`` (a caller that shades those itself). Every element of ``color`` is written."""
     h, w = prim_global.shape
     for r in prange(h):
         for c in range(w):
             g = prim_global[r, c]
-            if g < 0:
+            if g < 0 or g >= n_shaded:
                 for j in range(3):
                     color[r, c, j] = background[j]
                 continue
