@@ -3,8 +3,9 @@
     python -m benchmarks.raster [--quick] [--repeats N] [--rounds R]
 
 Cases (1024×768): icospheres of 81,920 and 1,310,720 faces and the crank. refraster renders the
-full G-buffer (``refraster.render``: depth, eye depth, normal, ids, facing, barycentrics, colour)
-with 2 threads and with 1; llvmpipe renders depth + normal + id + facing in its own process
+full G-buffer (``refraster.render``: depth, eye depth, normal, ids, facing, barycentrics) with 2
+threads and with 1, and the same frame with its default colour read (``+colour``: shaded when
+first read); llvmpipe renders depth + normal + id + facing in its own process
 with ``LP_NUM_THREADS`` = 2 or 1, timed as draw + glFinish + read-back into reused arrays.
 Both run in processes of their own with the same ``GLIBC_TUNABLES`` (:data:`TUNED`). Compile time is reported apart (the
 first call in a fresh cache directory minus a steady-state call), and the stage breakdown of one
@@ -21,6 +22,7 @@ import pathlib
 import subprocess
 import sys
 import tempfile
+import time
 import tracemalloc
 
 import numpy as np
@@ -59,14 +61,19 @@ z = np.load({str(path)!r}, allow_pickle=False)
 # validated once, as llvmpipe's mesh is uploaded once (render() skips the checks for a Mesh)
 mesh = rf.mesh.as_mesh((z['vertices'].astype(np.float64), z['faces'].astype(np.int64)))
 view, proj = z['view'], z['proj']
-def frame():
-    rf.render(mesh, view=view, proj=proj, width={W}, height={H})
+def frame(color):
+    fb = rf.render(mesh, view=view, proj=proj, width={W}, height={H})
+    if color:
+        fb.color   # the default shade, made when first read
 for _ in range(3):   # steady state, as the llvmpipe worker (benchmarks._gl_gbuffer.WARMUP)
-    frame()
-ts = []
-for _ in range({repeats}):
-    t0 = time.perf_counter(); frame(); ts.append((time.perf_counter() - t0) * 1e3)
-print(json.dumps(dict(median_ms=float(np.median(ts)), times_ms=ts)))
+    frame(False)
+    frame(True)
+ts, tc = [], []
+for _ in range({repeats}):   # alternately, so a slow spell hits both
+    t0 = time.perf_counter(); frame(False); ts.append((time.perf_counter() - t0) * 1e3)
+    t0 = time.perf_counter(); frame(True); tc.append((time.perf_counter() - t0) * 1e3)
+print(json.dumps(dict(median_ms=float(np.median(ts)), color_ms=float(np.median(tc)),
+                      times_ms=ts)))
 """
     env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), GLIBC_TUNABLES=TUNED)
     r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
@@ -106,8 +113,18 @@ def _stages(mesh, view, proj, repeats):
                        warmup=True)
     t_total = median_ms(lambda: rf.render(m, view=view, proj=proj, width=W, height=H), repeats,
                         warmup=True)
+
+    def shade():
+        fb = _build([m], [np.eye(4)], view, proj, depth, prim, offsets, front,
+                    bary.reshape(H, W, 3), None, np.ones(3))
+        t0 = time.perf_counter()
+        fb.color
+        return (time.perf_counter() - t0) * 1e3
+
+    shade()
+    t_color = float(np.median([shade() for _ in range(repeats)]))
     return dict(vertex=t_vertex, setup=t_setup, raster=t_raster, gbuffer=t_gbuf, total=t_total,
-                triangles=int((st.status == 1).sum()) + len(st.clipped))
+                color=t_color, triangles=int((st.status == 1).sum()) + len(st.clipped))
 
 
 def _compile_time():
@@ -158,27 +175,34 @@ def main(argv=None):
             for threads in (2, 1):
                 # alternate the two renderers over a few rounds and keep the median of each
                 # one's medians, so a slow spell of the shared machine hits both alike
-                ours, theirs = [], []
+                ours, colored, theirs = [], [], []
                 for _ in range(a.rounds):
-                    ours.append(_refraster_worker(path, threads, a.repeats)["median_ms"])
+                    r = _refraster_worker(path, threads, a.repeats)
+                    ours.append(r["median_ms"])
+                    colored.append(r["color_ms"])
                     gl = _llvmpipe(path, threads, a.repeats)
                     theirs.append(gl["median_ms"] if gl else float("nan"))
                 rows.append((name, len(mesh.faces), threads, float(np.median(ours)),
-                             float(np.median(theirs))))
+                             float(np.median(theirs)), float(np.median(colored))))
             stage_rows.append((name, _stages(mesh, view, proj, a.repeats)))
         big = _cases(False)[1][1] if not a.quick else None
     print(f"refraster {W}x{H} G-buffer vs llvmpipe (median over {a.rounds} alternating rounds "
           f"of the median ms/frame of {a.repeats} frames after 3 warm-up frames; "
           f"both processes with GLIBC_TUNABLES={TUNED})")
     print(f"{'case':22} {'faces':>9} {'thr':>3} {'refraster':>10} {'llvmpipe':>9} {'ratio':>6}"
-          f" {'Mtri/s':>7} {'Mpx/s':>7}")
-    for name, faces, thr, ms, gl in rows:
+          f" {'Mtri/s':>7} {'Mpx/s':>7} {'+colour':>8} {'ratio':>6}")
+    for name, faces, thr, ms, gl, mc in rows:
         print(f"{name:22} {faces:9d} {thr:3d} {ms:10.1f} {gl:9.1f} {ms / gl:6.2f}"
-              f" {faces / ms / 1e3:7.1f} {W * H / ms / 1e3:7.1f}")
-    print("\nstage breakdown, 2 threads (ms): vertex | setup | bin+raster+resolve | G-buffer | total")
+              f" {faces / ms / 1e3:7.1f} {W * H / ms / 1e3:7.1f} {mc:8.1f} {mc / gl:6.2f}")
+    print("refraster: the G-buffer (window and eye depth, normal, primitive and object ids, "
+          "facing, barycentrics); +colour: the same frame with Framebuffer.color read (the "
+          "default shade, made on first read); llvmpipe: depth, normal, id, facing")
+    print("\nstage breakdown, 2 threads (ms): vertex | setup | bin+raster+resolve | G-buffer |"
+          " total | colour (on read)")
     for name, s in stage_rows:
         print(f"{name:22} {s['vertex']:7.2f} {s['setup']:7.2f} {s['raster']:7.2f}"
-              f" {s['gbuffer']:7.2f} {s['total']:7.2f}   ({s['triangles']} triangles set up)")
+              f" {s['gbuffer']:7.2f} {s['total']:7.2f} {s['color']:7.2f}"
+              f"   ({s['triangles']} triangles set up)")
     (cold, steady), (cached, steady2) = _compile_time()
     print(f"\ncompile: first render in a fresh cache {cold:.0f} ms (steady {steady:.1f} ms); "
           f"first render with the cache filled {cached:.0f} ms (steady {steady2:.1f} ms)")
