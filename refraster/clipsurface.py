@@ -952,7 +952,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
                     prep.face_offsets[n_solids] if do_caps and mode == "mesh" else None)
     h, w = fb.depth.shape
     cap_mask = fb.object_id >= n_solids
-    out = ClippedFramebuffer(**fb.fields(), cap_mask=cap_mask,
+    out = ClippedFramebuffer(**fb.field_values(), cap_mask=cap_mask,
         cap_points=np.zeros((0, 3)), n_solids=n_solids, n_surfaces=n_surf)
     if not do_caps:
         return out

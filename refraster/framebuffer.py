@@ -46,8 +46,9 @@ class Framebuffer:
     color : float32 (H, W, 3)
         Headlight Blinn–Phong shading of :data:`PALETTE` colours by ``object_id``
         (two-sided); ``background`` elsewhere. :func:`render` shades it when it is first
-        read (a G-buffer pass that never reads it does not pay for it); the result is the
-        same either way, and once read it is an ordinary array (writes to it stay).
+        read (a G-buffer pass that never reads it does not pay for it), from the meshes and
+        ``barycentric`` as they are then — read it before changing either in place. Once
+        read it is an ordinary array (writes to it stay).
     """
 
     depth: np.ndarray
@@ -99,7 +100,7 @@ class Framebuffer:
                                 self.prim_id[m], self.barycentric[m].astype(np.float64))
         return out
 
-    def fields(self):
+    def field_values(self):
         """The dataclass fields as a dict, ``color`` as stored (not shaded if it is still
         pending): for building a subclass's framebuffer from this one."""
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(Framebuffer)

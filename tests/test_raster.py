@@ -153,7 +153,7 @@ def test_color_is_shaded_when_first_read():
     kw = dict(view=VIEW, proj=PROJ, width=64, height=48, background=(0.1, 0.2, 0.3))
     fb = rf.render(m, **kw)
     assert isinstance(fb.__dict__["_color"], _PendingShade)
-    assert isinstance(fb.fields()["color"], _PendingShade)   # copying fields does not shade
+    assert isinstance(fb.field_values()["color"], _PendingShade)   # copying fields does not shade
     color = fb.color
     assert color.dtype == np.float32 and color.shape == (48, 64, 3)
     assert fb.color is color and isinstance(fb.__dict__["_color"], np.ndarray)

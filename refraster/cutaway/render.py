@@ -273,7 +273,7 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
     image = color.astype(np.float64) * (1.0 - ghost[..., None]) + 0.35 * ghost[..., None]
     image[edge] = 0.0
 
-    base = fb.fields()
+    base = fb.field_values()
     base.update(normal=normal, color=color)
     return CutawayFramebuffer(
         **base, cutaway_depth=(0.5 * d_ndc + 0.5).astype(np.float32), cutaway_buffer=buffer,
