@@ -98,14 +98,15 @@ def _stages(mesh, view, proj, repeats):
     from refraster.framebuffer import _build
     from refraster.mesh import as_meshes
     from refraster.raster.primitive import setup_triangles, transform_vertices
-    from refraster.raster.rasterizer import fused
+    from refraster.raster.rasterizer import bin_primitives, fused
     m = as_meshes(mesh)[0]
     mvp = proj @ view
     t_vertex = median_ms(lambda: transform_vertices(m.vertices, mvp), repeats, warmup=True)
     clip = transform_vertices(m.vertices, mvp).astype(np.float64)
     t_setup = median_ms(lambda: setup_triangles(clip, m.faces, W, H), repeats, warmup=True)
     st = setup_triangles(clip, m.faces, W, H)
-    t_raster = median_ms(lambda: fused(st), repeats, warmup=True)
+    t_bin = median_ms(lambda: bin_primitives(st), repeats, warmup=True)
+    t_raster = median_ms(lambda: fused(st), repeats, warmup=True) - t_bin
     depth, prim, front, bary = fused(st)
     offsets = np.array([0, m.n_faces])
     t_gbuf = median_ms(lambda: _build([m], [np.eye(4)], view, proj, depth, prim, offsets, front,
@@ -123,8 +124,8 @@ def _stages(mesh, view, proj, repeats):
 
     shade()
     t_color = float(np.median([shade() for _ in range(repeats)]))
-    return dict(vertex=t_vertex, setup=t_setup, raster=t_raster, gbuffer=t_gbuf, total=t_total,
-                color=t_color, triangles=int((st.status == 1).sum()) + len(st.clipped))
+    return dict(vertex=t_vertex, setup=t_setup, binning=t_bin, raster=t_raster, gbuffer=t_gbuf,
+                total=t_total, color=t_color, triangles=int((st.status == 1).sum()) + len(st.clipped))
 
 
 def _compile_time():
@@ -197,10 +198,11 @@ def main(argv=None):
     print("refraster: the G-buffer (window and eye depth, normal, primitive and object ids, "
           "facing, barycentrics); +colour: the same frame with Framebuffer.color read (the "
           "default shade, made on first read); llvmpipe: depth, normal, id, facing")
-    print("\nstage breakdown, 2 threads (ms): vertex | setup | bin+raster+resolve | G-buffer |"
-          " total | colour (on read)")
+    print("\nstage breakdown, 2 threads (ms): vertex | setup | binning | raster+resolve (one"
+          " fused pass) | G-buffer | total | colour (on read)")
     for name, s in stage_rows:
-        print(f"{name:22} {s['vertex']:7.2f} {s['setup']:7.2f} {s['raster']:7.2f}"
+        print(f"{name:22} {s['vertex']:7.2f} {s['setup']:7.2f} {s['binning']:7.2f}"
+              f" {s['raster']:7.2f}"
               f" {s['gbuffer']:7.2f} {s['total']:7.2f} {s['color']:7.2f}"
               f"   ({s['triangles']} triangles set up)")
     (cold, steady), (cached, steady2) = _compile_time()
