@@ -138,14 +138,14 @@ class Framebuffer:
 class _PendingShade:
     """The inputs of :func:`refraster.raster.gbuffer.shade`, kept until ``color`` is read."""
 
-    __slots__ = ("args", "shape")
+    __slots__ = ("args",)
 
-    def __init__(self, shape, *args):
-        self.shape = shape
+    def __init__(self, *args):
         self.args = args
 
     def __call__(self):
-        color = np.empty(self.shape, np.float32)   # shade writes every element
+        prim_global = self.args[0]
+        color = np.empty(prim_global.shape + (3,), np.float32)   # shade writes every element
         shade(*self.args, color)
         return color
 
@@ -230,7 +230,7 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
     offsets = np.asarray(face_offsets, np.int64)
     finalize(prim_global, bary, vertices, faces, vnormals, vn is not None, offsets, mv, nmat,
              eye_depth, normal, prim, obj)
-    color = _PendingShade((h, w, 3), prim_global, bary, vertices, faces, vnormals,
+    color = _PendingShade(prim_global, bary, vertices, faces, vnormals,
                           vn is not None, offsets, mv, nmat,
                           int(offsets[-1]) if n_shaded is None else int(n_shaded), PALETTE,
                           np.asarray(background, np.float64))
