@@ -32,7 +32,8 @@ from .mesh import Mesh
 from .offsetmaps import WRAP_MODES, _wrap_texel, bilinear, bilinear_taps, sample
 
 __all__ = ["CAP_STYLES", "check_watertight", "cap_mesh", "cull_cap", "exact_caps", "light_caps",
-           "shade_cap_pixels", "shade_caps", "solid_texture", "MAX_CAP_VERTICES"]
+           "shade_cap_pixels", "shade_caps", "solid_texture", "surely_inside",
+           "MAX_CAP_VERTICES"]
 
 #: Largest cap grid accepted (vertices); a larger one almost always means a surface whose
 #: texture tile is far smaller than the solid.
@@ -241,6 +242,100 @@ def cull_cap(cap, sprite):
     remap = np.zeros(cap.n_vertices, np.int64)
     remap[used] = np.arange(used.size)
     return Mesh(np.ascontiguousarray(cap.vertices[used]), np.ascontiguousarray(remap[faces]))
+
+
+#: Largest perspective-correct barycentric extrapolation (below 0) a fragment of a face may
+#: have for the face's "surely inside" flag (:func:`surely_inside`) to stand in for its
+#: parity tests: a quarter of :data:`FOOTPRINT_MARGIN` (a fragment lies within its face's box
+#: widened by twice this fraction of the box; the rest is slack).
+SURE_EXTRAPOLATION = FOOTPRINT_MARGIN / 4
+
+#: Relative rounding of a fragment's position beyond its barycentrics' extrapolation: the
+#: float32 barycentrics need not sum to 1 (by up to ~2e-7), which moves the interpolated
+#: point by that fraction of its distance from the origin.
+_SURE_ROUNDING = 1e-6
+
+
+@njit(**IJIT)
+def _leading_layers(depth, base, hw, k, r):
+    """How many of a texel's first layers (``depth[base + j·hw]``, j < k) are ≤ r before the
+    first that is not: the count :func:`refraster.ldi.parity_at` takes the parity of."""
+    n = 0
+    while n < k and depth[base + n * hw] <= r:
+        n += 1
+    return n
+
+
+@njit(**PJIT)
+def _sure_kernel(verts, faces, mats, depth, count, start, cstart, hw, margin, rounding, sure):
+    """sure[f] = number of the sprite's LDIs in which *every* point of face f's box (in the
+    sprite's texture space, widened as in :func:`_footprint_kernel` and by ``rounding`` of the
+    coordinates' magnitude) lies in [0, 1]³ and at texels where the parity test says inside:
+    the count of leading layers ≤ r is the same odd number at both ends of the r range (it
+    is monotone in r, so it is that number in between)."""
+    for fi in prange(faces.shape[0]):
+        n_in = 0
+        for ld in range(mats.shape[0]):
+            m = mats[ld]
+            h = hw[ld, 0]
+            w = hw[ld, 1]
+            lo = np.full(3, np.inf)
+            hi = np.full(3, -np.inf)
+            mag = np.zeros(3)
+            for c in range(3):
+                v = faces[fi, c]
+                x, y, z = verts[v, 0], verts[v, 1], verts[v, 2]
+                for a in range(3):
+                    t = ((m[a, 0] * x + m[a, 1] * y) + m[a, 2] * z) + m[a, 3]
+                    lo[a] = min(lo[a], t)
+                    hi[a] = max(hi[a], t)
+                    mag[a] = max(mag[a], (abs(m[a, 0] * x) + abs(m[a, 1] * y))
+                                 + abs(m[a, 2] * z))
+            pad = (1.0 / w, 1.0 / h, 1e-6)
+            ok = True
+            for a in range(3):
+                d = margin * (hi[a] - lo[a]) + pad[a] + rounding * mag[a]
+                lo[a] -= d
+                hi[a] += d
+                if not (lo[a] >= 0.0 and hi[a] <= 1.0):
+                    ok = False
+            if not ok:
+                continue
+            c0 = min(int(lo[0] * w), w - 1)
+            c1 = min(int(hi[0] * w), w - 1)
+            j0 = min(int(lo[1] * h), h - 1)
+            j1 = min(int(hi[1] * h), h - 1)
+            for j in range(j0, j1 + 1):
+                row = h - 1 - j
+                for col in range(c0, c1 + 1):
+                    texel = row * w + col
+                    k = count[cstart[ld] + texel]
+                    base = start[ld] + texel
+                    n0 = _leading_layers(depth, base, h * w, k, lo[2])
+                    if n0 % 2 == 0 or _leading_layers(depth, base, h * w, k, hi[2]) != n0:
+                        ok = False
+                        break
+                if not ok:
+                    break
+            if ok:
+                n_in += 1
+        sure[fi] = n_in
+
+
+def surely_inside(cap, sprite):
+    """Per face of a cap mesh: True when a majority of the sprite's axes say inside at every
+    point of the face's box widened by :data:`FOOTPRINT_MARGIN` (and a texel, as
+    :func:`cull_cap` widens it), so the parity test passes every fragment that lies in it.
+
+    A fragment interpolated from an unsnapped triangle lies in that box when its barycentrics
+    extrapolate by less than :data:`SURE_EXTRAPOLATION`; the fused clip pass checks a bound on
+    that per triangle (``_fragments_stay_near``) and runs the parity tests when it fails, so
+    the flag never changes a pixel. Returns ``(F,) bool``."""
+    mats, depth, sign, count, start, cstart, hw = sprite.packed()
+    votes = np.zeros(cap.n_faces, np.int64)
+    _sure_kernel(np.ascontiguousarray(cap.vertices), np.ascontiguousarray(cap.faces), mats,
+                 depth, count, start, cstart, hw, FOOTPRINT_MARGIN, _SURE_ROUNDING, votes)
+    return votes * 2 > len(mats)
 
 
 # --------------------------------------------------------------------------------------------

@@ -19,6 +19,7 @@ and closes the cuts with cap surfaces (:mod:`refraster.capping`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -384,15 +385,18 @@ def _keep(b0, b1, b2, i0, i1, i2, tv, wv, separate, skip, solid, params, wrap, e
 @njit(**PJIT)
 def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim,
                      sfront, sbox, sarea, B, starts, lists, ntx, width, height, bits, rule,
-                     face_offsets, n_solids, n_surf, h_lo, h_hi, tv, wv, separate, params,
-                     wrap, enabled,
+                     face_offsets, n_solids, n_surf, n_enabled, h_lo, h_hi, tv, wv, separate,
+                     params, wrap, enabled,
                      maps, offset, shape, v_first, v_mat, v_depth, v_sign, v_count, v_start,
-                     v_cstart, v_hw, tile_shift, o_depth, o_prim, o_front, o_bary):
+                     v_cstart, v_hw, sure, sure_bary, tile_shift, o_depth, o_prim, o_front, o_bary):
     """The rasterizer's fused tile pass (``GL_LESS``, clear 1) with the clip stage between
     rasterization and the depth test. A fragment that fails the depth test is left untested
     (it cannot change the tile whether discarded or not), so the result equals the fragment
-    stream + stage + resolve exactly. The tile size comes in as an argument, not as the
-    rasterizer's constant: Numba's cache does not see another module's constants change."""
+    stream + stage + resolve exactly. A cap face flagged in ``sure`` skips its parity tests
+    when its fragments provably stay in the box the flag was decided over
+    (:func:`_fragments_stay_near`); they would all pass. The tile size comes in as an
+    argument, not as the rasterizer's constant: Numba's cache does not see another module's
+    constants change."""
     ntiles = starts.shape[0] - 1
     for tile in prange(ntiles):
         if starts[tile] == starts[tile + 1]:
@@ -421,10 +425,16 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
             i2 = f[prim, 2]
             test = True
             if piece < 0 and inv_af > 0.0:   # interpolated from the unsnapped triangle
-                cls = _box_class(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, i0,
-                                 i1 if front else i2, i2 if front else i1, tv, skip, solid >= 0,
-                                 params, enabled, h_lo, h_hi, bx0 + 0.5, bx1 + 0.5, by0 + 0.5,
-                                 by1 + 0.5)
+                # a cap face whose fragments all pass the parity test is tested as a solid's
+                is_cap = solid >= 0 and not (sure[prim] and _fragments_stay_near(
+                    fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, inv_af, bits, sure_bary))
+                if n_enabled - (1 if skip >= 0 and enabled[skip] else 0) == 0:
+                    cls = 2 if is_cap else 1   # no surface to classify against
+                else:
+                    cls = _box_class(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, i0,
+                                     i1 if front else i2, i2 if front else i1, tv, skip,
+                                     is_cap, params, enabled, h_lo, h_hi, bx0 + 0.5, bx1 + 0.5,
+                                     by0 + 0.5, by1 + 0.5)
                 if cls == 0:
                     continue
                 test = cls == 2
@@ -468,6 +478,26 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
                     write_winner(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf,
                                  sprim, sfront, sarea, B, bits, rule, x, y, row, width, o_prim,
                                  o_front, o_bary)
+
+
+@njit(**IJIT)
+def _fragments_stay_near(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, inv_af, bits, limit):
+    """True when no fragment of this unsnapped triangle (counter-clockwise, ``inv_af`` = 1 /
+    its doubled area > 0) can have a perspective-correct barycentric below ``−limit``.
+
+    A covered pixel centre lies in the snapped triangle, whose vertices are within
+    ``δ = √2·2^−bits`` pixel of the unsnapped ones, so within δ of a point of the unsnapped
+    triangle: its screen-space λ_i ≥ −δ / altitude_i ≥ −ε with ε = δ·(longest edge)·inv_af.
+    Then ``c_i = λ_i w_i⁻¹ / Σ λ_j w_j⁻¹ ≥ −ε·max w⁻¹ / (min w⁻¹ − 2ε·max w⁻¹)``. (δ is twice
+    the rounding to the subpixel grid.)"""
+    e = max(max((fx1 - fx0) * (fx1 - fx0) + (fy1 - fy0) * (fy1 - fy0),
+                (fx2 - fx1) * (fx2 - fx1) + (fy2 - fy1) * (fy2 - fy1)),
+            (fx0 - fx2) * (fx0 - fx2) + (fy0 - fy2) * (fy0 - fy2))
+    eps = 1.4142135623730951 * (1.0 / np.float64(np.int64(1) << bits)) * math.sqrt(e) * inv_af
+    lo = min(iw0, iw1, iw2)
+    hi = max(iw0, iw1, iw2)
+    den = lo - 2.0 * eps * hi
+    return den > 0.0 and eps * hi <= limit * den
 
 
 #: Relative margin of the per-box classification (:func:`_box_class`): far above the
@@ -579,8 +609,11 @@ def _no_sprites():
     return _NO_SPRITES
 
 
-def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests):
+def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests,
+                sure_flags=()):
     """Rasterize, clip, parity-test and depth-resolve the prepared draw calls in one pass.
+    ``sure_flags`` holds, per cap draw call after the solids, the "surely inside" flags of its
+    faces (:func:`refraster.capping.surely_inside`) or ``None``.
 
     Returns ``(depth, prim_global, front, bary)`` as :func:`refraster.raster.rasterizer.fused`.
     """
@@ -595,11 +628,19 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests):
     ntx, _, starts, lists = bin_primitives(prims)
     h, w = prims.height, prims.width
     depth, prim, front, bary = resolved_buffers(h, w, 1.0)
+    from . import capping
     sprites = _pack_sprites(tests) if tests else _no_sprites()
     separate = world_vertices is not test_vertices
+    sure = np.zeros(int(prep.face_offsets[-1]), np.bool_)
+    for call, flags in enumerate(sure_flags):
+        if flags is not None and flags.size:
+            at = int(prep.face_offsets[n_solids + call])
+            sure[at:at + flags.size] = flags
     _fused_clip_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits,
-                     prep.fill_rule, prep.face_offsets, n_solids, n_surf, h_lo, h_hi,
-                     test_vertices, world_vertices, separate, *packed.args(), *sprites,
+                     prep.fill_rule, prep.face_offsets, n_solids, n_surf,
+                     int(packed.enabled.sum()), h_lo, h_hi,
+                     test_vertices, world_vertices, separate, *packed.args(), *sprites, sure,
+                     capping.SURE_EXTRAPOLATION,
                      TILE_SHIFT, depth, prim, front, bary)
     return depth, prim, front, bary
 
@@ -780,10 +821,12 @@ _CAP_CACHE_SIZE = 8
 
 
 def _cached_cap(surface, bounds, subdivision, sprite=None):
-    """:func:`refraster.capping.cap_mesh`, made once per surface, bounds and subdivision (a
-    surface is immutable; the cached mesh's arrays are read-only). With a volumetric depth
-    sprite, only the faces that can pass its parity test (:func:`refraster.capping.cull_cap`),
-    made once per sprite too."""
+    """``(mesh, sure)``: :func:`refraster.capping.cap_mesh`, made once per surface, bounds and
+    subdivision (a surface is immutable; the cached mesh's arrays are read-only). With a
+    volumetric depth sprite, only the faces that can pass its parity test
+    (:func:`refraster.capping.cull_cap`) and their "surely inside" flags
+    (:func:`refraster.capping.surely_inside`), made once per sprite too; ``sure`` is ``None``
+    without a sprite."""
     import weakref
 
     from . import capping
@@ -804,15 +847,17 @@ def _cached_cap(surface, bounds, subdivision, sprite=None):
         cap = capping.cap_mesh(surface, bounds, subdivision=subdivision)
         put(key, cap, cap)
     if sprite is None or cap is None:
-        return cap
+        return cap, None
     # the sprite is held weakly: an id can be reused once its sprite is gone
     culled_key = key + (id(sprite),)
     entry = cache.get(culled_key)
     if entry is None or entry[0]() is not sprite:
         culled = capping.cull_cap(cap, sprite)
-        entry = (weakref.ref(sprite), culled)
+        sure = capping.surely_inside(culled, sprite)
+        sure.setflags(write=False)
+        entry = (weakref.ref(sprite), culled, sure)
         put(culled_key, culled, entry)
-    return entry[1]
+    return entry[1], entry[2]
 
 
 def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
@@ -916,14 +961,16 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
     fused = _USE_FUSED and (not do_caps or mode != "mesh" or all(
         isinstance(t, VolumetricDepthSprite) for t in tests))
     draw_list, draw_models = list(solids), list(models)
+    sure_flags = []   # per cap draw call: its faces' "surely inside" flags (or None)
     if do_caps and mode == "mesh":
         empty = Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64))
         for m, box in enumerate(boxes):
             sprite = tests[m] if isinstance(tests[m], VolumetricDepthSprite) else None
             for s in surfaces:
-                cap = _cached_cap(s, box, subdivision, sprite) \
-                    if s.enabled and box is not None else None
+                cap, sure = _cached_cap(s, box, subdivision, sprite) \
+                    if s.enabled and box is not None else (None, None)
                 draw_list.append(empty if cap is None else cap)
+                sure_flags.append(sure)
                 draw_models.append(np.eye(4))
 
     bg = as_float_array(background, "background", shape=(3,))
@@ -942,7 +989,8 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
         wv = tv if space == "world" else _concat_vertices(
             vertices_in(prep.meshes, prep.models, view, "world"))
         depth, prim_global, front, bary = _fused_clip(
-            prep, tv, wv, n_solids, _surfaces_in_space(surfaces, space, view), cap_tests)
+            prep, tv, wv, n_solids, _surfaces_in_space(surfaces, space, view), cap_tests,
+            sure_flags)
         h, w = depth.shape
         identity = all(np.array_equal(m, np.eye(4)) for m in prep.models)
         geometry = (tv, prep.triangles.faces) if identity and space == "world" else None

@@ -197,3 +197,100 @@ def test_fused_equals_stream_with_near_plane_clipping(monkeypatch, cull):
     ref = staged(monkeypatch, box, cs, **kw)
     assert fused.cap_mask.any() and fused.mask.any()
     assert_same(fused, ref)
+
+
+# --------------------------------------------------- cap faces that surely pass the parity test
+
+def test_surely_inside_faces_are_inside_everywhere_near_them():
+    """Brute force: every point a fragment of a flagged face can land on — barycentrics down
+    to −SURE_EXTRAPOLATION — is inside by the parity test; and the flag is not vacuous."""
+    box = Mesh(*(np.asarray(a) for a in (trimesh.creation.box((1, 1, 1)).vertices,
+                                         trimesh.creation.box((1, 1, 1)).faces)))
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.5)
+    rng = np.random.default_rng(1)
+    lim = capping.SURE_EXTRAPOLATION
+    for solid in (box, Mesh(np.asarray(ball.vertices), np.asarray(ball.faces))):
+        sprite = VolumetricDepthSprite.from_mesh(solid, resolution=32)
+        cs = ClipSurface([0.05, 0, 0], [0, 2.0, 0.4], [0, -0.4, 2.0], (1, 1, 0.4),
+                         om.perlin_noise(40, seed=5))
+        cap = capping.cull_cap(capping.cap_mesh(cs, bounds(solid.vertices)), sprite)
+        sure = capping.surely_inside(cap, sprite)
+        assert sure.dtype == np.bool_ and sure.shape == (cap.n_faces,)
+        assert 0.4 * cap.n_faces < sure.sum() < cap.n_faces
+        # barycentrics summing to 1 with each ≥ −lim: the corners of that region and random
+        # points in it
+        corners = np.array([[1 + 2 * lim, -lim, -lim], [-lim, 1 + 2 * lim, -lim],
+                            [-lim, -lim, 1 + 2 * lim]])
+        w = np.concatenate([corners, rng.dirichlet((1, 1, 1), size=40) @ corners])
+        tri = cap.vertices[cap.faces[sure]]                      # (S, 3, 3)
+        pts = np.einsum("kc,scj->skj", w, tri).reshape(-1, 3)
+        assert sprite.contains(pts).all()
+
+
+def _snapped_coverage(p, bits=8):
+    """Pixel centres covered by the triangle ``p`` (3, 2) after snapping to 2^−bits pixel
+    (inclusive of its edges: a superset of any fill rule's)."""
+    q = np.rint((p - 0.5) * (1 << bits)) / (1 << bits) + 0.5
+    lo = np.floor(q.min(axis=0)).astype(int)
+    hi = np.ceil(q.max(axis=0)).astype(int)
+    xs, ys = np.meshgrid(np.arange(lo[0], hi[0] + 1) + 0.5, np.arange(lo[1], hi[1] + 1) + 0.5)
+    c = np.stack([xs.ravel(), ys.ravel()], 1)
+
+    def edge(a, b, pt):
+        return (b[0] - a[0]) * (pt[:, 1] - a[1]) - (b[1] - a[1]) * (pt[:, 0] - a[0])
+    e = np.stack([edge(q[1], q[2], c), edge(q[2], q[0], c), edge(q[0], q[1], c)], 1)
+    return c[(e >= 0).all(axis=1)]
+
+
+def test_fragments_stay_near_bounds_the_extrapolation():
+    """Random (many of them thin) triangles with random 1/w: wherever the guard says the
+    fragments stay near, every covered centre's perspective-correct barycentrics are
+    ≥ −limit; and the guard passes ordinary triangles."""
+    rng = np.random.default_rng(7)
+    lim = capping.SURE_EXTRAPOLATION
+    passed = 0
+    for trial in range(3000):
+        p = rng.uniform(0, 12, size=(3, 2))
+        if trial % 2:   # a sliver: the third vertex near the first edge
+            t = rng.uniform(0, 1)
+            p[2] = p[0] + t * (p[1] - p[0]) + rng.normal(0, 0.05, 2)
+        d = p[1:] - p[0]
+        area2 = d[0, 0] * d[1, 1] - d[1, 0] * d[0, 1]
+        if area2 < 0:
+            p = p[[0, 2, 1]]
+            area2 = -area2
+        if area2 <= 0:
+            continue
+        iw = rng.uniform(0.2, 1.0, 3)
+        ok = clipsurface._fragments_stay_near(*p.ravel(), *iw, 1.0 / area2, 8, lim)
+        if not ok:
+            continue
+        passed += 1
+        c = _snapped_coverage(p)
+        if len(c) == 0:
+            continue
+        l0 = ((p[2, 0] - p[1, 0]) * (c[:, 1] - p[1, 1]) - (p[2, 1] - p[1, 1]) * (c[:, 0] - p[1, 0]))
+        l1 = ((p[0, 0] - p[2, 0]) * (c[:, 1] - p[2, 1]) - (p[0, 1] - p[2, 1]) * (c[:, 0] - p[2, 0]))
+        l2 = ((p[1, 0] - p[0, 0]) * (c[:, 1] - p[0, 1]) - (p[1, 1] - p[0, 1]) * (c[:, 0] - p[0, 0]))
+        q = np.stack([l0, l1, l2], 1) / area2 * iw
+        bary = q / q.sum(axis=1, keepdims=True)
+        assert bary.min() >= -lim, (p, iw)
+    assert passed > 1000
+
+
+def test_surely_inside_flags_change_no_pixel(crank_scene, monkeypatch):
+    """The fused pass with the flags against the fused pass with every flag cleared."""
+    mesh, ragged, second, cam, sprite = crank_scene
+    kw = dict(**cam.kwargs, vds=[sprite], cap_style="hatch")
+    for surfaces in (ragged, [ragged, second]):
+        flagged = render_clipped(mesh, surfaces, **kw)
+        orig = clipsurface._cached_cap
+
+        def cleared(*a, **k):
+            m, sure = orig(*a, **k)
+            return m, (None if sure is None else np.zeros_like(sure))
+        with monkeypatch.context() as m:
+            m.setattr(clipsurface, "_cached_cap", cleared)
+            plain = render_clipped(mesh, surfaces, **kw)
+        assert flagged.cap_mask.sum() > 200
+        assert_same(flagged, plain)
