@@ -48,10 +48,30 @@ _WATERTIGHT = []
 _WATERTIGHT_SIZE = 8
 
 
+@njit(**PJIT)
+def _differing_words(a, b):
+    """How many 64-bit words of two equal-length arrays differ (one parallel pass, no
+    temporary: ``np.array_equal`` builds a boolean array first)."""
+    n = 0
+    for i in prange(a.shape[0]):
+        n += a[i] != b[i]
+    return n
+
+
+def _same_bits(a, b):
+    """``a`` and ``b`` have the same shape, dtype and bytes."""
+    if a.shape != b.shape or a.dtype != b.dtype:
+        return False
+    if a.size == 0:
+        return True
+    if a.dtype.itemsize != 8 or not (a.flags.c_contiguous and b.flags.c_contiguous):
+        return bool(np.array_equal(a, b))   # the rare case: not a validated Mesh's arrays
+    return _differing_words(a.reshape(-1).view(np.int64), b.reshape(-1).view(np.int64)) == 0
+
+
 def _known_watertight(v, f):
     for kv, kf in _WATERTIGHT:
-        if kv.shape == v.shape and kf.shape == f.shape and kv.dtype == v.dtype \
-                and kf.dtype == f.dtype and np.array_equal(kv, v) and np.array_equal(kf, f):
+        if _same_bits(kv, v) and _same_bits(kf, f):
             return True
     return False
 

@@ -179,6 +179,26 @@ def test_watertight_memo_sees_changed_arrays():
         capping.check_watertight(Mesh(v, f))
 
 
+def test_same_bits_compares_shape_dtype_and_every_word():
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(500, 3))
+    assert capping._same_bits(a, a.copy())
+    for i in (0, 777, 1499):   # one word changed anywhere
+        b = a.copy()
+        b.reshape(-1)[i] = np.nextafter(b.reshape(-1)[i], np.inf)
+        assert not capping._same_bits(a, b)
+    z = a.copy()
+    z[0, 0] = 0.0
+    z2 = z.copy()
+    z2[0, 0] = -0.0                                  # equal values, other bits
+    assert not capping._same_bits(z, z2)
+    assert not capping._same_bits(a, a[:-1].copy()) and not capping._same_bits(a, a.reshape(3, 500))
+    assert not capping._same_bits(a, a.view(np.int64))
+    assert capping._same_bits(a[:, :2], a[:, :2].copy())         # strided: the slow path
+    assert capping._same_bits(a.astype(np.float32), a.astype(np.float32))
+    assert capping._same_bits(np.zeros((0, 3)), np.zeros((0, 3)))
+
+
 @pytest.mark.parametrize("cull", ["none", "back"])
 def test_fused_equals_stream_with_near_plane_clipping(monkeypatch, cull):
     """A camera inside the box's bounding sphere: the near plane cuts faces into pieces, which

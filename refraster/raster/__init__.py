@@ -65,20 +65,23 @@ def prepare(meshes, *, view, proj, width, height, model=None, cull="none", preci
     bits = _subpixel_bits(subpixel_bits)
     rule = as_choice(fill_rule, "fill_rule", FILL_RULES)
     models = _models(model, len(meshes))
-    clips, faces, offsets = [], [], [0]
-    vbase = 0
-    for m, mm in zip(meshes, models):
+    mvps = []
+    for mm in models:
         mvp = proj @ view @ mm
         if not np.all(np.isfinite(mvp)):
             raise ValueError("proj @ view @ model overflows to non-finite values")
-        clips.append(transform_vertices(m.vertices, mvp, prec).astype(np.float64))
-        faces.append(m.faces + vbase if vbase else m.faces)
-        vbase += m.n_vertices
-        offsets.append(offsets[-1] + m.n_faces)
-    # one draw call (the common case) needs no copies
-    clip = clips[0] if len(clips) == 1 else (np.concatenate(clips) if clips else np.zeros((0, 4)))
-    face = faces[0] if len(faces) == 1 else (np.concatenate(faces) if faces
-                                             else np.zeros((0, 3), np.int64))
+        mvps.append(mvp)
+    offsets = np.cumsum([0] + [m.n_faces for m in meshes])
+    if len(meshes) == 1:   # the common case: no copies
+        clip = transform_vertices(meshes[0].vertices, mvps[0], prec).astype(np.float64)
+        face = meshes[0].faces
+    else:   # each draw call written once into the concatenated arrays
+        vfirst = np.cumsum([0] + [m.n_vertices for m in meshes])
+        clip = np.empty((int(vfirst[-1]), 4))
+        face = np.empty((int(offsets[-1]), 3), np.int64)
+        for k, (m, mvp) in enumerate(zip(meshes, mvps)):
+            clip[vfirst[k]:vfirst[k + 1]] = transform_vertices(m.vertices, mvp, prec)
+            np.add(m.faces, vfirst[k], out=face[offsets[k]:offsets[k + 1]])
     p = Prepared()
     p.meshes, p.models, p.view, p.proj = meshes, models, view, proj
     p.width, p.height, p.fill_rule = width, height, rule
