@@ -29,7 +29,7 @@ from numba import njit, prange
 from ._config import IJIT, JIT, PJIT
 from ._validate import as_choice, as_float_array, as_real
 from .mesh import Mesh
-from .offsetmaps import WRAP_MODES, _wrap_texel, bilinear, bilinear_taps, sample
+from .offsetmaps import WRAP_MODES, _wrap_texel, bilinear_taps, sample
 
 __all__ = ["CAP_STYLES", "check_watertight", "cap_mesh", "cull_cap", "exact_caps", "light_caps",
            "shade_cap_pixels", "shade_caps", "solid_texture", "surely_inside",
@@ -673,10 +673,18 @@ def solid_texture(points, kind, *, frequency=4.0, color=(0.8, 0.3, 0.25), seed=0
 
 
 @njit(**IJIT)
-def _light_at(x, y, z, k, params, wrap, nx, ny, nz, occ, offset, shape, view, nmat):
+def _bilinear_column(maps, taps, c):
+    """:func:`refraster.offsetmaps.bilinear` of column ``c`` of interleaved maps ``(n, 4)``."""
+    a, b, cc, d, wa, wb, wc, wd = taps
+    return wa * maps[a, c] + wb * maps[b, c] + wc * maps[cc, c] + wd * maps[d, c]
+
+
+@njit(**IJIT)
+def _light_at(x, y, z, k, params, wrap, shading, offset, shape, view, nmat):
     """One cap point on surface k: (s, t), the normal map sampled per component and
     renormalized, turned (Û, V̂, N) → world → eye; shade = occlusion·(0.25 + 0.75·|n·v|).
-    Returns the eye-space normal and the shade."""
+    ``shading`` holds the normal map's components and the occlusion map interleaved per
+    texel (one cache line serves a tap). Returns the eye-space normal and the shade."""
     dx = x - params[k, 0]
     dy = y - params[k, 1]
     dz = z - params[k, 2]
@@ -685,9 +693,9 @@ def _light_at(x, y, z, k, params, wrap, nx, ny, nz, occ, offset, shape, view, nm
     t = ((dx * params[k, 6] + dy * params[k, 7] + dz * params[k, 8]) / params[k, 13]) \
         * params[k, 15]
     taps = bilinear_taps(offset[k], shape[k, 0], shape[k, 1], s, t, wrap[k])
-    a = bilinear(nx, taps)
-    b = bilinear(ny, taps)
-    c = bilinear(nz, taps)
+    a = _bilinear_column(shading, taps, 0)
+    b = _bilinear_column(shading, taps, 1)
+    c = _bilinear_column(shading, taps, 2)
     # the map's normal needs no normalizing of its own: only the eye-space one's direction
     # is kept (the normal matrix is linear)
     wx = a * params[k, 3] + b * params[k, 6] + c * params[k, 9]
@@ -707,7 +715,7 @@ def _light_at(x, y, z, k, params, wrap, nx, ny, nz, occ, offset, shape, view, nm
     pz = view[2, 0] * x + view[2, 1] * y + view[2, 2] * z + view[2, 3]
     vl = max(math.sqrt(px * px + py * py + pz * pz), 1e-300)
     ndv = abs(ex * px + ey * py + ez * pz) / vl
-    return ex, ey, ez, bilinear(occ, taps) * (0.25 + 0.75 * ndv)
+    return ex, ey, ez, _bilinear_column(shading, taps, 3) * (0.25 + 0.75 * ndv)
 
 
 @njit(**IJIT)
@@ -736,11 +744,11 @@ def _style_color(style, ink, shade, color, c):
 
 
 @njit(**PJIT)
-def _cap_light_kernel(points, which, params, wrap, nx, ny, nz, occ, offset, shape, view, nmat,
-                      shade, normal):
+def _cap_light_kernel(points, which, params, wrap, shading, offset, shape, view, nmat, shade,
+                      normal):
     for i in prange(points.shape[0]):
         ex, ey, ez, sh = _light_at(points[i, 0], points[i, 1], points[i, 2], which[i], params,
-                                   wrap, nx, ny, nz, occ, offset, shape, view, nmat)
+                                   wrap, shading, offset, shape, view, nmat)
         shade[i] = sh
         normal[i, 0] = ex
         normal[i, 1] = ey
@@ -758,7 +766,7 @@ def _hatch_kernel(points, which, params, spacing, shade, color, out):
 
 @njit(**PJIT)
 def _cap_pixels_kernel(flat, obj, prim, bary, n_solids, n_surf, faces, face_offsets, verts,
-                       params, wrap, nx, ny, nz, occ, offset, shape, view, nmat, style, color,
+                       params, wrap, shading, offset, shape, view, nmat, style, color,
                        spacing, points, shade, out_color, out_normal):
     """The mesh caps' pixels in one pass: world position interpolated from the cap face
     (``(b0·V0 + b1·V1) + b2·V2``, as :meth:`Fragments.world_position`), lighting, and for
@@ -776,7 +784,7 @@ def _cap_pixels_kernel(flat, obj, prim, bary, n_solids, n_surf, faces, face_offs
             points[i, j] = (b0 * verts[v0, j] + b1 * verts[v1, j]) + b2 * verts[v2, j]
         k = (obj[p] - n_solids) % n_surf
         ex, ey, ez, sh = _light_at(points[i, 0], points[i, 1], points[i, 2], k, params, wrap,
-                                   nx, ny, nz, occ, offset, shape, view, nmat)
+                                   shading, offset, shape, view, nmat)
         shade[i] = sh
         out_normal[p, 0] = ex
         out_normal[p, 1] = ey
@@ -789,30 +797,30 @@ def _cap_pixels_kernel(flat, obj, prim, bary, n_solids, n_surf, faces, face_offs
 
 
 def _shading_maps(surface, radius):
-    """The surface's normal-map components and occlusion map, flat, made once per surface."""
+    """The surface's normal-map components and occlusion map interleaved per texel,
+    ``(H·W, 4)`` row-major, made once per surface."""
     key = ("shading", radius)
     if key not in surface._derived:
         n = surface.normal_map()
-        maps = tuple(np.ascontiguousarray(a).reshape(-1) for a in
-                     (n[..., 0], n[..., 1], n[..., 2], surface.occlusion_map(radius=radius)))
-        for m in maps:
-            m.setflags(write=False)
+        maps = np.ascontiguousarray(np.concatenate(
+            [n.reshape(-1, 3), surface.occlusion_map(radius=radius).reshape(-1, 1)], axis=1),
+            np.float64)
+        maps.setflags(write=False)
         surface._derived[key] = maps
     return surface._derived[key]
 
 
 def _lighting_args(surfaces, view, occlusion_radius, packed=None):
-    """Kernel arguments of the cap lighting: parameter table, wrap codes, the normal-map
-    components and occlusion maps (flat), offsets, shapes, view and normal matrix."""
+    """Kernel arguments of the cap lighting: parameter table, wrap codes, the interleaved
+    normal and occlusion maps of all surfaces, offsets, shapes, view and normal matrix."""
     if packed is None:
         from .clipsurface import _Packed
         packed = _Packed(surfaces)
     maps = [_shading_maps(s, occlusion_radius) if s.enabled else
-            tuple(np.zeros(s.offset_map.size) for _ in range(4)) for s in surfaces]
-    flat = [np.concatenate([m[c] for m in maps]) if len(maps) > 1 else maps[0][c]
-            for c in range(4)]
+            np.zeros((s.offset_map.size, 4)) for s in surfaces]
+    shading = maps[0] if len(maps) == 1 else np.concatenate(maps)
     view = np.ascontiguousarray(view, np.float64)
-    return (packed.params, packed.wrap, *flat, packed.offset, packed.shape, view,
+    return (packed.params, packed.wrap, shading, packed.offset, packed.shape, view,
             np.linalg.inv(view[:3, :3]).T)
 
 
