@@ -180,6 +180,33 @@ def cap_mesh(surface, bounds, *, subdivision=1):
     return Mesh(np.ascontiguousarray(verts), np.ascontiguousarray(faces, np.int64))
 
 
+@njit(**JIT)
+def _face_box(verts, faces, fi, m, h, w, margin, rounding):
+    """Face ``fi``'s box in an LDI's texture space (matrix ``m``, ``h × w`` texels), each axis
+    widened by ``margin`` of its size, by a texel (s, t) or 1e-6 (r), and by ``rounding`` of
+    the coordinates' magnitude: ``(s0, s1, t0, t1, r0, r1)``."""
+    s0 = t0 = r0 = np.inf
+    s1 = t1 = r1 = -np.inf
+    ms = mt = mr = 0.0
+    for c in range(3):
+        v = faces[fi, c]
+        x, y, z = verts[v, 0], verts[v, 1], verts[v, 2]
+        ts = ((m[0, 0] * x + m[0, 1] * y) + m[0, 2] * z) + m[0, 3]
+        tt = ((m[1, 0] * x + m[1, 1] * y) + m[1, 2] * z) + m[1, 3]
+        tr = ((m[2, 0] * x + m[2, 1] * y) + m[2, 2] * z) + m[2, 3]
+        s0, s1 = min(s0, ts), max(s1, ts)
+        t0, t1 = min(t0, tt), max(t1, tt)
+        r0, r1 = min(r0, tr), max(r1, tr)
+        if rounding > 0.0:
+            ms = max(ms, (abs(m[0, 0] * x) + abs(m[0, 1] * y)) + abs(m[0, 2] * z))
+            mt = max(mt, (abs(m[1, 0] * x) + abs(m[1, 1] * y)) + abs(m[1, 2] * z))
+            mr = max(mr, (abs(m[2, 0] * x) + abs(m[2, 1] * y)) + abs(m[2, 2] * z))
+    ds = (margin * (s1 - s0) + 1.0 / w) + rounding * ms
+    dt = (margin * (t1 - t0) + 1.0 / h) + rounding * mt
+    dr = (margin * (r1 - r0) + 1e-6) + rounding * mr
+    return s0 - ds, s1 + ds, t0 - dt, t1 + dt, r0 - dr, r1 + dr
+
+
 @njit(**PJIT)
 def _footprint_kernel(verts, faces, mats, depth, count, start, cstart, hw, margin, votes):
     """votes[f] = number of the sprite's LDIs in which face f may hold a point the parity
@@ -189,29 +216,13 @@ def _footprint_kernel(verts, faces, mats, depth, count, start, cstart, hw, margi
     for fi in prange(faces.shape[0]):
         n_in = 0
         for ld in range(mats.shape[0]):
-            m = mats[ld]
             h = hw[ld, 0]
             w = hw[ld, 1]
-            s0 = t0 = r0 = np.inf
-            s1 = t1 = r1 = -np.inf
-            for c in range(3):
-                v = faces[fi, c]
-                x, y, z = verts[v, 0], verts[v, 1], verts[v, 2]
-                ts = ((m[0, 0] * x + m[0, 1] * y) + m[0, 2] * z) + m[0, 3]
-                tt = ((m[1, 0] * x + m[1, 1] * y) + m[1, 2] * z) + m[1, 3]
-                tr = ((m[2, 0] * x + m[2, 1] * y) + m[2, 2] * z) + m[2, 3]
-                s0, s1 = min(s0, ts), max(s1, ts)
-                t0, t1 = min(t0, tt), max(t1, tt)
-                r0, r1 = min(r0, tr), max(r1, tr)
-            ds = margin * (s1 - s0) + 1.0 / w
-            dt = margin * (t1 - t0) + 1.0 / h
-            dr = margin * (r1 - r0) + 1e-6
-            r0 -= dr
-            r1 += dr
-            c0 = max(int(math.floor((s0 - ds) * w)), 0)
-            c1 = min(int(math.floor((s1 + ds) * w)), w - 1)
-            j0 = max(int(math.floor((t0 - dt) * h)), 0)
-            j1 = min(int(math.floor((t1 + dt) * h)), h - 1)
+            s0, s1, t0, t1, r0, r1 = _face_box(verts, faces, fi, mats[ld], h, w, margin, 0.0)
+            c0 = max(int(math.floor(s0 * w)), 0)
+            c1 = min(int(math.floor(s1 * w)), w - 1)
+            j0 = max(int(math.floor(t0 * h)), 0)
+            j1 = min(int(math.floor(t1 * h)), h - 1)
             hit = False
             for j in range(j0, j1 + 1):
                 row = h - 1 - j
@@ -288,51 +299,34 @@ def _leading_layers(depth, base, hw, k, r):
 
 @njit(**PJIT)
 def _sure_kernel(verts, faces, mats, depth, count, start, cstart, hw, margin, rounding, sure):
-    """sure[f] = number of the sprite's LDIs in which *every* point of face f's box (in the
-    sprite's texture space, widened as in :func:`_footprint_kernel` and by ``rounding`` of the
+    """sure[f] = number of the sprite's LDIs in which *every* point of face f's box
+    (:func:`_face_box`: widened as for :func:`_footprint_kernel` and by ``rounding`` of the
     coordinates' magnitude) lies in [0, 1]³ and at texels where the parity test says inside:
     the count of leading layers ≤ r is the same odd number at both ends of the r range (it
     is monotone in r, so it is that number in between)."""
     for fi in prange(faces.shape[0]):
         n_in = 0
         for ld in range(mats.shape[0]):
-            m = mats[ld]
             h = hw[ld, 0]
             w = hw[ld, 1]
-            lo = np.full(3, np.inf)
-            hi = np.full(3, -np.inf)
-            mag = np.zeros(3)
-            for c in range(3):
-                v = faces[fi, c]
-                x, y, z = verts[v, 0], verts[v, 1], verts[v, 2]
-                for a in range(3):
-                    t = ((m[a, 0] * x + m[a, 1] * y) + m[a, 2] * z) + m[a, 3]
-                    lo[a] = min(lo[a], t)
-                    hi[a] = max(hi[a], t)
-                    mag[a] = max(mag[a], (abs(m[a, 0] * x) + abs(m[a, 1] * y))
-                                 + abs(m[a, 2] * z))
-            pad = (1.0 / w, 1.0 / h, 1e-6)
-            ok = True
-            for a in range(3):
-                d = margin * (hi[a] - lo[a]) + pad[a] + rounding * mag[a]
-                lo[a] -= d
-                hi[a] += d
-                if not (lo[a] >= 0.0 and hi[a] <= 1.0):
-                    ok = False
-            if not ok:
+            s0, s1, t0, t1, r0, r1 = _face_box(verts, faces, fi, mats[ld], h, w, margin,
+                                               rounding)
+            if not (s0 >= 0.0 and s1 <= 1.0 and t0 >= 0.0 and t1 <= 1.0 and r0 >= 0.0
+                    and r1 <= 1.0):
                 continue
-            c0 = min(int(lo[0] * w), w - 1)
-            c1 = min(int(hi[0] * w), w - 1)
-            j0 = min(int(lo[1] * h), h - 1)
-            j1 = min(int(hi[1] * h), h - 1)
+            ok = True
+            c0 = min(int(s0 * w), w - 1)
+            c1 = min(int(s1 * w), w - 1)
+            j0 = min(int(t0 * h), h - 1)
+            j1 = min(int(t1 * h), h - 1)
             for j in range(j0, j1 + 1):
                 row = h - 1 - j
                 for col in range(c0, c1 + 1):
                     texel = row * w + col
                     k = count[cstart[ld] + texel]
                     base = start[ld] + texel
-                    n0 = _leading_layers(depth, base, h * w, k, lo[2])
-                    if n0 % 2 == 0 or _leading_layers(depth, base, h * w, k, hi[2]) != n0:
+                    n0 = _leading_layers(depth, base, h * w, k, r0)
+                    if n0 % 2 == 0 or _leading_layers(depth, base, h * w, k, r1) != n0:
                         ok = False
                         break
                 if not ok:
