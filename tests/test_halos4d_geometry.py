@@ -58,32 +58,7 @@ def test_tangents_match_analytic_derivative():
     np.testing.assert_allclose(s.tangents[k, 1], iwant, atol=1e-6)
 
 
-def test_spun_trefoil_is_a_closed_sphere():
-    s = h.spun_trefoil(60, 24)
-    assert s.n_faces == 2 * (60 - 2) * 24
-    # closed manifold: every edge shared by exactly two faces; Euler characteristic 2
-    e = np.sort(np.concatenate([s.faces[:, [0, 1]], s.faces[:, [1, 2]], s.faces[:, [2, 0]]]),
-                axis=1)
-    _, counts = np.unique(e, axis=0, return_counts=True)
-    assert np.all(counts == 2)
-    assert s.n_vertices - len(counts) + s.n_faces == 2
-    # r = Xp − x ≥ 0 everywhere: the spin keeps w = r sin φ, so |w| ≤ Xp − x
-    v = s.vertices
-    r = np.hypot(5.0 - v[:, 0], v[:, 3])
-    assert r.max() <= 9.0
-
-
-def test_twist_spun_trefoil_closes_and_differs():
-    a = h.twist_spun_trefoil(40, 16, k=0)
-    b = h.twist_spun_trefoil(40, 16, k=2)
-    assert a.vertices.shape == b.vertices.shape
-    assert np.abs(a.vertices - b.vertices).max() > 0.5
-    # the legs (|y| > RB = 3.5, outside the ball) are not twisted
-    legs = np.abs(a.vertices[:, 1]) > 3.55
-    assert legs.sum() > 0
-    np.testing.assert_array_equal(a.vertices[legs], b.vertices[legs])
-    with pytest.raises(TypeError, match="k"):
-        h.twist_spun_trefoil(10, 8, k=1.5)
+# the knots (closed orientable embedded spheres, three crossings): tests/test_halos4d_knots.py
 
 
 def test_adaptive_sampling_densifies_where_curved():

@@ -251,18 +251,78 @@ def _hsv(h, s):
 
 
 # ----------------------------------------------------------------------------- knots (§5.7)
-_XP = 5.0          # the spinning plane x = Xp
-_RB = 3.5          # the ball that holds the knotted part (twisted by Zeeman's rule)
-_RC = 3.2          # connector circle radius
-_DELTA = 0.15      # where the trefoil is cut open
-_LEG_Y = 4.5
+# Revised construction (MATH.md §5.7, "keep the knot next to the spinning plane").
+_DELTA = 0.15      # the trefoil K(u) is cut open for u ∈ (−δ, δ), around its maximum x = 3
+_EPS = 0.2         # clearance between the knotted part and the spinning plane
+#: spun trefoil: the plane x = Xp just beyond the cut (max x of the trefoil is 3)
+SPUN_XP = 3.0 + _EPS
+#: twist-spun trefoil: the ball |p| ≤ RB that turns (it holds the trefoil, |K| ≤ 3), the
+#: connector circle inside it, and the plane tangent to it plus the clearance
+TWIST_RB = 3.2
+_RC = 3.1
+TWIST_XP = TWIST_RB + _EPS
 
 
-def _trefoil_polyline(m=6000):
-    """Dense polyline of the knotted arc α (MATH.md §5.7), from (Xp, 4.5, 0) to (Xp, −4.5, 0)."""
+def _trefoil(u):
+    u = np.asarray(u, dtype=np.float64)
+    return np.stack([(2 + np.cos(3 * u)) * np.cos(2 * u), (2 + np.cos(3 * u)) * np.sin(2 * u),
+                     np.sin(3 * u)], axis=-1)
+
+
+def _trefoil_d(u):
+    u = np.asarray(u, dtype=np.float64)
+    r, dr = 2 + np.cos(3 * u), -3 * np.sin(3 * u)
+    return np.stack([dr * np.cos(2 * u) - 2 * r * np.sin(2 * u),
+                     dr * np.sin(2 * u) + 2 * r * np.cos(2 * u), 3 * np.cos(3 * u)], axis=-1)
+
+
+def _hermite(p0, t0, p1, t1, m=120):
+    s = np.linspace(0.0, 1.0, m)[:, None]
+    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+    return h00 * p0 + h10 * t0 + h01 * p1 + h11 * t1
+
+
+def _densify(pts, step=0.01):
+    """Insert points so that no segment is longer than ``step`` (uniform arc-length lookup)."""
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    out = [pts[:1]]
+    for p, q, s in zip(pts[:-1], pts[1:], seg):
+        if s == 0.0:
+            continue
+        k = max(1, int(np.ceil(s / step)))
+        out.append(p + (q - p) * (np.arange(1, k + 1) / k)[:, None])
+    return np.vstack(out)
+
+
+def _spun_polyline(m=6000):
+    """Knotted arc of the spun trefoil: K on [δ, 2π − δ], joined at both cut ends to the plane
+    x = Xp by a fillet that leaves K along its tangent and arrives along +x (perpendicular to
+    the plane, so the spun surface is smooth at its poles). From (Xp, y(δ), z(δ)) to
+    (Xp, −y(δ), −z(δ))."""
     u = np.linspace(_DELTA, 2 * np.pi - _DELTA, m)
-    body = np.stack([(2 + np.cos(3 * u)) * np.cos(2 * u), (2 + np.cos(3 * u)) * np.sin(2 * u),
-                     np.sin(3 * u)], axis=1)
+    body = _trefoil(u)
+
+    def fillet(uu, sign):
+        p0 = _trefoil(uu)
+        t0 = _trefoil_d(uu)
+        t0 = -sign * t0 / np.linalg.norm(t0)          # pointing away from the body
+        p1 = np.array([SPUN_XP, p0[1], p0[2]])
+        gap = SPUN_XP - p0[0]
+        return _hermite(p0, 1.5 * gap * t0, p1, np.array([1.5 * gap, 0.0, 0.0]))
+
+    head = fillet(_DELTA, 1.0)[::-1]
+    tail = fillet(2 * np.pi - _DELTA, -1.0)
+    return _densify(np.concatenate([head[:-1], body, tail[1:]]))
+
+
+def _twist_polyline(m=6000):
+    """Knotted arc of the twist-spun trefoil: K on [δ, 2π − δ]; inside the ball |p| ≤ RB each
+    cut end goes radially out to the circle of radius Rc in z = 0, along it to the y-axis and
+    out to the exit point (0, ±RB, 0); outside the ball a straight leg of length RB + ε runs
+    along +x to the plane x = Xp."""
+    u = np.linspace(_DELTA, 2 * np.pi - _DELTA, m)
+    body = _trefoil(u)
 
     def connector(end, sign):
         th0 = np.arctan2(end[1], end[0])
@@ -272,84 +332,83 @@ def _trefoil_polyline(m=6000):
                            (1 - k) * end[2]], axis=1)
         th = np.linspace(th0, sign * np.pi / 2, 400)
         circle = np.stack([_RC * np.cos(th), _RC * np.sin(th), np.zeros_like(th)], axis=1)
-        out = np.array([[0.0, sign * _RB, 0.0], [0.0, sign * _LEG_Y, 0.0],
-                        [_XP, sign * _LEG_Y, 0.0]])
-        pts = np.concatenate([radial, circle[1:], out])
-        return pts
+        out = np.array([[0.0, sign * TWIST_RB, 0.0], [TWIST_XP, sign * TWIST_RB, 0.0]])
+        return np.concatenate([radial, circle[1:], out])
 
     head = connector(body[0], 1.0)[::-1]
     tail = connector(body[-1], -1.0)
-    pts = np.concatenate([head[:-1], body, tail[1:]])
-    # densify the straight legs so linear interpolation by arc length is uniform
-    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    step = 0.01
-    out = [pts[0]]
-    for p, q, s in zip(pts[:-1], pts[1:], seg):
-        k = max(1, int(np.ceil(s / step)))
-        out.append(p + (q - p) * (np.arange(1, k + 1) / k)[:, None])
-    out = np.vstack([out[0][None]] + out[1:])
-    return out
+    return _densify(np.concatenate([head[:-1], body, tail[1:]]))
 
 
-_ARC = None
+_ARCS = {}
 
 
-def trefoil_arc():
-    """``(points (M, 3), arclength (M,))`` of the knotted arc α of the spun trefoil."""
-    global _ARC
-    if _ARC is None:
-        p = _trefoil_polyline()
+def trefoil_arc(twist=False):
+    """``(points (M, 3), arclength (M,))`` of the knotted arc α: of the spun trefoil, or with
+    ``twist=True`` of the twist-spun one (MATH.md §5.7, revised construction)."""
+    key = bool(twist)
+    if key not in _ARCS:
+        p = _twist_polyline() if key else _spun_polyline()
         s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
-        _ARC = (p, s)
-    return _ARC
+        _ARCS[key] = (p, s)
+    return _ARCS[key]
 
 
-def _arc_at(s):
-    p, cum = trefoil_arc()
-    return np.stack([np.interp(s, cum, p[:, k]) for k in range(3)], axis=-1)
+def _spin(k, twist):
+    p, cum = trefoil_arc(twist)
+    xp = TWIST_XP if twist else SPUN_XP
 
-
-def _spin(k):
     def func(s, phi):
-        a = _arc_at(s)
+        a = np.stack([np.interp(s, cum, p[:, j]) for j in range(3)], axis=-1)
         x, y, z = a[..., 0], a[..., 1], a[..., 2]
         if k:
-            inside = x * x + y * y + z * z <= _RB * _RB
+            inside = x * x + y * y + z * z <= TWIST_RB * TWIST_RB
             c, sn = np.cos(k * phi), np.sin(k * phi)
             xr = np.where(inside, x * c + z * sn, x)
             zr = np.where(inside, -x * sn + z * c, z)
             x, z = xr, zr
-        r = _XP - x
-        return np.stack([_XP - r * np.cos(phi), y, z, r * np.sin(phi)], axis=-1)
+        r = xp - x
+        return np.stack([xp - r * np.cos(phi), y, z, r * np.sin(phi)], axis=-1)
     return func
 
 
-def _knot_color(s, phi):
-    total = trefoil_arc()[1][-1]
-    return _hsv(0.6 - 0.6 * s / total, 0.65)
+def _knot_color(total):
+    def color(s, phi):
+        return _hsv(0.6 - 0.6 * s / total, 0.65)
+    return color
 
 
 def twist_spun_trefoil(n_s=200, n_phi=50, *, k=2, adaptive=False):
     """Zeeman's k-twist-spun trefoil (MATH.md §5.7; k = 2 default [guess]); a 2-sphere in 4D.
 
-    The knotted arc α (a trefoil cut open, joined by connectors and legs to the plane
-    x = Xp = 5) is spun about that plane: ``S(s, φ) = (Xp − r cos φ, y, z, r sin φ)`` with
-    ``r = Xp − x``; inside the ball |p| ≤ 3.5 the arc is first rotated by kφ about the y-axis.
+    The knotted arc α (the trefoil cut open; inside the ball |p| ≤ RB = 3.2 connectors to the
+    exit points (0, ±RB, 0); legs of length RB + ε to the plane x = Xp = RB + 0.2) is spun
+    about that plane: ``S(s, φ) = (Xp − r cos φ, y, z, r sin φ)`` with ``r = Xp − x``; inside
+    the ball the arc is first rotated by kφ about the y-axis (the line through the exit points).
     ``s`` is arc length; the two ends (r = 0) are the sphere's poles, meshed as fans.
     ``2·(n_s − 2)·n_phi`` triangles (n_s = 200, n_phi = 50 → 19 800).
     """
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
         raise TypeError(f"k must be an int (the surface closes only for integer k), got {k!r}")
-    total = trefoil_arc()[1][-1]
-    name = "spun trefoil" if k == 0 else f"{k}-twist-spun trefoil"
-    return uv_surface(_spin(int(k)), (0.0, total), (0.0, 2 * np.pi), n_s, n_phi,
-                      periodic_v=True, poles=True, adaptive=adaptive, color=_knot_color,
+    total = trefoil_arc(True)[1][-1]
+    name = "ball-spun trefoil" if k == 0 else f"{k}-twist-spun trefoil"
+    return uv_surface(_spin(int(k), True), (0.0, total), (0.0, 2 * np.pi), n_s, n_phi,
+                      periodic_v=True, poles=True, adaptive=adaptive, color=_knot_color(total),
                       name=name)
 
 
 def spun_trefoil(n_s=200, n_phi=50, *, adaptive=False):
-    """Artin's spun trefoil (k = 0 of :func:`twist_spun_trefoil`); Wang et al. Fig. 5."""
-    return twist_spun_trefoil(n_s, n_phi, k=0, adaptive=adaptive)
+    """Artin's spun trefoil (Wang et al. Fig. 5), a knotted 2-sphere in 4D.
+
+    The trefoil, cut open at its maximum x, is joined by two short fillets to the plane
+    x = Xp = 3.2 and spun about it: ``S(s, φ) = (Xp − r cos φ, y, z, r sin φ)``, ``r = Xp − x``
+    (MATH.md §5.7, revised construction: no ball, no legs; the knot is spun at radius
+    0.2 … 5.6). ``2·(n_s − 2)·n_phi`` triangles.
+    """
+    total = trefoil_arc(False)[1][-1]
+    return uv_surface(_spin(0, False), (0.0, total), (0.0, 2 * np.pi), n_s, n_phi,
+                      periodic_v=True, poles=True, adaptive=adaptive, color=_knot_color(total),
+                      name="spun trefoil")
 
 
 # ----------------------------------------------------------------------------- CP² curves
