@@ -38,7 +38,8 @@ from .._validate import as_choice, as_float_array, as_image_size, as_matrix, as_
 from ..raster.rasterizer import _inv_float_area, lambdas
 from .slicing import MAX_SLICES, SUBPIXEL_BITS, _slice, ortho_ndc, setup_window
 from .surfaces import Surface4D
-from .thicken import prism_tetrahedra, thicken, thickening_normals
+from .thicken import (RHO_FRACTION, default_halo_parameters, prism_tetrahedra, thicken,
+                      thickening_normals)
 from .transforms import project, rotate_3d
 
 __all__ = ["render_halos", "HaloRender", "prepare", "HaloGeometry", "slice_alpha",
@@ -57,7 +58,9 @@ class HaloGeometry:
     """Thickened, tetrahedralized surface in 3D screen space (one view).
 
     ``vertices (2V, 3)``, ``tets (3F, 4)``, ``attributes (2V, 5)`` = (4D depth δ, t, r, g, b),
-    ``n_fallback`` vertices that used the normal fallback, ``n_degenerate`` faces skipped.
+    ``n_fallback`` vertices that used the normal fallback, ``n_degenerate`` faces skipped;
+    ``points (V, 3)`` the projected surface, ``spatial (V, 3)`` the rotated 4D xyz, ``faces``
+    the non-degenerate faces (for the default δd).
     """
 
     vertices: np.ndarray
@@ -65,6 +68,9 @@ class HaloGeometry:
     attributes: np.ndarray
     n_fallback: int
     n_degenerate: int
+    points: np.ndarray | None = None
+    spatial: np.ndarray | None = None
+    faces: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,7 +105,8 @@ def slice_alpha(opacity, spacing, rho, surface_width):
 def prepare(surface, *, rotation=None, projection="orthographic", eye=None, scale=1.0,
             rho=None):
     """Project, thicken and tetrahedralize ``surface`` (Sec. 4.2–4.4). Returns
-    ``(HaloGeometry, rho)``; ``rho=None`` picks 1 % of the projected bounding-box diagonal."""
+    ``(HaloGeometry, rho)``; ``rho=None`` picks RHO_FRACTION (2 %) of the projected
+    bounding-box diagonal."""
     if not isinstance(surface, Surface4D):
         raise TypeError(f"surface must be a Surface4D, got {type(surface).__name__}")
     f = surface.faces
@@ -112,7 +119,7 @@ def prepare(surface, *, rotation=None, projection="orthographic", eye=None, scal
     normals, n_fb = thickening_normals(pr.points, pr.tangents, f)
     if rho is None:
         diag = float(np.linalg.norm(pr.points.max(axis=0) - pr.points.min(axis=0)))
-        rho = 0.01 * diag if diag > 0 else 1.0
+        rho = RHO_FRACTION * diag if diag > 0 else 1.0
     rho = as_real(rho, "rho", lo=0.0, lo_open=True)
     verts, t = thicken(pr.points, normals, rho)
     shade = AMBIENT + (1.0 - AMBIENT) * np.abs(normals[:, 2])
@@ -121,7 +128,10 @@ def prepare(surface, *, rotation=None, projection="orthographic", eye=None, scal
     attr = np.column_stack([np.concatenate([pr.depth, pr.depth]), t,
                             np.concatenate([rgb, rgb])])
     tets = prism_tetrahedra(f, n)
-    return HaloGeometry(verts, tets, attr, n_fb, int(degenerate.sum())), rho
+    spatial = surface.vertices if rotation is None else surface.vertices @ np.asarray(
+        rotation, np.float64).T
+    return HaloGeometry(verts, tets, attr, n_fb, int(degenerate.sum()), pr.points,
+                        spatial[:, :3], f), rho
 
 
 def _screen_bounds(points_list, width, height, margin):
@@ -388,10 +398,13 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
     slices : int
         N slicing planes (1 … 4096) at the centres of N equal intervals of the projected z range.
     rho : float, optional
-        Halo radius ρ (Eq. 2) in screen units; default 1 % of the projected bounding-box diagonal.
+        Halo radius ρ (Eq. 2) in screen units; default 2 % of the projected bounding-box
+        diagonal (``thicken.RHO_FRACTION``).
     delta_d : float, optional
-        δd of Eq. 3 (4D-depth increase across the half-thickness); default 10 % of the
-        surface's 4D-depth range.
+        δd of Eq. 3 (4D-depth increase across the half-thickness); default
+        :func:`.thicken.default_halo_parameters`: ``(1 − δt)·δd`` = the 95th percentile of the
+        4D-depth differences of sheets that overlap in projection, so that Eq. 3 stays
+        depth-dependent (``stats["crossing_pairs"]`` says how many differences were used).
     delta_t : float
         δt of Eq. 3 (the core |2t − 1| < δt keeps the surface's own 4D depth).
     surface_width : float
@@ -445,9 +458,10 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
     geo, rho = prepare(surface, rotation=rotation, projection=projection, eye=eye, scale=scale,
                        rho=rho)
     depth = geo.attributes[:, 0]
-    drange = float(depth.max() - depth.min())
+    n_pairs = None
     if delta_d is None:
-        delta_d = 0.1 * drange if drange > 0 else 1.0
+        _, delta_d, n_pairs = default_halo_parameters(
+            geo.points, depth[:len(geo.points)], geo.spatial, geo.faces, delta_t, rho)
     delta_d = as_real(delta_d, "delta_d", lo=0.0)
     # float32 barycentrics do not sum to exactly 1: a constant δ interpolates to δ·(1 ± 2e-7)
     eps = (1e-6 * float(np.abs(depth).max()) if depth_eps is None
@@ -487,6 +501,6 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
     stats = {"tetrahedra": int(len(geo.tets)), "slice_triangles": n_tri,
              "skipped_zero_area": n_skip, "normal_fallbacks": geo.n_fallback,
              "degenerate_faces": geo.n_degenerate, "rho": rho, "delta_d": delta_d,
-             "slice_alpha": alpha}
+             "slice_alpha": alpha, "crossing_pairs": n_pairs}
     return HaloRender(image.astype(np.float32), alpha_img.astype(np.float32), vol, bounds,
                       centres, stats)

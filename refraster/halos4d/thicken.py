@@ -21,7 +21,9 @@ import numpy as np
 
 from .._validate import as_float_array, as_index_array, as_real
 
-__all__ = ["thickening_normals", "thicken", "prism_tetrahedra", "halo_depth", "NORMAL_EPS"]
+__all__ = ["thickening_normals", "thicken", "prism_tetrahedra", "halo_depth", "NORMAL_EPS",
+           "default_halo_parameters", "crossing_depth_differences", "RHO_FRACTION",
+           "DEPTH_QUANTILE"]
 
 #: Relative threshold of the |t1 × t2| fallback.
 NORMAL_EPS = 1e-6
@@ -146,3 +148,111 @@ def halo_depth(d_orig, t, delta_t, delta_d):
     delta_t = as_real(delta_t, "delta_t", lo=0.0, hi=1.0)
     delta_d = as_real(delta_d, "delta_d", lo=0.0)
     return d + np.maximum(0.0, np.abs(2.0 * tt - 1.0) - delta_t) * delta_d
+
+
+#: Default halo radius ρ as a fraction of the projected bounding-box diagonal.
+RHO_FRACTION = 0.02
+#: The default δd keeps Eq. 3 unsaturated for this quantile of the crossing depth differences.
+DEPTH_QUANTILE = 0.95
+#: Two vertices are on different sheets when their 4D separation is mostly along the view:
+#: |Δδ| ≥ OVERLAP_SLOPE·|Δxyz| (xyz: the rotated 4D coordinates orthogonal to the view).
+OVERLAP_SLOPE = 1.0
+
+
+#: Above this many candidate pairs the vertices are thinned (every other one, repeatedly).
+MAX_PAIRS = 4_000_000
+
+
+def _close_pairs(points, radius):
+    """All pairs ``i < j`` with ``|p_i − p_j| < radius`` (uniform hash grid, NumPy); when
+    there would be more than MAX_PAIRS candidates, the pairs of every other vertex."""
+    cell = np.floor((points - points.min(axis=0)) / radius).astype(np.int64)
+    dims = cell.max(axis=0) + 3
+    key = ((cell[:, 0] + 1) * dims[1] + (cell[:, 1] + 1)) * dims[2] + (cell[:, 2] + 1)
+    order = np.argsort(key, kind="stable")
+    sk = key[order]
+    ranges = []
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            for dz in (-1, 0, 1):
+                q = sk + (dx * dims[1] + dy) * dims[2] + dz        # sorted queries
+                lo = np.searchsorted(sk, q, "left")
+                hi = np.searchsorted(sk, q, "right")
+                ranges.append((lo, hi - lo))
+    if sum(int(c.sum()) for _, c in ranges) > MAX_PAIRS and len(points) > 2:
+        sub = np.arange(0, len(points), 2)
+        i, j = _close_pairs(points[sub], radius)
+        return sub[i], sub[j]
+    ps = points[order]
+    out_i, out_j = [], []
+    for lo, cnt in ranges:
+        i = np.repeat(np.arange(len(points)), cnt)
+        j = np.arange(cnt.sum()) + np.repeat(lo - np.cumsum(cnt) + cnt, cnt)
+        keep = i < j
+        i, j = i[keep], j[keep]
+        diff = ps[i] - ps[j]
+        near = np.einsum("ij,ij->i", diff, diff) < radius * radius
+        out_i.append(order[i[near]])
+        out_j.append(order[j[near]])
+    i, j = np.concatenate(out_i), np.concatenate(out_j)
+    return np.minimum(i, j), np.maximum(i, j)
+
+
+def crossing_depth_differences(points, depth, spatial, faces, radius):
+    """|Δδ| over pairs of vertices of different sheets that overlap in the 3D projection.
+
+    Pairs: vertices closer than ``radius`` in 3D screen space, not joined by a mesh edge, whose
+    4D separation is mostly along the view, ``|Δδ| ≥ OVERLAP_SLOPE·|Δspatial|`` (on one sheet,
+    nearby vertices differ in δ by the sheet's slope times their distance; across a crossing
+    the 4D-depth difference stays while the spatial distance goes to 0).
+    """
+    p = as_float_array(points, "points", shape=(None, 3))
+    d = as_float_array(depth, "depth", shape=(p.shape[0],))
+    x = as_float_array(spatial, "spatial", shape=(p.shape[0], 3))
+    f = as_index_array(faces, "faces", shape=(None, 3), upper=max(p.shape[0], 1))
+    radius = as_real(radius, "radius", lo=0.0, lo_open=True)
+    i, j = _close_pairs(p, radius)
+    n = np.int64(p.shape[0])
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    ek = np.unique(np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1]))
+    pk = i * n + j
+    pos = np.minimum(np.searchsorted(ek, pk), len(ek) - 1)
+    edge = ek[pos] == pk
+    dd = np.abs(d[i] - d[j])
+    sep = np.linalg.norm(x[i] - x[j], axis=1)
+    return dd[~edge & (dd >= OVERLAP_SLOPE * sep) & (dd > 0.0)]
+
+
+def pair_radius(points, faces, rho):
+    """Search radius of the overlap pairs: ``max(ρ, 1.5 ×`` the median projected edge)."""
+    edges = np.linalg.norm(points[faces[:, [1, 2, 0]]] - points[faces], axis=2).ravel()
+    return max(float(rho), 1.5 * float(np.median(edges)) if edges.size else 0.0)
+
+
+def default_halo_parameters(points, depth, spatial, faces, delta_t, rho=None):
+    """Defaults of ρ (Eq. 2) and δd (Eq. 3) that keep Eq. 3 depth-dependent (issue 21).
+
+    ``ρ = RHO_FRACTION ×`` the projected bounding-box diagonal (unless given). ``δd`` is chosen
+    so that ``(1 − δt)·δd`` equals the ``DEPTH_QUANTILE`` quantile of the 4D-depth differences
+    of sheets that overlap in projection (:func:`crossing_depth_differences`, pairs within
+    ``max(ρ, 1.5 ×`` the median projected edge length``)``): up to that quantile the gap next to
+    a crossing, ``ρ·min(1, δt + Δδ/δd)``, still grows with the depth difference. Without any
+    crossing, ``δd = depth range / (1 − δt)`` (1 if the range is 0).
+
+    Returns ``(rho, delta_d, samples)`` with the number of depth differences used.
+    """
+    p = as_float_array(points, "points", shape=(None, 3))
+    d = as_float_array(depth, "depth", shape=(p.shape[0],))
+    f = as_index_array(faces, "faces", shape=(None, 3), upper=max(p.shape[0], 1))
+    delta_t = as_real(delta_t, "delta_t", lo=0.0, hi=1.0)
+    if rho is None:
+        diag = float(np.linalg.norm(p.max(axis=0) - p.min(axis=0)))
+        rho = RHO_FRACTION * diag if diag > 0 else 1.0
+    dd = crossing_depth_differences(p, d, spatial, f, pair_radius(p, f, rho))
+    keep = max(1.0 - delta_t, 1e-3)
+    if dd.size:
+        target = float(np.quantile(dd, DEPTH_QUANTILE))
+    else:
+        target = float(d.max() - d.min()) if d.size else 0.0
+    delta_d = target / keep if target > 0 else 1.0
+    return float(rho), delta_d, int(dd.size)
