@@ -12,7 +12,8 @@ Pipeline (one frame)::
       ─► back-to-front compositing of the slice images.
 
 Voxel classes (the ``(N, H, W)`` volume, int8): 0 empty, 1 visible surface, 2 surface carved by a
-halo, 3 halo only.
+halo, 3 halo only, 4 halo boundary (a carved surface voxel on the rim of its hole, drawn in
+``boundary_color``; only with that option).
 
 Opacity independent of N: a surface crossed face-on has a core of thickness ``2·w_s·ρ`` along
 z, which about ``2·w_s·ρ/Δz`` slices sample. Each visible surface voxel therefore gets
@@ -43,9 +44,9 @@ from .thicken import (RHO_FRACTION, default_halo_parameters, prism_tetrahedra, t
 from .transforms import project, rotate_3d
 
 __all__ = ["render_halos", "HaloRender", "prepare", "HaloGeometry", "slice_alpha",
-           "EMPTY", "SURFACE", "CARVED", "HALO"]
+           "EMPTY", "SURFACE", "CARVED", "HALO", "BOUNDARY"]
 
-EMPTY, SURFACE, CARVED, HALO = 0, 1, 2, 3
+EMPTY, SURFACE, CARVED, HALO, BOUNDARY = 0, 1, 2, 3, 4
 ENGINES = ("fused", "reference")
 #: Rows per band of the fused kernel (each band is one unit of parallel work).
 BAND_ROWS = 8
@@ -176,8 +177,18 @@ def _bin_bands(bbox, valid, height, band_rows, nbands):
 
 
 @njit(**JIT)
+def _coverage(u, surface_width, aa):
+    """Share of a voxel covered by the surface, from t (Sec. 4.6 anti-aliasing): 1 for
+    ``|2t − 1| ≤ w_s − a``, 0 from ``w_s + a`` on, linear between; a hard threshold at a = 0."""
+    if aa <= 0.0:
+        return 1.0
+    return min(1.0, max(0.0, (surface_width + aa - u) / (2.0 * aa)))
+
+
+@njit(**JIT)
 def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf_d, surf, hit,
-                   acc, acc_a, volume):
+                   acc, acc_a, volume, surf_cov, min_db, halo_alpha, halo_rgb, boundary,
+                   boundary_rgb, surf_full):
     """Occlusion rule of one slice over the touched part of a band, composited back to front."""
     for li in range(lr0, lr1 + 1):
         for px in range(c0, c1 + 1):
@@ -187,22 +198,36 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
             if surf_d[li, px] < np.inf:
                 if surf_d[li, px] <= min_d[li, px] + eps:
                     cls = SURFACE
-                    for c in range(3):
-                        acc[li, px, c] = acc[li, px, c] * (1.0 - alpha) + alpha * surf[li, px, c]
-                    acc_a[li, px] = acc_a[li, px] * (1.0 - alpha) + alpha
+                elif boundary and surf_d[li, px] <= min_db[li, px] + eps:
+                    cls = BOUNDARY
                 else:
                     cls = CARVED
+            if cls == SURFACE or cls == BOUNDARY:
+                cov = surf_cov[li, px]
+                a = alpha if cov == 1.0 else 1.0 - (1.0 - alpha) ** cov
+                for c in range(3):
+                    col = surf[li, px, c] if cls == SURFACE else boundary_rgb[c]
+                    acc[li, px, c] = acc[li, px, c] * (1.0 - a) + a * col
+                acc_a[li, px] = acc_a[li, px] * (1.0 - a) + a
+            elif halo_alpha > 0.0:
+                for c in range(3):
+                    acc[li, px, c] = (acc[li, px, c] * (1.0 - halo_alpha)
+                                      + halo_alpha * halo_rgb[c])
+                acc_a[li, px] = acc_a[li, px] * (1.0 - halo_alpha) + halo_alpha
             if want_volume:
                 volume[k, r0 + li, px] = cls
             hit[li, px] = False
             min_d[li, px] = np.inf
             surf_d[li, px] = np.inf
+            min_db[li, px] = np.inf
+            surf_full[li, px] = False
 
 
 @njit(**PJIT)
 def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_lists, attr,
                   width,
                   height, bits, band_rows, delta_t, delta_d, surface_width, eps, alpha, halos,
+                  aa, halo_alpha, halo_rgb, boundary, boundary_width, boundary_rgb,
                   want_volume, out_rgb, out_a, volume):
     nbands = band_starts.shape[0] - 1
     for band in prange(nbands):
@@ -213,6 +238,9 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
         surf_d = np.full((rows, width), np.inf)
         surf = np.zeros((rows, width, 3))
         hit = np.zeros((rows, width), np.bool_)
+        surf_cov = np.ones((rows, width))
+        surf_full = np.zeros((rows, width), np.bool_)
+        min_db = np.full((rows, width), np.inf)
         acc = np.zeros((rows, width, 3))
         acc_a = np.zeros((rows, width))
         cur = -1
@@ -222,7 +250,8 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
             if tri_slice[j] != cur:
                 if cur >= 0:
                     _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d,
-                                   surf_d, surf, hit, acc, acc_a, volume)
+                                   surf_d, surf, hit, acc, acc_a, volume, surf_cov, min_db,
+                                   halo_alpha, halo_rgb, boundary, boundary_rgb, surf_full)
                 cur = tri_slice[j]
                 lr0, lr1, c0, c1 = rows, -1, width, -1
             ra = max(height - 1 - bbox[j, 3], r0)
@@ -274,16 +303,26 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
                         t = q0 * attr[j, 0, 1] + q1 * attr[j, 1, 1] + q2 * attr[j, 2, 1]
                         d = q0 * attr[j, 0, 0] + q1 * attr[j, 1, 0] + q2 * attr[j, 2, 0]
                         u = abs(2.0 * t - 1.0)
-                        core = u < surface_width
+                        core = u < surface_width + aa
                         if halos:
                             dn = d + max(0.0, u - delta_t) * delta_d
                             if dn < min_d[li, px]:
                                 min_d[li, px] = dn
+                            if boundary and u + boundary_width <= 1.0:
+                                db = d + max(0.0, u + boundary_width - delta_t) * delta_d
+                                if db < min_db[li, px]:
+                                    min_db[li, px] = db
                         elif core and d < min_d[li, px]:
                             min_d[li, px] = d
                         hit[li, px] = True
-                        if core and d < surf_d[li, px]:
+                        full = u < surface_width
+                        # the surface fragment of the voxel: a full-core one (|2t − 1| < w_s)
+                        # before an anti-aliasing fringe one, then the smallest δ
+                        if core and ((full and not surf_full[li, px])
+                                     or (full == surf_full[li, px] and d < surf_d[li, px])):
                             surf_d[li, px] = d
+                            surf_full[li, px] = full
+                            surf_cov[li, px] = _coverage(u, surface_width, aa)
                             for c in range(3):
                                 surf[li, px, c] = (q0 * attr[j, 0, 2 + c] + q1 * attr[j, 1, 2 + c]
                                                    + q2 * attr[j, 2, 2 + c])
@@ -292,7 +331,8 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
                     e2 += sx2
         if cur >= 0:
             _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf_d,
-                           surf, hit, acc, acc_a, volume)
+                           surf, hit, acc, acc_a, volume, surf_cov, min_db, halo_alpha,
+                           halo_rgb, boundary, boundary_rgb, surf_full)
         for li in range(rows):
             for px in range(width):
                 for c in range(3):
@@ -317,7 +357,8 @@ def _fused(st, width, height, params, want_volume):
 # ----------------------------------------------------------------------------- reference engine
 def _reference(st, width, height, params, want_volume):
     from .. import rasterize
-    delta_t, delta_d, surface_width, eps, alpha, halos = params
+    (delta_t, delta_d, surface_width, eps, alpha, halos, aa, halo_alpha, halo_rgb, boundary,
+     boundary_width, boundary_rgb) = params
     n = len(st.starts) - 1
     npx = width * height
     acc = np.zeros((npx, 3))
@@ -338,18 +379,24 @@ def _reference(st, width, height, params, want_volume):
         val = b[:, 0:1] * at[:, 0] + b[:, 1:2] * at[:, 1] + b[:, 2:3] * at[:, 2]
         d, t = val[:, 0], val[:, 1]
         u = np.abs(2.0 * t - 1.0)
-        core = u < surface_width
+        core = u < surface_width + aa
         pix = frags.pixel
         min_d = np.full(npx, np.inf)
+        min_db = np.full(npx, np.inf)
         if halos:
             np.minimum.at(min_d, pix, d + np.maximum(0.0, u - delta_t) * delta_d)
+            if boundary:
+                ok = u + boundary_width <= 1.0
+                np.minimum.at(min_db, pix[ok], d[ok] + np.maximum(
+                    0.0, u[ok] + boundary_width - delta_t) * delta_d)
         else:
             np.minimum.at(min_d, pix[core], d[core])
         hit = np.zeros(npx, bool)
         hit[pix] = True
-        # surface fragment per pixel: smallest δ, first in draw order on ties
+        # surface fragment per pixel: full core (|2t − 1| < w_s) before the anti-aliasing
+        # fringe, then smallest δ, then first in draw order
         ci = np.flatnonzero(core)
-        srt = ci[np.lexsort((j[ci], d[ci], pix[ci]))]
+        srt = ci[np.lexsort((j[ci], d[ci], u[ci] >= surface_width, pix[ci]))]
         first = np.ones(len(srt), bool)
         first[1:] = pix[srt][1:] != pix[srt][:-1]
         win = srt[first]
@@ -357,13 +404,26 @@ def _reference(st, width, height, params, want_volume):
         surf_d[pix[win]] = d[win]
         surf = np.zeros((npx, 3))
         surf[pix[win]] = val[win, 2:5]
+        cov = np.ones(npx)
+        if aa > 0.0:
+            cov[pix[win]] = np.minimum(1.0, np.maximum(0.0, (surface_width + aa - u[win])
+                                                       / (2.0 * aa)))
         has = surf_d < np.inf
         vis = has & (surf_d <= min_d + eps)
-        acc[vis] = acc[vis] * (1.0 - alpha) + alpha * surf[vis]
-        acc_a[vis] = acc_a[vis] * (1.0 - alpha) + alpha
+        rim = has & ~vis & (surf_d <= min_db + eps) if boundary else np.zeros(npx, bool)
+        with np.errstate(all="ignore"):
+            a = np.where(cov == 1.0, alpha, 1.0 - (1.0 - alpha) ** cov)
+        drawn = vis | rim
+        col = np.where(rim[:, None], np.asarray(boundary_rgb)[None, :], surf)
+        acc[drawn] = acc[drawn] * (1.0 - a[drawn, None]) + a[drawn, None] * col[drawn]
+        acc_a[drawn] = acc_a[drawn] * (1.0 - a[drawn]) + a[drawn]
+        if halo_alpha > 0.0:
+            hal = hit & ~drawn
+            acc[hal] = acc[hal] * (1.0 - halo_alpha) + halo_alpha * np.asarray(halo_rgb)[None, :]
+            acc_a[hal] = acc_a[hal] * (1.0 - halo_alpha) + halo_alpha
         if want_volume:
-            cls = np.where(vis, SURFACE, np.where(has, CARVED, HALO)).astype(np.int8)
-            vol[k, hit] = cls[hit]
+            cls = np.where(vis, SURFACE, np.where(rim, BOUNDARY, np.where(has, CARVED, HALO)))
+            vol[k, hit] = cls.astype(np.int8)[hit]
     return (acc.reshape(height, width, 3), acc_a.reshape(height, width),
             None if vol is None else vol.reshape(n, height, width), None)
 
@@ -381,7 +441,8 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
                  slices=256, rho=None, delta_d=None, delta_t=0.3, surface_width=0.3,
                  opacity=0.9, halos=True, eye=None, scale=1.0, background=(0.0, 0.0, 0.0),
                  depth_eps=None, margin=0.05, stereo=False, stereo_angle=6.0, volume=False,
-                 engine="fused"):
+                 engine="fused", halo_color=(0.5, 0.5, 0.5), halo_opacity=0.0,
+                 boundary_color=None, boundary_width=0.15, antialias=None):
     """Render a surface in 4D with depth-dependent volumetric halos (Wang et al. 2013).
 
     Parameters
@@ -426,6 +487,21 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
         Also return the ``(N, H, W)`` int8 voxel classes (not with ``stereo``).
     engine : {"fused", "reference"}
         Same output bits; ``"reference"`` calls :func:`refraster.rasterize` once per slice.
+    halo_color, halo_opacity : (3,) float, float in [0, 1)
+        The halo volume itself (halo-only and carved voxels, Fig. 3(e)'s grey) composited with
+        this colour; ``halo_opacity`` is the accumulated opacity of a face-on halo shell (both
+        sides, thickness 2·(1 − w_s − a)·ρ), independent of ``slices``. Default 0: the halos carve
+        holes and are not drawn, as in the paper's Figs. 1, 5–8.
+    boundary_color, boundary_width : (3,) float or None, float in (0, 1)
+        Halo boundaries (Fig. 8's green): a carved surface voxel that the halos would no longer
+        carve if every halo fragment were ``boundary_width``·ρ farther out (|2t − 1| + b in
+        Eq. 3, fragments past the halo's edge dropped) is drawn in ``boundary_color``: the rim,
+        b·ρ wide, just inside each hole. None (default): off.
+    antialias : float in [0, w_s], optional
+        a (default w_s): the surface anti-aliased from t (Sec. 4.6): a surface fragment covers
+        c = ``clamp((w_s + a − |2t − 1|)/(2a), 0, 1)`` of its voxel's thickness, so its opacity is
+        ``1 − (1 − α)^c`` instead of the hard threshold ``|2t − 1| < w_s``; the mean thickness,
+        and so the accumulated opacity, is unchanged. 0: the hard threshold (before issue 21).
 
     Returns
     -------
@@ -446,6 +522,15 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
     margin = as_real(margin, "margin", lo=0.0, hi=10.0)
     stereo_angle = as_real(stereo_angle, "stereo_angle", lo=0.0, hi=90.0)
     bg = as_float_array(background, "background", shape=(3,))
+    halo_rgb = as_float_array(halo_color, "halo_color", shape=(3,)).copy()
+    halo_opacity = as_real(halo_opacity, "halo_opacity", lo=0.0, hi=1.0, hi_open=True)
+    boundary = boundary_color is not None
+    boundary_rgb = (np.zeros(3) if not boundary
+                    else as_float_array(boundary_color, "boundary_color", shape=(3,)).copy())
+    boundary_width = as_real(boundary_width, "boundary_width", lo=0.0, hi=1.0, lo_open=True,
+                             hi_open=True)
+    antialias = (surface_width if antialias is None
+                 else as_real(antialias, "antialias", lo=0.0, hi=surface_width))
     if rotation is not None:
         rotation = as_matrix(rotation, "rotation")
     for name, flag in (("halos", halos), ("stereo", stereo), ("volume", volume)):
@@ -476,7 +561,11 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
     dz = (bounds[1, 2] - bounds[0, 2]) / n
     centres = bounds[0, 2] + (np.arange(n) + 0.5) * dz
     alpha = slice_alpha(opacity, dz, rho, surface_width)
-    params = (delta_t, delta_d, surface_width, eps, alpha, bool(halos))
+    # the halo shell lies outside the surface's core and its anti-aliasing fringe
+    halo_alpha = (slice_alpha(halo_opacity, dz, rho, max(1.0 - surface_width - antialias, 1e-6))
+                  if halos and halo_opacity > 0.0 else 0.0)
+    params = (delta_t, delta_d, surface_width, eps, alpha, bool(halos), antialias, halo_alpha,
+              halo_rgb, bool(boundary and halos), boundary_width, boundary_rgb)
     images, alphas = [], []
     vol = None
     n_tri = n_skip = 0
@@ -501,6 +590,6 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
     stats = {"tetrahedra": int(len(geo.tets)), "slice_triangles": n_tri,
              "skipped_zero_area": n_skip, "normal_fallbacks": geo.n_fallback,
              "degenerate_faces": geo.n_degenerate, "rho": rho, "delta_d": delta_d,
-             "slice_alpha": alpha, "crossing_pairs": n_pairs}
+             "slice_alpha": alpha, "crossing_pairs": n_pairs, "halo_slice_alpha": halo_alpha}
     return HaloRender(image.astype(np.float32), alpha_img.astype(np.float32), vol, bounds,
                       centres, stats)
