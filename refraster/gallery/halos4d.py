@@ -1,4 +1,11 @@
-"""Gallery: volumetric halos for surfaces in 4D (Wang et al. 2013, Figs. 1, 5, 6, 7, 8)."""
+"""Gallery: volumetric halos for surfaces in 4D (Wang et al. 2013): every figure, each beside
+its halos-off twin and a difference picture, with the measured share of covered pixels that the
+halos change (issue 21).
+
+Each picture ``halos4d_<name>.png`` is a triptych ``halos off | halos on | difference`` (side by
+side; stacked for the stereo pairs of Figs. 7 and 8). The difference panel is white where a
+pixel changes by more than 5/255 in some channel, dark grey where the surface covers it.
+"""
 
 from __future__ import annotations
 
@@ -11,63 +18,131 @@ from . import Item
 
 SECTION = "Volumetric halos for surfaces in 4D"
 
+#: a pixel "changes" when some channel differs by more than this
+CHANGE_THRESHOLD = 5.0 / 255.0
+#: a pixel is "covered" when the accumulated opacity of either picture exceeds this
+COVER_THRESHOLD = 0.02
+GAP = 8
 
-def _views():
+
+def views():
+    """The 4D rotations of the gallery (applied first, then orthographic projection)."""
     import refraster.halos4d as h
     return {
-        "fig1": h.compose(("zx", 0.5), ("yz", -1.0)),
+        "fig1": h.compose(("zx", 0.35), ("yz", -0.6)),
         # Fig. 1(a): looking along (x, y, z, w) = (1, 0, 0, 1) separates the patches in w
-        "fig1_oblique": h.compose(("xw", np.pi / 4), ("zx", 0.5), ("yz", -1.0)),
-        "knot": h.compose(("zw", 0.9), ("yw", 0.35), ("xy", -0.3), ("yz", -0.35)),
+        "fig1_oblique": h.compose(("xw", np.pi / 4), ("zx", 0.35), ("yz", -0.6)),
+        "fig3": h.compose(("zx", 0.6), ("yz", -0.9)),
+        # the spun knot seen along z (z ↔ w): the surface of revolution of the trefoil's
+        # diagram in the xy plane, its crossings separated in 4D depth by z
+        "knot": h.compose(("zw", np.pi / 2), ("yz", -0.45), ("zx", 0.25)),
+        "knot_open": h.compose(("zw", np.pi / 2), ("zx", 0.3), ("yz", 0.25)),
+        "twist": h.compose(("zw", np.pi / 2), ("yz", -0.5), ("zx", 0.3)),
         "fermat": h.compose(h.hanson_view(0.6), ("zx", 0.35), ("yz", -0.5)),
         "product": h.compose(("zw", 0.5), ("zx", 0.4), ("yz", -0.5)),
     }
 
 
-def render(out_dir: pathlib.Path, *, quick: bool = False) -> list[Item]:
-    """Render the halo figures into ``out_dir``; ``quick`` uses small images and meshes."""
+def figure3_scene(n=12):
+    """Two patches apart in 4D whose projections cross (Figs. 2 and 3): a square at w = 0 and
+    a tilted one at w = 0.4 through it."""
+    import refraster.halos4d as h
+    a = h.uv_surface(lambda u, v: np.stack([u, v, 0 * u, 0 * u], axis=-1), (-1, 1), (-1, 1),
+                     n, n, color=(0.95, 0.85, 0.5))
+    b = h.uv_surface(lambda u, v: np.stack([0.5 * u, v, 0.8 * u, 0 * u + 0.4], axis=-1),
+                     (-1, 1), (-0.8, 0.8), n, n, color=(0.35, 0.6, 1.0))
+    return h.merge([a, b], "Fig. 3 patches")
+
+
+def change_share(on, off):
+    """(changed, covered): pixels covered in either picture, and those the halos change."""
+    covered = (on.alpha > COVER_THRESHOLD) | (off.alpha > COVER_THRESHOLD)
+    changed = (np.abs(on.image - off.image).max(axis=2) > CHANGE_THRESHOLD) & covered
+    return int(changed.sum()), int(covered.sum())
+
+
+def triptych(on, off, stacked=False):
+    """``off | on | difference`` as one float image."""
+    a, b = np.clip(off.image, 0, 1), np.clip(on.image, 0, 1)
+    covered = (on.alpha > COVER_THRESHOLD) | (off.alpha > COVER_THRESHOLD)
+    changed = (np.abs(on.image - off.image).max(axis=2) > CHANGE_THRESHOLD) & covered
+    diff = np.where(changed, 1.0, np.where(covered, 0.22, 0.0))
+    diff = np.repeat(diff[..., None], 3, axis=2).astype(np.float32)
+    axis = 0 if stacked else 1
+    shape = list(a.shape)
+    shape[axis] = GAP
+    pad = np.full(shape, 0.5, np.float32)
+    return np.concatenate([a, pad, b, pad, diff], axis=axis)
+
+
+def figures(quick=False):
+    """``(name, surface, panel caption, halos-on kwargs, halos-off kwargs, stacked)`` per
+    figure; all rendering parameters not listed are ``render_halos``' defaults."""
+    import refraster.halos4d as h
+    res = 0.4 if quick else 1.0
+    v = views()
+    fig1 = h.figure1_scene(int(24 * res) + 4)
+    spun = h.spun_trefoil(int(240 * res), int(64 * res))
+    spun_open = h.spun_trefoil(int(240 * res), int(48 * res), cut_open=True)
+    twist = h.twist_spun_trefoil(int(320 * res), int(64 * res), k=2)
+    fermat = h.quadratic_fermat(int(40 * res) + 4, int(40 * res) + 4)
+    cy = h.calabi_yau_quartic(int(18 * res) + 4, int(18 * res) + 4)
+    prod = h.product_polynomial(int(24 * res) + 4, int(48 * res) + 4)
+    green = (0.1, 0.95, 0.2)
+    return [
+        ("fig1a", fig1, "Fig. 1(a): the five strips at w = 0.1 … 0.5 seen along (1, 0, 0, 1), "
+         "where they are apart", dict(rotation=v["fig1_oblique"]), {}, False),
+        ("fig1bc", fig1, "Fig. 1(b) projected along w, plain 4D depth test | Fig. 1(c) with "
+         "depth-dependent halos: the gap widens from red (Δw = 0.1) to blue (0.5)",
+         dict(rotation=v["fig1"]), {}, False),
+        ("fig3e", figure3_scene(int(12 * res) + 4), "Fig. 3(e): two patches apart in 4D, the "
+         "halo volumes drawn grey (halo_opacity = 0.35)",
+         dict(rotation=v["fig3"], halo_opacity=0.35), {}, False),
+        ("fig5ad", spun, f"Fig. 5(a) the spun trefoil ({spun.n_faces} triangles), traditional "
+         "rendering | Fig. 5(d) with volumetric halos: holes at the under-crossings, as in a "
+         "knot diagram", dict(rotation=v["knot"]), {}, False),
+        ("fig5d_open", spun_open, "Fig. 5(d), the sphere cut open (φ ∈ [0, π], not in the "
+         "paper; ρ = 0.6): inside, the halos cut the sheet that is farther in 4D where two "
+         "sheets cross, and the cut edge is the knotted arc",
+         dict(rotation=v["knot_open"], rho=0.6), {}, False),
+        ("fig5b", spun, "Fig. 5(b): the spun trefoil translucent (opacity 0.45), halos off | on",
+         dict(rotation=v["knot"], opacity=0.45), {}, False),
+        ("fig6a", fermat, "Fig. 6(a): quadratic Fermat surface z1² + z2² = 1, Hanson's view",
+         dict(rotation=v["fermat"]), {}, False),
+        ("fig6b", cy, "Fig. 6(b): Calabi–Yau quartic cross-section z1⁴ + z2⁴ = 1 (16 patches)",
+         dict(rotation=v["fermat"]), {}, False),
+        ("fig7", prod, "Fig. 7: product polynomial z1² z2² = 1, cross-eyed stereo (top: halos "
+         "off, middle: on)", dict(rotation=v["product"], stereo=True), {}, True),
+        ("fig8", twist, "Fig. 8: 2-twist-spun trefoil, cross-eyed stereo, translucent "
+         "(opacity 0.6) with the halo boundaries in green (top: halos off, middle: on)",
+         dict(rotation=v["twist"], stereo=True, opacity=0.6, boundary_color=green,
+              boundary_width=0.3),
+         {}, True),
+    ]
+
+
+def render(out_dir: pathlib.Path, *, quick: bool = False, measurements=None) -> list[Item]:
+    """Render the halo figures into ``out_dir``; ``quick`` uses small images and meshes.
+    ``measurements``, a dict, receives ``name -> (changed, covered, stats)``."""
     import refraster.halos4d as h
 
     out_dir = pathlib.Path(out_dir)
     size = 128 if quick else 512
     slices = 48 if quick else 256
-    res = 0.4 if quick else 1.0
-    v = _views()
     items = []
-
-    def shot(name, surface, caption, **kw):
-        kw.setdefault("width", size)
-        kw.setdefault("height", size)
-        kw.setdefault("slices", slices)
-        r = h.render_halos(surface, **kw)
+    for name, surface, caption, on_kw, off_kw, stacked in figures(quick):
+        kw = dict(width=size, height=size, slices=slices, **on_kw)
+        on = h.render_halos(surface, **kw)
+        off_kw = {**kw, **off_kw, "halos": False}
+        off_kw.pop("boundary_color", None)
+        off = h.render_halos(surface, **off_kw)
+        changed, covered = change_share(on, off)
+        share = changed / max(covered, 1)
+        if measurements is not None:
+            measurements[name] = (changed, covered, on.stats)
         fn = f"halos4d_{name}.png"
-        write_png(out_dir / fn, np.clip(r.image, 0.0, 1.0))
-        items.append(Item(SECTION, fn, caption))
-        return r
-
-    fig1 = h.figure1_scene(int(24 * res) + 4)
-    common = dict(rho=0.1, delta_d=1.0, delta_t=0.3, surface_width=0.3)
-    shot("fig1_oblique", fig1, "Fig. 1(a): the five strips at w = 0.1 … 0.5 seen along "
-         "(1, 0, 0, 1): separated in 4D.", rotation=v["fig1_oblique"], halos=False, **common)
-    shot("fig1_nohalo", fig1, "Fig. 1(b): projected along w the strips intersect the white "
-         "patch; plain 4D depth test, no halos.", rotation=v["fig1"], halos=False, **common)
-    shot("fig1_halo", fig1, "Fig. 1(c): depth-dependent volumetric halos — the gap in the "
-         "white patch widens with the 4D depth difference (Eq. 3).", rotation=v["fig1"], **common)
-    knot = h.spun_trefoil(int(200 * res), int(50 * res))
-    shot("spun_trefoil", knot, f"Fig. 5(d): the spun trefoil ({knot.n_faces} triangles) with "
-         "volumetric halos; the gaps mark where one sheet passes behind another in 4D.",
-         rotation=v["knot"], rho=0.15, delta_d=0.3)
-    fermat = h.quadratic_fermat(int(32 * res) + 4, int(32 * res) + 4)
-    shot("fermat", fermat, "Fig. 6(a): quadratic Fermat surface z1² + z2² = 1 (4 patches), "
-         "Hanson's view; halos open at the self-intersections.", rotation=v["fermat"],
-         delta_d=0.4)
-    cy = h.calabi_yau_quartic(int(16 * res) + 4, int(16 * res) + 4)
-    shot("calabi_yau", cy, "Fig. 6(b): Calabi–Yau quartic cross-section z1⁴ + z2⁴ = 1 "
-         "(16 patches).", rotation=v["fermat"], delta_d=0.3)
-    prod = h.product_polynomial(int(24 * res) + 4, int(48 * res) + 4)
-    shot("product_stereo", prod, "Fig. 7: product polynomial z1² z2² = 1, cross-eyed stereo "
-         "pair.", rotation=v["product"], stereo=True, width=size, height=size)
-    twist = h.twist_spun_trefoil(int(200 * res), int(50 * res), k=2)
-    shot("twist_spun_stereo", twist, "Fig. 8: 2-twist-spun trefoil, cross-eyed stereo pair.",
-         rotation=v["knot"], rho=0.15, delta_d=0.3, stereo=True)
+        write_png(out_dir / fn, triptych(on, off, stacked))
+        items.append(Item(SECTION, fn, f"{caption}. Halos off | on | changed pixels: the halos "
+                          f"change {100 * share:.1f} % of the {covered} covered pixels "
+                          f"(ρ = {on.stats['rho']:.3g}, δd = {on.stats['delta_d']:.3g})."))
     return items

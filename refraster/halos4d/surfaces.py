@@ -397,15 +397,21 @@ def twist_spun_trefoil(n_s=200, n_phi=50, *, k=2, adaptive=False):
                       name=name)
 
 
-def spun_trefoil(n_s=200, n_phi=50, *, adaptive=False):
+def spun_trefoil(n_s=200, n_phi=50, *, adaptive=False, cut_open=False):
     """Artin's spun trefoil (Wang et al. Fig. 5), a knotted 2-sphere in 4D.
 
     The trefoil, cut open at its maximum x, is joined by two short fillets to the plane
     x = Xp = 3.2 and spun about it: ``S(s, φ) = (Xp − r cos φ, y, z, r sin φ)``, ``r = Xp − x``
     (MATH.md §5.7, revised construction: no ball, no legs; the knot is spun at radius
-    0.2 … 5.6). ``2·(n_s − 2)·n_phi`` triangles.
+    0.2 … 5.6). ``2·(n_s − 2)·n_phi`` triangles. ``cut_open=True`` keeps half of the sphere,
+    φ ∈ [0, π] (a disc whose boundary is the knotted arc and its mirror image, for pictures
+    that show the inside).
     """
     total = trefoil_arc(False)[1][-1]
+    if cut_open:
+        return uv_surface(_spin(0, False), (0.0, total), (0.0, np.pi), n_s, n_phi, poles=True,
+                          adaptive=adaptive, color=_knot_color(total),
+                          name="spun trefoil, cut open")
     return uv_surface(_spin(0, False), (0.0, total), (0.0, 2 * np.pi), n_s, n_phi,
                       periodic_v=True, poles=True, adaptive=adaptive, color=_knot_color(total),
                       name="spun trefoil")
