@@ -158,8 +158,9 @@ def _cutaway_shells():
 @register_scene("halos4d_figure1", technique="halos4d",
                 description="Volumetric halos for surfaces in 4D (Wang et al., Fig. 1): a white "
                             "square patch at w = 0 crossed by five coloured patches at w = 0.1 … "
-                            "0.5, turned in the zx and yz planes, 48 slices, composited colour and "
-                            "accumulated opacity. The 4D surface travels as maps (vertices (V, 4), "
+                            "0.5, turned in the zx and yz planes, 48 slices, composited colour, "
+                            "accumulated opacity and each pixel's halo class (carved, surface, halo "
+                            "only). The 4D surface travels as maps (vertices (V, 4), "
                             "faces, per-vertex tangents and colours), the rotation as a parameter.")
 def _halos4d_figure1():
     from ..camera import orthographic
@@ -170,9 +171,17 @@ def _halos4d_figure1():
                   surface_width=0.3, opacity=0.9, halos=True, margin=0.05, width=128,
                   height=128, background=[0.0, 0.0, 0.0])
     out = render_halos(surface, rotation=rot, projection="orthographic", width=128, height=128,
-                       slices=48, delta_t=0.3, surface_width=0.3, opacity=0.9, halos=True)
+                       slices=48, delta_t=0.3, surface_width=0.3, opacity=0.9, halos=True,
+                       volume=True)
     params["rho"] = out.stats.get("rho") if isinstance(out.stats.get("rho"), float) else None
+    # the defaults the reference derived (issue 21), so a backend can use the same values
+    params.update(delta_d=float(out.stats["delta_d"]), antialias=0.3, halo_opacity=0.0)
     params["screen_bounds"] = np.asarray(out.bounds).tolist()
+    # per pixel, the halo class of its column: 2 if a halo carved some surface voxel, else 1 if a
+    # surface voxel is drawn, else 3 if only halo voxels, else 0 (empty)
+    vol = np.asarray(out.volume)
+    halo_class = np.where((vol == 2).any(axis=0), 2, np.where(
+        (vol == 1).any(axis=0), 1, np.where((vol == 3).any(axis=0), 3, 0))).astype(np.int32)
     camera = Camera(np.eye(4), orthographic(-1, 1, -1, 1, -1, 1), 128, 128)
     # slicing moves a surface's boundary by up to a slice spacing: every pixel where the
     # opacity changes between neighbours may differ
@@ -188,6 +197,8 @@ def _halos4d_figure1():
             "surface_colors": surface.colors}
     return GoldenScene(technique="halos4d", camera=camera, draws=[],
                        buffers={"color": np.asarray(out.image, np.float32),
-                                "alpha": np.asarray(out.alpha, np.float32)},
-                       parameters=params, maps=maps, kinds={"alpha": "unorm"},
+                                "alpha": np.asarray(out.alpha, np.float32),
+                                "halo_class": halo_class},
+                       parameters=params, maps=maps, kinds={"alpha": "unorm",
+                                                            "halo_class": "id"},
                        geometry=False, may=edge, may_radius=1)
