@@ -12,7 +12,8 @@ from .slicing import SliceTriangles, slice_tetrahedra, voxel_centres, voxelize
 from .surfaces import (Surface4D, calabi_yau_quartic, fermat_surface, figure1_scene, merge,
                        product_polynomial, quadratic_fermat, spun_trefoil, twist_spun_trefoil,
                        uv_surface)
-from .thicken import halo_depth, prism_tetrahedra, thicken, thickening_normals
+from .thicken import (default_halo_parameters, halo_depth, prism_tetrahedra, thicken,
+                      thickening_normals)
 from .transforms import PLANES, Projection, compose, hanson_view, project, rotate_3d, rotation
 
 __all__ = [
@@ -20,6 +21,6 @@ __all__ = [
     "SliceTriangles", "slice_tetrahedra", "voxel_centres", "voxelize",
     "Surface4D", "calabi_yau_quartic", "fermat_surface", "figure1_scene", "merge",
     "product_polynomial", "quadratic_fermat", "spun_trefoil", "twist_spun_trefoil", "uv_surface",
-    "halo_depth", "prism_tetrahedra", "thicken", "thickening_normals",
+    "default_halo_parameters", "halo_depth", "prism_tetrahedra", "thicken", "thickening_normals",
     "PLANES", "Projection", "compose", "hanson_view", "project", "rotate_3d", "rotation",
 ]

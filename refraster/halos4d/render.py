@@ -8,7 +8,9 @@ Pipeline (one frame)::
       ─► per slice: cross-section triangles rasterized (llvmpipe fill rule, 1/256 px snapping);
          per fragment t, δ and colour interpolated, Eq. 3 ``d_new = δ + max(0, |2t−1| − δt)·δd``
       ─► per voxel: minD = min d_new over all fragments (the halo depth buffer); the surface
-         fragment (|2t − 1| < w_s) of smallest δ is drawn iff δ ≤ minD + ε (MATH.md §5.4)
+         fragment (|2t − 1| < w_s, or in the anti-aliasing fringe < w_s + a, full-core first)
+         of smallest δ is drawn iff δ ≤ minD + ε (MATH.md §5.4), with opacity 1 − (1 − α)^c
+         for its coverage c from t (Sec. 4.6)
       ─► back-to-front compositing of the slice images.
 
 Voxel classes (the ``(N, H, W)`` volume, int8): 0 empty, 1 visible surface, 2 surface carved by a
