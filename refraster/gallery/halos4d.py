@@ -85,8 +85,9 @@ def figures(quick=False):
     spun = h.spun_trefoil(int(240 * res), int(64 * res))
     spun_open = h.spun_trefoil(int(240 * res), int(48 * res), cut_open=True)
     twist = h.twist_spun_trefoil(int(320 * res), int(64 * res), k=2)
-    fermat = h.quadratic_fermat(int(40 * res) + 4, int(40 * res) + 4)
-    cy = h.calabi_yau_quartic(int(18 * res) + 4, int(18 * res) + 4)
+    # the paper's curvature-adaptive u and v lists (Sec. 4.1)
+    fermat = h.quadratic_fermat(int(40 * res) + 4, int(40 * res) + 4, adaptive=True)
+    cy = h.calabi_yau_quartic(int(18 * res) + 4, int(18 * res) + 4, adaptive=True)
     prod = h.product_polynomial(int(24 * res) + 4, int(48 * res) + 4)
     green = (0.1, 0.95, 0.2)
     return [
@@ -107,9 +108,11 @@ def figures(quick=False):
          dict(rotation=v["knot_open"], rho=0.6), {}, False),
         ("fig5b", spun, "Fig. 5(b): the spun trefoil translucent (opacity 0.45), halos off | on",
          dict(rotation=v["knot"], opacity=0.45), {}, False),
-        ("fig6a", fermat, "Fig. 6(a): quadratic Fermat surface z1² + z2² = 1, Hanson's view",
+        ("fig6a", fermat, "Fig. 6(a): quadratic Fermat surface z1² + z2² = 1, Hanson's view, "
+         "curvature-adaptive u, v lists",
          dict(rotation=v["fermat"]), {}, False),
-        ("fig6b", cy, "Fig. 6(b): Calabi–Yau quartic cross-section z1⁴ + z2⁴ = 1 (16 patches)",
+        ("fig6b", cy, "Fig. 6(b): Calabi–Yau quartic cross-section z1⁴ + z2⁴ = 1 (16 patches), "
+         "curvature-adaptive u, v lists",
          dict(rotation=v["fermat"]), {}, False),
         ("fig7", prod, "Fig. 7: product polynomial z1² z2² = 1, cross-eyed stereo (top: halos "
          "off, middle: on)", dict(rotation=v["product"], stereo=True), {}, True),
