@@ -177,3 +177,101 @@ print(hashlib.sha256(npr.cartoon_map(img, mask=mask).tobytes()).hexdigest())
 def test_cartoon_map_deterministic_across_thread_counts():
     digests = set(outputs_by_thread_count(_SCRIPT))
     assert len(digests) == 1
+
+
+# ---------------------------------------------------------------- surface-attached strokes
+
+def test_triplanar_strokes_on_axis_planes_are_the_plane_texture():
+    """On a face whose normal is an axis, the blend weight of that axis is 1 and T is the
+    stroke priority of the two other coordinates: for +z, ``max(first·f(x cos a + y sin a),
+    cross·f(...))`` with f(u) = 1 − 2|u/s − round(u/s)|."""
+    rng = np.random.default_rng(4)
+    p = rng.uniform(-2, 2, (6, 7, 3))
+    s, a1, a2 = 0.3, np.radians(30.0), np.radians(-60.0)
+
+    def fam(u, v, a):
+        t = (u * np.cos(a) + v * np.sin(a)) / s
+        return 1.0 - 2.0 * np.abs(t - np.round(t))
+
+    for axis, (i, j) in enumerate([(1, 2), (2, 0), (0, 1)]):
+        n = np.zeros((6, 7, 3))
+        n[..., axis] = -1.0 if axis == 1 else 1.0
+        t = npr.triplanar_strokes(p, n, spacing=s, angle=30.0, cross_angle=-60.0, first=0.8,
+                                  cross=0.4)
+        expect = np.maximum(0.8 * fam(p[..., i], p[..., j], a1),
+                            0.4 * fam(p[..., i], p[..., j], a2))
+        np.testing.assert_allclose(t, expect, atol=1e-6)
+    # a 45° normal between x and y: the average of the two projections (weights ½, ½)
+    n = np.zeros((6, 7, 3))
+    n[..., 0] = n[..., 1] = np.sqrt(0.5)
+    t = npr.triplanar_strokes(p, n, spacing=s)
+    tx = npr.triplanar_strokes(p, np.broadcast_to([1.0, 0, 0], n.shape), spacing=s)
+    ty = npr.triplanar_strokes(p, np.broadcast_to([0, 1.0, 0], n.shape), spacing=s)
+    np.testing.assert_allclose(t, 0.5 * (tx + ty), atol=1e-6)
+    # the background is paper
+    n[0, 0] = 0.0
+    assert npr.triplanar_strokes(p, n, spacing=s)[0, 0] == 1.0
+
+
+def _orbit(deg, w, h):
+    import refraster as rf
+    a = np.radians(deg)
+    eye = np.array([3.2 * np.sin(a), 2.0, 3.2 * np.cos(a)])
+    return dict(view=rf.look_at(eye, [0, 0, 0]), proj=rf.perspective(45.0, w / h, 0.5, 20.0),
+                width=w, height=h)
+
+
+def test_surface_strokes_move_with_the_surface():
+    """Two renders of a torus from cameras 5° apart (an orbit about its centre). A surface point
+    seen at pixel p in the first frame is found at pixel q in the second by projecting its
+    object-space position; the stroke texture must carry the same value there (up to the
+    sub-pixel offset of the two pixel centres on the surface). Screen-space strokes (the former
+    behaviour, `stroke_texture`) stay put while the surface moves under them and fail."""
+    import trimesh
+    import refraster as rf
+    w, h = 160, 120
+    mesh = rf.mesh.as_mesh(trimesh.creation.torus(1.0, 0.4, major_sections=64,
+                                                  minor_sections=24)).with_smooth_normals(60)
+    frames = []
+    for deg in (0.0, 5.0):
+        cam = _orbit(deg, w, h)
+        fb = rf.render(mesh, **cam, normals="smooth")
+        frames.append((fb, cam, npr.surface_strokes(fb, spacing=0.25), npr.object_space(fb)[0]))
+    (fb1, _, t1, p1), (fb2, cam2, t2, p2) = frames
+    ys, xs = np.nonzero(fb1.mask)
+    pts = p1[ys, xs]
+    clip = np.c_[pts, np.ones(len(pts))] @ (cam2["proj"] @ cam2["view"]).T
+    ndc = clip[:, :3] / clip[:, 3:]
+    col = np.floor((ndc[:, 0] + 1) * w / 2).astype(int)
+    row = h - 1 - np.floor((ndc[:, 1] + 1) * h / 2).astype(int)
+    inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+    ys, xs, pts, row, col = ys[inside], xs[inside], pts[inside], row[inside], col[inside]
+    # visible in frame 2: the surface at q is the point itself (within a pixel's footprint)
+    seen = fb2.mask[row, col] & (np.linalg.norm(p2[row, col] - pts, axis=1) < 0.03)
+    assert seen.sum() > 5000
+    moved = np.abs(t2[row, col] - t1[ys, xs])[seen]
+    print(f"attached: mean |ΔT| {moved.mean():.4f}, p95 {np.percentile(moved, 95):.4f}")
+    assert moved.mean() < 0.06 and np.percentile(moved, 95) < 0.15
+    screen = npr.stroke_texture(h, w)
+    fixed = np.abs(screen[row, col] - screen[ys, xs])[seen]
+    print(f"screen space: mean |ΔT| {fixed.mean():.4f}")
+    assert fixed.mean() > 0.15
+    assert np.all(t1[~fb1.mask] == 1.0)
+
+
+def test_object_space_undoes_the_model_transform():
+    import trimesh
+    import refraster as rf
+    box = trimesh.creation.box(extents=(1.0, 0.6, 0.8))
+    model = rf.look_at([0, 0, 0], [0.3, -1, 0.2], up=[1, 0, 0])
+    model[:3, 3] = (0.2, -0.1, 0.3)
+    cam = _orbit(20.0, 64, 48)
+    fb = rf.render(box, **cam, model=model)
+    pos, nrm = npr.object_space(fb)
+    m = fb.mask
+    # object-space positions lie on the box surface; normals are its face normals
+    on_face = np.isclose(np.abs(pos[m]), [0.5, 0.3, 0.4], atol=1e-6)
+    assert np.all(on_face.any(axis=1))
+    np.testing.assert_allclose(np.abs(nrm[m]).max(axis=1), 1.0, atol=1e-6)
+    expect = box.face_normals[fb.prim_id[m]]
+    np.testing.assert_allclose(nrm[m], expect, atol=1e-6)
