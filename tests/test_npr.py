@@ -394,3 +394,29 @@ def test_mirror_bad_inputs(kwargs, exc, words):
         npr.render_mirrored(torus, bent, **cam)
     with pytest.raises(ValueError, match="normal"):
         npr.reflection([0, 0, 0], [0, 0, 0])
+
+
+_MIRROR_SCRIPT = r"""
+import hashlib
+import numpy as np, trimesh
+import refraster as rf
+from refraster import npr
+torus = rf.mesh.as_mesh(trimesh.creation.torus(0.6, 0.22, major_sections=32,
+                                               minor_sections=12)).with_smooth_normals(40)
+model = np.eye(4)
+model[1, 3] = 0.9
+floor = (np.array([[-2, 0, -2], [2, 0, -2], [2, 0, 2], [-2, 0, 2.0]]), [[0, 2, 1], [0, 3, 2]])
+cam = dict(view=rf.look_at([2.2, 1.6, 3.0], [0, 0.5, 0]), proj=rf.perspective(40.0, 4 / 3, 0.5, 20),
+           width=64, height=48)
+style = lambda fb, l: npr.hatching(fb.normal, light=l, strokes=npr.surface_strokes(fb), mask=fb.mask)
+r = npr.render_mirrored(torus, floor, **cam, models=[model], style=style)
+h = hashlib.sha256()
+for a in (torus.vertices, torus.vertex_normals, torus.faces, r.image, r.mirrored_edges):
+    h.update(np.ascontiguousarray(a).tobytes())
+print(h.hexdigest())
+"""
+
+
+def test_mirror_hatching_and_creases_deterministic_across_thread_counts():
+    digests = set(outputs_by_thread_count(_MIRROR_SCRIPT))
+    assert len(digests) == 1
