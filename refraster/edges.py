@@ -38,17 +38,18 @@ from .camera import is_perspective
 __all__ = [
     "EdgeGBuffer", "edge_gbuffer", "fit_near_far", "diagonal_normal", "diagonal_depth",
     "c1_depth", "sobel", "sobel_depth", "sobel_normal", "object_id_edges", "edge_map",
-    "EdgeSet", "classify_edges", "EDGE_PRESETS", "DEFAULT_INNER_THRESHOLD", "DEFAULT_PROFILE_THRESHOLD",
-    "DEFAULT_CREASE_ANGLE",
+    "EdgeSet", "classify_edges", "EDGE_PRESETS", "DEFAULT_INNER_THRESHOLD",
+    "DEFAULT_PROFILE_THRESHOLD", "DEFAULT_CREASE_ANGLE",
 ]
 
-#: Inner-edge strengths below this are set to 0 by :func:`edge_map` with ``preset="clean"``. A crease of θ gives
-#: ``E_N = 1 − cos θ``, so this is a crease of about 26°: flat-shaded
+#: Inner-edge strengths below this are set to 0 by :func:`edge_map` with ``preset="clean"``.
+#: A crease of θ gives ``E_N = 1 − cos θ``, so this is a crease of about 26°: flat-shaded
 #: facets of tessellated curved surfaces (a few degrees apart) stay clean, creases show.
 DEFAULT_INNER_THRESHOLD = 0.1
 #: Profile-edge strengths below this are set to 0 by :func:`edge_map` with ``preset="clean"``,
-#: tuned for that preset's depth filter ("diagonal2"): a depth step of 1.5 % of the near–far range passes. At it the
-#: image-space profile is compared with projected silhouettes in ``tests/test_edges.py``.
+#: tuned for that preset's depth filter ("diagonal2"): a depth step of 1.5 % of the near–far
+#: range passes. At it the image-space profile is compared with projected silhouettes in
+#: ``tests/test_edges.py``.
 DEFAULT_PROFILE_THRESHOLD = 0.03
 #: The defaults of :func:`edge_map`'s filter options. ``"paper"`` is Nienhaus & Döllner's
 #: operator (Sec. 4.1.2, first variant; Sec. 5 blends with the raw intensities); ``"clean"``

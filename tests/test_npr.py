@@ -406,9 +406,16 @@ torus = rf.mesh.as_mesh(trimesh.creation.torus(0.6, 0.22, major_sections=32,
 model = np.eye(4)
 model[1, 3] = 0.9
 floor = (np.array([[-2, 0, -2], [2, 0, -2], [2, 0, 2], [-2, 0, 2.0]]), [[0, 2, 1], [0, 3, 2]])
-cam = dict(view=rf.look_at([2.2, 1.6, 3.0], [0, 0.5, 0]), proj=rf.perspective(40.0, 4 / 3, 0.5, 20),
-           width=64, height=48)
-style = lambda fb, l: npr.hatching(fb.normal, light=l, strokes=npr.surface_strokes(fb), mask=fb.mask)
+cam = dict(view=rf.look_at([2.2, 1.6, 3.0], [0, 0.5, 0]),
+           proj=rf.perspective(40.0, 4 / 3, 0.5, 20), width=64, height=48)
+
+
+def style(fb, light):
+    strokes = npr.surface_strokes(fb)
+    return npr.hatching(fb.normal, light=light, strokes=strokes, mask=fb.mask)
+
+
+
 r = npr.render_mirrored(torus, floor, **cam, models=[model], style=style)
 h = hashlib.sha256()
 for a in (torus.vertices, torus.vertex_normals, torus.faces, r.image, r.mirrored_edges):
