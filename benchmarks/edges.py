@@ -49,8 +49,8 @@ def main(argv=None):
     anchor()
     theirs = median_ms(anchor, repeats)
     cases = [
-        ("edge_map(gbuffer): normals + depth + ids", lambda: edges.edge_map(gb)),
-        ("edge_map(framebuffer): G-buffer build included", lambda: edges.edge_map(fb)),
+        ("edge_map(gbuffer): normals + depth + ids", lambda: edges.edge_map(gb, preset="clean")),
+        ("edge_map(framebuffer): G-buffer build included", lambda: edges.edge_map(fb, preset="clean")),
         ("diagonal_normal (encoded)", lambda: edges.diagonal_normal(gb.normal, encoded=True)),
         ("c1_depth", lambda: edges.c1_depth(gb.depth)),
         ("sobel (depth, magnitude)", lambda: edges.sobel(gb.depth)),

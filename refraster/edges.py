@@ -38,18 +38,30 @@ from .camera import is_perspective
 __all__ = [
     "EdgeGBuffer", "edge_gbuffer", "fit_near_far", "diagonal_normal", "diagonal_depth",
     "c1_depth", "sobel", "sobel_depth", "sobel_normal", "object_id_edges", "edge_map",
-    "EdgeSet", "classify_edges", "DEFAULT_INNER_THRESHOLD", "DEFAULT_PROFILE_THRESHOLD",
-    "DEFAULT_CREASE_ANGLE",
+    "EdgeSet", "classify_edges", "EDGE_PRESETS", "DEFAULT_INNER_THRESHOLD",
+    "DEFAULT_PROFILE_THRESHOLD", "DEFAULT_CREASE_ANGLE",
 ]
 
-#: Inner-edge strengths below this are set to 0 by :func:`edge_map`. A crease of θ gives
-#: ``E_N = 1 − cos θ``, so this is a crease of about 26°: flat-shaded
+#: Inner-edge strengths below this are set to 0 by :func:`edge_map` with ``preset="clean"``.
+#: A crease of θ gives ``E_N = 1 − cos θ``, so this is a crease of about 26°: flat-shaded
 #: facets of tessellated curved surfaces (a few degrees apart) stay clean, creases show.
 DEFAULT_INNER_THRESHOLD = 0.1
-#: Profile-edge strengths below this are set to 0 by :func:`edge_map`, tuned for its default
-#: depth filter ("diagonal2"): a depth step of 1.5 % of the near–far range passes. At it the
-#: image-space profile is compared with projected silhouettes in ``tests/test_edges.py``.
+#: Profile-edge strengths below this are set to 0 by :func:`edge_map` with ``preset="clean"``,
+#: tuned for that preset's depth filter ("diagonal2"): a depth step of 1.5 % of the near–far
+#: range passes. At it the image-space profile is compared with projected silhouettes in
+#: ``tests/test_edges.py``.
 DEFAULT_PROFILE_THRESHOLD = 0.03
+#: The defaults of :func:`edge_map`'s filter options. ``"paper"`` is Nienhaus & Döllner's
+#: operator (Sec. 4.1.2, first variant; Sec. 5 blends with the raw intensities); ``"clean"``
+#: is this project's combination (MATH.md §3.2 conventions + docs/edges.md D-E3, id edges,
+#: thresholds), the default of :func:`edge_map` until 2026-12-01.
+EDGE_PRESETS = {
+    "paper": dict(normal_filter="diagonal", depth_filter="diagonal", ids=False,
+                  inner_threshold=0.0, profile_threshold=0.0),
+    "clean": dict(normal_filter="diagonal", depth_filter="diagonal2", ids=True,
+                  inner_threshold=DEFAULT_INNER_THRESHOLD,
+                  profile_threshold=DEFAULT_PROFILE_THRESHOLD),
+}
 #: Dihedral angle (degrees between face normals) above which :func:`classify_edges` calls an
 #: edge a crease.
 DEFAULT_CREASE_ANGLE = 30.0
@@ -469,7 +481,8 @@ def diagonal_depth(depth, *, order=1):
     of Δ between two columns gives ``1 − (1 − Δ/2)⁴`` on both columns beside it, with either
     order. With ``order=1`` a surface whose depth changes by s per pixel already gives about
     ``4s``; near silhouettes and on grazing planes that exceeds any useful threshold, which is
-    why :func:`edge_map` defaults to ``order=2`` (``depth_filter="diagonal2"``).
+    why :func:`edge_map`'s ``"clean"`` preset uses ``order=2`` (``depth_filter="diagonal2"``);
+    the paper's operator (and :func:`edge_map`'s default) is ``order=1``.
     """
     if isinstance(order, bool) or order not in (1, 2):
         raise ValueError(f"order must be 1 or 2, got {order!r}")
@@ -626,31 +639,42 @@ def object_id_edges(ids):
     return out
 
 
-def edge_map(fb, *, bounds=None, near=None, far=None, normal_filter="diagonal",
-             depth_filter="diagonal2", ids=True, inner_threshold=DEFAULT_INNER_THRESHOLD,
-             profile_threshold=DEFAULT_PROFILE_THRESHOLD, width=1, k_n=1.0, k_z=1.0):
+def edge_map(fb, *, preset="paper", bounds=None, near=None, far=None, normal_filter=None,
+             depth_filter=None, ids=None, inner_threshold=None, profile_threshold=None, width=1,
+             k_n=1.0, k_z=1.0):
     """The edge map: inner-edge strength in RGB, profile-edge strength in A.
+
+    With no options this is the paper's operator (Sec. 4.1.2, first variant): the diagonal
+    normal operator in RGB, the diagonal depth operator as printed in A, no id edges and no
+    thresholds, so the raw (anti-aliased) intensities are the blend weights of Sec. 5.
 
     Parameters
     ----------
     fb : refraster.Framebuffer or EdgeGBuffer
         A framebuffer is first turned into an :class:`EdgeGBuffer` with ``bounds`` / ``near``
         / ``far`` (see :func:`edge_gbuffer`).
+    preset : {"paper", "clean"}
+        The defaults of the five options below (:data:`EDGE_PRESETS`). ``"paper"``: diagonal
+        normal and depth operators, ``ids=False``, both thresholds 0. ``"clean"`` (ours, the
+        default before 2026-12-01): second-order diagonal depth, id edges, thresholds 0.1 and
+        0.03: clean outlines on grazing surfaces, hard id edges (docs/edges.md, "Presets").
+        An option given explicitly overrides the preset's value.
     bounds, near, far : optional
         Only with a framebuffer.
     normal_filter : {"diagonal", "sobel", "angle"}
         :func:`diagonal_normal` (the paper's), :func:`sobel_normal` channels or angle form.
-    depth_filter : {"diagonal2", "diagonal", "c1", "c1-paper", "sobel"}
-        :func:`diagonal_depth` with second differences (default; ``order=2``) or as printed
-        (``"diagonal"``, the paper's preferred variant), :func:`c1_depth` with the normalized
-        1/12 or printed 1/8 scale, :func:`sobel_depth`.
+    depth_filter : {"diagonal", "diagonal2", "c1", "c1-paper", "sobel"}
+        :func:`diagonal_depth` as printed (``"diagonal"``, the paper's preferred variant) or
+        with second differences (``"diagonal2"``, ``order=2``), :func:`c1_depth` with the
+        normalized 1/12 or printed 1/8 scale, :func:`sobel_depth`.
     ids : bool
         Also mark id discontinuities (:func:`object_id_edges`) as profile edges (strength 1).
     inner_threshold, profile_threshold : float in [0, 1]
-        Strengths below them become 0 (those above keep their anti-aliased value). The
-        defaults :data:`DEFAULT_INNER_THRESHOLD` and :data:`DEFAULT_PROFILE_THRESHOLD` suit the
-        default filters; the strengths of the first-order filters grow with the depth slope per
-        pixel and need larger thresholds (docs/edges.md).
+        Strengths below them become 0 (those above keep their anti-aliased value); 0 keeps
+        every raw intensity. :data:`DEFAULT_INNER_THRESHOLD` and
+        :data:`DEFAULT_PROFILE_THRESHOLD` are the ``"clean"`` preset's; the strengths of the
+        first-order filters grow with the depth slope per pixel and need larger thresholds
+        (docs/edges.md).
     width : int >= 1
         Edge width: the thresholded strengths are grey-dilated with a disk of radius
         ``width − 1`` pixels (``skimage.morphology.dilation``); 1 leaves them as filtered.
@@ -681,6 +705,16 @@ def edge_map(fb, *, bounds=None, near=None, far=None, normal_filter="diagonal",
         gb = fb
     else:
         gb = edge_gbuffer(fb, bounds=bounds, near=near, far=far)
+    options = dict(EDGE_PRESETS[as_choice(preset, "preset", {k: k for k in EDGE_PRESETS})])
+    for key, value in (("normal_filter", normal_filter), ("depth_filter", depth_filter),
+                       ("ids", ids), ("inner_threshold", inner_threshold),
+                       ("profile_threshold", profile_threshold)):
+        if value is not None:
+            options[key] = value
+    normal_filter, depth_filter, ids = (options["normal_filter"], options["depth_filter"],
+                                        options["ids"])
+    inner_threshold = options["inner_threshold"]
+    profile_threshold = options["profile_threshold"]
     nmethod = as_choice(normal_filter, "normal_filter", _NORMAL_FILTERS)
     zmethod = as_choice(depth_filter, "depth_filter", _DEPTH_FILTERS)
     if not isinstance(ids, (bool, np.bool_)):

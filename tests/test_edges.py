@@ -267,6 +267,106 @@ def test_depth_step_gives_the_math_value_on_the_two_columns_beside_it(delta, axi
     assert np.all(em[..., :3] == 0.0)
 
 
+def _plane_gbuffer(depth, normal=None, ids=None):
+    """An EdgeGBuffer of one object covering the frame (normals facing the viewer)."""
+    z = np.asarray(depth, np.float32)
+    if normal is None:
+        normal = np.zeros(z.shape + (3,))
+        normal[..., 2] = 1.0
+    enc = (np.float32(0.5) * np.asarray(normal, np.float32) + np.float32(0.5)).astype(np.float32)
+    ids = np.zeros(z.shape, np.int32) if ids is None else np.asarray(ids, np.int32)
+    return edges.EdgeGBuffer(normal=enc, depth=z, object_id=ids, near=0.0, far=1.0)
+
+
+@pytest.mark.parametrize("sx, sy", [(0.005, 0.0), (0.01, 0.0), (0.02, 0.0), (0.0, 0.01),
+                                    (0.01, 0.004), (-0.03, 0.02), (0.1, 0.0)])
+def test_default_edge_map_is_the_papers_depth_operator_on_ramps(sx, sy):
+    """A depth ramp of slope (s_x, s_y) per pixel: z_A − z_H = −2(s_x + s_y) and
+    z_C − z_F = 2(s_x − s_y) (A, C above, F, H below; Fig. 2), so the printed
+    I_Z = (1 − ½|A − H|)²(1 − ½|C − F|)² gives E_Z = 1 − (1 − |s_x + s_y|)²(1 − |s_x − s_y|)²,
+    and 1 − (1 − s)⁴ for a ramp along one axis (0.0394 at s = 0.01). No thresholds: the raw
+    value survives however small."""
+    h, w = 9, 12
+    z = 0.3 + sx * np.arange(w)[None, :] + sy * np.arange(h)[:, None]
+    em = edges.edge_map(_plane_gbuffer(z))
+    expect = 1.0 - (1.0 - abs(sx + sy)) ** 2 * (1.0 - abs(sx - sy)) ** 2
+    if sy == 0.0:
+        assert expect == pytest.approx(1.0 - (1.0 - abs(sx)) ** 4, rel=1e-12)
+    inner = (slice(1, -1), slice(1, -1))     # clamp-to-edge bends the ramp at the border
+    np.testing.assert_allclose(em[..., 3][inner], expect, rtol=2e-5, atol=0)
+    assert np.all(em[..., :3] == 0.0)        # one plane: no normal discontinuity
+    # the "clean" preset (second differences, thresholds) gives ≤ 1e-7 there: a different
+    # operator, which this test tells apart
+    clean = edges.edge_map(_plane_gbuffer(z), preset="clean")
+    assert np.all(clean[..., 3][inner] <= 1e-6)
+
+
+@pytest.mark.parametrize("alpha_deg", [0.5, 2.0, 5.0, 20.0])
+@pytest.mark.parametrize("diagonal", [False, True])
+def test_default_edge_map_is_the_papers_normal_operator_on_a_normal_ramp(alpha_deg, diagonal):
+    """Normals turning by α per pixel column (a cylinder seen side-on): n_A·n_H and n_C·n_F are
+    both cos 2α (two columns apart), so E_N = 1 − cos 2α, unthresholded. Turning by α per
+    step of x + y (a cylinder whose axis runs at 45° on screen): A and H are 4 steps apart,
+    C and F on one line, so I_N = ½(cos 4α + 1) and E_N = ½(1 − cos 4α)."""
+    h, w = 7, 15
+    yy, xx = np.mgrid[0:h, 0:w]
+    a = np.radians(alpha_deg) * ((xx + yy if diagonal else xx) - w // 2)
+    n = np.zeros((h, w, 3))
+    n[..., 0] = np.sin(a)
+    n[..., 2] = np.cos(a)
+    em = edges.edge_map(_plane_gbuffer(np.full((h, w), 0.5), n))
+    al = np.radians(alpha_deg)
+    expect = 0.5 * (1.0 - np.cos(4.0 * al)) if diagonal else 1.0 - np.cos(2.0 * al)
+    np.testing.assert_allclose(em[1:-1, 1:-1, 0], expect, rtol=0, atol=3e-7)
+    assert np.all(em[..., 0] == em[..., 1]) and np.all(em[..., 0] == em[..., 2])
+    assert np.all(em[..., 3] == 0.0)
+
+
+def test_default_edge_map_has_no_id_edges_and_no_thresholds():
+    h, w = 8, 10
+    ids = np.zeros((h, w), np.int32)
+    ids[:, 5:] = 1                    # two objects meeting flush: same depth, same normal
+    z = np.full((h, w), 0.5)
+    z[:, 5:] += 0.01                  # a step of 1 % of the range: E_Z = 1 − 0.995⁴ = 0.0199
+    em = edges.edge_map(_plane_gbuffer(z, ids=ids))
+    expect = np.float32(1.0 - (1.0 - 0.005) ** 4)
+    np.testing.assert_allclose(em[:, 4:6, 3], expect, rtol=2e-5)
+    assert np.all(em[:, :4, 3] == 0) and np.all(em[:, 6:, 3] == 0)
+    clean = edges.edge_map(_plane_gbuffer(z, ids=ids), preset="clean")
+    assert np.all(clean[:, 4:6, 3] == 1.0)          # the preset's hard id edge
+    # a 5° crease: E_N = 1 − cos 5° = 0.0038, kept by the paper, zeroed by "clean" (0.1)
+    n = np.zeros((h, w, 3))
+    n[:, :5] = (0.0, 0.0, 1.0)
+    n[:, 5:] = (np.sin(np.radians(5)), 0.0, np.cos(np.radians(5)))
+    em = edges.edge_map(_plane_gbuffer(np.full((h, w), 0.5), n))
+    np.testing.assert_allclose(em[:, 4:6, 0], 1.0 - np.cos(np.radians(5)), atol=1e-7)
+    assert np.all(edges.edge_map(_plane_gbuffer(np.full((h, w), 0.5), n),
+                                 preset="clean")[..., 0] == 0)
+
+
+def test_default_edge_map_equals_the_printed_filters_bit_for_bit():
+    rng = np.random.default_rng(12)
+    h, w = 21, 17
+    n = _random_normals(rng, h, w, background=0.0)
+    ids = rng.integers(0, 3, (h, w)).astype(np.int32)
+    ids[:2] = -1
+    enc = np.where(ids[..., None] >= 0, np.float32(0.5) * n + np.float32(0.5),
+                   np.float32(0.5)).astype(np.float32)
+    z = np.where(ids >= 0, rng.random((h, w)), 1.0).astype(np.float32)
+    gb = edges.EdgeGBuffer(normal=enc, depth=z, object_id=ids, near=1.0, far=2.0)
+    em = edges.edge_map(gb)
+    e_n = np.where(ids >= 0, twin_diagonal_normal(enc, True), 0).astype(np.float32)
+    assert _bits(em[..., 3]) == _bits(twin_diagonal_depth(z, 1))
+    for c in range(3):
+        assert _bits(em[..., c]) == _bits(e_n)
+    assert _bits(edges.edge_map(gb, preset="paper")) == _bits(em)
+    # the preset's values can be overridden one by one
+    assert _bits(edges.edge_map(gb, preset="clean", depth_filter="diagonal", ids=False,
+                                inner_threshold=0.0, profile_threshold=0.0)) == _bits(em)
+    assert _bits(edges.edge_map(gb, preset="clean")) == _bits(edges.edge_map(
+        gb, depth_filter="diagonal2", ids=True, inner_threshold=0.1, profile_threshold=0.03))
+
+
 def test_ninety_degree_crease_gives_one_on_the_straddling_pixels():
     h, w = 7, 12
     n = np.zeros((h, w, 3))
@@ -528,7 +628,7 @@ def test_image_space_profile_matches_projected_silhouettes(name, oracle):
     fb = rf.render(mesh, **cam.kwargs)
     es = edges.classify_edges(mesh, view=cam.view, proj=cam.proj)
     ref = _projected_profile_pixels(fb, mesh, es, cam)
-    img = edges.edge_map(fb)[..., 3] > 0      # the documented default threshold
+    img = edges.edge_map(fb, preset="clean")[..., 3] > 0      # the preset's threshold
     near = np.ones((3, 3), bool)
     recall = (ref & ndi.binary_dilation(img, near)).sum() / ref.sum()
     precision = (img & ndi.binary_dilation(ref, near)).sum() / img.sum()
@@ -579,6 +679,8 @@ def _gb(h=5, w=6):
     (dict(normal_filter="canny"), ValueError, "normal_filter"),
     (dict(depth_filter="laplace"), ValueError, "depth_filter"),
     (dict(ids="yes"), TypeError, "ids"),
+    (dict(preset="gpu"), ValueError, "preset"),
+    (dict(preset=None), TypeError, "preset"),
     (dict(near=1.0, far=2.0), ValueError, "EdgeGBuffer"),
 ])
 def test_bad_edge_map_inputs(kwargs, exc, words):

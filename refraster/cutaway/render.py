@@ -267,7 +267,7 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
     if ghost_distance > 0 and secondary and carved_px.any():
         from ..edges import edge_map
         plain = _fb.render(secondary, width=width, height=height, normals=normals, **camera)
-        em = edge_map(plain)
+        em = edge_map(plain, preset="clean")
         strength = np.maximum(em[..., 0], em[..., 3])
         ghost = ghost_lines(strength, plain.depth, d_ndc, fb.depth, proj, ghost_distance)
     image = color.astype(np.float64) * (1.0 - ghost[..., None]) + 0.35 * ghost[..., None]

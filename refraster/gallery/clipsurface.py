@@ -37,7 +37,7 @@ def _surface(center, normal, extent, sz, offset_map, **kw):
 
 def _edges(fb, color):
     from ..edges import edge_map
-    e = edge_map(fb)
+    e = edge_map(fb, preset="clean")
     strength = np.maximum(e[..., :3].max(axis=-1), e[..., 3])
     return color * (1.0 - strength[..., None])
 

@@ -15,8 +15,9 @@ from .scenes import Draw, GoldenScene, _framed, prepare_draws, raster_state, reg
 
 
 @register_scene("edges_building", technique="edges",
-                description="Edge map (Nienhaus & Döllner): diagonal normal filter in RGB, "
-                            "second-order diagonal depth filter and id edges in A.")
+                description="Edge map (Nienhaus & Döllner), the paper's operator: diagonal "
+                            "normal filter in RGB, diagonal depth filter as printed in A, no id "
+                            "edges, no thresholds (raw intensities).")
 def _edges_building():
     from ..edges import edge_map
     from ..scenes import solid
@@ -25,12 +26,12 @@ def _edges_building():
     camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
     fb = render_draws(draws, camera, state)
     lo, hi = draws[0].mesh.vertices.min(axis=0), draws[0].mesh.vertices.max(axis=0)
-    params = dict(bounds=[lo.tolist(), hi.tolist()], normal_filter="diagonal",
-                  depth_filter="diagonal2", ids=True, inner_threshold=0.1,
-                  profile_threshold=0.03, width=1, k_n=1.0, k_z=1.0)
+    params = dict(bounds=[lo.tolist(), hi.tolist()], preset="paper", normal_filter="diagonal",
+                  depth_filter="diagonal", ids=False, inner_threshold=0.0,
+                  profile_threshold=0.0, width=1, k_n=1.0, k_z=1.0)
     edges = edge_map(fb, **{**params, "bounds": np.array(params["bounds"])})
-    # the diagonal second-order depth filter reads pixels up to 2 away: a "may" pixel of the
-    # G-buffer may change the edge map that far
+    # the diagonal operators read the 8-neighbourhood; a "may" pixel of the G-buffer may change
+    # the edge map one pixel away (two kept as margin)
     return GoldenScene(technique="edges", camera=camera, draws=draws,
                        buffers={**fb.arrays(), "edge_map": edges}, parameters=params,
                        may_radius=2)
