@@ -199,7 +199,13 @@ def test_ghost_lines_appear_in_the_carved_region():
     crate = box((-0.8, -0.8, -0.8), (0.8, 0.8, 0.8))  # its front corner's edges get carved
     r = render_cutaway(CORE, crate, **cam, angle=0.6, ghost_distance=2.0)
     assert r.ghost.max() > 0.2
-    assert np.all(r.ghost[~r.carved] == 0)
+    # a line's pixel chord may reach in front of D off the pixel centre: within 1 px of carving
+    near = r.carved.copy()
+    near[1:] |= r.carved[:-1]
+    near[:-1] |= r.carved[1:]
+    near[:, 1:] |= near[:, :-1].copy()
+    near[:, :-1] |= near[:, 1:].copy()
+    assert np.all(r.ghost[~near] == 0)
     off = render_cutaway(CORE, crate, **cam, angle=0.6, ghost_distance=0.0)
     assert not off.ghost.any()
 

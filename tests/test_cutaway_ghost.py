@@ -1,0 +1,169 @@
+"""Ghost lines of the removed structure (Burns & Finkelstein Sec. 4.3, Fig. 4d–e; MATH.md D-C11;
+issue 23 point 1).
+
+The scene: a sphere (the object of interest) inside two nested box shells. The expected lines
+come from the boxes' analytic corners, not from the meshes: each of the 4 boxes (outer and inner
+surface of each shell) has 12 edges, all at 90° — every one is a crease or a silhouette. They are
+sampled densely in world space, projected with the camera matrices here, and their eye depth is
+−z of the view transform (not the NDC conversion the implementation uses). The cutaway surface
+D is read from the framebuffer (float32 window depth), converted to eye depth by the closed
+form of the projection.
+"""
+
+import numpy as np
+import pytest
+
+import refraster as rr
+from refraster.cutaway import render_cutaway
+from refraster.scenes import cube, icosphere
+
+G_MAX = 1.0
+HALF = (1.2, 1.05, 0.8, 0.68)          # shell 1 = 1.2 / 1.05, shell 2 = 0.8 / 0.68
+
+
+def box(a, flip=False):
+    c = cube(1.0)
+    f = np.asarray(c.faces)
+    return np.asarray(c.vertices) * (2 * a), (f[:, ::-1] if flip else f)
+
+
+def shell(a, b):
+    v1, f1 = box(a)
+    v2, f2 = box(b, flip=True)
+    return np.concatenate([v1, v2]), np.concatenate([f1, f2 + len(v1)])
+
+
+SHELLS = [shell(HALF[0], HALF[1]), shell(HALF[2], HALF[3])]
+OOI = [icosphere(2, radius=0.3)]
+NEAR, FAR = 1.0, 12.0
+
+CAMERAS = {
+    "persp_corner": dict(view=rr.look_at((2.8, 2.2, 3.4), (0, 0, 0)),
+                         proj=rr.perspective(40, 1.0, NEAR, FAR), width=160, height=160),
+    "persp_low": dict(view=rr.look_at((-3.6, -1.3, 2.6), (0, 0.1, 0)),
+                      proj=rr.perspective(45, 1.25, NEAR, FAR), width=180, height=144),
+    "ortho": dict(view=rr.look_at((3.0, 2.4, 3.3), (0, 0, 0)),
+                  proj=rr.orthographic(-1.8, 1.8, -1.8, 1.8, NEAR, FAR), width=150, height=150),
+}
+
+
+def analytic_edges():
+    """(48, 2, 3) edges of the four boxes and the shell each belongs to."""
+    edges, owner = [], []
+    for k, a in enumerate(HALF):
+        corners = np.array([[x, y, z] for x in (-a, a) for y in (-a, a) for z in (-a, a)])
+        for i in range(8):
+            for j in range(i + 1, 8):
+                if np.count_nonzero(corners[i] != corners[j]) == 1:
+                    edges.append((corners[i], corners[j]))
+                    owner.append(k // 2)
+    return np.array(edges), np.array(owner)
+
+
+def eye_depth_of_ndc(z, proj):
+    """Closed form per camera kind (glFrustum / glOrtho with NEAR, FAR)."""
+    if proj[3, 3] == 0:
+        return 2 * NEAR * FAR / ((FAR + NEAR) - z * (FAR - NEAR))
+    return NEAR + (z + 1) * 0.5 * (FAR - NEAR)
+
+
+def expected_lines(fb, cam, g_max=G_MAX, samples=3000):
+    """Per sample of every analytic edge: pixel, expected α (NaN if not a ghost line there)."""
+    view, proj, w, h = cam["view"], cam["proj"], cam["width"], cam["height"]
+    edges, owner = analytic_edges()
+    t = (np.arange(samples) + 0.5) / samples
+    pts = edges[:, :1] + t[None, :, None] * (edges[:, 1:] - edges[:, :1])        # (E, S, 3)
+    eye = pts @ view[:3, :3].T + view[:3, 3]
+    clip = np.concatenate([eye, np.ones(eye.shape[:2] + (1,))], -1) @ proj.T
+    ndc = clip[..., :3] / clip[..., 3:]
+    col = np.floor((ndc[..., 0] + 1) * 0.5 * w).astype(int)
+    row = np.floor((1 - ndc[..., 1]) * 0.5 * h).astype(int)
+    on = (col >= 0) & (col < w) & (row >= 0) & (row < h) & (np.abs(ndc[..., 2]) <= 1)
+    col, row = np.clip(col, 0, w - 1), np.clip(row, 0, h - 1)
+    d_ndc = 2.0 * fb.cutaway_depth.astype(np.float64)[row, col] - 1.0
+    gap = eye_depth_of_ndc(d_ndc, proj) - (-eye[..., 2])
+    removed = on & (ndc[..., 2] < d_ndc)
+    ooi = (fb.object_id[row, col] >= len(SHELLS)) & \
+        (2.0 * fb.depth.astype(np.float64)[row, col] - 1.0 < ndc[..., 2])
+    ghost = removed & ~ooi & (gap < g_max)
+    alpha = np.where(ghost, 1.0 - gap / g_max, np.nan)
+    return dict(row=row, col=col, gap=gap, ghost=ghost, alpha=alpha, owner=owner, on=on,
+                removed=removed & ~ooi)
+
+
+def check(image_alpha, exp, g_max=G_MAX, tol=0.05):
+    """(worst per-edge coverage, edges checked, stray ghost pixels)."""
+    h, w = image_alpha.shape
+    row, col, ghost, alpha = exp["row"], exp["col"], exp["ghost"], exp["alpha"]
+    # the expected opacity of a pixel is the largest over the lines crossing it
+    best = np.full((h, w), -1.0)
+    np.maximum.at(best, (row[ghost], col[ghost]), alpha[ghost])
+    # away from the exact cut boundary (float32 D) the samples must show with the formula's α
+    judged = ghost & (exp["gap"] > 1e-3)
+    coverage = []
+    for e in range(len(row)):
+        s = judged[e]
+        if s.sum() < 30:                 # < 1 % of the edge in the band: nothing to judge
+            continue
+        got = image_alpha[row[e, s], col[e, s]]
+        coverage.append(np.mean(np.abs(got - best[row[e, s], col[e, s]]) <= tol))
+    # nothing beyond g_max: every ghost pixel lies within 1 px of a line sample in the band
+    band = np.zeros((h, w), bool)
+    band[row[ghost], col[ghost]] = True
+    near = band.copy()
+    near[1:] |= band[:-1]
+    near[:-1] |= band[1:]
+    near[:, 1:] |= near[:, :-1].copy()
+    near[:, :-1] |= near[:, 1:].copy()
+    stray = int(np.count_nonzero((image_alpha > 0) & ~near))
+    return (min(coverage) if coverage else 0.0), len(coverage), stray
+
+
+@pytest.fixture(scope="module", params=sorted(CAMERAS))
+def rendered(request):
+    cam = CAMERAS[request.param]
+    fb = render_cutaway(OOI, SHELLS, **cam, angle=0.5, ghost_distance=G_MAX)
+    return cam, fb, expected_lines(fb, cam)
+
+
+def test_every_removed_crease_and_silhouette_shows_with_the_fade(rendered):
+    cam, fb, exp = rendered
+    # the cut carves both shells, and lines of both lie in the fade band
+    for k in (0, 1):
+        assert exp["ghost"][exp["owner"] == k].sum() > 200
+    worst, n_edges, stray = check(fb.ghost, exp)
+    assert n_edges >= 6
+    assert worst >= 0.95, worst
+    assert stray == 0
+    # removed lines beyond g_max exist in this scene and stay invisible
+    beyond = exp["removed"] & (exp["gap"] > G_MAX + 0.05)
+    assert beyond.sum() > 100
+    r, c = exp["row"][beyond], exp["col"][beyond]
+    band = np.zeros(fb.ghost.shape, bool)
+    band[exp["row"][exp["ghost"]], exp["col"][exp["ghost"]]] = True
+    assert np.all(fb.ghost[r, c][~band[r, c]] == 0)
+
+
+def test_planted_faults_fail(rendered, monkeypatch):
+    cam, fb, exp = rendered
+    # (1) the first visible surface only (the former implementation) misses hidden lines
+    first = render_cutaway(OOI, SHELLS, **cam, angle=0.5, ghost_distance=G_MAX, ghost="visible")
+    assert check(first.ghost, exp)[0] < 0.95
+    # (2) the fade with the wrong sign: α = (D − z)/g_max
+    flipped = np.where(fb.ghost > 0, 1.0 - fb.ghost, 0.0)
+    assert check(flipped, exp)[0] < 0.95
+    # (3) no distance limit: lines beyond g_max show
+    far = render_cutaway(OOI, SHELLS, **cam, angle=0.5, ghost_distance=3 * G_MAX, ghost_fade=False)
+    assert check(far.ghost, exp)[2] > 0
+    # (4) the gap measured in NDC depth instead of eye units
+    import refraster.cutaway.lines as lines
+    monkeypatch.setattr(lines, "ndc_to_eye_depth", lambda z, proj: np.asarray(z, np.float64))
+    ndc_gap = render_cutaway(OOI, SHELLS, **cam, angle=0.5, ghost_distance=G_MAX)
+    assert check(ndc_gap.ghost, exp)[0] < 0.95
+
+
+def test_unfaded_lines_are_opaque_up_to_g_max(rendered):
+    cam, fb, exp = rendered
+    flat = render_cutaway(OOI, SHELLS, **cam, angle=0.5, ghost_distance=G_MAX, ghost_fade=False)
+    np.testing.assert_array_equal(flat.ghost > 0, fb.ghost > 0)
+    assert set(np.unique(flat.ghost)) <= {0.0, 1.0}
