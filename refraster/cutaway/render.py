@@ -16,6 +16,9 @@ from .lines import GHOST_CREASE_ANGLE, feature_segments, ghost_alpha
 from .surface import (FLOOR_MARGIN, as_angles, cutaway_surface, min_filter_3x3, ndc_to_eye_depth, pixel_ndc,
                       unproject, upsample_bilinear)
 
+#: Grey level of the ghost lines composited into ``image``.
+GHOST_GREY = 0.12
+
 __all__ = ["CutawayFramebuffer", "render_cutaway", "cut_surface_normals", "outline",
            "ghost_lines"]
 
@@ -43,7 +46,7 @@ class CutawayFramebuffer(_fb.Framebuffer):
     ghost : (H, W) float32
         Ghost-line opacity in [0, 1] (D-C11).
     image : (H, W, 3) float32
-        ``color`` with outlines (black) and ghost lines (grey) composited.
+        ``color`` with outlines (black) and ghost lines (dark grey, ``GHOST_GREY``, opacity α) composited.
     """
 
     cutaway_depth: np.ndarray = field(default=None, repr=False)
@@ -298,7 +301,7 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
             ghost = ghost_lines(strength, plain.depth, d_ndc, fb.depth, proj, ghost_distance)
             if not ghost_fade:
                 ghost = np.where(ghost > 0, strength, 0.0).astype(np.float32)
-    image = color.astype(np.float64) * (1.0 - ghost[..., None]) + 0.35 * ghost[..., None]
+    image = color.astype(np.float64) * (1.0 - ghost[..., None]) + GHOST_GREY * ghost[..., None]
     image[edge] = 0.0
 
     base = fb.field_values()
