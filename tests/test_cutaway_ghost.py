@@ -167,3 +167,14 @@ def test_unfaded_lines_are_opaque_up_to_g_max(rendered):
     flat = render_cutaway(OOI, SHELLS, **cam, angle=0.5, ghost_distance=G_MAX, ghost_fade=False)
     np.testing.assert_array_equal(flat.ghost > 0, fb.ghost > 0)
     assert set(np.unique(flat.ghost)) <= {0.0, 1.0}
+
+
+def test_golden_cutaway_scene_has_ghost_lines():
+    from refraster.golden import technique_scenes  # noqa: F401  (registers the scenes)
+    from refraster.golden.scenes import SCENES
+    scene = SCENES["cutaway_shells"].build()
+    ghost = scene.buffers["ghost"]
+    assert np.count_nonzero(ghost) > 100 and ghost.max() > 0.5
+    assert scene.parameters["ghost_distance"] == 0.5 and scene.parameters["ghost"] == "lines"
+    # ghost pixels are "may" pixels (line rasterization differs between backends)
+    assert np.all(scene.may[ghost > 0])
