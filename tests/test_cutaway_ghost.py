@@ -178,3 +178,26 @@ def test_golden_cutaway_scene_has_ghost_lines():
     assert scene.parameters["ghost_distance"] == 0.5 and scene.parameters["ghost"] == "lines"
     # ghost pixels are "may" pixels (line rasterization differs between backends)
     assert np.all(scene.may[ghost > 0])
+
+
+def test_ghost_lines_lie_on_removed_depth_peeled_layers(rendered):
+    """Cross-check with classic depth peeling (refraster.ldi.peel) of the secondary objects:
+    every ghost pixel is within 1 px of a removed layer (z < D) inside the fade band, and many
+    ghost pixels come from layers behind the first one (which the old variant could not see)."""
+    from refraster.ldi import peel
+    cam, fb, exp = rendered
+    layers = peel(SHELLS, **cam, mode="peel")
+    z = 2.0 * layers.depth.astype(np.float64) - 1.0                        # (K, H, W)
+    d = 2.0 * fb.cutaway_depth.astype(np.float64) - 1.0
+    gap = eye_depth_of_ndc(d, cam["proj"])[None] - eye_depth_of_ndc(z, cam["proj"])
+    in_band = (layers.index >= 0) & (z < d[None]) & (gap < G_MAX + 0.05)
+    any_band = in_band.any(axis=0)
+    near = any_band.copy()
+    near[1:] |= any_band[:-1]
+    near[:-1] |= any_band[1:]
+    near[:, 1:] |= near[:, :-1].copy()
+    near[:, :-1] |= near[:, 1:].copy()
+    ghost = fb.ghost > 0
+    assert np.all(near[ghost])
+    deeper_only = in_band[1:].any(axis=0) & ~in_band[0]
+    assert np.count_nonzero(ghost & deeper_only) > 30
