@@ -270,6 +270,6 @@ def test_bad_surface_arguments():
 def test_gallery_quick(tmp_path):
     from refraster.gallery import cutaway
     items = cutaway.render(tmp_path, quick=True)
-    assert len(items) == 9
+    assert len(items) == 12
     for item in items:
         assert item.section == "Adaptive cutaways" and (tmp_path / item.filename).stat().st_size
