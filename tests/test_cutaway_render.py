@@ -239,6 +239,10 @@ def test_bad_render_arguments():
         render_cutaway(CORE, SHELLS, **cam, variant="fast")
     with pytest.raises(ValueError, match="ghost_distance"):
         render_cutaway(CORE, SHELLS, **cam, ghost_distance=-1.0)
+    with pytest.raises(ValueError, match="ghost"):
+        render_cutaway(CORE, SHELLS, **cam, ghost="edges")
+    with pytest.raises(ValueError, match="crease_angle"):
+        render_cutaway(CORE, SHELLS, **cam, crease_angle=200.0)
     with pytest.raises(ValueError, match="nothing to draw"):
         render_cutaway([], [], **cam)
     bad = dict(cam, proj=np.eye(4) * 2)
