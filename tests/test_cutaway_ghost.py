@@ -155,6 +155,20 @@ def test_planted_faults_fail(rendered, monkeypatch):
     # (3) no distance limit: lines beyond g_max show
     far = render_cutaway(OOI, SHELLS, **cam, angle=0.5, ghost_distance=3 * G_MAX, ghost_fade=False)
     assert check(far.ghost, exp)[2] > 0
+    # (5) the right lines, but only where they lie on the first layer (the removed surfaces
+    # hiding each other, as one z-buffered pass over the uncut scene would)
+    import refraster.cutaway.render as render_mod
+    first_layer = 2.0 * rr.render(SHELLS, **cam).depth.astype(np.float64) - 1.0
+    original = render_mod.ghost_alpha
+
+    def first_layer_only(*args, occluder_depth=None, **kw):
+        return original(*args, occluder_depth=np.minimum(occluder_depth, first_layer + 1e-6),
+                        **kw)
+
+    monkeypatch.setattr(render_mod, "ghost_alpha", first_layer_only)
+    assert check(render_cutaway(OOI, SHELLS, **cam, angle=0.5, ghost_distance=G_MAX).ghost,
+                 exp)[0] < 0.95
+    monkeypatch.undo()
     # (4) the gap measured in NDC depth instead of eye units
     import refraster.cutaway.lines as lines
     monkeypatch.setattr(lines, "ndc_to_eye_depth", lambda z, proj: np.asarray(z, np.float64))
