@@ -10,6 +10,7 @@ together with the radiators. A component without a voxel of the floor slab float
 
 import numpy as np
 import pytest
+from conftest import require
 
 from refraster.cutaway import render_cutaway
 from refraster.gallery.cutaway import RADIATOR_ANGLES, _box, _camera, radiator_house
@@ -19,7 +20,7 @@ SIZE = 180
 
 def voxel_components(fb, cam, secondary, interest, *, floor=0, h=0.05):
     """Labels of the remaining solid and the components that do not touch ``secondary[floor]``."""
-    ndimage = pytest.importorskip("scipy.ndimage")
+    ndimage = require("scipy.ndimage")
     boxes = [np.asarray(v) for v, _ in list(secondary) + list(interest)]
     lo = np.min([b.min(axis=0) for b in boxes], axis=0)
     hi = np.max([b.max(axis=0) for b in boxes], axis=0)
@@ -98,7 +99,7 @@ def test_fig10_two_objects_shape_one_surface():
             _box((-7, 0, -3), (7, 3.2, -2.8))]
     counter = _box((-0.8, 0, -2.8), (0.8, 0.9, -2.2))
     cam = _camera((0.8, 3.0, 9.0), (-0.8, 0.8, -1.2), 120, 90)
-    ndimage = pytest.importorskip("scipy.ndimage")
+    ndimage = require("scipy.ndimage")
     import refraster as rr
     wall = rr.render(room, **cam).object_id == 1       # the wall between camera and objects
     holes = []
