@@ -150,7 +150,7 @@ def radiator_house():
     radiators = [_box((-2.6, 0.3, -2.2), (-1.4, 1.0, -2.0)),       # back wall, left
                  _box((-0.5, 0.3, 0.0), (0.5, 1.0, 0.2)),          # partition, centre
                  _box((1.4, 0.3, -2.2), (2.6, 1.0, -2.0))]         # back wall, right
-    return parts, radiators, dict(eye=(0.0, 3.4, 8.0), target=(0.0, 0.6, -1.0))
+    return parts, radiators, dict(eye=(1.5, 5.0, 7.0), target=(0.0, 0.6, -1.0))
 
 
 #: Fig. 6's angles: one wide global angle, and one per radiator.
