@@ -215,3 +215,33 @@ def test_ghost_lines_lie_on_removed_depth_peeled_layers(rendered):
     assert np.all(near[ghost])
     deeper_only = in_band[1:].any(axis=0) & ~in_band[0]
     assert np.count_nonzero(ghost & deeper_only) > 30
+
+
+def test_ghost_alpha_by_hand():
+    from refraster.cutaway import ghost_alpha
+    proj = rr.orthographic(-1, 1, -1, 1, 0.0, 2.0)     # eye depth = z_ndc + 1
+    seg = np.array([[[-0.9, 0.05, -0.5], [0.9, 0.05, -0.5]]])   # eye depth 0.5
+    cut = np.full((8, 8), -0.3)                          # D at eye depth 0.7: gap 0.2
+    a = ghost_alpha(seg, view=np.eye(4), proj=proj, width=8, height=8, cutaway_ndc=cut,
+                    g_max=0.4)
+    want = np.zeros((8, 8))
+    want[3, :] = 0.5                                     # row floor((1 − 0.05)/2 · 8) = 3
+    np.testing.assert_allclose(a, want, atol=1e-6)
+    flat = ghost_alpha(seg, view=np.eye(4), proj=proj, width=8, height=8, cutaway_ndc=cut,
+                       g_max=0.4, fade=False)
+    np.testing.assert_array_equal(flat, (want > 0).astype(np.float32))
+    # beyond g_max, behind D, or behind an object of interest: nothing
+    for kw in (dict(g_max=0.15), dict(cutaway_ndc=np.full((8, 8), -0.6)),
+               dict(occluder_depth=np.full((8, 8), -0.9))):
+        args = {"cutaway_ndc": cut, "g_max": 0.4, **kw}
+        assert not ghost_alpha(seg, view=np.eye(4), proj=proj, width=8, height=8, **args).any()
+    # a segment crossing D: α = 1 in the pixel where it meets D, fading toward the viewer
+    slant = np.array([[[-0.95, 0.05, -0.2], [0.95, 0.05, -1.0]]])  # eye depth 0.2 → 1.0
+    a = ghost_alpha(slant, view=np.eye(4), proj=proj, width=8, height=8, cutaway_ndc=cut,
+                    g_max=0.4)[3]
+    x_edges = np.linspace(-1, 1, 9)                      # pixel borders in x
+    depth_at = 0.2 + (x_edges + 0.95) / 1.9 * 0.8        # eye depth along the segment
+    far_end = np.minimum(np.clip(depth_at[1:], 0.2, 1.0), 0.7)
+    want = np.where((np.clip(depth_at[:-1], 0.2, 1.0) < 0.7) & (0.7 - far_end < 0.4),
+                    1 - (0.7 - far_end) / 0.4, 0.0)
+    np.testing.assert_allclose(a, want, atol=1e-6)
