@@ -47,7 +47,9 @@ def feature_segments(meshes, *, view, proj, crease_angle=GHOST_CREASE_ANGLE):
     """World-space feature-line segments ``(N, 2, 3)`` of meshes for one view.
 
     Silhouettes (a front- and a back-facing face meet), borders (an edge of one face) and
-    creases (dihedral angle > ``crease_angle`` degrees) of every mesh, visible or not.
+    creases (dihedral angle > ``crease_angle`` degrees; for an edge of more than two faces, the
+    largest angle between them) of every mesh, visible or not. Vertices are merged by exact
+    position first, so meshes stored with per-face vertex copies give the same lines.
     """
     from ..edges import classify_edges
     out = []
@@ -56,7 +58,10 @@ def feature_segments(meshes, *, view, proj, crease_angle=GHOST_CREASE_ANGLE):
             continue
         v, f = _merged(m.vertices, m.faces)
         es = classify_edges((v, f), view=view, proj=proj, crease_angle=crease_angle)
-        keep = es.silhouette | es.border | es.crease
+        # non-manifold edges (more than two faces, e.g. touching parts merged by position)
+        # count when their faces meet at more than the crease angle
+        keep = es.silhouette | es.border | es.crease | \
+            ((es.n_faces > 2) & (es.dihedral > crease_angle))
         out.append(v[es.edges[keep]])
     if not out:
         return np.zeros((0, 2, 3))
