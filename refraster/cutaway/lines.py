@@ -53,7 +53,7 @@ def feature_segments(meshes, *, view, proj, crease_angle=GHOST_CREASE_ANGLE):
     """
     from ..edges import classify_edges
     out = []
-    for m in as_meshes(meshes, "secondary") if len(meshes) else []:
+    for m in as_meshes(meshes, "meshes") if len(meshes) else []:
         if m.n_faces == 0:
             continue
         v, f = _merged(m.vertices, m.faces)
