@@ -199,7 +199,13 @@ def test_ghost_lines_appear_in_the_carved_region():
     crate = box((-0.8, -0.8, -0.8), (0.8, 0.8, 0.8))  # its front corner's edges get carved
     r = render_cutaway(CORE, crate, **cam, angle=0.6, ghost_distance=2.0)
     assert r.ghost.max() > 0.2
-    assert np.all(r.ghost[~r.carved] == 0)
+    # a line's pixel chord may reach in front of D off the pixel centre: within 1 px of carving
+    near = r.carved.copy()
+    near[1:] |= r.carved[:-1]
+    near[:-1] |= r.carved[1:]
+    near[:, 1:] |= near[:, :-1].copy()
+    near[:, :-1] |= near[:, 1:].copy()
+    assert np.all(r.ghost[~near] == 0)
     off = render_cutaway(CORE, crate, **cam, angle=0.6, ghost_distance=0.0)
     assert not off.ghost.any()
 
@@ -233,6 +239,10 @@ def test_bad_render_arguments():
         render_cutaway(CORE, SHELLS, **cam, variant="fast")
     with pytest.raises(ValueError, match="ghost_distance"):
         render_cutaway(CORE, SHELLS, **cam, ghost_distance=-1.0)
+    with pytest.raises(ValueError, match="ghost"):
+        render_cutaway(CORE, SHELLS, **cam, ghost="edges")
+    with pytest.raises(ValueError, match="crease_angle"):
+        render_cutaway(CORE, SHELLS, **cam, crease_angle=200.0)
     with pytest.raises(ValueError, match="nothing to draw"):
         render_cutaway([], [], **cam)
     bad = dict(cam, proj=np.eye(4) * 2)
@@ -264,6 +274,6 @@ def test_bad_surface_arguments():
 def test_gallery_quick(tmp_path):
     from refraster.gallery import cutaway
     items = cutaway.render(tmp_path, quick=True)
-    assert len(items) == 6
+    assert len(items) == 12
     for item in items:
         assert item.section == "Adaptive cutaways" and (tmp_path / item.filename).stat().st_size

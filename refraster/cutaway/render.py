@@ -12,8 +12,12 @@ from .. import framebuffer as _fb
 from .._validate import as_choice, as_float_array, as_image_size, as_matrix, as_real
 from ..mesh import as_meshes
 from .flood import VARIANTS
+from .lines import GHOST_CREASE_ANGLE, feature_segments, ghost_alpha
 from .surface import (FLOOR_MARGIN, as_angles, cutaway_surface, min_filter_3x3, ndc_to_eye_depth, pixel_ndc,
                       unproject, upsample_bilinear)
+
+#: Grey level of the ghost lines composited into ``image``.
+GHOST_GREY = 0.12
 
 __all__ = ["CutawayFramebuffer", "render_cutaway", "cut_surface_normals", "outline",
            "ghost_lines"]
@@ -42,7 +46,7 @@ class CutawayFramebuffer(_fb.Framebuffer):
     ghost : (H, W) float32
         Ghost-line opacity in [0, 1] (D-C11).
     image : (H, W, 3) float32
-        ``color`` with outlines (black) and ghost lines (grey) composited.
+        ``color`` with outlines (black) and ghost lines (dark grey, ``GHOST_GREY``, opacity α) composited.
     """
 
     cutaway_depth: np.ndarray = field(default=None, repr=False)
@@ -136,7 +140,8 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
                    stand_ins=(), cutaway_size=None, variant="jfa+1",
                    perspective_compensation=True, edge_compression=0.1, floor_normal=None,
                    floor_margin=FLOOR_MARGIN, dilation=True, outlines=True, ghost_distance=None, cut_color=None,
-                   normals=None, background=(1.0, 1.0, 1.0)):
+                   normals=None, background=(1.0, 1.0, 1.0), ghost="lines", ghost_fade=True,
+                   crease_angle=GHOST_CREASE_ANGLE, cut_surfaces=True):
     """Render a cutaway: secondary objects carved away in front of the objects of interest.
 
     Parameters
@@ -179,6 +184,19 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
         Base colour of cut surfaces; default the cut object's own palette colour.
     normals, background
         As in :func:`refraster.render`.
+    ghost : {"lines", "visible"}
+        Source of the ghost lines. ``"lines"`` (default, the paper's): the creases, silhouettes
+        and borders of the secondary meshes as line segments (:mod:`.lines`), drawn where they
+        lie in the removed region in front of D — every removed layer, not only the first.
+        ``"visible"``: the former image-space variant, the edge map of the first visible
+        surface of the uncut scene only (kept for comparison; misses hidden structure).
+    ghost_fade : bool
+        Fade α = 1 − gap/g_max (Fig. 4e, default) or draw at full opacity up to g_max (4d).
+    crease_angle : float
+        Dihedral angle in degrees above which an edge is a crease (``ghost="lines"``).
+    cut_surfaces : bool
+        Shade the exposed back faces with the cutaway's normals (Sec. 4.1, Fig. 4b); False
+        leaves them as drawn, the hollow look of Fig. 4(a).
 
     Returns
     -------
@@ -192,8 +210,8 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
     then the OOI with a fragment stage that discards a secondary fragment iff z < D (front
     faces) or z < D_dil (back faces, with ``dilation``); OOI fragments are always kept, so the
     OOI are unclipped (Sec. 4.1); (5) cut surfaces shaded with normals from the surface that
-    clipped them; (6) outlines and ghost lines (from :func:`refraster.edges.edge_map` of the
-    secondary objects rendered without the cutaway).
+    clipped them; (6) outlines and ghost lines: the secondary meshes' feature lines drawn
+    where they lie in front of D, within g_max, faded (:func:`.lines.ghost_alpha`).
     """
     interest = as_meshes(interest, "interest") if _nonempty(interest) else []
     secondary = as_meshes(secondary, "secondary") if _nonempty(secondary) else []
@@ -210,6 +228,8 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
         raise ValueError(f"angle has {len(thetas)} entries but there are {len(hull)} cutaway "
                          "objects (interest + stand_ins)")
     as_choice(variant, "variant", VARIANTS + ("exact",))
+    ghost_source = as_choice(ghost, "ghost", {"lines": "lines", "visible": "visible"})
+    crease_angle = as_real(crease_angle, "crease_angle", lo=0.0, hi=180.0)
     if ghost_distance is None:
         ghost_distance = 0.1 * _diagonal(secondary)
     ghost_distance = as_real(ghost_distance, "ghost_distance", lo=0.0)
@@ -251,7 +271,7 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
     cut_mask = fb.mask & ~fb.front_facing & (fb.object_id < n_sec)
     normal = fb.normal.copy()
     color = fb.color.copy()
-    if cut_mask.any():
+    if cut_surfaces and cut_mask.any():
         n_cut = cut_surface_normals(d_back, proj)[cut_mask]
         x, y = pixel_ndc(height, width)
         pos = unproject(x[cut_mask], y[cut_mask], 2.0 * fb.depth[cut_mask].astype(np.float64) - 1.0,
@@ -265,12 +285,23 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
     edge = outline(cut_mask) if outlines else np.zeros((height, width), bool)
     ghost = np.zeros((height, width), np.float32)
     if ghost_distance > 0 and secondary and carved_px.any():
-        from ..edges import edge_map
-        plain = _fb.render(secondary, width=width, height=height, normals=normals, **camera)
-        em = edge_map(plain, preset="clean")
-        strength = np.maximum(em[..., 0], em[..., 3])
-        ghost = ghost_lines(strength, plain.depth, d_ndc, fb.depth, proj, ghost_distance)
-    image = color.astype(np.float64) * (1.0 - ghost[..., None]) + 0.35 * ghost[..., None]
+        if ghost_source == "lines":
+            segments = feature_segments(secondary, view=view, proj=proj,
+                                        crease_angle=crease_angle)
+            ooi = fb.mask & (fb.object_id >= n_sec)
+            occluder = np.where(ooi, 2.0 * fb.depth.astype(np.float64) - 1.0, np.inf)
+            ghost = ghost_alpha(segments, view=view, proj=proj, width=width, height=height,
+                                cutaway_ndc=d_ndc, g_max=ghost_distance, fade=ghost_fade,
+                                occluder_depth=occluder)
+        else:
+            from ..edges import edge_map
+            plain = _fb.render(secondary, width=width, height=height, normals=normals, **camera)
+            em = edge_map(plain, preset="clean")
+            strength = np.maximum(em[..., 0], em[..., 3])
+            ghost = ghost_lines(strength, plain.depth, d_ndc, fb.depth, proj, ghost_distance)
+            if not ghost_fade:
+                ghost = np.where(ghost > 0, strength, 0.0).astype(np.float32)
+    image = color.astype(np.float64) * (1.0 - ghost[..., None]) + GHOST_GREY * ghost[..., None]
     image[edge] = 0.0
 
     base = fb.field_values()

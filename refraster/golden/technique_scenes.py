@@ -125,8 +125,9 @@ def _ldi_nested_shells():
 @register_scene("cutaway_shells", technique="cutaway",
                 description="Adaptive cutaway (Burns & Finkelstein): the innermost of the nested "
                             "shells as the object of interest inside the outer shells, jump "
-                            "flooding variant jfa+1, θ = 30°, perspective compensation, edge "
-                            "compression 0.1, dilation, outlines and ghost lines.")
+                            "flooding variant jfa+1, θ = 1 rad, perspective compensation, edge "
+                            "compression 0.1, dilation, outlines and ghost lines (the removed "
+                            "shells' silhouettes within g_max = 0.5, faded).")
 def _cutaway_shells():
     from ..cutaway import render_cutaway
     from ..scenes import icosphere, solid
@@ -134,14 +135,19 @@ def _cutaway_shells():
     inner = icosphere(subdivisions=2, radius=0.3)
     draws = prepare_draws([Draw("outer_shells", outer), Draw("interest", inner)])
     camera = _framed([d.mesh for d in draws], 96, 72, (1.2, 0.9, 1.6))
-    params = dict(angle=float(np.pi / 6), variant="jfa+1", perspective_compensation=True,
-                  edge_compression=0.1, dilation=True, outlines=True, interest=["interest"],
-                  secondary=["outer_shells"])
+    # θ = 1 rad: wide enough that the cut removes the inner shells' silhouettes, so the ghost
+    # buffer is not empty (issue 23)
+    params = dict(angle=1.0, variant="jfa+1", perspective_compensation=True,
+                  edge_compression=0.1, dilation=True, outlines=True, ghost="lines",
+                  ghost_distance=0.5, ghost_fade=True, crease_angle=30.0,
+                  interest=["interest"], secondary=["outer_shells"])
     fb = render_cutaway([draws[1].mesh], [draws[0].mesh], **camera.kwargs,
                         angle=params["angle"], variant=params["variant"],
                         perspective_compensation=params["perspective_compensation"],
                         edge_compression=params["edge_compression"],
-                        dilation=params["dilation"], outlines=params["outlines"])
+                        dilation=params["dilation"], outlines=params["outlines"],
+                        ghost=params["ghost"], ghost_distance=params["ghost_distance"],
+                        ghost_fade=params["ghost_fade"], crease_angle=params["crease_angle"])
     buffers = {**fb.arrays(), "cutaway_depth": fb.cutaway_depth, "cut_mask": fb.cut_mask,
                "ghost": fb.ghost}
     # the cut decision z < D(x) is free within a pixel of where the cut region changes
@@ -151,6 +157,7 @@ def _cutaway_shells():
     edge[:-1, :] |= cut[1:, :] != cut[:-1, :]
     edge[:, 1:] |= cut[:, 1:] != cut[:, :-1]
     edge[:, :-1] |= cut[:, 1:] != cut[:, :-1]
+    edge |= fb.ghost > 0        # a line's pixels depend on the line rasterizer
     return GoldenScene(technique="cutaway", camera=camera, draws=draws, buffers=buffers,
                        parameters=params, kinds={"cutaway_depth": "unorm", "ghost": "unorm"},
                        geometry=False, may=edge, may_radius=2)
