@@ -378,6 +378,8 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
         The golden directory, the arguments or the report directory are unusable.
     """
     golden_dir, candidate_dir = Path(golden_dir), Path(candidate_dir)
+    from .write import recover
+    recover(golden_dir)  # a swap a killed generate left half-done (journal fallback)
     if mode is not None and mode not in MODES:
         raise GoldenError(f"mode must be one of {MODES}, got {mode!r}")
     if profile is not None and profile not in PROFILES:
@@ -396,8 +398,6 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
         profile = "conformant"
     if not candidate_dir.is_dir():
         raise GoldenError(f"candidate directory {candidate_dir} does not exist")
-    from .write import recover
-    recover(golden_dir)  # a swap a killed generate left half-done (journal fallback)
     manifest = load_manifest(golden_dir)
     try:
         overrides = [parse_override(t) for t in tolerances]

@@ -488,6 +488,8 @@ def _recover_locked(target):
         else:
             done = "completed"
         os.unlink(journal)
+    if done != "rolled back" and os.path.lexists(old):
+        discard_tree(old, target.name)  # the tree the new one replaced
     return done
 
 
