@@ -513,3 +513,22 @@ def test_no_import_circle_in_golden():
     assert "compare" not in graph["allowance"]
     # the detector finds a planted circle
     assert _cycle(dict(graph, write=graph["write"] | {"report"})) is not None
+
+
+def test_discarding_a_tree_deletes_only_what_its_listing_names(tmp_path):
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "a.npz").write_text("not refraster's")
+    tree = tmp_path / ".g.tmp-1-x"
+    (tree / "scene").mkdir(parents=True)
+    (tree / "scene" / "b.npz").write_text("b")
+    (tree / "linked").symlink_to(outside)                 # a planted link to another directory
+    (tree / "notes.txt").write_text("mine")
+    (tree / "manifest.json").write_text(json.dumps(
+        {"files": {"scene/b.npz": "0" * 64, "linked/a.npz": "0" * 64}}))
+    kept = write.discard_tree(tree, "g")
+    assert (outside / "a.npz").read_text() == "not refraster's"
+    assert kept is not None and kept.name.startswith("g.kept-") and not tree.exists()
+    assert sorted(p.relative_to(kept).as_posix() for p in kept.rglob("*")) == \
+        ["linked", "notes.txt"]
+    assert (kept / "notes.txt").read_text() == "mine"

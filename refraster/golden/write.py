@@ -423,8 +423,12 @@ def discard_tree(tree, target_name=None, *, building=False):
     owned = listing[2] if listing is not None else set()
     # the listing file goes last: a crash half-way leaves a tree that still says what it owns
     listing_file = {"report": REPORT_MARKER, "golden": MANIFEST}[listing[0]] if listing else None
+    real = os.path.realpath(tree)
     for rel in sorted(owned - {listing_file}) + ([listing_file] if listing_file else []):
         path = tree / rel
+        # never through a linked directory: the file must be where the listing says
+        if os.path.realpath(path.parent) != os.path.normpath(os.path.join(real, Path(rel).parent)):
+            continue
         if path.is_symlink() or path.is_file():
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(path)
@@ -681,20 +685,25 @@ class Outputs:
                         locks.enter_context(locked(target, wait=self._wait,
                                                    command=self._command))
                         clean_debris(target)
-                for index, (kind, tmp, target, check) in enumerate(self._items):
-                    _hook("commit_step", index=index, target=target)
-                    if kind == "file":
-                        undo, finish = self._commit_file(tmp, target)
-                    else:
-                        found = check(target) if check is not None else snapshot(target)
-                        os.chmod(tmp, dir_mode())
-                        undo, finish = _swap_in(tmp, target, found, self._command)
-                    done.append(undo)
-                    finishes.append(finish)
-            except BaseException:
+                # no signal between a rename and the note of how to undo it
                 with _signals_deferred():
-                    for undo in reversed(done):
-                        undo()
+                    try:
+                        for index, (kind, tmp, target, check) in enumerate(self._items):
+                            _hook("commit_step", index=index, target=target)
+                            if kind == "file":
+                                undo, finish = self._commit_file(tmp, target)
+                            else:
+                                found = check(target) if check is not None else \
+                                    snapshot(target)
+                                os.chmod(tmp, dir_mode())
+                                undo, finish = _swap_in(tmp, target, found, self._command)
+                            done.append(undo)
+                            finishes.append(finish)
+                    except BaseException:
+                        for undo in reversed(done):
+                            undo()
+                        raise
+            except BaseException:
                 self.discard()
                 raise
             self._items = []
