@@ -167,6 +167,35 @@ def test_two_new_runs_into_one_path_the_second_refuses(tmp_path, hooks, capsys):
     assert names(tmp_path) == ["g"]
 
 
+HOLD = """
+import sys
+from refraster import golden
+from refraster.golden import write
+def hold(**info):
+    print("locked", flush=True)
+    sys.stdin.readline()
+write.HOOKS["locked"] = hold
+golden.generate(sys.argv[1], ["render_multi_draw"], sizes=["32x24"], update=True)
+"""
+
+
+def test_another_process_holding_the_lock_is_named(g, capsys):
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    holder = subprocess.Popen([sys.executable, "-c", HOLD, str(g)], env=env, text=True,
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        assert cli.main(["generate", "--out", str(g), "--scene", "render_torus_ortho",
+                         "--size", "32x24", "--update", "--no-wait"]) == 2
+        err = capsys.readouterr().err.splitlines()
+        assert len(err) == 1 and f"being written by process {holder.pid} on " in err[0], err
+    finally:
+        holder.communicate("\n", timeout=600)
+    assert holder.returncode == 0
+    assert sorted(load_manifest(g)["scenes"]) == [CUBE, MULTI]
+    assert names(g.parent) == ["g"]
+
+
 def test_concurrent_updates_keep_both_scenes(g, hooks):
     pause = Paused("A")
     hooks["locked"] = pause
