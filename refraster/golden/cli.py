@@ -106,6 +106,10 @@ def _cmd_compare(args):
     from . import write
     from .compare import compare
     from .compare import has_allowances, load_manifest
+    try:
+        write.recover(args.golden_dir)  # before reading the manifest for the default mode
+    except (GoldenError, OSError) as exc:
+        return _error(args, "golden compare", exc)
     mode = args.mode
     if mode is None and args.profile is None:
         # tolerant by default once the golden stores allowances
