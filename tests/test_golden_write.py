@@ -96,7 +96,10 @@ def start(name, fn, *args, **kw):
 
 # --- 1. the final step refuses unless --out is still what the run found -------------------------
 
-def test_directory_created_at_out_while_generating_survives(tmp_path, hooks, capsys):
+@pytest.mark.parametrize("fallback", [False, True], ids=["renameat2", "no-renameat2"])
+def test_directory_created_at_out_while_generating_survives(tmp_path, hooks, capsys,
+                                                            monkeypatch, fallback):
+    monkeypatch.setattr(write, "FORCE_FALLBACK", fallback)
     out = tmp_path / "g"
 
     def plant(**info):  # someone creates --out, with their thesis in it, while we render
@@ -158,10 +161,16 @@ def test_two_new_runs_into_one_path_the_second_refuses(tmp_path, hooks, capsys):
     err = capsys.readouterr().err.strip()
     assert f"being written by process {os.getpid()}" in err and "golden generate" in err
     assert live[0].is_dir() and (live[0] / "manifest.json").is_file()
-    # waiting: B waits for A, then finds A's golden and refuses to replace it without --update
-    with pytest.raises(FileExistsError, match="update"):
-        gen(out, "render_multi_draw", on_wait=lambda holder: pause.release.set())
+    # waiting: B says whom it waits for, then finds A's golden and refuses to replace it
+    # without --update
+    hooks["waiting"] = lambda **info: pause.release.set()
+    assert cli.main(["generate", "--out", str(out), "--scene", "render_multi_draw", "--size",
+                     "32x24"]) == 2
     a.join()
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith(f"waiting for process {os.getpid()} on ") and \
+        err[0].endswith(f"to finish writing {out}"), err
+    assert "exists; pass update=True (--update)" in err[-1], err
     assert "error" not in box, box
     assert sorted(load_manifest(out)["scenes"]) == [CUBE]
     assert names(tmp_path) == ["g"]
@@ -289,14 +298,18 @@ def _killed(out, hook, how):
     assert proc.returncode == -signal.SIGKILL, proc.stderr[-2000:]
 
 
-def test_killed_between_the_two_renames_the_journal_rolls_forward(g):
+@pytest.mark.parametrize("next_command", ["compare", "generate"])
+def test_killed_between_the_two_renames_the_journal_rolls_forward(g, next_command):
     old = tree_digest(g)
     _killed(g, "between_renames", "journal")
     assert not g.exists()                                   # between the two renames ...
     assert (g.parent / ".g.journal").is_file()              # ... the journal says what to do
-    result = golden.compare(g, g)                           # the next command finishes it
-    assert result.exit_code == 0
-    assert sorted(load_manifest(g)["scenes"]) == [CUBE, MULTI]
+    if next_command == "compare":                           # the next command finishes it
+        assert cli.main(["compare", str(g), str(g), "-q"]) == 0
+        assert sorted(load_manifest(g)["scenes"]) == [CUBE, MULTI]
+    else:
+        gen(g, "render_torus_ortho", update=True)
+        assert sorted(load_manifest(g)["scenes"]) == [CUBE, MULTI, TORUS]
     assert {k: v for k, v in tree_digest(g).items() if k.startswith(CUBE)} == \
         {k: v for k, v in old.items() if k.startswith(CUBE)}
     assert names(g.parent) == ["g"]                         # journal and old tree gone

@@ -30,9 +30,9 @@ and ``refraster render``:
   ``KeyboardInterrupt``), so it cleans up like Ctrl-C; SIGINT and SIGTERM are blocked while a
   commit renames (they take effect right after it).
 
-``HOOKS`` lets tests stop or kill a run at a named step (``locked``, ``before_commit``,
-``before_swap``, ``between_renames``, ``after_swap``, ``commit_step``), which makes races and
-crashes deterministic without sleeps.
+``HOOKS`` lets tests stop or kill a run at a named step (``locked``, ``waiting``,
+``before_commit``, ``before_swap``, ``between_renames``, ``after_swap``, ``commit_step``), which
+makes races and crashes deterministic without sleeps.
 """
 
 from __future__ import annotations
@@ -269,6 +269,7 @@ def locked(target, *, wait=True, command="refraster", on_wait=None):
                                       "wait") from None
                 if on_wait is not None:
                     on_wait(holder)
+                _hook("waiting", target=target, holder=holder)
                 fcntl.flock(fd, fcntl.LOCK_EX)
             # the previous holder removes the file when done: lock the file that is there
             try:
