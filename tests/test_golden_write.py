@@ -257,7 +257,17 @@ def test_report_directory_with_foreign_files_survives(g, tmp_path, hooks):
     marker = json.loads((ours / write.REPORT_MARKER).read_text())
     assert set(marker["files"]) == set(tree_digest(ours)) - {write.REPORT_MARKER}
     assert cli.main(["compare", str(g), str(cand), "--report", str(ours), "-q"]) == 0
-    # ... but not once the user has put a file of their own into it
+    # ... but not once the user has edited a file of it ...
+    (ours / "index.html").write_text((ours / "index.html").read_text() + "<!-- my notes -->")
+    before = tree_digest(ours)
+    with pytest.raises(golden.GoldenError, match="changed since \\(index.html\\)"):
+        golden.compare(g, cand, report=ours)
+    assert tree_digest(ours) == before
+    assert cli.main(["compare", str(g), str(cand), "--report", str(tmp_path / "fresh"),
+                     "-q"]) == 0
+    shutil.rmtree(ours)
+    (tmp_path / "fresh").rename(ours)
+    # ... or put a file of their own into it
     (ours / "thesis.txt").write_text("mine")
     before = tree_digest(ours)
     with pytest.raises(golden.GoldenError, match="thesis.txt"):

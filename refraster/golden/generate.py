@@ -389,8 +389,9 @@ def _generate_locked(out, tasks, update, progress, workers, scheduler, progress_
             raise FileExistsError(f"{out} exists and is not a golden directory (no "
                                   "manifest.json); refusing to replace it")
         if found[2]:
-            raise write.RefusedError(f"golden {out} holds files refraster did not write "
-                                     f"({', '.join(found[2][:5])}); refusing to replace it")
+            raise write.RefusedError(f"golden {out} holds files refraster did not write or "
+                                     f"that changed since ({', '.join(found[2][:5])}); "
+                                     "refusing to replace it")
         old = _old_manifest(out)
     tmp = write.make_tree(out)
     bar = _NoBar()

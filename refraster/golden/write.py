@@ -48,6 +48,7 @@ import os
 import shutil
 import signal
 import socket
+import stat
 import sys
 import tempfile
 import threading
@@ -239,8 +240,7 @@ def _open_lock(path):
                 from None
         raise
     st = os.fstat(fd)
-    import stat as _stat
-    if not _stat.S_ISREG(st.st_mode) or st.st_nlink != 1 or st.st_size > 4096:
+    if not stat.S_ISREG(st.st_mode) or st.st_nlink != 1 or st.st_size > 4096:
         os.close(fd)
         raise RefusedError(f"{path} is not a refraster lock file (not a small regular file "
                            "with one link); refusing to use it")
@@ -265,8 +265,8 @@ def locked(target, *, wait=True, command="refraster", on_wait=None):
                 holder = _describe_holder(os.pread(fd, 4096, 0).decode("utf-8", "replace"))
                 if not wait:
                     raise LockedError(f"{target} is being written by {holder} (lock {path}); "
-                                      "wait for it to finish, or run without --no-wait to "
-                                      "wait") from None
+                                      "try again when it has finished, or leave out "
+                                      "--no-wait to wait for it") from None
                 if on_wait is not None:
                     on_wait(holder)
                 _hook("waiting", target=target, holder=holder)
@@ -315,8 +315,9 @@ def _sha256(path):
 
 
 def _listing(tree):
-    """``(kind, digest, files)`` of a tree refraster wrote: files its report marker or golden
-    manifest lists (relative paths, the listing file included); ``None`` if it has neither."""
+    """``(kind, digest, files, hashes)`` of a tree refraster wrote: files its report marker or
+    golden manifest lists (relative paths, the listing file included) and their sha256;
+    ``None`` if it has neither."""
     from .schema import is_safe_relpath
     tree = Path(tree)
     for kind, name in (("report", REPORT_MARKER), ("golden", MANIFEST)):
@@ -334,7 +335,7 @@ def _listing(tree):
                 continue
         except (OSError, ValueError, KeyError, TypeError):
             continue
-        return kind, hashlib.sha256(raw).hexdigest(), set(files) | {name}
+        return kind, hashlib.sha256(raw).hexdigest(), set(files) | {name}, files
     return None
 
 
@@ -354,7 +355,8 @@ def _tree_files(tree):
 def snapshot(target):
     """What is at ``target``, to be compared at the final step: ``None`` (nothing),
     ``("empty",)``, ``(kind, digest, foreign)`` for a golden or report refraster wrote
-    (``foreign``: sorted files it does not list), ``("file",)`` or ``("foreign", names)``."""
+    (``foreign``: files it does not list, then listed files whose sha256 differs),
+    ``("file",)`` or ``("foreign", names)``."""
     target = Path(target)
     if not os.path.lexists(target):
         return None
@@ -366,8 +368,11 @@ def snapshot(target):
     listing = _listing(target)
     if listing is None:
         return ("foreign", tuple(sorted(files)[:5]))
-    kind, digest, owned = listing
-    return (kind, digest, tuple(sorted(files - owned)))
+    kind, digest, owned, hashes = listing
+    changed = [rel for rel, h in sorted(hashes.items())
+               if rel in files and (os.path.islink(target / rel)
+                                      or _sha256(target / rel) != h)]
+    return (kind, digest, tuple(sorted(files - owned)) + tuple(changed))
 
 
 # --- temporary trees, debris, journal ------------------------------------------------------------
@@ -535,7 +540,8 @@ def _describe(found):
 def _refuse_changed(target, found, now, what):
     extra = ""
     if now is not None and now[0] in ("golden", "report") and now[2]:
-        extra = f"; it now holds files refraster did not write: {', '.join(now[2][:5])}"
+        extra = (f"; it now holds files refraster did not write or that changed since: "
+                 f"{', '.join(now[2][:5])}")
     return RefusedError(f"{target} changed while {what} ran (found {_describe(found)}, now "
                         f"{_describe(now)}{extra}); refusing to replace it, nothing was deleted")
 
@@ -785,8 +791,9 @@ def check_report_dir(report, golden_dir, candidate_dir):
     if found[0] == "report" and not found[2]:
         return found
     if found[0] == "report":
-        raise GoldenError(f"report directory {report} holds files refraster did not write "
-                          f"({', '.join(found[2][:5])}); refusing to replace it")
+        raise GoldenError(f"report directory {report} holds files refraster did not write or "
+                          f"that changed since ({', '.join(found[2][:5])}); refusing to replace "
+                          "it")
     raise GoldenError(f"report directory {report} is not empty and was not written by "
                       f"refraster (no {REPORT_MARKER} marker listing its files); refusing to "
                       "replace it")
