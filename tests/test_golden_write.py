@@ -422,6 +422,25 @@ def test_render_failing_png_restores_both_files(tmp_path, hooks, capsys):
     assert names(out.parent) == ["x.npz", "x.png"]
 
 
+def test_staged_files_of_dead_runs_are_removed_of_live_ones_kept(tmp_path):
+    sleeper = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.read()"],
+                               stdin=subprocess.PIPE)
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    try:
+        out, buf = tmp_path / "o" / "x.png", tmp_path / "o" / "x.npz"
+        out.parent.mkdir()
+        live = out.parent / f".x.png.tmp-{sleeper.pid}-abc"
+        gone = out.parent / f".x.png.tmp-{int(dead.stdout)}-abc"
+        other = out.parent / f".x.png.bak-{int(dead.stdout)}-abc"   # replaced data: kept
+        for f in (live, gone, other):
+            f.write_bytes(b"staged")
+        assert rcli.main(_render_args(tmp_path, out, buf)) == 0
+        assert live.exists() and other.exists() and not gone.exists()
+    finally:
+        sleeper.communicate(b"")
+
+
 def test_compare_json_failure_restores_the_previous_report(g, tmp_path, hooks):
     cand = candidate(g, tmp_path)
     rep, js = tmp_path / "rep", tmp_path / "m.json"

@@ -630,6 +630,16 @@ def _swap_with_journal(tmp, target, found, what):
 
 # --- several outputs of one command --------------------------------------------------------------
 
+def _clean_file_debris(path):
+    prefix = f".{path.name}.tmp-"
+    for p in path.parent.iterdir():
+        if p.name.startswith(prefix) and not p.is_symlink() and p.is_file():
+            pid = _debris_owner(p.name, prefix)
+            if pid is not None and not _pid_alive(pid):
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(p)
+
+
 class Outputs:
     """The outputs of one command, committed together.
 
@@ -638,7 +648,7 @@ class Outputs:
     files they replaced restored, trees swapped back) and every staged temporary removed. The
     window that remains: a process killed (SIGKILL, power loss) in the middle of ``commit()``
     leaves the outputs renamed so far in place and the replaced files as ``.NAME.bak-…``
-    beside them.
+    beside them (kept: they hold the data that was replaced).
     """
 
     def __init__(self, *, wait=True, command="refraster"):
@@ -647,9 +657,11 @@ class Outputs:
         self._command = command
 
     def file(self, path, data):
-        """Stage ``data`` for ``path`` (a temporary file beside it)."""
+        """Stage ``data`` for ``path`` (a temporary file ``.NAME.tmp-PID-…`` beside it; those
+        of dead processes, never committed, are removed first)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
+        _clean_file_debris(path)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.tmp-{os.getpid()}-", dir=path.parent)
         try:
             with os.fdopen(fd, "wb") as fh:
