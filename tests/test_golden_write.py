@@ -362,6 +362,14 @@ def test_a_live_runs_debris_is_never_cleaned(g):
             (d / "sub" / "a.npz").write_bytes(b"x")
         gen(g, "render_multi_draw", update=True)
         assert live.is_dir() and not gone.exists()
+        # the same for a report killed while it was being built
+        rep = g.parent / "rep"
+        live, gone = (g.parent / f".rep.tmp-{pid}-abc" for pid in (sleeper.pid, int(dead.stdout)))
+        for d in (live, gone):
+            (d / "img").mkdir(parents=True)
+            (d / "img" / "a.png").write_bytes(b"x")
+        assert cli.main(["compare", str(g), str(g), "--report", str(rep), "-q"]) == 0
+        assert live.is_dir() and not gone.exists() and (rep / "index.html").is_file()
     finally:
         sleeper.communicate(b"")
 
