@@ -110,6 +110,7 @@ def test_directory_created_at_out_while_generating_survives(tmp_path, hooks, cap
                      "-q"]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and "changed while golden generate ran" in err[0], err
+    assert "found nothing, now a directory holding thesis.txt" in err[0], err
     assert names(out) == ["thesis.txt"]
     assert (out / "thesis.txt").read_text() == "four years of work"
     assert names(tmp_path) == ["g"]                       # no temporary tree, no lock file

@@ -534,7 +534,9 @@ def _describe(found):
         return "an empty directory"
     if found[0] in ("golden", "report"):
         return f"a {found[0]} (digest {found[1][:12]}…)"
-    return "something else"
+    if found[0] == "foreign":
+        return f"a directory holding {', '.join(found[1])}"
+    return "a file"
 
 
 def _refuse_changed(target, found, now, what):
@@ -555,7 +557,7 @@ def commit_tree(tmp, target, found, *, what="refraster"):
     was."""
     tmp, target = Path(tmp), Path(target)
     os.chmod(tmp, dir_mode())
-    undo, finish = _swap_in(tmp, target, found, what)
+    _, finish = _swap_in(tmp, target, found, what)
     finish()
 
 
