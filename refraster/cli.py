@@ -36,10 +36,14 @@ class CLIError(Exception):
     """An error reported as one line, without a traceback."""
 
 
+class UsageError(CLIError):
+    """Bad command-line usage: one line even with ``--debug``."""
+
+
 class _Parser(argparse.ArgumentParser):
     # argparse prints the whole usage and exits; we want one line and the same exit code.
     def error(self, message):
-        raise CLIError(f"{message} (see '{self.prog} --help')")
+        raise UsageError(f"{message} (see '{self.prog} --help')")
 
 
 def _version():
@@ -183,7 +187,8 @@ def _camera(args, bounds):
 def _cmd_render(args):
     import refraster
     from ._validate import as_image_size
-    from .io import write_npz, write_png
+    from .golden.write import Outputs
+    from .io import npz_bytes
 
     out = _check_output(args.out, ".png", "--out")
     buffers = _check_output(args.buffers, ".npz", "--buffers") if args.buffers else None
@@ -208,14 +213,33 @@ def _cmd_render(args):
                               cull=args.cull, normals=args.normals)
         seconds = time.perf_counter() - t0
         bar.update(1)
-        if buffers is not None:
-            write_npz(buffers, **fb.arrays())
-        write_png(out, fb.color)
+        # both files or neither: staged first, then renamed together (a failure undoes both)
+        outputs = Outputs(command="refraster render")
+        try:
+            if buffers is not None:
+                outputs.file(buffers, npz_bytes(fb.arrays()))
+            outputs.file(out, _png_bytes(fb.color))
+            outputs.commit()
+        except BaseException:
+            outputs.discard()
+            raise
         bar.update(1)
     _say(args, f"wrote {out} ({args.width}x{args.height}, {len(mesh.faces):,} faces, "
                f"{int(fb.mask.sum()):,} pixels covered, {seconds:.2f} s)"
                + (f" and {buffers}" if buffers else ""))
     return 0
+
+
+def _png_bytes(image):
+    import io
+
+    import imageio.v3 as iio
+    import numpy as np
+
+    from .io import to_uint8
+    buf = io.BytesIO()
+    iio.imwrite(buf, np.ascontiguousarray(to_uint8(image)), extension=".png")
+    return buf.getvalue()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -405,19 +429,21 @@ def _one_line(exc):
 
 def main(argv=None):
     """Run the command line; return the exit status (0 success, 2 error)."""
+    from .golden.write import Terminated, terminate_as_interrupt
     argv = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in argv
     try:
-        args = _build_parser().parse_args(argv)
-        if args.command is None:
-            raise CLIError("a command is required: render, gallery, info or golden "
-                           f"(see '{PROG} --help')")
-        return args.func(args)
-    except KeyboardInterrupt:
+        with terminate_as_interrupt():  # SIGTERM cleans up like Ctrl-C
+            args = _build_parser().parse_args(argv)
+            if args.command is None:
+                raise UsageError("a command is required: render, gallery, info or golden "
+                                 f"(see '{PROG} --help')")
+            return args.func(args)
+    except KeyboardInterrupt as exc:
         print(f"{PROG}: interrupted", file=sys.stderr)
-        return 130
+        return 143 if isinstance(exc, Terminated) else 130
     except Exception as exc:
-        if debug:
+        if debug and not isinstance(exc, UsageError):
             raise
         what = "" if isinstance(exc, CLIError) else f"{type(exc).__name__}: "
         print(f"{PROG}: error: {what}{_one_line(exc)}", file=sys.stderr)

@@ -278,10 +278,10 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
 
     Returns
     -------
-    (metrics, checks, images) as :func:`refraster.golden.compare.buffer_metrics`, plus
+    (metrics, checks, images) as :func:`refraster.golden.metrics.buffer_metrics`, plus
     ``metrics["outside"]`` (pixels outside the allowance per check) and ``images["may"]``.
     """
-    from .compare import _elementwise_error, buffer_metrics
+    from .metrics import _elementwise_error, buffer_metrics
     ref = np.asarray(reference)
     cand = np.asarray(candidate)
     id_may = arrays["id_may"]

@@ -4,10 +4,12 @@
 
     refraster golden generate --out DIR [--scene NAME ...] [--scene-file SCENE.toml ...]
                               [--update] [--list] [--sweep KEY=V1,V2 ...] [--size WxH ...]
-                              [--workers N | --scheduler ADDRESS]
+                              [--workers N | --scheduler ADDRESS] [--no-wait]
     refraster golden compare GOLDEN_DIR CANDIDATE_DIR [--report DIR] [--mode tolerant|exact]
                              [--profile exact|conformant] [--tolerance [SCENE:][BUFFER.]KEY=VALUE ...]
-                             [--scene NAME ...] [--json FILE]
+                             [--scene NAME ...] [--json FILE] [--no-wait]
+
+``-q``/``--quiet`` and ``--debug`` go before or after ``golden``, ``generate`` or ``compare``.
 
 ``compare`` is tolerant by default when the golden stores allowances (coverage masks and value
 intervals), bit-exact otherwise; ``--profile`` alone selects a metric profile as before.
@@ -21,19 +23,40 @@ them alone (:func:`main`).
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 
-from .compare import EXIT_PASS, EXIT_UNUSABLE, MODES, GoldenError
+from .common import EXIT_PASS, EXIT_UNUSABLE, GoldenError
+from .compare import MODES
 from .tolerance import PROFILES
 
 __all__ = ["register", "main"]
 
 
-def _error(args, prog, exc):
-    if getattr(args, "debug", False):
+def _error(args, prog, exc, *, usage=False):
+    """One line on stderr and exit status 2; ``--debug`` re-raises (not for usage errors)."""
+    if getattr(args, "debug", False) and not usage:
         raise exc
     print(f"{prog}: error: {' '.join(str(exc).split()) or type(exc).__name__}", file=sys.stderr)
     return EXIT_UNUSABLE
+
+
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
+    return value
+
+
+def _common(parser):
+    # after the subcommand too; SUPPRESS keeps a value given before it
+    parser.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                        help="no progress bars or messages")
+    parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show tracebacks on errors (not on usage errors)")
 
 
 def _say(args, message):
@@ -49,11 +72,11 @@ def _cmd_generate(args):
             print(f"{name:<28} {entry.technique:<12} {entry.description}")
         return EXIT_PASS
     if args.out is None:
-        return _error(args, "golden generate", ValueError("--out DIR is required"))
+        return _error(args, "golden generate", ValueError("--out DIR is required"), usage=True)
     from .generate import GenerationError
     if args.workers is not None and args.scheduler is not None:
         return _error(args, "golden generate",
-                      ValueError("--workers and --scheduler exclude each other"))
+                      ValueError("--workers and --scheduler exclude each other"), usage=True)
     quiet = getattr(args, "quiet", False)
     retried = []
 
@@ -66,7 +89,9 @@ def _cmd_generate(args):
                             scene_files=args.scene_file or (), sweeps=args.sweep or (),
                             sizes=args.size or (), workers=args.workers or 1,
                             scheduler=args.scheduler, progress_bar=not quiet,
-                            on_retry=on_retry)
+                            on_retry=on_retry, wait=not args.no_wait,
+                            on_wait=lambda holder: _say(args, f"waiting for {holder} to finish "
+                                                              f"writing {args.out}"))
     except (ValueError, TypeError, OSError, GenerationError) as exc:
         return _error(args, "golden generate", exc)
     if retried:
@@ -78,9 +103,13 @@ def _cmd_generate(args):
 
 
 def _cmd_compare(args):
-    from .. import io as rio
+    from . import write
     from .compare import compare
     from .compare import has_allowances, load_manifest
+    try:
+        write.recover(args.golden_dir)  # before reading the manifest for the default mode
+    except (GoldenError, OSError) as exc:
+        return _error(args, "golden compare", exc)
     mode = args.mode
     if mode is None and args.profile is None:
         # tolerant by default once the golden stores allowances
@@ -90,14 +119,26 @@ def _cmd_compare(args):
             mode = "tolerant" if names and has_allowances(manifest, names) else "exact"
         except GoldenError:
             mode = "exact"   # compare reports what is wrong with the golden
+    # every output is staged, then all are committed together (or none)
+    outputs = write.Outputs(wait=not args.no_wait, command="refraster golden compare")
     try:
+        if args.json is not None:
+            write.check_output_path(args.json, "--json", {
+                "golden directory": args.golden_dir, "candidate directory": args.candidate_dir,
+                "report directory": args.report})
         result = compare(args.golden_dir, args.candidate_dir, report=args.report,
                          profile=args.profile, mode=mode, tolerances=args.tolerance or (),
-                         scenes=args.scene or None)
+                         scenes=args.scene or None, outputs=outputs)
         if args.json is not None:
-            rio.write_json(args.json, result.to_json())
+            text = json.dumps(result.to_json(), indent=2, sort_keys=True) + "\n"
+            outputs.file(args.json, text.encode("utf-8"))
+        outputs.commit()
     except (GoldenError, ValueError, OSError) as exc:
+        outputs.discard()
         return _error(args, "golden compare", exc)
+    except BaseException:
+        outputs.discard()
+        raise
     if not getattr(args, "quiet", False):
         print(result.summary())
         for line in result.failures():
@@ -113,11 +154,14 @@ def register(subparsers):
     golden = subparsers.add_parser(
         "golden", help="generate golden images or compare a backend against them",
         description="Golden images: reference buffers a GPU backend is compared against.")
+    _common(golden)
     sub = golden.add_subparsers(dest="golden_command", metavar="{generate,compare}")
     golden.set_defaults(func=lambda args: _error(
-        args, "golden", ValueError("a subcommand is required: generate or compare")))
+        args, "golden", ValueError("a subcommand is required: generate or compare"),
+        usage=True))
 
     g = sub.add_parser("generate", help="render the golden scenes into DIR")
+    _common(g)
     g.add_argument("--out", metavar="DIR", help="golden directory to write")
     g.add_argument("--scene", metavar="NAME", action="append",
                    help="a registered scene (repeatable; default: all)")
@@ -132,13 +176,16 @@ def register(subparsers):
     g.add_argument("--size", metavar="WxH", action="append",
                    help="render at this resolution too (repeatable); scenes are named "
                         "<scene>__<W>x<H>")
-    g.add_argument("--workers", metavar="N", type=int,
-                   help="render on a Dask LocalCluster of N processes (N > 1)")
+    g.add_argument("--workers", metavar="N", type=_positive_int,
+                   help="render on a Dask LocalCluster of N processes (N > 1; 1 = serial)")
     g.add_argument("--scheduler", metavar="ADDRESS",
                    help="render on an existing Dask cluster (e.g. tcp://host:8786)")
+    g.add_argument("--no-wait", action="store_true",
+                   help="if another run is writing DIR, exit 2 naming it instead of waiting")
     g.set_defaults(func=_cmd_generate)
 
     c = sub.add_parser("compare", help="compare CANDIDATE_DIR against GOLDEN_DIR")
+    _common(c)
     c.add_argument("golden_dir", metavar="GOLDEN_DIR")
     c.add_argument("candidate_dir", metavar="CANDIDATE_DIR")
     c.add_argument("--report", metavar="DIR", help="write an HTML report into DIR")
@@ -153,14 +200,16 @@ def register(subparsers):
     c.add_argument("--scene", metavar="NAME", action="append",
                    help="compare only this scene (repeatable)")
     c.add_argument("--json", metavar="FILE", help="write the metrics as JSON")
+    c.add_argument("--no-wait", action="store_true",
+                   help="if another run is writing the report directory, exit 2 naming it")
     c.set_defaults(func=_cmd_compare)
     return golden
 
 
 class _Parser(argparse.ArgumentParser):
+    # a usage error is one line (with or without --debug), exit status 2
     def error(self, message):
-        self.print_usage(sys.stderr)
-        print(f"{self.prog}: error: {message}", file=sys.stderr)
+        print(f"{self.prog}: error: {message} (see '{self.prog} --help')", file=sys.stderr)
         raise SystemExit(EXIT_UNUSABLE)
 
 
@@ -172,15 +221,21 @@ def main(argv=None):
                  len(argv))
     if argv[first:first + 1] != ["golden"]:
         argv.insert(first, "golden")
+    from .write import Terminated, terminate_as_interrupt
     parser = _Parser(prog="refraster")
     parser.add_argument("-q", "--quiet", action="store_true")
     parser.add_argument("--debug", action="store_true")
-    register(parser.add_subparsers(dest="command"))
+    register(parser.add_subparsers(dest="command", parser_class=_Parser))
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
-    return args.func(args)
+    try:
+        with terminate_as_interrupt():
+            return args.func(args)
+    except KeyboardInterrupt as exc:
+        print("refraster: interrupted", file=sys.stderr)
+        return 143 if isinstance(exc, Terminated) else 130
 
 
 if __name__ == "__main__":

@@ -7,16 +7,17 @@ Layout of a golden directory::
     <scene>/buffers.npz                 the golden buffers (no pickle)
     <scene>/preview/<buffer>.png        pictures for humans
 
-The directory is built in a temporary sibling (``.<name>.tmp-…``) and renamed into place at the
-end, so a failure or an interruption never leaves a half-written golden; an existing golden is
-replaced only with ``update=True`` (and then scenes that were not regenerated are kept).
+The directory is built in a temporary sibling (``.<name>.tmp-…``) and swapped into place at the
+end by :mod:`refraster.golden.write` (under a lock, after checking that ``out`` still holds what
+the run found, atomically), so a failure or an interruption never leaves a half-written golden;
+an existing golden is replaced only with ``update=True`` (and then scenes that were not
+regenerated are kept).
 """
 
 from __future__ import annotations
 
 import inspect
 import json
-import os
 import platform
 import re
 import shutil
@@ -32,6 +33,7 @@ from .package import export_package, npz_bytes, sha256_file
 from .scenes import DEFAULT_RASTER, GoldenScene, available_scenes, raster_state
 from .schema import MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION, validate
 from .tolerance import default_tolerances
+from . import write
 
 __all__ = ["generate", "versions", "swap_directory", "suite", "render_task", "parse_sweep",
            "parse_size", "GenerationError"]
@@ -48,16 +50,12 @@ def versions():
 
 
 def swap_directory(tmp, out):
-    """Move the finished ``tmp`` to ``out``, replacing an existing ``out`` (two renames on the
-    same filesystem; the old tree is removed only once the new one is in place)."""
-    tmp, out = Path(tmp), Path(out)
-    if out.exists():
-        old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
-        os.rename(out, old / "tree")
-        os.rename(tmp, out)
-        shutil.rmtree(old)
-    else:
-        os.rename(tmp, out)
+    """Move the finished ``tmp`` to ``out``, replacing what is there (kept for callers of the
+    old name): under ``out``'s lock, atomically (:func:`refraster.golden.write.commit_tree`);
+    of the tree replaced only the files its manifest or report marker lists are deleted."""
+    out = write.resolve_target(out)
+    with write.locked(out, command="refraster"):
+        write.commit_tree(tmp, out, write.snapshot(out))
 
 
 def _check_scene(name, scene):
@@ -303,7 +301,8 @@ class _NoBar:
 
 
 def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, sweeps=(),
-             sizes=(), workers=1, scheduler=None, progress_bar=False, on_retry=None):
+             sizes=(), workers=1, scheduler=None, progress_bar=False, on_retry=None,
+             wait=True, on_wait=None):
     """Render ``scenes`` (names; default all registered) and write a golden directory ``out``.
 
     Parameters
@@ -333,6 +332,15 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
     on_retry : callable, optional
         ``on_retry(name, reason)`` when a distributed task failed and is run once more. A task
         that fails twice makes the whole run fail (:class:`GenerationError`).
+    wait : bool
+        Another run writing ``out`` holds its lock: wait for it (default), or raise
+        :class:`refraster.golden.write.LockedError` naming it.
+    on_wait : callable, optional
+        ``on_wait(holder)`` before waiting for the lock (``holder`` describes the other run).
+
+    A symbolic link at ``out`` is followed: the golden it points to is updated, the link stays.
+    The run refuses (:class:`refraster.golden.write.RefusedError`, nothing deleted) if at the
+    end ``out`` no longer holds what it found (nothing, or the same golden).
 
     Returns
     -------
@@ -362,17 +370,30 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
     if not entries:
         raise ValueError("no scenes to generate")
     tasks = suite(entries, sweeps=sweeps, sizes=sizes)
+    out = write.resolve_target(out)  # through a symlink: the golden it points to
+    with write.locked(out, wait=wait, command="refraster golden generate", on_wait=on_wait):
+        write._hook("locked", target=out)
+        write.clean_debris(out)
+        return _generate_locked(out, tasks, update, progress, workers, scheduler, progress_bar,
+                                on_retry)
+
+
+def _generate_locked(out, tasks, update, progress, workers, scheduler, progress_bar, on_retry):
     generated = {t[0] for t in tasks}
     old = None
-    if out.exists() or out.is_symlink():
+    found = write.snapshot(out)
+    if found is not None:
         if not update:
             raise FileExistsError(f"{out} exists; pass update=True (--update) to replace it")
-        if not (out / "manifest.json").is_file():
+        if found[0] != "golden":
             raise FileExistsError(f"{out} exists and is not a golden directory (no "
                                   "manifest.json); refusing to replace it")
+        if found[2]:
+            raise write.RefusedError(f"golden {out} holds files refraster did not write or "
+                                     f"that changed since ({', '.join(found[2][:5])}); "
+                                     "refusing to replace it")
         old = _old_manifest(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    tmp = write.make_tree(out)
     bar = _NoBar()
     if progress_bar:
         from tqdm import tqdm
@@ -411,9 +432,10 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
         }
         validate(json.loads(json.dumps(manifest)), MANIFEST_SCHEMA)
         rio.write_json(tmp / "manifest.json", manifest)
-        swap_directory(tmp, out)
+        write._hook("before_commit", target=out, tmp=tmp)
+        write.commit_tree(tmp, out, found, what="golden generate")
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        write.discard_tree(tmp, out.name, building=True)
         raise
     finally:
         bar.close()

@@ -2,7 +2,8 @@
 error mask and FLIP map side by side, with the metrics and checks.
 
 The report is a static page (no script) with PNGs beside it in ``img/``; it is built in a
-temporary sibling directory and renamed into place, like a golden.
+temporary sibling directory and committed by :mod:`refraster.golden.write` (locked, atomic,
+replacing only a report refraster wrote), like a golden.
 """
 
 from __future__ import annotations
@@ -10,14 +11,13 @@ from __future__ import annotations
 import html
 import math
 import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from .. import io as rio
 from .buffers import preview, preview_range
-from .generate import swap_directory
+from . import write
 
 __all__ = ["write_report", "check_report_dir", "difference_image", "mask_image"]
 
@@ -72,18 +72,9 @@ def mask_image(reference_preview, over, forgiven, may=None):
 
 def check_report_dir(report, golden_dir, candidate_dir):
     """Refuse a report directory that would write into (or replace) the golden or candidate
-    directory, or that holds files other than a previous report."""
-    from .compare import GoldenError
-    rep = Path(report).resolve()
-    for other in (Path(golden_dir).resolve(), Path(candidate_dir).resolve()):
-        if rep == other or rep.is_relative_to(other) or other.is_relative_to(rep):
-            raise GoldenError(f"report directory {report} overlaps {other}; choose another")
-    if rep.exists():
-        if not rep.is_dir():
-            raise GoldenError(f"report path {report} exists and is not a directory")
-        if any(rep.iterdir()) and not (rep / "report.json").is_file():
-            raise GoldenError(f"report directory {report} is not empty and holds no previous "
-                              "report; refusing to replace it")
+    directory, or that holds anything but a report refraster wrote
+    (:func:`refraster.golden.write.check_report_dir`)."""
+    return write.check_report_dir(report, golden_dir, candidate_dir)
 
 
 def _fmt(x):
@@ -152,11 +143,13 @@ def _buffer_html(root, scene, b):
         f'<div class="row">{figures}</div></div>')
 
 
-def write_report(report_dir, comparison, manifest):
-    """Write ``index.html``, ``report.json`` and ``img/*.png`` into ``report_dir``; return it."""
+def write_report(report_dir, comparison, manifest, *, outputs=None, wait=True):
+    """Write ``index.html``, ``report.json`` and ``img/*.png`` into ``report_dir``; return it.
+
+    ``outputs`` (:class:`refraster.golden.write.Outputs`): stage the report there, to be
+    committed with the command's other outputs; ``wait``: wait for another writer's lock."""
     out = Path(report_dir)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    tmp = write.make_tree(write.resolve_target(out, "report directory"))
     try:
         verdict = ["PASS", "FAIL", "UNUSABLE INPUT"][comparison.exit_code]
         verdict_class = ["pass", "fail", "error"][comparison.exit_code]
@@ -194,7 +187,8 @@ def write_report(report_dir, comparison, manifest):
             f"{overview}</table>{''.join(sections)}</body></html>\n")
         rio.atomic_write_bytes(tmp / "index.html", page.encode("utf-8"))
         rio.write_json(tmp / "report.json", comparison.to_json())
-        swap_directory(tmp, out)
+        write.commit_report(tmp, out, outputs, golden_dir=comparison.golden_dir,
+                            candidate_dir=comparison.candidate_dir, wait=wait)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
