@@ -202,20 +202,20 @@ def test_manifest_states_id_ranges(gold):
                 assert lo <= b.min() and b.max() <= hi, (name, key)
 
 
-def test_scene_breaking_its_id_convention_is_refused(tmp_path):
+def test_scene_breaking_its_id_convention_is_refused():
     from refraster.golden.generate import _id_range
-    from refraster.golden.scenes import Draw, GoldenScene
-    from refraster.camera import Camera  # noqa: F401  (type of the scene's camera)
-    cube = available = golden.available_scenes()["render_cube"].build()
-    bad = GoldenScene(technique=cube.technique, camera=cube.camera, draws=cube.draws,
-                      buffers=cube.buffers)
+    from refraster.golden.scenes import GoldenScene
+    cube = golden.available_scenes()["render_cube"].build()
+    scene = GoldenScene(technique=cube.technique, camera=cube.camera, draws=cube.draws,
+                        buffers=cube.buffers)
     a = np.array([[-1, 12]])
     with pytest.raises(ValueError, match=r"outside its convention \[-1, 11\]"):
-        _id_range("x", "prim_id", bad, a)
-    assert _id_range("x", "prim_id", bad, np.array([[-1, 11]])) == [-1, 11]
-    bad.ids["prim_id"] = (-1, 40)
-    assert _id_range("x", "prim_id", bad, a) == [-1, 40]
-    assert available and Draw
+        _id_range("x", "prim_id", scene, a)
+    assert _id_range("x", "prim_id", scene, np.array([[-1, 11]])) == [-1, 11]
+    scene.ids["prim_id"] = (-1, 40)
+    assert _id_range("x", "prim_id", scene, a) == [-1, 40]
+    with pytest.raises(ValueError, match="has no id convention"):
+        _id_range("x", "mystery_id", scene, a)
 
 
 # --- nothing compared is never a pass ------------------------------------------------------------
