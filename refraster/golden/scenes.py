@@ -101,7 +101,9 @@ class GoldenScene:
         ``{buffer: (smallest, largest)}``: the ids the scene can produce in an ``id`` buffer
         (background −1 included), stored in the manifest for the compare's domain check.
         Default (:func:`id_range`): ``prim_id`` / ``layer_prim_id`` [−1, F − 1] with F the
-        draws' face count in draw order, ``object_id`` [−1, D − 1] with D the draw count. A
+        largest face count of a draw (ids are face indices within their draw call, as
+        :func:`refraster.render` writes them), ``object_id`` [−1, D − 1] with D the draw
+        count. A
         technique whose ids follow another convention (caps) states it here.
     """
 
@@ -136,7 +138,7 @@ def id_range(scene, key):
         lo, hi = scene.ids[key]
         return int(lo), int(hi)
     if key in ("prim_id", "layer_prim_id"):
-        return -1, sum(_face_count(d.mesh) for d in scene.draws) - 1
+        return -1, max((_face_count(d.mesh) for d in scene.draws), default=0) - 1
     if key in ("object_id", "layer_object_id"):
         return -1, len(scene.draws) - 1
     return None
