@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from refraster.golden.allowance import tolerant_metrics
+from refraster.golden.allowance import named_entries, tolerant_metrics
 from refraster.golden.compare import load_manifest
 
 SEED = 20261201
@@ -59,8 +59,7 @@ def inject(key, kind, ref, pixels, rng, id_range):
         if kind == "id":
             lo, hi = id_range
             lo = max(lo, 0)
-            if hi <= lo:
-                out[r, c] = -1 if v >= 0 else lo
+            if hi <= lo:   # no other valid id: the fault is not applicable
                 continue
             f = int(v)
             while f == int(v):
@@ -89,31 +88,56 @@ def inject(key, kind, ref, pixels, rng, id_range):
     return out
 
 
-def _admits(key, kind, spec, arrays, ref, cand, step=0.0):
-    """(H, W) bool: the allowance admits the candidate's value at the pixel."""
+def _set_admits(key, kind, arrays, cand, named):
+    """(H, W) bool, where the id may differ: the face the candidate names may win there and
+    its value lies in that face's entry of the face set."""
+    id_may = np.asarray(arrays["id_may"], np.bool_)
+    ok = id_may & (named >= 0)
+    e = np.maximum(named, 0)
+    if kind == "id":
+        return ok
+    if key == "front_facing":
+        f = arrays["set_facing"][e]
+        return ok & ((f < 0) | (cand == (f == 1)))
+    if key == "normal":
+        ang = np.degrees(np.arccos(np.clip(np.einsum("hwc,hwc->hw", cand.astype(np.float64),
+                                                     arrays["set_normal"][e]), -1, 1)))
+        return ok & (np.radians(ang) <= arrays["set_normal_angle"][e])
+    lo = arrays[f"set_{key}_lo"][e]
+    hi = arrays[f"set_{key}_hi"][e]
+    inside = (cand >= lo) & (cand <= hi)
+    return ok & (inside.all(axis=2) if inside.ndim == 3 else inside)
+
+
+def _admits(key, kind, spec, arrays, ref, cand, named=None, step=0.0):
+    """(H, W) bool: the allowance admits the candidate's value at the pixel — every check of
+    the buffer does (a value is caught when any one check refuses it)."""
     checks = spec["checks"]
-    free = np.zeros(ref.shape[:2], np.bool_)
     if "masked" in checks:
         return np.asarray(arrays[spec.get("may", "may")], np.bool_)
     id_may = np.asarray(arrays["id_may"], np.bool_)
-    free |= id_may
+    sets = "face" in checks and named is not None
+    # where the id may differ, the face check decides (with face sets) or values are free
+    ok = np.ones(ref.shape[:2], np.bool_)
     if "interval" in checks:
         lo = arrays[spec["lo"]].astype(np.float64) - step
         hi = arrays[spec["hi"]].astype(np.float64) + step
         c = cand.astype(np.float64)
         inside = (c >= lo) & (c <= hi)
-        free |= inside.all(axis=2) if inside.ndim == 3 else inside
+        inside = inside.all(axis=2) if inside.ndim == 3 else inside
+        ok &= id_may | inside
     if "angle" in checks:
         a = np.einsum("hwc,hwc->hw", ref.astype(np.float64), cand.astype(np.float64))
         na = np.linalg.norm(ref, axis=2) * np.linalg.norm(cand, axis=2)
         with np.errstate(invalid="ignore", divide="ignore"):
             ang = np.arccos(np.clip(a / na, -1.0, 1.0))
-        free |= ang <= arrays[spec["angle"]]
-    if "id" in checks and "interval" not in checks and "angle" not in checks:
-        free |= (ref == cand).all(axis=2) if ref.ndim == 3 else ref == cand
-    if checks == ["coverage"] and "coverage" in arrays:
-        free |= arrays["coverage"] == 1
-    return free
+        ok &= id_may | (ang <= arrays[spec["angle"]])
+    if "id" in checks:
+        same = (ref == cand).all(axis=2) if ref.ndim == 3 else ref == cand
+        ok &= id_may | same
+    if sets:
+        ok &= ~id_may | _set_admits(key, kind, arrays, cand, named)
+    return ok
 
 
 def fault_table(golden_dir, scene, *, buffers=None, seed=SEED):
@@ -140,6 +164,9 @@ def fault_table(golden_dir, scene, *, buffers=None, seed=SEED):
             continue
         kind = spec["kind"]
         ref = ref_all[key]
+        if kind == "id" and spec.get("ids", (-1, 0))[1] <= 0:
+            table[key] = None   # one valid id (one draw call): no other id to swap in
+            continue
         fallback = spec["tolerance"]["conformant"]
         radius_k = max(radius, int(fallback["deviation_radius"]))
         gap = 2 * radius_k + 2
@@ -157,14 +184,18 @@ def fault_table(golden_dir, scene, *, buffers=None, seed=SEED):
                 if not len(pix):
                     continue
                 cand = inject(key, kind, ref, pix, rng, spec.get("ids", (-1, 0)))
+                ids = {k: (cand if k == key else ref_all[k]) for k in ("prim_id", "object_id")
+                       if k in ref_all}
+                named = (named_entries(arrays, ids["prim_id"], ids.get("object_id"))
+                         if "prim_id" in ids else None)
                 _, checks, images = tolerant_metrics(
                     key, ref, cand, kind, spec["tolerant"], arrays, clear_depth=clear,
-                    fallback=fallback)
+                    fallback=fallback, named=named)
                 bad = images["over"] & ~images["forgiven"]
                 ok = all(c["ok"] for c in checks)
                 m = np.zeros_like(covered)
                 m[pix[:, 0], pix[:, 1]] = True
-                admitted |= m & _admits(key, kind, spec["tolerant"], arrays, ref, cand)
+                admitted |= m & _admits(key, kind, spec["tolerant"], arrays, ref, cand, named)
                 caught |= m & bad & (not ok) & one_fails
         eligible = covered & ~admitted
         table[key] = {"covered": int(covered.sum()), "admitted": int(admitted.sum()),
@@ -178,6 +209,9 @@ def format_table(rows):
     out = ["| scene | buffer | covered | admits the fault | caught among the others |",
            "|---|---|---:|---:|---:|"]
     for scene, key, r in rows:
+        if r is None:
+            out.append(f"| {scene} | {key} | | n/a: one valid id | |")
+            continue
         adm = r["admitted"] / r["covered"] if r["covered"] else 0.0
         got = r["caught"] / r["eligible"] if r["eligible"] else 1.0
         out.append(f"| {scene} | {key} | {r['covered']} | {100 * adm:.1f} % | "

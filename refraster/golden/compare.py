@@ -140,10 +140,25 @@ def _allowance_arrays(root, name, entry):
         t = b.get("tolerant", {})
         needed = [t[k] for k in ("lo", "hi", "angle", "may") if k in t]
         needed += ["id_may"] + (["coverage"] if "coverage" in t.get("checks", ()) else [])
+        if "face" in t.get("checks", ()):
+            needed += ["set_offsets", "set_face", "set_facing", "set_normal",
+                       "set_normal_angle", "draw_offsets"]
+            needed += [n for pair in _SET_INTERVAL_NAMES for n in pair]
         missing = [n for n in needed if n not in arrays]
         if missing:
             raise GoldenError(f"golden {spec['file']}: buffer {key!r} needs arrays {missing}")
+    from .allowance import check_face_sets
+    shape = next(iter(entry["buffers"].values()))["shape"] if entry["buffers"] else [0, 0]
+    try:
+        check_face_sets(arrays, shape[0], shape[1])
+    except (ValueError, KeyError) as exc:
+        raise GoldenError(f"golden {spec['file']}: {exc}") from None
     return arrays
+
+
+_SET_INTERVAL_NAMES = (("set_depth_lo", "set_depth_hi"), ("set_eye_depth_lo", "set_eye_depth_hi"),
+                       ("set_barycentric_lo", "set_barycentric_hi"),
+                       ("set_color_lo", "set_color_hi"))
 
 
 def _reference(root, name, entry):
@@ -649,6 +664,12 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
             continue
         buffers = []
         coverage = _candidate_coverage(cand, entry["buffers"])
+        named = None
+        if allow is not None and coverage is not None:
+            from .allowance import named_entries
+            obj = cand["object_id"][0] if "object_id" in cand else None
+            named = named_entries(allow, cand["prim_id"][0],
+                                  obj if obj is not None and obj.ndim == 2 else None)
         edge_may = (allow.get("may") if allow is not None
                     else _edge_may(ref, entry["buffers"]) if coverage is None else None)
         for key, spec in entry["buffers"].items():
@@ -665,7 +686,7 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
                 clear = entry["parameters"]["raster"].get("clear_depth", 1.0)
                 metrics, checks, images = tolerant_metrics(
                     key, ref[key], a, spec["kind"], spec["tolerant"], allow, clear_depth=clear,
-                    fallback=tol, step=step)
+                    fallback=tol, step=step, named=named)
                 tol = {**tol, "tolerant": spec["tolerant"]}
             else:
                 metrics, checks, images = buffer_metrics(ref[key], a, spec["kind"], tol,

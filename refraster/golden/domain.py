@@ -19,6 +19,8 @@ check               fails where
                     candidate's own ``prim_id`` when it sends one, else whichever fits)
 ``id_range``        an id below −1 or above the largest id the scene can produce (the manifest's
                     ``ids`` range of the buffer, see docs/golden.md, "Id conventions")
+``id_coverage``     ``object_id`` says covered where the candidate's ``prim_id`` says background,
+                    or the other way round
 ``bool_values``     a bool buffer sent as integers holds anything but 0 and 1
 ==================  ===========================================================================
 
@@ -104,6 +106,11 @@ def domain_checks(key, kind, reference, candidate, *, step=0.0, raw=None, covera
             span = f"[{lo}, {hi}]" if hi is not None else f"≥ {lo}"
             out.append(_fail("id_range", np.asarray(bad), c,
                              f"an id outside what the scene can produce {span}"))
+        if key == "object_id" and coverage is not None and c.ndim == 2:
+            bad = (c >= 0) != np.asarray(coverage, np.bool_)
+            if bad.any():
+                out.append(_fail("id_coverage", bad, c, "object_id and prim_id disagree on "
+                                 "whether the pixel is covered"))
         return out
     x = c.astype(np.float64, copy=False)
     nan = _pixels(np.isnan(x))

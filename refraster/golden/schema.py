@@ -162,7 +162,8 @@ _TOLERANT = {
     "additionalProperties": False,
     "properties": {
         "checks": {"type": "array", "minItems": 1,
-                   "items": {"enum": ["coverage", "id", "interval", "angle", "masked"]}},
+                   "items": {"enum": ["coverage", "id", "interval", "angle", "masked",
+                                      "face"]}},
         "lo": _ARRAY_NAME, "hi": _ARRAY_NAME, "angle": _ARRAY_NAME, "may": _ARRAY_NAME,
     },
 }
@@ -186,7 +187,8 @@ _ALLOWANCES = {
             "type": "object", "propertyNames": _ARRAY_NAME,
             "additionalProperties": {
                 "type": "object", "required": ["shape", "dtype"], "additionalProperties": False,
-                "properties": {"shape": _SHAPE, "dtype": {"enum": ["int8", "bool", "float32"]}},
+                "properties": {"shape": _SHAPE,
+                               "dtype": {"enum": ["int8", "int32", "bool", "float32"]}},
             },
         },
     },
