@@ -228,3 +228,30 @@ def test_corrupt_face_sets_are_refused(gold, tmp_path):
         np.savez(tmp_path / "cand" / scene / "buffers.npz", **{k: z[k] for k in z.files})
     with pytest.raises(GoldenError, match="set_face holds a face outside"):
         compare(g, tmp_path / "cand", mode="tolerant", scenes=[scene])
+
+
+def test_without_ids_the_envelope_of_the_set_applies(gold, tmp_path):
+    """A candidate that sends no ids is held to the envelope of the pixel's set: the other
+    face's normal passes at a two-face pixel, a normal between no face's passes nowhere."""
+    from refraster.golden.compare import compare
+    scene = "render_cube"
+    a, b, r, c, e = _set_pixel(gold, scene)
+    g_ref = int(b["prim_id"][r, c])
+    other = [j for j in e if a["set_face"][j] != g_ref][0]
+    keys = ["depth", "normal"]
+    cand = {k: b[k].copy() for k in keys}
+    cand["normal"][r, c] = a["set_normal"][other]
+    cand["depth"][r, c] = (a["set_depth_lo"][other].astype(np.float64) + a["set_depth_hi"][other]) / 2
+    (tmp_path / "a" / scene).mkdir(parents=True)
+    np.savez(tmp_path / "a" / scene / "buffers.npz", **cand)
+    ok = compare(gold, tmp_path / "a", mode="tolerant", scenes=[scene], buffers=keys)
+    assert ok.exit_code == 0, ok.failures()
+    n = a["set_normal"][e].astype(np.float64).sum(axis=0)
+    cand["normal"][r, c] = n / np.linalg.norm(n)        # 45° from both faces
+    cand["depth"][r, c] = max(a["set_depth_hi"][e]) + 0.01
+    (tmp_path / "b" / scene).mkdir(parents=True)
+    np.savez(tmp_path / "b" / scene / "buffers.npz", **cand)
+    fails = compare(gold, tmp_path / "b", mode="tolerant", scenes=[scene], buffers=keys).failures()
+    for key in keys:
+        assert any(x.startswith(f"{scene}/{key}: face = 1") and f"[[{r}, {c}]]" in x
+                   for x in fails), fails

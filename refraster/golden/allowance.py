@@ -463,12 +463,18 @@ def _face_outside(key, kind, cand, arrays, named, step, clear_depth):
             facing = arrays["set_facing"][e]
             return id_may & (named >= 0) & (facing >= 0) & (c != (facing == 1))
         return id_may & has & (c >= 0) & (named < 0)
+    # without ids, a pixel counts as covered by what its own buffer says (or, for buffers that
+    # cannot say, where the golden's coverage is "must")
     if key == "depth":
         covered = c < clear_depth
     elif key == "eye_depth":
         covered = np.isfinite(c)
+    elif key == "normal":
+        covered = np.linalg.norm(c.astype(np.float64), axis=2) > 0.5
+    elif "coverage" in arrays:
+        covered = np.asarray(arrays["coverage"]) == MUST
     else:
-        covered = np.ones((h, w), np.bool_)
+        covered = np.zeros((h, w), np.bool_)
     if named is not None:
         pick = id_may & (named >= 0) & covered
         e = named[pick]
@@ -480,10 +486,15 @@ def _face_outside(key, kind, cand, arrays, named, step, clear_depth):
         return out
     v = c[pick].astype(np.float64)
     if key == "normal":
-        if e is None:   # no ids: the nearest normal of the set must be within its angle
-            return out
-        bad = _angle(v, arrays["set_normal"][e]) > arrays["set_normal_angle"][e] + \
-            step * math.sqrt(3.0)
+        limit = arrays["set_normal_angle"].astype(np.float64) + step * math.sqrt(3.0)
+        if e is None:   # no ids: some face of the set must be within its angle
+            k = np.flatnonzero(pick.ravel())
+            n = offsets[k + 1] - offsets[k]
+            ent = np.repeat(offsets[k], n) + (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n))
+            miss = _angle(np.repeat(v, n, axis=0), arrays["set_normal"][ent]) - limit[ent]
+            bad = np.minimum.reduceat(miss, np.cumsum(n) - n) > 0
+        else:
+            bad = _angle(v, arrays["set_normal"][e]) > limit[e]
     else:
         lo_name, hi_name = SET_INTERVALS[key]
         lo, hi = arrays[lo_name], arrays[hi_name]
