@@ -60,7 +60,7 @@ from .raster.primitive import CLIPPED, SIMPLE
 from .raster.rasterizer import stream
 
 __all__ = ["MUST_NOT", "MAY", "MUST", "Tolerance", "tolerance", "decision_may", "edge_epsilon",
-           "edge_may", "facing_may", "check"]
+           "edge_may", "facing_may", "may_faces", "check"]
 
 MUST_NOT, MAY, MUST = 0, 1, 2
 #: Depth difference two surfaces need to be ordered the same by any conformant depth buffer
@@ -249,15 +249,7 @@ def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps
                 else np.full(win.shape, -1, np.int64))
     p = prep.triangles
     face_front = _face_facing(p)
-    fslack = _face_depth_slack(p, depth_eps)
-    if len(p.clipped):
-        # clipped faces: the depth of a new vertex carries float32 clipping rounding too
-        c = prep.clip[p.faces[p.clipped.prim]]
-        r = np.abs(c).max(axis=(1, 2)).astype(np.float32)
-        w_min = 1.0 / p.clipped.inv_w.max(axis=1)
-        extra = np.zeros(len(fslack))
-        np.maximum.at(extra, p.clipped.prim, 4.0 * np.spacing(r).astype(np.float64) / w_min)
-        fslack += extra
+    fslack = _depth_slacks(prep, depth_eps)
     id_may = np.zeros((h, w), np.bool_)
     cov_may = np.zeros((h, w), np.bool_)
     _mark_faces(p.faces, p.vx, p.vy, p.vz, p.vcode, p.status, {"none": 0, "back": 1,
@@ -284,6 +276,181 @@ def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps
     hi[id_may] = 1.0
     return Tolerance(coverage=coverage, id_may=id_may, depth_lo=lo, depth_hi=hi, eps=eps,
                      depth_eps=depth_eps)
+
+
+def _depth_slacks(prep, depth_eps):
+    """Per-face depth slack (:func:`_face_depth_slack`); the depth of a clipped face's new
+    vertex carries float32 clipping rounding too."""
+    p = prep.triangles
+    fslack = _face_depth_slack(p, depth_eps)
+    if len(p.clipped):
+        c = prep.clip[p.faces[p.clipped.prim]]
+        r = np.abs(c).max(axis=(1, 2)).astype(np.float32)
+        w_min = 1.0 / p.clipped.inv_w.max(axis=1)
+        extra = np.zeros(len(fslack))
+        np.maximum.at(extra, p.clipped.prim, 4.0 * np.spacing(r).astype(np.float64) / w_min)
+        fslack += extra
+    return fslack
+
+
+@njit(**JIT)
+def _seg_dist(px, py, ax, ay, bx, by):
+    """Distance from (px, py) to the segment a–b."""
+    dx = bx - ax
+    dy = by - ay
+    ll = dx * dx + dy * dy
+    t = 0.0
+    if ll > 0.0:
+        t = min(max(((px - ax) * dx + (py - ay) * dy) / ll, 0.0), 1.0)
+    ex = ax + t * dx - px
+    ey = ay + t * dy - py
+    return np.sqrt(ex * ex + ey * ey)
+
+
+@njit(**JIT)
+def _set_pass(mode, X, Y, Z, face, fragile, eps, fslack, mask, zsure, counts, offsets, out):
+    """One pass over screen pieces (``X, Y, Z (T, 3)`` window coordinates in pixels, GL y-up,
+    pixel centres at integers; ``face (T,)`` the global face of each piece).
+
+    ``mode`` 0: ``zsure[r, c]`` = the least ``z + ε·|∇z| + slack`` of the pieces that surely
+    cover the centre (inside and at least ``ε`` from every edge); 1: count, 2: write the pieces
+    whose ε-dilated footprint covers the centre and whose least depth over the ε-disc, less
+    their slack, is not behind ``zsure``. Only pixels of ``mask`` are visited."""
+    h, w = mask.shape
+    for t in range(X.shape[0]):
+        x0, x1, x2 = X[t, 0], X[t, 1], X[t, 2]
+        y0, y1, y2 = Y[t, 0], Y[t, 1], Y[t, 2]
+        z0, z1, z2 = Z[t, 0], Z[t, 1], Z[t, 2]
+        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        if mode == 0 and (area == 0.0 or fragile[face[t]]):
+            continue   # a sliver may vanish or flip: it covers nothing surely
+        sgn = 1.0 if area > 0.0 else -1.0
+        g = 0.0
+        if area != 0.0:
+            a = ((z1 - z0) * (y2 - y0) - (z2 - z0) * (y1 - y0)) / area
+            b = ((x1 - x0) * (z2 - z0) - (x2 - x0) * (z1 - z0)) / area
+            g = np.sqrt(a * a + b * b)
+        cx0 = max(int(np.ceil(min(x0, x1, x2) - eps)), 0)
+        cx1 = min(int(np.floor(max(x0, x1, x2) + eps)), w - 1)
+        cy0 = max(int(np.ceil(min(y0, y1, y2) - eps)), 0)
+        cy1 = min(int(np.floor(max(y0, y1, y2) + eps)), h - 1)
+        sl = fslack[face[t]]
+        weak = fragile[face[t]]
+        reach = 5.0 * eps if weak else eps
+        if weak:
+            cx0 = max(int(np.ceil(min(x0, x1, x2) - reach)), 0)
+            cx1 = min(int(np.floor(max(x0, x1, x2) + reach)), w - 1)
+            cy0 = max(int(np.ceil(min(y0, y1, y2) - reach)), 0)
+            cy1 = min(int(np.floor(max(y0, y1, y2) + reach)), h - 1)
+        for gy in range(cy0, cy1 + 1):
+            r = h - 1 - gy
+            py = float(gy)
+            for cc in range(cx0, cx1 + 1):
+                if not mask[r, cc]:
+                    continue
+                px = float(cc)
+                e0 = sgn * ((x1 - x0) * (py - y0) - (px - x0) * (y1 - y0))
+                e1 = sgn * ((x2 - x1) * (py - y1) - (px - x1) * (y2 - y1))
+                e2 = sgn * ((x0 - x2) * (py - y2) - (px - x2) * (y0 - y2))
+                inside = area != 0.0 and e0 >= 0.0 and e1 >= 0.0 and e2 >= 0.0
+                zc = _plane_z(x0, y0, z0, x1, y1, z1, x2, y2, z2, px, py)
+                if mode == 0:
+                    if not inside:
+                        continue
+                    l0 = np.hypot(x1 - x0, y1 - y0)
+                    l1 = np.hypot(x2 - x1, y2 - y1)
+                    l2 = np.hypot(x0 - x2, y0 - y2)
+                    if e0 >= eps * l0 and e1 >= eps * l1 and e2 >= eps * l2:
+                        zsure[r, cc] = min(zsure[r, cc], zc + eps * g + sl)
+                    continue
+                if not inside:
+                    d = min(_seg_dist(px, py, x0, y0, x1, y1), _seg_dist(px, py, x1, y1, x2, y2),
+                            _seg_dist(px, py, x2, y2, x0, y0))
+                    if d > reach:
+                        continue
+                # a sliver's plane is ill-conditioned: snapped otherwise, its depth at the
+                # centre can be anything, so it may win wherever it may cover
+                if not weak and zc - eps * g - sl > zsure[r, cc]:
+                    continue
+                k = r * w + cc
+                if mode == 1:
+                    counts[k] += 1
+                else:
+                    out[offsets[k] + counts[k]] = face[t]
+                    counts[k] += 1
+
+
+def may_faces(meshes, *, view, proj, width, height, model=None, cull="none", mask=None,
+              eps=None, depth_eps=DEPTH_EPS, min_bits=4):
+    """Per pixel, the faces that may be visible there in an allowed rasterizer.
+
+    A face may win at a pixel centre when its footprint, dilated by the edge tolerance ``ε``
+    (:func:`edge_epsilon`), covers the centre and its least depth over the ε-disc, less its
+    depth slack, is not behind the farthest the nearest *surely covering* face can be there (a
+    face whose footprint covers the centre with ``ε`` to spare, at its depth plus ``ε·|∇z|``
+    plus its slack). Culled faces are left out, except slivers whose facing may flip
+    (:func:`fragile_faces`); a sliver never counts as surely covering, and — its plane being
+    ill-conditioned, so that another snapping can put its depth anywhere — may win wherever
+    its footprint dilated by ``5ε`` (as in :func:`facing_may`) covers the centre.
+
+    Parameters
+    ----------
+    meshes, view, proj, width, height, model, cull
+        As :func:`refraster.render`.
+    mask : (H, W) bool, optional
+        Only these pixels (default: all).
+
+    Returns
+    -------
+    offsets : (H·W + 1,) int64
+        The faces of pixel ``k = row·W + col`` are ``faces[offsets[k]:offsets[k + 1]]``.
+    faces : (N,) int64
+        Global face indices (draw calls concatenated in draw order), ascending per pixel,
+        without repeats.
+    """
+    prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
+                   cull=cull)
+    w, h = prep.width, prep.height
+    eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
+    mask = np.ones((h, w), np.bool_) if mask is None else np.ascontiguousarray(mask, np.bool_)
+    p = prep.triangles
+    scale = float(1 << p.subpixel_bits)
+    fslack = _depth_slacks(prep, as_real(depth_eps, "depth_eps", lo=0.0))
+    f = p.faces
+    whole = np.flatnonzero(p.vcode[f].max(axis=1) == 0) if len(f) else np.zeros(0, np.int64)
+    X = p.vx[f[whole]] / scale
+    Y = p.vy[f[whole]] / scale
+    area = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0])
+    code = {"none": 0, "back": 1, "front": 2}[cull.lower()]
+    fragile = fragile_faces(prep, eps)
+    # culled faces are left out, but for slivers whose facing may flip
+    keep = ~(((code == 1) & (area < 0)) | ((code == 2) & (area > 0))) | fragile[whole]
+    whole = whole[keep]
+    st = p.clipped
+    X = np.concatenate([p.vx[f[whole]] / scale, st.x / scale])
+    Y = np.concatenate([p.vy[f[whole]] / scale, st.y / scale])
+    Z = np.concatenate([p.vz[f[whole]].astype(np.float64), st.z.astype(np.float64)])
+    face = np.concatenate([whole, st.prim]).astype(np.int64)
+    zsure = np.full((h, w), np.inf)
+    counts = np.zeros(h * w, np.int64)
+    offsets = np.zeros(h * w + 1, np.int64)
+    out = np.zeros(0, np.int64)
+    _set_pass(0, X, Y, Z, face, fragile, eps, fslack, mask, zsure, counts, offsets[:-1], out)
+    _set_pass(1, X, Y, Z, face, fragile, eps, fslack, mask, zsure, counts, offsets[:-1], out)
+    offsets[1:] = np.cumsum(counts)
+    out = np.zeros(int(offsets[-1]), np.int64)
+    counts[:] = 0
+    _set_pass(2, X, Y, Z, face, fragile, eps, fslack, mask, zsure, counts, offsets[:-1], out)
+    # pieces of one clipped face may both count: sort and drop repeats per pixel
+    pix = np.repeat(np.arange(h * w), np.diff(offsets))
+    order = np.lexsort((out, pix))
+    pix, out = pix[order], out[order]
+    keep = np.r_[True, (pix[1:] != pix[:-1]) | (out[1:] != out[:-1])] if len(out) else \
+        np.zeros(0, np.bool_)
+    pix, out = pix[keep], out[keep]
+    offsets = np.zeros(h * w + 1, np.int64)
+    np.add.at(offsets, pix + 1, 1)
+    return np.cumsum(offsets), out
 
 
 def _piece_epsilon(prep):
@@ -455,6 +622,26 @@ def edge_may(meshes, *, view, proj, width, height, model=None, cull="none", eps=
     return id_may, cov_may
 
 
+def fragile_faces(prep, eps):
+    """(F,) bool: faces (all vertices in front of the eye) whose facing may flip — or that may
+    become degenerate — at 4 sub-pixel bits: doubled window area within ``ε·P + 3ε²`` of zero
+    (:func:`facing_may`). ``prep`` is :func:`refraster.raster.prepare`'s result."""
+    w, h = prep.width, prep.height
+    c = prep.clip
+    f = prep.triangles.faces
+    wc = c[:, 3]
+    ok = np.all(wc[f] > 0, axis=1)
+    safe = np.where(wc > 0, wc, 1.0)
+    x = (c[:, 0] / safe + 1.0) * 0.5 * w
+    y = (c[:, 1] / safe + 1.0) * 0.5 * h
+    xf, yf = x[f], y[f]
+    area = ((xf[:, 1] - xf[:, 0]) * (yf[:, 2] - yf[:, 0])
+            - (xf[:, 2] - xf[:, 0]) * (yf[:, 1] - yf[:, 0]))
+    perim = sum(np.hypot(xf[:, (k + 1) % 3] - xf[:, k], yf[:, (k + 1) % 3] - yf[:, k])
+                for k in range(3))
+    return ok & (np.abs(area) <= eps * perim + 3.0 * eps * eps)
+
+
 def facing_may(meshes, *, view, proj, width, height, model=None, eps=None, min_bits=4):
     """Pixels of faces whose facing may flip between allowed rasterizers, and near their edges.
 
@@ -472,19 +659,7 @@ def facing_may(meshes, *, view, proj, width, height, model=None, eps=None, min_b
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model)
     w, h = prep.width, prep.height
     eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
-    c = prep.clip
-    f = prep.triangles.faces
-    wc = c[:, 3]
-    ok = np.all(wc[f] > 0, axis=1)
-    safe = np.where(wc > 0, wc, 1.0)
-    x = (c[:, 0] / safe + 1.0) * 0.5 * w
-    y = (c[:, 1] / safe + 1.0) * 0.5 * h
-    xf, yf = x[f], y[f]
-    area = ((xf[:, 1] - xf[:, 0]) * (yf[:, 2] - yf[:, 0])
-            - (xf[:, 2] - xf[:, 0]) * (yf[:, 1] - yf[:, 0]))
-    perim = sum(np.hypot(xf[:, (k + 1) % 3] - xf[:, k], yf[:, (k + 1) % 3] - yf[:, k])
-                for k in range(3))
-    fragile = ok & (np.abs(area) <= eps * perim + 3.0 * eps * eps)
+    fragile = fragile_faces(prep, eps)
     id_may = np.zeros((h, w), np.bool_)
     cov_may = np.zeros((h, w), np.bool_)
     if not fragile.any():

@@ -57,7 +57,7 @@ def test_self_compare_passes_and_manifest_is_complete(gold):
         assert result.exit_code == 0, result.summary()
         assert result.failures() == []
     m = load_manifest(gold)
-    assert m["schema_version"] == 1
+    assert m["schema_version"] == 2
     assert set(m["generator"]) >= {"refraster", "numpy", "numba", "python"}
     assert m["raster"] == {"subpixel_bits": 8, "fill_rule": "llvmpipe"}
     assert sorted(m["scenes"]) == sorted(SCENES)
@@ -430,8 +430,10 @@ def test_bad_manifests_are_refused(gold, tmp_path):
     g, m = _copy_golden(gold, tmp_path)
     (tmp_path / "outside.npz").write_bytes(b"secret")
     cases = []
-    newer = dict(m, schema_version=2)
-    cases.append((newer, "schema_version 2 is newer"))
+    newer = dict(m, schema_version=3)
+    cases.append((newer, "schema_version 3 is newer"))
+    older = dict(m, schema_version=1)
+    cases.append((older, "schema_version 1 is older .*regenerate the golden"))
     escape = json.loads(json.dumps(m))
     escape["scenes"]["render_cube"]["buffers_file"] = "../outside.npz"
     cases.append((escape, "leaves the golden directory"))

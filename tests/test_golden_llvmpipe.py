@@ -65,4 +65,6 @@ def test_llvmpipe_renders_packages_and_passes_conformant_compare(rendered, oracl
     (root / "edited.npz").replace(root / "edited" / "render_cube" / "buffers.npz")
     edited = golden.compare(root / "golden", root / "edited", profile="conformant",
                             scenes=["render_cube"], tolerances=["prim_id.max_fraction=0"])
-    assert [line.split(":")[0] for line in edited.failures()] == ["render_cube/prim_id"]
+    # id 999 is also no id of the 12-face cube: the domain check names it too
+    assert {line.split(":")[0] for line in edited.failures()} == {"render_cube/prim_id"}
+    assert any("domain:id_range" in line for line in edited.failures())

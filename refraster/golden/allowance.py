@@ -13,13 +13,21 @@ array               dtype        meaning
 ``depth_lo/_hi``    float32      window-depth interval (:func:`refraster.tolerance.tolerance`)
 ``<buf>_lo/_hi``    float32      value interval of ``eye_depth``, ``barycentric``, ``color``
 ``normal_angle``    float32      largest angle (radians) between reference and candidate normal
+``set_offsets``     int32        face sets (plain renders): the faces that may win at pixel k are
+                                 ``set_face[set_offsets[k]:set_offsets[k + 1]]`` (global ids)
+``set_*``           per entry    what that face shows there: ``set_depth_lo/_hi``,
+                                 ``set_eye_depth_lo/_hi``, ``set_barycentric_lo/_hi``,
+                                 ``set_color_lo/_hi``, ``set_normal`` + ``set_normal_angle``,
+                                 ``set_facing`` (−1: a sliver, free); ``draw_offsets`` maps
+                                 (object_id, prim_id) to the global id (:func:`face_sets`)
 ==================  ===========  ================================================================
 
 Each buffer's manifest entry says which checks apply (``"tolerant": {"checks": [...]}``):
 ``coverage`` (the candidate's coverage against the three-valued mask), ``id`` (equal where the id
 must agree), ``interval`` (``lo ≤ value ≤ hi`` per channel where the id must agree), ``angle``
-(normals) and ``masked`` (the ``conformant`` profile, with the ``may`` region forgiven: buffers
-without an interval of their own).
+(normals), ``masked`` (the ``conformant`` profile, with the ``may`` region forgiven: buffers
+without an interval of their own) and ``face`` (where the id may differ: the candidate's
+``prim_id`` must name a face of the pixel's set and its values must be that face's).
 
 How the arrays are derived
 --------------------------
@@ -54,7 +62,7 @@ from ..tolerance import (COLOR_TOL, DEPTH_EPS, MAY, MUST, MUST_NOT, NORMAL_TOL, 
 
 __all__ = ["scene_allowances", "tolerant_metrics", "dilate", "surface_step", "TOLERANT_CHECKS"]
 
-TOLERANT_CHECKS = ("coverage", "id", "interval", "angle", "masked")
+TOLERANT_CHECKS = ("coverage", "id", "interval", "angle", "masked", "face")
 
 #: float32 budgets of the interpolated G-buffer values (see the module docstring).
 EYE_DEPTH_ABS, EYE_DEPTH_REL = 1e-5, 4e-6
@@ -206,6 +214,9 @@ def scene_allowances(scene, raster):
     arrays = {"id_may": id_may, "may": may}
     if coverage is not None:
         arrays["coverage"] = coverage
+    sets = geometry and "prim_id" in buffers
+    if sets:
+        arrays.update(face_sets(scene, raster, id_may, tol.eps))
     checks = {}
     surface = _surface_labels(buffers) if "prim_id" in buffers else None
     for key in sorted(buffers):
@@ -236,6 +247,10 @@ def scene_allowances(scene, raster):
         else:
             region = "id_may" if key in _GBUFFER else "may"
             checks[key] = {"checks": ["masked"], "may": region}
+    if sets:
+        for key, spec in checks.items():
+            if key in _GBUFFER and "masked" not in spec["checks"]:
+                spec["checks"] = spec["checks"] + ["face"]
     info = {"method": method, "eps": float(tol.eps), "depth_eps": float(tol.depth_eps),
             "normal_tol": NORMAL_TOL, "color_tol": COLOR_TOL, "may_radius": radius,
             "min_subpixel_bits": 4}
@@ -244,6 +259,180 @@ def scene_allowances(scene, raster):
 
 _GBUFFER = ("depth", "eye_depth", "normal", "prim_id", "object_id", "front_facing",
             "barycentric", "color")
+
+
+# --- per-pixel face sets (where the visible primitive may differ) --------------------------------
+
+#: Per-entry value arrays of the face sets: buffer → (lo, hi) array names.
+SET_INTERVALS = {"depth": ("set_depth_lo", "set_depth_hi"),
+                 "eye_depth": ("set_eye_depth_lo", "set_eye_depth_hi"),
+                 "barycentric": ("set_barycentric_lo", "set_barycentric_hi"),
+                 "color": ("set_color_lo", "set_color_hi")}
+
+
+def _face_barycentrics(clip, px, py, width, height):
+    """Perspective-correct barycentrics ``(E, S, 3)`` of faces with clip-space vertices
+    ``clip (E, 3, 4)`` at window points ``px, py (E, S)`` (pixels, GL y-up, centres at +0.5).
+
+    Homogeneous: a point of the face is ``Σ β_i V_i`` (Σ β = 1); its window position
+    ``(Σ β_i X_i) / (Σ β_i w_i)`` with ``X_i = (x_i + w_i)·W/2`` (likewise y), so
+    ``β ∝ M⁻¹ (px, py, 1)`` with M's columns ``(X_i, Y_i, w_i)`` — valid for faces crossing
+    the eye plane too (the homogeneous rasterization of Olano & Greer)."""
+    w = clip[:, :, 3]
+    m = np.empty(clip.shape[:1] + (3, 3))
+    m[:, 0, :] = (clip[:, :, 0] + w) * (0.5 * width)
+    m[:, 1, :] = (clip[:, :, 1] + w) * (0.5 * height)
+    m[:, 2, :] = w
+    rhs = np.stack([px, py, np.ones_like(px)], axis=1)            # (E, 3, S)
+    det = np.linalg.det(m)
+    ok = np.abs(det) > 1e-300
+    m[~ok] = np.eye(3)
+    beta = np.linalg.solve(m, rhs)                                 # (E, 3, S)
+    beta = np.moveaxis(beta, 1, 2)                                 # (E, S, 3)
+    total = beta.sum(axis=2, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        beta = beta / total
+    beta[~ok] = np.nan
+    return beta
+
+
+def face_sets(scene, raster, id_may, eps):
+    """The face-set arrays of a plain-rendering scene (``GoldenScene.geometry``): for every
+    pixel where the visible primitive may differ (``id_may``), the faces that may win there
+    (:func:`refraster.tolerance.may_faces`) and, per (pixel, face), what that face shows at the
+    pixel centre moved by up to ``eps`` — intervals of window depth, eye depth, barycentrics
+    and colour, a normal with its angle, and the facing (−1 for a sliver whose facing may flip,
+    :func:`refraster.tolerance.fragile_faces`) — so a candidate
+    is checked against the face its own ``prim_id`` names instead of being free there."""
+    from ..framebuffer import _build
+    from ..raster import prepare
+    from ..tolerance import _depth_slacks, _face_facing, fragile_faces, may_faces
+    cam = scene.camera
+    meshes = [d.mesh for d in scene.draws]
+    models = [d.model for d in scene.draws]
+    h, w = cam.height, cam.width
+    offsets, faces = may_faces(meshes, **cam.kwargs, model=models, cull=raster["cull"],
+                               mask=id_may, eps=eps)
+    prep = prepare(meshes, **cam.kwargs, model=models, cull=raster["cull"])
+    pix = np.repeat(np.arange(h * w), np.diff(offsets))
+    rows, cols = np.divmod(pix, w)
+    # sample points: the centre and the corners of the square of half-side eps (⊇ the ε-disc);
+    # every value here is quasi-linear (affine or a ratio of affine functions of the point), so
+    # its extremes over the square are at the corners
+    d = np.array([[0.0, 0.0], [-1, -1], [1, -1], [-1, 1], [1, 1]]) * eps
+    px = cols[:, None] + 0.5 + d[None, :, 0]
+    py = (h - 1 - rows)[:, None] + 0.5 + d[None, :, 1]
+    clip = prep.clip[prep.triangles.faces[faces]]
+    beta = _face_barycentrics(clip, px, py, w, h)
+    zc = np.einsum("esk,ek->es", beta, clip[:, :, 2])
+    wc = np.einsum("esk,ek->es", beta, clip[:, :, 3])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        depth = 0.5 * zc / wc + 0.5
+    n = len(faces)
+    smooth = raster["normals"] == "smooth"
+    normals = [dd.normals for dd in scene.draws] if smooth else "flat"
+    shape = (n, d.shape[0])
+    fb = _build(prep.meshes, prep.models, prep.view, prep.proj,
+                np.nan_to_num(depth, nan=1.0).astype(np.float32), np.repeat(faces, 5).reshape(shape),
+                prep.face_offsets, np.zeros(shape, np.bool_),
+                np.nan_to_num(beta, nan=0.0).astype(np.float32), normals,
+                np.ones(3))
+    slack = _depth_slacks(prep, DEPTH_EPS)[faces] if n else np.zeros(0)
+
+    def spread(v, base, margin=1.0):
+        """``centre ∓ (margin · spread + base)`` per entry (and channel). Depth, eye depth and
+        barycentrics are affine or ratios of affine functions of the sample point: their
+        extremes over the square are at its corners, so the corners' spread is exact (margin
+        1); the colour (a shade of the normal) gets ``SHIFT_MARGIN``."""
+        c = v[:, 0]
+        lo = c - margin * (c - v.min(axis=1)) - base
+        hi = c + margin * (v.max(axis=1) - c) + base
+        return lo.astype(np.float32), hi.astype(np.float32)
+
+    out = {}
+    out["set_depth_lo"], out["set_depth_hi"] = spread(depth, slack)
+    eye = fb.eye_depth.astype(np.float64)
+    out["set_eye_depth_lo"], out["set_eye_depth_hi"] = spread(
+        eye, EYE_DEPTH_ABS + EYE_DEPTH_REL * np.abs(eye[:, 0]))
+    out["set_barycentric_lo"], out["set_barycentric_hi"] = spread(beta, BARY_TOL)
+    col = fb.color.astype(np.float64)
+    out["set_color_lo"], out["set_color_hi"] = spread(col, COLOR_TOL, SHIFT_MARGIN)
+    nrm = fb.normal.astype(np.float64)
+    out["set_normal"] = nrm[:, 0].astype(np.float32)
+    ang = np.zeros(n)
+    for k in range(1, d.shape[0]):
+        ang = np.maximum(ang, _angle(nrm[:, 0], nrm[:, k]))
+    out["set_normal_angle"] = (NORMAL_TOL + SHIFT_MARGIN * ang).astype(np.float32)
+    # a face's facing is definite unless the face itself is a sliver that may flip
+    facing = _face_facing(prep.triangles)[faces].astype(np.int8)
+    facing[fragile_faces(prep, eps)[faces]] = -1
+    out["set_facing"] = facing
+    # an entry whose values cannot be evaluated (a degenerate face) leaves them free, and so
+    # does a sliver's: its snapped plane is ill-conditioned (may_faces)
+    bad = ~np.isfinite(depth).all(axis=1) | (facing < 0)
+    for lo_name, hi_name in SET_INTERVALS.values():
+        lo, hi = out[lo_name], out[hi_name]
+        lo[bad] = -np.inf
+        hi[bad] = np.inf
+    out["set_normal_angle"][bad] = np.pi
+    out["set_offsets"] = offsets.astype(np.int32)
+    out["set_face"] = faces.astype(np.int32)
+    out["draw_offsets"] = np.asarray(prep.face_offsets, np.int32)
+    return out
+
+
+def check_face_sets(arrays, height, width):
+    """Raise ``ValueError`` unless the face-set arrays of ``tolerance.npz`` (when present) are
+    consistent: a file is never trusted to index with."""
+    if "set_offsets" not in arrays:
+        return
+    off = np.asarray(arrays["set_offsets"])
+    face = np.asarray(arrays["set_face"])
+    draws = np.asarray(arrays["draw_offsets"])
+    n = len(face)
+    if off.shape != (height * width + 1,) or off[0] != 0 or off[-1] != n \
+            or np.any(np.diff(off.astype(np.int64)) < 0):
+        raise ValueError("set_offsets is not an offset array over the frame's pixels")
+    if draws.ndim != 1 or len(draws) < 2 or draws[0] != 0 or np.any(np.diff(draws) < 0):
+        raise ValueError("draw_offsets is not an offset array over the draw calls")
+    if n and (face.min() < 0 or face.max() >= draws[-1]):
+        raise ValueError("set_face holds a face outside the scene's draws")
+    for name in ("set_facing", "set_normal", "set_normal_angle") + tuple(
+            x for pair in SET_INTERVALS.values() for x in pair):
+        if np.asarray(arrays[name]).shape[:1] != (n,):
+            raise ValueError(f"{name} does not have one row per face-set entry ({n})")
+    if n and not np.isin(arrays["set_facing"], (-1, 0, 1)).all():
+        raise ValueError("set_facing holds values other than -1, 0, 1")
+
+
+def named_entries(arrays, prim_id, object_id=None):
+    """(H, W) int64: the face-set entry of the face each candidate pixel names (its
+    ``object_id``'s draw, its ``prim_id``), −1 where the pixel is uncovered, has no set, or
+    names a face outside its set; ``None`` for a golden without face sets."""
+    if "set_offsets" not in arrays:
+        return None
+    prim = np.asarray(prim_id, np.int64)
+    h, w = prim.shape
+    draws = arrays["draw_offsets"].astype(np.int64)
+    if object_id is None:
+        if len(draws) != 2:
+            return None
+        obj = np.zeros_like(prim)
+    else:
+        obj = np.asarray(object_id, np.int64)
+    ok = (prim >= 0) & (obj >= 0) & (obj < len(draws) - 1)
+    objc = np.clip(obj, 0, len(draws) - 2)
+    g = np.where(ok & (prim < draws[objc + 1] - draws[objc]), draws[objc] + prim, -1).ravel()
+    offsets = arrays["set_offsets"].astype(np.int64)
+    faces = arrays["set_face"].astype(np.int64)
+    out = np.full(h * w, -1, np.int64)
+    has = np.flatnonzero((np.diff(offsets) > 0) & (g >= 0))
+    for k in has:   # sets are small (a few faces); sorted, so a binary search
+        lo, hi = offsets[k], offsets[k + 1]
+        j = lo + np.searchsorted(faces[lo:hi], g[k])
+        if j < hi and faces[j] == g[k]:
+            out[k] = j
+    return out.reshape(h, w)
 
 
 # --- the tolerant check --------------------------------------------------------------------------
@@ -256,8 +445,78 @@ def _candidate_coverage(key, kind, candidate, clear_depth):
     raise ValueError(f"buffer {key!r} ({kind}) cannot give coverage")
 
 
+def _face_outside(key, kind, cand, arrays, named, step, clear_depth):
+    """(H, W) bool: where the visible primitive may differ (``id_may``), the candidate's value
+    is not what the face its own ``prim_id`` names can show there (its face-set entry), or —
+    for ids — that face may not win there. Without candidate ids (``named`` None) values are
+    checked against the envelope of the pixel's whole set."""
+    id_may = np.asarray(arrays["id_may"], np.bool_)
+    h, w = id_may.shape
+    offsets = arrays["set_offsets"].astype(np.int64)
+    has = (np.diff(offsets) > 0).reshape(h, w)
+    c = np.asarray(cand)
+    if kind == "id" or key == "front_facing":
+        if named is None:
+            return np.zeros((h, w), np.bool_)
+        if key == "front_facing":
+            e = np.maximum(named, 0)
+            facing = arrays["set_facing"][e]
+            return id_may & (named >= 0) & (facing >= 0) & (c != (facing == 1))
+        return id_may & has & (c >= 0) & (named < 0)
+    # without ids, a pixel counts as covered by what its own buffer says (or, for buffers that
+    # cannot say, where the golden's coverage is "must")
+    if key == "depth":
+        covered = c < clear_depth
+    elif key == "eye_depth":
+        covered = np.isfinite(c)
+    elif key == "normal":
+        covered = np.linalg.norm(c.astype(np.float64), axis=2) > 0.5
+    elif "coverage" in arrays:
+        covered = np.asarray(arrays["coverage"]) == MUST
+    else:
+        covered = np.zeros((h, w), np.bool_)
+    if named is not None:
+        pick = id_may & (named >= 0) & covered
+        e = named[pick]
+    else:
+        pick = id_may & has & covered
+        e = None
+    out = np.zeros((h, w), np.bool_)
+    if not pick.any():
+        return out
+    v = c[pick].astype(np.float64)
+    if key == "normal":
+        limit = arrays["set_normal_angle"].astype(np.float64) + step * math.sqrt(3.0)
+        if e is None:   # no ids: some face of the set must be within its angle
+            k = np.flatnonzero(pick.ravel())
+            n = offsets[k + 1] - offsets[k]
+            ent = np.repeat(offsets[k], n) + (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n))
+            miss = _angle(np.repeat(v, n, axis=0), arrays["set_normal"][ent]) - limit[ent]
+            bad = np.minimum.reduceat(miss, np.cumsum(n) - n) > 0
+        else:
+            bad = _angle(v, arrays["set_normal"][e]) > limit[e]
+    else:
+        lo_name, hi_name = SET_INTERVALS[key]
+        lo, hi = arrays[lo_name], arrays[hi_name]
+        if e is None:   # the envelope of the pixel's set
+            # pixels with entries own consecutive, non-empty runs of the entry arrays
+            runs = np.flatnonzero(has.ravel())
+            slot = np.full(h * w, -1, np.int64)
+            slot[runs] = np.arange(len(runs))
+            k = slot[np.flatnonzero(pick.ravel())]
+            lo = np.minimum.reduceat(lo, offsets[runs], axis=0)[k]
+            hi = np.maximum.reduceat(hi, offsets[runs], axis=0)[k]
+        else:
+            lo, hi = lo[e], hi[e]
+        with np.errstate(invalid="ignore"):
+            bad = ~((v >= lo.astype(np.float64) - step) & (v <= hi.astype(np.float64) + step))
+        bad = bad.any(axis=1) if bad.ndim == 2 else bad
+    out[pick] = bad
+    return out
+
+
 def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_depth=1.0,
-                     fallback=None, step=0.0):
+                     fallback=None, step=0.0, named=None):
     """Metrics, checks and images of one buffer under its tolerant checks.
 
     Parameters
@@ -275,6 +534,9 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
         The ``conformant`` tolerance, for ``masked``.
     step : float
         Quantisation step of the candidate's encoding (widens intervals and angles).
+    named : (H, W) int64, optional
+        :func:`named_entries` of the candidate's ids (the ``face`` check); ``None`` when the
+        candidate sends no ids.
 
     Returns
     -------
@@ -316,6 +578,8 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
         elif name == "masked":
             masked = buffer_metrics(ref, cand, kind, fallback, step=step,
                                     forgive=arrays[spec.get("may", "may")])
+        elif name == "face":
+            outside["face"] = _face_outside(key, kind, cand, arrays, named, step, clear_depth)
         else:
             raise ValueError(f"unknown tolerant check {name!r}")
     err_el = _elementwise_error(ref, cand)

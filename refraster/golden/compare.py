@@ -23,11 +23,12 @@ import numpy as np
 
 from .buffers import png_decode
 from .common import EXIT_FAIL, EXIT_PASS, EXIT_UNUSABLE, CandidateError, GoldenError
-from .metrics import (_elementwise_error, buffer_metrics, local_variation, pixel_error,
-                      position_deviation)
+from .domain import domain_checks
+from .metrics import (_elementwise_error, _offsets, buffer_metrics, local_variation,
+                      pixel_error, position_deviation)
 from .package import sha256_file
-from .schema import (MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION, SchemaError, check_version,
-                     is_safe_relpath, validate)
+from .schema import (MANIFEST_SCHEMA, MANIFEST_SCHEMA_OLDEST, MANIFEST_SCHEMA_VERSION,
+                     SchemaError, check_version, is_safe_relpath, validate)
 from .tolerance import PROFILES, apply_overrides, parse_override
 
 __all__ = ["GoldenError", "CandidateError", "BufferResult", "SceneResult", "Comparison",
@@ -89,6 +90,7 @@ def load_manifest(golden_dir, *, verify=True):
         raise GoldenError(f"cannot read {path}: {exc}") from None
     try:
         check_version(manifest, kind="refraster.golden", supported=MANIFEST_SCHEMA_VERSION,
+                      oldest=MANIFEST_SCHEMA_OLDEST,
                       what=str(path))
         for where, rel in _manifest_paths(manifest):
             _inside(root, rel, f"{path} {where}")
@@ -131,10 +133,25 @@ def _allowance_arrays(root, name, entry):
         t = b.get("tolerant", {})
         needed = [t[k] for k in ("lo", "hi", "angle", "may") if k in t]
         needed += ["id_may"] + (["coverage"] if "coverage" in t.get("checks", ()) else [])
+        if "face" in t.get("checks", ()):
+            needed += ["set_offsets", "set_face", "set_facing", "set_normal",
+                       "set_normal_angle", "draw_offsets"]
+            needed += [n for pair in _SET_INTERVAL_NAMES for n in pair]
         missing = [n for n in needed if n not in arrays]
         if missing:
             raise GoldenError(f"golden {spec['file']}: buffer {key!r} needs arrays {missing}")
+    from .allowance import check_face_sets
+    shape = next(iter(entry["buffers"].values()))["shape"] if entry["buffers"] else [0, 0]
+    try:
+        check_face_sets(arrays, shape[0], shape[1])
+    except (ValueError, KeyError) as exc:
+        raise GoldenError(f"golden {spec['file']}: {exc}") from None
     return arrays
+
+
+_SET_INTERVAL_NAMES = (("set_depth_lo", "set_depth_hi"), ("set_eye_depth_lo", "set_eye_depth_hi"),
+                       ("set_barycentric_lo", "set_barycentric_hi"),
+                       ("set_color_lo", "set_color_hi"))
 
 
 def _reference(root, name, entry):
@@ -170,16 +187,17 @@ def _check_candidate(scene, key, spec, a, source):
     if kind == "id" and not np.issubdtype(a.dtype, np.integer):
         raise CandidateError(f"{where}: expected integer ids, got {a.dtype}")
     if kind == "bool":
-        if np.issubdtype(a.dtype, np.integer) and np.isin(a, (0, 1)).all():
-            a = a.astype(bool)
+        if np.issubdtype(a.dtype, np.integer):
+            a = a != 0  # values other than 0/1 fail the domain check on the raw array
         elif a.dtype != np.bool_:
             raise CandidateError(f"{where}: expected bool (or integer 0/1), got {a.dtype}")
     return a
 
 
 def load_candidate(candidate_dir, scene, specs):
-    """Candidate buffers of ``scene``: ``{key: (array, source, step)}``; ``step`` is the PNG
-    quantisation step (0 for exact files). Raises :class:`CandidateError`."""
+    """Candidate buffers of ``scene``: ``{key: (array, source, step, raw)}``; ``step`` is the
+    PNG quantisation step (0 for exact files), ``raw`` the array as sent (before integer bools
+    became bools). Raises :class:`CandidateError`."""
     import imageio.v3 as iio
     base = Path(candidate_dir) / scene
     npz = base / "buffers.npz"
@@ -208,7 +226,8 @@ def load_candidate(candidate_dir, scene, specs):
             looked = [f"{scene}/buffers.npz", f"{scene}/{key}.npy", f"{scene}/{key}.png"]
             raise CandidateError(f"candidate buffer {scene}/{key} is missing (looked for "
                                  f"{', '.join(looked)} in {candidate_dir})")
-        out[key] = (_check_candidate(scene, key, spec, np.asarray(a), source), source, step)
+        a = np.asarray(a)
+        out[key] = (_check_candidate(scene, key, spec, a, source), source, step, a)
     return out
 
 
@@ -271,7 +290,9 @@ class Comparison:
                 lines.append(f"{s.name}: unusable candidate: {s.error}")
             for b in s.buffers:
                 for c in b.checks:
-                    if not c["ok"] and "detail" in c:
+                    if not c["ok"] and c["metric"].startswith("domain:"):
+                        lines.append(f"{s.name}/{b.name}: {c['metric']}: {c['detail']}")
+                    elif not c["ok"] and "detail" in c:
                         lines.append(f"{s.name}/{b.name}: {c['metric']} = {c['value']} > "
                                      f"{c['limit']} ({c['detail']}; worst {b.metrics['worst']})")
                     elif not c["ok"]:
@@ -330,6 +351,42 @@ def _check_overrides(overrides, manifest, names):
 
 
 MODES = ("tolerant", "exact")
+
+
+def _check_nothing_compared(manifest, names, scenes, buffers):
+    """A compare that would compare nothing is refused: it must never report a pass."""
+    if not names:
+        raise GoldenError("nothing to compare: " + ("no scene was selected" if scenes is not None
+                                                    else "the golden has no scenes"))
+    empty = [n for n in names if not manifest["scenes"][n]["buffers"]]
+    if empty:
+        how = ("every buffer was filtered out by the buffer selection" if buffers is not None
+               else "the golden stores no buffers for them")
+        raise GoldenError(f"nothing to compare for scene(s) {empty}: {how}")
+
+
+def _candidate_coverage(cand, specs):
+    """The candidate's own coverage (its ``prim_id >= 0``) when it sends a usable prim_id."""
+    if "prim_id" not in cand or specs["prim_id"]["kind"] != "id":
+        return None
+    a = cand["prim_id"][0]
+    return a >= 0 if a.ndim == 2 else None
+
+
+def _edge_may(ref, specs):
+    """Without ids or stored allowances: the golden's covered pixels next to its background
+    (where a conformant candidate may show background instead)."""
+    if "prim_id" in ref and specs.get("prim_id", {}).get("kind") == "id" \
+            and np.asarray(ref["prim_id"]).ndim == 2:
+        background = np.asarray(ref["prim_id"]) < 0
+    elif "eye_depth" in ref and np.asarray(ref["eye_depth"]).ndim == 2:
+        background = ~np.isfinite(np.asarray(ref["eye_depth"], np.float64))
+    else:
+        return None
+    near = background.copy()
+    for dst, src in _offsets(*background.shape, 1):
+        near[dst] |= background[src]
+    return near
 
 
 def has_allowances(manifest, names):
@@ -423,6 +480,7 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
         for n in names:
             specs = manifest["scenes"][n]["buffers"]
             manifest["scenes"][n]["buffers"] = {k: specs[k] for k in specs if k in buffers}
+    _check_nothing_compared(manifest, names, scenes, buffers)
     _check_overrides(overrides, manifest, names)
     if report is not None:
         from .report import check_report_dir
@@ -438,6 +496,15 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
             results.append(SceneResult(name, "error", [], str(exc)))
             continue
         buffers = []
+        coverage = _candidate_coverage(cand, entry["buffers"])
+        named = None
+        if allow is not None and coverage is not None:
+            from .allowance import named_entries
+            obj = cand["object_id"][0] if "object_id" in cand else None
+            named = named_entries(allow, cand["prim_id"][0],
+                                  obj if obj is not None and obj.ndim == 2 else None)
+        edge_may = (allow.get("may") if allow is not None
+                    else _edge_may(ref, entry["buffers"]) if coverage is None else None)
         for key, spec in entry["buffers"].items():
             tol = spec["tolerance"].get(profile)
             if tol is None:
@@ -446,17 +513,20 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
                 tol = apply_overrides(tol, name, key, overrides)
             except ValueError as exc:
                 raise GoldenError(str(exc)) from None
-            a, source, step = cand[key]
+            a, source, step, raw = cand[key]
             if allow is not None:
                 from .allowance import tolerant_metrics
                 clear = entry["parameters"]["raster"].get("clear_depth", 1.0)
                 metrics, checks, images = tolerant_metrics(
                     key, ref[key], a, spec["kind"], spec["tolerant"], allow, clear_depth=clear,
-                    fallback=tol, step=step)
+                    fallback=tol, step=step, named=named)
                 tol = {**tol, "tolerant": spec["tolerant"]}
             else:
                 metrics, checks, images = buffer_metrics(ref[key], a, spec["kind"], tol,
                                                          step=step)
+            checks = checks + domain_checks(
+                key, spec["kind"], ref[key], a, step=step, raw=raw, coverage=coverage,
+                may=edge_may, id_range=spec.get("ids"))
             buffers.append(BufferResult(key, spec["kind"], source, tol, metrics, checks,
                                         ref[key], a, images))
         status = "pass" if all(b.passed for b in buffers) else "fail"

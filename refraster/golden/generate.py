@@ -30,7 +30,7 @@ from .. import io as rio
 from .._validate import check_shape
 from .buffers import DTYPES, KINDS, infer_kind, preview, preview_range
 from .package import export_package, npz_bytes, sha256_file
-from .scenes import DEFAULT_RASTER, GoldenScene, available_scenes, raster_state
+from .scenes import DEFAULT_RASTER, GoldenScene, available_scenes, id_range, raster_state
 from .schema import MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION, validate
 from .tolerance import default_tolerances
 from . import write
@@ -77,6 +77,20 @@ def _check_scene(name, scene):
                              f"buffer and one of {KINDS}")
 
 
+def _id_range(name, key, scene, a):
+    """The id range of buffer ``key``, checked against the golden's own ids: a scene whose
+    ids break its stated convention is a bug in the scene, refused here."""
+    rng = id_range(scene, key)
+    if rng is None:
+        raise ValueError(f"scene {name!r}: id buffer {key!r} has no id convention; state its "
+                         "range in GoldenScene.ids")
+    lo, hi = rng
+    if a.size and (int(a.min()) < lo or int(a.max()) > hi):
+        raise ValueError(f"scene {name!r}: buffer {key!r} holds ids {int(a.min())}..."
+                         f"{int(a.max())}, outside its convention [{lo}, {hi}]")
+    return [lo, hi]
+
+
 def _write_scene(root, name, scene):
     """Write one scene under ``root``; return its manifest entry."""
     from .allowance import scene_allowances
@@ -95,6 +109,8 @@ def _write_scene(root, name, scene):
                         "preview": rel,
                         "tolerance": default_tolerances(key, kind, scene.tolerances.get(key)),
                         "tolerant": tolerant[key]}
+        if kind == "id":
+            buffers[key]["ids"] = _id_range(name, key, scene, a)
     allowances = {"file": f"{name}/tolerance.npz", **info,
                   "arrays": {k: {"shape": list(v.shape), "dtype": str(v.dtype)}
                              for k, v in sorted(arrays.items())}}

@@ -97,6 +97,14 @@ class GoldenScene:
         per-fragment decision.
     may_radius : int
         Pixels the "may" region grows by for technique buffers: their filters' footprint.
+    ids : dict of str → (int, int)
+        ``{buffer: (smallest, largest)}``: the ids the scene can produce in an ``id`` buffer
+        (background −1 included), stored in the manifest for the compare's domain check.
+        Default (:func:`id_range`): ``prim_id`` / ``layer_prim_id`` [−1, F − 1] with F the
+        largest face count of a draw (ids are face indices within their draw call, as
+        :func:`refraster.render` writes them), ``object_id`` [−1, D − 1] with D the draw
+        count. A
+        technique whose ids follow another convention (caps) states it here.
     """
 
     technique: str
@@ -112,6 +120,28 @@ class GoldenScene:
     geometry: bool = True
     may: np.ndarray | None = None
     may_radius: int = 1
+    ids: dict = field(default_factory=dict)
+
+
+def _face_count(mesh):
+    faces = getattr(mesh, "faces", None)
+    if faces is None and isinstance(mesh, (tuple, list)) and len(mesh) == 2:
+        faces = mesh[1]
+    return int(np.asarray(faces).reshape(-1, 3).shape[0])
+
+
+def id_range(scene, key):
+    """``(smallest, largest)`` id ``scene`` can produce in its ``id`` buffer ``key``: the
+    scene's own statement (:attr:`GoldenScene.ids`) or the default convention; ``None`` when
+    there is none for that buffer name."""
+    if key in scene.ids:
+        lo, hi = scene.ids[key]
+        return int(lo), int(hi)
+    if key in ("prim_id", "layer_prim_id"):
+        return -1, max((_face_count(d.mesh) for d in scene.draws), default=0) - 1
+    if key in ("object_id", "layer_object_id"):
+        return -1, len(scene.draws) - 1
+    return None
 
 
 @dataclass(frozen=True)

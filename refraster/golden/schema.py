@@ -22,7 +22,11 @@ __all__ = [
 ]
 
 SCENE_SCHEMA_VERSION = 1
-MANIFEST_SCHEMA_VERSION = 1
+#: 2: id buffers state the ids their scene can produce (``ids``), checked by the compare's
+#: domain checks; a version-1 golden lacks them and is refused (regenerate it).
+MANIFEST_SCHEMA_VERSION = 2
+#: The oldest manifest version this refraster reads.
+MANIFEST_SCHEMA_OLDEST = 2
 
 
 class SchemaError(ValueError):
@@ -158,7 +162,8 @@ _TOLERANT = {
     "additionalProperties": False,
     "properties": {
         "checks": {"type": "array", "minItems": 1,
-                   "items": {"enum": ["coverage", "id", "interval", "angle", "masked"]}},
+                   "items": {"enum": ["coverage", "id", "interval", "angle", "masked",
+                                      "face"]}},
         "lo": _ARRAY_NAME, "hi": _ARRAY_NAME, "angle": _ARRAY_NAME, "may": _ARRAY_NAME,
     },
 }
@@ -182,7 +187,8 @@ _ALLOWANCES = {
             "type": "object", "propertyNames": _ARRAY_NAME,
             "additionalProperties": {
                 "type": "object", "required": ["shape", "dtype"], "additionalProperties": False,
-                "properties": {"shape": _SHAPE, "dtype": {"enum": ["int8", "bool", "float32"]}},
+                "properties": {"shape": _SHAPE,
+                               "dtype": {"enum": ["int8", "int32", "bool", "float32"]}},
             },
         },
     },
@@ -241,6 +247,8 @@ MANIFEST_SCHEMA = {
                                     "additionalProperties": _TOLERANCE,
                                 },
                                 "tolerant": _TOLERANT,
+                                "ids": {"type": "array", "minItems": 2, "maxItems": 2,
+                                        "items": {"type": "integer"}},
                             },
                         },
                     },
@@ -317,8 +325,9 @@ def validate(document, schema):
     return document
 
 
-def check_version(document, *, kind, supported, what):
-    """Refuse a document of another kind or of a newer ``schema_version`` than ``supported``."""
+def check_version(document, *, kind, supported, what, oldest=1):
+    """Refuse a document of another kind, of a newer ``schema_version`` than ``supported`` or
+    of an older one than ``oldest``."""
     if not isinstance(document, dict):
         raise SchemaError(f"{what}: expected a JSON object, got {type(document).__name__}")
     if document.get("schema") != kind:
@@ -330,6 +339,10 @@ def check_version(document, *, kind, supported, what):
         raise SchemaError(
             f"{what}: schema_version {version} is newer than this refraster understands "
             f"(up to {supported}); upgrade refraster to read it")
+    if version < oldest:
+        raise SchemaError(
+            f"{what}: schema_version {version} is older than this refraster reads (from "
+            f"{oldest}); regenerate the golden with `refraster golden generate`")
     return version
 
 

@@ -59,9 +59,27 @@ def _clipsurface_building():
                         cull=state["cull"], precision=state["precision"])
     return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
                        buffers={**fb.arrays(), "cap_mask": fb.cap_mask},
+                       ids=_clip_ids(draws, [clip], caps["subdivision"]),
                        parameters={"surfaces": [{**surface, "offset_map": "offset_map"}], **caps},
                        maps={"offset_map": offset_map}, geometry=False,
                        may=_clip_decision_may(draws, camera, clip, fb.cap_mask))
+
+
+def _clip_ids(draws, surfaces, subdivision):
+    """The id convention of a clip-surface scene (:func:`refraster.clipsurface.render_clipped`):
+    solid pixels carry their solid's face (prim_id < F) and draw (object_id < M); the cap of
+    solid m and surface k carries object_id M + m·K + k and the face of its cap mesh (at most
+    the faces of the cap mesh over the solid's box)."""
+    from ..capping import cap_mesh
+    from ..mesh import as_mesh, bounds
+    meshes = [as_mesh(d.mesh) for d in draws]
+    m, k = len(meshes), len(surfaces)
+    faces = [len(x.faces) for x in meshes]
+    for x in meshes:
+        for s in surfaces:
+            cap = cap_mesh(s, bounds(x.vertices), subdivision=subdivision)
+            faces.append(0 if cap is None else len(cap.faces))
+    return {"prim_id": (-1, max(faces) - 1), "object_id": (-1, m + m * k - 1)}
 
 
 def _clip_decision_may(draws, camera, clip, cap_mask):
@@ -118,8 +136,12 @@ def _ldi_nested_shells():
     }
     # a hidden layer changes wherever any triangle's edge passes (every edge is marked by the
     # technique allowance); the layers' depths are window depths
+    # ids: layer_prim_id follows the default convention; a pixel's layer count is at most the
+    # number of faces (each face is crossed once by the pixel's ray)
+    faces = sum(len(d.mesh.faces) for d in draws)
     return GoldenScene(technique="ldi", camera=camera, draws=draws, buffers=buffers,
-                       parameters=params, kinds={"layer_depth": "unorm"}, geometry=False)
+                       parameters=params, kinds={"layer_depth": "unorm"}, geometry=False,
+                       ids={"layer_count": (0, faces)})
 
 
 @register_scene("cutaway_shells", technique="cutaway",

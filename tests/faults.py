@@ -1,0 +1,219 @@
+"""A fault-injection harness for goldens ("Goldens with teeth (1)", item 4).
+
+For one scene of a generated golden and one of its buffers, inject an in-domain fault at every
+covered pixel — in batches on a lattice whose spacing exceeds the scene's may-radius and the
+position-deviation radius, so that no two faults of a batch see each other — run the buffer's
+tolerant check (the code path of ``refraster golden compare --mode tolerant``) and count:
+
+* ``admitted``: covered pixels whose allowance admits the fault at all (the pixel's values are
+  free there — ``id_may`` / ``may`` — or the faulty value lies inside its interval / angle);
+* ``caught``: among the other covered pixels, those where the check fails **at that pixel** (the
+  pixel is unforgiven and one unforgiven pixel fails the buffer).
+
+The faults (seeds fixed before any tuning):
+
+============  ==================================================================================
+kind          fault
+============  ==================================================================================
+window depth  moved by 0.25, reflected into [0, 1]
+eye depth     scaled by 1.25
+normal        rotated by 20° about an axis perpendicular to it (seeded)
+id            swapped for another valid id of the scene (the manifest's ``ids`` range, seeded)
+bool          flipped
+barycentric   moved along the simplex: (b0 + δ, b1 − δ, b2), δ = 0.25 reflected into the simplex
+colour        one channel (seeded) moved by 0.25, reflected into [0, 1]
+============  ==================================================================================
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from refraster.golden.allowance import named_entries, tolerant_metrics
+from refraster.golden.compare import load_manifest
+
+SEED = 20261201
+
+
+def _reflect(v, d=0.25):
+    w = v + d
+    return np.where(w > 1.0, 2.0 - w, w) if np.ndim(w) else (2.0 - w if w > 1.0 else w)
+
+
+def _rotate(n, angle, rng):
+    """``n`` (unit) rotated by ``angle`` about a random axis perpendicular to it."""
+    n = np.asarray(n, np.float64)
+    t = rng.normal(size=3)
+    t -= n * (t @ n)
+    t /= np.linalg.norm(t)
+    return math.cos(angle) * n + math.sin(angle) * t
+
+
+def inject(key, kind, ref, pixels, rng, id_range):
+    """A copy of ``ref`` with the fault of ``key``/``kind`` at every (row, col) of ``pixels``."""
+    out = ref.copy()
+    for r, c in pixels:
+        v = ref[r, c]
+        if kind == "id":
+            lo, hi = id_range
+            lo = max(lo, 0)
+            if hi <= lo:   # no other valid id: the fault is not applicable
+                continue
+            f = int(v)
+            while f == int(v):
+                f = int(rng.integers(lo, hi + 1))
+            out[r, c] = f
+        elif kind == "bool":
+            out[r, c] = ~v
+        elif key == "normal":
+            out[r, c] = _rotate(v, math.radians(20.0), rng)
+        elif key == "barycentric":
+            b = np.asarray(v, np.float64).copy()
+            d = 0.25 if b[1] >= 0.25 else -min(0.25, b[0])
+            b[0] += d
+            b[1] -= d
+            out[r, c] = b
+        elif key == "eye_depth" or kind == "float":
+            out[r, c] = v * 1.25
+        elif kind == "color":
+            ch = int(rng.integers(0, v.shape[-1]))
+            out[r, c, ch] = _reflect(float(v[ch]))
+        else:  # unorm: window depth and other [0, 1] values
+            if np.ndim(v):
+                out[r, c] = _reflect(np.asarray(v, np.float64))
+            else:
+                out[r, c] = _reflect(float(v))
+    return out
+
+
+def _set_admits(key, kind, arrays, cand, named):
+    """(H, W) bool, where the id may differ: the face the candidate names may win there and
+    its value lies in that face's entry of the face set."""
+    id_may = np.asarray(arrays["id_may"], np.bool_)
+    ok = id_may & (named >= 0)
+    e = np.maximum(named, 0)
+    if kind == "id":
+        return ok
+    if key == "front_facing":
+        f = arrays["set_facing"][e]
+        return ok & ((f < 0) | (cand == (f == 1)))
+    if key == "normal":
+        ang = np.degrees(np.arccos(np.clip(np.einsum("hwc,hwc->hw", cand.astype(np.float64),
+                                                     arrays["set_normal"][e]), -1, 1)))
+        return ok & (np.radians(ang) <= arrays["set_normal_angle"][e])
+    lo = arrays[f"set_{key}_lo"][e]
+    hi = arrays[f"set_{key}_hi"][e]
+    inside = (cand >= lo) & (cand <= hi)
+    return ok & (inside.all(axis=2) if inside.ndim == 3 else inside)
+
+
+def _admits(key, kind, spec, arrays, ref, cand, named=None, step=0.0):
+    """(H, W) bool: the allowance admits the candidate's value at the pixel — every check of
+    the buffer does (a value is caught when any one check refuses it)."""
+    checks = spec["checks"]
+    if "masked" in checks:
+        return np.asarray(arrays[spec.get("may", "may")], np.bool_)
+    id_may = np.asarray(arrays["id_may"], np.bool_)
+    sets = "face" in checks and named is not None
+    # where the id may differ, the face check decides (with face sets) or values are free
+    ok = np.ones(ref.shape[:2], np.bool_)
+    if "interval" in checks:
+        lo = arrays[spec["lo"]].astype(np.float64) - step
+        hi = arrays[spec["hi"]].astype(np.float64) + step
+        c = cand.astype(np.float64)
+        inside = (c >= lo) & (c <= hi)
+        inside = inside.all(axis=2) if inside.ndim == 3 else inside
+        ok &= id_may | inside
+    if "angle" in checks:
+        a = np.einsum("hwc,hwc->hw", ref.astype(np.float64), cand.astype(np.float64))
+        na = np.linalg.norm(ref, axis=2) * np.linalg.norm(cand, axis=2)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ang = np.arccos(np.clip(a / na, -1.0, 1.0))
+        ok &= id_may | (ang <= arrays[spec["angle"]])
+    if "id" in checks:
+        same = (ref == cand).all(axis=2) if ref.ndim == 3 else ref == cand
+        ok &= id_may | same
+    if sets:
+        ok &= ~id_may | _set_admits(key, kind, arrays, cand, named)
+    return ok
+
+
+def fault_table(golden_dir, scene, *, buffers=None, seed=SEED):
+    """Per buffer of ``scene``: ``{buffer: {"covered", "admitted", "eligible", "caught",
+    "missed": [(row, col), ...]}}`` for the tolerant check of a generated golden."""
+    manifest = load_manifest(golden_dir, verify=False)
+    entry = manifest["scenes"][scene]
+    with np.load(golden_dir / scene / "buffers.npz", allow_pickle=False) as z:
+        ref_all = {k: z[k].copy() for k in z.files}
+    with np.load(golden_dir / scene / "tolerance.npz", allow_pickle=False) as z:
+        arrays = {k: z[k].copy() for k in z.files}
+    info = entry["allowances"]
+    clear = entry["parameters"]["raster"].get("clear_depth", 1.0)
+    if "prim_id" in ref_all:
+        covered = ref_all["prim_id"] >= 0
+    elif "depth" in ref_all:
+        covered = ref_all["depth"] < clear
+    else:
+        covered = np.ones(next(iter(ref_all.values())).shape[:2], np.bool_)
+    radius = max(int(info["may_radius"]), 1)
+    table = {}
+    for key, spec in entry["buffers"].items():
+        if buffers is not None and key not in buffers:
+            continue
+        kind = spec["kind"]
+        ref = ref_all[key]
+        if kind == "id" and spec.get("ids", (-1, 0))[1] <= 0:
+            table[key] = None   # one valid id (one draw call): no other id to swap in
+            continue
+        fallback = spec["tolerance"]["conformant"]
+        radius_k = max(radius, int(fallback["deviation_radius"]))
+        gap = 2 * radius_k + 2
+        rng = np.random.default_rng([seed, sum(map(ord, scene)), sum(map(ord, key))])
+        n = ref.shape[0] * ref.shape[1]
+        one_fails = ("masked" not in spec["tolerant"]["checks"]
+                     or 1.0 / n > float(fallback["max_fraction"]))
+        admitted = np.zeros(ref.shape[:2], np.bool_)
+        caught = np.zeros(ref.shape[:2], np.bool_)
+        for dy in range(gap):
+            for dx in range(gap):
+                lattice = np.zeros_like(covered)
+                lattice[dy::gap, dx::gap] = True
+                pix = np.argwhere(lattice & covered)
+                if not len(pix):
+                    continue
+                cand = inject(key, kind, ref, pix, rng, spec.get("ids", (-1, 0)))
+                ids = {k: (cand if k == key else ref_all[k]) for k in ("prim_id", "object_id")
+                       if k in ref_all}
+                named = (named_entries(arrays, ids["prim_id"], ids.get("object_id"))
+                         if "prim_id" in ids else None)
+                _, checks, images = tolerant_metrics(
+                    key, ref, cand, kind, spec["tolerant"], arrays, clear_depth=clear,
+                    fallback=fallback, named=named)
+                bad = images["over"] & ~images["forgiven"]
+                ok = all(c["ok"] for c in checks)
+                m = np.zeros_like(covered)
+                m[pix[:, 0], pix[:, 1]] = True
+                admitted |= m & _admits(key, kind, spec["tolerant"], arrays, ref, cand, named)
+                caught |= m & bad & (not ok) & one_fails
+        eligible = covered & ~admitted
+        table[key] = {"covered": int(covered.sum()), "admitted": int(admitted.sum()),
+                      "eligible": int(eligible.sum()), "caught": int((caught & eligible).sum()),
+                      "missed": [tuple(map(int, p)) for p in np.argwhere(eligible & ~caught)]}
+    return table
+
+
+def format_table(rows):
+    """Markdown table of ``[(scene, buffer, row), ...]``."""
+    out = ["| scene | buffer | covered | admits the fault | caught among the others |",
+           "|---|---|---:|---:|---:|"]
+    for scene, key, r in rows:
+        if r is None:
+            out.append(f"| {scene} | {key} | | n/a: one valid id | |")
+            continue
+        adm = r["admitted"] / r["covered"] if r["covered"] else 0.0
+        got = r["caught"] / r["eligible"] if r["eligible"] else 1.0
+        out.append(f"| {scene} | {key} | {r['covered']} | {100 * adm:.1f} % | "
+                   f"{100 * got:.1f} % |")
+    return "\n".join(out)

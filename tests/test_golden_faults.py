@@ -1,0 +1,257 @@
+"""Goldens with teeth (1), item 4: the fault-injection harness over the plain-rendering scenes.
+
+For every registered ``render_*`` scene and every buffer, an in-domain fault is injected at
+every covered pixel (``tests/faults.py``) and the tolerant check must fail at that pixel
+wherever the allowance does not admit the fault. The aims of the issue:
+
+* ≥ 99 % caught where the allowance is narrower than the fault — asserted for every scene;
+* ≤ 5 % of covered pixels whose allowance admits the fault — asserted for every scene and
+  buffer; the few pairs over it are listed (``OVER_AIM``) and the test fails when that list is
+  wrong in either direction;
+* specificity in the same run: refraster's conformant variants (4 sub-pixel bits, the top-left
+  rule, a float64 vertex stage) and llvmpipe pass every plain golden.
+
+Set ``REFRASTER_FAULT_TABLE=FILE`` to write the measured table (Markdown) for
+``docs/tolerance.md``.
+"""
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import faults
+from refraster import golden
+
+PLAIN = [n for n, e in golden.available_scenes().items() if e.technique == "render"]
+#: (scene, buffer) pairs whose allowance admits the fault at more than 5 % of covered pixels
+#: (measured; docs/tolerance.md says why): at 160×120 about half of the crank's covered pixels
+#: show a sliver whose facing and plane another snapping (4 sub-pixel bits) can change at will,
+#: so its values stay free there; on triangles smaller than a pixel a shift of ε moves the
+#: barycentrics by more than the 0.25 fault.
+OVER_AIM = {("render_crank", k) for k in ("barycentric", "color", "depth", "eye_depth",
+                                          "front_facing", "normal")} | {
+    ("render_fluted_column", "barycentric")}
+BACKEND = Path(__file__).with_name("golden_llvmpipe_backend.py")
+#: Conformant variants of refraster itself that every plain golden must accept (specificity).
+VARIANTS = {"4bit": {"subpixel_bits": 4}, "top_left": {"fill_rule": "top-left"},
+            "4bit_top_left": {"subpixel_bits": 4, "fill_rule": "top-left"},
+            "float64": {"precision": "float64"}}
+
+
+@pytest.fixture(scope="module")
+def gold(tmp_path_factory):
+    out = tmp_path_factory.mktemp("faults") / "g"
+    golden.generate(out, PLAIN)
+    return out
+
+
+@pytest.fixture(scope="module")
+def tables(gold):
+    return {scene: faults.fault_table(gold, scene) for scene in PLAIN}
+
+
+def test_write_table(tables):
+    rows = [(s, k, r) for s, t in tables.items() for k, r in t.items()]
+    text = faults.format_table(rows)
+    path = os.environ.get("REFRASTER_FAULT_TABLE")
+    if path:
+        Path(path).write_text(text + "\n")
+    assert len(rows) == sum(len(t) for t in tables.values()) and "| render_cube |" in text
+
+
+@pytest.mark.parametrize("scene", PLAIN)
+def test_faults_outside_the_allowance_are_caught(tables, scene):
+    for key, r in tables[scene].items():
+        if r is None:
+            continue
+        assert r["covered"] > 0
+        share = r["caught"] / r["eligible"] if r["eligible"] else 1.0
+        assert share >= 0.99, (scene, key, r["caught"], r["eligible"], r["missed"][:10])
+
+
+@pytest.mark.parametrize("scene", PLAIN)
+def test_allowance_admits_few_faults(tables, scene):
+    over = []
+    for key, r in tables[scene].items():
+        if r is not None and r["admitted"] > 0.05 * r["covered"]:
+            over.append(key)
+    assert sorted(over) == sorted(k for s, k in OVER_AIM if s == scene), \
+        [(k, tables[scene][k]["admitted"], tables[scene][k]["covered"]) for k in over]
+
+
+@pytest.mark.parametrize("variant", sorted(VARIANTS))
+def test_conformant_variants_pass(gold, tmp_path, variant):
+    """Specificity in the same run: refraster with 4 sub-pixel bits, the top-left rule, both,
+    or a float64 vertex stage passes every plain golden (tolerant), and fails exact."""
+    from refraster.golden.compare import compare
+    from refraster.golden.scenes import raster_state, render_draws
+    registry = golden.available_scenes()
+    for name in PLAIN:
+        scene = registry[name].build()
+        state = raster_state(scene.raster)
+        fb = render_draws(scene.draws, scene.camera, {**state, **VARIANTS[variant]})
+        (tmp_path / name).mkdir()
+        np.savez(tmp_path / name / "buffers.npz", **fb.arrays())
+    result = compare(gold, tmp_path, mode="tolerant", scenes=PLAIN)
+    assert result.exit_code == 0, "\n".join(result.failures()[:20])
+
+
+def test_llvmpipe_passes_every_plain_golden(gold, tmp_path, oracle):
+    oracle("moderngl")
+    import json
+    import subprocess
+    import sys
+    from refraster.golden.compare import compare
+    proc = subprocess.run([sys.executable, "-I", str(BACKEND), str(gold), str(tmp_path / "gl")],
+                          capture_output=True, text=True, timeout=600)
+    if proc.returncode != 0:
+        from conftest import IN_CI
+        if IN_CI or "EGL" not in proc.stderr:
+            pytest.fail(f"llvmpipe backend failed: {proc.stderr[-2000:]}")
+        pytest.skip(f"llvmpipe backend failed: {proc.stderr[-500:]}")
+    info = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert info["renderer"].startswith("llvmpipe") and sorted(info["scenes"]) == sorted(PLAIN)
+    result = compare(gold, tmp_path / "gl", mode="tolerant", scenes=PLAIN)
+    assert result.exit_code == 0, "\n".join(result.failures()[:20])
+
+
+def test_harness_sees_a_blind_check(gold, monkeypatch):
+    """The other direction: a checker that forgives every depth fault (a skipped interval
+    check) is reported as missing them; the other buffers stay caught."""
+    from refraster.golden import allowance
+
+    real = allowance.tolerant_metrics
+
+    def blind(key, reference, candidate, kind, spec, arrays, **kw):
+        metrics, checks, images = real(key, reference, candidate, kind, spec, arrays, **kw)
+        if key != "depth":
+            return metrics, checks, images
+        images = dict(images, over=np.zeros_like(images["over"]))
+        return metrics, [dict(c, ok=True) for c in checks], images
+
+    monkeypatch.setattr(faults, "tolerant_metrics", blind)
+    t = faults.fault_table(gold, "render_cube", buffers=["depth", "normal"])
+    assert t["depth"]["caught"] == 0 < t["depth"]["eligible"]
+    assert t["normal"]["caught"] == t["normal"]["eligible"] > 0
+
+
+def test_faults_are_in_domain_and_where_asked():
+    rng = np.random.default_rng(1)
+    depth = np.full((3, 4), 0.9, np.float32)
+    f = faults.inject("depth", "unorm", depth, [(1, 2)], rng, None)
+    assert f[1, 2] == pytest.approx(2.0 - 1.15) and (f != depth).sum() == 1
+    n = np.zeros((3, 4, 3))
+    n[..., 2] = 1.0
+    f = faults.inject("normal", "snorm", n, [(0, 0)], rng, None)
+    assert np.linalg.norm(f[0, 0]) == pytest.approx(1.0)
+    assert np.degrees(np.arccos(f[0, 0] @ n[0, 0])) == pytest.approx(20.0)
+    ids = np.zeros((3, 4), np.int32)
+    f = faults.inject("prim_id", "id", ids, [(2, 3)], rng, (-1, 5))
+    assert 1 <= f[2, 3] <= 5
+    b = np.tile([0.5, 0.3, 0.2], (3, 4, 1))
+    f = faults.inject("barycentric", "unorm", b, [(1, 1)], rng, None)
+    assert f[1, 1].sum() == pytest.approx(1.0) and f[1, 1].min() >= 0.0
+    assert np.abs(f[1, 1] - b[1, 1]).max() == pytest.approx(0.25)
+
+
+def _set_pixel(gold, scene):
+    """A covered pixel where the id may differ and the set holds two non-sliver faces."""
+    with np.load(gold / scene / "tolerance.npz", allow_pickle=False) as z:
+        a = {k: z[k].copy() for k in z.files}
+    with np.load(gold / scene / "buffers.npz", allow_pickle=False) as z:
+        b = {k: z[k].copy() for k in z.files}
+    off = a["set_offsets"]
+    h, w = b["prim_id"].shape
+    for k in np.flatnonzero(np.diff(off) == 2):
+        r, c = divmod(int(k), w)
+        e = np.arange(off[k], off[k + 1])
+        if b["prim_id"][r, c] >= 0 and (a["set_facing"][e] >= 0).all():
+            return a, b, r, c, e
+    raise AssertionError("no two-face pixel")
+
+
+def test_values_are_checked_against_the_named_face(gold, tmp_path):
+    """At an edge between two cube faces: naming the other face with the reference's values
+    fails (its normal is 90° off, its depth elsewhere); naming it with that face's own values
+    (the centre of its set entry) passes; naming a face outside the set fails the id check."""
+    from refraster.golden.compare import compare
+    scene = "render_cube"
+    a, b, r, c, e = _set_pixel(gold, scene)
+    g_ref = int(b["prim_id"][r, c])
+    other = [j for j in e if a["set_face"][j] != g_ref][0]
+    cand = {k: v.copy() for k, v in b.items()}
+    cand["prim_id"][r, c] = a["set_face"][other]
+    (tmp_path / "a" / scene).mkdir(parents=True)
+    np.savez(tmp_path / "a" / scene / "buffers.npz", **cand)
+    fails = compare(gold, tmp_path / "a", mode="tolerant", scenes=[scene]).failures()
+    assert any(f"{scene}/normal: face" in x for x in fails), fails
+    assert all(f"[[{r}, {c}]]" in x for x in fails if ": face" in x), fails
+    for key in ("depth", "eye_depth", "barycentric", "color"):
+        lo, hi = a[f"set_{key}_lo"][other], a[f"set_{key}_hi"][other]
+        cand[key][r, c] = (lo.astype(np.float64) + hi) / 2
+    cand["normal"][r, c] = a["set_normal"][other]
+    cand["front_facing"][r, c] = a["set_facing"][other] == 1
+    (tmp_path / "b" / scene).mkdir(parents=True)
+    np.savez(tmp_path / "b" / scene / "buffers.npz", **cand)
+    ok = compare(gold, tmp_path / "b", mode="tolerant", scenes=[scene])
+    assert ok.exit_code == 0, ok.failures()
+    outside = [f for f in range(12) if f not in a["set_face"][e]][0]
+    cand["prim_id"][r, c] = outside
+    (tmp_path / "c" / scene).mkdir(parents=True)
+    np.savez(tmp_path / "c" / scene / "buffers.npz", **cand)
+    fails = compare(gold, tmp_path / "c", mode="tolerant", scenes=[scene]).failures()
+    assert any(x.startswith(f"{scene}/prim_id: face = 1") for x in fails), fails
+
+
+def test_corrupt_face_sets_are_refused(gold, tmp_path):
+    """A tolerance.npz whose face sets index outside themselves (with the manifest's hash
+    rewritten to match) is refused with one line, never indexed with."""
+    import hashlib
+    import json
+    import shutil
+    from refraster.golden.compare import GoldenError, compare
+    g = tmp_path / "g"
+    shutil.copytree(gold, g)
+    scene = "render_cube"
+    with np.load(g / scene / "tolerance.npz", allow_pickle=False) as z:
+        a = {k: z[k].copy() for k in z.files}
+    a["set_face"][:] = 10 ** 6
+    np.savez(g / scene / "tolerance.npz", **a)
+    m = json.loads((g / "manifest.json").read_text())
+    rel = f"{scene}/tolerance.npz"
+    m["files"][rel] = hashlib.sha256((g / rel).read_bytes()).hexdigest()
+    (g / "manifest.json").write_text(json.dumps(m))
+    (tmp_path / "cand" / scene).mkdir(parents=True)
+    with np.load(gold / scene / "buffers.npz", allow_pickle=False) as z:
+        np.savez(tmp_path / "cand" / scene / "buffers.npz", **{k: z[k] for k in z.files})
+    with pytest.raises(GoldenError, match="set_face holds a face outside"):
+        compare(g, tmp_path / "cand", mode="tolerant", scenes=[scene])
+
+
+def test_without_ids_the_envelope_of_the_set_applies(gold, tmp_path):
+    """A candidate that sends no ids is held to the envelope of the pixel's set: the other
+    face's normal passes at a two-face pixel, a normal between no face's passes nowhere."""
+    from refraster.golden.compare import compare
+    scene = "render_cube"
+    a, b, r, c, e = _set_pixel(gold, scene)
+    g_ref = int(b["prim_id"][r, c])
+    other = [j for j in e if a["set_face"][j] != g_ref][0]
+    keys = ["depth", "normal"]
+    cand = {k: b[k].copy() for k in keys}
+    cand["normal"][r, c] = a["set_normal"][other]
+    cand["depth"][r, c] = (a["set_depth_lo"][other].astype(np.float64) + a["set_depth_hi"][other]) / 2
+    (tmp_path / "a" / scene).mkdir(parents=True)
+    np.savez(tmp_path / "a" / scene / "buffers.npz", **cand)
+    ok = compare(gold, tmp_path / "a", mode="tolerant", scenes=[scene], buffers=keys)
+    assert ok.exit_code == 0, ok.failures()
+    n = a["set_normal"][e].astype(np.float64).sum(axis=0)
+    cand["normal"][r, c] = n / np.linalg.norm(n)        # 45° from both faces
+    cand["depth"][r, c] = max(a["set_depth_hi"][e]) + 0.01
+    (tmp_path / "b" / scene).mkdir(parents=True)
+    np.savez(tmp_path / "b" / scene / "buffers.npz", **cand)
+    fails = compare(gold, tmp_path / "b", mode="tolerant", scenes=[scene], buffers=keys).failures()
+    for key in keys:
+        assert any(x.startswith(f"{scene}/{key}: face = 1") and f"[[{r}, {c}]]" in x
+                   for x in fails), fails
