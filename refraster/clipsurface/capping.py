@@ -26,19 +26,23 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ._config import IJIT, JIT, PJIT
-from ._validate import as_choice, as_float_array, as_real
-from .mesh import Mesh
+from .._config import IJIT, JIT, PJIT
+from .._validate import as_choice, as_float_array, as_real
+from ..mesh import Mesh
 from .offsetmaps import WRAP_MODES, _wrap_texel, bilinear_taps, sample
+from .surfaces import _Packed, clip_mask
+from .textures import sample_texture
 
 __all__ = ["CAP_STYLES", "check_watertight", "cap_mesh", "cull_cap", "exact_caps", "light_caps",
            "shade_cap_pixels", "shade_caps", "solid_texture", "surely_inside",
-           "MAX_CAP_VERTICES"]
+           "MAX_CAP_VERTICES", "texture_caps"]
 
 #: Largest cap grid accepted (vertices); a larger one almost always means a surface whose
 #: texture tile is far smaller than the solid.
 MAX_CAP_VERTICES = 1 << 23
-CAP_STYLES = ("diffuse", "hatch", "marble", "wood", "noise")
+CAP_STYLES = ("diffuse", "hatch", "marble", "wood", "noise", "solid")
+#: Styles that colour a cap by the surface's (s, t): only "diffuse" reads a user diffuse map.
+_PROCEDURAL = ("hatch", "marble", "wood", "noise")
 
 
 #: Copies of the meshes already found watertight, newest last. Rendering the same solid frame
@@ -548,7 +552,6 @@ def exact_caps(surfaces, solids, tests, *, view, proj, width, height, max_roots=
     which : (H·W, 2) int64 (solid index, surface index) of that cap (−1: none)
     origin, direction : the rays (see :func:`pixel_rays`)
     """
-    from .clipsurface import clip_mask
     origin, direction = pixel_rays(view, proj, width, height)
     n = origin.shape[0]
     best = np.full(n, np.inf)
@@ -808,7 +811,6 @@ def _lighting_args(surfaces, view, occlusion_radius, packed=None):
     """Kernel arguments of the cap lighting: parameter table, wrap codes, the interleaved
     normal and occlusion maps of all surfaces, offsets, shapes, view and normal matrix."""
     if packed is None:
-        from .clipsurface import _Packed
         packed = _Packed(surfaces)
     maps = [_shading_maps(s, occlusion_radius) if s.enabled else
             np.zeros((s.offset_map.size, 4)) for s in surfaces]
@@ -892,7 +894,6 @@ def shade_caps(points, surface_index, surfaces, *, view, style, color, hatch_spa
     if style == "diffuse":
         col = color[None, :] * shade[:, None]
     elif style == "hatch":
-        from .clipsurface import _Packed
         col = np.zeros((len(points), 3))
         if len(points):
             _hatch_kernel(points, surface_index, _Packed(surfaces).params, float(hatch_spacing),
@@ -900,3 +901,72 @@ def shade_caps(points, surface_index, surfaces, *, view, style, color, hatch_spa
     else:
         col = solid_texture(points, style, frequency=frequency, color=color) * shade[:, None]
     return np.clip(col, 0.0, 1.0), normal
+
+
+def texture_caps(points, surface_index, surfaces, *, view, style, color, occlusion_radius=None,
+                 solid_colors=None):
+    """Colour and eye-space normal of cap points whose surfaces carry user textures
+    (:class:`refraster.clipsurface.textures.CapTextures`) or that take a solid texture.
+
+    Parameters
+    ----------
+    points : (N, 3) float world positions on the caps
+    surface_index : (N,) int which surface each cap point belongs to
+    surfaces : list of ClipSurface
+    view : (4, 4) world → eye
+    style : ``"diffuse"`` (base colour: the surface's diffuse map where it has one, else
+        ``color``) or ``"solid"`` (base colour: ``solid_colors``)
+    solid_colors : (N, 3) float, optional
+        The solid texture sampled at each point in its solid's object space (style "solid").
+
+    Returns
+    -------
+    color (N, 3) and normal (N, 3) float64 (eye space, unit).
+
+    Notes
+    -----
+    As :func:`shade_caps`, with each map replaced by the user's where given, all sampled at
+    the surface's ``(s, t)`` with ``GL_LINEAR`` and its wrap mode: normal = the user normal
+    map decoded into (Û, V̂, N) (else the derived normal map), turned into eye space and
+    normalized; ``shade = light·(0.25 + 0.75·|n·v|)`` with light = the user light map (else
+    the derived occlusion map); colour = base · shade, clipped to [0, 1].
+    """
+    points = np.ascontiguousarray(points, np.float64)
+    surface_index = np.asarray(surface_index, np.int64)
+    n = len(points)
+    view = np.asarray(view, np.float64)
+    nmat = np.linalg.inv(view[:3, :3]).T
+    frame = np.zeros((n, 3))
+    light = np.zeros(n)
+    base = np.broadcast_to(np.asarray(color, np.float64), (n, 3)).copy()
+    for k, s in enumerate(surfaces):
+        sel = np.flatnonzero(surface_index == k)
+        if sel.size == 0:
+            continue
+        st = s.texcoords(points[sel])
+        tex = s.textures
+        if tex is not None and tex.normal is not None:
+            frame[sel] = sample_texture(tex.normal_frame, st, wrap=s.wrap)
+        else:
+            frame[sel] = sample_texture(s.normal_map(), st, wrap=s.wrap)
+        if tex is not None and tex.light is not None:
+            light[sel] = sample_texture(tex.light, st, wrap=s.wrap)[:, 0]
+        else:
+            light[sel] = sample_texture(s.occlusion_map(radius=occlusion_radius), st,
+                                        wrap=s.wrap)[:, 0]
+        if style == "diffuse" and tex is not None and tex.diffuse is not None:
+            base[sel] = sample_texture(tex.diffuse, st, wrap=s.wrap)
+        world = (frame[sel, 0:1] * s.u_hat + frame[sel, 1:2] * s.v_hat
+                 + frame[sel, 2:3] * s.normal)
+        frame[sel] = world
+    eye_n = frame @ nmat.T
+    length = np.linalg.norm(eye_n, axis=1)
+    eye_n = np.divide(eye_n, length[:, None], out=np.zeros_like(eye_n),
+                      where=length[:, None] > 0)
+    eye_p = points @ view[:3, :3].T + view[:3, 3]
+    ndv = np.abs(np.einsum("ij,ij->i", eye_n, eye_p)) / np.maximum(
+        np.linalg.norm(eye_p, axis=1), 1e-300)
+    shade = light * (0.25 + 0.75 * ndv)
+    if style == "solid":
+        base = np.asarray(solid_colors, np.float64)
+    return np.clip(base * shade[:, None], 0.0, 1.0), eye_n

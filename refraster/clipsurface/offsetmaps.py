@@ -20,8 +20,8 @@ import numbers
 import numpy as np
 from numba import njit, prange
 
-from ._config import IJIT, PJIT
-from ._validate import as_choice, as_float_array, as_real
+from .._config import IJIT, PJIT
+from .._validate import as_choice, as_float_array, as_real
 
 __all__ = [
     "WRAP_MODES", "as_offset_map", "load_offset_map", "sample",
@@ -46,7 +46,8 @@ def as_offset_map(offset_map, name="offset_map"):
     """Validate an offset map and return it as C-contiguous, read-only ``float64`` ``(H, W)``.
 
     Accepted: ``uint8`` (value / 255), ``uint16`` (value / 65535), or a float array with every
-    value in ``[0, 1]``. Other integer types, booleans, complex or non-2D arrays are refused.
+    value in ``[0, 1]``; 2D ``(H, W)``, or 1D ``(W,)`` (a 1D offset map, Sec. 4.3), returned as
+    ``(1, W)``. Other integer types, booleans, complex or arrays of other ranks are refused.
     """
     if isinstance(offset_map, (str, bytes)) or offset_map is None:
         raise TypeError(f"{name} must be a 2D array, got {type(offset_map).__name__}")
@@ -58,8 +59,12 @@ def as_offset_map(offset_map, name="offset_map"):
     elif not np.issubdtype(arr.dtype, np.floating):
         raise TypeError(
             f"{name} must be uint8, uint16 or float with values in [0, 1], got dtype {arr.dtype}")
+    if arr.ndim == 1:
+        # a 1D offset map (Sec. 4.3): texture1D(s) is texture2D(s, t) of the 1×W map, whose
+        # t taps are always row 0 under every wrap mode
+        arr = arr.reshape(1, -1)
     if arr.ndim != 2:
-        raise ValueError(f"{name} must be 2D (H, W) grayscale, got shape {arr.shape}")
+        raise ValueError(f"{name} must be 1D (W,) or 2D (H, W) grayscale, got shape {arr.shape}")
     if arr.size == 0:
         raise ValueError(f"{name} is empty (shape {arr.shape})")
     arr = as_float_array(arr, name)

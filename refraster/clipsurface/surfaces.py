@@ -19,25 +19,17 @@ and closes the cuts with cap surfaces (:mod:`refraster.capping`).
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
-
 import numpy as np
 from numba import njit, prange
 
-from ._config import IJIT, PJIT
-from ._validate import as_choice, as_float_array, as_matrix, as_real
-from .framebuffer import Framebuffer
-from .ldi import parity_at
-from .raster.gbuffer import _object_of
-from .raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box_in_tile, _geometry, _setup,
-                                bin_primitives, fragment_depth, lambdas, perspective_bary,
-                                resolved_buffers, row_span, tile_rect, write_winner)
+from .._config import IJIT, PJIT
+from .._validate import as_choice, as_float_array, as_matrix, as_real
 from .offsetmaps import (WRAP_MODES, as_offset_map, as_wrap, normal_map, occlusion_map,
                          texture2d_flat)
+from .textures import CapTextures
 
-__all__ = ["ClipSurface", "ReliefClipPlane", "ClippedFramebuffer", "as_surfaces",
-           "clip_function", "clip_mask", "render_clipped"]
+__all__ = ["ClipSurface", "ReliefClipPlane", "as_surfaces", "clip_function", "clip_mask",
+           "clipped_at"]
 
 #: Largest |Û·V̂| accepted as "orthogonal" (D7); V is then made exactly orthogonal.
 ORTHOGONALITY_TOLERANCE = 1e-6
@@ -71,13 +63,18 @@ class ClipSurface:
     scale : (3,) float
         ``S = (Sx, Sy, Sz)``: texture repeats along U and V (positive) and the height scale
         Sz in world units (any sign; 0 gives a plane).
-    offset_map : (H, W) array
+    offset_map : (H, W) or (W,) array
         OM, heights in [0, 1] in texel order (:mod:`refraster.offsetmaps`): uint8, uint16 or
-        float.
+        float. A 1D map (W,) is a ``texture1D`` along s (Sec. 4.3: "1D, 2D, or 3D
+        representations"), stored as the 1×W map it equals.
     wrap : {"repeat", "clamp_to_edge", "mirrored_repeat"}
         The offset map's wrap mode (MATH.md §1.1 takes repeat as the default [guess]).
     enabled : bool
         ``config[3].w`` of Listing 1: a disabled surface clips nothing.
+    textures : CapTextures, optional
+        The user's diffuse, normal and light maps of the caps (Sec. 4.1's "further
+        attributes"), addressed with this surface's ``(s, t)`` and wrap mode
+        (:mod:`refraster.clipsurface.textures`).
 
     Notes
     -----
@@ -86,7 +83,7 @@ class ClipSurface:
     """
 
     def __init__(self, origin, u, v, scale=(1.0, 1.0, 1.0), offset_map=None, *, wrap="repeat",
-                 enabled=True):
+                 enabled=True, textures=None):
         self.origin = as_float_array(origin, "origin", shape=(3,))
         self.u, u_len = _vector(u, "u")
         self.v, v_len = _vector(v, "v")
@@ -100,6 +97,9 @@ class ClipSurface:
         if not isinstance(enabled, (bool, np.bool_)):
             raise TypeError(f"enabled must be a bool, got {type(enabled).__name__}")
         self.enabled = bool(enabled)
+        if textures is not None and not isinstance(textures, CapTextures):
+            raise TypeError(f"textures must be a CapTextures, got {type(textures).__name__}")
+        self.textures = textures
         u_hat = self.u / u_len
         v_hat = self.v / v_len
         cosine = float(u_hat @ v_hat)
@@ -123,12 +123,14 @@ class ClipSurface:
         return (f"ClipSurface(origin={self.origin.tolist()}, u={self.u.tolist()}, "
                 f"v={self.v.tolist()}, scale={self.scale.tolist()}, "
                 f"offset_map={self.offset_map.shape}, wrap={self.wrap!r}, "
-                f"enabled={self.enabled})")
+                f"enabled={self.enabled}"
+                + (f", textures={self.textures!r})" if self.textures is not None else ")"))
 
     def replace(self, **changes):
         """A copy with some constructor arguments changed (e.g. ``enabled=False``)."""
         args = dict(origin=self.origin, u=self.u, v=self.v, scale=self.scale,
-                    offset_map=self.offset_map, wrap=self.wrap, enabled=self.enabled)
+                    offset_map=self.offset_map, wrap=self.wrap, enabled=self.enabled,
+                    textures=self.textures)
         args.update(changes)
         return ClipSurface(**args)
 
@@ -214,7 +216,7 @@ class ReliefClipPlane:
         before z), so the choice is deterministic.
     extent : float
         World length of one texture tile along each in-plane axis (``|U| = |V|``).
-    wrap, enabled
+    wrap, enabled, textures
         As for :class:`ClipSurface`.
 
     Notes
@@ -225,7 +227,7 @@ class ReliefClipPlane:
     """
 
     def __init__(self, normal, point, offset_map, height_scale, u=None, *, extent=1.0,
-                 wrap="repeat", enabled=True):
+                 wrap="repeat", enabled=True, textures=None):
         n, n_len = _vector(normal, "normal")
         self.normal = n / n_len
         self.point = as_float_array(point, "point", shape=(3,))
@@ -248,7 +250,7 @@ class ReliefClipPlane:
         self.u = u_hat
         self.clip_surface = ClipSurface(self.point, extent * u_hat, extent * v_hat,
                                         (1.0, 1.0, self.height_scale), offset_map, wrap=wrap,
-                                        enabled=enabled)
+                                        enabled=enabled, textures=textures)
 
     def __repr__(self):
         return (f"ReliefClipPlane(normal={self.normal.tolist()}, point={self.point.tolist()}, "
@@ -345,306 +347,6 @@ def _g_kernel(points, params, maps, offset, shape, mode, out):
                     mode)
 
 
-# ------------------------------------------------------------- fused clip-and-cap pass
-
-@njit(**IJIT)
-def _keep(b0, b1, b2, i0, i1, i2, tv, wv, separate, skip, solid, params, wrap, enabled, maps,
-          offset, shape, v_first, v_mat, v_depth, v_sign, v_count, v_start, v_cstart, v_hw):
-    """The clip stage of one fragment (``render_clipped``'s ``stage`` for a single fragment):
-    interpolate its test-space and world positions, discard it where an enabled surface other
-    than ``skip`` clips it, and a cap fragment of ``solid`` also where the volumetric parity
-    test (majority over the sprite's axes) says outside."""
-    c0 = np.float64(b0)
-    c1 = np.float64(b1)
-    c2 = np.float64(b2)
-    px = (c0 * tv[i0, 0] + c1 * tv[i1, 0]) + c2 * tv[i2, 0]
-    py = (c0 * tv[i0, 1] + c1 * tv[i1, 1]) + c2 * tv[i2, 1]
-    pz = (c0 * tv[i0, 2] + c1 * tv[i1, 2]) + c2 * tv[i2, 2]
-    if clipped_at(px, py, pz, skip, params, wrap, enabled, maps, offset, shape):
-        return False
-    if solid < 0:
-        return True
-    if separate:
-        px = (c0 * wv[i0, 0] + c1 * wv[i1, 0]) + c2 * wv[i2, 0]
-        py = (c0 * wv[i0, 1] + c1 * wv[i1, 1]) + c2 * wv[i2, 1]
-        pz = (c0 * wv[i0, 2] + c1 * wv[i1, 2]) + c2 * wv[i2, 2]
-    # majority vote, decided as soon as either side has it
-    n = v_first[solid + 1] - v_first[solid]
-    votes = 0
-    for ld in range(v_first[solid], v_first[solid + 1]):
-        if parity_at(px, py, pz, v_mat[ld], v_depth, v_sign, v_count, v_start[ld],
-                     v_cstart[ld], v_hw[ld, 0], v_hw[ld, 1], False):
-            votes += 1
-            if votes * 2 > n:
-                return True
-        elif (ld - v_first[solid] + 1 - votes) * 2 >= n:
-            return False
-    return votes * 2 > n
-
-
-@njit(**PJIT)
-def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim,
-                     sfront, sbox, sarea, B, starts, lists, ntx, width, height, bits, rule,
-                     face_offsets, n_solids, n_surf, n_enabled, h_lo, h_hi, tv, wv, separate,
-                     params, wrap, enabled,
-                     maps, offset, shape, v_first, v_mat, v_depth, v_sign, v_count, v_start,
-                     v_cstart, v_hw, sure, sure_bary, tile_shift, o_depth, o_prim, o_front, o_bary):
-    """The rasterizer's fused tile pass (``GL_LESS``, clear 1) with the clip stage between
-    rasterization and the depth test. A fragment that fails the depth test is left untested
-    (it cannot change the tile whether discarded or not), so the result equals the fragment
-    stream + stage + resolve exactly. A cap face flagged in ``sure`` skips its parity tests
-    when its fragments provably stay in the box the flag was decided over
-    (:func:`_fragments_stay_near`); they would all pass. The tile size comes in as an
-    argument, not as the rasterizer's constant: Numba's cache does not see another module's
-    constants change."""
-    ntiles = starts.shape[0] - 1
-    for tile in prange(ntiles):
-        if starts[tile] == starts[tile + 1]:
-            continue   # nothing binned: the tile keeps resolved_buffers' clear values
-        size = 1 << tile_shift
-        tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, tile_shift, width, height)
-        zbuf = np.full((size, size), np.float32(1.0), np.float32)
-        win = np.full((size, size), NO_ITEM, np.int64)
-        for j in range(starts[tile], starts[tile + 1]):
-            item = lists[j]
-            bx0, bx1, by0, by1 = _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1)
-            if bx0 > bx1 or by0 > by1:
-                continue
-            (r0, sx0, sy0, b0, r1, sx1, sy1, b1, r2, sx2, sy2, b2, fx0, fy0, fx1, fy1, fx2, fy2,
-             z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx,
-             dzdy) = _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
-                            sfront, sarea, bits, rule, bx0, by0)
-            obj = _object_of(face_offsets, prim)
-            skip = -1
-            solid = -1
-            if obj >= n_solids:   # a cap of solid m and surface k: object M + m·K + k
-                skip = (obj - n_solids) % n_surf
-                solid = (obj - n_solids) // n_surf
-            i0 = f[prim, 0]
-            i1 = f[prim, 1]
-            i2 = f[prim, 2]
-            test = True
-            if piece < 0 and inv_af > 0.0:   # interpolated from the unsnapped triangle
-                # a cap face whose fragments all pass the parity test is tested as a solid's
-                is_cap = solid >= 0 and not (sure[prim] and _fragments_stay_near(
-                    fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, inv_af, bits, sure_bary))
-                if n_enabled - (1 if skip >= 0 and enabled[skip] else 0) == 0:
-                    cls = 2 if is_cap else 1   # no surface to classify against
-                else:
-                    cls = _box_class(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, i0,
-                                     i1 if front else i2, i2 if front else i1, tv, skip,
-                                     is_cap, params, enabled, h_lo, h_hi, bx0 + 0.5, bx1 + 0.5,
-                                     by0 + 0.5, by1 + 0.5)
-                if cls == 0:
-                    continue
-                test = cls == 2
-            for y in range(by0, by1 + 1):
-                a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
-                e0 = r0 + sx0 * a
-                e1 = r1 + sx1 * a
-                e2 = r2 + sx2 * a
-                ly = y - ty0
-                for x in range(bx0 + a, bx0 + b + 1):
-                    if e0 >= 0 and e1 >= 0 and e2 >= 0:
-                        z = fragment_depth(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, x, y,
-                                           e0 + b0, e1 + b1, e2 + b2, inv_area)
-                        lx = x - tx0
-                        if z < zbuf[ly, lx] and not test:
-                            zbuf[ly, lx] = z
-                            win[ly, lx] = item
-                        elif z < zbuf[ly, lx]:
-                            l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
-                                                 e0 + b0, e1 + b1, e2 + b2, inv_area)
-                            c0, c1, c2 = perspective_bary(iw0, iw1, iw2, piece, front, B, l0,
-                                                          l1, l2)
-                            if _keep(c0, c1, c2, i0, i1, i2, tv, wv, separate, skip, solid,
-                                     params, wrap, enabled, maps, offset, shape, v_first, v_mat,
-                                     v_depth, v_sign, v_count, v_start, v_cstart, v_hw):
-                                zbuf[ly, lx] = z
-                                win[ly, lx] = item
-                    e0 += sx0
-                    e1 += sx1
-                    e2 += sx2
-                r0 += sy0
-                r1 += sy1
-                r2 += sy2
-        # the rasterizer's _fused_pass post-pass, written out (see there)
-        for y in range(ty0, ty1 + 1):
-            row = height - 1 - y
-            for x in range(tx0, tx1 + 1):
-                item = win[y - ty0, x - tx0]
-                if item != NO_ITEM:
-                    o_depth[row, x] = zbuf[y - ty0, x - tx0]
-                    write_winner(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf,
-                                 sprim, sfront, sarea, B, bits, rule, x, y, row, width, o_prim,
-                                 o_front, o_bary)
-
-
-@njit(**IJIT)
-def _fragments_stay_near(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, inv_af, bits, limit):
-    """True when no fragment of this unsnapped triangle (counter-clockwise, ``inv_af`` = 1 /
-    its doubled area > 0) can have a perspective-correct barycentric below ``−limit``.
-
-    A covered pixel centre lies in the snapped triangle, whose vertices are within
-    ``δ = √2·2^−bits`` pixel of the unsnapped ones, so within δ of a point of the unsnapped
-    triangle: its screen-space λ_i ≥ −δ / altitude_i ≥ −ε with ε = δ·(longest edge)·inv_af.
-    Then ``c_i = λ_i w_i⁻¹ / Σ λ_j w_j⁻¹ ≥ −ε·max w⁻¹ / (min w⁻¹ − 2ε·max w⁻¹)``. (δ is twice
-    the rounding to the subpixel grid.)"""
-    e = max(max((fx1 - fx0) * (fx1 - fx0) + (fy1 - fy0) * (fy1 - fy0),
-                (fx2 - fx1) * (fx2 - fx1) + (fy2 - fy1) * (fy2 - fy1)),
-            (fx0 - fx2) * (fx0 - fx2) + (fy0 - fy2) * (fy0 - fy2))
-    eps = 1.4142135623730951 * (1.0 / np.float64(np.int64(1) << bits)) * math.sqrt(e) * inv_af
-    lo = min(iw0, iw1, iw2)
-    hi = max(iw0, iw1, iw2)
-    den = lo - 2.0 * eps * hi
-    return den > 0.0 and eps * hi <= limit * den
-
-
-#: Relative margin of the per-box classification (:func:`_box_class`): far above the
-#: rounding of the float32 barycentrics (6e-8) the per-fragment test works from.
-_CLASSIFY_MARGIN = 1e-6
-
-
-@njit(**IJIT)
-def _corner_q(x0, y0, x1, y1, x2, y2, iw0, iw1, iw2, px, py):
-    """``q_i = λ_i·(1/w_i)`` at window point (px, py), λ the unnormalized barycentrics of the
-    unsnapped triangle (the caller handles the sign of its area)."""
-    return (((x2 - x1) * (py - y1) - (y2 - y1) * (px - x1)) * iw0,
-            ((x0 - x2) * (py - y2) - (y0 - y2) * (px - x2)) * iw1,
-            ((x1 - x0) * (py - y0) - (y1 - y0) * (px - x0)) * iw2)
-
-
-@njit(**IJIT)
-def _box_class(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, c0, c1, c2, tv, skip, is_cap, params,
-               enabled, h_lo, h_hi, px0, px1, py0, py1):
-    """What the clip stage can do to the fragments of one triangle inside a pixel box:
-    0 — some enabled surface (other than a cap's own) clips all of them; 1 — every enabled
-    surface keeps all of them and the triangle is no cap (so no test is needed); 2 — test
-    each fragment.
-
-    Why this is exact: g's plane part is affine in the position and the offset term lies in
-    [h_lo, h_hi]; a fragment's position is ``P = Σ q_i V_i / Σ q_i`` with ``q_i = λ_i / w_i``
-    and λ affine in window space (the counter-clockwise, unsnapped triangle's, as the
-    rasterizer interpolates: ``(fx, fy)``, ``iw`` and the vertices ``c0, c1, c2`` in that
-    order), so the sign of ``Σ q_i (N·(V_i − O) + h)`` over the box's pixel centres is bounded
-    by its values at the four corner centres ``(px, py)``. A margin covers the float32
-    rounding of the barycentrics and their sum's distance from 1."""
-    qs = (_corner_q(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, px0, py0),
-          _corner_q(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, px1, py0),
-          _corner_q(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, px0, py1),
-          _corner_q(fx0, fy0, fx1, fy1, fx2, fy2, iw0, iw1, iw2, px1, py1))
-    kept_by_all = not is_cap
-    for k in range(params.shape[0]):
-        if not enabled[k] or k == skip:
-            continue
-        p0 = ((tv[c0, 0] - params[k, 0]) * params[k, 9] + (tv[c0, 1] - params[k, 1])
-              * params[k, 10]) + (tv[c0, 2] - params[k, 2]) * params[k, 11]
-        p1 = ((tv[c1, 0] - params[k, 0]) * params[k, 9] + (tv[c1, 1] - params[k, 1])
-              * params[k, 10]) + (tv[c1, 2] - params[k, 2]) * params[k, 11]
-        p2 = ((tv[c2, 0] - params[k, 0]) * params[k, 9] + (tv[c2, 1] - params[k, 1])
-              * params[k, 10]) + (tv[c2, 2] - params[k, 2]) * params[k, 11]
-        # bound on the terms whose rounding the margin must cover: the fragment's
-        # barycentrics need not sum to 1 exactly, which shifts N·P by up to |N·V|, |N·O|
-        mag = max(abs(tv[c0, 0]) + abs(tv[c0, 1]) + abs(tv[c0, 2]),
-                  abs(tv[c1, 0]) + abs(tv[c1, 1]) + abs(tv[c1, 2]),
-                  abs(tv[c2, 0]) + abs(tv[c2, 1]) + abs(tv[c2, 2])) \
-            + abs(params[k, 0]) + abs(params[k, 1]) + abs(params[k, 2])
-        scale = max(abs(p0), abs(p1), abs(p2)) + mag + max(abs(h_lo[k]), abs(h_hi[k])) + 1e-300
-        clipped = True
-        kept = True
-        for corner in range(4):
-            q0, q1, q2 = qs[corner]
-            q_abs = abs(q0) + abs(q1) + abs(q2)
-            q_sum = q0 + q1 + q2
-            if not q_sum > _CLASSIFY_MARGIN * q_abs:
-                return 2
-            tol = _CLASSIFY_MARGIN * q_abs * scale
-            base = q0 * p0 + q1 * p1 + q2 * p2
-            if not base + q_sum * h_hi[k] < -tol:
-                clipped = False
-            if not base + q_sum * h_lo[k] > tol:
-                kept = False
-            if not (clipped or kept):
-                break
-        if clipped:
-            return 0
-        if not kept:
-            kept_by_all = False
-    return 1 if kept_by_all else 2
-
-
-def _pack_sprites(tests):
-    """The sprites of all solids as one set of flat arrays for :func:`_fused_clip_pass`."""
-    parts = [t.packed() for t in tests]
-    first = np.zeros(len(parts) + 1, np.int64)
-    np.cumsum([len(p[0]) for p in parts], out=first[1:])
-    if len(parts) == 1:
-        return (first, *parts[0])
-    mats = np.concatenate([p[0] for p in parts])
-    depth = np.concatenate([p[1] for p in parts])
-    sign = np.concatenate([p[2] for p in parts])
-    count = np.concatenate([p[3] for p in parts])
-    dbase = np.cumsum([0] + [len(p[1]) for p in parts[:-1]])
-    cbase = np.cumsum([0] + [len(p[3]) for p in parts[:-1]])
-    start = np.concatenate([p[4] + b for p, b in zip(parts, dbase)])
-    cstart = np.concatenate([p[5] + b for p, b in zip(parts, cbase)])
-    hw = np.concatenate([p[6] for p in parts])
-    for a in (depth, sign, count):
-        a.setflags(write=False)
-    return first, mats, depth, sign, count, start, cstart, hw
-
-
-_NO_SPRITES = None
-
-
-def _no_sprites():
-    """Empty sprite arrays (typed as the real ones) for a pass without caps."""
-    global _NO_SPRITES
-    if _NO_SPRITES is None:
-        arrays = [np.zeros(0, np.float32), np.zeros(0, np.int8), np.zeros(0, np.int32)]
-        for a in arrays:
-            a.setflags(write=False)
-        _NO_SPRITES = (np.zeros(1, np.int64), np.zeros((0, 4, 4)), *arrays,
-                       np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 2), np.int64))
-    return _NO_SPRITES
-
-
-def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests,
-                sure_flags=()):
-    """Rasterize, clip, parity-test and depth-resolve the prepared draw calls in one pass.
-    ``sure_flags`` holds, per cap draw call after the solids, the "surely inside" flags of its
-    faces (:func:`refraster.capping.surely_inside`) or ``None``.
-
-    Returns ``(depth, prim_global, front, bary)`` as :func:`refraster.raster.rasterizer.fused`.
-    """
-    prims = prep.triangles
-    packed = _Packed(surfaces)
-    n_surf = max(len(surfaces), 1)
-    h_lo = np.zeros(len(surfaces))
-    h_hi = np.zeros(len(surfaces))
-    for k, srf in enumerate(surfaces):
-        ends = srf.scale[2] * np.array(srf.height_range)
-        h_lo[k], h_hi[k] = ends.min(), ends.max()
-    ntx, _, starts, lists = bin_primitives(prims)
-    h, w = prims.height, prims.width
-    depth, prim, front, bary = resolved_buffers(h, w, 1.0)
-    from . import capping
-    sprites = _pack_sprites(tests) if tests else _no_sprites()
-    separate = world_vertices is not test_vertices
-    sure = np.zeros(int(prep.face_offsets[-1]), np.bool_)
-    for call, flags in enumerate(sure_flags):
-        if flags is not None and flags.size:
-            at = int(prep.face_offsets[n_solids + call])
-            sure[at:at + flags.size] = flags
-    _fused_clip_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits,
-                     prep.fill_rule, prep.face_offsets, n_solids, n_surf,
-                     int(packed.enabled.sum()), h_lo, h_hi,
-                     test_vertices, world_vertices, separate, *packed.args(), *sprites, sure,
-                     capping.SURE_EXTRAPOLATION,
-                     TILE_SHIFT, depth, prim, front, bary)
-    return depth, prim, front, bary
-
-
 def _surfaces_in_space(surfaces, space, view):
     space = as_choice(space, "space", {"world": "world", "eye": "eye"})
     if space == "eye":
@@ -725,335 +427,4 @@ def clip_mask(points, surfaces, *, space="world", view=None, skip=None):
     out = np.zeros(points.shape[0], np.bool_)
     if surfaces and points.shape[0]:
         _clip_kernel(points, skip, *_Packed(surfaces).args(), out)
-    return out
-
-
-@dataclass(eq=False)
-class ClippedFramebuffer(Framebuffer):
-    """A :class:`~refraster.Framebuffer` of :func:`render_clipped`, with the caps marked.
-
-    Extra attributes
-    ----------------
-    cap_mask : (H, W) bool
-        Pixels showing a cap.
-    cap_points : (C, 3) float64
-        World position of each cap pixel, in row-major order of ``cap_mask``.
-    cap_position : (H, W, 3) float64
-        The same as an image, NaN elsewhere (made on first use).
-    n_solids, n_surfaces : int
-        M and K: a cap of solid m and surface k has ``object_id = M + m·K + k``.
-    """
-
-    cap_mask: np.ndarray = field(default=None, repr=False)
-    cap_points: np.ndarray = field(default=None, repr=False)
-    n_solids: int = 0
-    n_surfaces: int = 0
-
-    @property
-    def cap_position(self):
-        if getattr(self, "_cap_position", None) is None:
-            out = np.full(self.cap_mask.shape + (3,), np.nan)
-            out[self.cap_mask] = self.cap_points
-            self._cap_position = out
-        return self._cap_position
-
-    def eye_position(self):
-        """Eye-space position of the visible surface (caps included), NaN background."""
-        out = np.full(self.mask.shape + (3,), np.nan)
-        solid = self.mask & ~self.cap_mask
-        sub = Framebuffer.eye_position(self)
-        out[solid] = sub[solid]
-        out[self.cap_mask] = self.cap_points @ self.view[:3, :3].T + self.view[:3, 3]
-        return out
-
-
-def _solid_tests(world_solids, vds, resolution):
-    """One volumetric parity test per solid: given ``vds`` objects, or built with
-    :class:`refraster.ldi.VolumetricDepthSprite` (MATH.md §2)."""
-    if vds is not None:
-        tests = list(vds) if isinstance(vds, (list, tuple)) else [vds]
-        if len(tests) != len(world_solids):
-            raise ValueError(f"vds must hold one sprite per mesh ({len(world_solids)}), "
-                             f"got {len(tests)}")
-        for i, t in enumerate(tests):
-            if not callable(getattr(t, "contains", None)):
-                raise TypeError(f"vds[{i}] must have a contains(points) method")
-        return tests
-    from .ldi import VolumetricDepthSprite
-    return [VolumetricDepthSprite.from_mesh(m, resolution=resolution) for m in world_solids]
-
-
-def _stage(n_solids, surfaces, tests, space, view):
-    """``render_clipped``'s clip stage as a ``fragment_stage`` over the fragment stream (what
-    :func:`_fused_clip_pass` equals, and the path for duck-typed parity tests)."""
-    n_surf = max(len(surfaces), 1)
-
-    def stage(frags):
-        obj = frags.object_id
-        keep = np.ones(len(frags), np.bool_)
-        pos = frags.world_position()
-        test_pos = frags.eye_position() if space == "eye" else pos
-        is_cap = obj >= n_solids
-        skip = np.where(is_cap, (obj - n_solids) % n_surf, -1).astype(np.int64)
-        keep &= ~clip_mask(test_pos, surfaces, space=space, view=view, skip=skip)
-        for m in range(n_solids if tests is not None and is_cap.any() else 0):
-            sel = np.flatnonzero(keep & is_cap & ((obj - n_solids) // n_surf == m))
-            if sel.size:
-                keep[sel] = tests[m].contains(pos[sel])
-        return keep
-
-    return stage
-
-
-def _concat_vertices(vertices):
-    if len(vertices) == 1:
-        return np.ascontiguousarray(vertices[0], np.float64)
-    return np.ascontiguousarray(np.concatenate(vertices), np.float64) if vertices \
-        else np.zeros((0, 3))
-
-
-#: Whether render_clipped uses the fused tile pass when it can (tests switch it off to compare
-#: with the fragment stream and the Python stage, which it must equal bit for bit).
-_USE_FUSED = True
-
-#: Cap meshes kept per surface (keyed by the solid's bounds and the subdivision).
-_CAP_CACHE_SIZE = 8
-
-
-def _cached_cap(surface, bounds, subdivision, sprite=None):
-    """``(mesh, sure)``: :func:`refraster.capping.cap_mesh`, made once per surface, bounds and
-    subdivision (a surface is immutable; the cached mesh's arrays are read-only). With a
-    volumetric depth sprite, only the faces that can pass its parity test
-    (:func:`refraster.capping.cull_cap`) and their "surely inside" flags
-    (:func:`refraster.capping.surely_inside`), made once per sprite too; ``sure`` is ``None``
-    without a sprite."""
-    import weakref
-
-    from . import capping
-    cache = surface._derived
-
-    def put(key, mesh, value):
-        caps = [k for k in cache if k[0] == "cap"]
-        if len(caps) >= _CAP_CACHE_SIZE:
-            del cache[caps[0]]
-        if mesh is not None:
-            mesh.vertices.setflags(write=False)
-            mesh.faces.setflags(write=False)
-        cache[key] = value
-
-    key = ("cap", bounds.tobytes(), subdivision)
-    cap = cache.get(key, False)
-    if cap is False:
-        cap = capping.cap_mesh(surface, bounds, subdivision=subdivision)
-        put(key, cap, cap)
-    if sprite is None or cap is None:
-        return cap, None
-    # the sprite is held weakly: an id can be reused once its sprite is gone
-    culled_key = key + (id(sprite),)
-    entry = cache.get(culled_key)
-    if entry is None or entry[0]() is not sprite:
-        culled = capping.cull_cap(cap, sprite)
-        sure = capping.surely_inside(culled, sprite)
-        sure.setflags(write=False)
-        entry = (weakref.ref(sprite), culled, sure)
-        put(culled_key, culled, entry)
-    return entry[1], entry[2]
-
-
-def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
-                   cap_style="diffuse", cap_mode="mesh", cap_color=(0.80, 0.30, 0.25),
-                   hatch_spacing=None, texture_frequency=4.0, space="world", model=None,
-                   normals=None, cull="none", precision="float32", subdivision=1, vds=None,
-                   vds_resolution=1024, occlusion_radius=None, background=(1.0, 1.0, 1.0)):
-    """Render solids clipped by 2.5D clip surfaces, with cap surfaces closing the cuts.
-
-    Parameters
-    ----------
-    meshes : mesh or sequence of meshes
-        The solids (draw calls 0 … M−1). With ``caps=True`` each must be watertight.
-    surfaces : ClipSurface, ReliefClipPlane or a list of them (K surfaces, world space)
-    view, proj, width, height
-        The camera (:mod:`refraster.camera`).
-    caps : bool
-        Draw cap surfaces (Trapp & Döllner, Sec. 5).
-    cap_style : {"diffuse", "hatch", "marble", "wood", "noise"}
-        Cap shading over the normal and occlusion maps (:func:`refraster.capping.shade_caps`).
-    cap_mode : {"mesh", "exact"}
-        ``"mesh"``: the paper's tessellated, displaced grid (``subdivision`` vertices per texel
-        and axis) whose fragments pass the volumetric parity test; ``"exact"``: per-pixel ray –
-        height-field intersection (:func:`refraster.capping.exact_caps`).
-    cap_color : (3,) float
-        Base (diffuse), ink (hatch) or dark texture colour of the caps.
-    hatch_spacing : float, optional
-        World distance between hatch lines (default 1.5 % of the solids' bounding diagonal).
-    texture_frequency : float
-        Solid-texture features per world unit.
-    space : {"world", "eye"}
-        Where the clip test is evaluated (D6; equal for a rigid view).
-    model : (4, 4) or list of them, optional
-        Object → world matrix per solid; surfaces are always given in world space.
-    normals : None, "flat" or "smooth"
-        Shading normals of the solids.
-    cull, precision
-        As :func:`refraster.render`.
-    vds : sequence of objects with ``contains(points)``, optional
-        Pre-built volumetric depth sprites (world space), one per solid; built with
-        ``VolumetricDepthSprite.from_mesh(solid, resolution=vds_resolution)`` otherwise.
-    occlusion_radius : float, optional
-        Radius of the occlusion maps (:func:`refraster.offsetmaps.occlusion_map`).
-    background : (3,) float
-
-    Returns
-    -------
-    ClippedFramebuffer
-        The foundation's Framebuffer; cap pixels carry the cap's window and eye depth, its
-        eye-space normal (from the normal map), its colour, ``front_facing`` (True when the
-        cap is seen from its −N side) and ``object_id = M + m·K + k`` for the cap of solid m
-        and surface k. ``prim_id`` is the cap mesh's face (``"mesh"``) or the cap texel
-        ``row·W + col`` (``"exact"``). ``cap_mask`` marks the cap pixels.
-
-    Notes
-    -----
-    Solid fragments are discarded where any enabled surface clips them (MATH.md §1.1). A cap
-    fragment of surface k is kept where the volumetric parity test says inside (MATH.md §2.2)
-    and no *other* enabled surface clips it. Caps are drawn after the solids with ``GL_LESS``,
-    so at equal depth the solid wins.
-    """
-    from . import capping
-    from .framebuffer import _build, render
-    from .ldi import VolumetricDepthSprite
-    from .mesh import Mesh, as_meshes, bounds
-    from .raster import _models, prepare
-    from .raster.fragments import vertices_in
-
-    solids = as_meshes(meshes)
-    surfaces = as_surfaces(surfaces)
-    view = as_matrix(view, "view")
-    proj = as_matrix(proj, "proj")
-    if not isinstance(caps, (bool, np.bool_)):
-        raise TypeError(f"caps must be a bool, got {type(caps).__name__}")
-    style = as_choice(cap_style, "cap_style", {s: s for s in capping.CAP_STYLES})
-    mode = as_choice(cap_mode, "cap_mode", {"mesh": "mesh", "exact": "exact"})
-    space = as_choice(space, "space", {"world": "world", "eye": "eye"})
-    color = as_float_array(cap_color, "cap_color", shape=(3,))
-    freq = as_real(texture_frequency, "texture_frequency", lo=0.0, lo_open=True)
-    if normals is not None and not (isinstance(normals, str)
-                                    and normals.lower() in ("flat", "smooth")):
-        raise ValueError("normals must be None, 'flat' or 'smooth' for render_clipped")
-    models = _models(model, len(solids))
-    world = [Mesh(v, s.faces) if v is not s.vertices else s
-             for s, v in zip(solids, vertices_in(solids, models, None, "world"))]
-    n_solids, n_surf = len(solids), len(surfaces)
-    do_caps = caps and any(s.enabled for s in surfaces)
-    tests = None
-    if do_caps:
-        for i, w in enumerate(world):
-            capping.check_watertight(w, f"meshes[{i}]")
-        tests = _solid_tests(world, vds, vds_resolution)
-    boxes = [bounds(w.vertices) if w.n_vertices else None for w in world]
-    lo = np.min([b[0] for b in boxes if b is not None], axis=0) \
-        if any(w.n_vertices for w in world) else np.zeros(3)
-    hi = np.max([b[1] for b in boxes if b is not None], axis=0) \
-        if any(w.n_vertices for w in world) else np.ones(3)
-    spacing = (0.015 * float(np.linalg.norm(hi - lo)) or 0.01) if hatch_spacing is None \
-        else as_real(hatch_spacing, "hatch_spacing", lo=0.0, lo_open=True)
-
-    fused = _USE_FUSED and (not do_caps or mode != "mesh" or all(
-        isinstance(t, VolumetricDepthSprite) for t in tests))
-    draw_list, draw_models = list(solids), list(models)
-    sure_flags = []   # per cap draw call: its faces' "surely inside" flags (or None)
-    if do_caps and mode == "mesh":
-        empty = Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64))
-        for m, box in enumerate(boxes):
-            sprite = tests[m] if isinstance(tests[m], VolumetricDepthSprite) else None
-            for s in surfaces:
-                cap, sure = _cached_cap(s, box, subdivision, sprite) \
-                    if s.enabled and box is not None else (None, None)
-                draw_list.append(empty if cap is None else cap)
-                sure_flags.append(sure)
-                draw_models.append(np.eye(4))
-
-    bg = as_float_array(background, "background", shape=(3,))
-    geometry = None
-    cap_tests = tests if do_caps and mode == "mesh" else None
-    if not fused:
-        # duck-typed parity tests: the fragment stream with a Python stage
-        fb = render(draw_list, view=view, proj=proj, width=width, height=height,
-                    normals=normals, cull=cull, model=draw_models, precision=precision,
-                    fragment_stage=_stage(n_solids, surfaces, cap_tests, space, view),
-                    background=bg)
-    else:
-        prep = prepare(draw_list, view=view, proj=proj, width=width, height=height, cull=cull,
-                       model=draw_models, precision=precision)
-        tv = _concat_vertices(vertices_in(prep.meshes, prep.models, view, space))
-        wv = tv if space == "world" else _concat_vertices(
-            vertices_in(prep.meshes, prep.models, view, "world"))
-        depth, prim_global, front, bary = _fused_clip(
-            prep, tv, wv, n_solids, _surfaces_in_space(surfaces, space, view), cap_tests,
-            sure_flags)
-        h, w = depth.shape
-        identity = all(np.array_equal(m, np.eye(4)) for m in prep.models)
-        geometry = (tv, prep.triangles.faces) if identity and space == "world" else None
-        # the mesh caps' pixels are coloured by shade_cap_pixels below, not by the default
-        fb = _build(prep.meshes, prep.models, view, proj, depth, prim_global, prep.face_offsets,
-                    front, bary.reshape(h, w, 3), normals, bg, geometry,
-                    prep.face_offsets[n_solids] if do_caps and mode == "mesh" else None)
-    h, w = fb.depth.shape
-    cap_mask = fb.object_id >= n_solids
-    out = ClippedFramebuffer(**fb.field_values(), cap_mask=cap_mask,
-        cap_points=np.zeros((0, 3)), n_solids=n_solids, n_surfaces=n_surf)
-    if not do_caps:
-        return out
-    if mode == "mesh":
-        # the caps are drawn in world space (identity model): interpolate, light and colour
-        # their pixels in one pass
-        if geometry is None:
-            vbase = np.cumsum([0] + [m.n_vertices for m in fb.meshes])
-            geometry = (_concat_vertices([m.vertices for m in fb.meshes]),
-                        np.concatenate([m.faces + vbase[k] for k, m in enumerate(fb.meshes)]))
-        face_offsets = np.cumsum([0] + [m.n_faces for m in fb.meshes]).astype(np.int64)
-        out.cap_points = capping.shade_cap_pixels(
-            np.flatnonzero(cap_mask), out, n_solids, n_surf, geometry[1], face_offsets,
-            geometry[0], surfaces, view=view, style=style, color=color, hatch_spacing=spacing,
-            frequency=freq, occlusion_radius=occlusion_radius)
-        return out
-    else:
-        tau, which, origin, direction = capping.exact_caps(
-            surfaces, world, tests, view=view, proj=proj, width=width, height=height)
-        hit = np.isfinite(tau)
-        pts = origin[hit] + tau[hit, None] * direction[hit]
-        clip = np.c_[pts, np.ones(len(pts))] @ (proj @ view).T
-        depth = (0.5 * (clip[:, 2] / clip[:, 3]) + 0.5).astype(np.float32)
-        flat = np.flatnonzero(hit)
-        nearer = depth < fb.depth.ravel()[flat]
-        flat, pts, depth = flat[nearer], pts[nearer], depth[nearer]
-        m_k = which[flat]
-        r, c = np.divmod(flat, w)
-        cap_mask[r, c] = True
-        out.cap_points = pts  # row-major order, as cap_mask lists them
-        out.depth[r, c] = depth
-        eye = pts @ view[:3, :3].T + view[:3, 3]
-        out.eye_depth[r, c] = -eye[:, 2]
-        out.object_id[r, c] = n_solids + m_k[:, 0] * n_surf + m_k[:, 1]
-        texel = np.zeros(len(pts), np.int64)
-        facing = np.zeros(len(pts), np.bool_)
-        for k, s in enumerate(surfaces):
-            sel = np.flatnonzero(m_k[:, 1] == k)
-            if sel.size:
-                st = s.texcoords(pts[sel])
-                rows, cols = s.offset_map.shape
-                col = np.floor(st[:, 0] * cols).astype(np.int64) % cols
-                row = np.floor(st[:, 1] * rows).astype(np.int64) % rows
-                texel[sel] = row * cols + col
-                facing[sel] = direction[flat[sel]] @ s.normal > 0
-        out.prim_id[r, c] = texel
-        out.front_facing[r, c] = facing
-        out.barycentric[r, c] = 0.0
-        flat = np.flatnonzero(cap_mask)
-    which_surface = (out.object_id.reshape(-1)[flat] - n_solids) % n_surf
-    col, nrm = capping.shade_caps(out.cap_points, which_surface, surfaces, view=view,
-                                  style=style, color=color, hatch_spacing=spacing,
-                                  frequency=freq, occlusion_radius=occlusion_radius)
-    out.color.reshape(-1, 3)[flat] = col
-    out.normal.reshape(-1, 3)[flat] = nrm
     return out
