@@ -362,3 +362,32 @@ def test_bad_solid_textures_and_styles():
     with pytest.raises(ValueError, match="diffuse"):
         render_clipped(box(), plane(CapTextures(diffuse=np.zeros((2, 2)))), **cam,
                        cap_style="hatch", vds_resolution=32)
+
+
+_DETERMINISM = """
+import hashlib, sys
+import numpy as np
+sys.path.insert(0, {tests!r})
+import test_clipsurface_textures as T
+from refraster.clipsurface import render_clipped
+from refraster.clipsurface.textures import CapTextures
+cam = T.camera()
+tex = CapTextures(diffuse=T.coded_texture(), light=np.linspace(0.2, 1.0, 12).reshape(3, 4))
+h = hashlib.sha256()
+for kw in (dict(), dict(cap_mode="exact")):
+    fb = render_clipped(T.box(), T.plane(tex, offset_map=T.om.perlin_noise(16, seed=2),
+                        scale=(1.0, 1.0, 0.2)), **cam, vds_resolution=64, **kw)
+    h.update(fb.color.tobytes() + fb.normal.tobytes() + fb.cap_points.tobytes())
+fb = render_clipped(T.box(), T.wedge_surfaces(), **T.wedge_camera(64), cap_style="solid",
+                    solid_texture=T.smooth_volume(), vds_resolution=64)
+h.update(fb.color.tobytes() + fb.normal.tobytes())
+print(h.hexdigest())
+"""
+
+
+def test_textured_caps_are_deterministic_across_thread_counts():
+    import os
+
+    from determinism import outputs_by_thread_count
+    outs = outputs_by_thread_count(_DETERMINISM.format(tests=os.path.dirname(__file__)))
+    assert outs[0] == outs[1] == outs[2] and len(outs[0]) == 64
