@@ -884,7 +884,9 @@ def shade_caps(points, surface_index, surfaces, *, view, style, color, hatch_spa
     The normal is the normal map sampled bilinearly (each component, with the surface's wrap
     mode) at ``(s, t)`` and renormalized, turned from the (Û, V̂, N) frame into eye space.
     Lighting: a headlight, ``shade = occlusion·(0.25 + 0.75·|n·v|)``. The hatch is a 45° section
-    hatch in the surface's (Û, V̂) plane whose lines thicken where the shade is dark.
+    hatch in the surface's (Û, V̂) plane whose lines thicken where the shade is dark. The
+    maps derived from the offset map only: a surface's user textures (``CapTextures``) and
+    solid textures are applied by :func:`texture_caps` (``render_clipped`` calls both).
     """
     points = np.ascontiguousarray(points, np.float64)
     surface_index = np.asarray(surface_index, np.int64)
