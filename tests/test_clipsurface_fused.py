@@ -2,8 +2,8 @@
 
 ``render_clipped`` evaluates the clip test and the volumetric parity test inside the
 rasterizer's tile loop when the parity tests are volumetric depth sprites; otherwise (or with
-``clipsurface._USE_FUSED`` off) it draws a fragment stream and runs the stage in NumPy. Both must
-give the same bits. Cap culling (``capping.cull_cap``) must not change a pixel either.
+``clipsurface.render._USE_FUSED`` off) it draws a fragment stream and runs the stage in NumPy;
+both must give the same bits. Cap culling (``capping.cull_cap``) must not change a pixel either.
 """
 
 import numpy as np
@@ -11,7 +11,8 @@ import pytest
 import trimesh
 
 import refraster
-from refraster import capping, clipsurface
+from refraster.clipsurface import capping, fused
+from refraster.clipsurface import render as cs_render
 from refraster import offsetmaps as om
 from refraster.camera import frame_bounds, look_at, perspective
 from refraster.clipsurface import ClipSurface, render_clipped
@@ -35,7 +36,7 @@ class Wrapped:
 
 def staged(monkeypatch, *args, **kwargs):
     with monkeypatch.context() as m:
-        m.setattr(clipsurface, "_USE_FUSED", False)
+        m.setattr(cs_render, "_USE_FUSED", False)
         return render_clipped(*args, **kwargs)
 
 
@@ -282,7 +283,7 @@ def test_fragments_stay_near_bounds_the_extrapolation():
         if area2 <= 0:
             continue
         iw = rng.uniform(0.2, 1.0, 3)
-        ok = clipsurface._fragments_stay_near(*p.ravel(), *iw, 1.0 / area2, 8, lim)
+        ok = fused._fragments_stay_near(*p.ravel(), *iw, 1.0 / area2, 8, lim)
         if not ok:
             continue
         passed += 1
@@ -304,13 +305,13 @@ def test_surely_inside_flags_change_no_pixel(crank_scene, monkeypatch):
     kw = dict(**cam.kwargs, vds=[sprite], cap_style="hatch")
     for surfaces in (ragged, [ragged, second]):
         flagged = render_clipped(mesh, surfaces, **kw)
-        orig = clipsurface._cached_cap
+        orig = cs_render._cached_cap
 
         def cleared(*a, **k):
             m, sure = orig(*a, **k)
             return m, (None if sure is None else np.zeros_like(sure))
         with monkeypatch.context() as m:
-            m.setattr(clipsurface, "_cached_cap", cleared)
+            m.setattr(cs_render, "_cached_cap", cleared)
             plain = render_clipped(mesh, surfaces, **kw)
         assert flagged.cap_mask.sum() > 200
         assert_same(flagged, plain)

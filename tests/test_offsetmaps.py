@@ -112,7 +112,8 @@ def test_load_float_tiff_and_colour(tmp_path):
 
 
 @pytest.mark.parametrize("bad,exc", [
-    (np.zeros((0, 3)), ValueError), (np.zeros(5), ValueError), (np.zeros((2, 2, 2)), ValueError),
+    (np.zeros((0, 3)), ValueError), (np.zeros(0), ValueError), (np.zeros((2, 2, 2)), ValueError),
+    (np.float64(0.5), ValueError),
     (np.zeros((2, 2), np.int32), TypeError), (np.zeros((2, 2), bool), TypeError),
     (np.full((2, 2), 1.5), ValueError), (np.full((2, 2), np.nan), ValueError),
     ("map.png", TypeError), (None, TypeError), (np.zeros((2, 2), complex), TypeError),

@@ -1,7 +1,9 @@
 """Gallery section "clipsurface": 2.5D clip surfaces, relief clip planes and caps.
 
 After Trapp & Döllner: the crank with a ragged surface and a hatched, edge-enhanced cap
-(Fig. 1/10), the fluted column (Fig. 2), a cube with a solid-textured cap (Fig. 11), the
+(Fig. 1/10), the same with a user's hatch texture image (Fig. 10(a)) and Gooch-shaded
+(Fig. 10(c)), edges white inside and black at the profile, the fluted column (Fig. 2), a cube
+with procedural and user 3D solid textures (Fig. 11), the
 building cut by two surfaces (Fig. 6), offset / normal / occlusion map triplets (Fig. 5), and
 the tessellated against the exact cap.
 """
@@ -36,10 +38,33 @@ def _surface(center, normal, extent, sz, offset_map, **kw):
 
 
 def _edges(fb, color):
+    """Image-based edge enhancement composited with the paper's polarity (Fig. 10 (a)–(c),
+    Nienhaus & Döllner [22]): white inner edges (normal discontinuities), black profile edges
+    (depth discontinuities), :func:`refraster.npr.composite`."""
     from ..edges import edge_map
-    e = edge_map(fb, preset="clean")
-    strength = np.maximum(e[..., :3].max(axis=-1), e[..., 3])
-    return color * (1.0 - strength[..., None])
+    from ..npr import composite
+    return composite(color, edge_map(fb, preset="clean"), inner_color=(1.0, 1.0, 1.0),
+                     profile_color=(0.0, 0.0, 0.0))
+
+
+def hatch_texture(size=64, *, spacing=8, width=2):
+    """A user-style hatch texture image (what Fig. 10 (a) draws its caps with): dark 45° lines
+    ``width`` texels wide every ``spacing`` texels on paper white, RGB uint8, tiling."""
+    r, c = np.mgrid[0:size, 0:size]
+    ink = (r + c) % spacing < width
+    img = np.where(ink, 40, 235).astype(np.uint8)
+    return np.repeat(img[:, :, None], 3, axis=2)
+
+
+def strata_volume(n=48):
+    """A user-style solid texture: bent sediment layers in sandstone colours, ``(n, n, n, 3)``
+    float in [0, 1] (``vol[z, y, x]``)."""
+    z, y, x = np.mgrid[0:n, 0:n, 0:n] / max(n - 1, 1)
+    phase = 9.0 * y + 1.5 * np.sin(4.0 * x + 2.0 * z) + 0.8 * np.sin(7.0 * z)
+    v = 0.5 + 0.5 * np.sin(phase)
+    light = np.array([0.93, 0.82, 0.62])
+    dark = np.array([0.55, 0.33, 0.2])
+    return (1.0 - v)[..., None] * dark + v[..., None] * light
 
 
 def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
@@ -92,8 +117,34 @@ def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
     fb = render_clipped(crank, cs, **cam.kwargs, cap_style="hatch",
                         cap_color=(0.55, 0.12, 0.1), vds_resolution=res)
     save("crank_hatched", _edges(fb, fb.color),
-         "Crank cut by a ragged 2.5D clip surface; hatched cap with normal and occlusion maps, "
-         "edge-enhanced (after Fig. 1 and 10).")
+         "Crank cut by a ragged 2.5D clip surface; procedural hatched cap with normal and "
+         "occlusion maps, edge-enhanced with white inner and black profile edges (after Fig. 1 "
+         "and 10).")
+
+    # Fig. 10(a): the cap's diffuse map is a user's hatch texture image, read from its file
+    # (CapTextures: mapped with the surface's (s, t), scale and wrap mode, GL_LINEAR).
+    from ..clipsurface.textures import CapTextures
+    from ..npr import gooch
+    hatch_png = out_dir / "clipsurface_hatch_texture.png"
+    write_png(hatch_png, hatch_texture(256 if quick else 1024, spacing=16, width=6))
+    items.append(Item(SECTION, hatch_png.name, "The user's hatch texture image used as the "
+                      "caps' diffuse map below (the Fig. 10 insets)."))
+    textured = _surface(c + [0, 0, 0.1], n, float(np.linalg.norm(hi - lo)), 0.9, ragged,
+                        textures=CapTextures(diffuse=hatch_png))
+    fb = render_clipped(crank, textured, **cam.kwargs, cap_style="diffuse",
+                        vds_resolution=res)
+    save("fig10a_texture", _edges(fb, fb.color),
+         "After Fig. 10(a): the crank's cap textured with the user's hatch image (file above) "
+         "as its diffuse map, light through the derived occlusion map, white inner "
+         "and black profile edges.")
+
+    # Fig. 10(c): Gooch shading of the clipped solid, the textured cap, the same edges.
+    solid_px = fb.mask & ~fb.cap_mask
+    shaded = np.array(fb.color, np.float64)
+    shaded[solid_px] = gooch(fb.normal, mask=solid_px)[solid_px]
+    save("fig10c_gooch", _edges(fb, shaded),
+         "After Fig. 10(c): the clipped crank Gooch-shaded (cool to warm), its cap textured "
+         "with the hatch image, white inner and black profile edges.")
 
     # Fig. 2: the fluted column cut across, marble cap.
     col = scenes.solid("fluted_column", quick=quick)
@@ -117,6 +168,14 @@ def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
     fb = render_clipped(cube, cs, **cam.kwargs, cap_style="wood",
                         cap_color=(0.45, 0.25, 0.1), texture_frequency=2.0, vds_resolution=res)
     save("cube_wood", fb.color, "Cube with a solid-textured (wood) cap lit through its "
+         "occlusion map (after Fig. 11).")
+
+    # Fig. 11 with the user's own 3D texture: a volume sampled in the cube's object space.
+    vol = strata_volume(16 if quick else 48)
+    fb = render_clipped(cube, cs, **cam.kwargs, cap_style="solid", solid_texture=vol,
+                        vds_resolution=res)
+    save("cube_solid", fb.color, "Cube with a user 3D texture (a 48³ volume of bent strata, "
+         "trilinear, spanning the cube's object-space box) on its cap, lit through the "
          "occlusion map (after Fig. 11).")
 
     # Fig. 6: the building cut by two surfaces in one pass.

@@ -232,3 +232,63 @@ def _halos4d_figure1():
                        parameters=params, maps=maps, kinds={"alpha": "unorm",
                                                             "halo_class": "id"},
                        geometry=False, may=edge, may_radius=1)
+
+
+@register_scene("clipsurface_textured_caps", technique="clipsurface",
+                description="Cube cut by a tilted 2.5D clip surface (Perlin offset map) whose "
+                            "caps carry the user's diffuse, normal and light texture maps "
+                            "(Trapp & Döllner Sec. 4.1, Fig. 10): each map is addressed with "
+                            "the surface's (s, t) = ((P − O)·Û/|U|·Sx, (P − O)·V̂/|V|·Sy), "
+                            "GL_LINEAR, mirrored_repeat; the normal map is tangent-space "
+                            "n = 2c − 1 along (Û, V̂, −N).")
+def _clipsurface_textured_caps():
+    from ..clipsurface import ClipSurface, render_clipped
+    from ..clipsurface.textures import CapTextures
+    from ..offsetmaps import perlin_noise
+    from ..scenes import solid
+    state = raster_state({})
+    draws = prepare_draws([Draw("cube", solid("cube"))])
+    camera = _framed([d.mesh for d in draws], 160, 120, (0.9, 1.1, 1.5))
+    lo, hi = draws[0].mesh.vertices.min(axis=0), draws[0].mesh.vertices.max(axis=0)
+    c = (lo + hi) / 2
+    offset_map = perlin_noise((32, 32), cells=4, seed=2)
+    # a diffuse map whose every texel differs from its neighbours (a GPU's wrong texel or
+    # half-texel shift shows), a bumpy normal map and a striped light map, all of their own
+    # resolutions
+    r, k = np.mgrid[0:16, 0:24]
+    diffuse = np.stack([(k % 6) / 5.0, (r % 4) / 3.0, ((r + 2 * k) % 5) / 4.0], -1) * 0.7 + 0.3
+    a, b = np.mgrid[0:32, 0:32] / 32.0 * 2 * np.pi
+    nx, ny = 0.4 * np.sin(2 * a), 0.4 * np.cos(3 * b)
+    n = np.stack([nx, ny, np.ones_like(nx)], -1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    normal = 0.5 * n + 0.5
+    light = 0.6 + 0.4 * (np.mgrid[0:8, 0:8][1] % 2)
+    textures = CapTextures(diffuse=diffuse, normal=normal, light=light)
+    size = float(np.linalg.norm(hi - lo))
+    u = np.array([1.0, 0.0, 0.3]) / np.linalg.norm([1.0, 0.0, 0.3]) * size
+    v = np.cross([0.3, 0.4, -1.0], u)
+    v = v / np.linalg.norm(v) * size
+    surface = dict(origin=(c + [0.0, 0.0, 0.1]).tolist(), u=u.tolist(), v=v.tolist(),
+                   scale=[1.5, 1.5, 0.25], wrap="mirrored_repeat", enabled=True)
+    caps = dict(caps=True, cap_style="diffuse", cap_mode="mesh", cap_color=[0.8, 0.3, 0.25],
+                subdivision=1, vds_resolution=256, space="world")
+    clip = ClipSurface(surface["origin"], surface["u"], surface["v"], surface["scale"],
+                       offset_map, wrap=surface["wrap"], textures=textures)
+    fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs, **caps,
+                        cull=state["cull"], precision=state["precision"])
+    # one map per channel (the package's maps are single-channel images); texel order, row 0
+    # at t = 0, values in [0, 1] (the normal map encoded as 2n − 1 = c)
+    maps = {"offset_map": offset_map, "cap_light": textures.light[..., 0]}
+    names = {"light": ["cap_light"]}
+    for key, arr, chans in (("diffuse", textures.diffuse, "rgb"),
+                            ("normal", textures.normal, "xyz")):
+        names[key] = [f"cap_{key}_{ch}" for ch in chans]
+        for i, name in enumerate(names[key]):
+            maps[name] = np.ascontiguousarray(arr[..., i])
+    return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
+                       buffers={**fb.arrays(), "cap_mask": fb.cap_mask},
+                       parameters={"surfaces": [{**surface, "offset_map": "offset_map",
+                                                 "textures": names}],
+                                   **caps},
+                       maps=maps, geometry=False,
+                       may=_clip_decision_may(draws, camera, clip, fb.cap_mask))

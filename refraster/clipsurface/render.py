@@ -1,0 +1,412 @@
+"""``render_clipped``: solids clipped by 2.5D clip surfaces, with cap surfaces closing the
+cuts (Trapp & Döllner, Sec. 3 pipeline), and its :class:`ClippedFramebuffer`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._validate import as_choice, as_float_array, as_matrix, as_real
+from ..framebuffer import Framebuffer
+from . import capping
+from .fused import _fused_clip
+from .surfaces import as_surfaces, clip_mask, _surfaces_in_space
+
+__all__ = ["ClippedFramebuffer", "render_clipped"]
+
+
+@dataclass(eq=False)
+class ClippedFramebuffer(Framebuffer):
+    """A :class:`~refraster.Framebuffer` of :func:`render_clipped`, with the caps marked.
+
+    Extra attributes
+    ----------------
+    cap_mask : (H, W) bool
+        Pixels showing a cap.
+    cap_points : (C, 3) float64
+        World position of each cap pixel, in row-major order of ``cap_mask``.
+    cap_position : (H, W, 3) float64
+        The same as an image, NaN elsewhere (made on first use).
+    n_solids, n_surfaces : int
+        M and K: a cap of solid m and surface k has ``object_id = M + m·K + k``.
+    """
+
+    cap_mask: np.ndarray = field(default=None, repr=False)
+    cap_points: np.ndarray = field(default=None, repr=False)
+    n_solids: int = 0
+    n_surfaces: int = 0
+
+    @property
+    def cap_position(self):
+        if getattr(self, "_cap_position", None) is None:
+            out = np.full(self.cap_mask.shape + (3,), np.nan)
+            out[self.cap_mask] = self.cap_points
+            self._cap_position = out
+        return self._cap_position
+
+    def eye_position(self):
+        """Eye-space position of the visible surface (caps included), NaN background."""
+        out = np.full(self.mask.shape + (3,), np.nan)
+        solid = self.mask & ~self.cap_mask
+        sub = Framebuffer.eye_position(self)
+        out[solid] = sub[solid]
+        out[self.cap_mask] = self.cap_points @ self.view[:3, :3].T + self.view[:3, 3]
+        return out
+
+
+def _solid_tests(world_solids, vds, resolution):
+    """One volumetric parity test per solid: given ``vds`` objects, or built with
+    :class:`refraster.ldi.VolumetricDepthSprite` (MATH.md §2)."""
+    if vds is not None:
+        tests = list(vds) if isinstance(vds, (list, tuple)) else [vds]
+        if len(tests) != len(world_solids):
+            raise ValueError(f"vds must hold one sprite per mesh ({len(world_solids)}), "
+                             f"got {len(tests)}")
+        for i, t in enumerate(tests):
+            if not callable(getattr(t, "contains", None)):
+                raise TypeError(f"vds[{i}] must have a contains(points) method")
+        return tests
+    from ..ldi import VolumetricDepthSprite
+    return [VolumetricDepthSprite.from_mesh(m, resolution=resolution) for m in world_solids]
+
+
+def _stage(n_solids, surfaces, tests, space, view):
+    """``render_clipped``'s clip stage as a ``fragment_stage`` over the fragment stream (what
+    :func:`_fused_clip_pass` equals, and the path for duck-typed parity tests)."""
+    n_surf = max(len(surfaces), 1)
+
+    def stage(frags):
+        obj = frags.object_id
+        keep = np.ones(len(frags), np.bool_)
+        pos = frags.world_position()
+        test_pos = frags.eye_position() if space == "eye" else pos
+        is_cap = obj >= n_solids
+        skip = np.where(is_cap, (obj - n_solids) % n_surf, -1).astype(np.int64)
+        keep &= ~clip_mask(test_pos, surfaces, space=space, view=view, skip=skip)
+        for m in range(n_solids if tests is not None and is_cap.any() else 0):
+            sel = np.flatnonzero(keep & is_cap & ((obj - n_solids) // n_surf == m))
+            if sel.size:
+                keep[sel] = tests[m].contains(pos[sel])
+        return keep
+
+    return stage
+
+
+def _concat_vertices(vertices):
+    if len(vertices) == 1:
+        return np.ascontiguousarray(vertices[0], np.float64)
+    return np.ascontiguousarray(np.concatenate(vertices), np.float64) if vertices \
+        else np.zeros((0, 3))
+
+
+#: Whether render_clipped uses the fused tile pass when it can (tests switch it off to compare
+#: with the fragment stream and the Python stage, which it must equal bit for bit).
+_USE_FUSED = True
+
+#: Cap meshes kept per surface (keyed by the solid's bounds and the subdivision).
+_CAP_CACHE_SIZE = 8
+
+
+def _cached_cap(surface, bounds, subdivision, sprite=None):
+    """``(mesh, sure)``: :func:`refraster.capping.cap_mesh`, made once per surface, bounds and
+    subdivision (a surface is immutable; the cached mesh's arrays are read-only). With a
+    volumetric depth sprite, only the faces that can pass its parity test
+    (:func:`refraster.capping.cull_cap`) and their "surely inside" flags
+    (:func:`refraster.capping.surely_inside`), made once per sprite too; ``sure`` is ``None``
+    without a sprite."""
+    import weakref
+
+    cache = surface._derived
+
+    def put(key, mesh, value):
+        caps = [k for k in cache if k[0] == "cap"]
+        if len(caps) >= _CAP_CACHE_SIZE:
+            del cache[caps[0]]
+        if mesh is not None:
+            mesh.vertices.setflags(write=False)
+            mesh.faces.setflags(write=False)
+        cache[key] = value
+
+    key = ("cap", bounds.tobytes(), subdivision)
+    cap = cache.get(key, False)
+    if cap is False:
+        cap = capping.cap_mesh(surface, bounds, subdivision=subdivision)
+        put(key, cap, cap)
+    if sprite is None or cap is None:
+        return cap, None
+    # the sprite is held weakly: an id can be reused once its sprite is gone
+    culled_key = key + (id(sprite),)
+    entry = cache.get(culled_key)
+    if entry is None or entry[0]() is not sprite:
+        culled = capping.cull_cap(cap, sprite)
+        sure = capping.surely_inside(culled, sprite)
+        sure.setflags(write=False)
+        entry = (weakref.ref(sprite), culled, sure)
+        put(culled_key, culled, entry)
+    return entry[1], entry[2]
+
+
+def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
+                   cap_style="diffuse", cap_mode="mesh", cap_color=(0.80, 0.30, 0.25),
+                   hatch_spacing=None, texture_frequency=4.0, space="world", model=None,
+                   normals=None, cull="none", precision="float32", subdivision=1, vds=None,
+                   vds_resolution=1024, occlusion_radius=None, background=(1.0, 1.0, 1.0),
+                   solid_texture=None):
+    """Render solids clipped by 2.5D clip surfaces, with cap surfaces closing the cuts.
+
+    Parameters
+    ----------
+    meshes : mesh or sequence of meshes
+        The solids (draw calls 0 … M−1). With ``caps=True`` each must be watertight.
+    surfaces : ClipSurface, ReliefClipPlane or a list of them (K surfaces, world space)
+    view, proj, width, height
+        The camera (:mod:`refraster.camera`).
+    caps : bool
+        Draw cap surfaces (Trapp & Döllner, Sec. 5).
+    cap_style : {"diffuse", "hatch", "marble", "wood", "noise", "solid"}
+        Cap shading over the normal and occlusion maps (:func:`refraster.capping.shade_caps`).
+        ``"diffuse"`` takes a surface's diffuse map (``ClipSurface(textures=CapTextures(...))``)
+        as its base colour where it has one; ``"solid"`` takes ``solid_texture``. A surface's
+        user normal and light maps replace the derived ones in every style
+        (:func:`refraster.clipsurface.capping.texture_caps`).
+    cap_mode : {"mesh", "exact"}
+        ``"mesh"``: the paper's tessellated, displaced grid (``subdivision`` vertices per texel
+        and axis) whose fragments pass the volumetric parity test; ``"exact"``: per-pixel ray –
+        height-field intersection (:func:`refraster.capping.exact_caps`).
+    cap_color : (3,) float
+        Base (diffuse), ink (hatch) or dark texture colour of the caps.
+    hatch_spacing : float, optional
+        World distance between hatch lines (default 1.5 % of the solids' bounding diagonal).
+    texture_frequency : float
+        Solid-texture features per world unit.
+    space : {"world", "eye"}
+        Where the clip test is evaluated (D6; equal for a rigid view).
+    model : (4, 4) or list of them, optional
+        Object → world matrix per solid; surfaces are always given in world space.
+    normals : None, "flat" or "smooth"
+        Shading normals of the solids.
+    cull, precision
+        As :func:`refraster.render`.
+    vds : sequence of objects with ``contains(points)``, optional
+        Pre-built volumetric depth sprites (world space), one per solid; built with
+        ``VolumetricDepthSprite.from_mesh(solid, resolution=vds_resolution)`` otherwise.
+    occlusion_radius : float, optional
+        Radius of the occlusion maps (:func:`refraster.offsetmaps.occlusion_map`).
+    background : (3,) float
+    solid_texture : SolidTexture or (D, H, W[, C]) array, optional
+        The 3D texture of ``cap_style="solid"`` (Fig. 11), sampled trilinearly at each cap
+        point in its solid's object space (``model`` inverted); an array spans each solid's
+        object-space bounding box once (:class:`refraster.clipsurface.textures.SolidTexture`).
+
+    Returns
+    -------
+    ClippedFramebuffer
+        The foundation's Framebuffer; cap pixels carry the cap's window and eye depth, its
+        eye-space normal (from the normal map), its colour, ``front_facing`` (True when the
+        cap is seen from its −N side) and ``object_id = M + m·K + k`` for the cap of solid m
+        and surface k. ``prim_id`` is the cap mesh's face (``"mesh"``) or the cap texel
+        ``row·W + col`` (``"exact"``). ``cap_mask`` marks the cap pixels.
+
+    Notes
+    -----
+    Solid fragments are discarded where any enabled surface clips them (MATH.md §1.1). A cap
+    fragment of surface k is kept where the volumetric parity test says inside (MATH.md §2.2)
+    and no *other* enabled surface clips it. Caps are drawn after the solids with ``GL_LESS``,
+    so at equal depth the solid wins.
+    """
+    from ..framebuffer import _build, render
+    from ..ldi import VolumetricDepthSprite
+    from ..mesh import Mesh, as_meshes, bounds
+    from ..raster import _models, prepare
+    from ..raster.fragments import vertices_in
+
+    solids = as_meshes(meshes)
+    surfaces = as_surfaces(surfaces)
+    view = as_matrix(view, "view")
+    proj = as_matrix(proj, "proj")
+    if not isinstance(caps, (bool, np.bool_)):
+        raise TypeError(f"caps must be a bool, got {type(caps).__name__}")
+    style = as_choice(cap_style, "cap_style", {s: s for s in capping.CAP_STYLES})
+    mode = as_choice(cap_mode, "cap_mode", {"mesh": "mesh", "exact": "exact"})
+    space = as_choice(space, "space", {"world": "world", "eye": "eye"})
+    color = as_float_array(cap_color, "cap_color", shape=(3,))
+    freq = as_real(texture_frequency, "texture_frequency", lo=0.0, lo_open=True)
+    solid_tex = _as_solid_texture(solid_texture, style)
+    textured = [s.textures is not None for s in surfaces]
+    if style in capping._PROCEDURAL and any(
+            s.enabled and s.textures is not None and s.textures.diffuse is not None
+            for s in surfaces):
+        raise ValueError(f"cap_style={style!r} draws its own pattern; a surface's diffuse map "
+                         "is used by cap_style='diffuse'")
+    # the base pass colours "solid" caps as "diffuse"; texture_caps recolours them
+    base_style = "diffuse" if style == "solid" else style
+    if normals is not None and not (isinstance(normals, str)
+                                    and normals.lower() in ("flat", "smooth")):
+        raise ValueError("normals must be None, 'flat' or 'smooth' for render_clipped")
+    models = _models(model, len(solids))
+    world = [Mesh(v, s.faces) if v is not s.vertices else s
+             for s, v in zip(solids, vertices_in(solids, models, None, "world"))]
+    n_solids, n_surf = len(solids), len(surfaces)
+    do_caps = caps and any(s.enabled for s in surfaces)
+    tests = None
+    if do_caps:
+        for i, w in enumerate(world):
+            capping.check_watertight(w, f"meshes[{i}]")
+        tests = _solid_tests(world, vds, vds_resolution)
+    boxes = [bounds(w.vertices) if w.n_vertices else None for w in world]
+    lo = np.min([b[0] for b in boxes if b is not None], axis=0) \
+        if any(w.n_vertices for w in world) else np.zeros(3)
+    hi = np.max([b[1] for b in boxes if b is not None], axis=0) \
+        if any(w.n_vertices for w in world) else np.ones(3)
+    spacing = (0.015 * float(np.linalg.norm(hi - lo)) or 0.01) if hatch_spacing is None \
+        else as_real(hatch_spacing, "hatch_spacing", lo=0.0, lo_open=True)
+
+    fused = _USE_FUSED and (not do_caps or mode != "mesh" or all(
+        isinstance(t, VolumetricDepthSprite) for t in tests))
+    draw_list, draw_models = list(solids), list(models)
+    sure_flags = []   # per cap draw call: its faces' "surely inside" flags (or None)
+    if do_caps and mode == "mesh":
+        empty = Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64))
+        for m, box in enumerate(boxes):
+            sprite = tests[m] if isinstance(tests[m], VolumetricDepthSprite) else None
+            for s in surfaces:
+                cap, sure = _cached_cap(s, box, subdivision, sprite) \
+                    if s.enabled and box is not None else (None, None)
+                draw_list.append(empty if cap is None else cap)
+                sure_flags.append(sure)
+                draw_models.append(np.eye(4))
+
+    bg = as_float_array(background, "background", shape=(3,))
+    geometry = None
+    cap_tests = tests if do_caps and mode == "mesh" else None
+    if not fused:
+        # duck-typed parity tests: the fragment stream with a Python stage
+        fb = render(draw_list, view=view, proj=proj, width=width, height=height,
+                    normals=normals, cull=cull, model=draw_models, precision=precision,
+                    fragment_stage=_stage(n_solids, surfaces, cap_tests, space, view),
+                    background=bg)
+    else:
+        prep = prepare(draw_list, view=view, proj=proj, width=width, height=height, cull=cull,
+                       model=draw_models, precision=precision)
+        tv = _concat_vertices(vertices_in(prep.meshes, prep.models, view, space))
+        wv = tv if space == "world" else _concat_vertices(
+            vertices_in(prep.meshes, prep.models, view, "world"))
+        depth, prim_global, front, bary = _fused_clip(
+            prep, tv, wv, n_solids, _surfaces_in_space(surfaces, space, view), cap_tests,
+            sure_flags)
+        h, w = depth.shape
+        identity = all(np.array_equal(m, np.eye(4)) for m in prep.models)
+        geometry = (tv, prep.triangles.faces) if identity and space == "world" else None
+        # the mesh caps' pixels are coloured by shade_cap_pixels below, not by the default
+        fb = _build(prep.meshes, prep.models, view, proj, depth, prim_global, prep.face_offsets,
+                    front, bary.reshape(h, w, 3), normals, bg, geometry,
+                    prep.face_offsets[n_solids] if do_caps and mode == "mesh" else None)
+    h, w = fb.depth.shape
+    cap_mask = fb.object_id >= n_solids
+    out = ClippedFramebuffer(**fb.field_values(), cap_mask=cap_mask,
+        cap_points=np.zeros((0, 3)), n_solids=n_solids, n_surfaces=n_surf)
+    if not do_caps:
+        return out
+    if mode == "mesh":
+        # the caps are drawn in world space (identity model): interpolate, light and colour
+        # their pixels in one pass
+        if geometry is None:
+            vbase = np.cumsum([0] + [m.n_vertices for m in fb.meshes])
+            geometry = (_concat_vertices([m.vertices for m in fb.meshes]),
+                        np.concatenate([m.faces + vbase[k] for k, m in enumerate(fb.meshes)]))
+        face_offsets = np.cumsum([0] + [m.n_faces for m in fb.meshes]).astype(np.int64)
+        out.cap_points = capping.shade_cap_pixels(
+            np.flatnonzero(cap_mask), out, n_solids, n_surf, geometry[1], face_offsets,
+            geometry[0], surfaces, view=view, style=base_style, color=color,
+            hatch_spacing=spacing, frequency=freq, occlusion_radius=occlusion_radius)
+        _texture_pass(out, surfaces, textured, style, color, solid_tex, solids, models, view,
+                      occlusion_radius)
+        return out
+    else:
+        tau, which, origin, direction = capping.exact_caps(
+            surfaces, world, tests, view=view, proj=proj, width=width, height=height)
+        hit = np.isfinite(tau)
+        pts = origin[hit] + tau[hit, None] * direction[hit]
+        clip = np.c_[pts, np.ones(len(pts))] @ (proj @ view).T
+        depth = (0.5 * (clip[:, 2] / clip[:, 3]) + 0.5).astype(np.float32)
+        flat = np.flatnonzero(hit)
+        nearer = depth < fb.depth.ravel()[flat]
+        flat, pts, depth = flat[nearer], pts[nearer], depth[nearer]
+        m_k = which[flat]
+        r, c = np.divmod(flat, w)
+        cap_mask[r, c] = True
+        out.cap_points = pts  # row-major order, as cap_mask lists them
+        out.depth[r, c] = depth
+        eye = pts @ view[:3, :3].T + view[:3, 3]
+        out.eye_depth[r, c] = -eye[:, 2]
+        out.object_id[r, c] = n_solids + m_k[:, 0] * n_surf + m_k[:, 1]
+        texel = np.zeros(len(pts), np.int64)
+        facing = np.zeros(len(pts), np.bool_)
+        for k, s in enumerate(surfaces):
+            sel = np.flatnonzero(m_k[:, 1] == k)
+            if sel.size:
+                st = s.texcoords(pts[sel])
+                rows, cols = s.offset_map.shape
+                col = np.floor(st[:, 0] * cols).astype(np.int64) % cols
+                row = np.floor(st[:, 1] * rows).astype(np.int64) % rows
+                texel[sel] = row * cols + col
+                facing[sel] = direction[flat[sel]] @ s.normal > 0
+        out.prim_id[r, c] = texel
+        out.front_facing[r, c] = facing
+        out.barycentric[r, c] = 0.0
+        flat = np.flatnonzero(cap_mask)
+    which_surface = (out.object_id.reshape(-1)[flat] - n_solids) % n_surf
+    col, nrm = capping.shade_caps(out.cap_points, which_surface, surfaces, view=view,
+                                  style=base_style, color=color, hatch_spacing=spacing,
+                                  frequency=freq, occlusion_radius=occlusion_radius)
+    out.color.reshape(-1, 3)[flat] = col
+    out.normal.reshape(-1, 3)[flat] = nrm
+    _texture_pass(out, surfaces, textured, style, color, solid_tex, solids, models, view,
+                  occlusion_radius)
+    return out
+
+
+def _as_solid_texture(solid_texture, style):
+    from .textures import SolidTexture
+    if solid_texture is None:
+        if style == "solid":
+            raise ValueError("cap_style='solid' needs solid_texture=(a SolidTexture or a "
+                             "(D, H, W[, C]) volume)")
+        return None
+    if style != "solid":
+        raise ValueError("solid_texture is used by cap_style='solid' only")
+    if isinstance(solid_texture, SolidTexture):
+        return solid_texture
+    return SolidTexture(solid_texture)
+
+
+def _texture_pass(out, surfaces, textured, style, color, solid_tex, solids, models, view,
+                  occlusion_radius):
+    """Recolour the cap pixels that take user textures: every cap for ``"solid"``, else those
+    of surfaces with :class:`CapTextures` (:func:`capping.texture_caps`)."""
+    if style != "solid" and not any(textured):
+        return
+    n_solids, n_surf = out.n_solids, out.n_surfaces
+    flat = np.flatnonzero(out.cap_mask)
+    obj = out.object_id.reshape(-1)[flat] - n_solids
+    k, m = obj % n_surf, obj // n_surf
+    sel = np.arange(len(flat)) if style == "solid" else \
+        np.flatnonzero(np.asarray(textured, np.bool_)[k])
+    if sel.size == 0:
+        return
+    pts = out.cap_points[sel]
+    solid_colors = None
+    if style == "solid":
+        solid_colors = np.zeros((sel.size, 3))
+        for j in np.unique(m[sel]):
+            which = np.flatnonzero(m[sel] == j)
+            inv = np.linalg.inv(models[j])
+            local = pts[which] @ inv[:3, :3].T + inv[:3, 3]
+            v = solids[j].vertices
+            solid_colors[which] = solid_tex.sample(local, (v.min(axis=0), v.max(axis=0)))
+    col, nrm = capping.texture_caps(pts, k[sel], surfaces, view=view, style=style,
+                                    color=color, occlusion_radius=occlusion_radius,
+                                    solid_colors=solid_colors)
+    out.color.reshape(-1, 3)[flat[sel]] = col
+    out.normal.reshape(-1, 3)[flat[sel]] = nrm
