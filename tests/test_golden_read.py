@@ -1,0 +1,259 @@
+"""Golden reads never trust a file (issue 18): no links followed, no memory bombs, every scene
+package validated on every read."""
+
+import hashlib
+import json
+import logging
+import os
+import shutil
+import struct
+import tracemalloc
+import zipfile
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from refraster import golden
+from refraster.golden import cli
+from refraster.golden.compare import GoldenError, compare, load_manifest
+
+SCENE = "render_cube"
+MiB = 1 << 20
+
+
+def tree_digest(root):
+    return {p.relative_to(root).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(Path(root).rglob("*")) if p.is_file() and not p.is_symlink()}
+
+
+@pytest.fixture(scope="module")
+def gold(tmp_path_factory):
+    out = tmp_path_factory.mktemp("golden") / "g"
+    golden.generate(out, [SCENE])
+    return out
+
+
+def golden_buffers(gold):
+    with np.load(gold / SCENE / "buffers.npz", allow_pickle=False) as z:
+        return {k: z[k].copy() for k in z.files}
+
+
+def copy_golden(gold, tmp_path):
+    g = tmp_path / "g"
+    shutil.copytree(gold, g)
+    return g, json.loads((g / "manifest.json").read_text())
+
+
+def rehash(g, manifest, rel):
+    """Rewrite the manifest so that it matches an edited file (an attacker can do this)."""
+    manifest["files"][rel] = hashlib.sha256((g / rel).read_bytes()).hexdigest()
+    (g / "manifest.json").write_text(json.dumps(manifest))
+
+
+# --- 2. candidates: headers first, bounded memory ------------------------------------------------
+
+def budget(gold, scene=SCENE):
+    """32 MiB + 10 × (the golden's buffers + allowances), the issue's bound."""
+    entry = load_manifest(gold)["scenes"][scene]
+
+    def nbytes(specs):
+        return sum(int(np.prod(s["shape"])) * np.dtype(s["dtype"]).itemsize
+                   for s in specs.values())
+    return 32 * MiB + 10 * (nbytes(entry["buffers"]) + nbytes(entry["allowances"]["arrays"]))
+
+
+def peak_memory(fn):
+    """Peak traced memory (bytes) of ``fn()`` above what was allocated before it ran."""
+    tracemalloc.start()
+    try:
+        base = tracemalloc.get_traced_memory()[0]
+        result = fn()
+        peak = tracemalloc.get_traced_memory()[1] - base
+    finally:
+        tracemalloc.stop()
+    return result, peak
+
+
+def add_zero_member(path, name, nbytes):
+    """Append a member of ``nbytes`` zeros (an .npy of float32) to a zip: a few hundred KB
+    compressed."""
+    with zipfile.ZipFile(path, "a", compression=zipfile.ZIP_DEFLATED) as zf:
+        with zf.open(name, "w", force_zip64=True) as fh:
+            np.lib.format.write_array_header_1_0(
+                fh, {"descr": "<f4", "fortran_order": False, "shape": (nbytes // 4,)})
+            chunk = bytes(16 * MiB)
+            for _ in range(nbytes // len(chunk)):
+                fh.write(chunk)
+
+
+def zero_png(width, height):
+    """An 8-bit grey PNG of zeros, built row by row (tiny file, huge picture)."""
+    def chunk(kind, data):
+        return (struct.pack(">I", len(data)) + kind + data
+                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+    z = zlib.compressobj(9)
+    row = bytes(width + 1)
+    idat = b"".join(z.compress(row) for _ in range(height)) + z.flush()
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 0,
+                                                                0, 0, 0))
+            + chunk(b"IDAT", idat) + chunk(b"IEND", b""))
+
+
+def test_unused_npz_member_is_skipped_unread_within_the_memory_budget(gold, tmp_path, caplog):
+    cand = tmp_path / "cand"
+    (cand / SCENE).mkdir(parents=True)
+    np.savez(cand / SCENE / "buffers.npz", **golden_buffers(gold))
+    compare(gold, cand, mode="tolerant")        # imports done: the baseline is post-import
+    _, good_peak = peak_memory(lambda: compare(gold, cand, mode="tolerant"))
+    limit = budget(gold)
+    assert good_peak <= limit, (good_peak, limit)
+    add_zero_member(cand / SCENE / "buffers.npz", "unused.npy", 256 * MiB)
+    assert (cand / SCENE / "buffers.npz").stat().st_size < 2 * MiB
+    with caplog.at_level(logging.WARNING, logger="refraster.golden"):
+        result, peak = peak_memory(lambda: compare(gold, cand, mode="tolerant"))
+    assert result.exit_code == 0, result.summary()
+    assert peak <= limit, (peak, limit)
+    assert result.scenes[0].skipped == [f"{SCENE}/buffers.npz:unused.npy"]
+    assert "skipped (not in the golden, not read): render_cube/buffers.npz:unused.npy" in \
+        result.summary()
+    assert any("unused.npy" in r.getMessage() for r in caplog.records)
+
+
+def test_headers_are_checked_before_data(gold, tmp_path):
+    b = golden_buffers(gold)
+    limit = budget(gold)
+
+    def candidate(name, make):
+        cand = tmp_path / name
+        (cand / SCENE).mkdir(parents=True)
+        rest = {k: v for k, v in b.items() if k != "depth"}
+        np.savez(cand / SCENE / "buffers.npz", **rest)
+        make(cand / SCENE)
+        return cand
+
+    def huge_npy(p):     # a header claiming 10^12 elements, 16 bytes of data
+        with open(p / "depth.npy", "wb") as fh:
+            np.lib.format.write_array_header_1_0(
+                fh, {"descr": "<f4", "fortran_order": False, "shape": (10 ** 6, 10 ** 6)})
+            fh.write(bytes(16))
+
+    def huge_member(p):  # the same inside the npz
+        with zipfile.ZipFile(p / "buffers.npz", "a") as zf:
+            with zf.open("depth.npy", "w") as fh:
+                np.lib.format.write_array_header_1_0(
+                    fh, {"descr": "<f4", "fortran_order": False, "shape": (10 ** 6, 10 ** 6)})
+
+    def png_bomb(p):     # 13000 x 13000 grey: 165 KB, 169 MB decoded
+        (p / "depth.png").write_bytes(zero_png(13000, 13000))
+
+    def trailing(p):     # right header, then 64 MiB more than it describes
+        with zipfile.ZipFile(p / "buffers.npz", "a", compression=zipfile.ZIP_DEFLATED) as zf:
+            with zf.open("depth.npy", "w", force_zip64=True) as fh:
+                np.lib.format.write_array(fh, b["depth"])
+                fh.write(bytes(64 * MiB))
+
+    cases = {"huge_npy": (huge_npy, "shape (1000000, 1000000) differs from the golden's "
+                                    "(120, 160)"),
+             "huge_member": (huge_member, "shape (1000000, 1000000) differs"),
+             "png_bomb": (png_bomb, "the PNG is 13000x13000, the golden's buffer 160x120"),
+             "trailing": (trailing, "data continues past the array")}
+    for name, (make, message) in cases.items():
+        cand = candidate(name, make)
+        before = tree_digest(cand)
+        result, peak = peak_memory(lambda: compare(gold, cand, scenes=[SCENE]))
+        assert result.exit_code == 2, (name, result.summary())
+        assert message in result.scenes[0].error, (name, result.scenes[0].error)
+        assert peak <= limit, (name, peak, limit)
+        assert cli.main(["-q", "compare", str(gold), str(cand)]) == 2
+        assert tree_digest(cand) == before
+
+
+# --- 3. scene packages are validated on every read ------------------------------------------------
+
+def edit_scene_json(g, manifest, fn):
+    rel = f"{SCENE}/package/scene.json"
+    doc = json.loads((g / rel).read_text())
+    fn(doc)
+    (g / rel).write_text(json.dumps(doc))
+    rehash(g, manifest, rel)
+
+
+PACKAGE_CASES = {
+    "mesh outside": (lambda d: d["draws"][0].update(mesh="../../../../etc/passwd"),
+                     r"\$.draws\[0\].mesh: '../../../../etc/passwd' does not match"),
+    "nan view": (lambda d: d["camera"]["view"][0].__setitem__(0, float("nan")),
+                 r"\$.camera.view\[0\]\[0\]: must be finite"),
+    "negative width": (lambda d: d["viewport"].update(width=-5),
+                       r"\$.viewport.width: must be >= 1"),
+    "unlisted mesh": (lambda d: d["draws"][0].update(mesh="meshes/other.ply"),
+                      r"\$.draws\[0\].mesh: 'meshes/other.ply' is not listed"),
+    "viewport": (lambda d: d["viewport"].update(width=16),
+                 r"\$.viewport: 16x120 does not match buffer"),
+    "newer": (lambda d: d.update(schema_version=7), "schema_version 7 is newer"),
+}
+
+
+@pytest.mark.parametrize("case", list(PACKAGE_CASES))
+def test_scene_package_is_validated_by_compare_and_the_fixture(gold, tmp_path, case, capsys):
+    from refraster.testing import GoldenFixture
+    edit, message = PACKAGE_CASES[case]
+    g, manifest = copy_golden(gold, tmp_path)
+    (g / SCENE / "package" / "meshes" / "other.ply").write_bytes(b"ply\n")
+    edit_scene_json(g, manifest, edit)
+    with pytest.raises(GoldenError, match=message):
+        compare(g, gold)
+    assert cli.main(["-q", "compare", str(g), str(gold)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "scene.json" in err[0], err
+    with pytest.raises(pytest.UsageError, match=message):
+        GoldenFixture(g, tmp_path / "fixture")
+
+
+def test_fixture_package_validates_again_on_every_call(gold, tmp_path):
+    from refraster.testing import GoldenFixture
+    g, manifest = copy_golden(gold, tmp_path)
+    fixture = GoldenFixture(g, tmp_path / "fixture")
+    assert fixture.package(SCENE) == g / SCENE / "package"
+    edit_scene_json(g, manifest, PACKAGE_CASES["mesh outside"][0])
+    with pytest.raises(pytest.fail.Exception, match="does not match"):
+        fixture.package(SCENE)
+    # a mesh edited after the fixture read the manifest: its sha256 no longer matches
+    g2, _ = copy_golden(gold, tmp_path / "two")
+    fixture = GoldenFixture(g2, tmp_path / "fixture2")
+    with open(g2 / SCENE / "package" / "meshes" / "cube.ply", "ab") as fh:
+        fh.write(b"\0")
+    with pytest.raises(pytest.fail.Exception, match="sha256"):
+        fixture.package(SCENE)
+
+
+def test_listed_files_are_never_read_through_a_link(gold, tmp_path):
+    g, manifest = copy_golden(gold, tmp_path)
+    inner = g / SCENE / "preview" / "depth.png"
+    keep = tmp_path / "depth.png"
+    shutil.move(inner, keep)
+    shutil.copy(keep, g / SCENE / "preview" / "copy.png")
+    inner.symlink_to(g / SCENE / "preview" / "copy.png")     # stays inside, still refused
+    with pytest.raises(GoldenError, match="symbolic link"):
+        compare(g, gold)
+    inner.unlink()
+    os.mkfifo(inner)                                        # would block a plain open()
+    with pytest.raises(GoldenError, match="not a regular file"):
+        compare(g, gold)
+    inner.unlink()
+    shutil.move(keep, inner)
+    os.rename(g / SCENE / "preview", tmp_path / "preview")
+    (g / SCENE / "preview").symlink_to(tmp_path / "preview")  # a linked directory
+    with pytest.raises(GoldenError, match="outside the golden directory|symbolic link"):
+        compare(g, gold)
+
+
+def test_deeply_nested_manifest_is_one_line(gold, tmp_path, capsys):
+    g, _ = copy_golden(gold, tmp_path)
+    (g / "manifest.json").write_text("[" * 100000 + "]" * 100000)
+    with pytest.raises(GoldenError, match="nested too deeply"):
+        load_manifest(g)
+    assert cli.main(["compare", str(g), str(gold)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "nested too deeply" in err[0], err
