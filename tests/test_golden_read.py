@@ -257,3 +257,36 @@ def test_deeply_nested_manifest_is_one_line(gold, tmp_path, capsys):
     assert cli.main(["compare", str(g), str(gold)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "nested too deeply" in err[0], err
+
+
+# --- 1. generate --update copies kept scenes from the manifest's file list only ----------------
+
+def test_update_copies_kept_scenes_from_the_file_list_without_links(tmp_path, caplog):
+    out = tmp_path / "g"
+    golden.generate(out, [SCENE])
+    secret = tmp_path / "private.key"
+    secret.write_text("-----BEGIN PRIVATE KEY-----")
+    (out / SCENE / "id_rsa").symlink_to(secret)
+    (out / SCENE / "notes.txt").write_text("mine")
+    before = {k: v for k, v in load_manifest(out)["files"].items()
+              if k.startswith(f"{SCENE}/")}
+    with caplog.at_level(logging.WARNING, logger="refraster.golden"):
+        golden.generate(out, [SCENE], sizes=["16x12"], update=True)
+    m = load_manifest(out)
+    assert sorted(m["scenes"]) == [SCENE, f"{SCENE}__16x12"]
+    assert {k: v for k, v in m["files"].items() if k.startswith(f"{SCENE}/")} == before
+    assert not os.path.lexists(out / SCENE / "id_rsa")
+    assert not (out / SCENE / "notes.txt").exists()
+    warned = " ".join(r.getMessage() for r in caplog.records)
+    for name in ("id_rsa", "notes.txt"):
+        assert f"{SCENE}/{name}" in warned, warned
+    # links to a device and to a directory, unlisted too: skipped, never opened
+    (out / SCENE / "zero").symlink_to("/dev/zero")
+    (out / SCENE / "home").symlink_to(tmp_path)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="refraster.golden"):
+        golden.generate(out, [SCENE], sizes=["16x12"], update=True)
+    assert {k: v for k, v in load_manifest(out)["files"].items()
+            if k.startswith(f"{SCENE}/")} == before
+    warned = " ".join(r.getMessage() for r in caplog.records)
+    assert f"{SCENE}/zero" in warned and f"{SCENE}/home" in warned, warned
