@@ -128,26 +128,11 @@ def _check_output(path, suffix, option):
 
 
 def _load_mesh(path):
-    import numpy as np
-    import trimesh
-
-    path = Path(path)
-    if not path.exists():
-        raise CLIError(f"mesh file '{path}' does not exist")
-    if not path.is_file():
-        raise CLIError(f"mesh file '{path}' is not a regular file")
-    if path.stat().st_size == 0:
-        raise CLIError(f"mesh file '{path}' is empty")
+    from .mesh import load_mesh_file
     try:
-        mesh = trimesh.load(path, force="mesh", process=False)
-    except Exception as exc:
-        raise CLIError(f"cannot read a mesh from '{path}': {_one_line(exc)}") from exc
-    faces = getattr(mesh, "faces", None)
-    if faces is None or len(faces) == 0:
-        raise CLIError(f"'{path}' holds no triangles (not a mesh file, or an empty mesh)")
-    if not np.all(np.isfinite(mesh.vertices)):
-        raise CLIError(f"'{path}' has non-finite vertex coordinates")
-    return mesh
+        return load_mesh_file(path)
+    except ValueError as exc:
+        raise CLIError(_one_line(exc)) from exc
 
 
 def _camera(args, bounds):

@@ -290,3 +290,76 @@ def test_update_copies_kept_scenes_from_the_file_list_without_links(tmp_path, ca
             if k.startswith(f"{SCENE}/")} == before
     warned = " ".join(r.getMessage() for r in caplog.records)
     assert f"{SCENE}/zero" in warned and f"{SCENE}/home" in warned, warned
+
+
+# --- 4. TOML scenes: exact types, messages naming table, key, type and value ---------------------
+
+TOML_OK = ('[viewport]\nwidth = 32\nheight = 24\n[camera]\nkind = "perspective"\n'
+           'eye = [3.0, 2.0, 4.0]\ntarget = [0.0, 0.0, 0.0]\nfovy = 40.0\nnear = 1.0\n'
+           'far = 20.0\n[[draw]]\nsolid = "cube"\n')
+
+TOML_CASES = {
+    "width string": (("width = 32", 'width = "32"'),
+                     "[viewport] width must be an integer, got a string '32'"),
+    "width float": (("width = 32", "width = 32.9"),
+                    "[viewport] width must be an integer, got a float 32.9"),
+    "width bool": (("width = 32", "width = true"),
+                   "[viewport] width must be an integer, got a boolean true"),
+    "width zero": (("width = 32", "width = 0"),
+                   "[viewport] width must be between 1 and 32768, got an integer 0"),
+    "viewport int": (("[viewport]\nwidth = 32\nheight = 24\n", "viewport = 5\n"),
+                     "viewport must be a table, got an integer 5"),
+    "mesh int": (('solid = "cube"', "mesh = 5"),
+                 "[[draw]] 0: mesh must be a string (a path relative to the scene file), got "
+                 "an integer 5"),
+    "kind fisheye": (('kind = "perspective"', 'kind = "fisheye"'),
+                     "[camera] kind must be one of ['frame', 'perspective', 'orthographic'], "
+                     "got a string 'fisheye'"),
+    "eye short": (("eye = [3.0, 2.0, 4.0]", "eye = [3.0, 2.0]"),
+                  "[camera] eye must be an array of 3 finite numbers, got an array [3.0, 2.0]"),
+    "fovy string": (("fovy = 40.0", 'fovy = "wide"'),
+                    "[camera] fovy must be a finite number, got a string 'wide'"),
+    "near inf": (("near = 1.0", "near = inf"),
+                 "[camera] near must be a finite number, got a float inf"),
+    "cull": (("[[draw]]", '[raster]\ncull = "sideways"\n[[draw]]'),
+             "[raster] cull must be one of ['none', 'back', 'front'], got a string 'sideways'"),
+    "bits float": (("[[draw]]", "[raster]\nsubpixel_bits = 8.0\n[[draw]]"),
+                   "[raster] subpixel_bits must be an integer, got a float 8.0"),
+    "model": (('solid = "cube"', 'solid = "cube"\nmodel = [[1, 0, 0], [0, 1, 0]]'),
+              "[[draw]] 0: model must be a 4x4 array of finite numbers"),
+    "name int": (("[viewport]", "name = 7\n[viewport]"), "name must be a string, got an "
+                                                         "integer 7"),
+}
+
+
+@pytest.mark.parametrize("case", list(TOML_CASES))
+def test_toml_types_are_exact(tmp_path, case):
+    (old, new), message = TOML_CASES[case]
+    assert old in TOML_OK
+    path = tmp_path / "scene.toml"
+    path.write_text(TOML_OK.replace(old, new, 1))
+    with pytest.raises(ValueError) as err:
+        golden.generate(tmp_path / "never", scene_files=[path])
+    assert str(err.value) == f"{path}: {message}" or str(err.value).startswith(
+        f"{path}: {message}"), str(err.value)
+    assert cli.main(["-q", "generate", "--out", str(tmp_path / "never"), "--scene-file",
+                     str(path)]) == 2
+    assert not (tmp_path / "never").exists()
+
+
+# --- 5. a mesh with no triangles -----------------------------------------------------------------
+
+def test_mesh_without_triangles_is_an_error(tmp_path, capsys):
+    header = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+              "property float z\nelement face {n}\nproperty list uchar int vertex_indices\n"
+              "end_header\n0 0 0\n1 0 0\n0 1 0\n")
+    (tmp_path / "empty.ply").write_text(header.format(n=0))
+    (tmp_path / "lying.ply").write_text(header.format(n=0) + "3 0 1 2\n")   # face not declared
+    for mesh in ("empty.ply", "lying.ply"):
+        path = tmp_path / f"{mesh[:-4]}.toml"
+        path.write_text(f'[viewport]\nwidth = 32\nheight = 24\n[[draw]]\nmesh = "{mesh}"\n')
+        out = tmp_path / "g"
+        assert cli.main(["-q", "generate", "--out", str(out), "--scene-file", str(path)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"mesh file '{tmp_path / mesh}' has no triangles" in err[0], err
+        assert not out.exists()
