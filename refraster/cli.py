@@ -135,6 +135,22 @@ def _load_mesh(path):
         raise CLIError(_one_line(exc)) from exc
 
 
+def _check_camera_options(args):
+    """Each camera option on its own, so that an error names the option given."""
+    import math
+    for option, value in (("--eye", args.eye), ("--target", args.target), ("--up", args.up)):
+        if value is not None and not all(math.isfinite(v) for v in value):
+            raise CLIError(f"{option} must be 3 finite numbers, got "
+                           f"{' '.join(str(v) for v in value)}")
+    if not 0.0 < args.fov < 180.0:
+        raise CLIError(f"--fov must be between 0 and 180 degrees (both excluded), got {args.fov}")
+    for option, value in (("--near", args.near), ("--far", args.far)):
+        if value is not None and not (math.isfinite(value) and value > 0.0):
+            raise CLIError(f"{option} must be a finite number > 0, got {value}")
+    if args.up is not None and not any(args.up):
+        raise CLIError("--up must not be the zero vector")
+
+
 def _camera(args, bounds):
     """View and projection from the options; what is not given frames the mesh's bounds with
     :func:`refraster.camera.frame_bounds` (and is exactly its camera when nothing is given)."""
@@ -176,6 +192,7 @@ def _cmd_render(args):
         as_image_size(args.width, args.height)
     except (TypeError, ValueError) as exc:
         raise CLIError(str(exc)) from exc
+    _check_camera_options(args)
     mesh = _load_mesh(args.mesh)
     try:
         view, proj = _camera(args, mesh.bounds)
@@ -397,7 +414,9 @@ def main(argv=None):
         if args.command is None:
             raise CLIError("a command is required: render, gallery, info or golden "
                            f"(see '{PROG} --help')")
-        return args.func(args)
+        from ._logs import one_line_logs
+        with one_line_logs(PROG, debug=args.debug, quiet=args.quiet):
+            return args.func(args)
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
@@ -405,7 +424,11 @@ def main(argv=None):
         if debug:
             raise
         what = "" if isinstance(exc, CLIError) else f"{type(exc).__name__}: "
-        print(f"{PROG}: error: {what}{_one_line(exc)}", file=sys.stderr)
+        text = _one_line(exc)
+        if isinstance(exc, MemoryError):
+            what, text = "", f"out of memory ({type(exc).__name__}" + (
+                f": {text})" if str(exc).strip() else ")")
+        print(f"{PROG}: error: {what}{text}", file=sys.stderr)
         return EXIT_ERROR
 
 

@@ -363,3 +363,41 @@ def test_mesh_without_triangles_is_an_error(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and f"mesh file '{tmp_path / mesh}' has no triangles" in err[0], err
         assert not out.exists()
+
+
+# --- 7. every failure of the command line is one line, exit 2, whichever entry point -------------
+
+def test_png_bomb_and_memory_error_are_one_line_in_both_entry_points(gold, tmp_path,
+                                                                     monkeypatch, capsys):
+    import subprocess
+    import sys
+    cand = tmp_path / "cand"
+    (cand / SCENE).mkdir(parents=True)
+    np.savez(cand / SCENE / "buffers.npz",
+             **{k: v for k, v in golden_buffers(gold).items() if k != "depth"})
+    (cand / SCENE / "depth.png").write_bytes(zero_png(14000, 14000))  # Pillow's bomb guard
+    for entry in (["refraster.golden.cli", "compare"], ["refraster.cli", "golden", "compare"]):
+        proc = subprocess.run([sys.executable, "-m", entry[0], "-q", *entry[1:], str(gold),
+                               str(cand)],
+                              capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 2, proc.stderr
+        lines = proc.stderr.strip().splitlines()     # -q: still the scene's error, one line
+        assert len(lines) == 1 and lines[0].startswith(
+            "golden compare: error: render_cube: cannot use candidate render_cube/depth.png: "
+            "the PNG is 14000x14000"), proc.stderr
+        proc = subprocess.run([sys.executable, "-m", *entry, str(gold), str(cand)],
+                              capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+        assert "the PNG is 14000x14000" in proc.stderr, proc.stderr
+    compare_module = __import__("sys").modules["refraster.golden.compare"]
+
+    def boom(*args, **kwargs):
+        raise MemoryError()
+    monkeypatch.setattr(compare_module, "compare", boom)
+    assert cli.main(["compare", str(gold), str(gold)]) == 2
+    assert capsys.readouterr().err.splitlines() == ["golden compare: error: out of memory "
+                                                    "(MemoryError)"]
+    from refraster import cli as top
+    assert top.main(["golden", "compare", str(gold), str(gold)]) == 2
+    assert capsys.readouterr().err.splitlines() == ["golden compare: error: out of memory "
+                                                    "(MemoryError)"]
