@@ -206,8 +206,11 @@ def _cmd_render(args):
         bar.set_postfix_str(f"{len(mesh.faces):,} faces")
         bar.update(1)
         t0 = time.perf_counter()
-        fb = refraster.render(mesh, view=view, proj=proj, width=args.width, height=args.height,
-                              cull=args.cull, normals=args.normals)
+        try:
+            fb = refraster.render(mesh, view=view, proj=proj, width=args.width,
+                                  height=args.height, cull=args.cull, normals=args.normals)
+        except ValueError as exc:   # e.g. clip coordinates that overflow float32
+            raise CLIError(f"mesh file '{args.mesh}': {_one_line(exc)}") from exc
         seconds = time.perf_counter() - t0
         bar.update(1)
         if buffers is not None:

@@ -103,3 +103,50 @@ def test_missing_texture_in_a_golden_scene_is_a_one_line_warning(tmp_path):
     assert warnings == ["refraster: warning: trimesh.util: unable to load image! "
                         "(FileNotFoundError: missing_texture.png)"], proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+# --- 6. clip coordinates that overflow float32, a singular projection -----------------------------
+
+def test_overflowing_clip_coordinates_and_singular_projection_are_errors():
+    import refraster
+    from refraster.camera import look_at, perspective
+    box = trimesh.creation.box()
+    v, f = np.asarray(box.vertices), np.asarray(box.faces)
+    view, proj = look_at((3.0, 2.0, 4.0), (0.0, 0.0, 0.0)), perspective(40.0, 4 / 3, 1.0, 20.0)
+    kw = dict(view=view, proj=proj, width=32, height=24)
+    assert (refraster.render((v, f), **kw).prim_id >= 0).any()
+    with pytest.raises(ValueError, match=r"meshes\[0\]: clip coordinates overflow .* float32"):
+        refraster.render((v * 1e300, f), **kw)
+    with pytest.raises(ValueError, match=r"meshes\[1\]: clip coordinates overflow"):
+        refraster.render([(v, f), (v * 1e300, f)], **kw)
+    refraster.render((v * 1e300, f), precision="float64", **kw)   # fits float64
+    with pytest.raises(ValueError, match="proj is singular"):
+        refraster.render((v, f), view=view, proj=np.zeros((4, 4)), width=32, height=24)
+    flat = proj.copy()
+    flat[3] = flat[2]                    # w = z: every point on one plane
+    with pytest.raises(ValueError, match="proj is singular"):
+        refraster.render((v, f), view=view, proj=flat, width=32, height=24)
+
+
+def test_stl_at_float32_limits_is_one_line(tmp_path, capsys):
+    box = trimesh.creation.box()
+    box.vertices = np.asarray(box.vertices) * 6e38          # ±3e38: finite in float32
+    path = tmp_path / "huge.stl"
+    box.export(path)
+    assert cli.main(["render", str(path), "--out", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(f"refraster: error: mesh file '{path}': "), err
+    assert "overflow" in err[0] and not (tmp_path / "x.png").exists()
+
+
+def test_oracle_scenes_at_1e30_still_render():
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
+    import refraster
+    from oracles.scenes import random_scene
+    for index in (9, 22):
+        sc = random_scene(index)
+        assert sc.name.endswith("huge_1e30")
+        for precision in ("float32", "float64"):
+            fb = refraster.render(sc.meshes, view=sc.view, proj=sc.proj, width=sc.width,
+                                  height=sc.height, precision=precision)
+            assert (fb.prim_id >= 0).sum() > 0
