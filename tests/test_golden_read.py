@@ -401,3 +401,17 @@ def test_png_bomb_and_memory_error_are_one_line_in_both_entry_points(gold, tmp_p
     assert top.main(["golden", "compare", str(gold), str(gold)]) == 2
     assert capsys.readouterr().err.splitlines() == ["golden compare: error: out of memory "
                                                     "(MemoryError)"]
+
+
+def test_scene_file_must_be_a_regular_file(tmp_path):
+    link = tmp_path / "zero.toml"
+    link.symlink_to("/dev/zero")                  # read_text() would never end
+    deep = tmp_path / "deep.toml"
+    deep.write_text("x = " + "[" * 100000 + "]" * 100000 + "\n")
+    for path, message in ((link, "is not a regular file"), (tmp_path / "none.toml",
+                                                             "does not exist"),
+                          (deep, "cannot read scene file")):
+        with pytest.raises(ValueError, match=message):
+            golden.generate(tmp_path / "never", scene_files=[path])
+        assert cli.main(["-q", "generate", "--out", str(tmp_path / "never"), "--scene-file",
+                         str(path)]) == 2

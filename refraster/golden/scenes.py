@@ -402,6 +402,8 @@ _TOML_TYPES = {
              "solid": _STR, "name": _STR, "model": _MAT4},
 }
 _CAMERA_KINDS = ("frame", "perspective", "orthographic")
+#: Largest TOML scene file read.
+_MAX_TOML_BYTES = 16 << 20
 
 
 def _toml_enums():
@@ -455,10 +457,17 @@ def load_scene_file(path):
     trimesh reads (PLY, OBJ, STL, glTF…) works, or ``solid = "crank"`` names a canonical solid.
     """
     path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"scene file {path} " + ("is not a regular file" if path.exists()
+                                                  else "does not exist"))
+    if path.stat().st_size > _MAX_TOML_BYTES:
+        raise ValueError(f"scene file {path} is larger than {_MAX_TOML_BYTES >> 20} MiB")
     try:
         spec = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ValueError(f"cannot read scene file {path}: {exc}") from exc
+    except RecursionError:
+        raise ValueError(f"cannot read scene file {path}: nested too deeply") from None
     where = str(path)
     _check_toml(spec, where)
     name = spec.get("name", path.stem)
