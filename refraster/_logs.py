@@ -21,19 +21,17 @@ def _first_line(text):
 
 
 class OneLineHandler(logging.Handler):
-    """Writes each record as one line ``PROG: warning: LOGGER: message (Exception: text)`` to
-    the current ``sys.stderr`` (or the full record with its traceback when ``debug``)."""
+    """Writes each record (warning level and up; error and up with ``quiet``) as one line
+    ``PROG: warning: LOGGER: message (Exception: text)`` to the current ``sys.stderr``, or the
+    full record with its traceback when ``debug``."""
 
     def __init__(self, prog, *, debug=False, quiet=False):
-        level = logging.DEBUG if debug else (logging.ERROR if quiet else logging.WARNING)
-        super().__init__(level)
+        super().__init__(logging.ERROR if quiet else logging.WARNING)
         self.prog, self.debug = prog, debug
 
     def emit(self, record):
         try:
-            kind = "error" if record.levelno >= logging.ERROR else "warning"
-            if record.levelno < logging.WARNING:
-                kind = record.levelname.lower()
+            kind = "warning"   # a logged record never decides the exit status
             if self.debug:
                 text = logging.Formatter("%(name)s: %(message)s").format(record)
             else:
@@ -61,12 +59,8 @@ def one_line_logs(prog, *, debug=False, quiet=False):
         yield
         return
     handler = OneLineHandler(prog, debug=debug, quiet=quiet)
-    level = root.level
     root.addHandler(handler)
-    if debug:
-        root.setLevel(logging.DEBUG)
     try:
         yield
     finally:
         root.removeHandler(handler)
-        root.setLevel(level)
