@@ -415,3 +415,11 @@ def test_scene_file_must_be_a_regular_file(tmp_path):
             golden.generate(tmp_path / "never", scene_files=[path])
         assert cli.main(["-q", "generate", "--out", str(tmp_path / "never"), "--scene-file",
                          str(path)]) == 2
+
+
+def test_usage_errors_of_the_golden_command_are_one_line(gold, capsys):
+    for argv in (["compare", str(gold)], ["compare", str(gold), str(gold), "--mode", "fuzzy"],
+                 ["generate", "--workers", "two"]):
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("refraster golden"), (argv, err)
