@@ -195,6 +195,49 @@ PACKAGE_CASES = {
 }
 
 
+def test_package_meshes_and_maps_match_scene_json(gold, tmp_path):
+    g, manifest = copy_golden(gold, tmp_path)
+    rel = f"{SCENE}/package/meshes/cube.ply"
+    ply = (g / rel).read_bytes()
+    (g / rel).write_bytes(ply.replace(b"element face 12", b"element face 13"))
+    rehash(g, manifest, rel)
+    with pytest.raises(GoldenError, match=r"n_faces 12 but cube.ply declares 8 vertices and "
+                                          "13 faces"):
+        compare(g, gold)
+    (g / rel).write_bytes(ply.replace(b"binary_little_endian", b"binary_big_endian   "))
+    rehash(g, manifest, rel)
+    with pytest.raises(GoldenError, match="not a binary little-endian PLY"):
+        compare(g, gold)
+    (g / rel).write_bytes(ply)
+    rehash(g, manifest, rel)
+    assert compare(g, gold).exit_code == 0
+
+
+def test_package_map_header_matches_scene_json(tmp_path):
+    from refraster.scenes import solid
+
+    @golden.register_scene("test_read_maps_scene", technique="test", description="maps")
+    def scene():
+        s = golden.render_scene([golden.Draw("cube", solid("cube"))],
+                                golden.scenes._framed([solid("cube")], 16, 12, (1, 1, 1)))
+        s.maps = {"offset_map": np.linspace(0.0, 1.0, 12).reshape(3, 4)}
+        return s
+
+    try:
+        golden.generate(tmp_path / "g", ["test_read_maps_scene"])
+    finally:
+        golden.SCENES.pop("test_read_maps_scene")
+    g = tmp_path / "g"
+    manifest = json.loads((g / "manifest.json").read_text())
+    assert compare(g, g).exit_code == 0
+    rel = "test_read_maps_scene/package/maps/offset_map.npy"
+    np.save(g / rel, np.zeros((3000, 4000)))
+    rehash(g, manifest, rel)
+    with pytest.raises(GoldenError, match=r"\$.maps.offset_map: float64 \[3, 4\] but "
+                                          r"maps/offset_map.npy holds float64 \[3000, 4000\]"):
+        compare(g, g)
+
+
 @pytest.mark.parametrize("case", list(PACKAGE_CASES))
 def test_scene_package_is_validated_by_compare_and_the_fixture(gold, tmp_path, case, capsys):
     from refraster.testing import GoldenFixture

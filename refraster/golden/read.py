@@ -290,7 +290,38 @@ def check_package(golden_dir, manifest, scene, *, verify=True):
                               "files; refusing to use it")
         if verify:
             open_listed(root, manifest, full).close()
+    for i, d in enumerate(doc["draws"]):
+        with open_listed(root, manifest, base + d["mesh"], verify=False) as fh:
+            _check_ply_header(fh, root / (base + d["mesh"]), d, f"{where} $.draws[{i}]")
+    for key, m in doc["maps"].items():
+        with open_listed(root, manifest, base + m["npy"], verify=False) as fh:
+            shape, _, dtype = _npy_header(fh, root / (base + m["npy"]), GoldenError)
+        if list(shape) != m["shape"] or str(dtype) != m["dtype"]:
+            raise GoldenError(f"{where} $.maps.{key}: {m['dtype']} {m['shape']} but "
+                              f"{m['npy']} holds {dtype} {list(shape)}")
     return doc
+
+
+def _check_ply_header(fh, path, draw, where):
+    """The PLY a draw names: binary little-endian, its vertex and face counts those of
+    ``scene.json`` (header only, at most 4 KiB read)."""
+    head = fh.read(4096)
+    end = head.find(b"end_header")
+    if not head.startswith(b"ply") or end < 0:
+        raise GoldenError(f"{path}: not a PLY file with a header of at most 4 KiB")
+    lines = head[:end].decode("ascii", "replace").splitlines()
+    if "format binary_little_endian 1.0" not in [ln.strip() for ln in lines]:
+        raise GoldenError(f"{path}: not a binary little-endian PLY")
+    counts = {}
+    for ln in lines:
+        parts = ln.split()
+        if len(parts) == 3 and parts[0] == "element" and parts[2].isdigit():
+            counts[parts[1]] = int(parts[2])
+    got = (counts.get("vertex"), counts.get("face"))
+    if got != (draw["n_vertices"], draw["n_faces"]):
+        raise GoldenError(f"{where}: n_vertices {draw['n_vertices']}, n_faces "
+                          f"{draw['n_faces']} but {path.name} declares {got[0]} vertices and "
+                          f"{got[1]} faces")
 
 
 # --- kept scenes (generate --update) ------------------------------------------------------------
