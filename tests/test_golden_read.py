@@ -304,7 +304,7 @@ def test_deeply_nested_manifest_is_one_line(gold, tmp_path, capsys):
 
 # --- 1. generate --update copies kept scenes from the manifest's file list only ----------------
 
-def test_update_copies_kept_scenes_from_the_file_list_without_links(tmp_path, caplog):
+def test_update_copies_kept_scenes_from_the_file_list_without_links(tmp_path, caplog, capsys):
     out = tmp_path / "g"
     golden.generate(out, [SCENE])
     secret = tmp_path / "private.key"
@@ -333,6 +333,16 @@ def test_update_copies_kept_scenes_from_the_file_list_without_links(tmp_path, ca
             if k.startswith(f"{SCENE}/")} == before
     warned = " ".join(r.getMessage() for r in caplog.records)
     assert f"{SCENE}/zero" in warned and f"{SCENE}/home" in warned, warned
+    # the command line: the same warning, one line (the update removed the unlisted files)
+    (out / SCENE / "notes.txt").write_text("mine")
+    capsys.readouterr()
+    assert cli.main(["generate", "--out", str(out), "--scene", SCENE, "--size", "16x12",
+                     "--update"]) == 0
+    lines = [ln.split("\r")[-1] for ln in capsys.readouterr().err.splitlines()
+             if "warning" in ln]
+    assert len(lines) == 1 and lines[0].startswith(
+        f"refraster: warning: refraster.golden: kept scene {SCENE}: skipped 1 file(s) the "
+        f"manifest does not list: {SCENE}/notes.txt"), lines
 
 
 # --- 4. TOML scenes: exact types, messages naming table, key, type and value ---------------------
