@@ -132,26 +132,27 @@ def _check_output(path, suffix, option):
 
 
 def _load_mesh(path):
-    import numpy as np
-    import trimesh
-
-    path = Path(path)
-    if not path.exists():
-        raise CLIError(f"mesh file '{path}' does not exist")
-    if not path.is_file():
-        raise CLIError(f"mesh file '{path}' is not a regular file")
-    if path.stat().st_size == 0:
-        raise CLIError(f"mesh file '{path}' is empty")
+    from .mesh import load_mesh_file
     try:
-        mesh = trimesh.load(path, force="mesh", process=False)
-    except Exception as exc:
-        raise CLIError(f"cannot read a mesh from '{path}': {_one_line(exc)}") from exc
-    faces = getattr(mesh, "faces", None)
-    if faces is None or len(faces) == 0:
-        raise CLIError(f"'{path}' holds no triangles (not a mesh file, or an empty mesh)")
-    if not np.all(np.isfinite(mesh.vertices)):
-        raise CLIError(f"'{path}' has non-finite vertex coordinates")
-    return mesh
+        return load_mesh_file(path)
+    except ValueError as exc:
+        raise CLIError(_one_line(exc)) from exc
+
+
+def _check_camera_options(args):
+    """Each camera option on its own, so that an error names the option given."""
+    import math
+    for option, value in (("--eye", args.eye), ("--target", args.target), ("--up", args.up)):
+        if value is not None and not all(math.isfinite(v) for v in value):
+            raise CLIError(f"{option} must be 3 finite numbers, got "
+                           f"{' '.join(str(v) for v in value)}")
+    if not 0.0 < args.fov < 180.0:
+        raise CLIError(f"--fov must be between 0 and 180 degrees (both excluded), got {args.fov}")
+    for option, value in (("--near", args.near), ("--far", args.far)):
+        if value is not None and not (math.isfinite(value) and value > 0.0):
+            raise CLIError(f"{option} must be a finite number > 0, got {value}")
+    if args.up is not None and not any(args.up):
+        raise CLIError("--up must not be the zero vector")
 
 
 def _camera(args, bounds):
@@ -196,6 +197,7 @@ def _cmd_render(args):
         as_image_size(args.width, args.height)
     except (TypeError, ValueError) as exc:
         raise CLIError(str(exc)) from exc
+    _check_camera_options(args)
     mesh = _load_mesh(args.mesh)
     try:
         view, proj = _camera(args, mesh.bounds)
@@ -209,8 +211,11 @@ def _cmd_render(args):
         bar.set_postfix_str(f"{len(mesh.faces):,} faces")
         bar.update(1)
         t0 = time.perf_counter()
-        fb = refraster.render(mesh, view=view, proj=proj, width=args.width, height=args.height,
-                              cull=args.cull, normals=args.normals)
+        try:
+            fb = refraster.render(mesh, view=view, proj=proj, width=args.width,
+                                  height=args.height, cull=args.cull, normals=args.normals)
+        except ValueError as exc:   # e.g. clip coordinates that overflow float32
+            raise CLIError(f"mesh file '{args.mesh}': {_one_line(exc)}") from exc
         seconds = time.perf_counter() - t0
         bar.update(1)
         # both files or neither: staged first, then renamed together (a failure undoes both)
@@ -438,7 +443,10 @@ def main(argv=None):
             if args.command is None:
                 raise UsageError("a command is required: render, gallery, info or golden "
                                  f"(see '{PROG} --help')")
-            return args.func(args)
+            from ._logs import one_line_logs
+            with one_line_logs(PROG, debug=getattr(args, "debug", debug),
+                               quiet=getattr(args, "quiet", False)):
+                return args.func(args)
     except KeyboardInterrupt as exc:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130
@@ -446,7 +454,11 @@ def main(argv=None):
         if debug and not isinstance(exc, UsageError):
             raise
         what = "" if isinstance(exc, CLIError) else f"{type(exc).__name__}: "
-        print(f"{PROG}: error: {what}{_one_line(exc)}", file=sys.stderr)
+        text = _one_line(exc)
+        if isinstance(exc, MemoryError):
+            what, text = "", f"out of memory ({type(exc).__name__}" + (
+                f": {text})" if str(exc).strip() else ")")
+        print(f"{PROG}: error: {what}{text}", file=sys.stderr)
         return EXIT_ERROR
 
 

@@ -8,6 +8,7 @@ validated :class:`Mesh`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from numba import njit
@@ -16,7 +17,7 @@ from ._config import JIT
 from ._validate import as_float_array, as_index_array
 
 __all__ = ["Mesh", "as_mesh", "as_meshes", "bounds", "face_normals", "vertex_normals",
-           "split_creases"]
+           "split_creases", "load_mesh_file"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -261,3 +262,73 @@ def bounds(vertices):
     out = np.zeros((2, 3))
     _bounds(v, out)
     return out
+
+
+def _one_line(exc):
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _check_stl(path, size):
+    """A binary STL is ``84 + 50·n`` bytes with ``n`` in bytes 80–84; an ASCII STL starts with
+    ``solid``. Anything else is refused here, before trimesh guesses text encodings."""
+    with open(path, "rb") as fh:
+        head = fh.read(84)
+    if len(head) == 84 and 84 + 50 * int.from_bytes(head[80:84], "little") == size:
+        return
+    if head.lstrip()[:5].lower() == b"solid":
+        return
+    n = int.from_bytes(head[80:84], "little") if len(head) == 84 else 0
+    raise ValueError(f"mesh file '{path}' is not an STL file: not binary ({size} bytes, but its "
+                     f"header's {n} triangles need {84 + 50 * n}) and not ASCII (does not "
+                     "start with 'solid')")
+
+
+def load_mesh_file(path):
+    """Read a mesh file with trimesh (any format it reads; a scene is concatenated with its
+    transforms applied) and check it: a regular, non-empty file that holds triangles with
+    finite vertices and face indices in range.
+
+    Returns
+    -------
+    trimesh.Trimesh
+
+    Raises
+    ------
+    ValueError
+        One line naming the file and the real cause: missing, not a file, empty, not a file
+        of its format, an optional package trimesh needs for it, "mesh FILE has no
+        triangles", non-finite vertices, faces beyond the vertices.
+    """
+    import trimesh
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"mesh file '{path}' does not exist")
+    if not path.is_file():
+        raise ValueError(f"mesh file '{path}' is not a regular file")
+    size = path.stat().st_size
+    if size == 0:
+        raise ValueError(f"mesh file '{path}' is empty")
+    if path.suffix.lower() == ".stl":
+        _check_stl(path, size)
+    try:
+        mesh = trimesh.load(path, force="mesh", process=False)
+    except ImportError as exc:
+        raise ValueError(f"cannot read a mesh from '{path}': trimesh needs the optional package "
+                         f"'{exc.name or _one_line(exc)}' for this file, and it is not "
+                         "installed") from exc
+    except MemoryError as exc:
+        raise ValueError(f"cannot read a mesh from '{path}': out of memory") from exc
+    except Exception as exc:   # trimesh raises many kinds for unreadable files
+        raise ValueError(f"cannot read a mesh from '{path}': {_one_line(exc)}") from exc
+    faces = getattr(mesh, "faces", None)
+    vertices = getattr(mesh, "vertices", None)
+    if faces is None or vertices is None or len(faces) == 0:
+        raise ValueError(f"mesh file '{path}' has no triangles (not a mesh file, or an empty "
+                         "mesh)")
+    if not np.all(np.isfinite(vertices)):
+        raise ValueError(f"mesh file '{path}' has non-finite vertex coordinates")
+    f = np.asarray(faces)
+    if f.min() < 0 or f.max() >= len(vertices):
+        raise ValueError(f"mesh file '{path}' has faces that refer to vertices it does not have "
+                         f"(indices {int(f.min())}..{int(f.max())}, {len(vertices)} vertices)")
+    return mesh

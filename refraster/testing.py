@@ -59,14 +59,25 @@ class GoldenFixture:
         return sorted(self.manifest["scenes"])
 
     def package(self, scene):
-        """Directory of ``scene``'s package (``scene.json``, ``meshes/``, ``maps/``)."""
+        """Directory of ``scene``'s package (``scene.json``, ``meshes/``, ``maps/``), validated
+        again on every call: ``scene.json`` against its schema, every file it names listed in
+        the manifest and matching its sha256 (:func:`refraster.golden.read.check_package`)."""
+        from .golden.read import GoldenError, check_package
         entry = self._entry(scene)
+        try:
+            check_package(self.dir, self.manifest, scene)
+        except GoldenError as exc:
+            pytest.fail(f"golden.package({scene!r}): {exc}", pytrace=False)
         return (self.dir / entry["package"]).parent
 
     def reference(self, scene):
         """The golden buffers of ``scene`` (dict name → array)."""
-        from .golden.compare import _reference
-        return _reference(self.dir, scene, self._entry(scene))
+        from .golden.read import GoldenError, reference_buffers
+        self._entry(scene)
+        try:
+            return reference_buffers(self.dir, self.manifest, scene)
+        except GoldenError as exc:
+            pytest.fail(f"golden.reference({scene!r}): {exc}", pytrace=False)
 
     def _entry(self, scene):
         if scene not in self.manifest["scenes"]:

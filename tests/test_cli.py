@@ -175,7 +175,8 @@ def test_bad_input_as_a_process(tmp_path):
     proc = _run("render", text, "--out", tmp_path / "x.png")
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
-        f"refraster: error: '{text}' holds no triangles (not a mesh file, or an empty mesh)"]
+        f"refraster: error: mesh file '{text}' has no triangles (not a mesh file, or "
+        "an empty mesh)"]
     assert not (tmp_path / "x.png").exists()
     debug = _run("render", text, "--out", tmp_path / "x.png", "--debug")
     assert debug.returncode != 0 and "Traceback" in debug.stderr

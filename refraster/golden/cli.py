@@ -23,6 +23,7 @@ them alone (:func:`main`).
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 
@@ -37,7 +38,12 @@ def _error(args, prog, exc, *, usage=False):
     """One line on stderr and exit status 2; ``--debug`` re-raises (not for usage errors)."""
     if getattr(args, "debug", False) and not usage:
         raise exc
-    print(f"{prog}: error: {' '.join(str(exc).split()) or type(exc).__name__}", file=sys.stderr)
+    text = " ".join(str(exc).split())
+    if isinstance(exc, MemoryError):
+        text = f"out of memory ({type(exc).__name__}{': ' + text if text else ''})"
+    elif not isinstance(exc, (ValueError, OSError)):
+        text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    print(f"{prog}: error: {text or type(exc).__name__}", file=sys.stderr)
     return EXIT_UNUSABLE
 
 
@@ -59,11 +65,32 @@ def _common(parser):
                         help="show tracebacks on errors (not on usage errors)")
 
 
+def _guarded(prog):
+    """Every failure of the command is one line and exit 2 (a traceback only with --debug);
+    log records of any library become one-line warnings (:mod:`refraster._logs`)."""
+    def wrap(fn):
+        @functools.wraps(fn)
+        def run(args):
+            from .._logs import one_line_logs
+            with one_line_logs("refraster", debug=getattr(args, "debug", False),
+                               quiet=getattr(args, "quiet", False)):
+                try:
+                    return fn(args)
+                except KeyboardInterrupt:
+                    print(f"{prog}: interrupted", file=sys.stderr)
+                    return 130
+                except Exception as exc:
+                    return _error(args, prog, exc)
+        return run
+    return wrap
+
+
 def _say(args, message):
     if not getattr(args, "quiet", False):
         print(message, file=sys.stderr)
 
 
+@_guarded("golden generate")
 def _cmd_generate(args):
     from .generate import generate
     from .scenes import available_scenes
@@ -102,6 +129,7 @@ def _cmd_generate(args):
     return EXIT_PASS
 
 
+@_guarded("golden compare")
 def _cmd_compare(args):
     from . import write
     from .compare import compare
@@ -145,6 +173,11 @@ def _cmd_compare(args):
             print(f"FAIL {line}", file=sys.stderr)
         if result.report_dir is not None:
             print(f"report: {result.report_dir / 'index.html'}")
+    else:   # -q still names why the input is unusable (exit 2), one line per scene
+        for s in result.scenes:
+            if s.status == "error":
+                print(f"golden compare: error: {s.name}: {' '.join(s.error.split())}",
+                      file=sys.stderr)
     return result.exit_code
 
 

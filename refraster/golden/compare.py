@@ -15,20 +15,20 @@ from __future__ import annotations
 
 import json
 import math
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .buffers import png_decode
+from .buffers import peak, png_decode  # noqa: F401  (old names importable from here)
 from .common import EXIT_FAIL, EXIT_PASS, EXIT_UNUSABLE, CandidateError, GoldenError
 from .domain import domain_checks
-from .metrics import (_elementwise_error, _offsets, buffer_metrics, local_variation,
+from .metrics import (_elementwise_error, _offsets, buffer_metrics, local_variation,  # noqa: F401
                       pixel_error, position_deviation)
-from .package import sha256_file
-from .schema import (MANIFEST_SCHEMA, MANIFEST_SCHEMA_OLDEST, MANIFEST_SCHEMA_VERSION,
-                     SchemaError, check_version, is_safe_relpath, validate)
+from .read import (_check_candidate, _inside, _manifest_paths, load_candidate,  # noqa: F401
+                   load_manifest)
+from .read import allowance_arrays as _read_allowances
+from .read import reference_buffers as _read_reference
 from .tolerance import PROFILES, apply_overrides, parse_override
 
 __all__ = ["GoldenError", "CandidateError", "BufferResult", "SceneResult", "Comparison",
@@ -36,199 +36,20 @@ __all__ = ["GoldenError", "CandidateError", "BufferResult", "SceneResult", "Comp
            "local_variation",
            "buffer_metrics", "EXIT_PASS", "EXIT_FAIL", "EXIT_UNUSABLE", "MODES", "has_allowances"]
 
+# The golden and the candidate are read by :mod:`refraster.golden.read` (no links followed,
+# headers first, scene packages validated); the old names stay importable from here.
 
-# --- the golden ----------------------------------------------------------------------------------
-
-def _manifest_paths(manifest):
-    """(JSON path, relative path) of every file the manifest points at."""
-    scenes = manifest.get("scenes")
-    for name, scene in (scenes.items() if isinstance(scenes, dict) else ()):
-        if not isinstance(scene, dict):
-            continue
-        for key in ("package", "buffers_file"):
-            if key in scene:
-                yield f"$.scenes.{name}.{key}", scene[key]
-        allowances = scene.get("allowances")
-        if isinstance(allowances, dict) and "file" in allowances:
-            yield f"$.scenes.{name}.allowances.file", allowances["file"]
-        buffers = scene.get("buffers")
-        for bname, buf in (buffers.items() if isinstance(buffers, dict) else ()):
-            if isinstance(buf, dict) and "preview" in buf:
-                yield f"$.scenes.{name}.buffers.{bname}.preview", buf["preview"]
-    files = manifest.get("files")
-    for rel in (files if isinstance(files, dict) else ()):
-        yield "$.files", rel
+def _reference(root, name, entry, manifest=None):
+    """The golden buffers of scene ``name`` (``manifest``: the golden's, read if not given)."""
+    manifest = load_manifest(root, verify=False) if manifest is None else manifest
+    return _read_reference(root, {**manifest, "scenes": {**manifest["scenes"], name: entry}},
+                           name)
 
 
-def _inside(root, rel, where):
-    """``root / rel`` resolved, refusing anything that leaves ``root`` (``..``, absolute paths,
-    symlinks pointing out)."""
-    if not is_safe_relpath(rel):
-        raise GoldenError(f"{where}: path {rel!r} leaves the golden directory or is not a plain "
-                          "relative path; refusing to read it")
-    path = (root / rel).resolve()
-    if not path.is_relative_to(root.resolve()):
-        raise GoldenError(f"{where}: path {rel!r} resolves to {path}, outside the golden "
-                          "directory; refusing to read it")
-    return path
-
-
-def load_manifest(golden_dir, *, verify=True):
-    """Read, check and return ``golden_dir/manifest.json``.
-
-    Raises :class:`GoldenError` for a missing or unparsable manifest, one of another kind or a
-    newer schema version, a schema violation, a path leaving the directory, or (``verify``) a
-    file whose sha256 differs from the manifest's.
-    """
-    root = Path(golden_dir)
-    path = root / "manifest.json"
-    if not path.is_file():
-        raise GoldenError(f"{root} is not a golden directory: {path} not found")
-    try:
-        manifest = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise GoldenError(f"cannot read {path}: {exc}") from None
-    try:
-        check_version(manifest, kind="refraster.golden", supported=MANIFEST_SCHEMA_VERSION,
-                      oldest=MANIFEST_SCHEMA_OLDEST,
-                      what=str(path))
-        for where, rel in _manifest_paths(manifest):
-            _inside(root, rel, f"{path} {where}")
-        validate(manifest, MANIFEST_SCHEMA)
-    except SchemaError as exc:
-        raise GoldenError(str(exc) if str(exc).startswith(str(path)) else f"{path}: {exc}") \
-            from None
-    for where, rel in _manifest_paths(manifest):
-        if rel not in manifest["files"]:
-            raise GoldenError(f"{path} {where}: {rel!r} is not listed in $.files")
-    if verify:
-        for rel, digest in manifest["files"].items():
-            file = _inside(root, rel, f"{path} $.files")
-            if not file.is_file():
-                raise GoldenError(f"golden file {file} is missing")
-            if sha256_file(file) != digest:
-                raise GoldenError(f"golden file {file} does not match its sha256 in the "
-                                  "manifest (corrupt or edited)")
-    return manifest
-
-
-def _load_npz(path, error):
-    try:
-        # np.load leaks its own handle when the zip is corrupt; own the file instead
-        with open(path, "rb") as fh:
-            z = np.load(fh, allow_pickle=False)
-            if not isinstance(z, np.lib.npyio.NpzFile):
-                raise ValueError("not an .npz archive")
-            with z:
-                return {k: z[k] for k in z.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError) as exc:
-        raise error(f"cannot read {path}: {type(exc).__name__}: {exc}") from None
-
-
-def _allowance_arrays(root, name, entry):
-    spec = entry["allowances"]
-    arrays = _load_npz(_inside(root, spec["file"], name), GoldenError)
-    _check_arrays(arrays, spec["arrays"], spec["file"], "array")
-    for key, b in entry["buffers"].items():
-        t = b.get("tolerant", {})
-        needed = [t[k] for k in ("lo", "hi", "angle", "may") if k in t]
-        needed += ["id_may"] + (["coverage"] if "coverage" in t.get("checks", ()) else [])
-        if "face" in t.get("checks", ()):
-            needed += ["set_offsets", "set_face", "set_facing", "set_normal",
-                       "set_normal_angle", "draw_offsets"]
-            needed += [n for pair in _SET_INTERVAL_NAMES for n in pair]
-        missing = [n for n in needed if n not in arrays]
-        if missing:
-            raise GoldenError(f"golden {spec['file']}: buffer {key!r} needs arrays {missing}")
-    from .allowance import check_face_sets
-    shape = next(iter(entry["buffers"].values()))["shape"] if entry["buffers"] else [0, 0]
-    try:
-        check_face_sets(arrays, shape[0], shape[1])
-    except (ValueError, KeyError) as exc:
-        raise GoldenError(f"golden {spec['file']}: {exc}") from None
-    return arrays
-
-
-_SET_INTERVAL_NAMES = (("set_depth_lo", "set_depth_hi"), ("set_eye_depth_lo", "set_eye_depth_hi"),
-                       ("set_barycentric_lo", "set_barycentric_hi"),
-                       ("set_color_lo", "set_color_hi"))
-
-
-def _reference(root, name, entry):
-    arrays = _load_npz(_inside(root, entry["buffers_file"], name), GoldenError)
-    _check_arrays(arrays, entry["buffers"], entry["buffers_file"], "buffer")
-    return arrays
-
-
-def _check_arrays(arrays, specs, file, kind):
-    """Every array the manifest lists is in ``arrays`` with its dtype and shape."""
-    for key, spec in specs.items():
-        a = arrays.get(key)
-        if a is None or list(a.shape) != spec["shape"] or str(a.dtype) != spec["dtype"]:
-            raise GoldenError(f"golden {file}: {kind} {key!r} does not match the manifest "
-                              f"({spec['dtype']} {spec['shape']})")
-
-
-# --- the candidate -------------------------------------------------------------------------------
-
-_FLOAT_KINDS = ("unorm", "snorm", "float", "color")
-
-
-def _check_candidate(scene, key, spec, a, source):
-    shape = tuple(spec["shape"])
-    kind = spec["kind"]
-    where = f"candidate {source} ({scene}/{key})"
-    if a.dtype == object:
-        raise CandidateError(f"{where}: object arrays are not accepted")
-    if a.shape != shape:
-        raise CandidateError(f"{where}: shape {a.shape} differs from the golden's {shape}")
-    if kind in _FLOAT_KINDS and not np.issubdtype(a.dtype, np.floating):
-        raise CandidateError(f"{where}: expected floating-point values ({kind}), got {a.dtype}")
-    if kind == "id" and not np.issubdtype(a.dtype, np.integer):
-        raise CandidateError(f"{where}: expected integer ids, got {a.dtype}")
-    if kind == "bool":
-        if np.issubdtype(a.dtype, np.integer):
-            a = a != 0  # values other than 0/1 fail the domain check on the raw array
-        elif a.dtype != np.bool_:
-            raise CandidateError(f"{where}: expected bool (or integer 0/1), got {a.dtype}")
-    return a
-
-
-def load_candidate(candidate_dir, scene, specs):
-    """Candidate buffers of ``scene``: ``{key: (array, source, step, raw)}``; ``step`` is the
-    PNG quantisation step (0 for exact files), ``raw`` the array as sent (before integer bools
-    became bools). Raises :class:`CandidateError`."""
-    import imageio.v3 as iio
-    base = Path(candidate_dir) / scene
-    npz = base / "buffers.npz"
-    packed = _load_npz(npz, CandidateError) if npz.is_file() else {}
-    out = {}
-    for key, spec in specs.items():
-        if key in packed:
-            a, source, step = packed[key], f"{scene}/buffers.npz:{key}", 0.0
-        elif (base / f"{key}.npy").is_file():
-            source, step = f"{scene}/{key}.npy", 0.0
-            try:
-                with open(base / f"{key}.npy", "rb") as fh:
-                    a = np.load(fh, allow_pickle=False)
-                    if not isinstance(a, np.ndarray):
-                        raise ValueError("not an .npy array")
-            except (OSError, ValueError, EOFError) as exc:
-                raise CandidateError(f"cannot read candidate {source}: {exc}") from None
-        elif (base / f"{key}.png").is_file():
-            source = f"{scene}/{key}.png"
-            try:
-                img = iio.imread(base / f"{key}.png", extension=".png")
-                a, step = png_decode(img, spec["kind"], spec["shape"])
-            except (OSError, ValueError, SyntaxError) as exc:
-                raise CandidateError(f"cannot use candidate {source}: {exc}") from None
-        else:
-            looked = [f"{scene}/buffers.npz", f"{scene}/{key}.npy", f"{scene}/{key}.png"]
-            raise CandidateError(f"candidate buffer {scene}/{key} is missing (looked for "
-                                 f"{', '.join(looked)} in {candidate_dir})")
-        a = np.asarray(a)
-        out[key] = (_check_candidate(scene, key, spec, a, source), source, step, a)
-    return out
+def _allowance_arrays(root, name, entry, manifest=None):
+    manifest = load_manifest(root, verify=False) if manifest is None else manifest
+    return _read_allowances(root, {**manifest, "scenes": {**manifest["scenes"], name: entry}},
+                            name)
 
 
 # --- metrics: in refraster.golden.metrics (imported above under their old names) --------------
@@ -264,6 +85,8 @@ class SceneResult:
     buffers: list
     error: str | None = None
     preview_root: Path | None = None
+    #: Candidate ``.npz`` members the golden does not have, skipped unread.
+    skipped: list = field(default_factory=list)
 
 
 @dataclass
@@ -310,6 +133,8 @@ class Comparison:
         lines = [f"golden {self.golden_dir} vs candidate {self.candidate_dir} ({how})"]
         for s in self.scenes:
             lines.append(f"{s.name}: {s.status.upper()}" + (f" ({s.error})" if s.error else ""))
+            if s.skipped:
+                lines.append(f"  skipped (not in the golden, not read): {', '.join(s.skipped)}")
             for b in s.buffers:
                 m = b.metrics
                 flip = (f" flip={m['flip_mean']:.4f}" if m.get("flip_mean") is not None else "")
@@ -488,12 +313,14 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
     results = []
     for name in names:
         entry = manifest["scenes"][name]
-        ref = _reference(golden_dir, name, entry)
-        allow = _allowance_arrays(golden_dir, name, entry) if mode == "tolerant" else None
+        ref = _reference(golden_dir, name, entry, manifest)
+        allow = (_allowance_arrays(golden_dir, name, entry, manifest) if mode == "tolerant"
+                 else None)
+        skipped = []
         try:
-            cand = load_candidate(candidate_dir, name, entry["buffers"])
+            cand = load_candidate(candidate_dir, name, entry["buffers"], skipped)
         except CandidateError as exc:
-            results.append(SceneResult(name, "error", [], str(exc)))
+            results.append(SceneResult(name, "error", [], str(exc), skipped=skipped))
             continue
         buffers = []
         coverage = _candidate_coverage(cand, entry["buffers"])
@@ -530,7 +357,7 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
             buffers.append(BufferResult(key, spec["kind"], source, tol, metrics, checks,
                                         ref[key], a, images))
         status = "pass" if all(b.passed for b in buffers) else "fail"
-        results.append(SceneResult(name, status, buffers))
+        results.append(SceneResult(name, status, buffers, skipped=skipped))
     comparison = Comparison(golden_dir, candidate_dir, "tolerant" if mode == "tolerant"
                             else profile, results, mode="tolerant" if mode == "tolerant"
                             else "profile")

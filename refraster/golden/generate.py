@@ -20,7 +20,6 @@ import inspect
 import json
 import platform
 import re
-import shutil
 import tempfile
 from pathlib import Path
 
@@ -30,6 +29,7 @@ from .. import io as rio
 from .._validate import check_shape
 from .buffers import DTYPES, KINDS, infer_kind, preview, preview_range
 from .package import export_package, npz_bytes, sha256_file
+from .read import copy_listed_scene
 from .scenes import DEFAULT_RASTER, GoldenScene, available_scenes, id_range, raster_state
 from .schema import MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION, validate
 from .tolerance import default_tolerances
@@ -427,7 +427,8 @@ def _generate_locked(out, tasks, update, progress, workers, scheduler, progress_
         if old is not None:
             for name, item in old["scenes"].items():
                 if name not in manifest_scenes:
-                    shutil.copytree(out / name, tmp / name, symlinks=False)
+                    # the manifest's file list only, no link followed (unlisted: a warning)
+                    copy_listed_scene(out, old, name, tmp)
                     manifest_scenes[name] = item
         files = {}
         for path in sorted(p for p in tmp.rglob("*") if p.is_file()):

@@ -24,6 +24,7 @@ drew.
 from __future__ import annotations
 
 import importlib
+import math
 import re
 import tomllib
 from dataclasses import dataclass, field
@@ -33,7 +34,7 @@ import numpy as np
 
 from .._validate import as_choice, as_float_array, as_matrix
 from ..camera import Camera, frame_bounds, look_at, orthographic, perspective
-from ..mesh import Mesh, as_mesh, vertex_normals
+from ..mesh import Mesh, as_mesh, load_mesh_file, vertex_normals
 
 __all__ = [
     "Draw", "GoldenScene", "SceneEntry", "SCENES", "SCENE_MODULES", "TECHNIQUES",
@@ -352,10 +353,6 @@ def _render_multi_draw(width=160, height=120, **raster):
 
 # --- TOML scenes ---------------------------------------------------------------------------------
 
-_CAMERA_KEYS = {"kind", "eye", "target", "up", "fovy", "near", "far", "extent", "direction",
-                "margin"}
-
-
 def _toml_camera(spec, meshes, width, height, where):
     def num(key, default=None):
         value = spec.get(key, default)
@@ -383,6 +380,106 @@ def _toml_camera(spec, meshes, width, height, where):
     return Camera(view, proj, width, height)
 
 
+def _describe(value):
+    """How a TOML value is named in an error: its TOML type and the value."""
+    if isinstance(value, bool):
+        kind = "a boolean"
+    elif isinstance(value, int):
+        kind = "an integer"
+    elif isinstance(value, float):
+        kind = "a float"
+    elif isinstance(value, str):
+        kind = "a string"
+    elif isinstance(value, list):
+        kind = "an array"
+    elif isinstance(value, dict):
+        return "a table"
+    else:
+        kind = f"a {type(value).__name__}"
+    text = repr(value) if not isinstance(value, bool) else str(value).lower()
+    return f"{kind} {text if len(text) <= 60 else text[:57] + '...'}"
+
+
+def _is_number(v):
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _vector(n):
+    return (f"an array of {n} finite numbers",
+            lambda v: isinstance(v, list) and len(v) == n and all(map(_is_number, v)))
+
+
+_STR = ("a string", lambda v: isinstance(v, str))
+_INT = ("an integer", lambda v: isinstance(v, int) and not isinstance(v, bool))
+_NUM = ("a finite number", _is_number)
+_TABLE = ("a table", lambda v: isinstance(v, dict))
+_MAT4 = ("a 4x4 array of finite numbers (4 rows of 4)",
+         lambda v: isinstance(v, list) and len(v) == 4 and all(_vector(4)[1](r) for r in v))
+
+#: Exact TOML types of every key (an int is an int: not a string, a float or a boolean).
+_TOML_TYPES = {
+    None: {"name": _STR, "description": _STR, "technique": _STR, "viewport": _TABLE,
+           "camera": _TABLE, "raster": _TABLE, "parameters": _TABLE,
+           "draw": ("an array of tables ([[draw]])",
+                    lambda v: isinstance(v, list) and all(isinstance(d, dict) for d in v))},
+    "viewport": {"width": _INT, "height": _INT},
+    "camera": {"kind": _STR, "eye": _vector(3), "target": _vector(3), "up": _vector(3),
+               "direction": _vector(3), "fovy": _NUM, "near": _NUM, "far": _NUM,
+               "margin": _NUM, "extent": _vector(4)},
+    "raster": {"subpixel_bits": _INT, "fill_rule": _STR, "precision": _STR, "cull": _STR,
+               "depth_func": _STR, "front_face": _STR, "clear_depth": _NUM, "normals": _STR},
+    "draw": {"mesh": ("a string (a path relative to the scene file)", _STR[1]),
+             "solid": _STR, "name": _STR, "model": _MAT4},
+}
+_CAMERA_KINDS = ("frame", "perspective", "orthographic")
+#: Largest TOML scene file read.
+_MAX_TOML_BYTES = 16 << 20
+
+
+def _toml_enums():
+    from .schema import SCENE_SCHEMA
+    raster = SCENE_SCHEMA["properties"]["raster"]["properties"]
+    enums = {("raster", k): raster[k]["enum"] for k in ("precision", "cull", "depth_func",
+                                                        "normals")}
+    enums[("raster", "front_face")] = [raster["front_face"]["const"]]
+    enums[("camera", "kind")] = list(_CAMERA_KINDS)
+    return enums
+
+
+def _check_toml(spec, where):
+    """Exact types, known tables and keys, allowed values; one message naming the table, the
+    key, the expected type and the value given."""
+    from .._validate import MAX_SIDE
+    enums = _toml_enums()
+
+    def check(table, label, values):
+        types = _TOML_TYPES[table]
+        unknown = sorted(set(values) - set(types))
+        if unknown:
+            what = "unknown tables/keys" if table is None else f"{label} has unknown keys"
+            raise ValueError(f"{where}: {what} {unknown}; known: {sorted(types)}")
+        for key, value in values.items():
+            expected, ok = types[key]
+            loc = key if table is None else f"{label} {key}"
+            if not ok(value):
+                raise ValueError(f"{where}: {loc} must be {expected}, got {_describe(value)}")
+            allowed = enums.get((table, key))
+            if allowed is not None and value not in allowed:
+                raise ValueError(f"{where}: {loc} must be one of {allowed}, got "
+                                 f"{_describe(value)}")
+            if table == "viewport" and not 1 <= value <= MAX_SIDE:
+                raise ValueError(f"{where}: {loc} must be between 1 and {MAX_SIDE}, got "
+                                 f"{_describe(value)}")
+
+    check(None, "", spec)
+    for table in ("viewport", "camera", "raster"):
+        check(table, f"[{table}]", spec.get(table, {}))
+    for i, d in enumerate(spec.get("draw", ())):
+        check("draw", f"[[draw]] {i}:", d)
+        if ("mesh" in d) == ("solid" in d):
+            raise ValueError(f"{where}: [[draw]] {i}: needs exactly one of 'mesh' or 'solid'")
+
+
 def load_scene_file(path):
     """Read a TOML scene description and return its :class:`SceneEntry` (not registered).
 
@@ -390,39 +487,31 @@ def load_scene_file(path):
     trimesh reads (PLY, OBJ, STL, glTF…) works, or ``solid = "crank"`` names a canonical solid.
     """
     path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"scene file {path} " + ("is not a regular file" if path.exists()
+                                                  else "does not exist"))
+    if path.stat().st_size > _MAX_TOML_BYTES:
+        raise ValueError(f"scene file {path} is larger than {_MAX_TOML_BYTES >> 20} MiB")
     try:
         spec = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ValueError(f"cannot read scene file {path}: {exc}") from exc
+    except RecursionError:
+        raise ValueError(f"cannot read scene file {path}: nested too deeply") from None
     where = str(path)
+    _check_toml(spec, where)
     name = spec.get("name", path.stem)
-    if not isinstance(name, str) or not _NAME.match(name):
+    if not _NAME.match(name):
         raise ValueError(f"{where}: name must match {_NAME.pattern}, got {name!r}")
     technique = spec.get("technique", "render")
     if technique not in TECHNIQUES:
         raise ValueError(f"{where}: unknown technique {technique!r}; "
                          f"known: {sorted(TECHNIQUES)}")
-    known = {"name", "description", "technique", "viewport", "camera", "raster", "draw",
-             "parameters"}
-    if set(spec) - known:
-        raise ValueError(f"{where}: unknown tables/keys {sorted(set(spec) - known)}")
     if not spec.get("draw"):
         raise ValueError(f"{where}: at least one [[draw]] table is needed")
-    for i, d in enumerate(spec["draw"]):
-        extra = set(d) - {"mesh", "solid", "name", "model"}
-        if extra:
-            raise ValueError(f"{where}: draw[{i}] has unknown keys {sorted(extra)}")
-    extra = set(spec.get("camera", {})) - _CAMERA_KEYS
-    if extra:
-        raise ValueError(f"{where}: [camera] has unknown keys {sorted(extra)}")
-    extra = set(spec.get("viewport", {})) - {"width", "height"}
-    if extra:
-        raise ValueError(f"{where}: [viewport] has unknown keys {sorted(extra)}")
     raster_state(spec.get("raster", {}))
 
     def build():
-        import trimesh
-
         from ..scenes import solid
         draws = []
         for i, d in enumerate(spec["draw"]):
@@ -432,11 +521,10 @@ def load_scene_file(path):
                 mesh = solid(d["solid"])
                 default_name = d["solid"]
             else:
-                mesh_path = (path.parent / d["mesh"])
                 try:
-                    mesh = trimesh.load(mesh_path, force="mesh", process=False)
-                except Exception as exc:  # trimesh raises many kinds for unreadable files
-                    raise ValueError(f"{where}: cannot load mesh {mesh_path}: {exc}") from exc
+                    mesh = load_mesh_file(path.parent / d["mesh"])
+                except ValueError as exc:
+                    raise ValueError(f"{where}: draw[{i}]: {exc}") from exc
                 default_name = re.sub(r"[^a-z0-9_]", "_", Path(d["mesh"]).stem.lower())
             draws.append(Draw(d.get("name", f"{default_name}_{i}" if i else default_name), mesh,
                               np.asarray(d.get("model", np.eye(4)), np.float64)))

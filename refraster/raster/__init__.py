@@ -53,6 +53,33 @@ class Prepared:
         return obj.astype(np.int32), (prim_global - self.face_offsets[obj]).astype(np.int32)
 
 
+_F32_MAX = float(np.finfo(np.float32).max)
+
+
+def _check_projection(proj):
+    """A projection must be invertible: a singular one (all zeros, w equal to z, …) puts every
+    vertex on one plane or at w = 0 and draws an empty frame."""
+    det = float(np.linalg.det(proj))
+    if not (np.isfinite(det) and det != 0.0):
+        raise ValueError(f"proj is singular (determinant {det:g}): it maps the scene onto a "
+                         "plane; give a perspective or orthographic matrix (refraster.camera)")
+
+
+def _check_clip(clip, meshes, prec):
+    """Clip coordinates must be finite: a vertex whose transform overflows (1e300 in float32,
+    ±3e38 moved by the view) would silently vanish. Far but finite vertices (1e30) are fine:
+    the clipper places them (see :mod:`refraster.raster.primitive`)."""
+    if clip.size == 0 or np.isfinite(clip).all():
+        return
+    first = int(np.argmax(~np.isfinite(clip).all(axis=1)))
+    ends = np.cumsum([m.n_vertices for m in meshes])
+    k = int(np.searchsorted(ends, first, side="right"))
+    v = meshes[k].vertices
+    raise ValueError(f"meshes[{k}]: clip coordinates overflow to inf in {prec} precision "
+                     f"(vertex {first - int(ends[k] - len(v))}; largest |coordinate| "
+                     f"{np.abs(v).max():.3g}); scale the mesh down or use precision='float64'")
+
+
 def prepare(meshes, *, view, proj, width, height, model=None, cull="none", precision="float32",
             subpixel_bits=8, fill_rule="llvmpipe"):
     """Validate draw calls and run the vertex and primitive stages (shared by draw and render)."""
@@ -70,7 +97,12 @@ def prepare(meshes, *, view, proj, width, height, model=None, cull="none", preci
         mvp = proj @ view @ mm
         if not np.all(np.isfinite(mvp)):
             raise ValueError("proj @ view @ model overflows to non-finite values")
+        if prec == "float32" and np.abs(mvp).max() > _F32_MAX:
+            raise ValueError(f"proj @ view @ model overflows float32 (largest entry "
+                             f"{np.abs(mvp).max():.3g}); scale the scene down or use "
+                             "precision='float64'")
         mvps.append(mvp)
+    _check_projection(proj)
     offsets = np.cumsum([0] + [m.n_faces for m in meshes])
     if len(meshes) == 1:   # the common case: no copies
         clip = transform_vertices(meshes[0].vertices, mvps[0], prec).astype(np.float64)
@@ -82,6 +114,7 @@ def prepare(meshes, *, view, proj, width, height, model=None, cull="none", preci
         for k, (m, mvp) in enumerate(zip(meshes, mvps)):
             clip[vfirst[k]:vfirst[k + 1]] = transform_vertices(m.vertices, mvp, prec)
             np.add(m.faces, vfirst[k], out=face[offsets[k]:offsets[k + 1]])
+    _check_clip(clip, meshes, prec)
     p = Prepared()
     p.meshes, p.models, p.view, p.proj = meshes, models, view, proj
     p.width, p.height, p.fill_rule = width, height, rule
