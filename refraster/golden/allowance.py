@@ -463,8 +463,8 @@ def _face_outside(key, kind, cand, arrays, named, step, clear_depth):
             facing = arrays["set_facing"][e]
             return id_may & (named >= 0) & (facing >= 0) & (c != (facing == 1))
         return id_may & has & (c >= 0) & (named < 0)
-    # without ids, a pixel counts as covered by what its own buffer says (or, for buffers that
-    # cannot say, where the golden's coverage is "must")
+    # without ids (the envelope), a pixel counts as covered by what its own buffer says (or,
+    # for buffers that cannot say, where the golden's coverage is "must")
     if key == "depth":
         covered = c < clear_depth
     elif key == "eye_depth":
@@ -475,8 +475,8 @@ def _face_outside(key, kind, cand, arrays, named, step, clear_depth):
         covered = np.asarray(arrays["coverage"]) == MUST
     else:
         covered = np.zeros((h, w), np.bool_)
-    if named is not None:
-        pick = id_may & (named >= 0) & covered
+    if named is not None:   # the candidate's ids say which pixels it covers
+        pick = id_may & (named >= 0)
         e = named[pick]
     else:
         pick = id_may & has & covered
