@@ -255,3 +255,40 @@ def test_without_ids_the_envelope_of_the_set_applies(gold, tmp_path):
     for key in keys:
         assert any(x.startswith(f"{scene}/{key}: face = 1") and f"[[{r}, {c}]]" in x
                    for x in fails), fails
+
+
+def test_command_names_pixel_value_and_allowed_interval(gold, tmp_path):
+    """`refraster golden compare` on a one-pixel depth fault: FAIL with scene, buffer, pixel,
+    value and the allowed interval; on a one-pixel id fault: the allowed set of faces."""
+    import subprocess
+    import sys
+    scene = "render_cube"
+    with np.load(gold / scene / "buffers.npz", allow_pickle=False) as z:
+        b = {k: z[k].copy() for k in z.files}
+    with np.load(gold / scene / "tolerance.npz", allow_pickle=False) as z:
+        a = {k: z[k].copy() for k in z.files}
+    r, c = np.argwhere((a["coverage"] == 2) & ~a["id_may"])[100]
+    b["depth"][r, c] += np.float32(0.05)
+    (tmp_path / "c" / scene).mkdir(parents=True)
+    np.savez(tmp_path / "c" / scene / "buffers.npz", **b)
+    p = subprocess.run([sys.executable, "-m", "refraster.golden.cli", "golden", "compare",
+                        str(gold), str(tmp_path / "c"), "--scene", scene],
+                       capture_output=True, text=True)
+    out = p.stdout + p.stderr
+    assert p.returncode == 1 and "FAIL" in out, out
+    line = [x for x in out.splitlines() if f"{scene}/depth: interval" in x][0]
+    lo, hi = a["depth_lo"][r, c], a["depth_hi"][r, c]
+    assert f"'row': {r}, 'col': {c}" in line and f"{b['depth'][r, c]:.6g}"[:6] in line, line
+    assert f"interval [{lo:.6g}, {hi:.6g}]" in line, line
+    # an id outside the pixel's set at an edge pixel: the allowed set is named
+    a2, b2, r2, c2, e = _set_pixel(gold, scene)
+    b2["prim_id"][r2, c2] = [f for f in range(12) if f not in a2["set_face"][e]][0]
+    (tmp_path / "d" / scene).mkdir(parents=True)
+    np.savez(tmp_path / "d" / scene / "buffers.npz", **b2)
+    p = subprocess.run([sys.executable, "-m", "refraster.golden.cli", "golden", "compare",
+                        str(gold), str(tmp_path / "d"), "--scene", scene],
+                       capture_output=True, text=True)
+    line = [x for x in (p.stdout + p.stderr).splitlines()
+            if f"{scene}/prim_id: face" in x][0]
+    pairs = ", ".join(f"(0, {int(f)})" for f in a2["set_face"][e])
+    assert f"one of {{{pairs}}}" in line, line

@@ -463,8 +463,8 @@ def _face_outside(key, kind, cand, arrays, named, step, clear_depth):
             facing = arrays["set_facing"][e]
             return id_may & (named >= 0) & (facing >= 0) & (c != (facing == 1))
         return id_may & has & (c >= 0) & (named < 0)
-    # without ids, a pixel counts as covered by what its own buffer says (or, for buffers that
-    # cannot say, where the golden's coverage is "must")
+    # without ids (the envelope), a pixel counts as covered by what its own buffer says (or,
+    # for buffers that cannot say, where the golden's coverage is "must")
     if key == "depth":
         covered = c < clear_depth
     elif key == "eye_depth":
@@ -475,8 +475,8 @@ def _face_outside(key, kind, cand, arrays, named, step, clear_depth):
         covered = np.asarray(arrays["coverage"]) == MUST
     else:
         covered = np.zeros((h, w), np.bool_)
-    if named is not None:
-        pick = id_may & (named >= 0) & covered
+    if named is not None:   # the candidate's ids say which pixels it covers
+        pick = id_may & (named >= 0)
         e = named[pick]
     else:
         pick = id_may & has & covered
@@ -513,6 +513,56 @@ def _face_outside(key, kind, cand, arrays, named, step, clear_depth):
         bad = bad.any(axis=1) if bad.ndim == 2 else bad
     out[pick] = bad
     return out
+
+
+def _fmt(v):
+    v = np.asarray(v, np.float64)
+    return f"{float(v):.6g}" if v.ndim == 0 else "(" + ", ".join(f"{x:.6g}" for x in v) + ")"
+
+
+def _allowed_at(key, spec, arrays, outside, r, c, named, step):
+    """What the allowance admits at pixel (r, c), for the checks that refuse it there: the
+    interval, the angle, the coverage or the set of faces (object_id, prim_id)."""
+    said = []
+    for name, m in outside.items():
+        if not m[r, c]:
+            continue
+        if name == "coverage":
+            cov = int(arrays["coverage"][r, c])
+            said.append("coverage: " + {MUST: "must be covered", MUST_NOT: "must not be covered",
+                                        MAY: "may"}[cov])
+        elif name == "id":
+            said.append("id: equal to the golden's")
+        elif name == "interval":
+            said.append(f"interval [{_fmt(arrays[spec['lo']][r, c] - step)}, "
+                        f"{_fmt(arrays[spec['hi']][r, c] + step)}]")
+        elif name == "angle":
+            said.append(f"angle to the golden's normal <= {float(arrays[spec['angle']][r, c]):.4g}"
+                        " rad")
+        elif name == "face":
+            w = arrays["id_may"].shape[1]
+            k = r * w + c
+            lo, hi = int(arrays["set_offsets"][k]), int(arrays["set_offsets"][k + 1])
+            draws = arrays["draw_offsets"].astype(np.int64)
+            faces = arrays["set_face"][lo:hi].astype(np.int64)
+            obj = np.searchsorted(draws[1:], faces, side="right")
+            pairs = ", ".join(f"({int(o)}, {int(f - draws[o])})" for o, f in zip(obj, faces))
+            e = -1 if named is None else int(named[r, c])
+            if key in ("prim_id", "object_id"):
+                said.append(f"face: (object_id, prim_id) one of {{{pairs}}}")
+            elif e < 0:
+                said.append(f"face: the envelope of the faces {{{pairs}}}")
+            elif key == "front_facing":
+                said.append(f"face: front_facing {bool(arrays['set_facing'][e] == 1)} (the named "
+                            "face's)")
+            elif key == "normal":
+                said.append(f"face: within {float(arrays['set_normal_angle'][e]):.4g} rad of "
+                            f"{_fmt(arrays['set_normal'][e])} (the named face's)")
+            else:
+                lo_n, hi_n = SET_INTERVALS[key]
+                said.append(f"face: [{_fmt(arrays[lo_n][e] - step)}, "
+                            f"{_fmt(arrays[hi_n][e] + step)}] (the named face's)")
+    return "; ".join(said) or None
 
 
 def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_depth=1.0,
@@ -610,7 +660,8 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
         flat = int(np.argmax(np.where(bad, np.where(np.isfinite(err), err, 1e300), -1.0)))
         r, c = divmod(flat, w)
         worst = {"row": r, "col": c, "reference": ref[r, c].tolist(),
-                 "candidate": cand[r, c].tolist()}
+                 "candidate": cand[r, c].tolist(),
+                 "allowed": _allowed_at(key, spec, arrays, outside, r, c, named, step)}
     metrics["worst"] = worst if masked is None or worst is not None else metrics.get("worst")
     images.update({"over": differ | bad, "forgiven": differ & ~bad, "may": id_may.copy()})
     for name, m in outside.items():
