@@ -199,6 +199,16 @@ def _check_shape_size(shape, where):
                           f"({MAX_SIDE} per side, {MAX_PIXELS} pixels)")
 
 
+def _check_table_size(shape, where):
+    """A face-set table of ``tolerance.npz`` (``set_*``, ``draw_offsets``): (N,) or (N, C),
+    C ≤ MAX_CHANNELS, N·C ≤ MAX_ELEMENTS; its consistency with the frame is checked when read
+    (:func:`refraster.golden.allowance.check_face_sets`)."""
+    if len(shape) not in (1, 2) or (len(shape) == 2 and not 1 <= shape[1] <= MAX_CHANNELS):
+        raise GoldenError(f"{where}: shape {shape} is not (N,) or (N, C ≤ {MAX_CHANNELS})")
+    if shape[0] * (shape[1] if len(shape) == 2 else 1) > MAX_ELEMENTS:
+        raise GoldenError(f"{where}: shape {shape} exceeds {MAX_ELEMENTS} elements")
+
+
 def load_manifest(golden_dir, *, verify=True):
     """Read, check and return ``golden_dir/manifest.json``.
 
@@ -232,7 +242,11 @@ def load_manifest(golden_dir, *, verify=True):
         for key, spec in entry["buffers"].items():
             _check_shape_size(spec["shape"], f"{path} $.scenes.{name}.buffers.{key}")
         for key, spec in entry.get("allowances", {}).get("arrays", {}).items():
-            _check_shape_size(spec["shape"], f"{path} $.scenes.{name}.allowances.arrays.{key}")
+            where = f"{path} $.scenes.{name}.allowances.arrays.{key}"
+            if key.startswith("set_") or key == "draw_offsets":
+                _check_table_size(spec["shape"], where)
+            else:
+                _check_shape_size(spec["shape"], where)
     if verify:
         for rel in manifest["files"]:
             open_listed(root, manifest, rel).close()
