@@ -30,7 +30,8 @@ from .tolerance import PROFILES, apply_overrides, parse_override
 __all__ = ["GoldenError", "CandidateError", "BufferResult", "SceneResult", "Comparison",
            "compare", "load_manifest", "load_candidate", "pixel_error", "position_deviation",
            "local_variation",
-           "buffer_metrics", "EXIT_PASS", "EXIT_FAIL", "EXIT_UNUSABLE", "MODES", "has_allowances"]
+           "buffer_metrics", "EXIT_PASS", "EXIT_FAIL", "EXIT_UNUSABLE", "MODES", "has_allowances",
+           "buffer_allowance"]
 
 EXIT_PASS, EXIT_FAIL, EXIT_UNUSABLE = 0, 1, 2
 
@@ -400,6 +401,9 @@ class BufferResult:
     reference: np.ndarray = field(repr=False)
     candidate: np.ndarray = field(repr=False)
     images: dict = field(repr=False)
+    #: tolerant mode: the per-pixel allowance arrays this buffer's checks used
+    #: (:func:`buffer_allowance`), for the report's pixel read-out; ``None`` otherwise
+    allowance: dict | None = field(default=None, repr=False)
 
     @property
     def passed(self):
@@ -502,6 +506,36 @@ def _check_overrides(overrides, manifest, names):
 
 
 MODES = ("tolerant", "exact")
+
+
+def buffer_allowance(spec, arrays, *, step=0.0, clear_depth=1.0):
+    """The allowance one buffer's tolerant checks use, as the report shows it per pixel.
+
+    Parameters
+    ----------
+    spec : dict
+        The buffer's ``"tolerant"`` manifest entry.
+    arrays : dict
+        The scene's ``tolerance.npz`` (:mod:`refraster.golden.allowance`).
+    step, clear_depth : float
+        As passed to :func:`refraster.golden.allowance.tolerant_metrics`.
+
+    Returns
+    -------
+    dict
+        ``checks``, ``step``, ``clear_depth`` and the arrays (not copied) the checks read:
+        ``id_may``, and where they apply ``coverage``, ``lo``/``hi``, ``angle``, ``may``.
+    """
+    out = {"checks": list(spec["checks"]), "step": float(step),
+           "clear_depth": float(clear_depth), "id_may": arrays["id_may"]}
+    for key in ("lo", "hi", "angle"):
+        if key in spec:
+            out[key] = arrays[spec[key]]
+    if "coverage" in spec["checks"]:
+        out["coverage"] = arrays["coverage"]
+    if "masked" in spec["checks"]:
+        out["may"] = arrays[spec.get("may", "may")]
+    return out
 
 
 def has_allowances(manifest, names):
@@ -621,11 +655,14 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
                     key, ref[key], a, spec["kind"], spec["tolerant"], allow, clear_depth=clear,
                     fallback=tol, step=step)
                 tol = {**tol, "tolerant": spec["tolerant"]}
+                allowance = buffer_allowance(spec["tolerant"], allow, step=step,
+                                             clear_depth=clear)
             else:
                 metrics, checks, images = buffer_metrics(ref[key], a, spec["kind"], tol,
                                                          step=step)
+                allowance = None
             buffers.append(BufferResult(key, spec["kind"], source, tol, metrics, checks,
-                                        ref[key], a, images))
+                                        ref[key], a, images, allowance))
         status = "pass" if all(b.passed for b in buffers) else "fail"
         results.append(SceneResult(name, status, buffers))
     comparison = Comparison(golden_dir, candidate_dir, "tolerant" if mode == "tolerant"
