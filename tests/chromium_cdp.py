@@ -38,9 +38,10 @@ class Browser:
         args = [str(CHROMIUM), *FLAGS, f"--user-data-dir={user_dir / 'profile'}",
                 "--remote-debugging-pipe", f"--window-size={width},{height}",
                 "--hide-scrollbars", "about:blank"]
-        # sh moves the pipe ends to the descriptors Chromium expects (3: commands, 4: answers)
+        # bash moves the pipe ends to the descriptors Chromium expects (3: commands, 4: answers;
+        # dash takes one-digit descriptors only)
         self.proc = subprocess.Popen(
-            ["/bin/sh", "-c", f'exec "$0" "$@" 3<&{cmd_r} 4>&{out_w}', *args],
+            ["/bin/bash", "-c", f'exec "$0" "$@" 3<&{cmd_r} 4>&{out_w}', *args],
             pass_fds=(cmd_r, out_w), stdin=subprocess.DEVNULL, stdout=self._log,
             stderr=self._log)
         os.close(cmd_r)

@@ -94,8 +94,14 @@ _SCRIPT = r"""
     const entry = {meta: null, error: null};
     cache.set(id, entry);
     if (!el) { entry.error = "no embedded data"; return entry; }
-    const meta = JSON.parse(el.textContent);
-    const bin = Uint8Array.from(atob(meta.b64), c => c.charCodeAt(0));
+    let meta, bin;
+    try {
+      meta = JSON.parse(el.textContent);
+      bin = Uint8Array.from(atob(meta.b64), c => c.charCodeAt(0));
+    } catch (err) {
+      entry.error = "unreadable embedded data: " + err;
+      return entry;
+    }
     if (typeof DecompressionStream === "undefined") {
       entry.error = "this browser cannot inflate the embedded data (no DecompressionStream)";
       return entry;
@@ -479,7 +485,7 @@ def _metrics_table(b, tolerant):
     else:
         cells.append(f"<td>{b.tolerance['deviation_radius']}</td>")
     if b.kind != "color":
-        cells.append(_na(f"FLIP is a perceptual difference of colour pictures; this is a "
+        cells.append(_na(f"FLIP is a perceptual difference of colour pictures; {b.name} is a "
                          f"{b.kind} buffer"))
     elif m.get("flip_mean") is None:
         cells.append(_na("FLIP was not computed: the flip-evaluator package is not installed"))
