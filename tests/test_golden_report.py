@@ -5,6 +5,7 @@ import json
 import re
 import shutil
 import subprocess
+import time
 from pathlib import Path
 
 import numpy as np
@@ -15,22 +16,25 @@ from refraster import golden
 
 CHROMIUM = Path("/usr/bin/chromium")
 
-# Injected (by the test only) into a copy of the page: opens every collapsed section and loads
-# every (lazy) picture, records load errors of any element and, once the page has loaded, how
-# many images decoded, into the title that --dump-dom prints.
+# Injected (by the test only) into a copy of the page: records load errors of any element; once
+# the page has loaded, opens every collapsed section (whose pictures the page then fills in),
+# loads every (lazy) picture and writes how many images decoded into the title that --dump-dom
+# prints.
 CHECKER = """<script>
-document.addEventListener("DOMContentLoaded", () => {
-  for (const d of document.querySelectorAll("details")) d.open = true;
-  for (const i of document.images) i.loading = "eager";
-});
 window.__errors = [];
 window.addEventListener("error", e => window.__errors.push(
     (e.target && e.target.src) || e.message || "error"), true);
 window.addEventListener("load", () => {
-  const imgs = [...document.images];
-  const ok = imgs.filter(i => i.complete && i.naturalWidth > 0).length;
-  document.title = "CHECK " + JSON.stringify({images: imgs.length, loaded: ok,
-                                               errors: window.__errors});
+  for (const d of document.querySelectorAll("details")) d.open = true;
+  setTimeout(() => {
+    for (const i of document.images) i.loading = "eager";
+    setTimeout(() => {
+      const imgs = [...document.images];
+      const ok = imgs.filter(i => i.complete && i.naturalWidth > 0).length;
+      document.title = "CHECK " + JSON.stringify({images: imgs.length, loaded: ok,
+                                                   errors: window.__errors});
+    }, 1000);
+  }, 0);
 });
 </script>"""
 
@@ -205,6 +209,10 @@ def first_screen_problems(b, page, failing, passing, bad_pixel):
     magnified crops (one pixel ≥ 8 screen pixels) are wholly on the first screen, with the
     ``bad_pixel`` (row, col) painted red in the error-mask crop of the screenshot."""
     b.open(page.as_uri())
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 2 and not b.js(
+            "[...document.querySelectorAll('.crop img')].slice(0, 4).every(i => i.complete)"):
+        time.sleep(0.05)
     s = b.js(FIRST_SCREEN)
     problems = []
     if not s["scenes"] or s["scenes"][0][0] != failing:
@@ -259,7 +267,6 @@ def hover(b, selector, row, col):
     x = info["left"] + (col - info["c0"] + 0.5) * info["w"] / info["cols"]
     y = info["top"] + (row - info["r0"] + 0.5) * info["h"] / info["rows"]
     b.mouse_move(x, y)
-    import time
     for _ in range(100):
         text = b.js("(t => t.hidden ? '' : t.textContent)(document.getElementById('tip'))")
         if text and "..." not in text.splitlines()[-1]:

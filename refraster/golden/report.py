@@ -46,6 +46,9 @@ __all__ = ["write_report", "check_report_dir", "difference_image", "mask_image",
 #: of the failing pixels, the smallest magnification (screen pixels per buffer pixel) and the
 #: screen size the longer side of a crop is magnified towards.
 CROP_MAX, CROP_PAD, MIN_ZOOM, CROP_SCREEN = 32, 4, 8, 256
+#: The crops of the first failing buffers load with the page (the first screen); the others,
+#: like every full-size picture, when they come near the viewport (``loading="lazy"``).
+EAGER_CROPS = 4
 
 _CSS = """
 body { font: 14px/1.4 system-ui, sans-serif; margin: 1em 1.5em; color: #222; }
@@ -64,6 +67,7 @@ img { image-rendering: pixelated; border: 1px solid #999; background: #fff; disp
 img.px { cursor: crosshair; }
 .na { display: inline-block; border: 1px dashed #bbb; color: #888; text-align: center; }
 .buffer { border-top: 1px solid #ddd; padding: .4em 0; }
+section.buffer { content-visibility: auto; contain-intrinsic-size: auto 900px; }
 .why { margin: .2em 0; font-size: 13px; } .note { font-size: 12px; color: #555; margin: .2em 0; }
 .frame { position: relative; display: inline-block; }
 .box { position: absolute; border: 1px solid #00b7ff; box-shadow: 0 0 0 1px #fff;
@@ -80,7 +84,8 @@ code { background: #f3f3f3; padding: 0 3px; }
 
 # The page's one script: maps the pointer to a buffer pixel, decodes the crop's embedded arrays
 # on first use and writes the pixel's values into the tooltip (textContent only: nothing is
-# parsed as HTML). Opening a collapsed scene or buffer that a link targets.
+# parsed as HTML); opens a collapsed scene or buffer that a link targets and fills in its
+# pictures when it is first opened.
 _SCRIPT = r"""
 (function () {
   "use strict";
@@ -237,10 +242,19 @@ _SCRIPT = r"""
     tip.style.top = y + "px";
     if (d.pending) d.pending.then(render);
   }
-  for (const el of document.querySelectorAll("img.px")) {
-    el.addEventListener("mousemove", show);
-    el.addEventListener("mouseleave", () => { last = null; tip.hidden = true; });
+  document.addEventListener("mousemove", ev => {
+    if (ev.target.classList && ev.target.classList.contains("px")) show(ev);
+    else if (last) { last = null; tip.hidden = true; }
+  });
+  // the pictures of a collapsed scene or buffer wait in a <template> until it is first opened
+  function expand(details) {
+    for (const t of details.querySelectorAll(":scope > template.later")) {
+      t.replaceWith(t.content.cloneNode(true));
+    }
   }
+  document.addEventListener("toggle", ev => {
+    if (ev.target.open) expand(ev.target);
+  }, true);
   function openTarget() {
     const t = location.hash && document.getElementById(decodeURIComponent(location.hash.slice(1)));
     for (let e = t; e; e = e.parentElement) if (e.tagName === "DETAILS") e.open = true;
@@ -569,7 +583,8 @@ def _buffer_html(page, scene, b):
                                ("difference", diff_png), ("error mask", mask_png)):
                 src = f"{stem}__crop_{label.replace(' ', '_')}.png"
                 rio.write_png(root / src, magnify(img[r0:r1, c0:c1], cz))
-                figs.append(_figure(src, label, cols, rows, cz, hover=hover, lazy=False))
+                figs.append(_figure(src, label, cols, rows, cz, hover=hover,
+                                    lazy=page.n > EAGER_CROPS))
             meta = _crop_data(b, box, bad)
             crop_html = (
                 f'<p class="note">Magnified ×{cz}: rows {r0}–{r1 - 1}, columns {c0}–{c1 - 1} '
@@ -591,7 +606,7 @@ def _buffer_html(page, scene, b):
     full = f'<div class="row full">{figures}</div>'
     if b.passed:
         return (f'<details class="buffer pass"><summary>{title} — max abs {_fmt(m["max_abs"])}'
-                f"</summary>{table}{full}</details>")
+                f'</summary>{table}<template class="later">{full}</template></details>')
     why = "; ".join(f"{c['metric']}: {c.get('detail') or _plain(c)}"
                     for c in b.checks if not c["ok"])
     return (f'<section class="buffer fail"><h3>{title}</h3><p class="why fail">'
