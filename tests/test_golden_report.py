@@ -421,3 +421,80 @@ def test_report_escapes_what_it_shows(two_scenes, tmp_path):
     assert result.exit_code == 1
     assert "<b>\"&x" not in page and "g&lt;/script&gt;&lt;b&gt;&quot;&amp;x" in page
     assert page.count("</script>") == page.count("<script")
+
+
+def test_fifty_scene_report_is_small_and_opens_fast(two_scenes, browser, tmp_path):
+    """The report of 50 scenes in which every buffer fails over the whole frame (the most
+    embedded data: every crop at its largest) stays under 20 MB and opens in Chromium in under
+    2 s. The 50 scenes are the two compared scenes, 25 copies each under new names (the real
+    50-scene golden is measured by ``benchmarks/golden_report.py``, docs/performance.md)."""
+    import copy
+    from dataclasses import replace
+
+    from refraster.golden.compare import load_manifest
+    from refraster.golden.report import write_report
+    root, _, _ = two_scenes
+    cand = tmp_path / "cand"
+    for scene in ("render_cube", "render_multi_draw"):
+        (cand / scene).mkdir(parents=True)
+        with np.load(root / "g" / scene / "buffers.npz") as z:
+            np.savez(cand / scene / "buffers.npz", **{k: np.roll(z[k], 1, axis=1)
+                                                       for k in z.files})
+    result = golden.compare(root / "g", cand, mode="tolerant")
+    assert result.exit_code == 1 and all(not b.passed for s in result.scenes for b in s.buffers)
+    manifest = load_manifest(root / "g", verify=False)
+    many = copy.deepcopy(manifest)
+    many["scenes"], scenes = {}, []
+    for k in range(25):
+        for s in result.scenes:
+            name = f"{s.name}__copy{k:02d}"
+            many["scenes"][name] = manifest["scenes"][s.name]
+            scenes.append(replace(s, name=name))
+    t0 = time.perf_counter()
+    rep = write_report(tmp_path / "report", replace(result, scenes=scenes), many)
+    t_write = time.perf_counter() - t0
+    size = sum(p.stat().st_size for p in rep.rglob("*") if p.is_file())
+    crops = sum("__crop_" in p.name for p in (rep / "img").iterdir())
+    assert crops == 50 * 8 * 4
+    loads = []
+    for _ in range(3):
+        browser.open("about:blank")
+        loads.append(browser.open((rep / "index.html").as_uri()))
+    print(f"50 scenes, every buffer failing: {size / 1e6:.2f} MB, written in {t_write:.1f} s, "
+          f"loads {', '.join(f'{x:.2f}' for x in loads)} s")
+    assert size < 20e6
+    assert min(loads) < 2.0
+    assert browser.console() == []
+
+
+def test_crop_box_zoom_and_magnify():
+    from refraster.golden.report import CROP_MAX, crop_box, crop_zoom, magnify
+    assert CROP_MAX == 32
+    bad = np.zeros((120, 160), bool)
+    err = np.zeros((120, 160))
+    assert crop_box(bad, err) is None
+    bad[50:60, 70:90] = True                       # the issue's 10×20 patch: padded by 4
+    assert crop_box(bad, err) == ((46, 64, 66, 94), (50, 60, 70, 90))
+    bad[:] = False
+    bad[0, 159] = True                             # clipped at the picture's edge
+    assert crop_box(bad, err) == ((0, 5, 155, 160), (0, 1, 159, 160))
+    bad[:] = True                                  # the whole frame: 32 around the worst pixel
+    assert crop_box(bad, err, {"row": 60, "col": 80})[0] == (44, 76, 64, 96)
+    assert crop_box(bad, err, {"row": 2, "col": 158})[0] == (0, 32, 128, 160)
+    assert crop_box(bad, err)[0] == (44, 76, 64, 96)            # no worst pixel: the centre
+    bad[:] = False
+    err[7, 9] = 1e-9                               # nothing outside: the pixels that differ
+    assert crop_box(bad, err) == ((3, 12, 5, 14), (7, 8, 9, 10))
+    assert (crop_zoom(18, 28), crop_zoom(32, 32), crop_zoom(1, 1), crop_zoom(9, 9)) == (9, 8, 24,
+                                                                                        24)
+    img = np.random.default_rng(1).integers(0, 256, (5, 7, 3), dtype=np.uint8)
+    big = magnify(img, 8)
+    assert big.shape == (40, 56, 3)
+    grid = np.zeros((40, 56), bool)
+    grid[::8] = True
+    grid[:, ::8] = True
+    rows, cols = np.indices((40, 56)) // 8
+    assert (big[~grid] == img[rows, cols][~grid]).all()          # nearest neighbour
+    v = img[rows, cols][grid].astype(float)
+    target = np.where(v.mean(axis=-1, keepdims=True) > 110, 0.0, 255.0)
+    assert np.abs(big[grid] - (0.6 * v + 0.4 * target)).max() <= 0.5 + 1e-3   # the grid
