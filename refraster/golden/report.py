@@ -200,7 +200,10 @@ _SCRIPT = r"""
   function describe(el, row, col) {
     const head = "row " + row + ", col " + col + "  (" + el.dataset.name + ")";
     const id = el.dataset.d;
-    if (!id) return {text: head + "\npassing buffer: its values are not embedded"};
+    if (!id) {
+      return {text: head + "\nvalues are embedded for the magnified crops of failing " +
+                    "buffers only"};
+    }
     const entry = decode(id);
     if (entry.error) return {text: head + "\n" + entry.error};
     if (!entry.meta) return {text: head + "\n...", pending: entry.promise};
