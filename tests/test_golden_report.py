@@ -316,12 +316,29 @@ def hover_problems(b, page, ref, allow, candidate_depth):
     return problems
 
 
+OPEN_BY_LINK = """(async () => {
+  const d = document.getElementById("render_multi_draw");
+  const before = [d.open, d.querySelectorAll("img").length];
+  document.querySelector('.scenes a[href="#render_multi_draw"]').click();
+  await new Promise(r => setTimeout(r, 200));
+  const b = d.querySelector("details.buffer");
+  b.open = true;
+  await new Promise(r => setTimeout(r, 200));
+  return {before: before, open: d.open, buffer_imgs: b.querySelectorAll("img").length,
+          shown: d.getBoundingClientRect().top};
+})()"""
+
+
 def test_first_screen_shows_the_failing_crop(two_scenes, browser):
     root, ref, _ = two_scenes
     page = make_report(root, "report")
     assert first_screen_problems(browser, page, "render_cube", "render_multi_draw",
                                  (55, 80)) == []
     assert browser.console() == []
+    # the scene table's link opens the collapsed passing scene; its pictures appear when opened
+    state = browser.js(OPEN_BY_LINK, await_promise=True)
+    assert state["before"] == [False, 0] and state["open"] is True
+    assert state["buffer_imgs"] == 4 and 0 <= state["shown"] < VIEW[1]
 
 
 def test_first_screen_check_catches_planted_faults(two_scenes, browser):
@@ -340,6 +357,11 @@ def test_first_screen_check_catches_planted_faults(two_scenes, browser):
     problems = first_screen_problems(browser, page, "render_cube", "render_multi_draw", (55, 80))
     assert problems and all("screen px for" in p or "not red" in p for p in problems), problems
     # a crop of the wrong region (the failing pixel is not in it)
+    # the pictures of an opened buffer never filled in
+    page = make_report(root, "plant_template", _SCRIPT=rep._SCRIPT.replace(
+        "if (ev.target.open) expand(ev.target);", ""))
+    browser.open(page.as_uri())
+    assert browser.js(OPEN_BY_LINK, await_promise=True)["buffer_imgs"] == 0
     box = rep.crop_box
     page = make_report(root, "plant_region",
                        crop_box=lambda bad, *a, **k: box(np.roll(bad, 30, axis=1), *a, **k))
