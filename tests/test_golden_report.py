@@ -259,6 +259,9 @@ def hover(b, selector, row, col):
     """Move the mouse over pixel (row, col) of the picture ``selector``; the tooltip's text."""
     sel = json.dumps(selector)
     b.js(f"document.querySelector({sel}).scrollIntoView({{block: 'center'}})")
+    # let the scroll settle (the page hides its tooltip on scroll)
+    b.js("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))",
+         await_promise=True)
     info = b.js(f"""(() => {{ const i = document.querySelector({sel});
         const r = i.getBoundingClientRect();
         return {{left: r.left + i.clientLeft, top: r.top + i.clientTop, w: i.clientWidth,

@@ -65,7 +65,7 @@ td.na { color: #888; cursor: help; text-decoration: underline dotted; }
 figure { margin: 0; } figcaption { font-size: 12px; color: #555; text-align: center; }
 img { image-rendering: pixelated; border: 1px solid #999; background: #fff; display: block; }
 img.px { cursor: crosshair; }
-.na { display: inline-block; border: 1px dashed #bbb; color: #888; text-align: center; }
+span.na { display: inline-block; border: 1px dashed #bbb; color: #888; text-align: center; }
 .buffer { border-top: 1px solid #ddd; padding: .4em 0; }
 section.buffer { content-visibility: auto; contain-intrinsic-size: auto 900px; }
 .why { margin: .2em 0; font-size: 13px; } .note { font-size: 12px; color: #555; margin: .2em 0; }
@@ -245,6 +245,7 @@ _SCRIPT = r"""
     tip.style.top = y + "px";
     if (d.pending) d.pending.then(render);
   }
+  window.addEventListener("scroll", () => { last = null; tip.hidden = true; });
   document.addEventListener("mousemove", ev => {
     if (ev.target.classList && ev.target.classList.contains("px")) show(ev);
     else if (last) { last = null; tip.hidden = true; }
@@ -456,10 +457,11 @@ def _crop_data(b, box, bad):
 
 # --- the page -----------------------------------------------------------------------------------
 
-def _figure(src, caption, width, height, zoom, *, hover=None, box=None, lazy=True):
-    """A picture (``hover``: its data attributes for the read-out; ``box``: the crop outlined)."""
+def _figure(src, caption, width, height, zoom, *, hover=None, box=None, lazy=True, why=""):
+    """A picture (``hover``: its data attributes for the read-out; ``box``: the crop outlined;
+    ``why``: the tooltip of a missing picture)."""
     if src is None:
-        return (f'<figure><span class="na" style="width:{width * zoom}px;'
+        return (f'<figure><span class="na" title="{_attr(why)}" style="width:{width * zoom}px;'
                 f'height:{height * zoom}px;line-height:{height * zoom}px">n/a</span>'
                 f"<figcaption>{caption}</figcaption></figure>")
     attrs = ' loading="lazy"' if lazy else ""
@@ -604,7 +606,9 @@ def _buffer_html(page, scene, b):
                 hover=hover, box=box),
         _figure(f"{stem}__mask.png", mask_caption, w, h, zoom, hover=hover, box=box),
         _figure(flip, "FLIP" + (f" (mean {_fmt(m.get('flip_mean'))})" if flip else ""),
-                w, h, zoom, hover=hover if flip else None, box=box),
+                w, h, zoom, hover=hover if flip else None, box=box,
+                why="FLIP applies to colour buffers only" if b.kind != "color" else
+                "FLIP was not computed: the flip-evaluator package is not installed"),
     ])
     table = _metrics_table(b, page.tolerant)
     full = f'<div class="row full">{figures}</div>'
