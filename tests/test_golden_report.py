@@ -523,3 +523,41 @@ def test_crop_box_zoom_and_magnify():
     v = img[rows, cols][grid].astype(float)
     target = np.where(v.mean(axis=-1, keepdims=True) > 110, 0.0, 255.0)
     assert np.abs(big[grid] - (0.6 * v + 0.4 * target)).max() <= 0.5 + 1e-3   # the grid
+
+
+def test_hover_in_profile_mode_shows_threshold_and_forgiven(two_scenes, browser, tmp_path):
+    """Conformant profile: a colour pixel forgiven by the position-deviation compare reads
+    "forgiven here", differs but allowed; an inverted pixel next to it is outside, with its
+    per-pixel threshold ``threshold + slope · v(p)`` (v: the largest difference to a neighbour)."""
+    from refraster.golden.compare import local_variation
+    root, ref, _ = two_scenes
+    scene = root / "cand" / "render_cube" / "buffers.npz"
+    with np.load(scene) as z:
+        b = {k: z[k] for k in z.files}
+    b["color"] = np.roll(ref["color"], 1, axis=1)
+    cand = tmp_path / "cand" / "render_cube"
+    cand.mkdir(parents=True)
+    np.savez(cand / "buffers.npz", **b)
+    kw = dict(profile="conformant", scenes=["render_cube"], buffers=["color"])
+    first = golden.compare(root / "g", tmp_path / "cand", **kw).scenes[0].buffers[0]
+    assert first.images["forgiven"].any()            # (its FLIP mean fails already)
+    forgiven = np.argwhere(first.images["forgiven"])
+    r, c = next((int(r), int(c)) for r, c in forgiven if c + 3 < 160
+                and not first.images["over"][r, c + 3])
+    b["color"][r, c + 3] = 1.0 - b["color"][r, c + 3]
+    np.savez(cand / "buffers.npz", **b)
+    result = golden.compare(root / "g", tmp_path / "cand", report=tmp_path / "rep", **kw)
+    buf = result.scenes[0].buffers[0]
+    assert not buf.passed and buf.images["forgiven"][r, c]
+    assert (buf.images["over"] & ~buf.images["forgiven"])[r, c + 3]
+    page = tmp_path / "rep" / "index.html"
+    browser.open(page.as_uri())
+    text = hover(browser, "img[src*='render_cube__color__crop_candidate']", r, c)
+    assert f"row {r}, col {c}" in text and "(position deviation): forgiven here" in text, text
+    assert "status: differs, allowed" in text, text
+    text = hover(browser, "img[src*='render_cube__color__crop_candidate']", r, c + 3)
+    thr = buf.metrics["threshold"] + buf.tolerance["slope"] * local_variation(ref["color"])[r,
+                                                                                         c + 3]
+    assert f"|candidate - reference| <= {float(thr)!r} per channel" in text, text
+    assert "forgiven here" not in text and "status: OUTSIDE THE ALLOWANCE" in text, text
+    assert browser.console() == []
