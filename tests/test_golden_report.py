@@ -146,12 +146,22 @@ def two_scenes(tmp_path_factory):
         if scene == "render_cube":       # the issue's faults: a 10×20 depth patch, swizzled normals
             b["depth"][50:60, 70:90] += 0.01
             b["normal"][40:50, 60:70] = b["normal"][40:50, 60:70][..., ::-1]
+            with np.load(root / "g" / scene / "tolerance.npz") as z:   # and one wrong id
+                r, c = id_pixel(z)
+            b["prim_id"][r, c] += 1
         np.savez(root / "cand" / scene / "buffers.npz", **b)
     with np.load(root / "g" / "render_cube" / "tolerance.npz") as z:
         allow = {k: z[k] for k in z.files}
     with np.load(root / "g" / "render_cube" / "buffers.npz") as z:
         ref = {k: z[k] for k in z.files}
     return root, ref, allow
+
+
+def id_pixel(allow):
+    """A pixel of the cube's right face whose id must agree (covered, no edge near)."""
+    must = (allow["coverage"] == 2) & ~allow["id_may"]
+    r, c = np.argwhere(must[65:80, 95:115])[0]
+    return int(r) + 65, int(c) + 95
 
 
 def make_report(root, name, **patches):
@@ -561,3 +571,18 @@ def test_hover_in_profile_mode_shows_threshold_and_forgiven(two_scenes, browser,
     assert f"|candidate - reference| <= {float(thr)!r} per channel" in text, text
     assert "forgiven here" not in text and "status: OUTSIDE THE ALLOWANCE" in text, text
     assert browser.console() == []
+
+
+def test_hover_shows_the_allowed_id_set(two_scenes, browser):
+    root, ref, allow = two_scenes
+    page = make_report(root, "report_ids")
+    r, c = id_pixel(allow)
+    browser.open(page.as_uri())
+    text = hover(browser, "img[src*='render_cube__prim_id__crop_candidate']", r, c)
+    want = ref["prim_id"][r, c]
+    assert f"row {r}, col {c}" in text and f"reference: {want}\ncandidate: {want + 1}" in text
+    assert (f"allowed set: {{{want}}} (coverage: must be covered; the id must agree)" in text
+            and "status: OUTSIDE THE ALLOWANCE" in text), text
+    # its neighbour in the crop is unchanged
+    text = hover(browser, "img[src*='render_cube__prim_id__crop_candidate']", r, c + 1)
+    assert "status: equal" in text and "allowed set:" in text, text
