@@ -626,8 +626,11 @@ def _buffer_html(page, scene, b):
 
 
 def _plain(c):
+    """``value > limit`` of a failed check, not yet escaped."""
+    def num(x):
+        return f"{x:.4g}" if isinstance(x, float) and math.isfinite(x) else str(x)
     bad = ">" if c["op"] == "<=" else "<"
-    return f"{_fmt(c['value'])} {bad} {_fmt(c['limit'])}"
+    return f"{num(c['value'])} {bad} {num(c['limit'])}"
 
 
 def scene_order(scenes):
