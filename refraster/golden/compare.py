@@ -34,7 +34,8 @@ from .tolerance import PROFILES, apply_overrides, parse_override
 __all__ = ["GoldenError", "CandidateError", "BufferResult", "SceneResult", "Comparison",
            "compare", "load_manifest", "load_candidate", "pixel_error", "position_deviation",
            "local_variation",
-           "buffer_metrics", "EXIT_PASS", "EXIT_FAIL", "EXIT_UNUSABLE", "MODES", "has_allowances"]
+           "buffer_metrics", "EXIT_PASS", "EXIT_FAIL", "EXIT_UNUSABLE", "MODES", "has_allowances",
+           "buffer_allowance"]
 
 # The golden and the candidate are read by :mod:`refraster.golden.read` (no links followed,
 # headers first, scene packages validated); the old names stay importable from here.
@@ -68,6 +69,9 @@ class BufferResult:
     reference: np.ndarray = field(repr=False)
     candidate: np.ndarray = field(repr=False)
     images: dict = field(repr=False)
+    #: tolerant mode: the per-pixel allowance arrays this buffer's checks used
+    #: (:func:`buffer_allowance`), for the report's pixel read-out; ``None`` otherwise
+    allowance: dict | None = field(default=None, repr=False)
 
     @property
     def passed(self):
@@ -214,6 +218,36 @@ def _edge_may(ref, specs):
     return near
 
 
+def buffer_allowance(spec, arrays, *, step=0.0, clear_depth=1.0):
+    """The allowance one buffer's tolerant checks use, as the report shows it per pixel.
+
+    Parameters
+    ----------
+    spec : dict
+        The buffer's ``"tolerant"`` manifest entry.
+    arrays : dict
+        The scene's ``tolerance.npz`` (:mod:`refraster.golden.allowance`).
+    step, clear_depth : float
+        As passed to :func:`refraster.golden.allowance.tolerant_metrics`.
+
+    Returns
+    -------
+    dict
+        ``checks``, ``step``, ``clear_depth`` and the arrays (not copied) the checks read:
+        ``id_may``, and where they apply ``coverage``, ``lo``/``hi``, ``angle``, ``may``.
+    """
+    out = {"checks": list(spec["checks"]), "step": float(step),
+           "clear_depth": float(clear_depth), "id_may": arrays["id_may"]}
+    for key in ("lo", "hi", "angle"):
+        if key in spec:
+            out[key] = arrays[spec[key]]
+    if "coverage" in spec["checks"]:
+        out["coverage"] = arrays["coverage"]
+    if "masked" in spec["checks"]:
+        out["may"] = arrays[spec.get("may", "may")]
+    return out
+
+
 def has_allowances(manifest, names):
     """Whether every scene in ``names`` has stored allowances (a tolerant compare is possible)."""
     return all("allowances" in manifest["scenes"][n] for n in names)
@@ -348,14 +382,17 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
                     key, ref[key], a, spec["kind"], spec["tolerant"], allow, clear_depth=clear,
                     fallback=tol, step=step, named=named)
                 tol = {**tol, "tolerant": spec["tolerant"]}
+                allowance = buffer_allowance(spec["tolerant"], allow, step=step,
+                                             clear_depth=clear)
             else:
                 metrics, checks, images = buffer_metrics(ref[key], a, spec["kind"], tol,
                                                          step=step)
+                allowance = None
             checks = checks + domain_checks(
                 key, spec["kind"], ref[key], a, step=step, raw=raw, coverage=coverage,
                 may=edge_may, id_range=spec.get("ids"))
             buffers.append(BufferResult(key, spec["kind"], source, tol, metrics, checks,
-                                        ref[key], a, images))
+                                        ref[key], a, images, allowance))
         status = "pass" if all(b.passed for b in buffers) else "fail"
         results.append(SceneResult(name, status, buffers, skipped=skipped))
     comparison = Comparison(golden_dir, candidate_dir, "tolerant" if mode == "tolerant"
