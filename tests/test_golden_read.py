@@ -305,44 +305,52 @@ def test_deeply_nested_manifest_is_one_line(gold, tmp_path, capsys):
 # --- 1. generate --update copies kept scenes from the manifest's file list only ----------------
 
 def test_update_copies_kept_scenes_from_the_file_list_without_links(tmp_path, caplog, capsys):
+    """Kept scenes are copied from the manifest's file list only, never through a link; and a
+    golden holding files refraster did not write (a link to a private key, the user's notes)
+    is not replaced at all: `--update` refuses, naming them, and nothing is lost (the write
+    rules of docs/golden.md)."""
+    from refraster.golden.read import copy_listed_scene
+    from refraster.golden.write import RefusedError
     out = tmp_path / "g"
     golden.generate(out, [SCENE])
     secret = tmp_path / "private.key"
     secret.write_text("-----BEGIN PRIVATE KEY-----")
     (out / SCENE / "id_rsa").symlink_to(secret)
     (out / SCENE / "notes.txt").write_text("mine")
-    before = {k: v for k, v in load_manifest(out)["files"].items()
-              if k.startswith(f"{SCENE}/")}
+    (out / SCENE / "zero").symlink_to("/dev/zero")
+    (out / SCENE / "home").symlink_to(tmp_path)
+    manifest = load_manifest(out)
+    before = {k: v for k, v in manifest["files"].items() if k.startswith(f"{SCENE}/")}
+    # the copy: listed files only, each sha256 checked; unlisted ones and links skipped, named
+    dest = tmp_path / "copy"
     with caplog.at_level(logging.WARNING, logger="refraster.golden"):
+        copied = copy_listed_scene(out, manifest, SCENE, dest)
+    assert sorted(copied) == sorted(before)
+    got = {p.relative_to(dest).as_posix() for p in dest.rglob("*") if not p.is_dir()}
+    assert got == set(before)
+    assert not any(p.is_symlink() for p in dest.rglob("*"))
+    warned = " ".join(r.getMessage() for r in caplog.records)
+    for name in ("id_rsa", "notes.txt", "zero", "home"):
+        assert f"{SCENE}/{name}" in warned, warned
+    # the update refuses to replace a directory holding what refraster did not write
+    with pytest.raises(RefusedError, match="id_rsa"):
         golden.generate(out, [SCENE], sizes=["16x12"], update=True)
+    assert (out / SCENE / "notes.txt").read_text() == "mine"
+    assert os.path.islink(out / SCENE / "id_rsa") and secret.exists()
+    assert {k: v for k, v in load_manifest(out)["files"].items()
+            if k.startswith(f"{SCENE}/")} == before
+    capsys.readouterr()
+    assert cli.main(["generate", "--out", str(out), "--scene", SCENE, "--size", "16x12",
+                     "--update"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len([x for x in err if "error" in x]) == 1 and "notes.txt" in err[-1], err
+    # without the foreign files, the update keeps the scene from its listed files
+    for name in ("id_rsa", "notes.txt", "zero", "home"):
+        os.unlink(out / SCENE / name)
+    golden.generate(out, [SCENE], sizes=["16x12"], update=True)
     m = load_manifest(out)
     assert sorted(m["scenes"]) == [SCENE, f"{SCENE}__16x12"]
     assert {k: v for k, v in m["files"].items() if k.startswith(f"{SCENE}/")} == before
-    assert not os.path.lexists(out / SCENE / "id_rsa")
-    assert not (out / SCENE / "notes.txt").exists()
-    warned = " ".join(r.getMessage() for r in caplog.records)
-    for name in ("id_rsa", "notes.txt"):
-        assert f"{SCENE}/{name}" in warned, warned
-    # links to a device and to a directory, unlisted too: skipped, never opened
-    (out / SCENE / "zero").symlink_to("/dev/zero")
-    (out / SCENE / "home").symlink_to(tmp_path)
-    caplog.clear()
-    with caplog.at_level(logging.WARNING, logger="refraster.golden"):
-        golden.generate(out, [SCENE], sizes=["16x12"], update=True)
-    assert {k: v for k, v in load_manifest(out)["files"].items()
-            if k.startswith(f"{SCENE}/")} == before
-    warned = " ".join(r.getMessage() for r in caplog.records)
-    assert f"{SCENE}/zero" in warned and f"{SCENE}/home" in warned, warned
-    # the command line: the same warning, one line (the update removed the unlisted files)
-    (out / SCENE / "notes.txt").write_text("mine")
-    capsys.readouterr()
-    assert cli.main(["generate", "--out", str(out), "--scene", SCENE, "--size", "16x12",
-                     "--update"]) == 0
-    lines = [ln.split("\r")[-1] for ln in capsys.readouterr().err.splitlines()
-             if "warning" in ln]
-    assert len(lines) == 1 and lines[0].startswith(
-        f"refraster: warning: refraster.golden: kept scene {SCENE}: skipped 1 file(s) the "
-        f"manifest does not list: {SCENE}/notes.txt"), lines
 
 
 # --- 4. TOML scenes: exact types, messages naming table, key, type and value ---------------------

@@ -391,7 +391,7 @@ def test_sigterm_cleans_up_like_ctrl_c(g):
     proc = subprocess.run([sys.executable, "-c", SIGTERM, str(g)], env=env, capture_output=True,
                           text=True, timeout=600)
     assert proc.returncode == 143, proc.stderr[-2000:]
-    assert proc.stderr.strip() == "refraster: interrupted"
+    assert proc.stderr.strip() == "golden generate: interrupted"   # one line, naming the command
     assert tree_digest(g) == before
     assert names(g.parent) == ["g"]                          # no temporary tree, no lock
 

@@ -76,9 +76,10 @@ def _guarded(prog):
                                quiet=getattr(args, "quiet", False)):
                 try:
                     return fn(args)
-                except KeyboardInterrupt:
+                except KeyboardInterrupt as exc:
+                    from .write import Terminated
                     print(f"{prog}: interrupted", file=sys.stderr)
-                    return 130
+                    return 143 if isinstance(exc, Terminated) else 130
                 except Exception as exc:
                     return _error(args, prog, exc)
         return run

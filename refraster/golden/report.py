@@ -408,7 +408,7 @@ def _typed(a):
 def _crop_data(b, box, bad):
     """The crop's values for the page's read-out: JSON metadata and the arrays, deflated."""
     from .allowance import _angle
-    from .compare import local_variation
+    from .metrics import local_variation
     r0, r1, c0, c1 = box
     sl = (slice(r0, r1), slice(c0, c1))
     ref, cand = np.asarray(b.reference)[sl], np.asarray(b.candidate)[sl]

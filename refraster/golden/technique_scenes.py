@@ -231,6 +231,7 @@ def _halos4d_figure1():
                                 "halo_class": halo_class},
                        parameters=params, maps=maps, kinds={"alpha": "unorm",
                                                             "halo_class": "id"},
+                       ids={"halo_class": (0, 3)},  # the classes above: 0 … 3
                        geometry=False, may=edge, may_radius=1)
 
 
@@ -291,4 +292,5 @@ def _clipsurface_textured_caps():
                                                  "textures": names}],
                                    **caps},
                        maps=maps, geometry=False,
+                       ids=_clip_ids(draws, [clip], caps.get("subdivision", 1)),
                        may=_clip_decision_may(draws, camera, clip, fb.cap_mask))
