@@ -292,3 +292,21 @@ def test_command_names_pixel_value_and_allowed_interval(gold, tmp_path):
             if f"{scene}/prim_id: face" in x][0]
     pairs = ", ".join(f"(0, {int(f)})" for f in a2["set_face"][e])
     assert f"one of {{{pairs}}}" in line, line
+
+
+def test_report_states_the_face_allowance(gold, tmp_path):
+    """The HTML report's read-out names what the face check admits where the visible primitive
+    may differ: the set of faces for ids (embedded with the crop of the failing buffer)."""
+    from refraster.golden.compare import compare
+    scene = "render_cube"
+    a, b, r, c, e = _set_pixel(gold, scene)
+    b["prim_id"][r, c] = [f for f in range(12) if f not in a["set_face"][e]][0]
+    (tmp_path / "c" / scene).mkdir(parents=True)
+    np.savez(tmp_path / "c" / scene / "buffers.npz", **b)
+    result = compare(gold, tmp_path / "c", mode="tolerant", scenes=[scene],
+                     report=tmp_path / "report")
+    assert result.exit_code == 1
+    page = (tmp_path / "report" / "index.html").read_text()
+    pairs = ", ".join(f"(0, {int(f)})" for f in a["set_face"][e])
+    assert f"(object_id, prim_id) one of {{{pairs}}}" in page
+    assert "face check (the visible primitive may differ here)" in page

@@ -540,29 +540,35 @@ def _allowed_at(key, spec, arrays, outside, r, c, named, step):
             said.append(f"angle to the golden's normal <= {float(arrays[spec['angle']][r, c]):.4g}"
                         " rad")
         elif name == "face":
-            w = arrays["id_may"].shape[1]
-            k = r * w + c
-            lo, hi = int(arrays["set_offsets"][k]), int(arrays["set_offsets"][k + 1])
-            draws = arrays["draw_offsets"].astype(np.int64)
-            faces = arrays["set_face"][lo:hi].astype(np.int64)
-            obj = np.searchsorted(draws[1:], faces, side="right")
-            pairs = ", ".join(f"({int(o)}, {int(f - draws[o])})" for o, f in zip(obj, faces))
-            e = -1 if named is None else int(named[r, c])
-            if key in ("prim_id", "object_id"):
-                said.append(f"face: (object_id, prim_id) one of {{{pairs}}}")
-            elif e < 0:
-                said.append(f"face: the envelope of the faces {{{pairs}}}")
-            elif key == "front_facing":
-                said.append(f"face: front_facing {bool(arrays['set_facing'][e] == 1)} (the named "
-                            "face's)")
-            elif key == "normal":
-                said.append(f"face: within {float(arrays['set_normal_angle'][e]):.4g} rad of "
-                            f"{_fmt(arrays['set_normal'][e])} (the named face's)")
-            else:
-                lo_n, hi_n = SET_INTERVALS[key]
-                said.append(f"face: [{_fmt(arrays[lo_n][e] - step)}, "
-                            f"{_fmt(arrays[hi_n][e] + step)}] (the named face's)")
+            said.append("face: " + face_allowed(key, arrays, r, c, named, step))
     return "; ".join(said) or None
+
+
+def face_allowed(key, arrays, r, c, named, step=0.0):
+    """What the face check admits at pixel (r, c) of buffer ``key``, in words: the set of faces
+    (object_id, prim_id) that may win there, or the interval / normal / facing of the face the
+    candidate names (the envelope of the set without ids)."""
+    w = arrays["id_may"].shape[1]
+    k = r * w + c
+    lo, hi = int(arrays["set_offsets"][k]), int(arrays["set_offsets"][k + 1])
+    draws = arrays["draw_offsets"].astype(np.int64)
+    faces = arrays["set_face"][lo:hi].astype(np.int64)
+    obj = np.searchsorted(draws[1:], faces, side="right")
+    pairs = ", ".join(f"({int(o)}, {int(f - draws[o])})" for o, f in zip(obj, faces))
+    e = -1 if named is None else int(named[r, c])
+    if key in ("prim_id", "object_id"):
+        return f"(object_id, prim_id) one of {{{pairs}}}"
+    if e < 0:
+        return f"the envelope of the faces {{{pairs}}}"
+    if key == "front_facing":
+        f = int(arrays["set_facing"][e])
+        return "any (a sliver may flip)" if f < 0 else f"front_facing {bool(f)} (the named face's)"
+    if key == "normal":
+        return (f"within {float(arrays['set_normal_angle'][e]):.4g} rad of "
+                f"{_fmt(arrays['set_normal'][e])} (the named face's)")
+    lo_n, hi_n = SET_INTERVALS[key]
+    return (f"[{_fmt(arrays[lo_n][e] - step)}, {_fmt(arrays[hi_n][e] + step)}] "
+            "(the named face's)")
 
 
 def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_depth=1.0,

@@ -384,6 +384,8 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
                 tol = {**tol, "tolerant": spec["tolerant"]}
                 allowance = buffer_allowance(spec["tolerant"], allow, step=step,
                                              clear_depth=clear)
+                if "face" in spec["tolerant"]["checks"]:
+                    allowance.update(sets=allow, named=named)
             else:
                 metrics, checks, images = buffer_metrics(ref[key], a, spec["kind"], tol,
                                                          step=step)

@@ -190,6 +190,8 @@ _SCRIPT = r"""
             "[" + num(l - m.step, m.step ? "f8" : "f4") + ", " +
             num(hi[k] + m.step, m.step ? "f8" : "f4") + "]")));
         }
+      } else if (ch === "face" && m.face && m.face[i]) {
+        out.push("face check (the visible primitive may differ here): " + m.face[i]);
       } else if (ch === "angle") {
         if (free) { out.push("angle: not checked (the visible primitive may differ here)"); }
         else {
@@ -426,6 +428,12 @@ def _crop_data(b, box, bad):
                 arrays[key] = np.asarray(al[key])[sl]
         if "angle" in al:
             arrays["angle_value"] = _angle(ref, cand)
+        if "sets" in al:   # where the id may differ: what the face check admits, in words
+            from .allowance import face_allowed
+            may = np.asarray(al["id_may"])
+            meta["face"] = [face_allowed(b.name, al["sets"], r, c, al["named"], al["step"])
+                            if may[r, c] else None
+                            for r in range(r0, r1) for c in range(c0, c1)]
     else:
         meta.update(mode="profile", checks=[])
     if al is None or "masked" in al["checks"]:
