@@ -40,6 +40,7 @@ arguments or a mutant whose ``old`` snippet does not occur exactly once.
 from __future__ import annotations
 
 import argparse
+import ast
 import concurrent.futures as cf
 import datetime as _dt
 import os
@@ -49,6 +50,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -95,23 +97,126 @@ def first_failure(out: str):
     return None
 
 
-def run_one(m: Mutant, timeout: float, keep: bool = False):
-    tmp = Path(tempfile.mkdtemp(prefix=f"mut-{m.name}-"))
+def _module_files(root: Path):
+    """Dotted module name → file, for the package and the tests."""
+    out = {}
+    for top in ("refraster", "tests"):
+        for f in (root / top).rglob("*.py"):
+            rel = f.relative_to(root).with_suffix("")
+            parts = list(rel.parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            out[".".join(parts)] = f.relative_to(root).as_posix()
+    return out
+
+
+def import_graph(root: Path = ROOT):
+    """file → set of files it imports (the package's and the tests' own modules only)."""
+    mods = _module_files(root)
+    graph = {}
+    for name, file in mods.items():
+        pkg = name if file.endswith("__init__.py") else name.rpartition(".")[0]
+        deps = set()
+        tree = ast.parse((root / file).read_text())
+        for node in ast.walk(tree):
+            targets = []
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = pkg.split(".")[:len(pkg.split(".")) - (node.level - 1)]
+                    base = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    base = node.module or ""
+                targets = [base] + [f"{base}.{a.name}" for a in node.names]
+            for t in targets:
+                if t in mods:
+                    deps.add(mods[t])
+        graph[file] = deps
+    return graph
+
+
+def affected(files, graph):
+    """The files that import (directly or through others) any of ``files``, and those files:
+    their cached Numba kernels may have inlined a mutated one."""
+    out = set(files)
+    changed = True
+    while changed:
+        changed = False
+        for f, deps in graph.items():
+            if f not in out and deps & out:
+                out.add(f)
+                changed = True
+    return out
+
+
+def invalidate(cache: Path, files):
+    """Delete the Numba cache entries of ``files`` (``<dir>_<hash>/<stem>.<function>…``)."""
+    n = 0
+    for f in files:
+        p = Path(f)
+        for d in cache.glob(f"{p.parent.name}_" + "?" * 40):
+            for e in d.glob(f"{p.stem}.*"):
+                e.unlink()
+                n += 1
+    return n
+
+
+def _copy_repo(dst: Path):
+    if dst.exists():
+        shutil.rmtree(dst)
+    shutil.copytree(ROOT, dst, ignore=IGNORE)   # copy2: modification times kept
+
+
+def _pytest(copy: Path, cache: Path, tests, timeout):
+    env = dict(os.environ, PYTHONPATH=str(copy), NUMBA_CACHE_DIR=str(cache),
+               PYTHONDONTWRITEBYTECODE="1")
+    cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests]
+    return subprocess.run(cmd, cwd=copy, env=env, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+class Slot:
+    """One worker's fixed copy path and its warm Numba cache. Numba keys its cache by the
+    source file's path and time stamp, so a copy made at the same path with the same time
+    stamps reuses the compiled kernels; the mutated files and every file importing them
+    (which may have inlined a mutated kernel) have their entries deleted first."""
+
+    def __init__(self, base: Path, index: int, cold: bool):
+        self.dir = base / f"slot{index}"
+        self.repo = self.dir / "repo"
+        self.warm = None if cold else self.dir / "warm-cache"
+
+    def warm_up(self, tests, timeout):
+        _copy_repo(self.repo)
+        if self.warm is None:
+            return None
+        try:
+            proc = _pytest(self.repo, self.warm, tests, timeout)
+        except subprocess.TimeoutExpired:
+            return f"the unmutated tests timed out after {timeout:.0f} s"
+        if proc.returncode != 0:
+            out = (proc.stdout + proc.stderr).strip().splitlines()
+            return "the unmutated tests fail:\n    " + "\n    ".join(out[-15:])
+        return None
+
+
+def run_one(m: Mutant, timeout: float, slot: Slot, graph):
     t0 = time.monotonic()
+    cache = slot.dir / f"cache-{m.name}"
     try:
-        copy = tmp / "repo"
-        shutil.copytree(ROOT, copy, ignore=IGNORE)
+        _copy_repo(slot.repo)
+        copy = slot.repo
         for file, old, new in edits(m):
             path = copy / file
             text = path.read_text()
             assert text.count(old) == 1, (m.name, file)
             path.write_text(text.replace(old, new, 1))
-        env = dict(os.environ, PYTHONPATH=str(copy), NUMBA_CACHE_DIR=str(tmp / "numba-cache"),
-                   PYTHONDONTWRITEBYTECODE="1")
-        cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *m.tests]
+        if slot.warm is not None:
+            shutil.copytree(slot.warm, cache)
+            invalidate(cache, affected({f for f, _, _ in edits(m)}, graph))
         try:
-            proc = subprocess.run(cmd, cwd=copy, env=env, capture_output=True, text=True,
-                                  timeout=timeout)
+            proc = _pytest(copy, cache, m.tests, timeout)
         except subprocess.TimeoutExpired:
             return dict(status="error", detail=f"timeout after {timeout:.0f} s",
                         seconds=time.monotonic() - t0)
@@ -123,8 +228,8 @@ def run_one(m: Mutant, timeout: float, keep: bool = False):
         if proc.returncode == 1 and failed:
             # The first failure's own traceback: a build error there is not a kill.
             section = out.split("= FAILURES =", 1)[-1].split("short test summary", 1)[0]
-            if BUILD_ERRORS.search(section) or BUILD_ERRORS.search(out.split("= FAILURES =")[0]):
-                hit = BUILD_ERRORS.search(section) or BUILD_ERRORS.search(out)
+            hit = BUILD_ERRORS.search(section)
+            if hit:
                 return dict(status="error", detail=f"{hit.group(0)} in {failed}", seconds=secs,
                             log=out)
             return dict(status="killed", detail=failed, seconds=secs)
@@ -132,8 +237,7 @@ def run_one(m: Mutant, timeout: float, keep: bool = False):
         return dict(status="error", detail=f"pytest exit {proc.returncode}: {tail}",
                     seconds=secs, log=out)
     finally:
-        if not keep:
-            shutil.rmtree(tmp, ignore_errors=True)
+        shutil.rmtree(cache, ignore_errors=True)
 
 
 def where(m: Mutant):
@@ -162,7 +266,9 @@ def main(argv=None):
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds per mutant")
     ap.add_argument("--list", action="store_true", help="list the mutants and exit")
     ap.add_argument("--out", help="also write the Markdown table to this file")
-    ap.add_argument("--keep", action="store_true", help="keep the temporary copies")
+    ap.add_argument("--cold", action="store_true",
+                    help="compile every mutant's kernels from scratch (no warm Numba cache)")
+    ap.add_argument("--workdir", help="directory for the copies (default: a new temporary one)")
     args = ap.parse_args(argv)
     if args.jobs < 1:
         print("error: --jobs must be at least 1", file=sys.stderr)
@@ -191,26 +297,57 @@ def main(argv=None):
         return 0
 
     started = _dt.datetime.now(_dt.timezone.utc)
-    print(f"{len(selected)} mutants, {args.jobs} at a time", file=sys.stderr)
-    results = {}
-    with cf.ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        futs = {pool.submit(run_one, m, args.timeout, args.keep): m for m in selected}
-        for fut in cf.as_completed(futs):
-            m = futs[fut]
-            r = fut.result()
-            results[m.name] = r
-            print(f"  {m.name}: {r['status']} {r['detail']} ({r['seconds']:.0f} s)",
+    base = Path(args.workdir or tempfile.mkdtemp(prefix="refraster-mutation-"))
+    base.mkdir(parents=True, exist_ok=True)
+    graph = import_graph()
+    slots = [Slot(base, i, args.cold) for i in range(args.jobs)]
+    tests = list(dict.fromkeys(t for m in selected for t in m.tests))
+    print(f"{len(selected)} mutants, {args.jobs} at a time, copies in {base}", file=sys.stderr)
+    try:
+        if not args.cold:
+            print(f"warming the Numba cache: the unmutated {len(tests)} test files",
                   file=sys.stderr, flush=True)
-            if r["status"] == "error" and r.get("log"):
-                print("    " + "\n    ".join(r["log"].strip().splitlines()[-15:]),
-                      file=sys.stderr)
+        with cf.ThreadPoolExecutor(max_workers=args.jobs) as pool:
+            for err in pool.map(lambda s: s.warm_up(tests, args.timeout * 4), slots):
+                if err:
+                    print(f"error: {err}", file=sys.stderr)
+                    return 2
+        warm_s = (_dt.datetime.now(_dt.timezone.utc) - started).total_seconds()
+        free = list(slots)
+        lock = threading.Lock()
+
+        def work(m):
+            with lock:
+                slot = free.pop()
+            try:
+                return run_one(m, args.timeout, slot, graph)
+            finally:
+                with lock:
+                    free.append(slot)
+
+        results = {}
+        with cf.ThreadPoolExecutor(max_workers=args.jobs) as pool:
+            futs = {pool.submit(work, m): m for m in selected}
+            for fut in cf.as_completed(futs):
+                m = futs[fut]
+                r = fut.result()
+                results[m.name] = r
+                print(f"  {m.name}: {r['status']} {r['detail']} ({r['seconds']:.0f} s)",
+                      file=sys.stderr, flush=True)
+                if r["status"] == "error" and r.get("log"):
+                    print("    " + "\n    ".join(r["log"].strip().splitlines()[-15:]),
+                          file=sys.stderr)
+    finally:
+        if not args.workdir:
+            shutil.rmtree(base, ignore_errors=True)
     rows = [(m, results[m.name]) for m in selected]
     elapsed = (_dt.datetime.now(_dt.timezone.utc) - started).total_seconds()
     counts = {s: sum(r["status"] == s for _, r in rows) for s in ("killed", "survived", "error")}
     head = (f"Run {started:%Y-%m-%d %H:%M} UTC on {platform.node()} ({platform.machine()}, "
             f"{os.cpu_count()} cores, Python {platform.python_version()}), --jobs {args.jobs}: "
             f"{len(rows)} mutants, {counts['killed']} killed, {counts['survived']} survived, "
-            f"{counts['error']} errors, {elapsed / 60:.1f} min.")
+            f"{counts['error']} errors, {elapsed / 60:.1f} min "
+            f"({'cold caches' if args.cold else f'{warm_s / 60:.1f} min of it warming the cache'}).")
     text = head + "\n\n" + table(rows) + "\n"
     print(text)
     if args.out:
