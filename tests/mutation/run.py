@@ -4,8 +4,9 @@ Each mutant of :mod:`tests.mutation.mutants` is one single-point bug, the kind a
 refactor or a GPU port makes (``<=`` → ``<``, ``rint`` → ``floor``, a transposed kernel, a
 halved constant, a tie broken the other way), applied to a kernel **and** to its NumPy or
 brute-force twin when one exists, as happens when a formula is misread rather than mistyped.
-The runner copies the repository to a temporary directory (the worktree is never modified),
-applies one mutant there, runs ``python -m pytest -x -q <tests>`` in the copy with a timeout,
+The runner takes a snapshot of the repository when it starts, copies it to a temporary directory
+for each mutant (the worktree is never modified, and edits made during a run do not leak into
+it), applies one mutant there, runs ``python -m pytest -x -q <tests>`` in the copy with a timeout,
 and records:
 
 - **killed**: pytest reported a failing test (the first failing test id is kept);
@@ -22,9 +23,16 @@ Why a curated runner rather than a general tool such as mutmut:
 - most of the code is Numba kernels: mutmut's blind operator and constant swaps would mostly
   make them fail to type-check (an error, not a kill) or be equivalent (``+ 0`` → ``- 0``),
   and the ones it keeps would be drowned among thousands of uninteresting mutants;
-- each copy compiles its kernels afresh (its own ``NUMBA_CACHE_DIR``), so a mutant costs tens
-  of seconds; a list of a few dozen chosen mutants, each with the test files of its module,
-  runs in minutes, and a one-per-module subset (``--fast``) is short enough for CI.
+- each copy has its own ``NUMBA_CACHE_DIR``; compiling the kernels afresh costs minutes per
+  mutant on a busy machine, so a list of a few dozen chosen mutants (each with the test files of
+  its module) is what fits in a run, and a one-per-module subset (``--fast``) fits in CI.
+
+The Numba cache: the run first passes the unmutated tests (a mutant "killed" by a test that
+fails anyway would mean nothing) in a copy at a fixed path per worker, which fills a warm cache.
+Each mutant is copied to that same path with the same time stamps and gets a copy of the warm
+cache from which the entries of the mutated files **and of every file importing them** (directly
+or not; a cached kernel may have inlined a mutated one, and Numba only checks the time stamp of
+the caller's own file) are deleted. ``--cold`` compiles everything afresh instead.
 
 Usage::
 
@@ -162,10 +170,13 @@ def invalidate(cache: Path, files):
     return n
 
 
+SOURCE = ROOT   # main() points this at a snapshot taken when the run starts
+
+
 def _copy_repo(dst: Path):
     if dst.exists():
         shutil.rmtree(dst)
-    shutil.copytree(ROOT, dst, ignore=IGNORE)   # copy2: modification times kept
+    shutil.copytree(SOURCE, dst, ignore=IGNORE)   # copy2: modification times kept
 
 
 def _pytest(copy: Path, cache: Path, tests, timeout):
@@ -299,7 +310,13 @@ def main(argv=None):
     started = _dt.datetime.now(_dt.timezone.utc)
     base = Path(args.workdir or tempfile.mkdtemp(prefix="refraster-mutation-"))
     base.mkdir(parents=True, exist_ok=True)
-    graph = import_graph()
+    # one snapshot of the tree for the whole run: edits made meanwhile do not leak into it
+    global SOURCE
+    SOURCE = base / "source"
+    if SOURCE.exists():
+        shutil.rmtree(SOURCE)
+    shutil.copytree(ROOT, SOURCE, ignore=IGNORE)
+    graph = import_graph(SOURCE)
     slots = [Slot(base, i, args.cold) for i in range(args.jobs)]
     tests = list(dict.fromkeys(t for m in selected for t in m.tests))
     print(f"{len(selected)} mutants, {args.jobs} at a time, copies in {base}", file=sys.stderr)
