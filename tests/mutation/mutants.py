@@ -21,7 +21,8 @@ CLIP_ALL = CLIP + ["tests/test_clipsurface_render.py"]
 OFFSET = ["tests/test_offsetmaps.py"]
 EDGES = ["tests/test_edges.py"]
 NPR = ["tests/test_npr.py"]
-CUT = ["tests/test_cutaway.py", "tests/test_cutaway_render.py"]
+HAND = ["tests/test_hand_worked.py"]
+CUT = ["tests/test_cutaway.py", "tests/test_cutaway_render.py"] + HAND
 H4 = ["tests/test_halos4d_geometry.py", "tests/test_halos4d_render.py",
       "tests/test_halos4d_defaults.py", "tests/test_halos4d_options.py"]
 GOLD = ["tests/test_golden.py", "tests/test_golden_tolerant.py"]
@@ -160,11 +161,11 @@ MUTANTS = [
            "    wx = a * params[k, 3] + b * params[k, 4] + c * params[k, 5]\n"
            "    wy = a * params[k, 6] + b * params[k, 7] + c * params[k, 8]\n"
            "    wz = a * params[k, 9] + b * params[k, 10] + c * params[k, 11]",
-           ["tests/test_clipsurface_render.py", "tests/test_clipsurface_fused.py"], fast=True),
+           ["tests/test_clipsurface_render.py", "tests/test_clipsurface_fused.py"] + HAND, fast=True),
     Mutant("cap_shade_no_abs", "capping", "cap shade uses n·v without the absolute value",
            "refraster/capping.py", "ndv = abs(ex * px + ey * py + ez * pz) / vl",
            "ndv = (ex * px + ey * py + ez * pz) / vl",
-           ["tests/test_clipsurface_render.py", "tests/test_clipsurface_fused.py"]),
+           ["tests/test_clipsurface_render.py", "tests/test_clipsurface_fused.py"] + HAND),
     Mutant("diag_depth_no_half", "edges", "diagonal depth operator without the ½ on the "
            "differences (kernel and twin)", EDGE,
            "    a = 1.0 - 0.5 * abs(d_ah)\n    b = 1.0 - 0.5 * abs(d_cf)",

@@ -1,0 +1,110 @@
+"""Hand-worked cases that kill the mutants the rest of the suite let through (issue 30).
+
+Each expected value here is derived by hand from the paper's definition or from MATH.md, not
+from the implementation or a twin of it; docs/testing.md lists which mutant each test kills.
+"""
+
+import numpy as np
+import pytest
+
+import refraster as rr
+from refraster import offsetmaps
+from refraster.capping import light_caps
+from refraster.clipsurface import ClipSurface
+from refraster.cutaway.flood import exact, jump_flood, step_schedule
+
+# ------------------------------------------------------------------ jump flooding (MATH.md D-C5)
+
+
+@pytest.mark.parametrize("h, w, expected", [
+    (100, 60, [64, 32, 16, 8, 4, 2, 1]),   # n = 128: the first jump is n/2
+    (64, 64, [32, 16, 8, 4, 2, 1]),        # n = 64 exactly
+    (65, 3, [64, 32, 16, 8, 4, 2, 1]),
+    (2, 1, [1]),
+])
+def test_jump_schedule_is_half_the_next_power_of_two_down_to_one(h, w, expected):
+    """Rong & Tan's schedule: n/2, n/4, …, 1 with n the next power of two ≥ max(H, W)."""
+    assert step_schedule(h, w, "jfa") == expected
+    assert step_schedule(h, w, "jfa+1") == expected + [1]
+    assert step_schedule(h, w, "jfa+2") == expected + [2, 1]
+    assert step_schedule(h, w, "1+jfa") == [1] + expected
+
+
+def test_far_seed_reached_only_through_the_longest_jump():
+    """One seed in the corner of a 1×64 strip, slope 0: D = z everywhere. The jumps 32, 16, …, 1
+    reach every pixel; starting at 16 the far end (63 = 32 + 16 + 8 + 4 + 2 + 1 from 0, more
+    than 16 + 8 + 4 + 2 + 1 = 31) stays without a seed."""
+    z = np.full((1, 64), -np.inf)
+    z[0, 0] = 0.25
+    d, seeds = jump_flood(z, 0.0, return_seeds=True)
+    assert np.all(d == 0.25)
+    assert np.all(seeds[0, :, 1] == 0)
+
+
+@pytest.mark.parametrize("method", ["jump_flood", "exact"])
+def test_equidistant_seeds_tie_to_the_smaller_index(method):
+    """Two seeds of equal depth and slope at (2, 0) and (2, 4) of a 5×5 image: the middle
+    column is equidistant from both, so C is equal and the documented tie rule (the smaller
+    row-major index) picks (2, 0) there; elsewhere the nearer seed wins."""
+    z = np.full((5, 5), -np.inf)
+    z[2, 0] = z[2, 4] = 0.0
+    f = jump_flood if method == "jump_flood" else exact
+    d, seeds = f(z, 1.0, return_seeds=True)
+    assert np.all(seeds[:, 2] == [2, 0])
+    assert np.all(seeds[:, :2] == [2, 0]) and np.all(seeds[:, 3:] == [2, 4])
+    # C at the tie: z − m·‖x − s‖ with ‖(r, 2) − (2, 0)‖ = hypot(r − 2, 2)
+    np.testing.assert_allclose(d[:, 2], -np.hypot(np.arange(5) - 2, 2.0), rtol=0, atol=0)
+
+
+@pytest.mark.parametrize("method", ["jump_flood", "exact"])
+def test_floor_constraint_applies_below_the_seed(method):
+    """D-C7 by hand: the floor slope m_f applies toward the floor side, i.e. against the
+    projected floor normal n̂ (a screen direction, y up). One seed at the centre of a 7×7 image,
+    z = 0, m_e = 1, m_f = 0, n̂ = (0, 1) (up): a = −(d_screen · n̂)/‖d‖. Three rows *below* the
+    seed (screen direction (0, −1)) a = 1, m = m_f = 0, so D = 0; three rows above a = −1 < 0,
+    m = m_e, D = −3; three columns right a = 0, D = −3; diagonal below-right a = 1/√2,
+    m = (1 − a)·1, D = −(1 − 1/√2)·3√2 = −(3√2 − 3)."""
+    z = np.full((7, 7), -np.inf)
+    z[3, 3] = 0.0
+    floor_slope = np.zeros((7, 7))
+    normal = np.zeros((7, 7, 2))
+    normal[..., 1] = 1.0
+    f = jump_flood if method == "jump_flood" else exact
+    d = f(z, 1.0, floor_slope=floor_slope, floor_normal=normal)
+    assert d[6, 3] == 0.0          # below
+    assert d[0, 3] == -3.0         # above
+    assert d[3, 6] == -3.0 and d[3, 0] == -3.0
+    assert d[6, 6] == pytest.approx(-(3.0 * np.sqrt(2.0) - 3.0), abs=1e-12)
+    assert d[0, 0] == pytest.approx(-3.0 * np.sqrt(2.0), abs=1e-12)
+
+
+# ------------------------------------------------------------------ cap lighting (Sec. 4.2)
+
+def _plane_x0():
+    """The plane x = 0 with Û = +y, V̂ = +z, so N = Û × V̂ = +x, and a flat (constant) offset
+    map."""
+    return ClipSurface((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0),
+                       offset_map=offsetmaps.constant((8, 8), 0.5))
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_cap_normal_and_shade_of_a_flat_cap_face_on(side):
+    """A flat cap seen face on, from either side. Its normal is oriented towards −N, the side
+    from which the cut is seen (MATH.md §1.2b: a flat map gives (0, 0, −1) in (Û, V̂, N)), so
+    in world space it is −x; a camera at (3·side, 0, 0) looking at the origin sees it as
+    (0, 0, −side) in eye space (eye space looks down −Z), and the shade
+    occlusion·(0.25 + 0.75·|n·v|) is 1 (no occlusion on a flat map, |n·v| = 1 from both
+    sides)."""
+    view = rr.look_at((3.0 * side, 0.0, 0.0), (0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0))
+    normal, shade = light_caps(np.zeros((1, 3)), np.zeros(1, np.int64), [_plane_x0()], view=view)
+    np.testing.assert_allclose(normal[0], [0.0, 0.0, -side], atol=1e-12)
+    assert shade[0] == pytest.approx(1.0, abs=1e-12)
+
+
+def test_cap_shade_at_grazing_angle():
+    """From (1, 0, 1)·3/√2 the view direction makes 45° with N = +x: |n·v| = 1/√2 and the shade
+    is 0.25 + 0.75/√2."""
+    eye = np.array([1.0, 0.0, 1.0]) * 3.0 / np.sqrt(2.0)
+    view = rr.look_at(eye, (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0))
+    _, shade = light_caps(np.zeros((1, 3)), np.zeros(1, np.int64), [_plane_x0()], view=view)
+    assert shade[0] == pytest.approx(0.25 + 0.75 / np.sqrt(2.0), abs=1e-12)
