@@ -108,3 +108,28 @@ def test_cap_shade_at_grazing_angle():
     view = rr.look_at(eye, (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0))
     _, shade = light_caps(np.zeros((1, 3)), np.zeros(1, np.int64), [_plane_x0()], view=view)
     assert shade[0] == pytest.approx(0.25 + 0.75 / np.sqrt(2.0), abs=1e-12)
+
+
+# ------------------------------------------------------------------ 4D halos: slice opacity
+
+def test_slice_alpha_accumulates_to_the_opacity_across_the_core():
+    """The core |2t − 1| < w_s spans w_s of t ∈ [0, 1], i.e. 2·w_s·ρ of the 2ρ-thick halo. With
+    slices Δz apart, n = 2·w_s·ρ/Δz slices cross it and 1 − (1 − α)^n must equal the opacity:
+    one slice per core thickness gives α = opacity, two give α = 1 − √(1 − opacity)."""
+    from refraster.halos4d.render import slice_alpha
+    rho, ws = 0.1, 0.3
+    assert slice_alpha(0.5, 2 * ws * rho, rho, ws) == pytest.approx(0.5, abs=1e-15)
+    assert slice_alpha(0.5, ws * rho, rho, ws) == pytest.approx(1 - np.sqrt(0.5), abs=1e-15)
+    assert slice_alpha(1.0, ws * rho, rho, ws) == 1.0
+
+
+# ------------------------------------------------------------------ golden allowances
+
+def test_surface_step_ignores_steps_across_surfaces():
+    """surface_step is the largest change to a 4-neighbour *on the same surface*: a jump of 10
+    between two surfaces is a silhouette, not a slope, and must not widen the allowance."""
+    from refraster.golden.allowance import surface_step
+    values = np.array([[0.0, 10.0, 11.0]])
+    assert surface_step(values, np.array([[0, 1, 1]])).tolist() == [[0.0, 1.0, 1.0]]
+    assert surface_step(values, np.array([[0, 0, 0]])).tolist() == [[10.0, 10.0, 1.0]]
+    assert surface_step(values, np.array([[-1, 1, 1]])).tolist() == [[0.0, 1.0, 1.0]]

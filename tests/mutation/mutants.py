@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+HAND = ["tests/test_hand_worked.py"]
 RASTER = ["tests/test_raster.py"]
 LDI = ["tests/test_ldi.py"]
 CLIP = ["tests/test_clipsurface.py", "tests/test_clipsurface_fused.py"]
@@ -21,11 +22,10 @@ CLIP_ALL = CLIP + ["tests/test_clipsurface_render.py"]
 OFFSET = ["tests/test_offsetmaps.py"]
 EDGES = ["tests/test_edges.py"]
 NPR = ["tests/test_npr.py"]
-HAND = ["tests/test_hand_worked.py"]
 CUT = ["tests/test_cutaway.py", "tests/test_cutaway_render.py"] + HAND
 H4 = ["tests/test_halos4d_geometry.py", "tests/test_halos4d_render.py",
-      "tests/test_halos4d_defaults.py", "tests/test_halos4d_options.py"]
-GOLD = ["tests/test_golden.py", "tests/test_golden_tolerant.py"]
+      "tests/test_halos4d_defaults.py", "tests/test_halos4d_options.py"] + HAND
+GOLD = ["tests/test_golden.py", "tests/test_golden_tolerant.py"] + HAND
 
 PRIM = "refraster/raster/primitive.py"
 RAST = "refraster/raster/rasterizer.py"
