@@ -133,3 +133,23 @@ def test_surface_step_ignores_steps_across_surfaces():
     assert surface_step(values, np.array([[0, 1, 1]])).tolist() == [[0.0, 1.0, 1.0]]
     assert surface_step(values, np.array([[0, 0, 0]])).tolist() == [[10.0, 10.0, 1.0]]
     assert surface_step(values, np.array([[-1, 1, 1]])).tolist() == [[0.0, 1.0, 1.0]]
+
+
+# ------------------------------------------------------------------ raster: vertex snapping
+
+def test_vertex_snapping_rounds_to_the_nearest_subpixel():
+    """docs/architecture.md: X = rint((x_w − ½)·2^bits). On an 8×8 viewport (x_w = 4·x_ndc + 4,
+    w = 1, all values dyadic, so float32 is exact): x_ndc = −509/4096 gives x_w = 3.5 + 0.75/256,
+    X = rint(768.75) = 769; x_ndc = −0.875 − 1.25/1024 gives x_w = 0.5 − 1.25/256, X = rint(−1.25)
+    = −1; y_ndc = 0.25/1024 gives y_w = 4 + 0.25/256, Y = rint(896.25) = 896. Truncating or
+    flooring (768, −2, 896) moves the vertex by up to a whole sub-pixel step, always the same
+    way."""
+    from refraster.raster.primitive import setup_triangles
+    clip = np.array([[-509 / 4096, 0.25 / 1024, 0.0, 1.0],
+                     [-0.875 - 1.25 / 1024, 0.5, 0.0, 1.0],
+                     [0.5, -0.5, 0.0, 1.0]])
+    p = setup_triangles(clip, np.array([[0, 1, 2]]), 8, 8)
+    assert p.vx[:2].tolist() == [769, -1]
+    assert p.vy[0] == 896
+    # x_w = 6, y_w = 2: exactly on pixel-centre multiples
+    assert (p.vx[2], p.vy[2]) == ((6 * 256) - 128, (2 * 256) - 128)

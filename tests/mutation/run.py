@@ -50,6 +50,7 @@ from __future__ import annotations
 import argparse
 import ast
 import concurrent.futures as cf
+import dataclasses
 import datetime as _dt
 import os
 import platform
@@ -92,7 +93,7 @@ def check(m: Mutant, root: Path = ROOT):
             bad.append(f"{m.name}: the snippet {old!r} occurs {n} times in {file} (must be once)")
         if old == new:
             bad.append(f"{m.name}: the replacement of {old!r} in {file} is the same text")
-    for t in m.tests:
+    for t in list(m.tests) + list(m.ci):
         if not (root / t.split("::")[0]).is_file():
             bad.append(f"{m.name}: no test file {t.split('::')[0]}")
     return bad
@@ -275,6 +276,9 @@ def main(argv=None):
     ap.add_argument("--fast", action="store_true", help="one mutant per module (the CI subset)")
     ap.add_argument("--jobs", type=int, default=1, help="mutants run at once (default 1)")
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds per mutant")
+    ap.add_argument("--tests", nargs="+", metavar="TEST",
+                    help="run these test files or node ids instead of each mutant's own (to "
+                         "show that a new test kills a survivor)")
     ap.add_argument("--list", action="store_true", help="list the mutants and exit")
     ap.add_argument("--out", help="also write the Markdown table to this file")
     ap.add_argument("--cold", action="store_true",
@@ -295,9 +299,13 @@ def main(argv=None):
         print(f"error: --only: no mutant named {', '.join(unknown)}", file=sys.stderr)
         return 2
     selected = [m for m in MUTANTS if (not only or m.name in only) and (not args.fast or m.fast)]
+    if args.fast:   # the CI subset runs each mutant's killing tests only
+        selected = [dataclasses.replace(m, tests=m.ci or m.tests) for m in selected]
     if not selected:
         print("error: no mutant selected", file=sys.stderr)
         return 2
+    if args.tests:
+        selected = [dataclasses.replace(m, tests=list(args.tests)) for m in selected]
     bad = [b for m in selected for b in check(m)]
     if bad:
         print("error: refusing to run:\n  " + "\n  ".join(bad), file=sys.stderr)
