@@ -153,3 +153,42 @@ def test_vertex_snapping_rounds_to_the_nearest_subpixel():
     assert p.vy[0] == 896
     # x_w = 6, y_w = 2: exactly on pixel-centre multiples
     assert (p.vx[2], p.vy[2]) == ((6 * 256) - 128, (2 * 256) - 128)
+
+
+# ------------------------------------------------------------------ raster: clipping
+
+def test_clipped_vertex_exactly_on_a_later_plane_is_kept():
+    """Sutherland–Hodgman keeps a vertex lying exactly on the plane (d = 0 is inside). Worked by
+    hand on an 8×8 viewport, w = 1 everywhere (so clip space is NDC and the triangle is affine),
+    guard band G = 2·2^20/8 = 2^18 NDC units: A = (2G + 0.875, 0, −2) is outside the near plane
+    and the right guard plane; B = (−0.875, 0, 0) and C = (−1, G/2, 0) are inside. The near
+    plane cuts AB at its midpoint P = (G, 0, −1), which lies exactly on the right guard plane
+    (x = G), and CA at Q = (G − 1/16, G/4, −1), inside it. After the near plane the polygon is
+    P, B, C, Q, entirely inside the guard plane; dropping P (a `>` test) loses the wedge P, B, Q,
+    which covers most of the viewport's upper right. The expected coverage is the triangle's
+    own: pixel centres with all barycentrics ≥ 0 and z_ndc ≥ −1 (pixels within 0.01 px of an
+    edge are not compared)."""
+    from refraster.raster.primitive import setup_triangles
+    from refraster.raster.rasterizer import fused
+    g = 2.0 ** 18
+    tri = np.array([[2 * g + 0.875, 0.0, -2.0, 1.0], [-0.875, 0.0, 0.0, 1.0],
+                    [-1.0, g / 2, 0.0, 1.0]])
+    _, prim, _, _ = fused(setup_triangles(tri, np.array([[0, 1, 2]]), 8, 8))
+    a, b, c = tri[:, :2]
+    compared = 0
+    for row in range(8):
+        for col in range(8):
+            p = np.array([(col + 0.5) / 4 - 1, 1 - (row + 0.5) / 4])
+            dist = []   # signed distance in pixels to each edge (one sign inside: ABC is CW)
+            for u, v in ((a, b), (b, c), (c, a)):
+                e = v - u
+                dist.append(4 * (e[0] * (p[1] - u[1]) - e[1] * (p[0] - u[0])) / np.hypot(*e))
+            if min(abs(x) for x in dist) < 0.01:
+                continue
+            lam_a = dist[1] / (4 * (((c - b)[0] * (a - b)[1] - (c - b)[1] * (a - b)[0]))
+                               / np.hypot(*(c - b)))
+            inside = max(dist) < 0 and -2.0 * lam_a >= -1.0
+            assert (prim[row, col] == 0) == inside, (row, col)
+            compared += 1
+    assert compared >= 56
+    assert prim[3, 6] == 0 and prim[0, 7] == 0 and prim[7, 7] == -1

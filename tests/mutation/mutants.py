@@ -97,6 +97,12 @@ MUTANTS = [
                   "np.minimum.at(min_d, pix, d + np.maximum(0.0, u - delta_t) * (0.5 * delta_d))"),
                  (THICK, "np.abs(2.0 * tt - 1.0) - delta_t) * delta_d",
                   "np.abs(2.0 * tt - 1.0) - delta_t) * (0.5 * delta_d)")], fast=True),
+    Mutant("eq3_halved_engines", "halos4d", "Eq. 3's drop-off δd halved in both rendering "
+           "engines (fused kernel and NumPy reference), not in halo_depth", HREN,
+           "dn = d + max(0.0, u - delta_t) * delta_d",
+           "dn = d + max(0.0, u - delta_t) * (0.5 * delta_d)", H4,
+           twin=[(HREN, "np.minimum.at(min_d, pix, d + np.maximum(0.0, u - delta_t) * delta_d)",
+                  "np.minimum.at(min_d, pix, d + np.maximum(0.0, u - delta_t) * (0.5 * delta_d))")]),
     Mutant("clip_height_scale_k0", "clipsurface", "g(P) reads surface 0's height scale S_z for "
            "every surface", "refraster/clipsurface.py",
            "+ params[k, 16] * h", "+ params[0, 16] * h", CLIP_ALL, fast=True),
