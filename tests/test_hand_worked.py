@@ -192,3 +192,40 @@ def test_clipped_vertex_exactly_on_a_later_plane_is_kept():
             compared += 1
     assert compared >= 56
     assert prim[3, 6] == 0 and prim[0, 7] == 0 and prim[7, 7] == -1
+
+
+# ------------------------------------------------------------------ offset maps: GL_LINEAR
+
+_ROW = np.array([[0.1, 0.2, 0.3, 0.4]])   # a 1×4 map, in [0, 1]
+
+
+def _at(s, wrap):
+    return offsetmaps.sample(_ROW, np.column_stack([s, np.full(len(s), 0.5)]), wrap=wrap)
+
+
+@pytest.mark.parametrize("wrap, table", [
+    ("repeat", [0, 1, 2, 3, 0, 1, 2, 3]),
+    ("mirrored_repeat", [0, 1, 2, 3, 3, 2, 1, 0]),   # mirrored about the texels' edges
+    ("clamp_to_edge", None),
+])
+def test_texel_centres_return_the_texel_under_each_wrap_mode(wrap, table):
+    """OpenGL 4.6 §8.14.2 and Table 8.20 by hand: at the centre of texel i, s = (i + ½)/W, the
+    filter weight α = frac(s·W − ½) is 0, so GL_LINEAR returns texel wrap(i) exactly; over
+    i = −8 … 11 that is i mod 4 (repeat), the period-8 table 0 1 2 3 3 2 1 0 (mirrored repeat)
+    and min(max(i, 0), 3) (clamp)."""
+    i = np.arange(-8, 12)
+    got = _at((i + 0.5) / 4, wrap)
+    idx = (np.array(table)[i % 8] if table is not None else np.clip(i, 0, 3))
+    np.testing.assert_array_equal(got, _ROW[0, idx])
+
+
+def test_halfway_between_texels_and_across_the_repeat_seam():
+    """At a texel edge, s = i/W, α = ½: the mean of texels i − 1 and i; at s = 0 and s = 1
+    under repeat those are the last and the first texel (the seam wraps, it does not clamp);
+    under clamp_to_edge s = 1 gives the last texel."""
+    np.testing.assert_allclose(_at(np.array([0.25, 0.5, 0.75]), "repeat"), [0.15, 0.25, 0.35],
+                               rtol=0, atol=1e-15)
+    np.testing.assert_allclose(_at(np.array([0.0, 1.0, 2.0]), "repeat"), [0.25, 0.25, 0.25],
+                               rtol=0, atol=1e-15)
+    np.testing.assert_allclose(_at(np.array([1.0, 0.0]), "clamp_to_edge"), [0.4, 0.1],
+                               rtol=0, atol=1e-15)
