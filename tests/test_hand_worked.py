@@ -229,3 +229,21 @@ def test_halfway_between_texels_and_across_the_repeat_seam():
                                rtol=0, atol=1e-15)
     np.testing.assert_allclose(_at(np.array([1.0, 0.0]), "clamp_to_edge"), [0.4, 0.1],
                                rtol=0, atol=1e-15)
+
+
+def test_clipping_an_edge_to_a_vertex_at_1e30_is_exact():
+    """A triangle with one vertex 10^30 away behind the near plane, worked by hand: w = 1
+    everywhere, B = (−½, −½, 0), C = (−½, ½, 0), A = B + s·(1, 0, −1) with s = 10^30. z is
+    affine in x (z = −(x + ½)), so the part in front of the near plane (z ≥ −1) is x ≤ ½: up
+    to a sliver of 10^−30 the visible polygon is the square [−½, ½]², which on an 8×8 viewport
+    covers exactly the pixels whose centres are ±1/8, ±3/8: rows and columns 2 … 5 (no centre
+    is within half a pixel of an edge). Interpolating the new vertices from the 10^30 endpoint
+    instead of the near one leaves them nowhere near x = ½."""
+    from refraster.raster.primitive import setup_triangles
+    from refraster.raster.rasterizer import fused
+    s = 1e30
+    tri = np.array([[-0.5 + s, -0.5, -s, 1.0], [-0.5, -0.5, 0.0, 1.0], [-0.5, 0.5, 0.0, 1.0]])
+    _, prim, _, _ = fused(setup_triangles(tri, np.array([[0, 1, 2]]), 8, 8))
+    expected = np.full((8, 8), -1)
+    expected[2:6, 2:6] = 0
+    np.testing.assert_array_equal(prim, expected)
