@@ -247,3 +247,21 @@ def test_clipping_an_edge_to_a_vertex_at_1e30_is_exact():
     expected = np.full((8, 8), -1)
     expected[2:6, 2:6] = 0
     np.testing.assert_array_equal(prim, expected)
+
+
+# ------------------------------------------------------------------ clip surfaces: g(P) < 0
+
+def test_clip_mask_of_two_surfaces_by_hand():
+    """MATH.md §1.1, clipped ⇔ some enabled surface has g(P) = N·(P − O) + Sz·OM(s, t) < 0,
+    each surface with its own Sz. Surface 0: the plane z = 0 (Û = x, V̂ = y, N = +z), Sz = 0;
+    surface 1: the plane x = 0 (Û = y, V̂ = z, N = +x), Sz = 1, a constant map of ½, so
+    g1 = x + ½. (−¼, 0, 1): g0 = 1, g1 = ¼, kept; (−¾, 0, 1): g1 = −¼, clipped; (0.1, 0, −0.1):
+    g0 = −0.1, clipped; (−½, 0, 1): g1 = 0 exactly, kept (only g < 0 discards)."""
+    from refraster.clipsurface import clip_function, clip_mask
+    half = offsetmaps.constant((4, 4), 0.5)
+    s0 = ClipSurface((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (1.0, 1.0, 0.0), half)
+    s1 = ClipSurface((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (1.0, 1.0, 1.0), half)
+    pts = np.array([[-0.25, 0.0, 1.0], [-0.75, 0.0, 1.0], [0.1, 0.0, -0.1], [-0.5, 0.0, 1.0]])
+    np.testing.assert_allclose(clip_function(pts, s1), pts[:, 0] + 0.5, rtol=0, atol=1e-15)
+    assert clip_mask(pts, [s0, s1]).tolist() == [False, True, True, False]
+    assert clip_mask(pts, [s1, s0]).tolist() == [False, True, True, False]

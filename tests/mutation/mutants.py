@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 HAND = ["tests/test_hand_worked.py"]
 RASTER = ["tests/test_raster.py"] + HAND
 LDI = ["tests/test_ldi.py"]
-CLIP = ["tests/test_clipsurface.py", "tests/test_clipsurface_fused.py"]
+CLIP = ["tests/test_clipsurface.py", "tests/test_clipsurface_fused.py"] + HAND
 CLIP_ALL = CLIP + ["tests/test_clipsurface_render.py"]
 OFFSET = ["tests/test_offsetmaps.py"] + HAND
 EDGES = ["tests/test_edges.py"]
