@@ -58,7 +58,8 @@ MUTANTS = [
     # ------------------------------------------------------------- the seventeen of issue 30
     Mutant("ldi_parity_strict", "ldi", "parity counts layers with `<` instead of `≤`",
            "refraster/ldi.py", "if depth[i] <= tr:", "if depth[i] < tr:",
-           LDI + ["tests/test_clipsurface_fused.py"], fast=True),
+           LDI + ["tests/test_clipsurface_fused.py"], fast=True,
+           ci=["tests/test_ldi.py::test_parity_on_a_layer_entry_closed_exit_open"]),
     Mutant("cutaway_slope_tan", "cutaway", "uncompensated slope P00·tan θ instead of P00·cot θ",
            SURF, "return np.full(np.shape(z_ndc), proj[0, 0]) / tan",
            "return np.full(np.shape(z_ndc), proj[0, 0]) * tan", CUT),
@@ -70,7 +71,8 @@ MUTANTS = [
            "np.int64(np.floor((xw - half) * scale)), np.int64(np.floor((yw - half) * scale))",
            RASTER, twin=[(NAIVE, "int(np.rint((xw - half) * s)), int(np.rint((yw - half) * s))",
                           "int(np.floor((xw - half) * s)), int(np.floor((yw - half) * s))")],
-           fast=True),
+           fast=True,
+           ci=["tests/test_hand_worked.py::test_vertex_snapping_rounds_to_the_nearest_subpixel"]),
     Mutant("bary_screen_space", "raster", "screen-space instead of perspective-correct "
            "barycentrics (kernel and naive)", RAST,
            "    q0 = l0 * iw0\n    q1 = l1 * iw1\n    q2 = l2 * iw2",
@@ -82,7 +84,8 @@ MUTANTS = [
            "_dot(n, ym, xm, yp, xp, encoded) + _dot(n, ym, xp, yp, xm, encoded)",
            "_dot(n, ym, xm, yp, xp, encoded) + _dot(n, ym, xm, yp, xp, encoded)", EDGES,
            twin=[(TEDGE, '_dot(s["A"], s["H"]) + _dot(s["C"], s["F"])',
-                  '_dot(s["A"], s["H"]) + _dot(s["A"], s["H"])')], fast=True),
+                  '_dot(s["A"], s["H"]) + _dot(s["A"], s["H"])')], fast=True,
+           ci=["tests/test_edges.py::test_default_edge_map_is_the_papers_normal_operator_on_a_normal_ramp"]),
     Mutant("sobel_transposed", "edges", "Sobel G_x and G_y swapped (kernel and twin)", EDGE,
            "    gx = (zc + 2.0 * ze + zh) - (za + 2.0 * zd + zf)\n    return gy, gx",
            "    gx = (zc + 2.0 * ze + zh) - (za + 2.0 * zd + zf)\n    return gx, gy", EDGES,
@@ -96,7 +99,8 @@ MUTANTS = [
            twin=[(HREN, "np.minimum.at(min_d, pix, d + np.maximum(0.0, u - delta_t) * delta_d)",
                   "np.minimum.at(min_d, pix, d + np.maximum(0.0, u - delta_t) * (0.5 * delta_d))"),
                  (THICK, "np.abs(2.0 * tt - 1.0) - delta_t) * delta_d",
-                  "np.abs(2.0 * tt - 1.0) - delta_t) * (0.5 * delta_d)")], fast=True),
+                  "np.abs(2.0 * tt - 1.0) - delta_t) * (0.5 * delta_d)")], fast=True,
+           ci=["tests/test_halos4d_geometry.py::test_halo_depth_eq3"]),
     Mutant("eq3_halved_engines", "halos4d", "Eq. 3's drop-off δd halved in both rendering "
            "engines (fused kernel and NumPy reference), not in halo_depth", HREN,
            "dn = d + max(0.0, u - delta_t) * delta_d",
@@ -105,7 +109,8 @@ MUTANTS = [
                   "np.minimum.at(min_d, pix, d + np.maximum(0.0, u - delta_t) * (0.5 * delta_d))")]),
     Mutant("clip_height_scale_k0", "clipsurface", "g(P) reads surface 0's height scale S_z for "
            "every surface", "refraster/clipsurface.py",
-           "+ params[k, 16] * h", "+ params[0, 16] * h", CLIP_ALL, fast=True),
+           "+ params[k, 16] * h", "+ params[0, 16] * h", CLIP_ALL, fast=True,
+           ci=["tests/test_hand_worked.py::test_clip_mask_of_two_surfaces_by_hand"]),
     Mutant("resolve_less_later", "raster", "depth test LESS passes equal depths (the later of "
            "two equal-depth fragments wins) (kernel and naive)", RAST,
            "    if func == 1:\n        return z < ref", "    if func == 1:\n        return z <= ref",
@@ -124,20 +129,24 @@ MUTANTS = [
     Mutant("compare_skips_bary", "golden", "compare skips the barycentric buffer",
            "refraster/golden/compare.py", "        for key, spec in entry[\"buffers\"].items():",
            "        for key, spec in [(k, v) for k, v in entry[\"buffers\"].items()\n"
-           "                          if k != \"barycentric\"]:", GOLD, fast=True),
+           "                          if k != \"barycentric\"]:", GOLD, fast=True,
+           ci=["tests/test_golden.py::test_every_stored_buffer_is_compared"]),
     Mutant("peel_sort_unstable", "ldi", "per-pixel depth sort puts equal depths in reverse draw "
            "order (`>` → `>=`)", "refraster/ldi.py",
            "while j >= a and depth[order[j]] > d:", "while j >= a and depth[order[j]] >= d:", LDI),
     Mutant("offset_no_half_texel", "offsetmaps", "GL_LINEAR without the half-texel shift "
            "(u = s·W instead of s·W − ½)", "refraster/offsetmaps.py",
            "    x = s * width - 0.5\n    y = t * height - 0.5",
-           "    x = s * width\n    y = t * height", OFFSET + CLIP, fast=True),
+           "    x = s * width\n    y = t * height", OFFSET + CLIP, fast=True,
+           ci=["tests/test_hand_worked.py::test_texel_centres_return_the_texel_under_each_wrap_mode"]),
     Mutant("npr_composite_inverted", "npr", "compositing reads the edge strength as the "
            "intensity (E and 1 − E swapped, MATH.md §3.1)", "refraster/npr.py",
            "inner = (1.0 - e_n) * s + e_n * ci", "inner = e_n * s + (1.0 - e_n) * ci", NPR,
-           fast=True),
+           fast=True,
+           ci=["tests/test_npr.py::test_composite_hand_values"]),
     Mutant("jfa_schedule_short", "cutaway", "jump-flood schedule starts at n/4 (the longest "
-           "jump dropped)", FLOOD, "    k = n // 2\n", "    k = n // 4\n", CUT, fast=True),
+           "jump dropped)", FLOOD, "    k = n // 2\n", "    k = n // 4\n", CUT, fast=True,
+           ci=["tests/test_hand_worked.py::test_jump_schedule_is_half_the_next_power_of_two_down_to_one"]),
     # ------------------------------------------------------------- further mutants
     Mutant("clip_interp_far_end", "raster", "clipper interpolates from the far endpoint on ties "
            "and beyond (`<` → `>`)", PRIM, "if ai < aj or (ai == aj and di >= 0.0):",
@@ -170,7 +179,8 @@ MUTANTS = [
            "    wx = a * params[k, 3] + b * params[k, 4] + c * params[k, 5]\n"
            "    wy = a * params[k, 6] + b * params[k, 7] + c * params[k, 8]\n"
            "    wz = a * params[k, 9] + b * params[k, 10] + c * params[k, 11]",
-           ["tests/test_clipsurface_render.py", "tests/test_clipsurface_fused.py"] + HAND, fast=True),
+           ["tests/test_clipsurface_render.py", "tests/test_clipsurface_fused.py"] + HAND, fast=True,
+           ci=["tests/test_hand_worked.py::test_cap_normal_and_shade_of_a_flat_cap_face_on"]),
     Mutant("cap_shade_no_abs", "capping", "cap shade uses n·v without the absolute value",
            "refraster/capping.py", "ndv = abs(ex * px + ey * py + ez * pz) / vl",
            "ndv = (ex * px + ey * py + ez * pz) / vl",
