@@ -265,3 +265,22 @@ def test_clip_mask_of_two_surfaces_by_hand():
     np.testing.assert_allclose(clip_function(pts, s1), pts[:, 0] + 0.5, rtol=0, atol=1e-15)
     assert clip_mask(pts, [s0, s1]).tolist() == [False, True, True, False]
     assert clip_mask(pts, [s1, s0]).tolist() == [False, True, True, False]
+
+
+# ------------------------------------------------------------------ volumetric depth sprites
+
+@pytest.mark.parametrize("rule", ["parity", "nonzero"])
+def test_sprite_of_two_cubes_diagonal_from_each_other(rule):
+    """Two unit cubes, [0, 1]×[0, 1]×[0, 1] and [2, 3]×[2, 3]×[0, 1], in one sprite along z: the
+    texture's s runs with x and t with y (row 0 of the LDI at the top, t = 1). Their centres are
+    inside; the other two corners of the diagonal, (½, 2½, ½) and (2½, ½, ½), are outside. A
+    lookup that mirrors t (or s) swaps the two answers."""
+    from refraster.ldi import VolumetricDepthSprite
+    from refraster.scenes import cube
+    c = cube(1.0)
+    v0 = np.asarray(c.vertices) + 0.5
+    verts = np.concatenate([v0, v0 + [2.0, 2.0, 0.0]])
+    faces = np.concatenate([np.asarray(c.faces), np.asarray(c.faces) + len(v0)])
+    sprite = VolumetricDepthSprite.from_mesh((verts, faces), resolution=32, axis="z")
+    pts = np.array([[0.5, 0.5, 0.5], [2.5, 2.5, 0.5], [0.5, 2.5, 0.5], [2.5, 0.5, 0.5]])
+    assert sprite.contains(pts, rule=rule).tolist() == [True, True, False, False]

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 HAND = ["tests/test_hand_worked.py"]
 RASTER = ["tests/test_raster.py"] + HAND
-LDI = ["tests/test_ldi.py"]
+LDI = ["tests/test_ldi.py"] + HAND
 CLIP = ["tests/test_clipsurface.py", "tests/test_clipsurface_fused.py"] + HAND
 CLIP_ALL = CLIP + ["tests/test_clipsurface_render.py"]
 OFFSET = ["tests/test_offsetmaps.py"] + HAND
