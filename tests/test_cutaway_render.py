@@ -61,6 +61,30 @@ def test_perspective_on_axis_seed_with_compensation(theta):
     assert np.abs(angles - theta).max() > 0.05  # the uncompensated surface is off
 
 
+@pytest.mark.parametrize("theta", [0.3, 0.8, 1.2])
+def test_uncompensated_surface_is_the_papers_ndc_cone(theta):
+    """The paper's basic surface (Sec. 3.2; ``perspective_compensation=False``), checked from
+    its definition rather than from the slope formula: a cone of half-angle θ about the view
+    axis in NDC, z_ndc against (x_ndc, y_ndc). With one seed at NDC (x_s, y_s, z_s) and a square
+    viewport, D = z_s − cot θ·‖(x, y) − (x_s, y_s)‖, i.e. the angle between the cone and the
+    axis, atan2(‖Δxy‖, z_s − D), is θ at every pixel the cone reaches above the near plane.
+    (A tan-based slope gives π/2 − θ; the existing check only says that the cone is off θ in
+    eye space, which both are.)"""
+    proj = rr.perspective(50, 1.0, 1.0, 10.0)
+    rear, oid = single_seed(0.95)
+    d = cutaway_surface(rear, oid, proj=proj, angle=theta, edge_compression=None,
+                        perspective_compensation=False)
+    h, w = d.shape
+    x, y = np.broadcast_arrays(*pixel_ndc(h, w))
+    r = np.hypot(x - x[h // 2, w // 2], y - y[h // 2, w // 2])
+    z_s = 2.0 * 0.95 - 1.0
+    on = (d > -1.0 + 1e-9) & (r > 0)
+    assert on.sum() > 50
+    assert d[h // 2, w // 2] == pytest.approx(z_s, abs=1e-12)
+    angles = np.arctan2(r[on], z_s - d[on])
+    np.testing.assert_allclose(angles, theta, rtol=0, atol=1e-9)
+
+
 def test_no_object_gives_near_plane():
     rear = np.zeros((8, 9))
     d = cutaway_surface(rear, np.full((8, 9), -1), proj=rr.perspective(40, 1, 1, 5))

@@ -527,3 +527,26 @@ def test_cli_exit_codes_and_register(gold, tmp_path, capsys):
     assert report["scenes"]["render_cube"]["buffers"]["object_id"]["passed"] is False
     assert cli.main(["generate", "--list"]) == 0
     assert "render_crank" in capsys.readouterr().out
+
+
+def test_every_stored_buffer_is_compared(gold, tmp_path):
+    """Each buffer the manifest lists for a scene is compared: changing that buffer alone (every
+    pixel, by far more than any tolerance) fails compare, and the failure names it (issue 30: a
+    compare that skipped the barycentric buffer passed every other test)."""
+    scene = "render_cube"
+    keys = sorted(load_manifest(gold)["scenes"][scene]["buffers"])
+    assert "barycentric" in keys
+    for key in keys:
+        def edit(s, b, key=key):
+            if s != scene:
+                return
+            a = b[key]
+            if a.dtype == np.bool_:
+                b[key] = ~a
+            elif np.issubdtype(a.dtype, np.integer):
+                b[key] = a + 7
+            else:
+                b[key] = np.where(np.isfinite(a), a + 0.25, 0.5).astype(a.dtype)
+        (tmp_path / key).mkdir()
+        lines = _only_failure(compare(gold, candidate_from(gold, tmp_path / key, edit)))
+        assert lines and all(line.startswith(f"{scene}/{key}") for line in lines), (key, lines)

@@ -12,7 +12,7 @@ from hypothesis import given, settings, strategies as st
 import refraster
 from refraster import ldi
 from refraster.ldi import NonWatertightWarning, VolumetricDepthSprite, peel, peel_fragments
-from refraster.scenes import crank, icosphere, nested_shells, torus
+from refraster.scenes import crank, cube, icosphere, nested_shells, torus
 from oracles import scenes as S
 from determinism import outputs_by_thread_count
 
@@ -445,3 +445,27 @@ def test_deterministic_across_runs_and_thread_counts():
     digests = set(outputs_by_thread_count(_SCRIPT))
     assert len(digests) == 1
 
+
+
+# --------------------------------------------------------- points exactly on a layer (issue 30)
+
+@pytest.mark.parametrize("rule", ["parity", "nonzero"])
+def test_parity_on_a_layer_entry_closed_exit_open(rule):
+    """A point exactly on a sprite layer, worked by hand (MATH.md §2.2: layers with d_j ≤ T_r
+    count). The cube [−1, 1]³ (extent 2) at resolution 16 with margin 2 has S = (1 − 4/16)/2 =
+    3/8 and, along "z" (r = −z), T_r = ½ − (3/8)·z: the face z = +1 is the entry layer at
+    d = 1/8 and z = −1 the exit layer at d = 7/8, both exact in float32, as is T_r of points on
+    them. Entry face: one layer counts (inside); exit face: two (outside); centre: one (inside).
+    Counting with ``<`` swaps the two faces ([False, True, True]); the stream and fused paths
+    share ``parity_at``, so only such a hand-worked case tells the rules apart."""
+    sprite = VolumetricDepthSprite.from_mesh(cube(2.0), resolution=16, axis="z", margin=2)
+    assert sprite.scale == 3 / 8
+    # the texel under the points (s = t = ½: column 8, row 7) holds exactly the two faces
+    assert sprite.count[7, 8] == 2
+    assert sprite.depth[:2, 7, 8].tolist() == [0.125, 0.875]
+    points = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [0.0, 0.0, 0.0]])
+    assert sprite.contains(points, rule=rule).tolist() == [True, False, True]
+    # just off the faces the answer does not depend on the tie: outside, outside, inside
+    eps = 1e-6
+    off = np.array([[0.0, 0.0, 1.0 + eps], [0.0, 0.0, -1.0 - eps], [0.0, 0.0, 1.0 - eps]])
+    assert sprite.contains(off, rule=rule).tolist() == [False, False, True]
