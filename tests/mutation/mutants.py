@@ -108,7 +108,7 @@ MUTANTS = [
            twin=[(HREN, "np.minimum.at(min_d, pix, d + np.maximum(0.0, u - delta_t) * delta_d)",
                   "np.minimum.at(min_d, pix, d + np.maximum(0.0, u - delta_t) * (0.5 * delta_d))")]),
     Mutant("clip_height_scale_k0", "clipsurface", "g(P) reads surface 0's height scale S_z for "
-           "every surface", "refraster/clipsurface.py",
+           "every surface", "refraster/clipsurface/surfaces.py",
            "+ params[k, 16] * h", "+ params[0, 16] * h", CLIP_ALL, fast=True,
            ci=["tests/test_hand_worked.py::test_clip_mask_of_two_surfaces_by_hand"]),
     Mutant("resolve_less_later", "raster", "depth test LESS passes equal depths (the later of "
@@ -124,7 +124,7 @@ MUTANTS = [
                   "owns = dy < 0 or (dy == 0 and dx < 0)")]),
     Mutant("clip_skip_self_any", "clipsurface", "clip test skips every surface after the "
            "fragment's own (`!=` → `<`): a second clip surface never clips",
-           "refraster/clipsurface.py", "        if enabled[k] and k != skip:",
+           "refraster/clipsurface/surfaces.py", "        if enabled[k] and k != skip:",
            "        if enabled[k] and (k < skip or skip < 0):", CLIP_ALL),
     Mutant("compare_skips_bary", "golden", "compare skips the barycentric buffer",
            "refraster/golden/compare.py", "        for key, spec in entry[\"buffers\"].items():",
@@ -135,7 +135,7 @@ MUTANTS = [
            "order (`>` → `>=`)", "refraster/ldi.py",
            "while j >= a and depth[order[j]] > d:", "while j >= a and depth[order[j]] >= d:", LDI),
     Mutant("offset_no_half_texel", "offsetmaps", "GL_LINEAR without the half-texel shift "
-           "(u = s·W instead of s·W − ½)", "refraster/offsetmaps.py",
+           "(u = s·W instead of s·W − ½)", "refraster/clipsurface/offsetmaps.py",
            "    x = s * width - 0.5\n    y = t * height - 0.5",
            "    x = s * width\n    y = t * height", OFFSET + CLIP, fast=True,
            ci=["tests/test_hand_worked.py::test_texel_centres_return_the_texel_under_each_wrap_mode"]),
@@ -161,18 +161,18 @@ MUTANTS = [
            "the top)", "refraster/ldi.py", "    row = h - 1 - min(int(tt * h), h - 1)",
            "    row = min(int(tt * h), h - 1)", LDI + ["tests/test_clipsurface_fused.py"]),
     Mutant("clip_test_le", "clipsurface", "clip test discards g(P) ≤ 0 instead of g(P) < 0",
-           "refraster/clipsurface.py",
+           "refraster/clipsurface/surfaces.py",
            "if _g(px, py, pz, params, k, maps, offset, shape, wrap[k]) < 0.0:",
            "if _g(px, py, pz, params, k, maps, offset, shape, wrap[k]) <= 0.0:", CLIP_ALL),
     Mutant("offset_mirror_off_by_one", "offsetmaps", "mirrored_repeat mirrors about the texel "
-           "instead of its edge (−m instead of −(1 + m))", "refraster/offsetmaps.py",
+           "instead of its edge (−m instead of −(1 + m))", "refraster/clipsurface/offsetmaps.py",
            "mirrored = m if m >= 0 else -(1 + m)", "mirrored = m if m >= 0 else -m", OFFSET),
     Mutant("offset_repeat_seam_clamp", "offsetmaps", "repeat wrap clamps the right-hand tap at "
-           "the seam instead of wrapping to texel 0", "refraster/offsetmaps.py",
+           "the seam instead of wrapping to texel 0", "refraster/clipsurface/offsetmaps.py",
            "i1 = i0 + 1 if i0 + 1 < width else np.int64(0)", "i1 = i0 + 1 if i0 + 1 < width else i0",
            OFFSET + CLIP),
     Mutant("cap_tbn_transposed", "capping", "cap normal turned by the transposed (Û, V̂, N) "
-           "basis", "refraster/capping.py",
+           "basis", "refraster/clipsurface/capping.py",
            "    wx = a * params[k, 3] + b * params[k, 6] + c * params[k, 9]\n"
            "    wy = a * params[k, 4] + b * params[k, 7] + c * params[k, 10]\n"
            "    wz = a * params[k, 5] + b * params[k, 8] + c * params[k, 11]",
@@ -182,7 +182,7 @@ MUTANTS = [
            ["tests/test_clipsurface_render.py", "tests/test_clipsurface_fused.py"] + HAND, fast=True,
            ci=["tests/test_hand_worked.py::test_cap_normal_and_shade_of_a_flat_cap_face_on"]),
     Mutant("cap_shade_no_abs", "capping", "cap shade uses n·v without the absolute value",
-           "refraster/capping.py", "ndv = abs(ex * px + ey * py + ez * pz) / vl",
+           "refraster/clipsurface/capping.py", "ndv = abs(ex * px + ey * py + ez * pz) / vl",
            "ndv = (ex * px + ey * py + ez * pz) / vl",
            ["tests/test_clipsurface_render.py", "tests/test_clipsurface_fused.py"] + HAND),
     Mutant("diag_depth_no_half", "edges", "diagonal depth operator without the ½ on the "
@@ -247,7 +247,7 @@ MUTANTS = [
            "Δz/(2·w_s·ρ)", HREN, "(spacing / (2.0 * surface_width * rho))",
            "(spacing / (surface_width * rho))", H4),
     Mutant("golden_deviation_one_way", "golden", "position-deviation compare accepts either "
-           "direction (`&` → `|`), as a one-way check would", "refraster/golden/compare.py",
+           "direction (`&` → `|`), as a one-way check would", "refraster/golden/metrics.py",
            "            & _matched_within(reference, candidate, thr, radius))",
            "            | _matched_within(reference, candidate, thr, radius))", GOLD),
     Mutant("allowance_across_surfaces", "golden", "allowance step measured across different "
