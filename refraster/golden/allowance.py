@@ -18,7 +18,8 @@ array               dtype        meaning
 ``set_*``           per entry    what that face shows there: ``set_depth_lo/_hi``,
                                  ``set_eye_depth_lo/_hi``, ``set_barycentric_lo/_hi``,
                                  ``set_color_lo/_hi``, ``set_normal`` + ``set_normal_angle``,
-                                 ``set_facing`` (−1: a sliver, free); ``draw_offsets`` maps
+                                 ``set_facing`` (−1: a sliver that may flip there, free);
+                                 ``draw_offsets`` maps
                                  (object_id, prim_id) to the global id (:func:`face_sets`)
 ==================  ===========  ================================================================
 
@@ -303,9 +304,12 @@ def face_sets(scene, raster, id_may, eps):
     pixel where the visible primitive may differ (``id_may``), the faces that may win there
     (:func:`refraster.tolerance.may_faces`) and, per (pixel, face), what that face shows at the
     pixel centre moved by up to ``eps`` — intervals of window depth, eye depth, barycentrics
-    and colour, a normal with its angle, and the facing (−1 for a sliver whose facing may flip,
-    :func:`refraster.tolerance.fragile_faces`) — so a candidate
-    is checked against the face its own ``prim_id`` names instead of being free there."""
+    and colour, a normal with its angle, and the facing (−1 for a sliver,
+    :func:`refraster.tolerance.fragile_faces`, that an allowed snapping can flip while covering
+    the centre) — so a candidate is checked against the face its own ``prim_id`` names instead
+    of being free there. Barycentrics of faces in front of the eye come from the allowed
+    snappings (:func:`_snap_barycentrics`), all of a sliver's values from its vertices
+    (:func:`_sliver_bounds`)."""
     from ..framebuffer import _build
     from ..raster import prepare
     from ..tolerance import _depth_slacks, _face_facing, fragile_faces, may_faces
