@@ -585,11 +585,16 @@ def _sliver_bounds(out, facing, fragile, prep, raster, scene, faces, px, py, bet
     budget = EYE_DEPTH_ABS + EYE_DEPTH_REL * np.maximum(np.abs(e_lo), np.abs(e_hi))
     out["set_eye_depth_lo"][idx] = (e_lo - budget).astype(np.float32)
     out["set_eye_depth_hi"][idx] = (e_hi + budget).astype(np.float32)
-    # normal: flat, the face's own; smooth, the cone of the interpolated (unit, rigid
-    # transform) vertex normals over the β box
+    # normal: flat, the face's own; smooth, the cone of the interpolated eye-space vertex
+    # normals (normal matrix · vertex normal, before the renormalisation) over the β box
     nrm = fb.normal.astype(np.float64)
+    obj, _ = prep.split(g)
     if raster["normals"] == "smooth":
-        n_c, theta_n = _cone(*_affine_box(nrm, bet_lo, bet_hi))
+        from ..framebuffer import _normal_matrix, _normals_per_mesh
+        vn = np.concatenate(_normals_per_mesh(prep.meshes, normals)).astype(np.float64)
+        nmat = np.stack([_normal_matrix(prep.view, mm) for mm in prep.models])
+        u = np.einsum("mij,mkj->mki", nmat[obj], vn[vid])
+        n_c, theta_n = _cone(*_affine_box(u, bet_lo, bet_hi))
         n_c = n_c / np.maximum(np.linalg.norm(n_c, axis=1, keepdims=True), 1e-300)
     else:
         n_c, theta_n = nrm[:, 0], np.zeros(m)
@@ -612,7 +617,6 @@ def _sliver_bounds(out, facing, fragile, prep, raster, scene, faces, px, py, bet
         return np.clip(PALETTE[pk] * (AMBIENT + DIFFUSE * dd) + SPECULAR * dd ** SHININESS,
                        0.0, 1.0)
 
-    obj, _ = prep.split(g)
     pk = obj % PALETTE.shape[0]
     out["set_color_lo"][idx] = (shade(d_lo, pk) - COLOR_TOL).astype(np.float32)
     out["set_color_hi"][idx] = (shade(d_hi, pk) + COLOR_TOL).astype(np.float32)
