@@ -1,0 +1,241 @@
+"""refraster.gl, the GLSL backend (issue 25): it reads only scene packages, ``golden candidate``
+writes a candidate directory by the golden write rules, every supported scene passes the
+tolerant compare on llvmpipe, and every planted fault (a test-only ``#define``) fails it on at
+least one scene naming the right buffer. The pass/fail matrix is the one in docs/backends.md.
+
+Needs a headless EGL context (Mesa llvmpipe through moderngl): skips without one, fails under
+CI=true (the project's optional-oracle rule).
+"""
+
+import ast
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import IN_CI
+from refraster import golden
+
+ROOT = Path(__file__).resolve().parents[1]
+GL_DIR = ROOT / "refraster" / "gl"
+DOC = ROOT / "docs" / "backends.md"
+BEGIN, END = "<!-- gl-matrix:begin (tests/test_gl_backend.py) -->", "<!-- gl-matrix:end -->"
+
+PLAIN = ["render_cube", "render_icosphere_smooth", "render_torus_ortho", "render_fluted_column",
+         "render_nested_shells", "render_building", "render_crank", "render_multi_draw"]
+SCENES = PLAIN + ["ldi_nested_shells", "clipsurface_building"]
+
+#: fault → {scene: buffer that must be named among the failing ones}; each fault must fail
+#: at least these (and may fail more)
+EXPECTED = {
+    "half_pixel": {**{s: "prim_id" for s in PLAIN}, "ldi_nested_shells": "layer_depth"},
+    "noperspective": {s: "barycentric" for s in PLAIN if s != "render_torus_ortho"},
+    "facing_flipped": {s: "front_facing" for s in PLAIN},
+    "peel_no_discard": {"ldi_nested_shells": "layer_count"},
+}
+#: scenes a fault cannot change (so they must pass: the fault is not a broken backend)
+UNTOUCHED = {
+    "noperspective": ["render_torus_ortho", "ldi_nested_shells"],   # orthographic: same thing
+    "facing_flipped": ["ldi_nested_shells"],
+    "peel_no_discard": PLAIN,
+}
+
+
+# --- the import rule -------------------------------------------------------------------------
+
+def _foreign_imports(source):
+    """Imports of ``source`` outside numpy, moderngl, the standard library and refraster.gl."""
+    allowed = set(sys.stdlib_module_names) | {"numpy", "moderngl", "__future__"}
+    bad = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            bad += [a.name for a in node.names if a.name.split(".")[0] not in allowed
+                    and not a.name.startswith("refraster.gl")]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level == 1:                       # from . / from .package: inside refraster.gl
+                continue
+            if node.level > 1:
+                bad.append("." * node.level + (node.module or ""))
+            elif (node.module or "").split(".")[0] not in allowed \
+                    and not (node.module or "").startswith("refraster.gl"):
+                bad.append(node.module)
+    return bad
+
+
+def test_gl_imports_only_numpy_moderngl_and_stdlib():
+    files = sorted(GL_DIR.glob("*.py"))
+    assert {p.name for p in files} >= {"__init__.py", "driver.py", "package.py"}
+    for path in files:
+        assert _foreign_imports(path.read_text()) == [], path
+    # the scan sees a violation (function-level imports too)
+    assert _foreign_imports("def f():\n    from ..golden import read\n") == ["..golden"]
+    assert _foreign_imports("import refraster.mesh\n") == ["refraster.mesh"]
+    assert _foreign_imports("from refraster import render\n") == ["refraster"]
+    assert _foreign_imports("import scipy.ndimage\n") == ["scipy.ndimage"]
+
+
+def test_shaders_are_plain_glsl_files_of_at_most_4_3():
+    shaders = sorted((GL_DIR / "shaders").glob("*.*"))
+    assert {p.suffix for p in shaders} <= {".vert", ".geom", ".frag"} and shaders
+    for path in shaders:
+        version = next(line for line in path.read_text().splitlines()
+                       if line.startswith("#version"))
+        number, profile = version.split()[1:3]
+        assert int(number) <= 430 and profile == "core", path
+
+
+def test_import_refraster_does_not_import_gl():
+    code = ("import sys, refraster, refraster.golden, refraster.golden.cli, refraster.cli;"
+            "print([m for m in sys.modules if m.startswith('refraster.gl') or m == 'moderngl'])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"
+    # refraster.gl itself creates no context on import
+    code = "import sys, refraster.gl, refraster.gl.driver; print('moderngl' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+    assert out.stdout.strip() == "False", out.stderr
+
+
+# --- rendering -------------------------------------------------------------------------------
+
+def _backend_or_skip():
+    from refraster.gl.driver import Backend, GLUnavailable
+    try:
+        return Backend()
+    except GLUnavailable as exc:
+        if IN_CI:
+            pytest.fail(f"CI=true but the gl backend has no context: {exc}")
+        pytest.skip(f"no headless OpenGL context (EGL/llvmpipe): {exc}")
+
+
+@pytest.fixture(scope="module")
+def gold(tmp_path_factory):
+    root = tmp_path_factory.mktemp("gl")
+    golden.generate(root / "golden", SCENES)
+    return root
+
+
+def _cell(scene_result):
+    if scene_result.status == "pass":
+        return "pass"
+    failing = [b.name for b in scene_result.buffers if not b.passed]
+    if len(failing) == len(scene_result.buffers):
+        return f"**FAIL** (all {len(failing)})"
+    return "**FAIL** " + ", ".join(f"`{b}`" for b in failing)
+
+
+def _matrix_text(columns, results, skipped):
+    head = ["scene"] + [f"`{c}`" if c != "correct" else "correct" for c in columns]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for scene in SCENES:
+        if scene in skipped:
+            lines.append(f"| {scene} | " + " | ".join(["skipped"] * len(columns)) + " |")
+            continue
+        lines.append(f"| {scene} | " + " | ".join(_cell(results[c][scene]) for c in columns)
+                     + " |")
+    return "\n".join(lines)
+
+
+def test_candidate_passes_and_every_planted_fault_fails(gold):
+    from refraster.gl import FAULTS
+    from refraster.golden.candidate import candidate
+    _backend_or_skip().release()
+    columns = ["correct", *FAULTS]
+    results, skipped = {}, None
+    for column in columns:
+        out = gold / f"cand_{column}"
+        r = candidate(gold / "golden", out, faults=() if column == "correct" else (column,))
+        assert sorted(r["rendered"]) == sorted(s for s in SCENES if s != "clipsurface_building")
+        assert list(r["skipped"]) == ["clipsurface_building"]
+        assert "not implemented by the gl backend" in r["skipped"]["clipsurface_building"]
+        skipped = r["skipped"]
+        marker = json.loads((out / ".refraster-candidate").read_text())
+        assert marker["faults"] == ([] if column == "correct" else [column])
+        assert marker["renderer"].startswith("llvmpipe") or not IN_CI
+        cmp = golden.compare(gold / "golden", out, mode="tolerant", scenes=r["rendered"])
+        results[column] = {s.name: s for s in cmp.scenes}
+        assert all(s.status in ("pass", "fail") for s in cmp.scenes), cmp.summary()
+        if column == "correct":
+            assert cmp.exit_code == 0, "\n".join(cmp.failures())
+            continue
+        assert cmp.exit_code == 1, f"fault {column} passed every scene"
+        for scene, buffer in EXPECTED[column].items():
+            failing = [line for line in cmp.failures() if line.startswith(f"{scene}/{buffer}")]
+            assert failing, f"fault {column}: {scene}/{buffer} not named ({cmp.failures()})"
+        for scene in UNTOUCHED.get(column, ()):
+            assert results[column][scene].status == "pass", (column, scene)
+    table = _matrix_text(columns, results, skipped)
+    doc = DOC.read_text()
+    begin, end = doc.index(BEGIN) + len(BEGIN), doc.index(END)
+    if os.environ.get("REFRASTER_WRITE_BACKENDS_MATRIX"):
+        DOC.write_text(doc[:begin] + "\n" + table + "\n" + doc[end:])
+        doc = DOC.read_text()
+        begin, end = doc.index(BEGIN) + len(BEGIN), doc.index(END)
+    assert doc[begin:end].strip() == table, (
+        "docs/backends.md's matrix differs from this run; re-run with "
+        "REFRASTER_WRITE_BACKENDS_MATRIX=1 and review the change\n" + table)
+
+
+def test_peel_layer_slots_and_count(gold):
+    """``layers`` only shapes the output; layer_count counts every layer the peel found."""
+    with _backend_or_skip() as gl:
+        pkg = gold / "golden" / "ldi_nested_shells" / "package"
+        full = gl.render(pkg)
+        three = gl.render(pkg, layers=3)
+    k = full["layer_depth"].shape[-1]
+    assert k == 8 and three["layer_depth"].shape[-1] == 3
+    np.testing.assert_array_equal(full["layer_count"], three["layer_count"])
+    np.testing.assert_array_equal(full["layer_depth"][..., :3], three["layer_depth"])
+    assert full["layer_count"].max() == k
+
+
+# --- the command -----------------------------------------------------------------------------
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "refraster.cli", "golden", *map(str, args)],
+                          capture_output=True, text=True, cwd=ROOT, timeout=600,
+                          env={**os.environ, "PYTHONPATH": str(ROOT)})
+
+
+def test_candidate_command_writes_by_the_golden_rules(gold):
+    _backend_or_skip().release()
+    g, out = gold / "golden", gold / "cli_cand"
+    run = _cli("candidate", g, "--backend", "gl", "--out", out, "--scene", "render_cube",
+               "--scene", "clipsurface_building")
+    assert run.returncode == 0, run.stderr
+    assert "skipped clipsurface_building: technique 'clipsurface'" in run.stdout
+    assert "--scene render_cube" in run.stdout
+    assert sorted(p.name for p in out.iterdir()) == [".refraster-candidate", "render_cube"]
+    cmp = _cli("compare", g, out, "--scene", "render_cube")
+    assert cmp.returncode == 0, cmp.stderr
+    # a candidate refraster wrote is replaced (atomically; no debris beside it)
+    again = _cli("candidate", g, "--out", out, "--scene", "render_multi_draw", "-q")
+    assert again.returncode == 0, again.stderr
+    assert sorted(p.name for p in out.iterdir()) == [".refraster-candidate", "render_multi_draw"]
+    assert not [p for p in gold.iterdir() if p.name.startswith(".cli_cand")]
+    # ... unless someone put a file of their own in it: refused, nothing deleted
+    (out / "notes.txt").write_text("mine")
+    refused = _cli("candidate", g, "--out", out, "--scene", "render_cube")
+    assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1
+    assert "refusing to replace it" in refused.stderr
+    assert (out / "notes.txt").read_text() == "mine" and (out / "render_multi_draw").is_dir()
+    # a foreign directory, the golden itself, a path inside it, a missing golden: exit 2
+    foreign = gold / "foreign"
+    foreign.mkdir()
+    (foreign / "thesis.txt").write_text("keep")
+    for args, words in (((g, "--out", foreign), "not a candidate directory"),
+                        ((g, "--out", g / "sub"), "overlaps the golden directory"),
+                        ((gold / "nope", "--out", gold / "x"), "not a golden directory"),
+                        ((g, "--out", gold / "y", "--scene", "nope"), "not in the golden")):
+        r = _cli("candidate", *args)
+        assert r.returncode == 2, (args, r.stderr)
+        assert len(r.stderr.strip().splitlines()) == 1 and words in r.stderr, r.stderr
+        assert "Traceback" not in r.stderr
+    assert (foreign / "thesis.txt").read_text() == "keep"
+    assert not (g / "sub").exists()
