@@ -165,20 +165,33 @@ class Backend:
         found, so a backend that finds more layers than the golden still fails the compare.
         Raises :class:`Unsupported` or :class:`refraster.gl.package.PackageError`.
         """
+        loaded = self.load(package_dir)
+        try:
+            return self.draw(loaded, layers=layers)
+        finally:
+            self.unload(loaded)
+
+    def load(self, package_dir):
+        """Read a scene package and upload its meshes → an opaque handle for :meth:`draw`
+        (timing a frame without the upload); free it with :meth:`unload`."""
         package_dir = Path(package_dir)
         scene = read_scene(package_dir)
         reason = self.supports(scene)
         if reason is not None:
             raise Unsupported(reason)
-        draws = self._upload(package_dir, scene)
-        try:
-            if scene["technique"] == "render":
-                return self._gbuffer(scene, draws)
-            return self._peel(scene, draws, layers)
-        finally:
-            for d in draws:
-                for obj in d["release"]:
-                    obj.release()
+        return {"scene": scene, "draws": self._upload(package_dir, scene)}
+
+    def draw(self, loaded, *, layers=None):
+        """Render a :meth:`load`-ed scene → ``{buffer name: array}`` (see :meth:`render`)."""
+        if loaded["scene"]["technique"] == "render":
+            return self._gbuffer(loaded["scene"], loaded["draws"])
+        return self._peel(loaded["scene"], loaded["draws"], layers)
+
+    def unload(self, loaded):
+        for d in loaded["draws"]:
+            for obj in d["release"]:
+                obj.release()
+        loaded["draws"] = []
 
     # --- geometry ---------------------------------------------------------------------------
     def _upload(self, package_dir, scene):
