@@ -27,21 +27,26 @@ BEGIN, END = "<!-- gl-matrix:begin (tests/test_gl_backend.py) -->", "<!-- gl-mat
 
 PLAIN = ["render_cube", "render_icosphere_smooth", "render_torus_ortho", "render_fluted_column",
          "render_nested_shells", "render_building", "render_crank", "render_multi_draw"]
-SCENES = PLAIN + ["ldi_nested_shells", "clipsurface_building"]
+VDS = "vds_parity_building"
+SCENES = PLAIN + ["ldi_nested_shells", VDS, "clipsurface_building"]
 
 #: fault → {scene: buffer that must be named among the failing ones}; each fault must fail
 #: at least these (and may fail more)
 EXPECTED = {
-    "half_pixel": {**{s: "prim_id" for s in PLAIN}, "ldi_nested_shells": "layer_depth"},
-    "noperspective": {s: "barycentric" for s in PLAIN if s != "render_torus_ortho"},
-    "facing_flipped": {s: "front_facing" for s in PLAIN},
+    "half_pixel": {**{s: "prim_id" for s in PLAIN + [VDS]}, "ldi_nested_shells": "layer_depth"},
+    "noperspective": {s: "barycentric" for s in PLAIN + [VDS] if s != "render_torus_ortho"},
+    "facing_flipped": {s: "front_facing" for s in PLAIN + [VDS]},
     "peel_no_discard": {"ldi_nested_shells": "layer_count"},
+    "sprite_rows_flipped": {VDS: "inside"},
+    "parity_wrong_end": {VDS: "inside"},
 }
 #: scenes a fault cannot change (so they must pass: the fault is not a broken backend)
 UNTOUCHED = {
     "noperspective": ["render_torus_ortho", "ldi_nested_shells"],   # orthographic: same thing
     "facing_flipped": ["ldi_nested_shells"],
-    "peel_no_discard": PLAIN,
+    "peel_no_discard": PLAIN + [VDS],
+    "sprite_rows_flipped": PLAIN + ["ldi_nested_shells"],
+    "parity_wrong_end": PLAIN + ["ldi_nested_shells"],
 }
 
 
@@ -170,6 +175,8 @@ def test_candidate_passes_and_every_planted_fault_fails(gold):
             assert failing, f"fault {column}: {scene}/{buffer} not named ({cmp.failures()})"
         for scene in UNTOUCHED.get(column, ()):
             assert results[column][scene].status == "pass", (column, scene)
+        if column in ("sprite_rows_flipped", "parity_wrong_end"):   # only the parity decision
+            assert _cell(results[column][VDS]) == "**FAIL** `inside`", column
     table = _matrix_text(columns, results, skipped)
     doc = DOC.read_text()
     begin, end = doc.index(BEGIN) + len(BEGIN), doc.index(END)
@@ -239,3 +246,38 @@ def test_candidate_command_writes_by_the_golden_rules(gold):
         assert "Traceback" not in r.stderr
     assert (foreign / "thesis.txt").read_text() == "keep"
     assert not (g / "sub").exists()
+
+
+def test_vds_golden_agrees_with_trimesh_outside_the_decision_band(gold):
+    """The vds scene's ``inside`` (refraster's parity test) against an outside oracle:
+    trimesh's ray-based ``contains`` at the same points (the plane's pixel centres, from the
+    golden's eye depth), everywhere outside the decision band the allowance forgives."""
+    import trimesh
+    from refraster.scenes import solid
+    base = gold / "golden" / VDS
+    with np.load(base / "buffers.npz") as z:
+        inside, eye, prim = z["inside"], z["eye_depth"], z["prim_id"]
+    with np.load(base / "tolerance.npz") as z:
+        may = z["may"]
+    scene = json.loads((base / "package" / "scene.json").read_text())
+    view, proj = (np.array(scene["camera"][k]) for k in ("view", "projection"))
+    h, w = inside.shape
+    r, c = np.nonzero((prim >= 0) & ~may)
+    x_ndc = (c + 0.5) / w * 2 - 1
+    y_ndc = 1 - (r + 0.5) / h * 2
+    ez = eye[r, c].astype(np.float64)
+    p_eye = np.stack([x_ndc * ez / proj[0, 0], y_ndc * ez / proj[1, 1], -ez, np.ones_like(ez)])
+    p_world = (np.linalg.inv(view) @ p_eye)[:3].T
+    # the sprite samples the solid along the rays through its texel centres (nearest texel:
+    # Trapp Sec. 5.3): move each point to its texel's centre ray, keep its depth T_r
+    m = np.array(scene["parameters"]["sprite_matrix"])
+    res = scene["parameters"]["resolution"]
+    t = (m @ np.c_[p_world, np.ones(len(p_world))].T)[:3]
+    keep = np.all((t > 0) & (t < 1), axis=0)
+    t[:2] = (np.minimum(np.floor(t[:2] * res), res - 1) + 0.5) / res
+    q = (np.linalg.inv(m) @ np.vstack([t, np.ones(t.shape[1])]))[:3].T
+    b = solid("building")
+    mesh = trimesh.Trimesh(b.vertices, b.faces, process=False)
+    theirs = np.where(keep, mesh.contains(q), False)
+    assert len(theirs) > 5000 and inside[r, c].sum() > 300
+    np.testing.assert_array_equal(inside[r, c], theirs)

@@ -24,6 +24,7 @@ __all__ = ["SUPPORTED_TECHNIQUES", "FAULTS"]
 SUPPORTED_TECHNIQUES = {
     "render": "the G-buffer in one pass with multiple render targets",
     "ldi": "classic depth peeling (one pass per layer)",
+    "vds": "the volumetric parity test in a fragment shader over the sprite as a texture array",
 }
 
 #: Planted faults, each a test-only ``#define`` (never set in normal use): name → (define,
@@ -36,4 +37,8 @@ FAULTS = {
                                                "facing as if the rows had been flipped)"),
     "peel_no_discard": ("FAULT_PEEL_NO_DISCARD",
                         "depth peeling that does not discard the previous layer"),
+    "sprite_rows_flipped": ("FAULT_SPRITE_ROWS_FLIPPED",
+                            "the volumetric depth sprite's rows read top-down"),
+    "parity_wrong_end": ("FAULT_PARITY_WRONG_END", "the parity count run from the back layer "
+                                                   "with the front-to-back early exit"),
 }

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from . import FAULTS, SUPPORTED_TECHNIQUES
-from .package import PackageError, matrix, read_ply, read_scene
+from .package import PackageError, matrix, read_map, read_ply, read_scene
 
 __all__ = ["Backend", "GLUnavailable", "Unsupported", "shader_source"]
 
@@ -128,6 +128,10 @@ class Backend:
                                    fragment_shader=shader_source("gbuffer.frag", defines))
         self.peeler = ctx.program(vertex_shader=vert,
                                   fragment_shader=shader_source("peel.frag", defines))
+        vds = [*defines, "VDS"]
+        self.vds = ctx.program(vertex_shader=shader_source("gbuffer.vert", vds),
+                               geometry_shader=shader_source("gbuffer.geom", vds),
+                               fragment_shader=shader_source("gbuffer.frag", vds))
         # moderngl binds the last framebuffer it made; park on this one before releasing others
         self._parking = ctx.framebuffer(color_attachments=[ctx.renderbuffer((1, 1))])
 
@@ -151,10 +155,13 @@ class Backend:
         if technique not in SUPPORTED_TECHNIQUES:
             return (f"technique {technique!r} is not implemented by the gl backend (it renders "
                     f"{', '.join(sorted(SUPPORTED_TECHNIQUES))})")
-        if technique == "ldi":
-            p = scene.get("parameters", {})
-            if p.get("mode", "peel") != "peel":
-                return f"ldi mode {p.get('mode')!r}: only classic peeling ('peel') is implemented"
+        p = scene.get("parameters", {})
+        if technique == "ldi" and p.get("mode", "peel") != "peel":
+            return f"ldi mode {p.get('mode')!r}: only classic peeling ('peel') is implemented"
+        if technique == "vds" and (p.get("test") != "parity" or p.get("axis") not in ("z",)
+                                   or p.get("rule", "parity") != "parity"):
+            return ("vds: only the parity test over one sprite (test 'parity', one axis) is "
+                    "implemented")
         return None
 
     def render(self, package_dir, *, layers=None):
@@ -179,15 +186,38 @@ class Backend:
         reason = self.supports(scene)
         if reason is not None:
             raise Unsupported(reason)
-        return {"scene": scene, "draws": self._upload(package_dir, scene)}
+        loaded = {"scene": scene, "draws": self._upload(package_dir, scene), "textures": []}
+        if scene["technique"] == "vds":
+            loaded["textures"] = self._sprite(package_dir, scene)
+        return loaded
+
+    def _sprite(self, package_dir, scene):
+        """The sprite's layers as a texture array (R32F, one slice per layer) and its counts
+        (R32I); the package's maps have row 0 at the top, GL's first row is t = 0: flipped."""
+        p = scene["parameters"]
+        layers = [read_map(package_dir, scene, name) for name in p["sprite_depth"]]
+        count = read_map(package_dir, scene, p["sprite_count"])
+        h, w = count.shape
+        if not layers or any(a.shape != (h, w) for a in layers):
+            raise PackageError(f"{package_dir}: sprite maps must all be (h, w) = {(h, w)}")
+        depth = np.ascontiguousarray(np.stack([a[::-1] for a in layers]), np.float32)
+        arr = self.ctx.texture_array((w, h, len(layers)), 1, depth.tobytes(), dtype="f4")
+        cnt = self.ctx.texture((w, h), 1, np.ascontiguousarray(count[::-1], np.int32).tobytes(),
+                               dtype="i4")
+        for tex in (arr, cnt):
+            tex.filter = (self.mgl.NEAREST, self.mgl.NEAREST)
+        return [arr, cnt]
 
     def draw(self, loaded, *, layers=None):
         """Render a :meth:`load`-ed scene → ``{buffer name: array}`` (see :meth:`render`)."""
-        if loaded["scene"]["technique"] == "render":
-            return self._gbuffer(loaded["scene"], loaded["draws"])
+        if loaded["scene"]["technique"] in ("render", "vds"):
+            return self._gbuffer(loaded["scene"], loaded["draws"], loaded["textures"])
         return self._peel(loaded["scene"], loaded["draws"], layers)
 
     def unload(self, loaded):
+        for tex in loaded.get("textures", ()):
+            tex.release()
+        loaded["textures"] = []
         for d in loaded["draws"]:
             for obj in d["release"]:
                 obj.release()
@@ -218,7 +248,7 @@ class Backend:
                                                   np.float32).tobytes())
             ibo = ctx.buffer(faces.tobytes()) if len(faces) else None
             out.append(dict(
-                object_id=d["object_id"], n_faces=len(faces), vbo=vbo, ibo=ibo,
+                object_id=d["object_id"], n_faces=len(faces), vbo=vbo, ibo=ibo, model=model,
                 mvp=(proj @ mv).astype(np.float32), mv=mv.astype(np.float32),
                 nmat=nmat.astype(np.float32), release=[b for b in (vbo, ibo) if b is not None],
                 vaos={}))
@@ -276,13 +306,22 @@ class Backend:
         return np.ascontiguousarray(a[::-1])          # GL's row 0 is the bottom
 
     # --- the G-buffer -----------------------------------------------------------------------
-    def _gbuffer(self, scene, draws):
-        ctx, prog = self.ctx, self.gbuffer
+    def _gbuffer(self, scene, draws, textures=()):
+        ctx = self.ctx
+        vds = scene["technique"] == "vds"
+        prog = self.vds if vds else self.gbuffer
         size = (scene["viewport"]["width"], scene["viewport"]["height"])
         raster, shading = scene["raster"], scene["shading"]
         targets = [ctx.texture(size, 1, dtype="f4"), ctx.texture(size, 1, dtype="f4"),
                    ctx.texture(size, 4, dtype="f4"), ctx.texture(size, 4, dtype="f4"),
                    ctx.texture(size, 4, dtype="f4"), ctx.texture(size, 4, dtype="i4")]
+        if vds:
+            targets.append(ctx.texture(size, 1, dtype="i4"))     # inside (parity test)
+            textures[0].use(location=0)
+            textures[1].use(location=1)
+            self._set(prog, "u_sprite_depth", 0)
+            self._set(prog, "u_sprite_count", 1)
+            sprite = matrix(scene["parameters"]["sprite_matrix"], "parameters.sprite_matrix")
         depth = self._depth_attachment(size)
         fbo = ctx.framebuffer(color_attachments=targets, depth_attachment=depth)
         try:
@@ -301,6 +340,8 @@ class Backend:
                 self._write(prog, "u_mvp", d["mvp"])
                 self._write(prog, "u_mv", d["mv"])
                 self._write(prog, "u_nmat", d["nmat"])
+                if vds:
+                    self._write(prog, "u_tmat", (sprite @ d["model"]).astype(np.float32))
                 self._set(prog, "u_object", int(d["object_id"]))
                 self._set(prog, "u_base", tuple(float(c) for c in
                                                 palette[d["object_id"] % len(palette)]))
@@ -309,6 +350,7 @@ class Backend:
             win, eye = (self._read(t, "<f4", 1, size)[..., 0] for t in targets[:2])
             normal, bary, color = (self._read(t, "<f4", 4, size)[..., :3] for t in targets[2:5])
             ids = self._read(targets[5], "<i4", 4, size)
+            inside = self._read(targets[6], "<i4", 1, size)[..., 0] if vds else None
         finally:
             self._parking.use()
             for obj in (fbo, depth, *targets):
@@ -316,7 +358,7 @@ class Backend:
         covered = ids[..., 3] == 1
         c3 = covered[..., None]
         bg = np.asarray(shading["background"], np.float32)
-        return {
+        out = {
             "depth": np.where(covered, win, np.float32(raster["clear_depth"])).astype(np.float32),
             "eye_depth": np.where(covered, eye, np.float32(np.inf)).astype(np.float32),
             "normal": np.where(c3, normal, 0).astype(np.float32),
@@ -326,6 +368,9 @@ class Backend:
             "barycentric": np.where(c3, bary, 0).astype(np.float32),
             "color": np.where(c3, color, bg).astype(np.float32),
         }
+        if vds:
+            out["inside"] = covered & (inside == 1)
+        return out
 
     # --- classic depth peeling --------------------------------------------------------------
     def _peel(self, scene, draws, layers):

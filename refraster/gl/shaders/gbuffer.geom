@@ -22,6 +22,10 @@ in vec3 vs_normal[];
 INTERP out vec3 gs_eye;
 INTERP out vec3 gs_normal;
 INTERP out vec3 gs_bary;
+#ifdef VDS
+in vec3 vs_T[];
+INTERP out vec3 gs_T;
+#endif
 
 void main() {
     vec3 face = cross(vs_obj[1] - vs_obj[0], vs_obj[2] - vs_obj[0]);
@@ -31,6 +35,9 @@ void main() {
         gs_eye = vs_eye[i];
         gs_normal = u_nmat * (u_smooth ? vs_normal[i] : face);
         gs_bary = vec3(i == 0, i == 1, i == 2);
+#ifdef VDS
+        gs_T = vs_T[i];
+#endif
         EmitVertex();
     }
     EndPrimitive();

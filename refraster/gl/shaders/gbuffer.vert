@@ -14,6 +14,10 @@ in vec3 in_normal;
 out vec3 vs_eye;           // eye-space position
 out vec3 vs_obj;           // object-space position (flat normals are formed from it)
 out vec3 vs_normal;        // object-space vertex normal (smooth scenes)
+#ifdef VDS
+uniform mat4 u_tmat;       // sprite matrix · model: object → the sprite's texture space [0, 1]³
+out vec3 vs_T;
+#endif
 
 void main() {
     vec4 clip = u_mvp * vec4(in_pos, 1.0);
@@ -25,4 +29,7 @@ void main() {
     vs_eye = (u_mv * vec4(in_pos, 1.0)).xyz;
     vs_obj = in_pos;
     vs_normal = in_normal;
+#ifdef VDS
+    vs_T = (u_tmat * vec4(in_pos, 1.0)).xyz;   // affine: interpolates exactly (perspective-correct)
+#endif
 }
