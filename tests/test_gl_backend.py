@@ -281,3 +281,67 @@ def test_vds_golden_agrees_with_trimesh_outside_the_decision_band(gold):
     theirs = np.where(keep, mesh.contains(q), False)
     assert len(theirs) > 5000 and inside[r, c].sum() > 300
     np.testing.assert_array_equal(inside[r, c], theirs)
+
+
+# --- the package reader never trusts a file (no GL needed) ------------------------------------
+
+def test_package_reader_refuses_bad_input(gold, tmp_path):
+    import shutil
+
+    from refraster.gl.package import PackageError, read_ply, read_scene
+    src = gold / "golden" / "render_cube" / "package"
+    pkg = tmp_path / "pkg"
+    shutil.copytree(src, pkg)
+    scene = read_scene(pkg)
+    v, f, n = read_ply(pkg / scene["draws"][0]["mesh"], 8, 12)
+    assert v.dtype == np.float32 and f.shape == (12, 3) and n is None
+    good = json.loads((pkg / "scene.json").read_text())
+
+    def bad_scene(edit, words):
+        doc = json.loads(json.dumps(good))
+        edit(doc)
+        (pkg / "scene.json").write_text(json.dumps(doc))
+        with pytest.raises(PackageError, match=words):
+            read_scene(pkg)
+
+    bad_scene(lambda d: d.update(schema_version=2), "schema_version 2")
+    bad_scene(lambda d: d["draws"][0].update(mesh="../../x.ply"), "not a plain relative path")
+    bad_scene(lambda d: d["camera"].update(view=[[1, 0], [0, 1]]), "camera.view")
+    bad_scene(lambda d: d["raster"].update(cull="sideways"), "raster.cull")
+    bad_scene(lambda d: d["viewport"].update(width=0), "viewport")
+    bad_scene(lambda d: d.pop("shading"), "shading")
+    (pkg / "scene.json").write_text("{\"schema\": NaN}")
+    with pytest.raises(PackageError, match="not valid JSON"):
+        read_scene(pkg)
+    ply = pkg / good["draws"][0]["mesh"]
+    data = ply.read_bytes()
+    for blob, words in ((data[:-5], "body is"), (b"solid x\n", "not a PLY"),
+                        (data.replace(b"binary_little_endian", b"binary_big_endian"),
+                         "little-endian")):
+        ply.write_bytes(blob)
+        with pytest.raises(PackageError, match=words):
+            read_ply(ply)
+    ply.write_bytes(data)
+    with pytest.raises(PackageError, match="scene.json says"):
+        read_ply(ply, 9, 12)
+    # a face index out of range
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    body = bytearray(data)
+    body[end + 8 * 12 + 1:end + 8 * 12 + 5] = np.int32(99).tobytes()
+    ply.write_bytes(bytes(body))
+    with pytest.raises(PackageError, match="out of range"):
+        read_ply(ply)
+    # a link is not followed
+    ply.unlink()
+    (tmp_path / "elsewhere.ply").write_bytes(data)
+    ply.symlink_to(tmp_path / "elsewhere.ply")
+    with pytest.raises(PackageError, match="cannot open"):
+        read_ply(ply)
+
+
+def test_gl_frames_are_bit_identical_across_runs(gold):
+    with _backend_or_skip() as gl:
+        pkg = gold / "golden" / "render_crank" / "package"
+        a, b = gl.render(pkg), gl.render(pkg)
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
