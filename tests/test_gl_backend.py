@@ -362,3 +362,35 @@ def test_gl_frames_are_bit_identical_across_runs(gold):
         a, b = gl.render(pkg), gl.render(pkg)
     for key in a:
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+def test_gl_peel_under_the_sprite_camera_rebuilds_the_exported_sprite(gold, tmp_path):
+    """A GPU team can build the sprite itself: classic peeling of the solid under the sprite's
+    orthographic camera (view = ``sprite_matrix``, projection [0, 1]³ → NDC, so window depth is
+    T_r) gives the exported layers and counts (the building has no coincident fragments, where
+    peeling and refraster's A-buffer would differ: MATH.md §2.3)."""
+    import refraster
+    from refraster.golden.package import export_package
+    from refraster.golden.scenes import DEFAULT_RASTER, Draw, GoldenScene, prepare_draws
+    from refraster.scenes import solid
+    base = gold / "golden" / VDS / "package"
+    scene = json.loads((base / "scene.json").read_text())
+    p = scene["parameters"]
+    res = p["resolution"]
+    to_ndc = np.eye(4) * 2.0
+    to_ndc[3, 3], to_ndc[:3, 3] = 1.0, -1.0
+    cam = refraster.Camera(np.array(p["sprite_matrix"]), to_ndc, res, res)
+    draws = prepare_draws([Draw("building", solid("building"))])
+    export_package(tmp_path / "sprite", "sprite",
+                   GoldenScene(technique="ldi", camera=cam, draws=draws, buffers={},
+                               parameters={"mode": "peel", "max_layers": None}),
+                   dict(DEFAULT_RASTER))
+    with _backend_or_skip() as gl:
+        built = gl.render(tmp_path / "sprite")
+    count = np.load(base / "maps" / "sprite_count.npy")
+    np.testing.assert_array_equal(built["layer_count"], count)
+    assert built["layer_depth"].shape[-1] == p["layers"]
+    for j, name in enumerate(p["sprite_depth"]):
+        ref = np.load(base / "maps" / f"{name}.npy")
+        valid = count > j
+        np.testing.assert_allclose(built["layer_depth"][..., j][valid], ref[valid], atol=2e-6)
