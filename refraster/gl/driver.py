@@ -115,8 +115,8 @@ class Backend:
         try:
             ctx = moderngl.create_standalone_context(backend="egl", require=330)
         except Exception as exc:
-            raise GLUnavailable("no headless OpenGL 3.3 context through EGL "
-                                f"(libEGL and a driver such as Mesa's libegl-mesa0): {exc}") from None
+            raise GLUnavailable("no headless OpenGL 3.3 context through EGL (libEGL and a "
+                                f"driver such as Mesa's libegl-mesa0): {exc}") from None
         self.mgl, self.ctx = moderngl, ctx
         self.faults = tuple(faults)
         self.renderer = f"{ctx.info['GL_RENDERER']}; OpenGL {ctx.info['GL_VERSION']}"
