@@ -23,8 +23,9 @@ OFFSET = ["tests/test_offsetmaps.py"] + HAND
 EDGES = ["tests/test_edges.py"]
 NPR = ["tests/test_npr.py"]
 CUT = ["tests/test_cutaway.py", "tests/test_cutaway_render.py"] + HAND
-H4 = ["tests/test_halos4d_geometry.py", "tests/test_halos4d_render.py",
-      "tests/test_halos4d_defaults.py", "tests/test_halos4d_options.py"] + HAND
+H4 = ["tests/test_halos4d_geometry.py", "tests/test_halos4d_eq3.py",
+      "tests/test_halos4d_render.py", "tests/test_halos4d_defaults.py",
+      "tests/test_halos4d_options.py"] + HAND
 GOLD = ["tests/test_golden.py", "tests/test_golden_tolerant.py"] + HAND
 
 PRIM = "refraster/raster/primitive.py"
