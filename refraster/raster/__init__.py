@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._threads import frame_work, threads_for
 from .._validate import as_choice, as_float_array, as_image_size, as_index_array, as_matrix
 from ..mesh import as_meshes
 from .fragments import Fragments, concat
@@ -159,10 +160,13 @@ def draw(meshes, *, view, proj, width, height, model=None, cull="none", precisio
         With ``meshes``, ``models``, ``view`` and ``proj`` attached, so ``interpolate`` and
         ``world_position`` work.
     """
-    prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
-                   cull=cull, precision=precision, subpixel_bits=subpixel_bits,
-                   fill_rule=fill_rule)
-    pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
+    meshes = as_meshes(meshes)
+    w, h = as_image_size(width, height)
+    with threads_for(frame_work(sum(m.n_faces for m in meshes), w, h)):
+        prep = prepare(meshes, view=view, proj=proj, width=w, height=h, model=model,
+                       cull=cull, precision=precision, subpixel_bits=subpixel_bits,
+                       fill_rule=fill_rule)
+        pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
     return _fragments_from(prep, pixel, depth, prim, front, bary)
 
 

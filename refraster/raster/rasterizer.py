@@ -491,16 +491,25 @@ def resolved_buffers(height, width, clear_depth):
             np.zeros((height * width, 3), np.float32))
 
 
-def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0):
+def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None):
     """Rasterize and depth-resolve in one pass (no fragment stream, depth writes on).
 
     Returns ``(depth (H, W) float32, prim (H, W) int64 face index or −1, front (H, W) bool,
     bary (H·W, 3) float32)``; bit-identical to :func:`stream` followed by
     :func:`refraster.raster.resolve.resolve` with the same ``depth_func`` (a test checks it).
+    ``buffers``: four such arrays (C-contiguous, checked by the caller) to fill and reuse
+    instead of new ones.
     """
     ntx, nty, starts, lists = bin_primitives(prims)
     h, w = prims.height, prims.width
-    depth, prim, front, bary = resolved_buffers(h, w, clear_depth)
+    if buffers is None:
+        depth, prim, front, bary = resolved_buffers(h, w, clear_depth)
+    else:   # the same clear values, written into the caller's arrays
+        depth, prim, front, bary = buffers
+        depth.fill(np.float32(clear_depth))
+        prim.fill(-1)
+        front.fill(False)
+        bary.fill(0.0)
     _fused_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits, fill_rule,
                 depth_func, np.float32(clear_depth), depth, prim, front, bary)
     return depth, prim, front, bary
