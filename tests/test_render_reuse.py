@@ -153,6 +153,9 @@ def test_normals_cache_is_bounded(monkeypatch):
 
 def test_small_frames_run_serially_and_the_override(monkeypatch):
     monkeypatch.delenv("REFRASTER_THREADS", raising=False)
+    monkeypatch.setattr(_threads, "_runnable", lambda: 1)   # idle cores
+    if numba.get_num_threads() > 1 and _threads._cpus() > 1:
+        assert _threads.frame_threads(_threads.frame_work(12, 512, 384)) > 1
     assert _threads.frame_threads(_threads.frame_work(12, 160, 120)) == 1
     monkeypatch.setattr(_threads, "_runnable", lambda: 9)   # busy cores: one thread
     assert _threads.frame_threads(_threads.frame_work(81920, 1024, 768)) == 1
