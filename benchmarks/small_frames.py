@@ -1,0 +1,194 @@
+"""Issue 28 in one run: small frames, the default environment beside the tuned one, shared cores.
+
+    python -m benchmarks.small_frames [--repeats N] [--rounds R] [--no-load]
+
+1. **Small frames**: a 12-face cube at 160×120 and 512×384, ``render`` with new outputs and
+   with a reused framebuffer (``out=``), beside the cost of allocating and filling the buffers
+   a frame returns or keeps — the seven ``Framebuffer`` arrays (depth, eye depth, normal,
+   primitive and object ids, facing, barycentrics: 37 bytes per pixel) and the int64 face
+   image the pending colour keeps (8 bytes per pixel) — filled with their clear values.
+2. **Default vs tuned environment**: every number of 1 and 3 in two processes, one with the
+   environment as a user has it, one with ``GLIBC_TUNABLES`` malloc tuning
+   (:data:`benchmarks.raster.TUNED`); the 82k-face icosphere at 1024×768, flat and
+   ``normals="smooth"`` (vertex normals cached on the mesh's digest; the uncached cost, a
+   ``vertex_normals`` call, is printed beside).
+3. **Shared cores**: with two CPU-bound processes started by this script (busy loops, one per
+   core) running, the cube at 512×384 and the 82k frame with ``NUMBA_NUM_THREADS=2`` in three
+   modes alternating frame by frame in one process: ``auto`` (refraster's choice,
+   :mod:`refraster._threads`), ``2`` (``REFRASTER_THREADS=2``: Numba's plain behaviour) and
+   ``1`` thread; the ratios to ``1`` are the issue's measure.
+
+Wall times are medians of per-round medians (rounds alternate the cases, so a slow spell of a
+shared machine hits all alike); ``cpu`` is the calling thread's CPU time (``time.thread_time``;
+on one thread the frame's own cost, whatever else runs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from benchmarks.raster import TUNED
+
+W, H = 1024, 768
+
+
+def _scenes():
+    import trimesh
+
+    import refraster as rf
+    from refraster import scenes
+    from refraster.mesh import as_mesh
+    cube = scenes.cube()
+    ico = trimesh.creation.icosphere(6)
+    mk = lambda tm: as_mesh((np.asarray(tm.vertices, np.float64),   # noqa: E731
+                             np.asarray(tm.faces, np.int64)))
+    view = rf.look_at([1.6, 1.2, 2.4], [0, 0, 0])
+    cam = rf.camera.frame_bounds(ico.bounds, width=W, height=H, margin=1.0)
+    out = {}
+    for w, h in ((160, 120), (512, 384)):
+        out[f"cube {w}x{h}"] = (mk(cube), dict(view=view, proj=rf.perspective(45, w / h, .5, 10),
+                                               width=w, height=h))
+    out["ico 81,920 1024x768"] = (mk(ico), dict(view=cam.view, proj=cam.proj, width=W, height=H))
+    out["ico 81,920 smooth"] = (out["ico 81,920 1024x768"][0],
+                                dict(out["ico 81,920 1024x768"][1], normals="smooth"))
+    return out
+
+
+def _alloc_fill(h, w):
+    return (np.full((h, w), np.float32(1), np.float32), np.full((h, w), np.inf, np.float32),
+            np.zeros((h, w, 3), np.float32), np.full((h, w), -1, np.int32),
+            np.full((h, w), -1, np.int32), np.zeros((h, w), np.bool_),
+            np.zeros((h, w, 3), np.float32), np.full((h, w), -1, np.int64))
+
+
+def _time(fn):
+    t0, c0 = time.perf_counter(), time.thread_time()
+    fn()
+    return (time.perf_counter() - t0) * 1e3, (time.thread_time() - c0) * 1e3
+
+
+def _rounds(fns, repeats, rounds):
+    """{name: (wall ms, cpu ms)}: median over rounds of the median of ``repeats`` calls, the
+    functions alternating call by call."""
+    for fn in fns.values():
+        fn()
+        fn()
+    per = {k: ([], []) for k in fns}
+    for _ in range(rounds):
+        acc = {k: ([], []) for k in fns}
+        for _ in range(repeats):
+            for k, fn in fns.items():
+                wall, cpu = _time(fn)
+                acc[k][0].append(wall)
+                acc[k][1].append(cpu)
+        for k in fns:
+            per[k][0].append(np.median(acc[k][0]))
+            per[k][1].append(np.median(acc[k][1]))
+    return {k: (float(np.median(v[0])), float(np.median(v[1]))) for k, v in per.items()}
+
+
+def worker_frames(repeats, rounds):
+    import refraster as rf
+    from refraster.mesh import vertex_normals
+    sc = _scenes()
+    fns = {}
+    for name, (m, kw) in sc.items():
+        out = rf.render(m, **kw)
+        fns[name] = (lambda m=m, kw=kw: rf.render(m, **kw))
+        fns[name + " out="] = (lambda m=m, kw=kw, out=out: rf.render(m, **kw, out=out))
+        if name.startswith("cube"):
+            fns[name + " alloc+fill"] = (lambda kw=kw: _alloc_fill(kw["height"], kw["width"]))
+    m = sc["ico 81,920 smooth"][0]
+    fns["vertex_normals 81,920 (uncached)"] = lambda: vertex_normals(m.vertices, m.faces)
+    return _rounds(fns, repeats, rounds)
+
+
+def worker_shared(repeats, rounds):
+    import refraster as rf
+    sc = _scenes()
+    fns = {}
+    for name in ("cube 512x384", "ico 81,920 1024x768"):
+        m, kw = sc[name]
+        for mode in ("auto", "2", "1"):
+            def f(m=m, kw=kw, mode=mode):
+                os.environ["REFRASTER_THREADS"] = mode   # read on every frame
+                rf.render(m, **kw)
+            fns[f"{name} {mode}"] = f
+    return _rounds(fns, repeats, rounds)
+
+
+def _run(kind, env, repeats, rounds):
+    code = (f"import json; from benchmarks.small_frames import worker_{kind} as w; "
+            f"print(json.dumps(w({repeats}, {rounds})))")
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                       timeout=1800)
+    if r.returncode != 0:
+        raise RuntimeError(r.stderr)
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def _hogs(n):
+    code = "while True: pass"
+    return [subprocess.Popen([sys.executable, "-c", code]) for _ in range(n)]
+
+
+def _loadavg():
+    with open("/proc/loadavg") as fh:
+        return fh.read().strip()
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=15)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--no-load", action="store_true", help="skip the shared-core part")
+    a = ap.parse_args(argv)
+    base = {k: v for k, v in os.environ.items()
+            if k not in ("GLIBC_TUNABLES", "REFRASTER_THREADS")}
+    base["NUMBA_NUM_THREADS"] = "2"
+    print(f"load before: {_loadavg()}")
+    default = _run("frames", base, a.repeats, a.rounds)
+    tuned = _run("frames", dict(base, GLIBC_TUNABLES=TUNED), a.repeats, a.rounds)
+    print(f"load after:  {_loadavg()}")
+    print("\n1-2. frames, NUMBA_NUM_THREADS=2, refraster's thread choice (ms, median; "
+          "wall | thread cpu)")
+    print(f"{'case':38} {'default wall':>12} {'cpu':>7} {'tuned wall':>11} {'cpu':>7}"
+          f" {'default/tuned':>13}")
+    for k in default:
+        dw, dc = default[k]
+        tw, tc = tuned[k]
+        print(f"{k:38} {dw:12.3f} {dc:7.3f} {tw:11.3f} {tc:7.3f} {dw / tw:13.2f}")
+    for size in ("160x120", "512x384"):
+        k = f"cube {size}"
+        for env, r in (("default", default), ("tuned", tuned)):
+            print(f"cube {size} {env}: render / alloc+fill = "
+                  f"{r[k][0] / r[k + ' alloc+fill'][0]:.2f} (wall), "
+                  f"{r[k][1] / r[k + ' alloc+fill'][1]:.2f} (cpu); out= {r[k + ' out='][0]:.3f} ms")
+    if a.no_load:
+        return
+    hogs = _hogs(2)
+    try:
+        time.sleep(1.0)
+        print(f"\n3. shared cores: two busy-loop processes running; load: {_loadavg()}")
+        shared = _run("shared", base, a.repeats, a.rounds)
+        print(f"   load at the end: {_loadavg()}")
+    finally:
+        for p in hogs:
+            p.kill()
+            p.wait()
+    print(f"{'case':24} {'auto ms':>9} {'plain 2 ms':>10} {'1 thread ms':>11} {'auto/1':>7}"
+          f" {'plain2/1':>8}")
+    for name in ("cube 512x384", "ico 81,920 1024x768"):
+        au, t2, t1 = (shared[f"{name} {m}"][0] for m in ("auto", "2", "1"))
+        print(f"{name:24} {au:9.2f} {t2:10.2f} {t1:11.2f} {au / t1:7.2f} {t2 / t1:8.2f}")
+
+
+if __name__ == "__main__":
+    main()
