@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._scratch import frame_scratch
 from ._threads import frame_work, threads_for
 from ._validate import as_choice, as_float_array, as_image_size, as_real
 from .mesh import as_meshes, smooth_normals
@@ -390,23 +391,27 @@ def render(meshes, *, view, proj, width, height, normals=None, cull="none", dept
 
 def _render(meshes, view, proj, width, height, normals, cull, depth_func, model, precision,
             subpixel_bits, fill_rule, fragment_stage, clear, bg, out):
+    # the fused path's intermediates come from this thread's reused buffers (none of them is
+    # returned or kept by the framebuffer); the fragment-stream path hands its stream to user
+    # code, so it allocates
+    scratch = frame_scratch() if fragment_stage is None else None
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
                    cull=cull, precision=precision, subpixel_bits=subpixel_bits,
-                   fill_rule=fill_rule)
+                   fill_rule=fill_rule, scratch=scratch)
     if fragment_stage is None:
         h, w = height, width
         buffers = None
         if out is not None:
             _check_out(out, h, w, _input_arrays(prep.meshes, normals, prep.view, prep.proj,
                                                 model, bg))
-            scratch = out.__dict__.get("_prim_scratch")
-            if not (isinstance(scratch, np.ndarray) and scratch.shape == (h, w)):
-                scratch = np.empty((h, w), np.int64)   # private: never handed out
-            out.__dict__["_prim_scratch"] = scratch
-            buffers = (out.depth, scratch, out.front_facing, out.barycentric.reshape(h * w, 3))
+            faces = out.__dict__.get("_prim_scratch")
+            if not (isinstance(faces, np.ndarray) and faces.shape == (h, w)):
+                faces = np.empty((h, w), np.int64)   # private: never handed out
+            out.__dict__["_prim_scratch"] = faces
+            buffers = (out.depth, faces, out.front_facing, out.barycentric.reshape(h * w, 3))
         depth, prim_global, front, bary = fused(
             prep.triangles, fill_rule=prep.fill_rule, depth_func=DEPTH_FUNCS[depth_func.lower()],
-            clear_depth=clear, buffers=buffers)
+            clear_depth=clear, buffers=buffers, scratch=scratch)
         return _build(prep.meshes, prep.models, prep.view, prep.proj, depth, prim_global,
                       prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg, out=out)
     from .raster import _fragments_from

@@ -187,3 +187,35 @@ def test_thread_choice_restores_numba_and_keeps_the_bytes(monkeypatch):
     with pytest.raises(ValueError):
         rf.render(ico, **kw, cull="sideways")
     assert numba.get_num_threads() == before
+
+
+def test_reused_scratch_never_reaches_a_frame():
+    """The fused path's intermediates come from reused per-thread buffers: no array of a frame
+    (nor of its pending colour) may live in them, so a later frame cannot change it."""
+    from refraster._scratch import frame_scratch
+    ico, t = _mesh(icosphere(3)), _mesh(torus(major_segments=24, minor_segments=10))
+    kw = _kw()
+    a = rf.render(ico, **kw, normals="smooth")        # colour left pending
+    held = {f: getattr(a, f).copy() for f in FIELDS if f != "color"}
+    pending = a.__dict__["_color"].args
+    rf.render(t, **_kw(eye=(0.5, 2.2, 2.0)), cull="back")   # reuses every scratch buffer
+    bufs = list(frame_scratch()._bufs.values())
+    assert bufs
+    for x in [getattr(a, f) for f in held] + [p for p in pending if isinstance(p, np.ndarray)]:
+        assert not any(np.may_share_memory(x, b) for b in bufs)
+    for f in held:
+        assert getattr(a, f).tobytes() == held[f].tobytes(), f
+    _same(a, rf.render(ico, **kw, normals="smooth"))
+
+
+def test_public_prepare_never_uses_the_scratch():
+    from refraster._scratch import frame_scratch
+    from refraster.raster import prepare
+    ico = _mesh(icosphere(2))
+    kw = _kw()
+    rf.render(ico, **kw)
+    p = prepare(ico, **kw)
+    bufs = list(frame_scratch()._bufs.values())
+    t = p.triangles
+    for x in (p.clip, t.vx, t.vy, t.vz, t.status, t.bbox):
+        assert not any(np.may_share_memory(x, b) for b in bufs)

@@ -82,8 +82,11 @@ def _check_clip(clip, meshes, prec):
 
 
 def prepare(meshes, *, view, proj, width, height, model=None, cull="none", precision="float32",
-            subpixel_bits=8, fill_rule="llvmpipe"):
-    """Validate draw calls and run the vertex and primitive stages (shared by draw and render)."""
+            subpixel_bits=8, fill_rule="llvmpipe", scratch=None):
+    """Validate draw calls and run the vertex and primitive stages (shared by draw and render).
+    ``scratch`` (internal, ``render``): a :class:`refraster._scratch.Scratch` for the clip
+    coordinates and the primitive stage's arrays — the result is then valid only until that
+    scratch is used again."""
     meshes = as_meshes(meshes)
     view = as_matrix(view, "view")
     proj = as_matrix(proj, "proj")
@@ -105,7 +108,15 @@ def prepare(meshes, *, view, proj, width, height, model=None, cull="none", preci
         mvps.append(mvp)
     _check_projection(proj)
     offsets = np.cumsum([0] + [m.n_faces for m in meshes])
-    if len(meshes) == 1:   # the common case: no copies
+    if len(meshes) == 1 and scratch is not None:   # the common case, into reused buffers
+        nv = meshes[0].n_vertices
+        c32 = transform_vertices(meshes[0].vertices, mvps[0], prec,
+                                 out=scratch.zeros("clip_" + prec, (nv, 4), prec))
+        clip = c32 if prec == "float64" else scratch.zeros("clip", (nv, 4), np.float64)
+        if clip is not c32:
+            clip[...] = c32
+        face = meshes[0].faces
+    elif len(meshes) == 1:   # the common case: no copies
         clip = transform_vertices(meshes[0].vertices, mvps[0], prec).astype(np.float64)
         face = meshes[0].faces
     else:   # each draw call written once into the concatenated arrays
@@ -121,7 +132,8 @@ def prepare(meshes, *, view, proj, width, height, model=None, cull="none", preci
     p.width, p.height, p.fill_rule = width, height, rule
     p.face_offsets = np.asarray(offsets, np.int64)
     p.clip = clip
-    p.triangles = setup_triangles(clip, face, width, height, cull=cull_code, subpixel_bits=bits)
+    p.triangles = setup_triangles(clip, face, width, height, cull=cull_code, subpixel_bits=bits,
+                                  scratch=scratch)
     return p
 
 
