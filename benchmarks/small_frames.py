@@ -12,6 +12,8 @@
    (:data:`benchmarks.raster.TUNED`); the 82k-face icosphere at 1024×768, flat and
    ``normals="smooth"`` (vertex normals cached on the mesh's digest; the uncached cost, a
    ``vertex_normals`` call, is printed beside).
+   A ``faults`` column counts the minor page faults per frame (fresh memory touched by the
+   frame): a count, not a time, so the default-vs-tuned comparison holds on a busy machine.
 3. **Shared cores**: with two CPU-bound processes started by this script (busy loops, one per
    core) running, the cube at 512×384 and the 82k frame with ``NUMBA_NUM_THREADS=2`` in three
    modes alternating frame by frame in one process: ``auto`` (refraster's choice,
@@ -28,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -74,24 +77,32 @@ def _time(fn):
     return (time.perf_counter() - t0) * 1e3, (time.thread_time() - c0) * 1e3
 
 
+def _faults():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+
+
 def _rounds(fns, repeats, rounds):
-    """{name: (wall ms, cpu ms)}: median over rounds of the median of ``repeats`` calls, the
-    functions alternating call by call."""
+    """{name: (wall ms, cpu ms, page faults per call)}: median over rounds of the median of
+    ``repeats`` calls, the functions alternating call by call; the minor page faults (fresh
+    memory touched) are the mean per call (a count, not a time: immune to other processes)."""
     for fn in fns.values():
         fn()
         fn()
-    per = {k: ([], []) for k in fns}
+    per = {k: ([], [], []) for k in fns}
     for _ in range(rounds):
-        acc = {k: ([], []) for k in fns}
+        acc = {k: ([], [], []) for k in fns}
         for _ in range(repeats):
             for k, fn in fns.items():
+                f0 = _faults()
                 wall, cpu = _time(fn)
                 acc[k][0].append(wall)
                 acc[k][1].append(cpu)
+                acc[k][2].append(_faults() - f0)
         for k in fns:
-            per[k][0].append(np.median(acc[k][0]))
-            per[k][1].append(np.median(acc[k][1]))
-    return {k: (float(np.median(v[0])), float(np.median(v[1]))) for k, v in per.items()}
+            for j in range(3):
+                per[k][j].append(np.median(acc[k][j]) if j < 2 else np.mean(acc[k][j]))
+    return {k: (float(np.median(v[0])), float(np.median(v[1])), float(np.mean(v[2])))
+            for k, v in per.items()}
 
 
 def worker_frames(repeats, rounds):
@@ -159,12 +170,13 @@ def main(argv=None):
     print(f"load after:  {_loadavg()}")
     print("\n1-2. frames, NUMBA_NUM_THREADS=2, refraster's thread choice (ms, median; "
           "wall | thread cpu)")
-    print(f"{'case':38} {'default wall':>12} {'cpu':>7} {'tuned wall':>11} {'cpu':>7}"
-          f" {'default/tuned':>13}")
+    print(f"{'case':38} {'default wall':>12} {'cpu':>7} {'faults':>7} {'tuned wall':>11}"
+          f" {'cpu':>7} {'faults':>7} {'default/tuned':>13}")
     for k in default:
-        dw, dc = default[k]
-        tw, tc = tuned[k]
-        print(f"{k:38} {dw:12.3f} {dc:7.3f} {tw:11.3f} {tc:7.3f} {dw / tw:13.2f}")
+        dw, dc, df = default[k]
+        tw, tc, tf = tuned[k]
+        print(f"{k:38} {dw:12.3f} {dc:7.3f} {df:7.0f} {tw:11.3f} {tc:7.3f} {tf:7.0f}"
+              f" {dw / tw:13.2f}")
     for size in ("160x120", "512x384"):
         k = f"cube {size}"
         for env, r in (("default", default), ("tuned", tuned)):
@@ -184,7 +196,7 @@ def main(argv=None):
             p.kill()
             p.wait()
     print(f"{'case':24} {'auto ms':>9} {'plain 2 ms':>10} {'1 thread ms':>11} {'auto/1':>7}"
-          f" {'plain2/1':>8}")
+          f" {'plain2/1':>8}  (wall, median)")
     for name in ("cube 512x384", "ico 81,920 1024x768"):
         au, t2, t1 = (shared[f"{name} {m}"][0] for m in ("auto", "2", "1"))
         print(f"{name:24} {au:9.2f} {t2:10.2f} {t1:11.2f} {au / t1:7.2f} {t2 / t1:8.2f}")
