@@ -16,7 +16,7 @@
    frame): a count, not a time, so the default-vs-tuned comparison holds on a busy machine.
 3. **Shared cores**: with two CPU-bound processes started by this script (busy loops, one per
    core) running, the cube at 512×384 and the 82k frame with ``NUMBA_NUM_THREADS=2`` in three
-   modes alternating frame by frame in one process: ``auto`` (refraster's choice,
+   modes, each in processes of its own, alternating over the rounds: ``auto`` (refraster's choice,
    :mod:`refraster._threads`), ``2`` (``REFRASTER_THREADS=2``: Numba's plain behaviour) and
    ``1`` thread; the ratios to ``1`` are the issue's measure.
 
@@ -121,17 +121,15 @@ def worker_frames(repeats, rounds):
     return _rounds(fns, repeats, rounds)
 
 
+SHARED = ("cube 512x384", "ico 81,920 1024x768")
+
+
 def worker_shared(repeats, rounds):
+    """One thread mode per process (``REFRASTER_THREADS`` from the caller): a mode's spinning
+    or sleeping workers never touch another mode's frames."""
     import refraster as rf
     sc = _scenes()
-    fns = {}
-    for name in ("cube 512x384", "ico 81,920 1024x768"):
-        m, kw = sc[name]
-        for mode in ("auto", "2", "1"):
-            def f(m=m, kw=kw, mode=mode):
-                os.environ["REFRASTER_THREADS"] = mode   # read on every frame
-                rf.render(m, **kw)
-            fns[f"{name} {mode}"] = f
+    fns = {name: (lambda m=sc[name][0], kw=sc[name][1]: rf.render(m, **kw)) for name in SHARED}
     return _rounds(fns, repeats, rounds)
 
 
@@ -189,7 +187,13 @@ def main(argv=None):
     try:
         time.sleep(1.0)
         print(f"\n3. shared cores: two busy-loop processes running; load: {_loadavg()}")
-        shared = _run("shared", base, a.repeats, a.rounds)
+        shared = {}
+        for _ in range(a.rounds):   # the modes alternate process by process
+            for mode in ("auto", "2", "1"):
+                r = _run("shared", dict(base, REFRASTER_THREADS=mode), a.repeats, 1)
+                for name in SHARED:
+                    shared.setdefault(f"{name} {mode}", []).append(r[name][0])
+        shared = {k: (float(np.median(v)),) for k, v in shared.items()}
         print(f"   load at the end: {_loadavg()}")
     finally:
         for p in hogs:
@@ -197,7 +201,7 @@ def main(argv=None):
             p.wait()
     print(f"{'case':24} {'auto ms':>9} {'plain 2 ms':>10} {'1 thread ms':>11} {'auto/1':>7}"
           f" {'plain2/1':>8}  (wall, median)")
-    for name in ("cube 512x384", "ico 81,920 1024x768"):
+    for name in SHARED:
         au, t2, t1 = (shared[f"{name} {m}"][0] for m in ("auto", "2", "1"))
         print(f"{name:24} {au:9.2f} {t2:10.2f} {t1:11.2f} {au / t1:7.2f} {t2 / t1:8.2f}")
 
