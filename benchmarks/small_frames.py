@@ -16,9 +16,10 @@
    frame): a count, not a time, so the default-vs-tuned comparison holds on a busy machine.
 3. **Shared cores**: with two CPU-bound processes started by this script (busy loops, one per
    core) running, the cube at 512×384 and the 82k frame with ``NUMBA_NUM_THREADS=2`` in three
-   modes, each in processes of its own, alternating over the rounds: ``auto`` (refraster's choice,
-   :mod:`refraster._threads`), ``2`` (``REFRASTER_THREADS=2``: Numba's plain behaviour) and
-   ``1`` thread; the ratios to ``1`` are the issue's measure.
+   modes, each in processes of its own, alternating over the rounds: ``auto`` (refraster's
+   choice, :mod:`refraster._threads`), ``2`` (``REFRASTER_THREADS=2``: Numba's plain
+   behaviour), the same with ``OMP_WAIT_POLICY=passive`` and with the ``workqueue`` layer, and
+   ``1`` thread (:data:`MODES`); the ratios to ``1`` are the issue's measure.
 
 Wall times are medians of per-round medians (rounds alternate the cases, so a slow spell of a
 shared machine hits all alike); ``cpu`` is the calling thread's CPU time (``time.thread_time``;
@@ -122,6 +123,12 @@ def worker_frames(repeats, rounds):
 
 
 SHARED = ("cube 512x384", "ico 81,920 1024x768")
+#: Thread modes of the shared-core part: refraster's choice, Numba's plain 2 threads (OpenMP
+#: layer, libgomp's default wait policy; then passive waiting; then the workqueue layer), 1.
+MODES = {"auto": dict(REFRASTER_THREADS="auto"), "2": dict(REFRASTER_THREADS="2"),
+         "2 passive": dict(REFRASTER_THREADS="2", OMP_WAIT_POLICY="passive"),
+         "2 workqueue": dict(REFRASTER_THREADS="2", NUMBA_THREADING_LAYER="workqueue"),
+         "1": dict(REFRASTER_THREADS="1")}
 
 
 def worker_shared(repeats, rounds):
@@ -189,8 +196,8 @@ def main(argv=None):
         print(f"\n3. shared cores: two busy-loop processes running; load: {_loadavg()}")
         shared = {}
         for _ in range(a.rounds):   # the modes alternate process by process
-            for mode in ("auto", "2", "1"):
-                r = _run("shared", dict(base, REFRASTER_THREADS=mode), a.repeats, 1)
+            for mode, env in MODES.items():
+                r = _run("shared", dict(base, **env), a.repeats, 1)
                 for name in SHARED:
                     shared.setdefault(f"{name} {mode}", []).append(r[name][0])
         shared = {k: (float(np.median(v)),) for k, v in shared.items()}
@@ -199,11 +206,12 @@ def main(argv=None):
         for p in hogs:
             p.kill()
             p.wait()
-    print(f"{'case':24} {'auto ms':>9} {'plain 2 ms':>10} {'1 thread ms':>11} {'auto/1':>7}"
-          f" {'plain2/1':>8}  (wall, median)")
+    print("wall ms, median of per-process medians; in brackets: / the 1-thread time")
+    print(f"{'case':24}" + "".join(f" {m:>18}" for m in MODES))
     for name in SHARED:
-        au, t2, t1 = (shared[f"{name} {m}"][0] for m in ("auto", "2", "1"))
-        print(f"{name:24} {au:9.2f} {t2:10.2f} {t1:11.2f} {au / t1:7.2f} {t2 / t1:8.2f}")
+        t1 = shared[f"{name} 1"][0]
+        cells = [shared[f"{name} {m}"][0] for m in MODES]
+        print(f"{name:24}" + "".join(f" {c:9.2f} ({c / t1:5.2f})" for c in cells))
 
 
 if __name__ == "__main__":
