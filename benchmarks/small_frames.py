@@ -128,6 +128,7 @@ SHARED = ("cube 512x384", "ico 81,920 1024x768")
 MODES = {"auto": dict(REFRASTER_THREADS="auto"), "2": dict(REFRASTER_THREADS="2"),
          "2 passive": dict(REFRASTER_THREADS="2", OMP_WAIT_POLICY="passive"),
          "2 workqueue": dict(REFRASTER_THREADS="2", NUMBA_THREADING_LAYER="workqueue"),
+         "auto passive": dict(REFRASTER_THREADS="auto", OMP_WAIT_POLICY="passive"),
          "1": dict(REFRASTER_THREADS="1")}
 
 
@@ -165,10 +166,19 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=15)
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--no-load", action="store_true", help="skip the shared-core part")
+    ap.add_argument("--shared-only", action="store_true", help="only the shared-core part")
     a = ap.parse_args(argv)
     base = {k: v for k, v in os.environ.items()
-            if k not in ("GLIBC_TUNABLES", "REFRASTER_THREADS")}
+            if k not in ("GLIBC_TUNABLES", "REFRASTER_THREADS", "OMP_WAIT_POLICY",
+                         "GOMP_SPINCOUNT", "NUMBA_THREADING_LAYER")}
     base["NUMBA_NUM_THREADS"] = "2"
+    if not a.shared_only:
+        _frames(base, a)
+    if not a.no_load:
+        _shared(base, a)
+
+
+def _frames(base, a):
     print(f"load before: {_loadavg()}")
     default = _run("frames", base, a.repeats, a.rounds)
     tuned = _run("frames", dict(base, GLIBC_TUNABLES=TUNED), a.repeats, a.rounds)
@@ -188,8 +198,9 @@ def main(argv=None):
             print(f"cube {size} {env}: render / alloc+fill = "
                   f"{r[k][0] / r[k + ' alloc+fill'][0]:.2f} (wall), "
                   f"{r[k][1] / r[k + ' alloc+fill'][1]:.2f} (cpu); out= {r[k + ' out='][0]:.3f} ms")
-    if a.no_load:
-        return
+
+
+def _shared(base, a):
     hogs = _hogs(2)
     try:
         time.sleep(1.0)

@@ -17,7 +17,11 @@ per frame, once, before the first kernel:
 * otherwise Numba's current thread count (``NUMBA_NUM_THREADS`` or ``numba.set_num_threads``,
   the user's cap), lowered to the cores other processes leave free: the number of runnable
   tasks in ``/proc/loadavg`` (an instantaneous count, read in ~10 µs) minus up to this
-  process's own threads, against the CPUs this process may run on. Never below 1.
+  process's own threads, against the CPUs this process may run on. Never below 1. Not lowered
+  when idle workers sleep instead of spinning (``OMP_WAIT_POLICY=passive`` with the ``omp``
+  layer, or the ``workqueue`` layer): the collapse comes from libgomp's default of spinning
+  workers — the spinning thread holds a core the descheduled one needs — and with passive
+  waiting 2 threads stayed faster than 1 on the busy cores (docs/performance.md).
 
 Override with ``REFRASTER_THREADS``, read on every frame: ``auto`` (the default, above) or an
 integer ``N`` — exactly ``min(N, numba.config.NUMBA_NUM_THREADS)`` threads for every frame,
@@ -29,9 +33,10 @@ and the outputs are bit-identical for any thread count (tests/test_raster.py).
 The threading layer is Numba's default (``tbb`` if installed, else ``omp``, else
 ``workqueue``; on the reference machine ``omp``, GNU libgomp); refraster sets neither the
 layer nor ``OMP_WAIT_POLICY``/``GOMP_SPINCOUNT``/``KMP_BLOCKTIME``, since both are read once
-per process and belong to the application (``NUMBA_THREADING_LAYER=workqueue`` and
-``OMP_WAIT_POLICY=passive`` work as Numba documents). Being serial on busy cores is what
-avoids the collapse, whatever the layer's wait policy.
+per process and belong to the application. With the default (spinning) policy, being serial
+on busy cores is what avoids the collapse; an application that sets ``OMP_WAIT_POLICY=passive``
+before Numba's first parallel kernel keeps both threads on busy cores too. ``workqueue`` is not
+safe for several Python threads rendering at once (Numba aborts), ``omp`` is.
 """
 
 from __future__ import annotations
@@ -77,6 +82,26 @@ def _override():
     return min(n, numba.config.NUMBA_NUM_THREADS)
 
 
+_PASSIVE = None
+
+
+def _waits_passively():
+    """Whether idle worker threads sleep rather than spin: the ``workqueue`` layer, or the
+    ``omp`` layer with ``OMP_WAIT_POLICY=passive`` (or ``GOMP_SPINCOUNT=0``) in the environment
+    when this was first asked (libgomp reads it once, when Numba loads it)."""
+    global _PASSIVE
+    if _PASSIVE is None:
+        try:
+            layer = numba.threading_layer()
+        except ValueError:   # not launched yet: decide on the next frame
+            return False
+        env = os.environ
+        _PASSIVE = layer == "workqueue" or (layer == "omp" and (
+            env.get("OMP_WAIT_POLICY", "").strip().lower() == "passive"
+            or env.get("GOMP_SPINCOUNT", "").strip() == "0"))
+    return _PASSIVE
+
+
 def frame_threads(work):
     """Threads for a frame of ``work`` (faces + pixels / 4); see the module docstring."""
     n = _override()
@@ -85,6 +110,8 @@ def frame_threads(work):
     cap = numba.get_num_threads()
     if cap <= 1 or work < SMALL_WORK:
         return 1
+    if _waits_passively():   # sleeping workers do not collapse on busy cores (measured)
+        return cap
     running = _runnable()
     if running is None:
         return cap

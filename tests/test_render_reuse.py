@@ -161,6 +161,12 @@ def test_small_frames_run_serially_and_the_override(monkeypatch):
     assert _threads.frame_threads(_threads.frame_work(81920, 1024, 768)) == 1
     monkeypatch.setattr(_threads, "_runnable", lambda: 1)   # idle: Numba's count
     assert _threads.frame_threads(10**6) == min(numba.get_num_threads(), _threads._cpus())
+    monkeypatch.setattr(_threads, "_runnable", lambda: 9)
+    monkeypatch.setattr(_threads, "_PASSIVE", True)   # sleeping workers: busy cores are fine
+    assert _threads.frame_threads(10**6) == numba.get_num_threads()
+    assert _threads.frame_threads(_threads.frame_work(12, 160, 120)) == 1
+    monkeypatch.setattr(_threads, "_PASSIVE", False)
+    assert _threads.frame_threads(10**6) == 1
     monkeypatch.setenv("REFRASTER_THREADS", "1")
     assert _threads.frame_threads(10**6) == 1
     monkeypatch.setenv("REFRASTER_THREADS", "64")
