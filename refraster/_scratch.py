@@ -16,12 +16,16 @@ overlap (the fused path calls no user code), and each thread has its own buffers
 
 from __future__ import annotations
 
+import math
 import threading
 
 import numpy as np
 
 #: A thread keeps at most this many bytes of scratch; larger requests get fresh arrays.
 MAX_BYTES = 256 << 20
+#: ``render`` uses the scratch from this many faces up (16 bytes of boxes per face: 128 KiB, the
+#: size from which glibc's malloc starts with fresh ``mmap`` pages).
+SCRATCH_FACES = 8192
 
 _local = threading.local()
 
@@ -40,8 +44,9 @@ class Scratch:
         """A zero-filled C-contiguous array of ``shape`` and ``dtype`` (as ``np.zeros``),
         a view of the buffer named ``key``: valid until ``key`` is asked for again."""
         dtype = np.dtype(dtype)
-        shape = (shape,) if np.ndim(shape) == 0 else tuple(int(s) for s in shape)
-        n = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+        shape = (int(shape),) if isinstance(shape, (int, np.integer)) else \
+            tuple(int(s) for s in shape)
+        n = math.prod(shape) * dtype.itemsize
         buf = self._bufs.get(key)
         if buf is None or buf.nbytes < n:
             size = max(n + n // 4, 64)   # room to grow a little without a new buffer

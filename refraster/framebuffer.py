@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._scratch import frame_scratch
+from ._scratch import SCRATCH_FACES, frame_scratch
 from ._threads import frame_work, threads_for
 from ._validate import as_choice, as_float_array, as_image_size, as_real
 from .mesh import as_meshes, smooth_normals
@@ -394,7 +394,10 @@ def _render(meshes, view, proj, width, height, normals, cull, depth_func, model,
     # the fused path's intermediates come from this thread's reused buffers (none of them is
     # returned or kept by the framebuffer); the fragment-stream path hands its stream to user
     # code, so it allocates
-    scratch = frame_scratch() if fragment_stage is None else None
+    # (from SCRATCH_FACES faces up: smaller frames' arrays are below malloc's mmap threshold,
+    # reused by malloc anyway, and np.zeros is cheaper for them than the scratch's bookkeeping)
+    scratch = (frame_scratch() if fragment_stage is None
+               and sum(m.n_faces for m in meshes) >= SCRATCH_FACES else None)
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
                    cull=cull, precision=precision, subpixel_bits=subpixel_bits,
                    fill_rule=fill_rule, scratch=scratch)

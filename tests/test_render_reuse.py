@@ -195,10 +195,13 @@ def test_thread_choice_restores_numba_and_keeps_the_bytes(monkeypatch):
     assert numba.get_num_threads() == before
 
 
-def test_reused_scratch_never_reaches_a_frame():
+def test_reused_scratch_never_reaches_a_frame(monkeypatch):
     """The fused path's intermediates come from reused per-thread buffers: no array of a frame
     (nor of its pending colour) may live in them, so a later frame cannot change it."""
+    from refraster import framebuffer
     from refraster._scratch import frame_scratch
+    monkeypatch.setattr(framebuffer, "SCRATCH_FACES", 0)   # these small meshes use it too
+    frame_scratch().clear()
     ico, t = _mesh(icosphere(3)), _mesh(torus(major_segments=24, minor_segments=10))
     kw = _kw()
     a = rf.render(ico, **kw, normals="smooth")        # colour left pending
@@ -215,11 +218,14 @@ def test_reused_scratch_never_reaches_a_frame():
 
 
 def test_public_prepare_never_uses_the_scratch():
-    from refraster._scratch import frame_scratch
+    from refraster._scratch import SCRATCH_FACES, frame_scratch
     from refraster.raster import prepare
-    ico = _mesh(icosphere(2))
+    ico = _mesh(icosphere(5))
+    assert ico.n_faces >= SCRATCH_FACES
     kw = _kw()
+    frame_scratch().clear()
     rf.render(ico, **kw)
+    assert frame_scratch().nbytes > 0                     # the default path uses the scratch
     p = prepare(ico, **kw)
     bufs = list(frame_scratch()._bufs.values())
     t = p.triangles
