@@ -7,7 +7,8 @@ full G-buffer (``refraster.render``: depth, eye depth, normal, ids, facing, bary
 threads and with 1, and the same frame with its default colour read (``+colour``: shaded when
 first read); llvmpipe renders depth + normal + id + facing in its own process
 with ``LP_NUM_THREADS`` = 2 or 1, timed as draw + glFinish + read-back into reused arrays.
-Both run in processes of their own with the same ``GLIBC_TUNABLES`` (:data:`TUNED`). Compile time is reported apart (the
+Both run in processes of their own with the same ``GLIBC_TUNABLES`` (:data:`TUNED`); the
+``default`` column times refraster's frame again without it (the environment users have). Compile time is reported apart (the
 first call in a fresh cache directory minus a steady-state call), and the stage breakdown of one
 frame (vertex, setup, binning + rasterization + resolve, G-buffer) follows the table. Peak memory
 of the 1.3M-face frame and of a 4096×4096 frame is measured with tracemalloc.
@@ -53,8 +54,9 @@ def _camera(mesh):
     return cam.view, cam.proj
 
 
-def _refraster_worker(path, threads, repeats):
-    """Time refraster in a subprocess with NUMBA_NUM_THREADS set (prints JSON)."""
+def _refraster_worker(path, threads, repeats, tuned=True):
+    """Time refraster in a subprocess with NUMBA_NUM_THREADS set (prints JSON); ``tuned``:
+    with :data:`TUNED` malloc settings, else in the environment as a user has it."""
     code = f"""
 import json, time, numpy as np, refraster as rf
 z = np.load({str(path)!r}, allow_pickle=False)
@@ -75,7 +77,10 @@ for _ in range({repeats}):   # alternately, so a slow spell hits both
 print(json.dumps(dict(median_ms=float(np.median(ts)), color_ms=float(np.median(tc)),
                       times_ms=ts)))
 """
-    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), GLIBC_TUNABLES=TUNED)
+    env = {k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"}
+    env["NUMBA_NUM_THREADS"] = str(threads)
+    if tuned:
+        env["GLIBC_TUNABLES"] = TUNED
     r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                        cwd=ROOT, timeout=1800)
     if r.returncode != 0:
@@ -176,28 +181,35 @@ def main(argv=None):
             for threads in (2, 1):
                 # alternate the two renderers over a few rounds and keep the median of each
                 # one's medians, so a slow spell of the shared machine hits both alike
-                ours, colored, theirs = [], [], []
+                ours, colored, theirs, plain = [], [], [], []
                 for _ in range(a.rounds):
                     r = _refraster_worker(path, threads, a.repeats)
                     ours.append(r["median_ms"])
                     colored.append(r["color_ms"])
+                    plain.append(_refraster_worker(path, threads, a.repeats,
+                                                   tuned=False)["median_ms"])
                     gl = _llvmpipe(path, threads, a.repeats)
                     theirs.append(gl["median_ms"] if gl else float("nan"))
                 rows.append((name, len(mesh.faces), threads, float(np.median(ours)),
-                             float(np.median(theirs)), float(np.median(colored))))
+                             float(np.median(theirs)), float(np.median(colored)),
+                             float(np.median(plain))))
             stage_rows.append((name, _stages(mesh, view, proj, a.repeats)))
         big = _cases(False)[1][1] if not a.quick else None
     print(f"refraster {W}x{H} G-buffer vs llvmpipe (median over {a.rounds} alternating rounds "
           f"of the median ms/frame of {a.repeats} frames after 3 warm-up frames; "
           f"both processes with GLIBC_TUNABLES={TUNED})")
     print(f"{'case':22} {'faces':>9} {'thr':>3} {'refraster':>10} {'llvmpipe':>9} {'ratio':>6}"
-          f" {'Mtri/s':>7} {'Mpx/s':>7} {'+colour':>8} {'ratio':>6}")
-    for name, faces, thr, ms, gl, mc in rows:
+          f" {'Mtri/s':>7} {'Mpx/s':>7} {'+colour':>8} {'ratio':>6} {'default':>8}"
+          f" {'ratio':>6} {'dflt/tuned':>10}")
+    for name, faces, thr, ms, gl, mc, md in rows:
         print(f"{name:22} {faces:9d} {thr:3d} {ms:10.1f} {gl:9.1f} {ms / gl:6.2f}"
-              f" {faces / ms / 1e3:7.1f} {W * H / ms / 1e3:7.1f} {mc:8.1f} {mc / gl:6.2f}")
+              f" {faces / ms / 1e3:7.1f} {W * H / ms / 1e3:7.1f} {mc:8.1f} {mc / gl:6.2f}"
+              f" {md:8.1f} {md / gl:6.2f} {md / ms:10.2f}")
     print("refraster: the G-buffer (window and eye depth, normal, primitive and object ids, "
           "facing, barycentrics); +colour: the same frame with Framebuffer.color read (the "
-          "default shade, made on first read); llvmpipe: depth, normal, id, facing")
+          "default shade, made on first read); llvmpipe: depth, normal, id, facing; default: "
+          "the refraster G-buffer frame in a process without GLIBC_TUNABLES (the environment "
+          "as a user has it), beside llvmpipe (tuned) and beside the tuned frame")
     print("\nstage breakdown, 2 threads (ms): vertex | setup | binning | raster+resolve (one"
           " fused pass) | G-buffer | total | colour (on read)")
     for name, s in stage_rows:

@@ -7,8 +7,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validate import as_choice, as_float_array, as_real
-from .mesh import vertex_normals
+from ._scratch import SCRATCH_FACES, frame_scratch
+from ._threads import frame_work, threads_for
+from ._validate import as_choice, as_float_array, as_image_size, as_real
+from .mesh import as_meshes, smooth_normals
 from .raster import DEPTH_FUNCS, Fragments, prepare, resolve
 from .raster.fragments import _interpolate
 from .raster.gbuffer import finalize, shade
@@ -136,17 +138,24 @@ class Framebuffer:
 
 
 class _PendingShade:
-    """The inputs of :func:`refraster.raster.gbuffer.shade`, kept until ``color`` is read."""
+    """The inputs of :func:`refraster.raster.gbuffer.shade`, kept until ``color`` is read;
+    ``work`` sizes its thread count (:mod:`refraster._threads`), ``into`` is a colour array of
+    a reused framebuffer (``render(out=…)``) to shade into, or None."""
 
-    __slots__ = ("args",)
+    __slots__ = ("args", "work", "into")
 
-    def __init__(self, *args):
+    def __init__(self, *args, work=0, into=None):
         self.args = args
+        self.work = work
+        self.into = into
 
     def __call__(self):
         prim_global = self.args[0]
-        color = np.empty(prim_global.shape + (3,), np.float32)   # shade writes every element
-        shade(*self.args, color)
+        color = self.into
+        if color is None:
+            color = np.empty(prim_global.shape + (3,), np.float32)   # shade writes every element
+        with threads_for(self.work):
+            shade(*self.args, color)
         return color
 
 
@@ -185,8 +194,8 @@ def _normals_per_mesh(meshes, normals):
         return None
     if isinstance(normals, str):
         as_choice(normals, "normals", {"flat": 0, "smooth": 1})
-        return [m.vertex_normals if m.vertex_normals is not None
-                else vertex_normals(m.vertices, m.faces) for m in meshes]
+        return [m.vertex_normals if m.vertex_normals is not None else smooth_normals(m)
+                for m in meshes]
     if len(meshes) == 1 and not isinstance(normals, (list, tuple)):
         normals = [normals]
     if not isinstance(normals, (list, tuple)) or len(normals) != len(meshes):
@@ -196,12 +205,14 @@ def _normals_per_mesh(meshes, normals):
 
 
 def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, bary, normals,
-           background, geometry=None, n_shaded=None):
+           background, geometry=None, n_shaded=None, out=None):
     """Finalize the G-buffer from the visible primitive (global index over all draw calls,
     −1 background) and its barycentrics. ``geometry``: the draw calls' vertices and faces
     already concatenated (faces indexing the concatenation), when the caller has them.
     ``n_shaded``: only pixels of the first ``n_shaded`` faces get the default colour (the
-    others the background), for a caller that colours the rest itself."""
+    others the background), for a caller that colours the rest itself. ``out``: a framebuffer
+    checked by :func:`_check_out` whose arrays (``depth``, ``front`` and ``bary`` already among
+    them) are filled and returned instead of new ones."""
     h, w = depth.shape
     vn = _normals_per_mesh(meshes, normals)
     if geometry is not None:
@@ -223,25 +234,103 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
         if face_offsets[k + 1] > face_offsets[k]:
             nmat[k] = _normal_matrix(view, model)
     # the background is filled here (NumPy's fills beat writing it pixel by pixel)
-    eye_depth = np.full((h, w), np.inf, np.float32)
-    normal = np.zeros((h, w, 3), np.float32)
-    prim = np.full((h, w), -1, np.int32)
-    obj = np.full((h, w), -1, np.int32)
+    if out is None:
+        eye_depth = np.full((h, w), np.inf, np.float32)
+        normal = np.zeros((h, w, 3), np.float32)
+        prim = np.full((h, w), -1, np.int32)
+        obj = np.full((h, w), -1, np.int32)
+        into = None
+    else:
+        eye_depth, normal, prim, obj = out.eye_depth, out.normal, out.prim_id, out.object_id
+        eye_depth.fill(np.inf)
+        normal.fill(0.0)
+        prim.fill(-1)
+        obj.fill(-1)
+        into = _reusable_color(out, h, w)
     offsets = np.asarray(face_offsets, np.int64)
-    finalize(prim_global, bary, vertices, faces, vnormals, vn is not None, offsets, mv, nmat,
-             eye_depth, normal, prim, obj)
+    work = frame_work(offsets[-1], w, h)
+    with threads_for(work):
+        finalize(prim_global, bary, vertices, faces, vnormals, vn is not None, offsets, mv, nmat,
+                 eye_depth, normal, prim, obj)
     color = _PendingShade(prim_global, bary, vertices, faces, vnormals,
                           vn is not None, offsets, mv, nmat,
                           int(offsets[-1]) if n_shaded is None else int(n_shaded), PALETTE,
-                          np.asarray(background, np.float64))
+                          np.asarray(background, np.float64), work=work, into=into)
+    if out is not None:
+        out.color = color
+        out.view, out.proj, out.meshes, out.models = view, proj, meshes, models
+        return out
     return Framebuffer(depth=depth, eye_depth=eye_depth, normal=normal, prim_id=prim,
                        object_id=obj, front_facing=front, barycentric=bary, color=color,
                        view=view, proj=proj, meshes=meshes, models=models)
 
 
+#: The arrays of a framebuffer ``render(out=…)`` reuses: (name, trailing shape, dtype).
+_OUT_ARRAYS = (("depth", (), np.float32), ("eye_depth", (), np.float32),
+               ("normal", (3,), np.float32), ("prim_id", (), np.int32),
+               ("object_id", (), np.int32), ("front_facing", (), np.bool_),
+               ("barycentric", (3,), np.float32))
+
+
+def _reusable_color(fb, h, w):
+    """``fb``'s shaded colour array when it can take the next shade, else None (a new one is
+    made on read)."""
+    c = fb.__dict__.get("_color")
+    if (isinstance(c, _PendingShade)):
+        c = c.into
+    if (isinstance(c, np.ndarray) and c.shape == (h, w, 3) and c.dtype == np.float32
+            and c.flags.c_contiguous and c.flags.writeable):
+        return c
+    return None
+
+
+def _input_arrays(meshes, normals, view, proj, model, background):
+    arrs = [view, proj, background]
+    for m in meshes:
+        arrs += [m.vertices, m.faces]
+        if m.vertex_normals is not None:
+            arrs.append(m.vertex_normals)
+    for x in (normals, model):
+        if isinstance(x, np.ndarray):
+            arrs.append(x)
+        elif isinstance(x, (list, tuple)):
+            arrs += [a for a in x if isinstance(a, np.ndarray)]
+    return [a for a in arrs if isinstance(a, np.ndarray)]
+
+
+def _check_out(out, h, w, inputs):
+    """``out`` must be a :class:`Framebuffer` whose arrays have this frame's shapes and dtypes,
+    are C-contiguous, writeable, do not overlap each other and do not overlap any input."""
+    if type(out) is not Framebuffer:
+        raise TypeError(f"out must be a Framebuffer returned by refraster.render, got "
+                        f"{type(out).__name__}")
+    arrays = []
+    for name, tail, dtype in _OUT_ARRAYS:
+        a = getattr(out, name)
+        if not isinstance(a, np.ndarray):
+            raise TypeError(f"out.{name} must be a numpy array, got {type(a).__name__}")
+        if a.shape != (h, w) + tail or a.dtype != dtype:
+            raise ValueError(f"out.{name} must be {np.dtype(dtype).name} of shape "
+                             f"{(h, w) + tail} for this frame, got {a.dtype} {a.shape}")
+        if not (a.flags.c_contiguous and a.flags.writeable):
+            raise ValueError(f"out.{name} must be a C-contiguous, writeable array")
+        arrays.append((name, a))
+    c = _reusable_color(out, h, w)
+    if c is not None:
+        arrays.append(("color", c))
+    for i, (na, a) in enumerate(arrays):
+        for nb, b in arrays[i + 1:]:
+            if np.may_share_memory(a, b):
+                raise ValueError(f"out.{na} and out.{nb} share memory")
+        for x in inputs:
+            if np.may_share_memory(a, x):
+                raise ValueError(f"out.{na} shares memory with an input array (a mesh, "
+                                 "normals, matrix or background): render would overwrite it")
+
+
 def render(meshes, *, view, proj, width, height, normals=None, cull="none", depth_func="less",
            model=None, precision="float32", subpixel_bits=8, fill_rule="llvmpipe",
-           fragment_stage=None, clear_depth=1.0, background=(1.0, 1.0, 1.0)):
+           fragment_stage=None, clear_depth=1.0, background=(1.0, 1.0, 1.0), out=None):
     """Render meshes to a :class:`Framebuffer` (G-buffer plus a simple shaded colour).
 
     Parameters
@@ -266,31 +355,68 @@ def render(meshes, *, view, proj, width, height, normals=None, cull="none", dept
     clear_depth : float
     background : (3,) float
         Colour of uncovered pixels in ``color``.
+    out : Framebuffer, optional
+        A framebuffer of an earlier ``render`` of the same size to overwrite instead of
+        allocating new arrays (a loop of frames then skips allocating and page-faulting ~50
+        bytes per pixel). Its arrays (and any array taken from it earlier, ``color``
+        included) are written in place; it is returned. Its arrays must have this frame's
+        shapes and dtypes, be C-contiguous and writeable, and share no memory with each other
+        or with any input (ValueError otherwise). Not with ``fragment_stage``.
 
     Returns
     -------
     Framebuffer
+        ``out`` when given.
 
     Notes
     -----
     Without a fragment stage, a fused tile kernel rasterizes and depth-tests in one pass; it
-    gives the same bits as ``draw`` + ``resolve`` (tested).
+    gives the same bits as ``draw`` + ``resolve`` (tested). Small frames run on one thread, and
+    so do frames on cores other processes are using (:mod:`refraster._threads`;
+    ``REFRASTER_THREADS`` overrides); the bytes are the same for any thread count.
     """
     as_choice(depth_func, "depth_func", DEPTH_FUNCS)
     clear = as_real(clear_depth, "clear_depth", lo=0.0, hi=1.0)
     bg = as_float_array(background, "background", shape=(3,))
     if fragment_stage is not None and not callable(fragment_stage):
         raise TypeError("fragment_stage must be callable: frags -> keep mask")
+    if out is not None and fragment_stage is not None:
+        raise ValueError("out= cannot be combined with fragment_stage")
+    meshes = as_meshes(meshes)
+    w, h = as_image_size(width, height)
+    with threads_for(frame_work(sum(m.n_faces for m in meshes), w, h)):
+        return _render(meshes, view, proj, w, h, normals, cull, depth_func, model, precision,
+                       subpixel_bits, fill_rule, fragment_stage, clear, bg, out)
+
+
+def _render(meshes, view, proj, width, height, normals, cull, depth_func, model, precision,
+            subpixel_bits, fill_rule, fragment_stage, clear, bg, out):
+    # the fused path's intermediates come from this thread's reused buffers (none of them is
+    # returned or kept by the framebuffer); the fragment-stream path hands its stream to user
+    # code, so it allocates
+    # (from SCRATCH_FACES faces up: smaller frames' arrays are below malloc's mmap threshold,
+    # reused by malloc anyway, and np.zeros is cheaper for them than the scratch's bookkeeping)
+    scratch = (frame_scratch() if fragment_stage is None
+               and sum(m.n_faces for m in meshes) >= SCRATCH_FACES else None)
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
                    cull=cull, precision=precision, subpixel_bits=subpixel_bits,
-                   fill_rule=fill_rule)
+                   fill_rule=fill_rule, scratch=scratch)
     if fragment_stage is None:
+        h, w = height, width
+        buffers = None
+        if out is not None:
+            _check_out(out, h, w, _input_arrays(prep.meshes, normals, prep.view, prep.proj,
+                                                model, bg))
+            faces = out.__dict__.get("_prim_scratch")
+            if not (isinstance(faces, np.ndarray) and faces.shape == (h, w)):
+                faces = np.empty((h, w), np.int64)   # private: never handed out
+            out.__dict__["_prim_scratch"] = faces
+            buffers = (out.depth, faces, out.front_facing, out.barycentric.reshape(h * w, 3))
         depth, prim_global, front, bary = fused(
             prep.triangles, fill_rule=prep.fill_rule, depth_func=DEPTH_FUNCS[depth_func.lower()],
-            clear_depth=clear)
-        h, w = depth.shape
+            clear_depth=clear, buffers=buffers, scratch=scratch)
         return _build(prep.meshes, prep.models, prep.view, prep.proj, depth, prim_global,
-                      prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg)
+                      prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg, out=out)
     from .raster import _fragments_from
     from .raster.rasterizer import stream
     pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)

@@ -273,6 +273,7 @@ sys.stdout.write(fb.depth.tobytes().hex() + fb.color.tobytes().hex() + fb.prim_i
 
 def test_deterministic_across_thread_counts():
     outs = [subprocess.run([sys.executable, "-c", _DETERMINISM], check=True, capture_output=True,
-                           text=True, env=dict(os.environ, NUMBA_NUM_THREADS=t)).stdout
+                           text=True, env=dict(os.environ, NUMBA_NUM_THREADS=t,
+                                                  REFRASTER_THREADS=t)).stdout
             for t in ("1", "2")]
     assert outs[0] == outs[1] and len(outs[0]) > 10000

@@ -353,7 +353,7 @@ def test_render_deterministic_across_runs_and_threads(tmp_path):
     outs = []
     for threads in ("1", "2", "2"):
         p = tmp_path / f"out{len(outs)}.npy"
-        env = {**os.environ, "NUMBA_NUM_THREADS": threads}
+        env = {**os.environ, "NUMBA_NUM_THREADS": threads, "REFRASTER_THREADS": threads}
         subprocess.run([sys.executable, "-c", code, str(p)], check=True, env=env)
         outs.append(np.load(p, allow_pickle=False).tobytes())
     assert outs[0] == outs[1] == outs[2]

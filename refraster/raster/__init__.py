@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._threads import frame_work, threads_for
 from .._validate import as_choice, as_float_array, as_image_size, as_index_array, as_matrix
 from ..mesh import as_meshes
 from .fragments import Fragments, concat
@@ -81,8 +82,11 @@ def _check_clip(clip, meshes, prec):
 
 
 def prepare(meshes, *, view, proj, width, height, model=None, cull="none", precision="float32",
-            subpixel_bits=8, fill_rule="llvmpipe"):
-    """Validate draw calls and run the vertex and primitive stages (shared by draw and render)."""
+            subpixel_bits=8, fill_rule="llvmpipe", scratch=None):
+    """Validate draw calls and run the vertex and primitive stages (shared by draw and render).
+    ``scratch`` (internal, ``render``): a :class:`refraster._scratch.Scratch` for the clip
+    coordinates and the primitive stage's arrays — the result is then valid only until that
+    scratch is used again."""
     meshes = as_meshes(meshes)
     view = as_matrix(view, "view")
     proj = as_matrix(proj, "proj")
@@ -104,7 +108,15 @@ def prepare(meshes, *, view, proj, width, height, model=None, cull="none", preci
         mvps.append(mvp)
     _check_projection(proj)
     offsets = np.cumsum([0] + [m.n_faces for m in meshes])
-    if len(meshes) == 1:   # the common case: no copies
+    if len(meshes) == 1 and scratch is not None:   # the common case, into reused buffers
+        nv = meshes[0].n_vertices
+        c32 = transform_vertices(meshes[0].vertices, mvps[0], prec,
+                                 out=scratch.zeros("clip_" + prec, (nv, 4), prec))
+        clip = c32 if prec == "float64" else scratch.zeros("clip", (nv, 4), np.float64)
+        if clip is not c32:
+            clip[...] = c32
+        face = meshes[0].faces
+    elif len(meshes) == 1:   # the common case: no copies
         clip = transform_vertices(meshes[0].vertices, mvps[0], prec).astype(np.float64)
         face = meshes[0].faces
     else:   # each draw call written once into the concatenated arrays
@@ -120,7 +132,8 @@ def prepare(meshes, *, view, proj, width, height, model=None, cull="none", preci
     p.width, p.height, p.fill_rule = width, height, rule
     p.face_offsets = np.asarray(offsets, np.int64)
     p.clip = clip
-    p.triangles = setup_triangles(clip, face, width, height, cull=cull_code, subpixel_bits=bits)
+    p.triangles = setup_triangles(clip, face, width, height, cull=cull_code, subpixel_bits=bits,
+                                  scratch=scratch)
     return p
 
 
@@ -159,10 +172,13 @@ def draw(meshes, *, view, proj, width, height, model=None, cull="none", precisio
         With ``meshes``, ``models``, ``view`` and ``proj`` attached, so ``interpolate`` and
         ``world_position`` work.
     """
-    prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
-                   cull=cull, precision=precision, subpixel_bits=subpixel_bits,
-                   fill_rule=fill_rule)
-    pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
+    meshes = as_meshes(meshes)
+    w, h = as_image_size(width, height)
+    with threads_for(frame_work(sum(m.n_faces for m in meshes), w, h)):
+        prep = prepare(meshes, view=view, proj=proj, width=w, height=h, model=model,
+                       cull=cull, precision=precision, subpixel_bits=subpixel_bits,
+                       fill_rule=fill_rule)
+        pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
     return _fragments_from(prep, pixel, depth, prim, front, bary)
 
 

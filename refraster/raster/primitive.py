@@ -68,18 +68,19 @@ def _transform64(vertices, m, out):
             out[i, r] = ((m[r, 0] * x + m[r, 1] * y) + m[r, 2] * z) + m[r, 3]
 
 
-def transform_vertices(vertices, mvp, precision="float32"):
+def transform_vertices(vertices, mvp, precision="float32", out=None):
     """Clip coordinates ``(V, 4)`` of ``vertices (V, 3)`` under ``mvp (4, 4)``.
 
     ``precision="float32"`` (default) rounds the matrix and the positions to float32 and
     evaluates ``((m0·x + m1·y) + m2·z) + m3`` in float32, as a vertex shader would;
-    ``"float64"`` does the same in float64. Inputs are assumed validated.
+    ``"float64"`` does the same in float64. Inputs are assumed validated. ``out``: a
+    zero-filled ``(V, 4)`` array of the precision's dtype to write into.
     """
     if precision == "float32":
-        out = np.zeros((len(vertices), 4), np.float32)
+        out = np.zeros((len(vertices), 4), np.float32) if out is None else out
         _transform32(vertices, mvp.astype(np.float32), out)
     else:
-        out = np.zeros((len(vertices), 4), np.float64)
+        out = np.zeros((len(vertices), 4), np.float64) if out is None else out
         _transform64(vertices, mvp.astype(np.float64), out)
     return out
 
@@ -383,23 +384,29 @@ class Primitives:
         return int(self.faces.shape[0])
 
 
-def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8):
-    """Run the primitive stage on validated arrays; returns :class:`Primitives`."""
+def _zeros(scratch, key, shape, dtype):
+    return np.zeros(shape, dtype) if scratch is None else scratch.zeros(key, shape, dtype)
+
+
+def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8, scratch=None):
+    """Run the primitive stage on validated arrays; returns :class:`Primitives`.
+    ``scratch``: a :class:`refraster._scratch.Scratch` for the per-vertex and per-face arrays
+    (the result is then valid until that scratch is used again)."""
     c = np.ascontiguousarray(clip, dtype=np.float64)
     f = np.ascontiguousarray(faces, dtype=np.int64)
     gx = 2.0 * GUARD_PIXELS / width
     gy = 2.0 * GUARD_PIXELS / height
     nv = len(c)
-    vX = np.zeros(nv, np.int64)
-    vY = np.zeros(nv, np.int64)
-    vZ = np.zeros(nv, np.float32)
-    vIW = np.zeros(nv)
-    vXf = np.zeros(nv, np.float32)
-    vYf = np.zeros(nv, np.float32)
-    vcode = np.zeros(nv, np.int64)
+    vX = _zeros(scratch, "vX", nv, np.int64)
+    vY = _zeros(scratch, "vY", nv, np.int64)
+    vZ = _zeros(scratch, "vZ", nv, np.float32)
+    vIW = _zeros(scratch, "vIW", nv, np.float64)
+    vXf = _zeros(scratch, "vXf", nv, np.float32)
+    vYf = _zeros(scratch, "vYf", nv, np.float32)
+    vcode = _zeros(scratch, "vcode", nv, np.int64)
     _vertex_pass(c, width, height, subpixel_bits, gx, gy, vX, vY, vZ, vIW, vXf, vYf, vcode)
-    status = np.zeros(len(f), np.int8)
-    fbox = np.zeros((len(f), 4), np.int32)
+    status = _zeros(scratch, "status", len(f), np.int8)
+    fbox = _zeros(scratch, "fbox", (len(f), 4), np.int32)
     _classify(f, vX, vY, vcode, width, height, subpixel_bits, cull, status, fbox)
     idx = np.flatnonzero(status == CLIPPED)
     nchunks = max((len(idx) + _CHUNK - 1) // _CHUNK, 1)

@@ -113,9 +113,11 @@ def _bin_pass(status, fbox, sprim, sbox, ntx, ntiles, counts, starts, lists, fil
                     _add(sbox[k], ntx, cnt, lists, cursor, -(k + 1), fill)
 
 
-def bin_primitives(prims):
+def bin_primitives(prims, scratch=None):
     """Tile lists: ``(ntx, nty, starts (ntiles + 1,), lists)``; an item ``i ≥ 0`` is simple face
-    ``i``, an item ``−(k + 1)`` clipped piece ``k``; each list is in primitive order."""
+    ``i``, an item ``−(k + 1)`` clipped piece ``k``; each list is in primitive order.
+    ``scratch``: a :class:`refraster._scratch.Scratch` for the lists (then valid until it is
+    used again)."""
     w, h = prims.width, prims.height
     ntx = (w + TILE - 1) >> TILE_SHIFT
     nty = (h + TILE - 1) >> TILE_SHIFT
@@ -131,7 +133,8 @@ def bin_primitives(prims):
     starts = np.zeros(ntiles + 1, np.int64)
     np.cumsum(per_tile, out=starts[1:])
     starts2[:] = starts[:-1][None, :] + np.cumsum(counts, axis=0) - counts
-    lists = np.zeros(int(starts[-1]), np.int64)
+    lists = (np.zeros(int(starts[-1]), np.int64) if scratch is None
+             else scratch.zeros("lists", int(starts[-1]), np.int64))
     _bin_pass(prims.status, prims.bbox, st.prim, st.bbox, ntx, ntiles, counts, starts2, lists,
               True)
     return ntx, nty, starts, lists
@@ -491,16 +494,25 @@ def resolved_buffers(height, width, clear_depth):
             np.zeros((height * width, 3), np.float32))
 
 
-def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0):
+def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, scratch=None):
     """Rasterize and depth-resolve in one pass (no fragment stream, depth writes on).
 
     Returns ``(depth (H, W) float32, prim (H, W) int64 face index or −1, front (H, W) bool,
     bary (H·W, 3) float32)``; bit-identical to :func:`stream` followed by
     :func:`refraster.raster.resolve.resolve` with the same ``depth_func`` (a test checks it).
+    ``buffers``: four such arrays (C-contiguous, checked by the caller) to fill and reuse
+    instead of new ones. ``scratch``: for the tile lists (:func:`bin_primitives`).
     """
-    ntx, nty, starts, lists = bin_primitives(prims)
+    ntx, nty, starts, lists = bin_primitives(prims, scratch)
     h, w = prims.height, prims.width
-    depth, prim, front, bary = resolved_buffers(h, w, clear_depth)
+    if buffers is None:
+        depth, prim, front, bary = resolved_buffers(h, w, clear_depth)
+    else:   # the same clear values, written into the caller's arrays
+        depth, prim, front, bary = buffers
+        depth.fill(np.float32(clear_depth))
+        prim.fill(-1)
+        front.fill(False)
+        bary.fill(0.0)
     _fused_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits, fill_rule,
                 depth_func, np.float32(clear_depth), depth, prim, front, bary)
     return depth, prim, front, bary

@@ -1,0 +1,229 @@
+"""Issue 28 in one run: small frames, the default environment beside the tuned one, shared cores.
+
+    python -m benchmarks.small_frames [--repeats N] [--rounds R] [--no-load]
+
+1. **Small frames**: a 12-face cube at 160×120 and 512×384, ``render`` with new outputs and
+   with a reused framebuffer (``out=``), beside the cost of allocating and filling the buffers
+   a frame returns or keeps — the seven ``Framebuffer`` arrays (depth, eye depth, normal,
+   primitive and object ids, facing, barycentrics: 37 bytes per pixel) and the int64 face
+   image the pending colour keeps (8 bytes per pixel) — filled with their clear values.
+2. **Default vs tuned environment**: every number of 1 and 3 in two processes, one with the
+   environment as a user has it, one with ``GLIBC_TUNABLES`` malloc tuning
+   (:data:`benchmarks.raster.TUNED`); the 82k-face icosphere at 1024×768, flat and
+   ``normals="smooth"`` (vertex normals cached on the mesh's digest; the uncached cost, a
+   ``vertex_normals`` call, is printed beside).
+   A ``faults`` column counts the minor page faults per frame (fresh memory touched by the
+   frame): a count, not a time, so the default-vs-tuned comparison holds on a busy machine.
+3. **Shared cores**: with two CPU-bound processes started by this script (busy loops, one per
+   core) running, the cube at 512×384 and the 82k frame with ``NUMBA_NUM_THREADS=2`` in three
+   modes, each in processes of its own, alternating over the rounds: ``auto`` (refraster's
+   choice, :mod:`refraster._threads`), ``2`` (``REFRASTER_THREADS=2``: Numba's plain
+   behaviour), the same with ``OMP_WAIT_POLICY=passive`` and with the ``workqueue`` layer, and
+   ``1`` thread (:data:`MODES`); the ratios to ``1`` are the issue's measure.
+
+Wall times are medians of per-round medians (rounds alternate the cases, so a slow spell of a
+shared machine hits all alike); ``cpu`` is the calling thread's CPU time (``time.thread_time``;
+on one thread the frame's own cost, whatever else runs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from benchmarks.raster import TUNED
+
+W, H = 1024, 768
+
+
+def _scenes():
+    import trimesh
+
+    import refraster as rf
+    from refraster import scenes
+    from refraster.mesh import as_mesh
+    cube = scenes.cube()
+    ico = trimesh.creation.icosphere(6)
+    mk = lambda tm: as_mesh((np.asarray(tm.vertices, np.float64),   # noqa: E731
+                             np.asarray(tm.faces, np.int64)))
+    view = rf.look_at([1.6, 1.2, 2.4], [0, 0, 0])
+    cam = rf.camera.frame_bounds(ico.bounds, width=W, height=H, margin=1.0)
+    out = {}
+    for w, h in ((160, 120), (512, 384)):
+        out[f"cube {w}x{h}"] = (mk(cube), dict(view=view, proj=rf.perspective(45, w / h, .5, 10),
+                                               width=w, height=h))
+    out["ico 81,920 1024x768"] = (mk(ico), dict(view=cam.view, proj=cam.proj, width=W, height=H))
+    out["ico 81,920 smooth"] = (out["ico 81,920 1024x768"][0],
+                                dict(out["ico 81,920 1024x768"][1], normals="smooth"))
+    return out
+
+
+def _alloc_fill(h, w):
+    return (np.full((h, w), np.float32(1), np.float32), np.full((h, w), np.inf, np.float32),
+            np.zeros((h, w, 3), np.float32), np.full((h, w), -1, np.int32),
+            np.full((h, w), -1, np.int32), np.zeros((h, w), np.bool_),
+            np.zeros((h, w, 3), np.float32), np.full((h, w), -1, np.int64))
+
+
+def _time(fn):
+    t0, c0 = time.perf_counter(), time.thread_time()
+    fn()
+    return (time.perf_counter() - t0) * 1e3, (time.thread_time() - c0) * 1e3
+
+
+def _faults():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+
+
+def _rounds(fns, repeats, rounds):
+    """{name: (wall ms, cpu ms, page faults per call)}: median over rounds of the median of
+    ``repeats`` calls, the functions alternating call by call; the minor page faults (fresh
+    memory touched) are the mean per call (a count, not a time: immune to other processes)."""
+    for fn in fns.values():
+        fn()
+        fn()
+    per = {k: ([], [], []) for k in fns}
+    for _ in range(rounds):
+        acc = {k: ([], [], []) for k in fns}
+        for _ in range(repeats):
+            for k, fn in fns.items():
+                f0 = _faults()
+                wall, cpu = _time(fn)
+                acc[k][0].append(wall)
+                acc[k][1].append(cpu)
+                acc[k][2].append(_faults() - f0)
+        for k in fns:
+            for j in range(3):
+                per[k][j].append(np.median(acc[k][j]) if j < 2 else np.mean(acc[k][j]))
+    return {k: (float(np.median(v[0])), float(np.median(v[1])), float(np.mean(v[2])))
+            for k, v in per.items()}
+
+
+def worker_frames(repeats, rounds):
+    import refraster as rf
+    from refraster.mesh import vertex_normals
+    sc = _scenes()
+    fns = {}
+    for name, (m, kw) in sc.items():
+        out = rf.render(m, **kw)
+        fns[name] = (lambda m=m, kw=kw: rf.render(m, **kw))
+        fns[name + " out="] = (lambda m=m, kw=kw, out=out: rf.render(m, **kw, out=out))
+        if name.startswith("cube"):
+            fns[name + " alloc+fill"] = (lambda kw=kw: _alloc_fill(kw["height"], kw["width"]))
+    m = sc["ico 81,920 smooth"][0]
+    fns["vertex_normals 81,920 (uncached)"] = lambda: vertex_normals(m.vertices, m.faces)
+    return _rounds(fns, repeats, rounds)
+
+
+SHARED = ("cube 512x384", "ico 81,920 1024x768")
+#: Thread modes of the shared-core part: refraster's choice, Numba's plain 2 threads (OpenMP
+#: layer, libgomp's default wait policy; then passive waiting; then the workqueue layer), 1.
+MODES = {"auto": dict(REFRASTER_THREADS="auto"), "2": dict(REFRASTER_THREADS="2"),
+         "2 passive": dict(REFRASTER_THREADS="2", OMP_WAIT_POLICY="passive"),
+         "2 workqueue": dict(REFRASTER_THREADS="2", NUMBA_THREADING_LAYER="workqueue"),
+         "auto passive": dict(REFRASTER_THREADS="auto", OMP_WAIT_POLICY="passive"),
+         "1": dict(REFRASTER_THREADS="1")}
+
+
+def worker_shared(repeats, rounds):
+    """One thread mode per process (``REFRASTER_THREADS`` from the caller): a mode's spinning
+    or sleeping workers never touch another mode's frames."""
+    import refraster as rf
+    sc = _scenes()
+    fns = {name: (lambda m=sc[name][0], kw=sc[name][1]: rf.render(m, **kw)) for name in SHARED}
+    return _rounds(fns, repeats, rounds)
+
+
+def _run(kind, env, repeats, rounds):
+    code = (f"import json; from benchmarks.small_frames import worker_{kind} as w; "
+            f"print(json.dumps(w({repeats}, {rounds})))")
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                       timeout=1800)
+    if r.returncode != 0:
+        raise RuntimeError(r.stderr)
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def _hogs(n):
+    code = "while True: pass"
+    return [subprocess.Popen([sys.executable, "-c", code]) for _ in range(n)]
+
+
+def _loadavg():
+    with open("/proc/loadavg") as fh:
+        return fh.read().strip()
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=15)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--no-load", action="store_true", help="skip the shared-core part")
+    ap.add_argument("--shared-only", action="store_true", help="only the shared-core part")
+    a = ap.parse_args(argv)
+    base = {k: v for k, v in os.environ.items()
+            if k not in ("GLIBC_TUNABLES", "REFRASTER_THREADS", "OMP_WAIT_POLICY",
+                         "GOMP_SPINCOUNT", "NUMBA_THREADING_LAYER")}
+    base["NUMBA_NUM_THREADS"] = "2"
+    if not a.shared_only:
+        _frames(base, a)
+    if not a.no_load:
+        _shared(base, a)
+
+
+def _frames(base, a):
+    print(f"load before: {_loadavg()}")
+    default = _run("frames", base, a.repeats, a.rounds)
+    tuned = _run("frames", dict(base, GLIBC_TUNABLES=TUNED), a.repeats, a.rounds)
+    print(f"load after:  {_loadavg()}")
+    print("\n1-2. frames, NUMBA_NUM_THREADS=2, refraster's thread choice (ms, median; "
+          "wall | thread cpu)")
+    print(f"{'case':38} {'default wall':>12} {'cpu':>7} {'faults':>7} {'tuned wall':>11}"
+          f" {'cpu':>7} {'faults':>7} {'default/tuned':>13}")
+    for k in default:
+        dw, dc, df = default[k]
+        tw, tc, tf = tuned[k]
+        print(f"{k:38} {dw:12.3f} {dc:7.3f} {df:7.0f} {tw:11.3f} {tc:7.3f} {tf:7.0f}"
+              f" {dw / tw:13.2f}")
+    for size in ("160x120", "512x384"):
+        k = f"cube {size}"
+        for env, r in (("default", default), ("tuned", tuned)):
+            print(f"cube {size} {env}: render / alloc+fill = "
+                  f"{r[k][0] / r[k + ' alloc+fill'][0]:.2f} (wall), "
+                  f"{r[k][1] / r[k + ' alloc+fill'][1]:.2f} (cpu); out= {r[k + ' out='][0]:.3f} ms")
+
+
+def _shared(base, a):
+    hogs = _hogs(2)
+    try:
+        time.sleep(1.0)
+        print(f"\n3. shared cores: two busy-loop processes running; load: {_loadavg()}")
+        shared = {}
+        for _ in range(a.rounds):   # the modes alternate process by process
+            for mode, env in MODES.items():
+                r = _run("shared", dict(base, **env), a.repeats, 1)
+                for name in SHARED:
+                    shared.setdefault(f"{name} {mode}", []).append(r[name][0])
+        shared = {k: (float(np.median(v)),) for k, v in shared.items()}
+        print(f"   load at the end: {_loadavg()}")
+    finally:
+        for p in hogs:
+            p.kill()
+            p.wait()
+    print("wall ms, median of per-process medians; in brackets: / the 1-thread time")
+    print(f"{'case':24}" + "".join(f" {m:>18}" for m in MODES))
+    for name in SHARED:
+        t1 = shared[f"{name} 1"][0]
+        cells = [shared[f"{name} {m}"][0] for m in MODES]
+        print(f"{name:24}" + "".join(f" {c:9.2f} ({c / t1:5.2f})" for c in cells))
+
+
+if __name__ == "__main__":
+    main()

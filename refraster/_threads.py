@@ -1,0 +1,146 @@
+"""How many threads a frame's parallel kernels use: serial for small work and on busy cores.
+
+Numba's parallel kernels (``prange``) split their loop over ``numba.get_num_threads()`` threads
+and wait for all of them at the end of each kernel. A frame runs 4–6 such kernels. On a core
+another process is using, the thread that must finish a kernel's share may wait a whole
+scheduler time slice (milliseconds) before it runs, and the frame waits with it: measured with
+two other CPU-bound processes on the 2 cores, a 12-face cube took ~90 ms with 2 threads and
+~1 ms with 1. And for a small frame, waking a second thread costs more than it saves.
+
+So :func:`frame_threads` (used by ``render``, ``draw`` and the pending colour shade) chooses
+per frame, once, before the first kernel:
+
+* ``1`` when the frame is small (:data:`SMALL_WORK`: faces + pixels / 4 below 16,384 — a
+  small mesh at 160×120, the golden size, is ~5k; the cube at 512×384 ~49k; the 82k-face
+  frame at 1024×768 ~278k): one thread does such a frame in well under a millisecond, and
+  waking a second one for each of its kernels costs about what it would save;
+* otherwise Numba's current thread count (``NUMBA_NUM_THREADS`` or ``numba.set_num_threads``,
+  the user's cap), lowered to the cores other processes leave free: the number of runnable
+  tasks in ``/proc/loadavg`` (an instantaneous count, read in ~10 µs) minus up to this
+  process's own threads, against the CPUs this process may run on. Never below 1. Not lowered
+  when idle workers sleep instead of spinning (``OMP_WAIT_POLICY=passive`` with the ``omp``
+  layer, or the ``workqueue`` layer): the collapse comes from libgomp's default of spinning
+  workers — the spinning thread holds a core the descheduled one needs — and with passive
+  waiting 2 threads stayed faster than 1 on the busy cores (docs/performance.md).
+
+Override with ``REFRASTER_THREADS``, read on every frame: ``auto`` (the default, above) or an
+integer ``N`` — exactly ``min(N, numba.config.NUMBA_NUM_THREADS)`` threads for every frame,
+small or not, busy or not (``REFRASTER_THREADS=2`` gives the plain Numba behaviour back).
+
+The thread count never changes a byte of output: every parallel kernel writes disjoint slices
+and the outputs are bit-identical for any thread count (tests/test_raster.py).
+
+The threading layer is Numba's default (``tbb`` if installed, else ``omp``, else
+``workqueue``; on the reference machine ``omp``, GNU libgomp); refraster sets neither the
+layer nor ``OMP_WAIT_POLICY``/``GOMP_SPINCOUNT``/``KMP_BLOCKTIME``, since both are read once
+per process and belong to the application. With the default (spinning) policy, being serial
+on busy cores is what avoids the collapse; an application that sets ``OMP_WAIT_POLICY=passive``
+before Numba's first parallel kernel keeps both threads on busy cores too. ``workqueue`` is not
+safe for several Python threads rendering at once (Numba aborts), ``omp`` is.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from contextlib import contextmanager
+
+import numba
+
+#: Below this much work (faces + pixels / 4) a frame runs on one thread.
+SMALL_WORK = 16384
+
+_local = threading.local()
+
+
+def _cpus():
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):   # not Linux
+        return os.cpu_count() or 1
+
+
+def _runnable():
+    """Runnable tasks on the machine now (``/proc/loadavg``'s fourth field), or None."""
+    try:
+        with open("/proc/loadavg", "rb") as fh:
+            return int(fh.read().split()[3].split(b"/")[0])
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def _override():
+    v = os.environ.get("REFRASTER_THREADS", "auto").strip().lower()
+    if v in ("", "auto"):
+        return None
+    try:
+        n = int(v)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise ValueError(f"REFRASTER_THREADS must be 'auto' or a positive integer, got {v!r}")
+    return min(n, numba.config.NUMBA_NUM_THREADS)
+
+
+_PASSIVE = None
+
+
+def _waits_passively():
+    """Whether idle worker threads sleep rather than spin: the ``workqueue`` layer, or the
+    ``omp`` layer with ``OMP_WAIT_POLICY=passive`` (or ``GOMP_SPINCOUNT=0``) in the environment
+    when this was first asked (libgomp reads it once, when Numba loads it)."""
+    global _PASSIVE
+    if _PASSIVE is None:
+        try:
+            layer = numba.threading_layer()
+        except ValueError:   # not launched yet: decide on the next frame
+            return False
+        env = os.environ
+        _PASSIVE = layer == "workqueue" or (layer == "omp" and (
+            env.get("OMP_WAIT_POLICY", "").strip().lower() == "passive"
+            or env.get("GOMP_SPINCOUNT", "").strip() == "0"))
+    return _PASSIVE
+
+
+def frame_threads(work):
+    """Threads for a frame of ``work`` (faces + pixels / 4); see the module docstring."""
+    n = _override()
+    if n is not None:
+        return n
+    cap = numba.get_num_threads()
+    if cap <= 1 or work < SMALL_WORK:
+        return 1
+    if _waits_passively():   # sleeping workers do not collapse on busy cores (measured)
+        return cap
+    running = _runnable()
+    if running is None:
+        return cap
+    # our own threads may be among the runnable ones (the caller, and workers still spinning
+    # after the previous kernel): count them as ours, the rest as other processes'
+    others = max(running - cap, 0)
+    return max(1, min(cap, _cpus() - others))
+
+
+def frame_work(n_faces, width, height):
+    return int(n_faces) + (int(width) * int(height)) // 4
+
+
+@contextmanager
+def threads_for(work=None, n=None):
+    """Run the body with :func:`frame_threads`\\ (``work``) threads (or ``n``), unless an
+    enclosing frame of this thread has already chosen; restores Numba's count afterwards."""
+    if getattr(_local, "active", False):
+        yield numba.get_num_threads()
+        return
+    if n is None:
+        n = frame_threads(work)
+    old = numba.get_num_threads()
+    _local.active = True
+    try:
+        if n != old:
+            numba.set_num_threads(n)
+        yield n
+    finally:
+        if n != old:
+            numba.set_num_threads(old)
+        _local.active = False

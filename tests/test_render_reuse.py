@@ -1,0 +1,233 @@
+"""Issue 28: a reused framebuffer (``render(out=…)``), the smooth-normals cache and the per-frame
+thread choice never change a byte, never alias an input and never return stale data."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+
+import refraster as rf
+from refraster import _threads
+from refraster.mesh import Mesh, as_mesh, smooth_normals, vertex_normals
+from refraster.scenes import cube, icosphere, torus
+
+FIELDS = ("depth", "eye_depth", "normal", "prim_id", "object_id", "front_facing", "barycentric",
+          "color")
+
+
+def _mesh(tm):
+    return as_mesh((np.array(tm.vertices, np.float64), np.array(tm.faces, np.int64)))
+
+
+def _kw(w=96, h=72, eye=(1.6, 1.2, 2.4)):
+    return dict(view=rf.look_at(list(eye), [0, 0, 0]), proj=rf.perspective(45, w / h, 0.5, 10),
+                width=w, height=h)
+
+
+def _same(a, b):
+    for f in FIELDS:
+        x, y = getattr(a, f), getattr(b, f)
+        assert x.dtype == y.dtype and x.shape == y.shape, f
+        assert x.tobytes() == y.tobytes(), f
+
+
+def test_out_gives_the_bytes_of_a_fresh_render_over_a_stale_frame():
+    ico, box = _mesh(icosphere(3)), _mesh(cube())
+    kw = _kw()
+    out = rf.render(ico, **kw, normals="smooth")   # another scene's data in every buffer
+    out.color                                         # … colour included
+    ids = {f: id(getattr(out, f)) for f in FIELDS if f != "color"}
+    got = rf.render(box, **_kw(eye=(2.0, -1.0, 2.5)), out=out)
+    assert got is out
+    assert all(id(getattr(out, f)) == ids[f] for f in ids)   # written in place
+    _same(got, rf.render(box, **_kw(eye=(2.0, -1.0, 2.5))))
+    # twice more, alternating scenes and options, colour pending or read
+    _same(rf.render(ico, **kw, cull="back", out=out), rf.render(ico, **kw, cull="back"))
+    _same(rf.render(box, **kw, depth_func="greater", clear_depth=0.0, out=out),
+          rf.render(box, **kw, depth_func="greater", clear_depth=0.0))
+
+
+def test_out_colour_read_before_and_after_reuse():
+    box, ico = _mesh(cube()), _mesh(icosphere(2))
+    kw = _kw()
+    out = rf.render(box, **kw)
+    first = out.color.copy()
+    rf.render(ico, **kw, out=out)
+    assert out.color.tobytes() == rf.render(ico, **kw).color.tobytes()
+    assert out.color.tobytes() != first.tobytes()
+
+
+def test_fresh_frames_never_share_memory():
+    """Without out=, every frame's arrays are new: a frame a user holds never changes."""
+    box = _mesh(cube())
+    kw = _kw()
+    a = rf.render(box, **kw)
+    keep = {f: getattr(a, f).copy() for f in FIELDS}
+    b = rf.render(_mesh(icosphere(2)), **kw)
+    for f in FIELDS:
+        for g in FIELDS:
+            assert not np.may_share_memory(getattr(a, f), getattr(b, g)), (f, g)
+        assert getattr(a, f).tobytes() == keep[f].tobytes(), f
+
+
+def test_out_is_checked():
+    box = _mesh(cube())
+    kw = _kw()
+    out = rf.render(box, **kw)
+    with pytest.raises(TypeError, match="out must be a Framebuffer"):
+        rf.render(box, **kw, out=out.depth)
+    with pytest.raises(ValueError, match=r"out.depth must be float32 of shape \(60, 80\)"):
+        rf.render(box, **_kw(80, 60), out=out)
+    bad = rf.render(box, **kw)
+    bad.prim_id = bad.prim_id.astype(np.int64)
+    with pytest.raises(ValueError, match="out.prim_id must be int32"):
+        rf.render(box, **kw, out=bad)
+    bad = rf.render(box, **kw)
+    bad.normal = np.asfortranarray(bad.normal)
+    with pytest.raises(ValueError, match="out.normal must be a C-contiguous, writeable"):
+        rf.render(box, **kw, out=bad)
+    bad = rf.render(box, **kw)
+    bad.depth.flags.writeable = False
+    with pytest.raises(ValueError, match="out.depth must be a C-contiguous, writeable"):
+        rf.render(box, **kw, out=bad)
+    bad = rf.render(box, **kw)
+    bad.eye_depth = bad.depth
+    with pytest.raises(ValueError, match="out.depth and out.eye_depth share memory"):
+        rf.render(box, **kw, out=bad)
+    with pytest.raises(ValueError, match="fragment_stage"):
+        rf.render(box, **kw, out=out, fragment_stage=lambda fr: fr.depth < 1)
+
+
+def test_out_never_overwrites_an_input():
+    box = _mesh(cube())
+    kw = _kw()
+    out = rf.render(box, **kw)
+    # a mesh whose vertices live in out's barycentric buffer
+    flat = out.barycentric.reshape(-1).view(np.float64)
+    flat[:24] = box.vertices.reshape(-1)
+    inside = Mesh(flat[:24].reshape(8, 3), box.faces)
+    before = inside.vertices.copy()
+    with pytest.raises(ValueError, match="out.barycentric shares memory with an input"):
+        rf.render(inside, **kw, out=out)
+    assert inside.vertices.tobytes() == before.tobytes()
+    # given normals that are a view of out.normal
+    with pytest.raises(ValueError, match="out.normal shares memory with an input"):
+        rf.render(box, **kw, normals=out.normal.reshape(-1, 3)[:8], out=out)
+
+
+def test_smooth_normals_cache_follows_the_content():
+    t = _mesh(torus(major_segments=24, minor_segments=10))
+    kw = _kw(eye=(0.5, 2.2, 2.0))
+    n1 = smooth_normals(t)
+    assert smooth_normals(t) is n1                             # cached
+    assert smooth_normals(Mesh(t.vertices.copy(), t.faces.copy())) is n1   # same content
+    assert n1.tobytes() == vertex_normals(t.vertices, t.faces).tobytes()
+    first = rf.render(t, **kw, normals="smooth")
+    # change the mesh in place: the next frame must not reuse the old normals
+    t.vertices[:, 1] *= 1.7
+    t.vertices[::3] += 0.05
+    again = rf.render(t, **kw, normals="smooth")
+    fresh = rf.render(Mesh(t.vertices.copy(), t.faces.copy()), **kw, normals="smooth")
+    fresh_uncached = rf.render(Mesh(t.vertices.copy(), t.faces.copy()), **kw,
+                               normals=vertex_normals(t.vertices, t.faces))
+    _same(again, fresh)
+    _same(again, fresh_uncached)
+    assert again.normal.tobytes() != first.normal.tobytes()
+    # faces changed in place (same vertices): new normals too
+    t.faces[:, [1, 2]] = t.faces[:, [2, 1]].copy()
+    flipped = smooth_normals(t)
+    assert flipped.tobytes() == vertex_normals(t.vertices, t.faces).tobytes()
+    np.testing.assert_allclose(flipped, -vertex_normals(t.vertices, t.faces[:, [0, 2, 1]]),
+                               atol=1e-12)
+
+
+def test_normals_cache_is_bounded(monkeypatch):
+    from refraster import mesh as mesh_mod
+    monkeypatch.setattr(mesh_mod, "_NORMALS_CACHE_ENTRIES", 2)
+    ms = [_mesh(icosphere(1, radius=1.0 + k)) for k in range(4)]
+    for m in ms:
+        smooth_normals(m)
+    assert len(mesh_mod._NORMALS_CACHE) <= 2
+
+
+def test_small_frames_run_serially_and_the_override(monkeypatch):
+    monkeypatch.delenv("REFRASTER_THREADS", raising=False)
+    monkeypatch.setattr(_threads, "_runnable", lambda: 1)   # idle cores
+    if numba.get_num_threads() > 1 and _threads._cpus() > 1:
+        assert _threads.frame_threads(_threads.frame_work(12, 512, 384)) > 1
+    assert _threads.frame_threads(_threads.frame_work(12, 160, 120)) == 1
+    monkeypatch.setattr(_threads, "_runnable", lambda: 9)   # busy cores: one thread
+    assert _threads.frame_threads(_threads.frame_work(81920, 1024, 768)) == 1
+    monkeypatch.setattr(_threads, "_runnable", lambda: 1)   # idle: Numba's count
+    assert _threads.frame_threads(10**6) == min(numba.get_num_threads(), _threads._cpus())
+    monkeypatch.setattr(_threads, "_runnable", lambda: 9)
+    monkeypatch.setattr(_threads, "_PASSIVE", True)   # sleeping workers: busy cores are fine
+    assert _threads.frame_threads(10**6) == numba.get_num_threads()
+    assert _threads.frame_threads(_threads.frame_work(12, 160, 120)) == 1
+    monkeypatch.setattr(_threads, "_PASSIVE", False)
+    assert _threads.frame_threads(10**6) == 1
+    monkeypatch.setenv("REFRASTER_THREADS", "1")
+    assert _threads.frame_threads(10**6) == 1
+    monkeypatch.setenv("REFRASTER_THREADS", "64")
+    assert _threads.frame_threads(10) == numba.config.NUMBA_NUM_THREADS
+    monkeypatch.setenv("REFRASTER_THREADS", "two")
+    with pytest.raises(ValueError, match="REFRASTER_THREADS must be 'auto' or a positive"):
+        _threads.frame_threads(10)
+
+
+def test_thread_choice_restores_numba_and_keeps_the_bytes(monkeypatch):
+    ico = _mesh(icosphere(4))
+    kw = _kw(256, 192)
+    before = numba.get_num_threads()
+    frames = []
+    for n in ("1", str(numba.config.NUMBA_NUM_THREADS), "auto"):
+        monkeypatch.setenv("REFRASTER_THREADS", n)
+        fb = rf.render(ico, **kw, normals="smooth")
+        fb.color
+        frames.append(fb)
+        assert numba.get_num_threads() == before
+    _same(frames[0], frames[1])
+    _same(frames[0], frames[2])
+    monkeypatch.setenv("REFRASTER_THREADS", "1")
+    with pytest.raises(ValueError):
+        rf.render(ico, **kw, cull="sideways")
+    assert numba.get_num_threads() == before
+
+
+def test_reused_scratch_never_reaches_a_frame(monkeypatch):
+    """The fused path's intermediates come from reused per-thread buffers: no array of a frame
+    (nor of its pending colour) may live in them, so a later frame cannot change it."""
+    from refraster import framebuffer
+    from refraster._scratch import frame_scratch
+    monkeypatch.setattr(framebuffer, "SCRATCH_FACES", 0)   # these small meshes use it too
+    frame_scratch().clear()
+    ico, t = _mesh(icosphere(3)), _mesh(torus(major_segments=24, minor_segments=10))
+    kw = _kw()
+    a = rf.render(ico, **kw, normals="smooth")        # colour left pending
+    held = {f: getattr(a, f).copy() for f in FIELDS if f != "color"}
+    pending = a.__dict__["_color"].args
+    rf.render(t, **_kw(eye=(0.5, 2.2, 2.0)), cull="back")   # reuses every scratch buffer
+    bufs = list(frame_scratch()._bufs.values())
+    assert bufs
+    for x in [getattr(a, f) for f in held] + [p for p in pending if isinstance(p, np.ndarray)]:
+        assert not any(np.may_share_memory(x, b) for b in bufs)
+    for f in held:
+        assert getattr(a, f).tobytes() == held[f].tobytes(), f
+    _same(a, rf.render(ico, **kw, normals="smooth"))
+
+
+def test_public_prepare_never_uses_the_scratch():
+    from refraster._scratch import SCRATCH_FACES, frame_scratch
+    from refraster.raster import prepare
+    ico = _mesh(icosphere(5))
+    assert ico.n_faces >= SCRATCH_FACES
+    kw = _kw()
+    frame_scratch().clear()
+    rf.render(ico, **kw)
+    assert frame_scratch().nbytes > 0                     # the default path uses the scratch
+    p = prepare(ico, **kw)
+    bufs = list(frame_scratch()._bufs.values())
+    t = p.triangles
+    for x in (p.clip, t.vx, t.vy, t.vz, t.status, t.bbox):
+        assert not any(np.may_share_memory(x, b) for b in bufs)
