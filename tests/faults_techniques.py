@@ -91,6 +91,7 @@ def fault_table(golden_dir, scene, *, buffers=None, seed=SEED, admits=None):
 
     ``admits(key, kind, spec, arrays, ref, cand, named, ref_all)`` → (H, W) bool overrides how
     "admitted" is computed for the checks :func:`faults._admits` does not know."""
+    admits = globals()["admits"] if admits is None else admits
     manifest = load_manifest(golden_dir, verify=False)
     entry = manifest["scenes"][scene]
     with np.load(golden_dir / scene / "buffers.npz", allow_pickle=False) as z:
@@ -132,7 +133,7 @@ def fault_table(golden_dir, scene, *, buffers=None, seed=SEED, admits=None):
                          if "prim_id" in others else None)
                 _, checks, images = tolerant_metrics(
                     key, ref, cand, kind, spec["tolerant"], arrays, clear_depth=clear,
-                    fallback=fallback, named=named, **_others_kw(others))
+                    fallback=fallback, named=named, others=others)
                 bad = images["over"] & ~images["forgiven"]
                 ok = all(c["ok"] for c in checks)
                 m = np.zeros_like(covered)
@@ -150,10 +151,57 @@ def fault_table(golden_dir, scene, *, buffers=None, seed=SEED, admits=None):
     return table
 
 
-def _others_kw(others):
-    """The candidate's other buffers, for checks that read them (``tolerant_metrics(others=)``
-    where it exists)."""
-    import inspect
-    if "others" in inspect.signature(tolerant_metrics).parameters:
-        return {"others": others}
-    return {}
+def layers_admits(key, kind, spec, arrays, ref, cand, named, others):
+    """Where the ``layers`` allowance admits the faulty value — written from the module
+    docstring of :mod:`refraster.golden.layers`, pixel by pixel, not with its code: the entry
+    the layer's id names (the candidate's ids) holds the depth / facing, the id is one of the
+    pixel's faces and no face that must show went missing, the count lies in its bounds and
+    agrees with the layers shown. ``None`` for other checks."""
+    if "layers" not in spec["checks"]:
+        return None
+    layer = spec["layer"]
+    h, w = ref.shape[:2]
+    out = np.zeros((h, w), np.bool_)
+    diff = ref != cand
+    diff = diff.any(axis=2) if diff.ndim == 3 else diff
+    off = arrays["ldi_offsets"]
+    ids = np.asarray(others["layer_prim_id"])
+    count = np.asarray(others["layer_count"])
+    for r, c in np.argwhere(diff):
+        k0, k1 = int(off[r * w + c]), int(off[r * w + c + 1])
+        faces = [int(f) for f in arrays["ldi_face"][k0:k1]]
+        n = int(count[r, c])
+        if layer == "count":
+            shown = int((ids[r, c] >= 0).sum())
+            out[r, c] = (arrays["ldi_count_lo"][r, c] <= n <= arrays["ldi_count_hi"][r, c]
+                         and n == shown)
+            continue
+        ok = True
+        for k in range(ids.shape[2]):
+            f = int(ids[r, c, k])
+            if k >= n:
+                ok &= f == -1 if layer == "prim_id" else True
+                continue
+            if f not in faces:
+                ok = False
+                continue
+            e = k0 + faces.index(f)
+            if layer == "depth":
+                d = float(cand[r, c, k])
+                ok &= float(arrays["ldi_depth_lo"][e]) <= d <= float(arrays["ldi_depth_hi"][e])
+                if k > 0:
+                    ok &= d > float(cand[r, c, k - 1])
+            elif layer == "front_facing":
+                fa = int(arrays["ldi_facing"][e])
+                ok &= fa < 0 or bool(cand[r, c, k]) == (fa == 1)
+        if layer == "prim_id":
+            for i in range(k0, k1):
+                if arrays["ldi_must"][i]:
+                    ok &= int(arrays["ldi_face"][i]) in [int(x) for x in ids[r, c, :n]]
+        out[r, c] = ok
+    return out
+
+
+def admits(key, kind, spec, arrays, ref, cand, named, others):
+    """The technique checks' own "admits" (``None``: :func:`faults._admits` decides)."""
+    return layers_admits(key, kind, spec, arrays, ref, cand, named, others)

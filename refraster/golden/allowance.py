@@ -62,7 +62,7 @@ from ..tolerance import (COLOR_TOL, DEPTH_EPS, MAY, MUST, MUST_NOT, NORMAL_TOL, 
 
 __all__ = ["scene_allowances", "tolerant_metrics", "dilate", "surface_step", "TOLERANT_CHECKS"]
 
-TOLERANT_CHECKS = ("coverage", "id", "interval", "angle", "masked", "face")
+TOLERANT_CHECKS = ("coverage", "id", "interval", "angle", "masked", "face", "layers")
 
 #: float32 budgets of the interpolated G-buffer values (see the module docstring).
 EYE_DEPTH_ABS, EYE_DEPTH_REL = 1e-5, 4e-6
@@ -251,6 +251,14 @@ def scene_allowances(scene, raster):
         for key, spec in checks.items():
             if key in _GBUFFER and "masked" not in spec["checks"]:
                 spec["checks"] = spec["checks"] + ["face"]
+    if scene.technique == "ldi" and "layer_depth" in buffers:
+        # layered depth images: per-layer face sets and depth intervals (golden/layers.py)
+        from .layers import LAYER_BUFFERS, ldi_allowances
+        arrays.update(ldi_allowances(scene, raster, tol.eps, buffers["layer_depth"].shape[2],
+                                     raster["clear_depth"]))
+        for key, layer in LAYER_BUFFERS.items():
+            if key in checks:
+                checks[key] = {"checks": ["layers"], "layer": layer}
     info = {"method": method, "eps": float(tol.eps), "depth_eps": float(tol.depth_eps),
             "normal_tol": NORMAL_TOL, "color_tol": COLOR_TOL, "may_radius": radius,
             "min_subpixel_bits": 4}
@@ -541,6 +549,9 @@ def _allowed_at(key, spec, arrays, outside, r, c, named, step):
                         " rad")
         elif name == "face":
             said.append("face: " + face_allowed(key, arrays, r, c, named, step))
+        elif name == "layers":
+            from .layers import layers_allowed
+            said.append(layers_allowed(spec["layer"], arrays, r, c, step=step))
     return "; ".join(said) or None
 
 
@@ -572,7 +583,7 @@ def face_allowed(key, arrays, r, c, named, step=0.0):
 
 
 def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_depth=1.0,
-                     fallback=None, step=0.0, named=None):
+                     fallback=None, step=0.0, named=None, others=None):
     """Metrics, checks and images of one buffer under its tolerant checks.
 
     Parameters
@@ -593,6 +604,9 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
     named : (H, W) int64, optional
         :func:`named_entries` of the candidate's ids (the ``face`` check); ``None`` when the
         candidate sends no ids.
+    others : dict, optional
+        The candidate's buffers of the scene, for checks that read another buffer (the
+        ``layers`` check names each layer's face by the candidate's ``layer_prim_id``).
 
     Returns
     -------
@@ -636,6 +650,10 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
                                     forgive=arrays[spec.get("may", "may")])
         elif name == "face":
             outside["face"] = _face_outside(key, kind, cand, arrays, named, step, clear_depth)
+        elif name == "layers":
+            from .layers import layers_outside
+            outside["layers"] = layers_outside(spec["layer"], cand, arrays, others, step=step,
+                                               clear=clear_depth)
         else:
             raise ValueError(f"unknown tolerant check {name!r}")
     err_el = _elementwise_error(ref, cand)
