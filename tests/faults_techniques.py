@@ -204,4 +204,17 @@ def layers_admits(key, kind, spec, arrays, ref, cand, named, others):
 
 def admits(key, kind, spec, arrays, ref, cand, named, others):
     """The technique checks' own "admits" (``None``: :func:`faults._admits` decides)."""
-    return layers_admits(key, kind, spec, arrays, ref, cand, named, others)
+    for f in (layers_admits, bounds_admits):
+        a = f(key, kind, spec, arrays, ref, cand, named, others)
+        if a is not None:
+            return a
+    return None
+
+
+def bounds_admits(key, kind, spec, arrays, ref, cand, named, others):
+    """Where a ``bounds`` interval (every pixel, every channel) holds the faulty value."""
+    if "bounds" not in spec["checks"]:
+        return None
+    c = np.asarray(cand, np.float64)
+    inside = (c >= arrays[spec["lo"]]) & (c <= arrays[spec["hi"]])
+    return inside.all(axis=2) if inside.ndim == 3 else inside

@@ -38,8 +38,7 @@ _G = ("barycentric", "color", "depth", "eye_depth", "normal")
 #: (scene, buffer) pairs still on the conformant profile with a fraction-of-pixels threshold
 #: (measured 2026-12-01, docs/tolerance.md): they miss the aims.
 OLD_PROFILE = (
-    {("edges_building", "edge_map")}
-    | {("clipsurface_building", k) for k in _G + ("cap_mask", "front_facing", "object_id",
+    {("clipsurface_building", k) for k in _G + ("cap_mask", "front_facing", "object_id",
                                                   "prim_id")}
     | {("clipsurface_textured_caps", k) for k in _G + ("cap_mask", "front_facing",
                                                        "object_id", "prim_id")}
@@ -219,3 +218,62 @@ def test_corrupt_ldi_arrays_are_refused(gold, tmp_path):
     root = _write(tmp_path / "cand", LDI, _golden_buffers(gold, LDI))
     with pytest.raises(GoldenError, match="ldi_offsets is not an offset array"):
         compare(g, root, mode="tolerant", scenes=[LDI])
+
+
+# --- edge maps (refraster/golden/edge_bounds.py) -------------------------------------------------
+
+EDGES = "edges_building"
+
+
+def _q8(a):
+    return (np.round(np.asarray(a, np.float64) * 255.0) / 255.0).astype(np.float32)
+
+
+#: (raster variant, RGBA8 G-buffer and edge map): refraster's conformant variants of the edge map.
+EDGE_VARIANTS = {"4bit": ({"subpixel_bits": 4}, False), "top_left": ({"fill_rule": "top-left"}, False),
+                 "4bit_top_left_rgba8": ({"subpixel_bits": 4, "fill_rule": "top-left"}, True),
+                 "float64_rgba8": ({"precision": "float64"}, True), "rgba8": ({}, True)}
+
+
+@pytest.mark.parametrize("variant", sorted(EDGE_VARIANTS))
+def test_edge_map_conformant_variants_pass(gold, tmp_path, variant):
+    """Specificity: the edge map of refraster's 4-bit, top-left and float64 G-buffers, and of
+    G-buffers and edge maps stored as RGBA8 (the paper's texture formats, the scene's
+    ``gbuffer_format`` / ``output_format``), passes the golden (tolerant)."""
+    from refraster.edges import EdgeGBuffer, edge_gbuffer, edge_map
+    from refraster.golden.compare import compare
+    from refraster.golden.scenes import raster_state, render_draws
+    scene = golden.available_scenes()[EDGES].build()
+    p = scene.parameters
+    ops = {k: p[k] for k in ("preset", "normal_filter", "depth_filter", "ids",
+                             "inner_threshold", "profile_threshold", "width", "k_n", "k_z")}
+    raster, rgba8 = EDGE_VARIANTS[variant]
+    fb = render_draws(scene.draws, scene.camera, {**raster_state({}), **raster})
+    if rgba8:
+        gb = edge_gbuffer(fb, bounds=np.array(p["bounds"]))
+        gb = EdgeGBuffer(normal=_q8(gb.normal), depth=_q8(gb.depth), object_id=gb.object_id,
+                         near=gb.near, far=gb.far)
+        e = _q8(edge_map(gb, **ops))
+    else:
+        e = edge_map(fb, bounds=np.array(p["bounds"]), **ops)
+    root = _write(tmp_path, EDGES, {**fb.arrays(), "edge_map": e})
+    result = compare(gold, root, mode="tolerant", scenes=[EDGES])
+    assert result.exit_code == 0, "\n".join(result.failures()[:10])
+    if raster.get("subpixel_bits") == 4 or rgba8:
+        assert compare(gold, root, mode="exact", scenes=[EDGES],
+                       buffers=["edge_map"]).exit_code == 1
+
+
+def test_one_edge_pixel_moved_fails_naming_the_pixel(gold, tmp_path):
+    """One edge-map pixel's intensity (every channel) moved by 0.25 where the interval is
+    narrower than that: `refraster golden compare` fails naming the pixel and the interval."""
+    b = _golden_buffers(gold, EDGES)
+    with np.load(gold / EDGES / "tolerance.npz", allow_pickle=False) as z:
+        lo, hi = z["edge_map_lo"], z["edge_map_hi"]
+    narrow = ((hi - lo).max(axis=2) < 0.05) & (b["prim_id"] >= 0) & (b["edge_map"][..., 0] < 0.5)
+    rr, cc = np.argwhere(narrow)[len(np.argwhere(narrow)) // 2]
+    b["edge_map"][rr, cc] += np.float32(0.25)
+    code, out = _run_compare(gold, _write(tmp_path / "c", EDGES, b), EDGES)
+    assert code == 1 and "FAIL" in out, out
+    line = [x for x in out.splitlines() if f"{EDGES}/edge_map: bounds" in x][0]
+    assert f"[[{rr}, {cc}]]" in line and "interval [(" in line, line

@@ -62,7 +62,7 @@ from ..tolerance import (COLOR_TOL, DEPTH_EPS, MAY, MUST, MUST_NOT, NORMAL_TOL, 
 
 __all__ = ["scene_allowances", "tolerant_metrics", "dilate", "surface_step", "TOLERANT_CHECKS"]
 
-TOLERANT_CHECKS = ("coverage", "id", "interval", "angle", "masked", "face", "layers")
+TOLERANT_CHECKS = ("coverage", "id", "interval", "angle", "masked", "face", "layers", "bounds")
 
 #: float32 budgets of the interpolated G-buffer values (see the module docstring).
 EYE_DEPTH_ABS, EYE_DEPTH_REL = 1e-5, 4e-6
@@ -251,6 +251,19 @@ def scene_allowances(scene, raster):
         for key, spec in checks.items():
             if key in _GBUFFER and "masked" not in spec["checks"]:
                 spec["checks"] = spec["checks"] + ["face"]
+    if scene.technique == "edges" and "edge_map" in buffers and sets:
+        # edge maps: intervals propagated through the operator (golden/edge_bounds.py)
+        from ..edges import fit_near_far
+        from .edge_bounds import edge_map_bounds, supported
+        params = scene.parameters or {}
+        if supported(params) and params.get("bounds") is not None:
+            near, far = fit_near_far(cam.view, bounds=np.asarray(params["bounds"], np.float64))
+            arrays["edge_map_lo"], arrays["edge_map_hi"] = edge_map_bounds(
+                arrays, buffers, params, near, far,
+                gbuffer_format=params.get("gbuffer_format", "rgba8"),
+                output_format=params.get("output_format", "rgba8"))
+            checks["edge_map"] = {"checks": ["bounds"], "lo": "edge_map_lo",
+                                  "hi": "edge_map_hi"}
     if scene.technique == "ldi" and "layer_depth" in buffers:
         # layered depth images: per-layer face sets and depth intervals (golden/layers.py)
         from .layers import LAYER_BUFFERS, ldi_allowances
@@ -549,6 +562,9 @@ def _allowed_at(key, spec, arrays, outside, r, c, named, step):
                         " rad")
         elif name == "face":
             said.append("face: " + face_allowed(key, arrays, r, c, named, step))
+        elif name == "bounds":
+            said.append(f"interval [{_fmt(arrays[spec['lo']][r, c] - step)}, "
+                        f"{_fmt(arrays[spec['hi']][r, c] + step)}]")
         elif name == "layers":
             from .layers import layers_allowed
             said.append(layers_allowed(spec["layer"], arrays, r, c, step=step))
@@ -650,6 +666,12 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
                                     forgive=arrays[spec.get("may", "may")])
         elif name == "face":
             outside["face"] = _face_outside(key, kind, cand, arrays, named, step, clear_depth)
+        elif name == "bounds":   # an interval at every pixel, whatever the visible face
+            lo = arrays[spec["lo"]].astype(np.float64) - step
+            hi = arrays[spec["hi"]].astype(np.float64) + step
+            with np.errstate(invalid="ignore"):
+                bad = ~((cand.astype(np.float64) >= lo) & (cand.astype(np.float64) <= hi))
+            outside["bounds"] = bad.any(axis=2) if bad.ndim == 3 else bad
         elif name == "layers":
             from .layers import layers_outside
             outside["layers"] = layers_outside(spec["layer"], cand, arrays, others, step=step,

@@ -30,6 +30,9 @@ def _edges_building():
                   depth_filter="diagonal", ids=False, inner_threshold=0.0,
                   profile_threshold=0.0, width=1, k_n=1.0, k_z=1.0)
     edges = edge_map(fb, **{**params, "bounds": np.array(params["bounds"])})
+    # the texture formats a backend may use, as the paper's (RGBA8 G-buffer and edge map); the
+    # edge map's allowance includes their quantisation (docs/tolerance.md, "Edge maps")
+    params.update(gbuffer_format="rgba8", output_format="rgba8")
     # the diagonal operators read the 8-neighbourhood; a "may" pixel of the G-buffer may change
     # the edge map one pixel away (two kept as margin)
     return GoldenScene(technique="edges", camera=camera, draws=draws,
