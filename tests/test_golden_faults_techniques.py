@@ -42,8 +42,8 @@ OLD_PROFILE = (
                                                   "prim_id")}
     | {("clipsurface_textured_caps", k) for k in _G + ("cap_mask", "front_facing",
                                                        "object_id", "prim_id")}
-    | {("cutaway_shells", k) for k in _G + ("cut_mask", "cutaway_depth", "ghost",
-                                            "front_facing", "object_id", "prim_id")}
+    | {("cutaway_shells", k) for k in _G + ("cut_mask", "ghost", "front_facing", "object_id",
+                                            "prim_id")}
     | {("halos4d_figure1", k) for k in ("alpha", "color", "halo_class")}
 )
 
@@ -277,3 +277,75 @@ def test_one_edge_pixel_moved_fails_naming_the_pixel(gold, tmp_path):
     assert code == 1 and "FAIL" in out, out
     line = [x for x in out.splitlines() if f"{EDGES}/edge_map: bounds" in x][0]
     assert f"[[{rr}, {cc}]]" in line and "interval [(" in line, line
+
+
+# --- cutaways (refraster/golden/cutaway_bounds.py) -----------------------------------------------
+
+CUT = "cutaway_shells"
+#: rear-hull raster variants × every flooding variant the scene accepts
+CUT_RASTER = {"8bit": {}, "4bit": {"subpixel_bits": 4}, "top_left": {"fill_rule": "top-left"},
+              "4bit_top_left": {"subpixel_bits": 4, "fill_rule": "top-left"},
+              "float64": {"precision": "float64"}}
+
+
+def _cutaway_depth(scene, raster, variant):
+    """D as a backend computes it: the interest's rear hull (depth test greater, clear 0) with
+    the given raster state, flooded with ``variant``, in window depth (float32)."""
+    from refraster import render
+    from refraster.cutaway.surface import cutaway_surface
+    p = scene.parameters
+    cam = scene.camera
+    draws = [d for d in scene.draws if d.name in p["interest"]]
+    rear = render([d.mesh for d in draws], **cam.kwargs, model=[d.model for d in draws],
+                  depth_func="greater", clear_depth=0.0, **raster)
+    d = cutaway_surface(rear.depth, rear.object_id, proj=cam.proj, view=cam.view,
+                        angle=p["angle"], variant=variant,
+                        perspective_compensation=p["perspective_compensation"],
+                        edge_compression=p["edge_compression"])
+    return (0.5 * d + 0.5).astype(np.float32)
+
+
+@pytest.mark.parametrize("raster", sorted(CUT_RASTER))
+def test_cutaway_conformant_variants_pass(gold, tmp_path, raster):
+    """Specificity: every accepted flooding variant over a rear hull rasterized with 4 or 8
+    sub-pixel bits, either fill rule, a float64 vertex stage, passes; D is what refraster's own
+    pipeline stores (checked for the scene's variant at 8 bits: bit-identical)."""
+    from refraster.golden.compare import compare
+    scene = golden.available_scenes()[CUT].build()
+    b = _golden_buffers(gold, CUT)
+    for variant in scene.parameters["accepted_variants"]:
+        d = _cutaway_depth(scene, CUT_RASTER[raster], variant)
+        if raster == "8bit" and variant == scene.parameters["variant"]:
+            assert np.array_equal(d, b["cutaway_depth"])
+        root = _write(tmp_path / variant, CUT, {**b, "cutaway_depth": d})
+        result = compare(gold, root, mode="tolerant", scenes=[CUT], buffers=["cutaway_depth"])
+        assert result.exit_code == 0, (variant, result.failures()[:5])
+
+
+def test_cutaway_bounds_refuse_just_outside(gold, tmp_path):
+    """The interval is tight in both directions: D one float32 step above D_hi or below D_lo
+    at one pixel fails naming it."""
+    from refraster.golden.compare import compare
+    b = _golden_buffers(gold, CUT)
+    with np.load(gold / CUT / "tolerance.npz", allow_pickle=False) as z:
+        lo, hi = z["cutaway_depth_lo"], z["cutaway_depth_hi"]
+    for name, (rr, cc), value in (
+            ("up", (30, 40), np.nextafter(hi[30, 40], np.float32(2))),
+            ("down", (20, 50), np.nextafter(lo[20, 50], np.float32(-1)))):
+        d = b["cutaway_depth"].copy()
+        d[rr, cc] = value
+        root = _write(tmp_path / name, CUT, {**b, "cutaway_depth": d})
+        fails = compare(gold, root, mode="tolerant", scenes=[CUT],
+                        buffers=["cutaway_depth"]).failures()
+        assert any(f"[[{rr}, {cc}]]" in x for x in fails), (name, fails)
+
+
+def test_one_cutaway_depth_moved_fails_naming_the_pixel(gold, tmp_path):
+    """One pixel of D moved by 0.05 (the issue's 0/12 case): FAIL naming the pixel."""
+    b = _golden_buffers(gold, CUT)
+    rr, cc = 30, 40
+    b["cutaway_depth"][rr, cc] += np.float32(0.05)
+    code, out = _run_compare(gold, _write(tmp_path / "c", CUT, b), CUT)
+    assert code == 1 and "FAIL" in out, out
+    line = [x for x in out.splitlines() if f"{CUT}/cutaway_depth: bounds" in x][0]
+    assert f"[[{rr}, {cc}]]" in line and "interval [" in line, line

@@ -264,6 +264,14 @@ def scene_allowances(scene, raster):
                 output_format=params.get("output_format", "rgba8"))
             checks["edge_map"] = {"checks": ["bounds"], "lo": "edge_map_lo",
                                   "hi": "edge_map_hi"}
+    if scene.technique == "cutaway" and "cutaway_depth" in buffers \
+            and (scene.parameters or {}).get("accepted_variants"):
+        # cutaways: D_variant − slack ≤ D ≤ D_exact + slack (golden/cutaway_bounds.py)
+        from .cutaway_bounds import cutaway_bounds
+        arrays["cutaway_depth_lo"], arrays["cutaway_depth_hi"], slack = cutaway_bounds(
+            scene, tol.eps)
+        checks["cutaway_depth"] = {"checks": ["bounds"], "lo": "cutaway_depth_lo",
+                                   "hi": "cutaway_depth_hi"}
     if scene.technique == "ldi" and "layer_depth" in buffers:
         # layered depth images: per-layer face sets and depth intervals (golden/layers.py)
         from .layers import LAYER_BUFFERS, ldi_allowances

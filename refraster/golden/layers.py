@@ -149,6 +149,34 @@ def _count_bounds(offsets, lo, hi, sure, clear, k_max, count_lo, count_hi, must)
             must[i] = alone
 
 
+def covering_entries(meshes, models, camera, cull, eps):
+    """Per pixel, every face whose ε-dilated footprint covers the centre, whether it surely
+    covers it, and the window-depth interval it may show there (see the module docstring).
+
+    Returns ``(prep, pix, faces, sure, fragile, lo, hi)``: entries sorted by pixel then face,
+    ``lo``/``hi`` float64 (±inf where a sliver's or degenerate face's depth is free)."""
+    from ..raster import prepare
+    from .allowance import _face_barycentrics
+    h, w = camera.height, camera.width
+    prep = prepare(meshes, **camera.kwargs, model=models, cull=cull)
+    pix, faces, sure, fragile, fslack = _covering_faces(prep, eps)
+    rows, cols = np.divmod(pix, w)
+    d = np.array([[0.0, 0.0], [-1, -1], [1, -1], [-1, 1], [1, 1]]) * eps
+    px = cols[:, None] + 0.5 + d[None, :, 0]
+    py = (h - 1 - rows)[:, None] + 0.5 + d[None, :, 1]
+    clip = prep.clip[prep.triangles.faces[faces]]
+    beta = _face_barycentrics(clip, px, py, w, h)
+    zc = np.einsum("esk,ek->es", beta, clip[:, :, 2])
+    wc = np.einsum("esk,ek->es", beta, clip[:, :, 3])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        depth = 0.5 * zc / wc + 0.5
+    slack = fslack[faces]
+    bad = ~np.isfinite(depth).all(axis=1) | fragile[faces]
+    lo = np.where(bad, -np.inf, depth.min(axis=1) - slack)
+    hi = np.where(bad, np.inf, depth.max(axis=1) + slack)
+    return prep, pix, faces, sure & ~bad, fragile, lo, hi
+
+
 def ldi_allowances(scene, raster, eps, k_max, clear=1.0):
     """The ``ldi_*`` arrays of a layered-depth-image scene (see the module docstring)."""
     from ..raster import prepare
