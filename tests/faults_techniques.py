@@ -204,7 +204,7 @@ def layers_admits(key, kind, spec, arrays, ref, cand, named, others):
 
 def admits(key, kind, spec, arrays, ref, cand, named, others):
     """The technique checks' own "admits" (``None``: :func:`faults._admits` decides)."""
-    for f in (layers_admits, bounds_admits):
+    for f in (layers_admits, bounds_admits, clip_admits):
         a = f(key, kind, spec, arrays, ref, cand, named, others)
         if a is not None:
             return a
@@ -218,3 +218,43 @@ def bounds_admits(key, kind, spec, arrays, ref, cand, named, others):
     c = np.asarray(cand, np.float64)
     inside = (c >= arrays[spec["lo"]]) & (c <= arrays[spec["hi"]])
     return inside.all(axis=2) if inside.ndim == 3 else inside
+
+
+def clip_admits(key, kind, spec, arrays, ref, cand, named, others):
+    """Where the ``clip`` allowance admits the faulty value, pixel by pixel from the module
+    docstring of :mod:`refraster.golden.clip_allowance`: the candidate's (object_id, prim_id)
+    names an entry of the pixel's set (or the pixel is background where the background may
+    show), and its depth, facing and cap flag are that entry's."""
+    if "clip" not in spec["checks"]:
+        return None
+    h, w = ref.shape[:2]
+    out = np.zeros((h, w), np.bool_)
+    diff = ref != cand
+    diff = diff.any(axis=2) if diff.ndim == 3 else diff
+    off = arrays["cs_offsets"]
+    draws = [int(x) for x in arrays["cs_draw_offsets"]]
+    n_solids = int(arrays["cs_n_solids"][0])
+    prim, obj = np.asarray(others["prim_id"]), np.asarray(others["object_id"])
+    for r, c in np.argwhere(diff):
+        k0, k1 = int(off[r * w + c]), int(off[r * w + c + 1])
+        faces = [int(f) for f in arrays["cs_face"][k0:k1]]
+        pr, ob = int(prim[r, c]), int(obj[r, c])
+        if pr < 0:
+            out[r, c] = bool(arrays["cs_bg"][r, c]) and (key != "depth" or cand[r, c] >= 1.0)
+            continue
+        if not 0 <= ob < len(draws) - 1 or pr >= draws[ob + 1] - draws[ob]:
+            continue
+        g = draws[ob] + pr
+        if g not in faces:
+            continue
+        e = k0 + faces.index(g)
+        if key == "depth":
+            out[r, c] = arrays["cs_depth_lo"][e] <= cand[r, c] <= arrays["cs_depth_hi"][e]
+        elif key == "front_facing":
+            f = int(arrays["cs_facing"][e])
+            out[r, c] = f < 0 or bool(cand[r, c]) == (f == 1)
+        elif key == "cap_mask":
+            out[r, c] = bool(cand[r, c]) == (g >= draws[n_solids])
+        else:
+            out[r, c] = True
+    return out

@@ -62,7 +62,8 @@ from ..tolerance import (COLOR_TOL, DEPTH_EPS, MAY, MUST, MUST_NOT, NORMAL_TOL, 
 
 __all__ = ["scene_allowances", "tolerant_metrics", "dilate", "surface_step", "TOLERANT_CHECKS"]
 
-TOLERANT_CHECKS = ("coverage", "id", "interval", "angle", "masked", "face", "layers", "bounds")
+TOLERANT_CHECKS = ("coverage", "id", "interval", "angle", "masked", "face", "layers", "bounds",
+                   "clip")
 
 #: float32 budgets of the interpolated G-buffer values (see the module docstring).
 EYE_DEPTH_ABS, EYE_DEPTH_REL = 1e-5, 4e-6
@@ -272,6 +273,14 @@ def scene_allowances(scene, raster):
             scene, tol.eps)
         checks["cutaway_depth"] = {"checks": ["bounds"], "lo": "cutaway_depth_lo",
                                    "hi": "cutaway_depth_hi"}
+    if scene.technique == "clipsurface" and "cap_mask" in buffers \
+            and raster["depth_func"] == "less" and scene.maps is not None:
+        # clip surfaces: the clip decision and cap parity bounded (golden/clip_allowance.py)
+        from .clip_allowance import CLIP_BUFFERS, clip_allowances
+        arrays.update(clip_allowances(scene, raster, tol.eps))
+        for key in CLIP_BUFFERS:
+            if key in checks:
+                checks[key] = {"checks": ["clip"]}
     if scene.technique == "ldi" and "layer_depth" in buffers:
         # layered depth images: per-layer face sets and depth intervals (golden/layers.py)
         from .layers import LAYER_BUFFERS, ldi_allowances
@@ -573,6 +582,9 @@ def _allowed_at(key, spec, arrays, outside, r, c, named, step):
         elif name == "bounds":
             said.append(f"interval [{_fmt(arrays[spec['lo']][r, c] - step)}, "
                         f"{_fmt(arrays[spec['hi']][r, c] + step)}]")
+        elif name == "clip":
+            from .clip_allowance import clip_allowed
+            said.append(clip_allowed(key, arrays, r, c, step=step))
         elif name == "layers":
             from .layers import layers_allowed
             said.append(layers_allowed(spec["layer"], arrays, r, c, step=step))
@@ -680,6 +692,10 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
             with np.errstate(invalid="ignore"):
                 bad = ~((cand.astype(np.float64) >= lo) & (cand.astype(np.float64) <= hi))
             outside["bounds"] = bad.any(axis=2) if bad.ndim == 3 else bad
+        elif name == "clip":
+            from .clip_allowance import clip_outside
+            outside["clip"] = clip_outside(key, cand, arrays, others, step=step,
+                                           clear=clear_depth)
         elif name == "layers":
             from .layers import layers_outside
             outside["layers"] = layers_outside(spec["layer"], cand, arrays, others, step=step,

@@ -149,12 +149,14 @@ def _count_bounds(offsets, lo, hi, sure, clear, k_max, count_lo, count_hi, must)
             must[i] = alone
 
 
-def covering_entries(meshes, models, camera, cull, eps):
+def covering_entries(meshes, models, camera, cull, eps, with_beta=False):
     """Per pixel, every face whose ε-dilated footprint covers the centre, whether it surely
     covers it, and the window-depth interval it may show there (see the module docstring).
 
     Returns ``(prep, pix, faces, sure, fragile, lo, hi)``: entries sorted by pixel then face,
-    ``lo``/``hi`` float64 (±inf where a sliver's or degenerate face's depth is free)."""
+    ``lo``/``hi`` float64 (±inf where a sliver's or degenerate face's depth is free);
+    ``with_beta``: also the perspective-correct barycentrics ``(E, 5, 3)`` at the centre and
+    the corners of the ε-square."""
     from ..raster import prepare
     from .allowance import _face_barycentrics
     h, w = camera.height, camera.width
@@ -174,6 +176,8 @@ def covering_entries(meshes, models, camera, cull, eps):
     bad = ~np.isfinite(depth).all(axis=1) | fragile[faces]
     lo = np.where(bad, -np.inf, depth.min(axis=1) - slack)
     hi = np.where(bad, np.inf, depth.max(axis=1) + slack)
+    if with_beta:
+        return prep, pix, faces, sure & ~bad, fragile, lo, hi, beta
     return prep, pix, faces, sure & ~bad, fragile, lo, hi
 
 

@@ -244,7 +244,8 @@ def load_manifest(golden_dir, *, verify=True):
         for key, spec in entry.get("allowances", {}).get("arrays", {}).items():
             where = f"{path} $.scenes.{name}.allowances.arrays.{key}"
             if key.startswith("set_") or key == "draw_offsets" or (
-                    key.startswith("ldi_") and not key.startswith("ldi_count")):
+                    key.startswith("ldi_") and not key.startswith("ldi_count")) or (
+                    key.startswith("cs_") and key != "cs_bg"):
                 _check_table_size(spec["shape"], where)
             else:
                 _check_shape_size(spec["shape"], where)
@@ -510,6 +511,9 @@ def allowance_arrays(golden_dir, manifest, name):
         if "layers" in t.get("checks", ()):
             from .layers import LAYER_ARRAYS
             needed += list(LAYER_ARRAYS)
+        if "clip" in t.get("checks", ()):
+            from .clip_allowance import CLIP_ARRAYS
+            needed += list(CLIP_ARRAYS)
         missing = [n for n in needed if n not in arrays]
         if missing:
             raise GoldenError(f"golden {spec['file']}: buffer {key!r} needs arrays {missing}")
@@ -519,6 +523,8 @@ def allowance_arrays(golden_dir, manifest, name):
         check_face_sets(arrays, shape[0], shape[1])
         from .layers import check_layer_arrays
         check_layer_arrays(arrays, shape[0], shape[1])
+        from .clip_allowance import check_clip_arrays
+        check_clip_arrays(arrays, shape[0], shape[1])
     except (ValueError, KeyError) as exc:
         raise GoldenError(f"golden {spec['file']}: {exc}") from None
     return arrays

@@ -166,7 +166,7 @@ _TOLERANT = {
     "properties": {
         "checks": {"type": "array", "minItems": 1,
                    "items": {"enum": ["coverage", "id", "interval", "angle", "masked",
-                                      "face", "layers", "bounds"]}},
+                                      "face", "layers", "bounds", "clip"]}},
         "layer": {"enum": ["depth", "prim_id", "front_facing", "count"]},
         "lo": _ARRAY_NAME, "hi": _ARRAY_NAME, "angle": _ARRAY_NAME, "may": _ARRAY_NAME,
     },
