@@ -224,7 +224,8 @@ def clip_admits(key, kind, spec, arrays, ref, cand, named, others):
     """Where the ``clip`` allowance admits the faulty value, pixel by pixel from the module
     docstring of :mod:`refraster.golden.clip_allowance`: the candidate's (object_id, prim_id)
     names an entry of the pixel's set (or the pixel is background where the background may
-    show), and its depth, facing and cap flag are that entry's."""
+    show), and its depth, facing and mask flag (a cap face; a secondary back face) are that
+    entry's."""
     if "clip" not in spec["checks"]:
         return None
     h, w = ref.shape[:2]
@@ -233,7 +234,6 @@ def clip_admits(key, kind, spec, arrays, ref, cand, named, others):
     diff = diff.any(axis=2) if diff.ndim == 3 else diff
     off = arrays["cs_offsets"]
     draws = [int(x) for x in arrays["cs_draw_offsets"]]
-    n_solids = int(arrays["cs_n_solids"][0])
     prim, obj = np.asarray(others["prim_id"]), np.asarray(others["object_id"])
     for r, c in np.argwhere(diff):
         k0, k1 = int(off[r * w + c]), int(off[r * w + c + 1])
@@ -253,8 +253,9 @@ def clip_admits(key, kind, spec, arrays, ref, cand, named, others):
         elif key == "front_facing":
             f = int(arrays["cs_facing"][e])
             out[r, c] = f < 0 or bool(cand[r, c]) == (f == 1)
-        elif key == "cap_mask":
-            out[r, c] = bool(cand[r, c]) == (g >= draws[n_solids])
+        elif key in ("cap_mask", "cut_mask"):
+            fl = int(arrays["cs_flag"][e])
+            out[r, c] = fl < 0 or bool(cand[r, c]) == (fl == 1)
         else:
             out[r, c] = True
     return out

@@ -273,6 +273,14 @@ def scene_allowances(scene, raster):
             scene, tol.eps)
         checks["cutaway_depth"] = {"checks": ["bounds"], "lo": "cutaway_depth_lo",
                                    "hi": "cutaway_depth_hi"}
+        if raster["depth_func"] == "less" and "cut_mask" in buffers:
+            # the cut decision z < D free only where D's interval allows either
+            from .clip_allowance import CLIP_BUFFERS, cutaway_allowances
+            arrays.update(cutaway_allowances(scene, raster, tol.eps, arrays["cutaway_depth_lo"],
+                                             arrays["cutaway_depth_hi"]))
+            for key in CLIP_BUFFERS:
+                if key in checks:
+                    checks[key] = {"checks": ["clip"]}
     if scene.technique == "clipsurface" and "cap_mask" in buffers \
             and raster["depth_func"] == "less" and scene.maps is not None:
         # clip surfaces: the clip decision and cap parity bounded (golden/clip_allowance.py)
@@ -308,30 +316,7 @@ SET_INTERVALS = {"depth": ("set_depth_lo", "set_depth_hi"),
                  "color": ("set_color_lo", "set_color_hi")}
 
 
-def _face_barycentrics(clip, px, py, width, height):
-    """Perspective-correct barycentrics ``(E, S, 3)`` of faces with clip-space vertices
-    ``clip (E, 3, 4)`` at window points ``px, py (E, S)`` (pixels, GL y-up, centres at +0.5).
-
-    Homogeneous: a point of the face is ``Σ β_i V_i`` (Σ β = 1); its window position
-    ``(Σ β_i X_i) / (Σ β_i w_i)`` with ``X_i = (x_i + w_i)·W/2`` (likewise y), so
-    ``β ∝ M⁻¹ (px, py, 1)`` with M's columns ``(X_i, Y_i, w_i)`` — valid for faces crossing
-    the eye plane too (the homogeneous rasterization of Olano & Greer)."""
-    w = clip[:, :, 3]
-    m = np.empty(clip.shape[:1] + (3, 3))
-    m[:, 0, :] = (clip[:, :, 0] + w) * (0.5 * width)
-    m[:, 1, :] = (clip[:, :, 1] + w) * (0.5 * height)
-    m[:, 2, :] = w
-    rhs = np.stack([px, py, np.ones_like(px)], axis=1)            # (E, 3, S)
-    det = np.linalg.det(m)
-    ok = np.abs(det) > 1e-300
-    m[~ok] = np.eye(3)
-    beta = np.linalg.solve(m, rhs)                                 # (E, 3, S)
-    beta = np.moveaxis(beta, 1, 2)                                 # (E, S, 3)
-    total = beta.sum(axis=2, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        beta = beta / total
-    beta[~ok] = np.nan
-    return beta
+from .homogeneous import face_barycentrics as _face_barycentrics  # noqa: E402
 
 
 def face_sets(scene, raster, id_may, eps):

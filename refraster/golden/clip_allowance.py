@@ -31,16 +31,17 @@ covers and is surely kept). The check ``clip`` names the candidate's entry by it
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 __all__ = ["clip_allowances", "clip_outside", "clip_allowed", "CLIP_ARRAYS", "CLIP_BUFFERS"]
 
 F32 = 2.0 ** -24
-CLIP_ARRAYS = ("cs_offsets", "cs_face", "cs_depth_lo", "cs_depth_hi", "cs_facing", "cs_bg",
-               "cs_draw_offsets", "cs_n_solids")
-CLIP_BUFFERS = ("prim_id", "object_id", "depth", "front_facing", "cap_mask")
+CLIP_ARRAYS = ("cs_offsets", "cs_face", "cs_depth_lo", "cs_depth_hi", "cs_facing", "cs_flag",
+               "cs_bg", "cs_draw_offsets")
+#: the buffers the check covers; the mask buffer (``cap_mask``, ``cut_mask``) must equal the
+#: named entry's ``cs_flag`` (1: a cap face, a back face of a secondary object; 0: not; −1:
+#: either, a sliver whose facing may flip)
+CLIP_BUFFERS = ("prim_id", "object_id", "depth", "front_facing", "cap_mask", "cut_mask")
 
 
 def _surfaces(scene):
@@ -86,7 +87,6 @@ def clip_allowances(scene, raster, eps):
     from ..ldi import VolumetricDepthSprite
     from ..mesh import Mesh, bounds
     from ..raster.fragments import vertices_in
-    from ..tolerance import _face_facing
     from .layers import covering_entries
     p = scene.parameters
     cam = scene.camera
@@ -167,6 +167,13 @@ def clip_allowances(scene, raster, eps):
                 + _lookup_error(s, pts[sel, 0])
             st = np.where(g > delta, 2, np.where(g < -delta, 0, 1)).astype(np.int8)
             state[sel] = np.minimum(state[sel], st)
+    return _winners(prep, pix, faces, sure, fragile, lo, hi, state, is_cap, h, w)
+
+
+def _winners(prep, pix, faces, sure, fragile, lo, hi, state, flag, h, w):
+    """The ``cs_*`` arrays from per-entry keep states (0 never, 1 may be, 2 surely kept)."""
+    from ..tolerance import _face_facing
+    offs = np.asarray(prep.face_offsets, np.int64)
     # which entries may win: may be kept, and not behind the nearest sure one
     zsure = np.full(h * w, np.inf)
     sure_win = sure & (state == 2)
@@ -185,9 +192,57 @@ def clip_allowances(scene, raster, eps):
     hi32 = np.where(hi32 < hi[keep], np.nextafter(hi32, np.float32(np.inf)), hi32)
     return {"cs_offsets": offsets.astype(np.int32), "cs_face": faces.astype(np.int32),
             "cs_depth_lo": lo32.astype(np.float32), "cs_depth_hi": hi32.astype(np.float32),
-            "cs_facing": facing, "cs_bg": bg.reshape(h, w),
-            "cs_draw_offsets": offs.astype(np.int32),
-            "cs_n_solids": np.array([n_solids], np.int32)}
+            "cs_facing": facing, "cs_flag": np.asarray(flag, np.int8)[keep],
+            "cs_bg": bg.reshape(h, w), "cs_draw_offsets": offs.astype(np.int32)}
+
+
+def cutaway_allowances(scene, raster, eps, d_lo, d_hi):
+    """The ``cs_*`` arrays of a cutaway scene: a secondary fragment is cut iff its window depth
+    is in front of D (front faces) or of the 3×3 minimum of D (back faces, with dilation);
+    with D in ``[d_lo, d_hi]`` (:mod:`refraster.golden.cutaway_bounds`, window depth) and the
+    minimum filter monotone, it is surely kept where its least depth is ≥ the largest cut
+    depth, surely cut where its largest depth is < the least, else either. Objects of
+    interest are always kept. The flag is "a back face of a secondary object" (``cut_mask``)."""
+    from ..cutaway.surface import min_filter_3x3
+    from .layers import covering_entries
+    p = scene.parameters
+    cam = scene.camera
+    h, w = cam.height, cam.width
+    secondary = set(p["secondary"])
+    draws = list(scene.draws)
+    prep, pix, faces, sure, fragile, lo, hi = covering_entries(
+        [d.mesh for d in draws], [d.model for d in draws], cam, raster["cull"], eps)
+    offs = np.asarray(prep.face_offsets, np.int64)
+    draw = np.searchsorted(offs[1:], faces, side="right")
+    is_sec = np.array([d.name in secondary for d in draws])[draw]
+    facing = _face_facing_of(prep, faces, fragile)
+    dil = bool(p.get("dilation", True))
+    lim_lo = {True: np.asarray(d_lo, np.float64), False: np.asarray(d_lo, np.float64)}
+    lim_hi = {True: np.asarray(d_hi, np.float64), False: np.asarray(d_hi, np.float64)}
+    if dil:
+        lim_lo[False] = min_filter_3x3(d_lo)
+        lim_hi[False] = min_filter_3x3(d_hi)
+    state = np.full(len(faces), 2, np.int8)
+    for front in (True, False):
+        # a sliver's facing may flip: the looser of the two limits
+        sel = is_sec & ((facing == 1) if front else (facing == 0))
+        cut_hi = lim_hi[front].ravel()[pix[sel]]
+        cut_lo = lim_lo[front].ravel()[pix[sel]]
+        state[sel] = np.where(lo[sel] >= cut_hi, 2, np.where(hi[sel] < cut_lo, 0, 1))
+    sel = is_sec & (facing < 0)
+    cut_hi = np.maximum(lim_hi[True], lim_hi[False]).ravel()[pix[sel]]
+    cut_lo = np.minimum(lim_lo[True], lim_lo[False]).ravel()[pix[sel]]
+    state[sel] = np.where(lo[sel] >= cut_hi, 2, np.where(hi[sel] < cut_lo, 0, 1))
+    # a secondary back face is a cut surface; a sliver whose facing may flip may be either
+    flag = np.where(is_sec & (facing < 0), -1, is_sec & (facing == 0)).astype(np.int8)
+    return _winners(prep, pix, faces, sure, fragile, lo, hi, state, flag, h, w)
+
+
+def _face_facing_of(prep, faces, fragile):
+    from ..tolerance import _face_facing
+    f = _face_facing(prep.triangles)[faces].astype(np.int8)
+    f[fragile[faces]] = -1
+    return f
 
 
 def check_clip_arrays(arrays, height, width):
@@ -208,16 +263,16 @@ def check_clip_arrays(arrays, height, width):
         raise ValueError("cs_draw_offsets is not an offset array over the draw calls")
     if n and (face.min() < 0 or face.max() >= draws[-1]):
         raise ValueError("cs_face holds a face outside the scene's draws")
-    for k in ("cs_depth_lo", "cs_depth_hi", "cs_facing"):
+    for k in ("cs_depth_lo", "cs_depth_hi", "cs_facing", "cs_flag"):
         if np.asarray(arrays[k]).shape != (n,):
             raise ValueError(f"{k} does not have one entry per cs_face ({n})")
     if np.asarray(arrays["cs_bg"]).shape != (height, width):
         raise ValueError(f"cs_bg is not (H, W) = ({height}, {width})")
-    ns = np.asarray(arrays["cs_n_solids"]).ravel()
-    if ns.shape != (1,) or not 0 <= int(ns[0]) < len(draws):
-        raise ValueError("cs_n_solids is not a draw count")
-    if n and not np.isin(arrays["cs_facing"], (-1, 0, 1)).all():
-        raise ValueError("cs_facing holds values other than -1, 0, 1")
+    if np.asarray(arrays["cs_flag"]).shape != (n,):
+        raise ValueError(f"cs_flag does not have one entry per cs_face ({n})")
+    for k in ("cs_facing", "cs_flag"):
+        if n and not np.isin(arrays[k], (-1, 0, 1)).all():
+            raise ValueError(f"{k} holds values other than -1, 0, 1")
 
 
 def _named(arrays, prim, obj):
@@ -268,15 +323,13 @@ def clip_outside(key, cand, arrays, others=None, *, step=0.0, clear=1.0):
         if named is None:   # one id alone: some entry of the set must carry it
             return covered & (n == 0) | (~covered & ~bg)
         return (covered & (named < 0)) | (~covered & ~bg)
-    if key == "cap_mask":
+    if key in ("cap_mask", "cut_mask"):
         if named is None:
             return np.zeros((h, w), np.bool_)
-        n_solids = int(arrays["cs_n_solids"][0])
-        draws = arrays["cs_draw_offsets"].astype(np.int64)
-        face = arrays["cs_face"].astype(np.int64)
         e = np.maximum(named, 0)
-        is_cap = (face[e] >= draws[n_solids]) if len(face) else np.zeros((h, w), np.bool_)
-        return (named >= 0) & (c.astype(np.bool_) != is_cap) | ((named < 0) & c.astype(np.bool_))
+        flag = arrays["cs_flag"][e] if len(arrays["cs_flag"]) else np.zeros((h, w), np.int8)
+        return ((named >= 0) & (flag >= 0) & (c.astype(np.bool_) != (flag == 1))
+                | ((named < 0) & c.astype(np.bool_)))
     if key == "front_facing":
         if named is None:
             return np.zeros((h, w), np.bool_)

@@ -158,7 +158,7 @@ def covering_entries(meshes, models, camera, cull, eps, with_beta=False):
     ``with_beta``: also the perspective-correct barycentrics ``(E, 5, 3)`` at the centre and
     the corners of the ε-square."""
     from ..raster import prepare
-    from .allowance import _face_barycentrics
+    from .homogeneous import face_barycentrics as _face_barycentrics
     h, w = camera.height, camera.width
     prep = prepare(meshes, **camera.kwargs, model=models, cull=cull)
     pix, faces, sure, fragile, fslack = _covering_faces(prep, eps)
@@ -185,7 +185,7 @@ def ldi_allowances(scene, raster, eps, k_max, clear=1.0):
     """The ``ldi_*`` arrays of a layered-depth-image scene (see the module docstring)."""
     from ..raster import prepare
     from ..tolerance import _face_facing
-    from .allowance import _face_barycentrics
+    from .homogeneous import face_barycentrics as _face_barycentrics
     cam = scene.camera
     meshes = [d.mesh for d in scene.draws]
     models = [d.model for d in scene.draws]
