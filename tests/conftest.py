@@ -1,5 +1,9 @@
 import importlib
+import json
 import os
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
@@ -26,3 +30,20 @@ def require(module_name, reason=None):
 @pytest.fixture
 def oracle():
     return require
+
+
+LLVMPIPE_BACKEND = Path(__file__).with_name("golden_llvmpipe_backend.py")
+
+
+def llvmpipe_frames(gold, out, *, timeout=600):
+    """Render every scene of the golden ``gold`` with llvmpipe into the candidate directory
+    ``out`` (``tests/golden_llvmpipe_backend.py`` in an isolated interpreter, so that it cannot
+    import refraster); returns the backend's JSON line (``renderer``, ``scenes``). Skips when
+    EGL is missing locally, fails under CI=true or on any other backend failure."""
+    proc = subprocess.run([sys.executable, "-I", str(LLVMPIPE_BACKEND), str(gold), str(out)],
+                          capture_output=True, text=True, timeout=timeout)
+    if proc.returncode != 0:
+        if IN_CI or "EGL" not in proc.stderr:
+            pytest.fail(f"llvmpipe backend failed: {proc.stderr[-2000:]}")
+        pytest.skip(f"llvmpipe backend failed: {proc.stderr[-500:]}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])

@@ -22,18 +22,16 @@ import numpy as np
 import pytest
 
 import faults
+from conftest import llvmpipe_frames
 from refraster import golden
 
 PLAIN = [n for n, e in golden.available_scenes().items() if e.technique == "render"]
 #: (scene, buffer) pairs whose allowance admits the fault at more than 5 % of covered pixels
-#: (measured; docs/tolerance.md says why): at 160×120 about half of the crank's covered pixels
-#: show a sliver whose facing and plane another snapping (4 sub-pixel bits) can change at will,
-#: so its values stay free there; on triangles smaller than a pixel a shift of ε moves the
-#: barycentrics by more than the 0.25 fault.
-OVER_AIM = {("render_crank", k) for k in ("barycentric", "color", "depth", "eye_depth",
-                                          "front_facing", "normal")} | {
-    ("render_fluted_column", "barycentric")}
-BACKEND = Path(__file__).with_name("golden_llvmpipe_backend.py")
+#: (docs/tolerance.md says why a pair may be). None since the slivers' values are bounded by
+#: their vertices and barycentrics and facing by the allowed snappings: the crank's value
+#: buffers admitted the fault at 49–51 % of covered pixels and the fluted column's
+#: barycentrics at 7.6 % before.
+OVER_AIM = set()
 #: Conformant variants of refraster itself that every plain golden must accept (specificity).
 VARIANTS = {"4bit": {"subpixel_bits": 4}, "top_left": {"fill_rule": "top-left"},
             "4bit_top_left": {"subpixel_bits": 4, "fill_rule": "top-left"},
@@ -100,18 +98,8 @@ def test_conformant_variants_pass(gold, tmp_path, variant):
 
 def test_llvmpipe_passes_every_plain_golden(gold, tmp_path, oracle):
     oracle("moderngl")
-    import json
-    import subprocess
-    import sys
     from refraster.golden.compare import compare
-    proc = subprocess.run([sys.executable, "-I", str(BACKEND), str(gold), str(tmp_path / "gl")],
-                          capture_output=True, text=True, timeout=600)
-    if proc.returncode != 0:
-        from conftest import IN_CI
-        if IN_CI or "EGL" not in proc.stderr:
-            pytest.fail(f"llvmpipe backend failed: {proc.stderr[-2000:]}")
-        pytest.skip(f"llvmpipe backend failed: {proc.stderr[-500:]}")
-    info = json.loads(proc.stdout.strip().splitlines()[-1])
+    info = llvmpipe_frames(gold, tmp_path / "gl")
     assert info["renderer"].startswith("llvmpipe") and sorted(info["scenes"]) == sorted(PLAIN)
     result = compare(gold, tmp_path / "gl", mode="tolerant", scenes=PLAIN)
     assert result.exit_code == 0, "\n".join(result.failures()[:20])
@@ -310,3 +298,23 @@ def test_report_states_the_face_allowance(gold, tmp_path):
     pairs = ", ".join(f"(0, {int(f)})" for f in a["set_face"][e])
     assert f"(object_id, prim_id) one of {{{pairs}}}" in page
     assert "face check (the visible primitive may differ here)" in page
+
+
+def test_harness_sees_unbounded_slivers(tmp_path, monkeypatch):
+    """The other direction for the crank: with the slivers' bounds dropped (their values and
+    facing free, as before they were bounded by their vertices and the allowed snappings) the
+    harness reports the fault admitted at about half the covered pixels again."""
+    from refraster.golden import allowance
+
+    def free(out, facing, fragile, *args):
+        facing[fragile] = -1
+        for lo_name, hi_name in allowance.SET_INTERVALS.values():
+            out[lo_name][fragile] = -np.inf
+            out[hi_name][fragile] = np.inf
+        out["set_normal_angle"][fragile] = np.pi
+
+    monkeypatch.setattr(allowance, "_sliver_bounds", free)
+    golden.generate(tmp_path / "g", ["render_crank"])
+    t = faults.fault_table(tmp_path / "g", "render_crank", buffers=["depth", "front_facing"])
+    for key in ("depth", "front_facing"):
+        assert t[key]["admitted"] > 0.4 * t[key]["covered"], (key, t[key]["admitted"])

@@ -2,16 +2,12 @@
 golden scenes from their exported packages alone and passes the conformant compare."""
 
 import ast
-import json
-import subprocess
-import sys
-from pathlib import Path
 
 import pytest
+from conftest import LLVMPIPE_BACKEND as BACKEND
+from conftest import llvmpipe_frames
 
 from refraster import golden
-
-BACKEND = Path(__file__).with_name("golden_llvmpipe_backend.py")
 
 
 def test_backend_imports_no_refraster():
@@ -33,15 +29,7 @@ def test_llvmpipe_renders_packages_and_passes_conformant_compare(rendered, oracl
     oracle("moderngl")
     root, scenes = rendered
     # -I: no current directory or PYTHONPATH on the path; the backend reads the packages only
-    proc = subprocess.run([sys.executable, "-I", str(BACKEND), str(root / "golden"),
-                           str(root / "llvmpipe")], capture_output=True, text=True, timeout=300)
-    if proc.returncode != 0:
-        from conftest import IN_CI
-        msg = f"llvmpipe backend failed: {proc.stderr[-2000:]}"
-        if IN_CI or "EGL" not in proc.stderr:
-            pytest.fail(msg)
-        pytest.skip(msg)
-    info = json.loads(proc.stdout.strip().splitlines()[-1])
+    info = llvmpipe_frames(root / "golden", root / "llvmpipe", timeout=300)
     assert info["renderer"].startswith("llvmpipe")
     assert sorted(info["scenes"]) == sorted(scenes)
     assert info["refraster_modules"] == []

@@ -202,15 +202,28 @@ def test_spun_trefoil_meets_the_plane_at_its_cut():
     assert (xp - p[:, 0]).max() <= diam
 
 
-def test_twist_spun_legs_no_longer_than_the_ball_radius_plus_clearance():
+def leg_lengths(p, rb):
+    """Lengths of the two pieces of the arc outside the ball |p| ≤ rb (from the arc's points,
+    not from the construction's constants)."""
+    outside = np.linalg.norm(p, axis=1) > rb + 1e-9
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1) * (outside[1:] | outside[:-1])
+    half = len(seg) // 2
+    return float(seg[:half].sum()), float(seg[half:].sum())
+
+
+def test_twist_spun_legs_at_most_3_2_and_the_ball_clears_the_plane():
+    """Issue 21 item 2: legs ≤ 3.2 (a leg runs from an exit point on the turning axis to the
+    plane, so it is at least the ball's radius plus the clearance: "no longer than the radius"
+    cannot hold exactly for a ball that clears the plane; 3.2 is the issue's number)."""
     p, s = hs.trefoil_arc(True)
     rb, xp = hs.TWIST_RB, hs.TWIST_XP
-    outside = np.linalg.norm(p, axis=1) > rb + 1e-9
-    # legs: the arc outside the ball, two straight pieces from the exit points to the plane
-    ds = np.diff(s)
-    leg = (outside[1:] | outside[:-1]) * ds
-    assert leg.sum() == pytest.approx(2 * xp, rel=1e-6)
+    legs = leg_lengths(p, rb)
+    assert all(0 < g <= 3.2 for g in legs), legs
+    assert sum(legs) == pytest.approx(2 * xp, rel=1e-6)
     assert xp - rb <= 0.25 and xp > rb                 # the ball clears the plane
+    # the ball holds the knot body: every arc point with |y| < rb is inside it
+    inner = np.abs(p[:, 1]) < rb - 1e-9
+    assert np.linalg.norm(p[inner], axis=1).max() <= rb + 1e-12
     # the twisted surface: the turned ball never reaches the plane (r ≥ Xp − RB > 0)
     t = h.twist_spun_trefoil(60, 24, k=2)
     r = np.hypot(t.vertices[:, 0] - xp, t.vertices[:, 3])

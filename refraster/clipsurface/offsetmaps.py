@@ -42,6 +42,30 @@ def as_wrap(wrap, name="wrap"):
     return as_choice(wrap, name, {k: k for k in WRAP_MODES})
 
 
+def unit_dtype(arr, name):
+    """Texel values as stored → floats: ``uint8`` / 255, ``uint16`` / 65535, floats as they are;
+    other dtypes (other integers, booleans, complex) are refused."""
+    if arr.dtype == np.uint8:
+        return arr.astype(np.float64) / 255.0
+    if arr.dtype == np.uint16:
+        return arr.astype(np.float64) / 65535.0
+    if not np.issubdtype(arr.dtype, np.floating):
+        raise TypeError(
+            f"{name} must be uint8, uint16 or float with values in [0, 1], got dtype {arr.dtype}")
+    return arr
+
+
+def unit_range(arr, name):
+    """Non-empty, finite float64 in C order with every value in [0, 1]."""
+    if arr.size == 0:
+        raise ValueError(f"{name} is empty (shape {arr.shape})")
+    arr = as_float_array(arr, name)
+    lo, hi = float(arr.min()), float(arr.max())
+    if lo < 0.0 or hi > 1.0:
+        raise ValueError(f"{name} values must lie in [0, 1], got [{lo}, {hi}]")
+    return np.ascontiguousarray(arr)
+
+
 def as_offset_map(offset_map, name="offset_map"):
     """Validate an offset map and return it as C-contiguous, read-only ``float64`` ``(H, W)``.
 
@@ -51,27 +75,14 @@ def as_offset_map(offset_map, name="offset_map"):
     """
     if isinstance(offset_map, (str, bytes)) or offset_map is None:
         raise TypeError(f"{name} must be a 2D array, got {type(offset_map).__name__}")
-    arr = np.asarray(offset_map)
-    if arr.dtype == np.uint8:
-        arr = arr.astype(np.float64) / 255.0
-    elif arr.dtype == np.uint16:
-        arr = arr.astype(np.float64) / 65535.0
-    elif not np.issubdtype(arr.dtype, np.floating):
-        raise TypeError(
-            f"{name} must be uint8, uint16 or float with values in [0, 1], got dtype {arr.dtype}")
+    arr = unit_dtype(np.asarray(offset_map), name)
     if arr.ndim == 1:
         # a 1D offset map (Sec. 4.3): texture1D(s) is texture2D(s, t) of the 1×W map, whose
         # t taps are always row 0 under every wrap mode
         arr = arr.reshape(1, -1)
     if arr.ndim != 2:
         raise ValueError(f"{name} must be 1D (W,) or 2D (H, W) grayscale, got shape {arr.shape}")
-    if arr.size == 0:
-        raise ValueError(f"{name} is empty (shape {arr.shape})")
-    arr = as_float_array(arr, name)
-    lo, hi = float(arr.min()), float(arr.max())
-    if lo < 0.0 or hi > 1.0:
-        raise ValueError(f"{name} values must lie in [0, 1], got [{lo}, {hi}]")
-    arr = np.ascontiguousarray(arr)
+    arr = unit_range(arr, name)
     arr.setflags(write=False)
     return arr
 

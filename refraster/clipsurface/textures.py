@@ -26,7 +26,7 @@ from numba import njit, prange
 
 from .._config import PJIT
 from .._validate import as_float_array
-from .offsetmaps import WRAP_MODES, _wrap_texel, as_wrap, bilinear_taps
+from .offsetmaps import WRAP_MODES, _wrap_texel, as_wrap, bilinear_taps, unit_dtype, unit_range
 
 __all__ = ["CapTextures", "SolidTexture", "as_texture", "load_texture", "sample_texture",
            "sample_volume", "decode_normals"]
@@ -34,20 +34,7 @@ __all__ = ["CapTextures", "SolidTexture", "as_texture", "load_texture", "sample_
 
 def _unit_values(arr, name):
     """uint8 → /255, uint16 → /65535, float checked to lie in [0, 1]; float64, C order."""
-    if arr.dtype == np.uint8:
-        arr = arr.astype(np.float64) / 255.0
-    elif arr.dtype == np.uint16:
-        arr = arr.astype(np.float64) / 65535.0
-    elif not np.issubdtype(arr.dtype, np.floating):
-        raise TypeError(f"{name} must be uint8, uint16 or float with values in [0, 1], "
-                        f"got dtype {arr.dtype}")
-    if arr.size == 0:
-        raise ValueError(f"{name} is empty (shape {arr.shape})")
-    arr = as_float_array(arr, name)
-    lo, hi = float(arr.min()), float(arr.max())
-    if lo < 0.0 or hi > 1.0:
-        raise ValueError(f"{name} values must lie in [0, 1], got [{lo}, {hi}]")
-    return np.ascontiguousarray(arr)
+    return unit_range(unit_dtype(arr, name), name)
 
 
 def load_texture(path, name="texture"):

@@ -332,7 +332,6 @@ def _fig3(out, s):
 
 def _surface(out, s):
     """The image-space core: seeds, D by jump flooding, and its error against brute force."""
-    shells = nested_shells((1.2, 1.05, 0.8, 0.68), subdivisions=2)
     core = [icosphere(2, radius=0.3), _box((0.2, -0.1, 0.2), (0.5, 0.2, 0.5))]
     cam = _camera((2.6, 1.6, 3.0), (0, 0, 0), s, s)
     rear = _render(core, depth_func="greater", clear_depth=0.0, **cam)

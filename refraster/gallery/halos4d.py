@@ -23,6 +23,13 @@ CHANGE_THRESHOLD = 5.0 / 255.0
 #: a pixel is "covered" when the accumulated opacity of either picture exceeds this
 COVER_THRESHOLD = 0.02
 GAP = 8
+#: Fig. 5: ρ of the spun trefoil's pictures (the default, 2 % of the diagonal, is 0.37)
+KNOT_RHO = 0.6
+#: Fig. 5(d): the carved gaps drawn in this colour with the halo-boundary option (Fig. 8's),
+#: b = GAP_WIDTH: an opaque gap otherwise shows the other sheet's continuation behind it in
+#: nearly the same colour (docs/halos4d.md, "Why Fig. 5(d) needs its gaps drawn")
+GAP_DARK = (0.02, 0.02, 0.02)
+GAP_WIDTH = 0.95
 
 
 def views():
@@ -34,8 +41,10 @@ def views():
         "fig1_oblique": h.compose(("xw", np.pi / 4), ("zx", 0.35), ("yz", -0.6)),
         "fig3": h.compose(("zx", 0.6), ("yz", -0.9)),
         # the spun knot seen along z (z ↔ w): the surface of revolution of the trefoil's
-        # diagram in the xy plane, its crossings separated in 4D depth by z
-        "knot": h.compose(("zw", np.pi / 2), ("yz", -0.45), ("zx", 0.25)),
+        # diagram in the xy plane, its crossings separated in 4D depth by z. Seen from above
+        # (yz = +0.75) both kinds of crossing circle show: the equator (outer crossing) and the
+        # ring around the inner disc (the two crossings next to the spinning plane)
+        "knot": h.compose(("zw", np.pi / 2), ("yz", 0.75), ("zx", 0.2)),
         "knot_open": h.compose(("zw", np.pi / 2), ("zx", 0.3), ("yz", 0.25)),
         "twist": h.compose(("zw", np.pi / 2), ("yz", -0.5), ("zx", 0.3)),
         "fermat": h.compose(h.hanson_view(0.6), ("zx", 0.35), ("yz", -0.5)),
@@ -100,14 +109,17 @@ def figures(quick=False):
          "halo volumes drawn grey (halo_opacity = 0.35)",
          dict(rotation=v["fig3"], halo_opacity=0.35), {}, False),
         ("fig5ad", spun, f"Fig. 5(a) the spun trefoil ({spun.n_faces} triangles), traditional "
-         "rendering | Fig. 5(d) with volumetric halos: holes at the under-crossings, as in a "
-         "knot diagram", dict(rotation=v["knot"]), {}, False),
+         "rendering | Fig. 5(d) with volumetric halos (ρ = 0.6), the carved gaps drawn dark "
+         "(the halo-boundary option of Fig. 8, b = 0.95): the sheet farther in 4D breaks where "
+         "it crosses the nearer one, as in a knot diagram",
+         dict(rotation=v["knot"], rho=KNOT_RHO, boundary_color=GAP_DARK,
+              boundary_width=GAP_WIDTH), {}, False),
         ("fig5d_open", spun_open, "Fig. 5(d), the sphere cut open (φ ∈ [0, π], not in the "
          "paper; ρ = 0.6): inside, the halos cut the sheet that is farther in 4D where two "
          "sheets cross, and the cut edge is the knotted arc",
          dict(rotation=v["knot_open"], rho=0.6), {}, False),
-        ("fig5b", spun, "Fig. 5(b): the spun trefoil translucent (opacity 0.45), halos off | on",
-         dict(rotation=v["knot"], opacity=0.45), {}, False),
+        ("fig5b", spun, "Fig. 5(b): the spun trefoil translucent (opacity 0.45), halos off | on "
+         "(ρ = 0.6)", dict(rotation=v["knot"], opacity=0.45, rho=KNOT_RHO), {}, False),
         ("fig6a", fermat, "Fig. 6(a): quadratic Fermat surface z1² + z2² = 1, Hanson's view, "
          "curvature-adaptive u, v lists",
          dict(rotation=v["fermat"]), {}, False),
@@ -124,9 +136,11 @@ def figures(quick=False):
     ]
 
 
-def render(out_dir: pathlib.Path, *, quick: bool = False, measurements=None) -> list[Item]:
+def render(out_dir: pathlib.Path, *, quick: bool = False, measurements=None,
+           only=None) -> list[Item]:
     """Render the halo figures into ``out_dir``; ``quick`` uses small images and meshes.
-    ``measurements``, a dict, receives ``name -> (changed, covered, stats)``."""
+    ``measurements``, a dict, receives ``name -> (changed, covered, stats)``; ``only``, a
+    collection of names, renders just those figures."""
     import refraster.halos4d as h
 
     out_dir = pathlib.Path(out_dir)
@@ -134,6 +148,8 @@ def render(out_dir: pathlib.Path, *, quick: bool = False, measurements=None) -> 
     slices = 48 if quick else 256
     items = []
     for name, surface, caption, on_kw, off_kw, stacked in figures(quick):
+        if only is not None and name not in only:
+            continue
         kw = dict(width=size, height=size, slices=slices, **on_kw)
         on = h.render_halos(surface, **kw)
         off_kw = {**kw, **off_kw, "halos": False}

@@ -18,7 +18,8 @@ array               dtype        meaning
 ``set_*``           per entry    what that face shows there: ``set_depth_lo/_hi``,
                                  ``set_eye_depth_lo/_hi``, ``set_barycentric_lo/_hi``,
                                  ``set_color_lo/_hi``, ``set_normal`` + ``set_normal_angle``,
-                                 ``set_facing`` (−1: a sliver, free); ``draw_offsets`` maps
+                                 ``set_facing`` (−1: a sliver that may flip there, free);
+                                 ``draw_offsets`` maps
                                  (object_id, prim_id) to the global id (:func:`face_sets`)
 ==================  ===========  ================================================================
 
@@ -70,6 +71,8 @@ EYE_DEPTH_ABS, EYE_DEPTH_REL = 1e-5, 4e-6
 BARY_TOL = 1e-3
 #: Second-order margin on the first-order "value changes by step · ε" estimate.
 SHIFT_MARGIN = 1.5
+#: Sub-pixel precisions an allowed rasterizer may snap to (docs/tolerance.md).
+MIN_SNAP_BITS, MAX_SNAP_BITS = 4, 8
 
 
 def dilate(mask, radius):
@@ -324,9 +327,12 @@ def face_sets(scene, raster, id_may, eps):
     pixel where the visible primitive may differ (``id_may``), the faces that may win there
     (:func:`refraster.tolerance.may_faces`) and, per (pixel, face), what that face shows at the
     pixel centre moved by up to ``eps`` — intervals of window depth, eye depth, barycentrics
-    and colour, a normal with its angle, and the facing (−1 for a sliver whose facing may flip,
-    :func:`refraster.tolerance.fragile_faces`) — so a candidate
-    is checked against the face its own ``prim_id`` names instead of being free there."""
+    and colour, a normal with its angle, and the facing (−1 for a sliver,
+    :func:`refraster.tolerance.fragile_faces`, that an allowed snapping can flip while covering
+    the centre) — so a candidate is checked against the face its own ``prim_id`` names instead
+    of being free there. Barycentrics of faces in front of the eye come from the allowed
+    snappings (:func:`_snap_barycentrics`), all of a sliver's values from its vertices
+    (:func:`_sliver_bounds`)."""
     from ..framebuffer import _build
     from ..raster import prepare
     from ..tolerance import _depth_slacks, _face_facing, fragile_faces, may_faces
@@ -388,11 +394,28 @@ def face_sets(scene, raster, id_may, eps):
     out["set_normal_angle"] = (NORMAL_TOL + SHIFT_MARGIN * ang).astype(np.float32)
     # a face's facing is definite unless the face itself is a sliver that may flip
     facing = _face_facing(prep.triangles)[faces].astype(np.int8)
-    facing[fragile_faces(prep, eps)[faces]] = -1
+    fragile = fragile_faces(prep, eps)[faces] if n else np.zeros(0, np.bool_)
+    facing[fragile] = -1
+    # a sliver's snapped plane is ill-conditioned (may_faces), but a fragment it covers has
+    # non-negative barycentrics: its values are bounded by the face's vertices
+    # (:func:`_sliver_bounds`)
+    if fragile.any():
+        _sliver_bounds(out, facing, fragile, prep, raster, scene, faces, px[:, 0], py[:, 0],
+                       beta[:, 0], eps, slack)
+    # barycentrics of the other faces in front of the eye: not a shift of the sample point
+    # but what the allowed snappings (or unsnapped interpolation) give (_snap_barycentrics)
+    whole = ~fragile & (clip[:, :, 3] > 0).all(axis=1)
+    if whole.any():
+        cw = clip[whole, :, 3].astype(np.float64)
+        X = (clip[whole, :, 0] / cw + 1.0) * 0.5 * w
+        Y = (clip[whole, :, 1] / cw + 1.0) * 0.5 * h
+        _, (b_lo, b_hi), _ = _snap_barycentrics(X, Y, cw, px[whole, 0], py[whole, 0], eps)
+        out["set_barycentric_lo"][whole] = (b_lo - BARY_TOL).astype(np.float32)
+        out["set_barycentric_hi"][whole] = (b_hi + BARY_TOL).astype(np.float32)
     out["set_facing"] = facing
-    # an entry whose values cannot be evaluated (a degenerate face) leaves them free, and so
-    # does a sliver's: its snapped plane is ill-conditioned (may_faces)
-    bad = ~np.isfinite(depth).all(axis=1) | (facing < 0)
+    # an entry whose values cannot be evaluated (a degenerate face that is not a sliver with
+    # all vertices in front of the eye) leaves them free
+    bad = ~np.isfinite(depth).all(axis=1) & ~fragile
     for lo_name, hi_name in SET_INTERVALS.values():
         lo, hi = out[lo_name], out[hi_name]
         lo[bad] = -np.inf
@@ -402,6 +425,224 @@ def face_sets(scene, raster, id_may, eps):
     out["set_face"] = faces.astype(np.int32)
     out["draw_offsets"] = np.asarray(prep.face_offsets, np.int32)
     return out
+
+
+def _div(n_lo, n_hi, d_lo, d_hi):
+    """Interval quotient ``[n_lo, n_hi] / [d_lo, d_hi]``; unbounded when ``0 ∈ [d_lo, d_hi]``."""
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        c = np.stack([n_lo / d_lo, n_lo / d_hi, n_hi / d_lo, n_hi / d_hi])
+    zero = (d_lo <= 0.0) & (d_hi >= 0.0)
+    return np.where(zero, -np.inf, c.min(axis=0)), np.where(zero, np.inf, c.max(axis=0))
+
+
+def _affine_box(v, lo, hi):
+    """Range of ``v_0 + b_1 (v_1 − v_0) + b_2 (v_2 − v_0)`` (``v (m, 3, ...)``) for ``b_1, b_2``
+    in their intervals (``lo, hi (m, 3)``; ``b_0 = 1 − b_1 − b_2``): each ``b`` occurs once,
+    so interval arithmetic is exact."""
+    out_lo, out_hi = v[:, 0].copy(), v[:, 0].copy()
+    for i in (1, 2):
+        dv = v[:, i] - v[:, 0]
+        bl = lo[:, i].reshape(lo.shape[:1] + (1,) * (dv.ndim - 1))
+        bh = hi[:, i].reshape(bl.shape)
+        with np.errstate(invalid="ignore"):
+            c = np.where(dv == 0.0, 0.0, np.stack([bl * dv, bh * dv]))   # (±inf)·0 is 0 here
+        out_lo = out_lo + c.min(axis=0)
+        out_hi = out_hi + c.max(axis=0)
+    return out_lo, out_hi
+
+
+def _cone(lo, hi):
+    """Centre direction of a box of vectors ``(m, 3)`` and the largest angle between it and
+    any vector of the box (π when the box reaches the origin)."""
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        c = np.nan_to_num(0.5 * (lo + hi), nan=0.0, posinf=0.0, neginf=0.0)
+        r = 0.5 * np.linalg.norm(hi - lo, axis=1)
+        nc = np.linalg.norm(c, axis=1)
+        ang = np.where(np.isfinite(r) & (r < nc), np.arcsin(np.minimum(r / nc, 1.0)), np.pi)
+    return c, ang
+
+
+def _snap_barycentrics(X, Y, cw, px, py, eps):
+    """What barycentrics an allowed rasterizer can give a face at a pixel centre it covers.
+
+    ``X, Y (m, 3)`` the face's unsnapped window vertices (pixels, GL y-up), ``cw (m, 3)`` their
+    clip w (> 0), ``px, py (m,)`` the centre. A conformant implementation interpolates either
+    from the snapped vertices or, as Mesa and refraster do, from the unsnapped ones (snapping
+    deciding coverage only); so the screen-space ``λ`` and the perspective-correct ``β`` lie in
+    the union of
+
+    * (snapped) every snapping the allowed variation permits — each window coordinate rounded
+      to the nearest multiple of ``2^−b``, ``b = 4…8``, either way where the float part ``δ`` of
+      ``ε`` (float32 arithmetic in another order) reaches a rounding boundary — that covers the
+      centre (both fill rules: edges included): ``λ_i = A_i / Σ A_j`` with ``A_i`` the doubled
+      signed area of ``(p, V_j, V_k)``, ``β_i ∝ λ_i / w_i``;
+    * (unsnapped) the face's own barycentrics at the centre, widened by what moving every
+      vertex coordinate by ``δ`` does to ``A_i`` (bilinear: ``δ·Σ|coordinates| + 2δ²``) and
+      to ``Σ A_j`` (interval quotient, unbounded when the sum may vanish).
+
+    Returns ``((λ_lo, λ_hi), (β_lo, β_hi), can)``, ``can (m, 2)``: some allowed snapping covers
+    the centre with front / back facing.
+    """
+    m = len(px)
+    delta = max(eps - math.sqrt(2.0) * (2.0 ** -(MIN_SNAP_BITS + 1) + 2.0 ** -(MAX_SNAP_BITS + 1)),
+                0.0)
+    q_of = (np.ones((m, 3)), 1.0 / cw)
+    lims = [(np.full((m, 3), np.inf), np.full((m, 3), -np.inf)) for _ in q_of]
+    can = np.zeros((m, 2), np.bool_)
+    coords = np.concatenate([X, Y], axis=1)                         # (m, 6)
+
+    def visit(rows, v):
+        xs, ys = v[:, :3] - px[rows, None], v[:, 3:] - py[rows, None]
+        A = np.empty((len(rows), 3))
+        for i in range(3):
+            j, k = (i + 1) % 3, (i + 2) % 3
+            A[:, i] = xs[:, j] * ys[:, k] - xs[:, k] * ys[:, j]
+        tot = A.sum(axis=1)
+        front = (A >= 0.0).all(axis=1) & (tot > 0.0)
+        back = (A <= 0.0).all(axis=1) & (tot < 0.0)
+        can[rows, 0] |= front
+        can[rows, 1] |= back
+        ok = rows[front | back]
+        Aok = A[front | back]
+        for q, (lo, hi) in zip(q_of, lims):
+            aq = Aok * q[ok]
+            bb = aq / aq.sum(axis=1, keepdims=True)
+            lo[ok] = np.minimum(lo[ok], bb)
+            hi[ok] = np.maximum(hi[ok], bb)
+
+    for bits in range(MIN_SNAP_BITS, MAX_SNAP_BITS + 1):
+        sc = float(1 << bits)
+        t = coords * sc
+        base = np.floor(t)
+        frac = t - base
+        near = np.where(frac >= 0.5, base + 1.0, base) / sc
+        visit(np.arange(m), near)
+        tie = np.abs(frac - 0.5) <= delta * sc
+        other = np.where(near * sc == base, base + 1.0, base) / sc
+        # the other neighbour at the ties, in every combination (rows grouped by their ties)
+        tmask = (tie * (1 << np.arange(6))).sum(axis=1)
+        for u in np.unique(tmask[tmask > 0]):
+            rows = np.flatnonzero(tmask == u)
+            sub = int(u)
+            while sub:
+                pick = (sub >> np.arange(6)) & 1 == 1
+                visit(rows, np.where(pick, other[rows], near[rows]))
+                sub = (sub - 1) & int(u)
+    # (unsnapped) the face's own barycentrics at the centre, ± float rounding of the vertices
+    spread = np.empty((m, 3))
+    a_c = np.empty((m, 3))
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        a_c[:, i] = (X[:, j] - px) * (Y[:, k] - py) - (X[:, k] - px) * (Y[:, j] - py)
+        spread[:, i] = delta * (np.abs(X[:, j] - px) + np.abs(Y[:, j] - py)
+                                + np.abs(X[:, k] - px) + np.abs(Y[:, k] - py)) + 2.0 * delta ** 2
+    for q, (lo, hi) in zip(q_of, lims):
+        d_c = (a_c * q).sum(axis=1)
+        d_r = (spread * q).sum(axis=1)
+        for i in range(3):
+            u_lo, u_hi = _div((a_c[:, i] - spread[:, i]) * q[:, i],
+                              (a_c[:, i] + spread[:, i]) * q[:, i], d_c - d_r, d_c + d_r)
+            lo[:, i] = np.minimum(lo[:, i], u_lo)
+            hi[:, i] = np.maximum(hi[:, i], u_hi)
+    return lims[0], lims[1], can
+
+
+def _sliver_bounds(out, facing, fragile, prep, raster, scene, faces, px, py, beta_c, eps,
+                   slack):
+    """Bound the values of the face-set entries of slivers (``fragile``, in place).
+
+    Another snapping may flip a sliver or put its plane anywhere; but a conformant
+    implementation interpolates either from the snapped vertices (the fragment's barycentrics
+    are then non-negative) or, as Mesa and refraster do, from the unsnapped ones (the
+    barycentrics of the unsnapped face at the centre, however far they extrapolate). So the
+    screen-space barycentrics ``λ`` and the perspective-correct ``β`` lie in the union of
+
+    * (snapped) the range over every vertex moved by up to ``ε/√2`` per axis that still
+      covers the centre ``p``: from the signed areas ``A_i(p)`` of the triangles
+      ``(p, V_j, V_k)`` (:func:`_area_interval`, exact per ``A_i``), covering ``p`` with
+      facing ``s`` needs ``s·A_i ≥ 0`` for all three, and ``β_i = (A_i/w_i) / Σ_j (A_j/w_j)``
+      (``λ``: ``w = 1``) is increasing in ``A_i`` and decreasing in the others, so its extremes
+      are at the ends of the (independently taken, hence wider) intervals;
+    * (unsnapped) the face's own barycentrics at ``p``, widened by what a float rounding of the
+      vertices (the float part of ``ε``) does to ``A_i / A``.
+
+    Every value is an affine function of ``λ`` (window depth) or ``β`` (eye depth, eye
+    position, the smooth normal before normalisation), bounded over that box by interval
+    arithmetic (:func:`_affine_box`); the normal by the cone of its box (flat: the face
+    normal itself); the colour, a shade increasing in ``d = |m · v̂|``, between the shades of
+    the least and largest ``d`` that angles within ``θ_n + θ_v`` of the centre's give
+    (``θ_v`` the cone of the eye-position box). A facing is free (−1) only where both signs can
+    cover ``p``.
+    """
+    from ..framebuffer import PALETTE, _build
+    from ..raster.gbuffer import AMBIENT, DIFFUSE, SHININESS, SPECULAR
+    idx = np.flatnonzero(fragile)
+    g = faces[idx]
+    m = len(idx)
+    h, w = prep.height, prep.width
+    vid = prep.triangles.faces[g]                                   # (m, 3) vertex ids
+    clip = prep.clip[vid].astype(np.float64)                        # (m, 3, 4)
+    cw = clip[:, :, 3]                                              # > 0 (fragile_faces)
+    X = (clip[:, :, 0] / cw + 1.0) * 0.5 * w
+    Y = (clip[:, :, 1] / cw + 1.0) * 0.5 * h
+    Z = 0.5 * clip[:, :, 2] / cw + 0.5
+    qx, qy = px[idx], py[idx]
+    (lam_lo, lam_hi), (bet_lo, bet_hi), can = _snap_barycentrics(X, Y, cw, qx, qy, eps)
+    facing[idx] = np.where(can[:, 0] & can[:, 1], -1,
+                           np.where(can[:, 0], 1, np.where(can[:, 1], 0, -1)))
+    out["set_barycentric_lo"][idx] = (bet_lo - BARY_TOL).astype(np.float32)
+    out["set_barycentric_hi"][idx] = (bet_hi + BARY_TOL).astype(np.float32)
+    # window depth: affine in λ, clamped to [0, 1], ∓ the face's slack
+    z_lo, z_hi = _affine_box(Z, lam_lo, lam_hi)
+    out["set_depth_lo"][idx] = (np.clip(z_lo, 0.0, 1.0) - slack[idx]).astype(np.float32)
+    out["set_depth_hi"][idx] = (np.clip(z_hi, 0.0, 1.0) + slack[idx]).astype(np.float32)
+    # the G-buffer's own finalisation at the three vertices
+    samp = np.eye(3)
+    bary = np.broadcast_to(samp, (m, 3, 3)).astype(np.float32)
+    normals = [dd.normals for dd in scene.draws] if raster["normals"] == "smooth" else "flat"
+    fb = _build(prep.meshes, prep.models, prep.view, prep.proj,
+                np.zeros((m, 3), np.float32), np.repeat(g, 3).reshape(m, 3),
+                prep.face_offsets, np.zeros((m, 3), np.bool_), bary, normals, np.ones(3))
+    eye = fb.eye_depth.astype(np.float64)
+    e_lo, e_hi = _affine_box(eye, bet_lo, bet_hi)
+    budget = EYE_DEPTH_ABS + EYE_DEPTH_REL * np.maximum(np.abs(e_lo), np.abs(e_hi))
+    out["set_eye_depth_lo"][idx] = (e_lo - budget).astype(np.float32)
+    out["set_eye_depth_hi"][idx] = (e_hi + budget).astype(np.float32)
+    # normal: flat, the face's own; smooth, the cone of the interpolated eye-space vertex
+    # normals (normal matrix · vertex normal, before the renormalisation) over the β box
+    nrm = fb.normal.astype(np.float64)
+    obj, _ = prep.split(g)
+    if raster["normals"] == "smooth":
+        from ..framebuffer import _normal_matrix, _normals_per_mesh
+        vn = np.concatenate(_normals_per_mesh(prep.meshes, normals)).astype(np.float64)
+        nmat = np.stack([_normal_matrix(prep.view, mm) for mm in prep.models])
+        u = np.einsum("mij,mkj->mki", nmat[obj], vn[vid])
+        n_c, theta_n = _cone(*_affine_box(u, bet_lo, bet_hi))
+        n_c = n_c / np.maximum(np.linalg.norm(n_c, axis=1, keepdims=True), 1e-300)
+    else:
+        n_c, theta_n = nrm[:, 0], np.zeros(m)
+    out["set_normal"][idx] = n_c.astype(np.float32)
+    out["set_normal_angle"][idx] = (NORMAL_TOL + theta_n).astype(np.float32)
+    # colour: eye positions (from clip space: the projection is invertible) over the β box
+    inv = np.linalg.inv(np.asarray(prep.proj, np.float64))
+    e4 = np.einsum("ij,mkj->mki", inv, clip)
+    ev = e4[:, :, :3] / e4[:, :, 3:4]
+    e_c, theta_v = _cone(*_affine_box(ev, bet_lo, bet_hi))
+    alpha = _angle(n_c, -e_c)           # the centre's angle to the eye direction, in [0, π]
+    theta = np.minimum(theta_n + theta_v, np.pi)
+    a0, a1 = alpha - theta, alpha + theta
+    ends = np.abs(np.cos(np.stack([np.clip(a0, 0.0, np.pi), np.clip(a1, 0.0, np.pi)])))
+    d_hi = np.where((a0 <= 0.0) | (a1 >= np.pi), 1.0, ends.max(axis=0))
+    d_lo = np.where((a0 <= np.pi / 2) & (a1 >= np.pi / 2), 0.0, ends.min(axis=0))
+
+    def shade(dd, pk):
+        dd = np.minimum(dd, 1.0)[:, None]
+        return np.clip(PALETTE[pk] * (AMBIENT + DIFFUSE * dd) + SPECULAR * dd ** SHININESS,
+                       0.0, 1.0)
+
+    pk = obj % PALETTE.shape[0]
+    out["set_color_lo"][idx] = (shade(d_lo, pk) - COLOR_TOL).astype(np.float32)
+    out["set_color_hi"][idx] = (shade(d_hi, pk) + COLOR_TOL).astype(np.float32)
 
 
 def check_face_sets(arrays, height, width):

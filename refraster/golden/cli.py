@@ -8,6 +8,8 @@
     refraster golden compare GOLDEN_DIR CANDIDATE_DIR [--report DIR] [--mode tolerant|exact]
                              [--profile exact|conformant] [--tolerance [SCENE:][BUFFER.]KEY=VALUE ...]
                              [--scene NAME ...] [--json FILE] [--no-wait]
+    refraster golden candidate GOLDEN_DIR --backend gl --out CANDIDATE_DIR [--scene NAME ...]
+                               [--threads N] [--no-wait]
 
 ``-q``/``--quiet`` and ``--debug`` go before or after ``golden``, ``generate`` or ``compare``.
 
@@ -182,6 +184,26 @@ def _cmd_compare(args):
     return result.exit_code
 
 
+@_guarded("golden candidate")
+def _cmd_candidate(args):
+    from .candidate import candidate
+    result = candidate(args.golden_dir, args.out, backend=args.backend, scenes=args.scene,
+                       threads=args.threads, wait=not args.no_wait,
+                       on_wait=lambda holder: _say(args, f"waiting for {holder} to finish "
+                                                         f"writing {args.out}"),
+                       on_scene=lambda name, what: _say(args, f"{name}: {what}"))
+    if not getattr(args, "quiet", False):
+        print(f"{args.backend} backend ({result['renderer']}): rendered "
+              f"{len(result['rendered'])} scene(s) into {args.out}, skipped "
+              f"{len(result['skipped'])}")
+        for name, reason in result["skipped"].items():
+            print(f"skipped {name}: {reason}")
+        if result["rendered"]:
+            scenes = " ".join(f"--scene {n}" for n in result["rendered"])
+            print(f"compare with: refraster golden compare {args.golden_dir} {args.out} {scenes}")
+    return EXIT_PASS
+
+
 def register(subparsers):
     """Add the ``golden`` command (``generate`` and ``compare``) to an argparse subparsers
     object; each sets ``func`` to a handler ``func(args) -> exit status``."""
@@ -189,7 +211,7 @@ def register(subparsers):
         "golden", help="generate golden images or compare a backend against them",
         description="Golden images: reference buffers a GPU backend is compared against.")
     _common(golden)
-    sub = golden.add_subparsers(dest="golden_command", metavar="{generate,compare}")
+    sub = golden.add_subparsers(dest="golden_command", metavar="{generate,compare,candidate}")
     golden.set_defaults(func=lambda args: _error(
         args, "golden", ValueError("a subcommand is required: generate or compare"),
         usage=True))
@@ -237,6 +259,25 @@ def register(subparsers):
     c.add_argument("--no-wait", action="store_true",
                    help="if another run is writing the report directory, exit 2 naming it")
     c.set_defaults(func=_cmd_compare)
+
+    k = sub.add_parser("candidate", help="render GOLDEN_DIR's scene packages with another "
+                                         "backend into a candidate directory")
+    _common(k)
+    k.add_argument("golden_dir", metavar="GOLDEN_DIR")
+    k.add_argument("--backend", choices=("gl",), default="gl",
+                   help="gl: the GLSL backend refraster.gl (OpenGL 3.3 core on headless EGL; "
+                        "the extra 'gl')")
+    k.add_argument("--out", metavar="CANDIDATE_DIR", required=True,
+                   help="candidate directory to write (nothing, empty, or a candidate "
+                        "refraster wrote; replaced atomically)")
+    k.add_argument("--scene", metavar="NAME", action="append",
+                   help="render only this scene (repeatable; default: every scene the "
+                        "backend supports)")
+    k.add_argument("--threads", metavar="N", type=_positive_int,
+                   help="rasterizer threads of Mesa's llvmpipe (LP_NUM_THREADS)")
+    k.add_argument("--no-wait", action="store_true",
+                   help="if another run is writing CANDIDATE_DIR, exit 2 naming it")
+    k.set_defaults(func=_cmd_candidate)
     return golden
 
 

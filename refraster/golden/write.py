@@ -60,7 +60,8 @@ from .common import GoldenError
 __all__ = ["HOOKS", "RefusedError", "LockedError", "Terminated", "locked", "snapshot",
            "make_tree", "commit_tree", "recover", "clean_debris", "discard_tree", "Outputs",
            "check_output_path", "check_report_dir", "commit_report", "resolve_target",
-           "terminate_as_interrupt", "dir_mode", "REPORT_MARKER", "rename_exchange",
+           "terminate_as_interrupt", "dir_mode", "REPORT_MARKER", "CANDIDATE_MARKER",
+           "rename_exchange",
            "rename_noreplace"]
 
 #: Test hooks: ``HOOKS[name] = fn``; ``fn(**info)`` is called at that step of a write.
@@ -71,6 +72,9 @@ FORCE_FALLBACK = False
 
 #: The marker file a report directory written by refraster holds (lists its files).
 REPORT_MARKER = ".refraster-report"
+#: The marker file a candidate directory written by ``refraster golden candidate`` holds (lists
+#: its files, the scenes rendered and the scenes skipped with the reason).
+CANDIDATE_MARKER = ".refraster-candidate"
 
 MANIFEST = "manifest.json"
 
@@ -320,7 +324,8 @@ def _listing(tree):
     ``None`` if it has neither."""
     from .schema import is_safe_relpath
     tree = Path(tree)
-    for kind, name in (("report", REPORT_MARKER), ("golden", MANIFEST)):
+    for kind, name in (("report", REPORT_MARKER), ("golden", MANIFEST),
+                       ("candidate", CANDIDATE_MARKER)):
         path = tree / name
         if path.is_symlink() or not path.is_file():
             continue
@@ -329,6 +334,8 @@ def _listing(tree):
             doc = json.loads(raw)
             files = doc["files"]
             if kind == "report" and doc.get("written_by") != "refraster golden compare":
+                continue
+            if kind == "candidate" and doc.get("written_by") != "refraster golden candidate":
                 continue
             if not isinstance(files, dict) or not all(isinstance(k, str) and is_safe_relpath(k)
                                                       for k in files):
@@ -428,7 +435,8 @@ def discard_tree(tree, target_name=None, *, building=False):
         return None
     owned = listing[2] if listing is not None else set()
     # the listing file goes last: a crash half-way leaves a tree that still says what it owns
-    listing_file = {"report": REPORT_MARKER, "golden": MANIFEST}[listing[0]] if listing else None
+    listing_file = ({"report": REPORT_MARKER, "golden": MANIFEST,
+                     "candidate": CANDIDATE_MARKER}[listing[0]] if listing else None)
     real = os.path.realpath(tree)
     for rel in sorted(owned - {listing_file}) + ([listing_file] if listing_file else []):
         path = tree / rel
@@ -532,7 +540,7 @@ def _describe(found):
         return "nothing"
     if found[0] == "empty":
         return "an empty directory"
-    if found[0] in ("golden", "report"):
+    if found[0] in ("golden", "report", "candidate"):
         return f"a {found[0]} (digest {found[1][:12]}…)"
     if found[0] == "foreign":
         return f"a directory holding {', '.join(found[1])}"

@@ -256,10 +256,14 @@ _DELTA = 0.15      # the trefoil K(u) is cut open for u ∈ (−δ, δ), around 
 _EPS = 0.2         # clearance between the knotted part and the spinning plane
 #: spun trefoil: the plane x = Xp just beyond the cut (max x of the trefoil is 3)
 SPUN_XP = 3.0 + _EPS
-#: twist-spun trefoil: the ball |p| ≤ RB that turns (it holds the trefoil, |K| ≤ 3), the
-#: connector circle inside it, and the plane tangent to it plus the clearance
-TWIST_RB = 3.2
-_RC = 3.1
+#: twist-spun trefoil: the knot body is the trefoil scaled by TWIST_SCALE (|K| ≤ 2.7), held
+#: by the ball |p| ≤ RB = 2.9 that turns; the connector circle (radius 2.8) inside it; the plane
+#: tangent to the ball plus the clearance, Xp = 3.1. Each leg runs from an exit point on the
+#: turning axis to the plane, so it is Xp = RB + ε long: it cannot be shorter than RB (the ball
+#: must clear the plane), and the scale keeps it ≤ 3.2 (issue 21).
+TWIST_SCALE = 0.9
+TWIST_RB = 2.9
+_RC = 2.8
 TWIST_XP = TWIST_RB + _EPS
 
 
@@ -317,12 +321,12 @@ def _spun_polyline(m=6000):
 
 
 def _twist_polyline(m=6000):
-    """Knotted arc of the twist-spun trefoil: K on [δ, 2π − δ]; inside the ball |p| ≤ RB each
-    cut end goes radially out to the circle of radius Rc in z = 0, along it to the y-axis and
-    out to the exit point (0, ±RB, 0); outside the ball a straight leg of length RB + ε runs
-    along +x to the plane x = Xp."""
+    """Knotted arc of the twist-spun trefoil: 0.9·K on [δ, 2π − δ]; inside the ball |p| ≤ RB
+    each cut end goes radially out to the circle of radius Rc in z = 0, along it to the y-axis
+    and out to the exit point (0, ±RB, 0); outside the ball a straight leg of length RB + ε
+    runs along +x to the plane x = Xp."""
     u = np.linspace(_DELTA, 2 * np.pi - _DELTA, m)
-    body = _trefoil(u)
+    body = TWIST_SCALE * _trefoil(u)
 
     def connector(end, sign):
         th0 = np.arctan2(end[1], end[0])
@@ -381,8 +385,9 @@ def _knot_color(total):
 def twist_spun_trefoil(n_s=200, n_phi=50, *, k=2, adaptive=False):
     """Zeeman's k-twist-spun trefoil (MATH.md §5.7; k = 2 default [guess]); a 2-sphere in 4D.
 
-    The knotted arc α (the trefoil cut open; inside the ball |p| ≤ RB = 3.2 connectors to the
-    exit points (0, ±RB, 0); legs of length RB + ε to the plane x = Xp = RB + 0.2) is spun
+    The knotted arc α (the trefoil scaled by 0.9 and cut open; inside the ball |p| ≤ RB = 2.9
+    connectors to the exit points (0, ±RB, 0); legs of length RB + ε = 3.1 to the plane
+    x = Xp = RB + 0.2) is spun
     about that plane: ``S(s, φ) = (Xp − r cos φ, y, z, r sin φ)`` with ``r = Xp − x``; inside
     the ball the arc is first rotated by kφ about the y-axis (the line through the exit points).
     ``s`` is arc length; the two ends (r = 0) are the sphere's poles, meshed as fans.

@@ -23,8 +23,9 @@ OFFSET = ["tests/test_offsetmaps.py"] + HAND
 EDGES = ["tests/test_edges.py"]
 NPR = ["tests/test_npr.py"]
 CUT = ["tests/test_cutaway.py", "tests/test_cutaway_render.py"] + HAND
-H4 = ["tests/test_halos4d_geometry.py", "tests/test_halos4d_render.py",
-      "tests/test_halos4d_defaults.py", "tests/test_halos4d_options.py"] + HAND
+H4 = ["tests/test_halos4d_geometry.py", "tests/test_halos4d_eq3.py",
+      "tests/test_halos4d_render.py", "tests/test_halos4d_defaults.py",
+      "tests/test_halos4d_options.py"] + HAND
 GOLD = ["tests/test_golden.py", "tests/test_golden_tolerant.py"] + HAND
 
 PRIM = "refraster/raster/primitive.py"
@@ -122,8 +123,9 @@ MUTANTS = [
            twin=[(NAIVE, "if rule == \"bottom-left\":\n                        owns = dy < 0 or "
                   "(dy == 0 and dx > 0)", "if rule == \"bottom-left\":\n                        "
                   "owns = dy < 0 or (dy == 0 and dx < 0)")]),
-    Mutant("clip_skip_self_any", "clipsurface", "clip test skips every surface after the "
-           "fragment's own (`!=` → `<`): a second clip surface never clips",
+    Mutant("clip_skip_self_any", "clipsurface", "clip test of a cap fragment of surface j "
+           "skips every surface k > j, not only j (`k != skip` as `k < skip`; mesh fragments "
+           "unaffected): a cap of the first surface is not trimmed by the second",
            "refraster/clipsurface/surfaces.py", "        if enabled[k] and k != skip:",
            "        if enabled[k] and (k < skip or skip < 0):", CLIP_ALL),
     Mutant("compare_skips_bary", "golden", "compare skips the barycentric buffer",

@@ -1,0 +1,44 @@
+"""refraster.gl: a GLSL backend for refraster's golden scene packages (optional extra ``gl``).
+
+A GPU team's client of the goldens, written as one: plain ``.glsl`` shaders (``shaders/``,
+``#version 330 core``, so the same files run on desktop GL drivers) beside a thin driver
+(:mod:`refraster.gl.driver`) on a standalone headless EGL context (moderngl). It reads only the
+scene packages of a golden directory (``scene.json``, PLY meshes, ``.npy`` maps:
+:mod:`refraster.gl.package`) — never refraster's Python scene objects or kernels, and it imports
+nothing else of refraster (``tests/test_gl_backend.py`` scans its imports).
+
+``import refraster`` never imports this subpackage; ``import refraster.gl`` imports no OpenGL
+either (the context is created by :class:`refraster.gl.driver.Backend`).
+
+    from refraster.gl.driver import Backend
+    with Backend() as gl:
+        buffers = gl.render("golden/render_cube/package")   # {name: (H, W[, C]) array}
+
+On the command line: ``refraster golden candidate GOLDEN_DIR --backend gl --out CANDIDATE_DIR``
+(docs/backends.md).
+"""
+
+__all__ = ["SUPPORTED_TECHNIQUES", "FAULTS"]
+
+#: Techniques this backend renders, with what it renders for them.
+SUPPORTED_TECHNIQUES = {
+    "render": "the G-buffer in one pass with multiple render targets",
+    "ldi": "classic depth peeling (one pass per layer)",
+    "vds": "the volumetric parity test in a fragment shader over the sprite as a texture array",
+}
+
+#: Planted faults, each a test-only ``#define`` (never set in normal use): name → (define,
+#: what it does). ``Backend(faults=[name, ...])`` switches them on.
+FAULTS = {
+    "half_pixel": ("FAULT_HALF_PIXEL", "the viewport shifted by half a pixel (vertex stage)"),
+    "noperspective": ("FAULT_NOPERSPECTIVE",
+                      "eye position, normal and barycentrics interpolated with noperspective"),
+    "facing_flipped": ("FAULT_FACING_FLIPPED", "gl_FrontFacing inverted (the G-buffer's "
+                                               "facing as if the rows had been flipped)"),
+    "peel_no_discard": ("FAULT_PEEL_NO_DISCARD",
+                        "depth peeling that does not discard the previous layer"),
+    "sprite_rows_flipped": ("FAULT_SPRITE_ROWS_FLIPPED",
+                            "the volumetric depth sprite's rows read top-down"),
+    "parity_wrong_end": ("FAULT_PARITY_WRONG_END", "the parity count run from the back layer "
+                                                   "with the front-to-back early exit"),
+}

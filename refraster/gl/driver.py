@@ -1,0 +1,439 @@
+"""The thin driver of refraster.gl: a headless EGL context (moderngl), the shaders of
+``shaders/``, one scene package in, the golden's buffers out.
+
+Conventions it implements (``docs/backends.md`` walks through them):
+
+* ``clip = projection @ view @ model @ [x y z 1]`` with the package's row-major matrices,
+  uploaded transposed (GL uniforms are column-major), one float32 matrix ``P·V·M`` per draw.
+* Depth: a 32-bit float depth attachment (``GL_DEPTH_COMPONENT32F``; moderngl's own is 24-bit),
+  cleared to ``raster.clear_depth``, test ``raster.depth_func``; the window depth written out is
+  ``gl_FragCoord.z`` into an ``R32F`` target (bit-identical to the stored depth).
+* Front faces CCW as the picture is seen (GL's default in y-up window coordinates); the arrays
+  read back have GL's bottom row first and are flipped to row 0 at the top.
+* Every target is cleared to zero (one clear of all attachments; zero bits are 0 in float and
+  integer targets alike) and a ``covered`` channel of the integer target says which pixels a
+  fragment wrote; background values (``docs/golden-schema.md``) are filled in after read-back.
+* Integer ids come from ``gl_PrimitiveID`` (the face index within its draw call) and the draw's
+  ``object_id`` uniform.
+
+Faults (:data:`refraster.gl.FAULTS`) are test-only ``#define`` lines inserted after
+``#version``; a normal run sets none.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import os
+from pathlib import Path
+
+import numpy as np
+
+from . import FAULTS, SUPPORTED_TECHNIQUES
+from .package import PackageError, matrix, read_map, read_ply, read_scene
+
+__all__ = ["Backend", "GLUnavailable", "Unsupported", "shader_source"]
+
+SHADER_DIR = Path(__file__).with_name("shaders")
+
+_GL_TEXTURE_2D = 0x0DE1
+_GL_DEPTH_COMPONENT = 0x1902
+_GL_DEPTH_COMPONENT32F = 0x8CAC
+_GL_FLOAT = 0x1406
+
+_DEPTH_FUNCS = {"less": "<", "lequal": "<=", "greater": ">", "gequal": ">=", "equal": "==",
+                "notequal": "!=", "always": "1", "never": "0"}
+
+#: Peel passes at most (a pixel's ray crosses each face at most once, so the face count
+#: also bounds it).
+MAX_PEEL_PASSES = 256
+
+
+class GLUnavailable(RuntimeError):
+    """No OpenGL 3.3 core context could be created (moderngl or EGL missing)."""
+
+
+class Unsupported(Exception):
+    """The scene's technique (or a setting of it) is not implemented by this backend."""
+
+
+def shader_source(name, defines=()):
+    """The text of ``shaders/<name>`` with ``#define`` lines inserted after ``#version``."""
+    text = (SHADER_DIR / name).read_text(encoding="utf-8")
+    if not defines:
+        return text
+    lines = text.splitlines(keepends=True)
+    at = next(i for i, line in enumerate(lines) if line.startswith("#version")) + 1
+    return "".join(lines[:at] + [f"#define {d}\n" for d in defines] + lines[at:])
+
+
+def _gl_functions():
+    """glTexImage2D and glGetError through eglGetProcAddress (the context is EGL's)."""
+    path = ctypes.util.find_library("EGL") or "libEGL.so.1"
+    try:
+        egl = ctypes.CDLL(path)
+    except OSError as exc:
+        raise GLUnavailable(f"cannot load {path}: {exc}") from None
+    egl.eglGetProcAddress.restype = ctypes.c_void_p
+    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+
+    def fn(name, restype, *argtypes):
+        addr = egl.eglGetProcAddress(name.encode())
+        if not addr:
+            raise GLUnavailable(f"eglGetProcAddress({name}) returned NULL")
+        return ctypes.CFUNCTYPE(restype, *argtypes)(addr)
+
+    u, i, p = ctypes.c_uint, ctypes.c_int, ctypes.c_void_p
+    return {"BindTexture": fn("glBindTexture", None, u, u),
+            "TexImage2D": fn("glTexImage2D", None, u, i, i, i, i, i, u, u, p),
+            "GetError": fn("glGetError", u)}
+
+
+class Backend:
+    """One headless context and the compiled programs.
+
+    Parameters
+    ----------
+    faults : sequence of str
+        Names of :data:`refraster.gl.FAULTS` to plant (tests only).
+    threads : int, optional
+        ``LP_NUM_THREADS`` for Mesa's llvmpipe; it must be set before the first context of the
+        process exists, so it is set only when the variable is not set already.
+    """
+
+    def __init__(self, faults=(), threads=None):
+        unknown = [f for f in faults if f not in FAULTS]
+        if unknown:
+            raise ValueError(f"unknown fault(s) {unknown}; known: {sorted(FAULTS)}")
+        if threads is not None:
+            os.environ.setdefault("LP_NUM_THREADS", str(int(threads)))
+        try:
+            import moderngl
+        except Exception as exc:
+            raise GLUnavailable(f"moderngl cannot be imported ({exc}); install the 'gl' extra: "
+                                "pip install refraster[gl]") from None
+        try:
+            ctx = moderngl.create_standalone_context(backend="egl", require=330)
+        except Exception as exc:
+            raise GLUnavailable("no headless OpenGL 3.3 context through EGL (libEGL and a "
+                                f"driver such as Mesa's libegl-mesa0): {exc}") from None
+        self.mgl, self.ctx = moderngl, ctx
+        self.faults = tuple(faults)
+        self.renderer = f"{ctx.info['GL_RENDERER']}; OpenGL {ctx.info['GL_VERSION']}"
+        self._gl = _gl_functions()
+        defines = [FAULTS[f][0] for f in self.faults]
+        vert = shader_source("gbuffer.vert", defines)
+        self.gbuffer = ctx.program(vertex_shader=vert,
+                                   geometry_shader=shader_source("gbuffer.geom", defines),
+                                   fragment_shader=shader_source("gbuffer.frag", defines))
+        self.peeler = ctx.program(vertex_shader=vert,
+                                  fragment_shader=shader_source("peel.frag", defines))
+        vds = [*defines, "VDS"]
+        self.vds = ctx.program(vertex_shader=shader_source("gbuffer.vert", vds),
+                               geometry_shader=shader_source("gbuffer.geom", vds),
+                               fragment_shader=shader_source("gbuffer.frag", vds))
+        # moderngl binds the last framebuffer it made; park on this one before releasing others
+        self._parking = ctx.framebuffer(color_attachments=[ctx.renderbuffer((1, 1))])
+
+    # --- life cycle -----------------------------------------------------------------------
+    def release(self):
+        if self.ctx is not None:
+            self.ctx.release()
+            self.ctx = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+
+    # --- what it supports -----------------------------------------------------------------
+    @staticmethod
+    def supports(scene):
+        """``None`` if the scene (a ``scene.json`` dict) can be rendered, else the reason."""
+        technique = scene.get("technique")
+        if technique not in SUPPORTED_TECHNIQUES:
+            return (f"technique {technique!r} is not implemented by the gl backend (it renders "
+                    f"{', '.join(sorted(SUPPORTED_TECHNIQUES))})")
+        p = scene.get("parameters", {})
+        if technique == "ldi" and p.get("mode", "peel") != "peel":
+            return f"ldi mode {p.get('mode')!r}: only classic peeling ('peel') is implemented"
+        if technique == "vds" and (p.get("test") != "parity" or p.get("axis") not in ("z",)
+                                   or p.get("rule", "parity") != "parity"):
+            return ("vds: only the parity test over one sprite (test 'parity', one axis) is "
+                    "implemented")
+        return None
+
+    def render(self, package_dir, *, layers=None):
+        """Render one scene package → ``{buffer name: array}`` as the golden stores them.
+
+        ``layers`` (ldi scenes): the number of layer slots to write (the golden's K); the
+        peel itself runs until a pass writes no sample, and ``layer_count`` counts every layer
+        found, so a backend that finds more layers than the golden still fails the compare.
+        Raises :class:`Unsupported` or :class:`refraster.gl.package.PackageError`.
+        """
+        loaded = self.load(package_dir)
+        try:
+            return self.draw(loaded, layers=layers)
+        finally:
+            self.unload(loaded)
+
+    def load(self, package_dir):
+        """Read a scene package and upload its meshes → an opaque handle for :meth:`draw`
+        (timing a frame without the upload); free it with :meth:`unload`."""
+        package_dir = Path(package_dir)
+        scene = read_scene(package_dir)
+        reason = self.supports(scene)
+        if reason is not None:
+            raise Unsupported(reason)
+        loaded = {"scene": scene, "draws": self._upload(package_dir, scene), "textures": []}
+        if scene["technique"] == "vds":
+            loaded["textures"] = self._sprite(package_dir, scene)
+        return loaded
+
+    def _sprite(self, package_dir, scene):
+        """The sprite's layers as a texture array (R32F, one slice per layer) and its counts
+        (R32I); the package's maps have row 0 at the top, GL's first row is t = 0: flipped."""
+        p = scene["parameters"]
+        layers = [read_map(package_dir, scene, name) for name in p["sprite_depth"]]
+        count = read_map(package_dir, scene, p["sprite_count"])
+        h, w = count.shape
+        if not layers or any(a.shape != (h, w) for a in layers):
+            raise PackageError(f"{package_dir}: sprite maps must all be (h, w) = {(h, w)}")
+        depth = np.ascontiguousarray(np.stack([a[::-1] for a in layers]), np.float32)
+        arr = self.ctx.texture_array((w, h, len(layers)), 1, depth.tobytes(), dtype="f4")
+        cnt = self.ctx.texture((w, h), 1, np.ascontiguousarray(count[::-1], np.int32).tobytes(),
+                               dtype="i4")
+        for tex in (arr, cnt):
+            tex.filter = (self.mgl.NEAREST, self.mgl.NEAREST)
+        return [arr, cnt]
+
+    def draw(self, loaded, *, layers=None):
+        """Render a :meth:`load`-ed scene → ``{buffer name: array}`` (see :meth:`render`)."""
+        if loaded["scene"]["technique"] in ("render", "vds"):
+            return self._gbuffer(loaded["scene"], loaded["draws"], loaded["textures"])
+        return self._peel(loaded["scene"], loaded["draws"], layers)
+
+    def unload(self, loaded):
+        for tex in loaded.get("textures", ()):
+            tex.release()
+        loaded["textures"] = []
+        for d in loaded["draws"]:
+            for obj in d["release"]:
+                obj.release()
+        loaded["draws"] = []
+
+    # --- geometry ---------------------------------------------------------------------------
+    def _upload(self, package_dir, scene):
+        view = matrix(scene["camera"]["view"], "camera.view")
+        proj = matrix(scene["camera"]["projection"], "camera.projection")
+        smooth = scene["raster"]["normals"] == "smooth"
+        out = []
+        for i, d in enumerate(scene["draws"]):
+            vertices, faces, normals = read_ply(package_dir / d["mesh"], d.get("n_vertices"),
+                                                d.get("n_faces"))
+            if smooth and normals is None:
+                raise PackageError(f"{package_dir / d['mesh']}: the scene is smooth-shaded but "
+                                   "the PLY has no vertex normals")
+            if normals is None:
+                normals = np.zeros_like(vertices)
+            model = matrix(d["model"], f"draws[{i}].model")
+            mv = view @ model
+            try:
+                nmat = np.linalg.inv(mv[:3, :3]).T
+            except np.linalg.LinAlgError:
+                raise PackageError(f"draws[{i}]: view·model is singular") from None
+            ctx = self.ctx
+            vbo = ctx.buffer(np.ascontiguousarray(np.concatenate([vertices, normals], 1),
+                                                  np.float32).tobytes())
+            ibo = ctx.buffer(faces.tobytes()) if len(faces) else None
+            out.append(dict(
+                object_id=d["object_id"], n_faces=len(faces), vbo=vbo, ibo=ibo, model=model,
+                mvp=(proj @ mv).astype(np.float32), mv=mv.astype(np.float32),
+                nmat=nmat.astype(np.float32), release=[b for b in (vbo, ibo) if b is not None],
+                vaos={}))
+        return out
+
+    def _vao(self, draw, prog):
+        key = id(prog)
+        if key not in draw["vaos"]:
+            # the peel's compiled program drops the unused normal attribute: skip its bytes
+            layout = ((draw["vbo"], "3f 3f", "in_pos", "in_normal") if "in_normal" in prog
+                      else (draw["vbo"], "3f 12x", "in_pos"))
+            vao = self.ctx.vertex_array(prog, [layout], index_buffer=draw["ibo"],
+                                        index_element_size=4)
+            draw["vaos"][key] = vao
+            draw["release"].insert(0, vao)
+        return draw["vaos"][key]
+
+    @staticmethod
+    def _set(prog, name, value):
+        if name in prog:   # the compiler may drop an unused uniform
+            prog[name].value = value
+
+    @staticmethod
+    def _write(prog, name, m):
+        if name in prog:
+            prog[name].write(np.ascontiguousarray(m.T, np.float32).tobytes())
+
+    def _depth_attachment(self, size):
+        """A depth texture re-specified as ``GL_DEPTH_COMPONENT32F`` (moderngl's is 24-bit)."""
+        tex = self.ctx.depth_texture(size)
+        gl = self._gl
+        while gl["GetError"]():
+            pass
+        gl["BindTexture"](_GL_TEXTURE_2D, tex.glo)
+        gl["TexImage2D"](_GL_TEXTURE_2D, 0, _GL_DEPTH_COMPONENT32F, size[0], size[1], 0,
+                         _GL_DEPTH_COMPONENT, _GL_FLOAT, None)
+        err = gl["GetError"]()
+        if err:
+            tex.release()
+            raise GLUnavailable(f"glTexImage2D(GL_DEPTH_COMPONENT32F) failed: GL error {err:#x}")
+        return tex
+
+    def _state(self, scene):
+        mgl, ctx, raster = self.mgl, self.ctx, scene["raster"]
+        cull = raster["cull"]
+        ctx.enable_only(mgl.DEPTH_TEST | (mgl.CULL_FACE if cull != "none" else 0))
+        ctx.depth_func = _DEPTH_FUNCS[raster["depth_func"]]
+        ctx.front_face = "ccw"
+        if cull != "none":
+            ctx.cull_face = cull
+
+    def _read(self, tex, dtype, comps, size):
+        w, h = size
+        a = np.frombuffer(tex.read(), dtype=dtype).reshape(h, w, comps)
+        return np.ascontiguousarray(a[::-1])          # GL's row 0 is the bottom
+
+    # --- the G-buffer -----------------------------------------------------------------------
+    def _gbuffer(self, scene, draws, textures=()):
+        ctx = self.ctx
+        vds = scene["technique"] == "vds"
+        prog = self.vds if vds else self.gbuffer
+        size = (scene["viewport"]["width"], scene["viewport"]["height"])
+        raster, shading = scene["raster"], scene["shading"]
+        targets = [ctx.texture(size, 1, dtype="f4"), ctx.texture(size, 1, dtype="f4"),
+                   ctx.texture(size, 4, dtype="f4"), ctx.texture(size, 4, dtype="f4"),
+                   ctx.texture(size, 4, dtype="f4"), ctx.texture(size, 4, dtype="i4")]
+        if vds:
+            targets.append(ctx.texture(size, 1, dtype="i4"))     # inside (parity test)
+            textures[0].use(location=0)
+            textures[1].use(location=1)
+            self._set(prog, "u_sprite_depth", 0)
+            self._set(prog, "u_sprite_count", 1)
+            sprite = matrix(scene["parameters"]["sprite_matrix"], "parameters.sprite_matrix")
+        depth = self._depth_attachment(size)
+        fbo = ctx.framebuffer(color_attachments=targets, depth_attachment=depth)
+        try:
+            fbo.use()
+            ctx.viewport = (0, 0, *size)
+            fbo.clear(0.0, 0.0, 0.0, 0.0, depth=float(raster["clear_depth"]))
+            self._state(scene)
+            self._set(prog, "u_light", tuple(float(shading[k]) for k in
+                                             ("ambient", "diffuse", "specular", "shininess")))
+            self._set(prog, "u_smooth", raster["normals"] == "smooth")
+            self._set(prog, "u_viewport", tuple(float(s) for s in size))
+            palette = shading["palette"]
+            for d in draws:
+                if not d["n_faces"]:
+                    continue
+                self._write(prog, "u_mvp", d["mvp"])
+                self._write(prog, "u_mv", d["mv"])
+                self._write(prog, "u_nmat", d["nmat"])
+                if vds:
+                    self._write(prog, "u_tmat", (sprite @ d["model"]).astype(np.float32))
+                self._set(prog, "u_object", int(d["object_id"]))
+                self._set(prog, "u_base", tuple(float(c) for c in
+                                                palette[d["object_id"] % len(palette)]))
+                self._vao(d, prog).render(self.mgl.TRIANGLES)
+            ctx.finish()
+            win, eye = (self._read(t, "<f4", 1, size)[..., 0] for t in targets[:2])
+            normal, bary, color = (self._read(t, "<f4", 4, size)[..., :3] for t in targets[2:5])
+            ids = self._read(targets[5], "<i4", 4, size)
+            inside = self._read(targets[6], "<i4", 1, size)[..., 0] if vds else None
+        finally:
+            self._parking.use()
+            for obj in (fbo, depth, *targets):
+                obj.release()
+        covered = ids[..., 3] == 1
+        c3 = covered[..., None]
+        bg = np.asarray(shading["background"], np.float32)
+        out = {
+            "depth": np.where(covered, win, np.float32(raster["clear_depth"])).astype(np.float32),
+            "eye_depth": np.where(covered, eye, np.float32(np.inf)).astype(np.float32),
+            "normal": np.where(c3, normal, 0).astype(np.float32),
+            "prim_id": np.where(covered, ids[..., 0], -1).astype(np.int32),
+            "object_id": np.where(covered, ids[..., 1], -1).astype(np.int32),
+            "front_facing": covered & (ids[..., 2] == 1),
+            "barycentric": np.where(c3, bary, 0).astype(np.float32),
+            "color": np.where(c3, color, bg).astype(np.float32),
+        }
+        if vds:
+            out["inside"] = covered & (inside == 1)
+        return out
+
+    # --- classic depth peeling --------------------------------------------------------------
+    def _peel(self, scene, draws, layers):
+        mgl, ctx, prog = self.mgl, self.ctx, self.peeler
+        size = (scene["viewport"]["width"], scene["viewport"]["height"])
+        raster = scene["raster"]
+        if raster["depth_func"] != "less":
+            raise Unsupported(f"peeling with depth_func {raster['depth_func']!r}: only 'less'")
+        max_layers = scene.get("parameters", {}).get("max_layers")
+        faces = sum(d["n_faces"] for d in draws)
+        limit = min(MAX_PEEL_PASSES, faces + 1) if max_layers is None else int(max_layers)
+        sets = []
+        for _ in range(2):   # ping-pong: each pass reads the other set as the previous layer
+            t = [ctx.texture(size, 1, dtype="f4"), ctx.texture(size, 4, dtype="i4")]
+            for tex in t:
+                tex.filter = (mgl.NEAREST, mgl.NEAREST)
+            sets.append(t)
+        depth = self._depth_attachment(size)
+        fbos = [ctx.framebuffer(color_attachments=t, depth_attachment=depth) for t in sets]
+        query = ctx.query(samples=True)
+        found_depth, found_ids = [], []
+        try:
+            ctx.viewport = (0, 0, *size)
+            self._set(prog, "u_viewport", tuple(float(s) for s in size))
+            self._set(prog, "u_prev_depth", 0)
+            self._set(prog, "u_prev_ids", 1)
+            for k in range(limit):
+                cur, prev = k % 2, 1 - k % 2
+                fbos[cur].use()
+                fbos[cur].clear(0.0, 0.0, 0.0, 0.0, depth=float(raster["clear_depth"]))
+                self._state(scene)
+                self._set(prog, "u_peel", k > 0)
+                sets[prev][0].use(location=0)
+                sets[prev][1].use(location=1)
+                with query:
+                    for d in draws:
+                        if not d["n_faces"]:
+                            continue
+                        self._write(prog, "u_mvp", d["mvp"])
+                        self._write(prog, "u_mv", d["mv"])
+                        self._set(prog, "u_object", int(d["object_id"]))
+                        self._vao(d, prog).render(mgl.TRIANGLES)
+                if query.samples == 0:
+                    break
+                found_depth.append(self._read(sets[cur][0], "<f4", 1, size)[..., 0])
+                found_ids.append(self._read(sets[cur][1], "<i4", 4, size))
+        finally:
+            self._parking.use()
+            for obj in (*fbos, depth, *sets[0], *sets[1]):
+                obj.release()
+        w, h = size
+        k_out = len(found_depth) if layers is None else int(layers)
+        clear = np.float32(raster["clear_depth"])
+        out_depth = np.full((h, w, k_out), clear, np.float32)
+        out_prim = np.full((h, w, k_out), -1, np.int32)
+        out_front = np.zeros((h, w, k_out), np.bool_)
+        count = np.zeros((h, w), np.int32)
+        for k, (dep, ids) in enumerate(zip(found_depth, found_ids)):
+            covered = ids[..., 3] == 1
+            count += covered
+            if k < k_out:
+                out_depth[..., k] = np.where(covered, dep, clear)
+                out_prim[..., k] = np.where(covered, ids[..., 0], -1)
+                out_front[..., k] = covered & (ids[..., 2] == 1)
+        return {"layer_depth": out_depth, "layer_prim_id": out_prim,
+                "layer_front_facing": out_front, "layer_count": count}

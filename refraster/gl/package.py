@@ -1,0 +1,189 @@
+"""Reading one scene package of a golden directory (``docs/golden-schema.md``).
+
+Standard library and NumPy only: a backend in another language does the same with its own JSON
+and PLY readers. Every problem is a :class:`PackageError` (a ``ValueError``) naming the file and
+the key; nothing in the package is trusted (sizes are bounded, paths must stay inside the
+package directory, no pickles).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["PackageError", "read_scene", "read_ply", "read_map", "matrix"]
+
+#: Largest ``scene.json`` read.
+MAX_SCENE_BYTES = 16 << 20
+#: Largest PLY read.
+MAX_PLY_BYTES = 1 << 31
+_SEGMENT = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]*$")
+
+
+class PackageError(ValueError):
+    """A scene package this backend cannot use; the message names the file and key."""
+
+
+def _inside(package_dir, rel, where):
+    if not isinstance(rel, str) or not rel or not all(_SEGMENT.match(s) for s in rel.split("/")):
+        raise PackageError(f"{where}: {rel!r} is not a plain relative path")
+    path = Path(package_dir) / rel
+    real, root = os.path.realpath(path), os.path.realpath(package_dir)
+    if os.path.commonpath([real, root]) != root:
+        raise PackageError(f"{where}: {rel!r} leaves the package directory")
+    return path
+
+
+def _read_bytes(path, limit, what):
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+    except OSError as exc:
+        raise PackageError(f"cannot open {what} {path}: {exc.strerror or exc}") from None
+    with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fh.fileno())
+        import stat
+        if not stat.S_ISREG(st.st_mode):
+            raise PackageError(f"{what} {path} is not a regular file")
+        if st.st_size > limit:
+            raise PackageError(f"{what} {path} is larger than {limit} bytes")
+        return fh.read()
+
+
+def matrix(value, where):
+    """A 4×4 row-major nested list of finite numbers → float64 (4, 4)."""
+    try:
+        m = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise PackageError(f"{where} must be a 4x4 list of numbers") from None
+    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        raise PackageError(f"{where} must be a 4x4 list of finite numbers")
+    return m
+
+
+def read_scene(package_dir):
+    """``scene.json`` of ``package_dir`` as a dict, with the fields this backend relies on
+    checked (schema, version, viewport, camera matrices, raster state, draws)."""
+    path = Path(package_dir) / "scene.json"
+    raw = _read_bytes(path, MAX_SCENE_BYTES, "scene file")
+    try:
+        scene = json.loads(raw.decode("utf-8"),
+                           parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise PackageError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(scene, dict) or scene.get("schema") != "refraster.scene":
+        raise PackageError(f"{path}: schema is not 'refraster.scene'")
+    if scene.get("schema_version") != 1:
+        raise PackageError(f"{path}: schema_version {scene.get('schema_version')!r} is not 1, "
+                           "the version this backend reads")
+    try:
+        vp = scene["viewport"]
+        w, h = vp["width"], vp["height"]
+        if not (isinstance(w, int) and isinstance(h, int) and 1 <= w <= 32768
+                and 1 <= h <= 32768):
+            raise PackageError(f"{path}: viewport must be integers in 1..32768")
+        matrix(scene["camera"]["view"], f"{path}: camera.view")
+        matrix(scene["camera"]["projection"], f"{path}: camera.projection")
+        raster = scene["raster"]
+        for key, allowed in (("cull", ("none", "back", "front")),
+                             ("depth_func", ("less", "lequal", "greater", "gequal", "equal",
+                                             "notequal", "always", "never")),
+                             ("front_face", ("ccw",)), ("normals", ("flat", "smooth"))):
+            if raster.get(key) not in allowed:
+                raise PackageError(f"{path}: raster.{key} must be one of {list(allowed)}, got "
+                                   f"{raster.get(key)!r}")
+        cd = raster["clear_depth"]
+        if not isinstance(cd, (int, float)) or not 0.0 <= cd <= 1.0:
+            raise PackageError(f"{path}: raster.clear_depth must be a number in [0, 1]")
+        for i, d in enumerate(scene["draws"]):
+            matrix(d["model"], f"{path}: draws[{i}].model")
+            _inside(package_dir, d["mesh"], f"{path}: draws[{i}].mesh")
+            if not isinstance(d["object_id"], int):
+                raise PackageError(f"{path}: draws[{i}].object_id must be an integer")
+        sh = scene["shading"]
+        for key in ("ambient", "diffuse", "specular", "shininess"):
+            if not isinstance(sh[key], (int, float)) or not math.isfinite(sh[key]):
+                raise PackageError(f"{path}: shading.{key} must be a finite number")
+        if not sh["palette"]:
+            raise PackageError(f"{path}: shading.palette is empty")
+    except (KeyError, TypeError) as exc:
+        raise PackageError(f"{path}: missing or malformed field {exc}") from None
+    return scene
+
+
+def read_ply(path, n_vertices=None, n_faces=None):
+    """A binary little-endian PLY as the golden export writes it: ``float x y z``
+    [``float nx ny nz``], faces ``uchar count, int i0 i1 i2``.
+
+    Returns ``(vertices (V, 3) float32, faces (F, 3) int32, normals (V, 3) float32 or None)``.
+    """
+    data = _read_bytes(path, MAX_PLY_BYTES, "mesh")
+    end = data.find(b"end_header\n", 0, 4096)
+    if not data.startswith(b"ply\n") or end < 0:
+        raise PackageError(f"mesh {path}: not a PLY file (no header in its first 4 KiB)")
+    header = data[:end].decode("ascii", "replace").splitlines()
+    body = end + len(b"end_header\n")
+    if "format binary_little_endian 1.0" not in header:
+        raise PackageError(f"mesh {path}: only binary little-endian PLY is read")
+    counts, props, element, face_prop = {}, [], None, None
+    for line in header:
+        words = line.split()
+        if words[:1] == ["element"] and len(words) == 3 and words[2].isdigit():
+            element = words[1]
+            counts[element] = int(words[2])
+        elif words[:1] == ["property"] and element == "vertex":
+            if words[1:2] != ["float"] or len(words) != 3:
+                raise PackageError(f"mesh {path}: vertex property {' '.join(words[1:])} is not "
+                                   "'float NAME'")
+            props.append(words[2])
+        elif words[:1] == ["property"] and element == "face":
+            face_prop = words[1:]
+    nv, nf = counts.get("vertex", 0), counts.get("face", 0)
+    if set(counts) - {"vertex", "face"}:
+        raise PackageError(f"mesh {path}: elements other than vertex and face")
+    if face_prop is not None and face_prop[:3] not in (["list", "uchar", "int"],
+                                                       ["list", "uint8", "int32"]):
+        raise PackageError(f"mesh {path}: faces must be 'list uchar int'")
+    if n_vertices is not None and (nv, nf) != (n_vertices, n_faces):
+        raise PackageError(f"mesh {path}: {nv} vertices and {nf} faces, scene.json says "
+                           f"{n_vertices} and {n_faces}")
+    need = nv * 4 * len(props) + nf * 13
+    if len(data) - body != need:
+        raise PackageError(f"mesh {path}: body is {len(data) - body} bytes, the header "
+                           f"needs {need}")
+    if not {"x", "y", "z"} <= set(props):
+        raise PackageError(f"mesh {path}: vertices need x, y and z")
+    vdata = np.frombuffer(data, "<f4", nv * len(props), body).reshape(nv, len(props))
+    fd = np.frombuffer(data, np.dtype([("n", "u1"), ("i", "<i4", (3,))]), nf,
+                       body + vdata.nbytes)
+    if nf and not np.all(fd["n"] == 3):
+        raise PackageError(f"mesh {path}: only triangles are read")
+    faces = np.ascontiguousarray(fd["i"], np.int32)
+    if nf and (faces.min() < 0 or faces.max() >= nv):
+        raise PackageError(f"mesh {path}: a face index is out of range")
+    col = {name: k for k, name in enumerate(props)}
+    vertices = np.ascontiguousarray(vdata[:, [col["x"], col["y"], col["z"]]], np.float32)
+    normals = (np.ascontiguousarray(vdata[:, [col["nx"], col["ny"], col["nz"]]], np.float32)
+               if {"nx", "ny", "nz"} <= set(col) else None)
+    if not np.all(np.isfinite(vertices)):
+        raise PackageError(f"mesh {path}: a vertex is not finite")
+    return vertices, faces, normals
+
+
+def read_map(package_dir, scene, name):
+    """The exact values of map ``name`` (its ``.npy``; no pickles)."""
+    where = f"{Path(package_dir) / 'scene.json'}: maps.{name}"
+    try:
+        rel = scene["maps"][name]["npy"]
+    except (KeyError, TypeError):
+        raise PackageError(f"{where} is missing") from None
+    path = _inside(package_dir, rel, where)
+    import io
+    try:
+        return np.load(io.BytesIO(_read_bytes(path, MAX_PLY_BYTES, "map")), allow_pickle=False)
+    except ValueError as exc:
+        raise PackageError(f"map {path}: {exc}") from None
