@@ -60,12 +60,73 @@ def _clipsurface_building():
                        offset_map, wrap=surface["wrap"])
     fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs, **caps,
                         cull=state["cull"], precision=state["precision"])
+    backend_params, backend_maps = _clip_backend_export(draws, [clip], caps)
+    surfaces = [{**surface, "offset_map": "offset_map"}]
+    _name_derived_maps(surfaces, backend_maps)
     return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
                        buffers={**fb.arrays(), "cap_mask": fb.cap_mask},
                        ids=_clip_ids(draws, [clip], caps["subdivision"]),
-                       parameters={"surfaces": [{**surface, "offset_map": "offset_map"}], **caps},
-                       maps={"offset_map": offset_map}, geometry=False,
+                       parameters={"surfaces": surfaces, **caps, **backend_params},
+                       maps={"offset_map": offset_map, **backend_maps}, geometry=False,
                        may=_clip_decision_may(draws, camera, clip, fb.cap_mask))
+
+
+def _clip_backend_export(draws, surfaces, caps, occlusion_radius=None):
+    """What a backend needs to redraw a clip-surface scene (issue 25 item 2;
+    docs/golden-schema.md, "Clip surfaces: what the package carries"): per solid its volumetric
+    depth sprite (as the vds scene exports it), per solid and surface the cap mesh exactly as
+    ``render_clipped`` draws it (the displaced grid culled by the sprite: its face numbering
+    *is* the caps' ``prim_id``), and per surface the derived normal and occlusion maps the caps
+    are shaded with. Returns ``(parameters, maps)`` to add to the scene's."""
+    from ..capping import cap_mesh
+    from ..clipsurface.capping import cull_cap
+    from ..ldi import VolumetricDepthSprite
+    from ..mesh import Mesh, as_mesh, bounds
+    params, maps = {"sprites": [], "cap_meshes": [], "occlusion_radius": occlusion_radius,
+                    "evaluation_space": caps.get("space", "world")}, {}
+    m_count, k_count = len(draws), len(surfaces)
+    for m, d in enumerate(draws):
+        mesh = as_mesh(d.mesh)
+        if not np.array_equal(np.asarray(d.model), np.eye(4)):
+            raise AssertionError("clip-surface scenes draw their solids with identity models")
+        sprite = VolumetricDepthSprite.from_mesh(mesh, resolution=caps["vds_resolution"])
+        ldi = sprite._ldis[0]
+        depth = np.where(ldi.sign != 0, ldi.depth, np.float32(1.0)).astype(np.float32)
+        names = [f"sprite{m}_depth_{j}" for j in range(len(depth))]
+        for j, name in enumerate(names):
+            maps[name] = np.ascontiguousarray(depth[j])
+        maps[f"sprite{m}_count"] = np.asarray(ldi.count, np.int32)
+        params["sprites"].append(dict(
+            test="parity", resolution=int(caps["vds_resolution"]), axis=ldi.axis, margin=2,
+            sprite_matrix=np.asarray(ldi.matrix, np.float64).tolist(), layers=len(depth),
+            sprite_depth=names, sprite_count=f"sprite{m}_count"))
+        box = bounds(mesh.vertices)
+        for k, s in enumerate(surfaces):
+            cap = cap_mesh(s, box, subdivision=caps["subdivision"]) if s.enabled else None
+            cap = Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64)) if cap is None \
+                else cull_cap(cap, sprite)
+            vname, fname = f"cap{m}_{k}_vertices", f"cap{m}_{k}_faces"
+            maps[vname] = np.asarray(cap.vertices, np.float64)
+            maps[fname] = np.asarray(cap.faces, np.int32)
+            params["cap_meshes"].append(dict(solid=m, surface=k, object_id=m_count + m * k_count
+                                             + k, vertices=vname, faces=fname,
+                                             n_vertices=int(cap.n_vertices),
+                                             n_faces=int(cap.n_faces)))
+    for k, s in enumerate(surfaces):
+        n = s.normal_map()
+        for i, ch in enumerate("xyz"):
+            maps[f"surface{k}_normal_{ch}"] = np.ascontiguousarray(n[..., i], np.float64)
+        maps[f"surface{k}_occlusion"] = np.ascontiguousarray(
+            s.occlusion_map(radius=occlusion_radius), np.float64)
+    return params, maps
+
+
+def _name_derived_maps(surfaces, maps):
+    """Name each surface's derived maps (:func:`_clip_backend_export`) in its entry."""
+    for k, s in enumerate(surfaces):
+        s["normal_map"] = [f"surface{k}_normal_{ch}" for ch in "xyz"]
+        s["occlusion_map"] = f"surface{k}_occlusion"
+        assert all(name in maps for name in s["normal_map"] + [s["occlusion_map"]])
 
 
 def _clip_ids(draws, surfaces, subdivision):
@@ -292,12 +353,13 @@ def _clipsurface_textured_caps():
         names[key] = [f"cap_{key}_{ch}" for ch in chans]
         for i, name in enumerate(names[key]):
             maps[name] = np.ascontiguousarray(arr[..., i])
+    backend_params, backend_maps = _clip_backend_export(draws, [clip], caps)
+    surfaces = [{**surface, "offset_map": "offset_map", "textures": names}]
+    _name_derived_maps(surfaces, backend_maps)
     return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
                        buffers={**fb.arrays(), "cap_mask": fb.cap_mask},
-                       parameters={"surfaces": [{**surface, "offset_map": "offset_map",
-                                                 "textures": names}],
-                                   **caps},
-                       maps=maps, geometry=False,
+                       parameters={"surfaces": surfaces, **caps, **backend_params},
+                       maps={**maps, **backend_maps}, geometry=False,
                        ids=_clip_ids(draws, [clip], caps.get("subdivision", 1)),
                        may=_clip_decision_may(draws, camera, clip, fb.cap_mask))
 
