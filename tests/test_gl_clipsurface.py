@@ -23,7 +23,8 @@ DOC = ROOT / "docs" / "backends.md"
 BEGIN = "<!-- gl-clip-matrix:begin (tests/test_gl_clipsurface.py) -->"
 END = "<!-- gl-clip-matrix:end -->"
 
-SCENES = ["clipsurface_building", "clipsurface_textured_caps"]
+SCENES = ["clipsurface_building", "clipsurface_textured_caps", "clipsurface_two_surfaces",
+          "clipsurface_relief_plane"]
 
 #: fault → {scene: a buffer that must be among the failing ones}
 EXPECTED = {
@@ -123,6 +124,9 @@ def test_package_carries_what_the_caps_need(gold):
         doc = json.loads((base / "scene.json").read_text())
         p = doc["parameters"]
         assert p["evaluation_space"] == "world" and p["cap_mode"] == "mesh"
+        if scene == "clipsurface_two_surfaces":      # both surfaces' caps are seen
+            with np.load(gold / "golden" / scene / "buffers.npz") as z:
+                assert {1, 2} <= set(np.unique(z["object_id"]).tolist())
         assert len(p["sprites"]) == len(doc["draws"])
         assert len(p["cap_meshes"]) == len(doc["draws"]) * len(p["surfaces"])
         for s in p["surfaces"]:
