@@ -146,3 +146,105 @@ def test_unsupported_clip_settings_are_named():
         or "world" in supports({"parameters": {**base["parameters"], "space": "eye"}})
     assert "lacks" in supports(base)          # a golden written before issue 25 item 2
     assert "3" in supports({"parameters": {**base["parameters"], "surfaces": [{}] * 3}})
+
+
+# --- an outside oracle of what the GL frame shows (scipy.ndimage, trimesh) --------------------
+
+_SCIPY_MODE = {"repeat": "grid-wrap", "mirrored_repeat": "reflect", "clamp_to_edge": "nearest"}
+
+
+def _g_scipy(points, s, om):
+    """Eq. 1 in float64 with the offset map filtered by scipy.ndimage.map_coordinates (order 1,
+    the GL wrap mode as scipy's boundary mode) — not refraster's sampler."""
+    from scipy import ndimage
+    o, u, v = (np.asarray(s[k], np.float64) for k in ("origin", "u", "v"))
+    uh, vh = u / np.linalg.norm(u), v / np.linalg.norm(v)
+    n = np.cross(uh, vh)
+    d = points - o
+    ss = (d @ uh / np.linalg.norm(u)) * s["scale"][0]
+    tt = (d @ vh / np.linalg.norm(v)) * s["scale"][1]
+    h, w = om.shape
+    hval = ndimage.map_coordinates(np.asarray(om, np.float64), [tt * h - 0.5, ss * w - 0.5],
+                                   order=1, mode=_SCIPY_MODE[s["wrap"]])
+    return d @ n + s["scale"][2] * hval
+
+
+def _world_points(scene, eye_depth, rows, cols):
+    view, proj = (np.array(scene["camera"][k], np.float64) for k in ("view", "projection"))
+    h, w = eye_depth.shape
+    assert proj[0, 2] == 0 and proj[1, 2] == 0 and proj[3, 2] == -1     # symmetric perspective
+    x_ndc = (cols + 0.5) / w * 2 - 1
+    y_ndc = 1 - (rows + 0.5) / h * 2
+    ez = eye_depth[rows, cols].astype(np.float64)
+    p = np.stack([x_ndc * ez / proj[0, 0], y_ndc * ez / proj[1, 1], -ez, np.ones_like(ez)])
+    return (np.linalg.inv(view) @ p)[:3].T
+
+
+@pytest.mark.parametrize("scene", SCENES)
+def test_gl_clip_frame_against_scipy_and_trimesh(gold, scene):
+    """Every solid pixel the GL backend keeps has g(P) ≥ 0 for every surface, and every cap
+    pixel lies on its own surface (|g| small) with g ≥ 0 for the others, by Eq. 1 evaluated in
+    float64 with scipy's bilinear filter; cap points well inside the solid are inside by
+    trimesh's ray test. The relief clip plane is checked against the RCP's own inequality
+    N·(X − P) − s·h ≤ 0 (MATH.md D8), not its equivalent surface. Tolerances: P is rebuilt from
+    the float32 eye depth at the pixel centre (the fragment may sit up to ε pixel away), so
+    |Δg| ≤ |∇g|·(a pixel's world size); 1.5 pixels is allowed."""
+    import trimesh
+    from refraster.gl.package import read_map, read_ply
+    base = gold / "golden" / scene / "package"
+    doc = json.loads((base / "scene.json").read_text())
+    p = doc["parameters"]
+    with _backend_or_skip() as gl:
+        out = gl.render(base)
+    obj, eye = out["object_id"], out["eye_depth"]
+    n_solids = len(doc["draws"])
+    proj = np.array(doc["camera"]["projection"])
+    rows, cols = np.nonzero(obj >= 0)
+    pts = _world_points(doc, eye, rows, cols)
+    pixel = eye[rows, cols] * 2.0 / (proj[1, 1] * eye.shape[0])     # world size of a pixel
+    maps = {s["offset_map"]: read_map(base, doc, s["offset_map"]) for s in p["surfaces"]}
+    gs = []
+    for s in p["surfaces"]:
+        g = _g_scipy(pts, s, maps[s["offset_map"]])
+        # |∇g| ≤ 1 + Sz·(largest texel step)·(texels per world unit)
+        om = maps[s["offset_map"]]
+        step = max(np.abs(np.diff(om, axis=0)).max(), np.abs(np.diff(om, axis=1)).max())
+        dens = max(om.shape[1] * s["scale"][0] / np.linalg.norm(s["u"]),
+                   om.shape[0] * s["scale"][1] / np.linalg.norm(s["v"]))
+        gs.append((g, 1.5 * pixel * (1.0 + abs(s["scale"][2]) * step * dens)))
+    cap = obj >= n_solids
+    k_of = np.where(cap[rows, cols], (obj[rows, cols] - n_solids) % len(p["surfaces"]), -1)
+    for k, (g, tol) in enumerate(gs):
+        others = k_of != k
+        assert np.all(g[others] >= -tol[others]), (scene, k, g[others].min())
+        mine = k_of == k
+        assert np.all(np.abs(g[mine]) <= tol[mine] + 0.02 * abs(p["surfaces"][k]["scale"][2])), \
+            (scene, k, np.abs(g[mine]).max())
+    assert np.count_nonzero(k_of >= 0) > 300 and np.count_nonzero(k_of < 0) > 1000
+    if "relief_clip_plane" in p:
+        # the RCP's own inequality from its own parameters: N·(X − P) − s·h(X) > 0 discards
+        r = p["relief_clip_plane"]
+        nrm = np.asarray(r["normal"], np.float64) / np.linalg.norm(r["normal"])
+        u = np.asarray(r["u"], np.float64)
+        u = u - (u @ nrm) * nrm
+        uh = u / np.linalg.norm(u)
+        vh = np.cross(-nrm, uh)
+        own = dict(origin=r["point"], u=(r["extent"] * uh).tolist(),
+                   v=(r["extent"] * vh).tolist(), scale=[1.0, 1.0, 0.0], wrap=r["wrap"])
+        plane = _g_scipy(pts, own, maps["offset_map"])          # = (X − P)·(−N), Sz = 0
+        hval = (_g_scipy(pts, {**own, "scale": [1.0, 1.0, 1.0]}, maps["offset_map"]) - plane)
+        rcp = (pts - r["point"]) @ nrm - r["height_scale"] * hval
+        np.testing.assert_allclose(rcp, -gs[0][0], atol=1e-9)
+        solid_px = k_of < 0
+        assert np.all(rcp[solid_px] <= gs[0][1][solid_px]), rcp[solid_px].max()
+    # cap points: none clearly outside the solid, and those clearly inside are inside by
+    # trimesh's ray test ("clearly": two sprite texels, the parity test's resolution)
+    v, f, _ = read_ply(base / doc["draws"][0]["mesh"])
+    mesh = trimesh.Trimesh(v.astype(np.float64), f, process=False)
+    sel = np.flatnonzero(k_of >= 0)
+    texel = float(np.ptp(v, axis=0).max()) / (p["vds_resolution"] - 4)
+    depth_in = trimesh.proximity.signed_distance(mesh, pts[sel])     # > 0 inside
+    assert np.all(depth_in > -2 * texel), (scene, depth_in.min(), texel)
+    far = depth_in > 2 * texel
+    inside = mesh.contains(pts[sel][far])
+    assert far.sum() > 100 and inside.all(), (scene, int(far.sum()), int((~inside).sum()))
