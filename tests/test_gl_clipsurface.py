@@ -248,3 +248,23 @@ def test_gl_clip_frame_against_scipy_and_trimesh(gold, scene):
     far = depth_in > 2 * texel
     inside = mesh.contains(pts[sel][far])
     assert far.sum() > 100 and inside.all(), (scene, int(far.sum()), int((~inside).sum()))
+
+
+def test_malformed_clip_parameters_are_one_clear_error(gold, tmp_path):
+    import shutil
+
+    from refraster.gl.package import PackageError
+    pkg = tmp_path / "pkg"
+    shutil.copytree(gold / "golden" / "clipsurface_building" / "package", pkg)
+    good = json.loads((pkg / "scene.json").read_text())
+    with _backend_or_skip() as gl:
+        for edit, words in ((lambda p: p["cap_meshes"][0].update(solid="zero"), "malformed"),
+                            (lambda p: p["cap_meshes"][0].update(solid=5), "out of range"),
+                            (lambda p: p["sprites"][0].pop("sprite_count"), "sprite_count"),
+                            (lambda p: p["surfaces"][0].update(wrap="spiral"), "spiral"),
+                            (lambda p: p["cap_meshes"][0].update(faces="../x"), "plain")):
+            doc = json.loads(json.dumps(good))
+            edit(doc["parameters"])
+            (pkg / "scene.json").write_text(json.dumps(doc))
+            with pytest.raises(PackageError, match=words):
+                gl.render(pkg)

@@ -91,7 +91,18 @@ def _program(backend):
 
 
 def load(backend, package_dir, scene):
-    """Upload the solids, caps, maps and sprites of a clip-surface package."""
+    """Upload the solids, caps, maps and sprites of a clip-surface package; a malformed
+    parameter is a :class:`PackageError` naming it (nothing in the package is trusted)."""
+    try:
+        return _load(backend, package_dir, scene)
+    except PackageError:
+        raise
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise PackageError(f"{package_dir}/scene.json: clipsurface parameters: missing or "
+                           f"malformed field ({type(exc).__name__}: {exc})") from None
+
+
+def _load(backend, package_dir, scene):
     p = scene["parameters"]
     solids = backend._upload(package_dir, scene)
     out = {"solids": solids, "caps": [], "surfaces": [], "sprites": [], "textures": []}
