@@ -45,6 +45,8 @@ OLD_PROFILE = (
        for k in ("barycentric", "color", "normal")}
     | {("cutaway_shells", k) for k in ("barycentric", "color", "normal", "ghost")}
     | {("halos4d_figure1", k) for k in ("alpha", "color", "halo_class")}
+    # merged from x25 while this was written: its own decision region, on the masked profile
+    | {("vds_parity_building", "inside")}
 )
 
 
