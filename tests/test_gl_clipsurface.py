@@ -262,7 +262,7 @@ def test_malformed_clip_parameters_are_one_clear_error(gold, tmp_path):
                             (lambda p: p["cap_meshes"][0].update(solid=5), "out of range"),
                             (lambda p: p["sprites"][0].pop("sprite_count"), "sprite_count"),
                             (lambda p: p["surfaces"][0].update(wrap="spiral"), "spiral"),
-                            (lambda p: p["cap_meshes"][0].update(faces="../x"), "plain")):
+                            (lambda p: p["cap_meshes"][0].update(faces="../x"), "is missing")):
             doc = json.loads(json.dumps(good))
             edit(doc["parameters"])
             (pkg / "scene.json").write_text(json.dumps(doc))
