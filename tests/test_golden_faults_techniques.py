@@ -40,6 +40,9 @@ _G = ("barycentric", "color", "depth", "eye_depth", "normal")
 OLD_PROFILE = (
     {("clipsurface_building", k) for k in ("barycentric", "color", "normal")}
     | {("clipsurface_textured_caps", k) for k in ("barycentric", "color", "normal")}
+    # issue 26's clip-surface scenes (as the two above)
+    | {(s, k) for s in ("clipsurface_two_surfaces", "clipsurface_relief_plane")
+       for k in ("barycentric", "color", "normal")}
     | {("cutaway_shells", k) for k in ("barycentric", "color", "normal", "ghost")}
     | {("halos4d_figure1", k) for k in ("alpha", "color", "halo_class")}
     # merged from x25 while this was written: its own decision region, on the masked profile

@@ -25,6 +25,9 @@ SUPPORTED_TECHNIQUES = {
     "render": "the G-buffer in one pass with multiple render targets",
     "ldi": "classic depth peeling (one pass per layer)",
     "vds": "the volumetric parity test in a fragment shader over the sprite as a texture array",
+    # issue 26 item 1 (refraster/gl/clipsurface.py, shaders/clip.*)
+    "clipsurface": "2.5D clip surfaces: Listing 1's discard, caps as the exported displaced "
+                   "grid with the parity-test discard, shaded from the derived and user maps",
 }
 
 #: Planted faults, each a test-only ``#define`` (never set in normal use): name → (define,
@@ -41,4 +44,8 @@ FAULTS = {
                             "the volumetric depth sprite's rows read top-down"),
     "parity_wrong_end": ("FAULT_PARITY_WRONG_END", "the parity count run from the back layer "
                                                    "with the front-to-back early exit"),
+    # clip surfaces (issue 26 item 1; shaders/clip.frag)
+    "clip_sign_flipped": ("FAULT_CLIP_SIGN", "the clip test's sign flipped (g > 0 discarded)"),
+    "offset_t_flipped": ("FAULT_OFFSET_T_FLIPPED", "the offset map's t axis flipped (1 − t)"),
+    "cap_no_parity": ("FAULT_CAP_NO_PARITY", "caps drawn without the parity-test discard"),
 }

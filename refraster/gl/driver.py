@@ -162,6 +162,9 @@ class Backend:
                                    or p.get("rule", "parity") != "parity"):
             return ("vds: only the parity test over one sprite (test 'parity', one axis) is "
                     "implemented")
+        if technique == "clipsurface":
+            from .clipsurface import supports
+            return supports(scene)
         return None
 
     def render(self, package_dir, *, layers=None):
@@ -186,6 +189,10 @@ class Backend:
         reason = self.supports(scene)
         if reason is not None:
             raise Unsupported(reason)
+        if scene["technique"] == "clipsurface":            # issue 26 item 1
+            from . import clipsurface
+            return {"scene": scene, "clip": clipsurface.load(self, package_dir, scene),
+                    "draws": [], "textures": []}
         loaded = {"scene": scene, "draws": self._upload(package_dir, scene), "textures": []}
         if scene["technique"] == "vds":
             loaded["textures"] = self._sprite(package_dir, scene)
@@ -210,11 +217,17 @@ class Backend:
 
     def draw(self, loaded, *, layers=None):
         """Render a :meth:`load`-ed scene → ``{buffer name: array}`` (see :meth:`render`)."""
+        if "clip" in loaded:
+            from . import clipsurface
+            return clipsurface.draw(self, loaded["scene"], loaded["clip"])
         if loaded["scene"]["technique"] in ("render", "vds"):
             return self._gbuffer(loaded["scene"], loaded["draws"], loaded["textures"])
         return self._peel(loaded["scene"], loaded["draws"], layers)
 
     def unload(self, loaded):
+        if "clip" in loaded:
+            from . import clipsurface
+            clipsurface.release(loaded.pop("clip"))
         for tex in loaded.get("textures", ()):
             tex.release()
         loaded["textures"] = []

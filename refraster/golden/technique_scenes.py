@@ -60,12 +60,73 @@ def _clipsurface_building():
                        offset_map, wrap=surface["wrap"])
     fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs, **caps,
                         cull=state["cull"], precision=state["precision"])
+    backend_params, backend_maps = _clip_backend_export(draws, [clip], caps)
+    surfaces = [{**surface, "offset_map": "offset_map"}]
+    _name_derived_maps(surfaces, backend_maps)
     return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
                        buffers={**fb.arrays(), "cap_mask": fb.cap_mask},
                        ids=_clip_ids(draws, [clip], caps["subdivision"]),
-                       parameters={"surfaces": [{**surface, "offset_map": "offset_map"}], **caps},
-                       maps={"offset_map": offset_map}, geometry=False,
+                       parameters={"surfaces": surfaces, **caps, **backend_params},
+                       maps={"offset_map": offset_map, **backend_maps}, geometry=False,
                        may=_clip_decision_may(draws, camera, clip, fb.cap_mask))
+
+
+def _clip_backend_export(draws, surfaces, caps, occlusion_radius=None):
+    """What a backend needs to redraw a clip-surface scene (issue 25 item 2;
+    docs/golden-schema.md, "Clip surfaces: what the package carries"): per solid its volumetric
+    depth sprite (as the vds scene exports it), per solid and surface the cap mesh exactly as
+    ``render_clipped`` draws it (the displaced grid culled by the sprite: its face numbering
+    *is* the caps' ``prim_id``), and per surface the derived normal and occlusion maps the caps
+    are shaded with. Returns ``(parameters, maps)`` to add to the scene's."""
+    from ..capping import cap_mesh
+    from ..clipsurface.capping import cull_cap
+    from ..ldi import VolumetricDepthSprite
+    from ..mesh import Mesh, as_mesh, bounds
+    params, maps = {"sprites": [], "cap_meshes": [], "occlusion_radius": occlusion_radius,
+                    "evaluation_space": caps.get("space", "world")}, {}
+    m_count, k_count = len(draws), len(surfaces)
+    for m, d in enumerate(draws):
+        mesh = as_mesh(d.mesh)
+        if not np.array_equal(np.asarray(d.model), np.eye(4)):
+            raise AssertionError("clip-surface scenes draw their solids with identity models")
+        sprite = VolumetricDepthSprite.from_mesh(mesh, resolution=caps["vds_resolution"])
+        ldi = sprite._ldis[0]
+        depth = np.where(ldi.sign != 0, ldi.depth, np.float32(1.0)).astype(np.float32)
+        names = [f"sprite{m}_depth_{j}" for j in range(len(depth))]
+        for j, name in enumerate(names):
+            maps[name] = np.ascontiguousarray(depth[j])
+        maps[f"sprite{m}_count"] = np.asarray(ldi.count, np.int32)
+        params["sprites"].append(dict(
+            test="parity", resolution=int(caps["vds_resolution"]), axis=ldi.axis, margin=2,
+            sprite_matrix=np.asarray(ldi.matrix, np.float64).tolist(), layers=len(depth),
+            sprite_depth=names, sprite_count=f"sprite{m}_count"))
+        box = bounds(mesh.vertices)
+        for k, s in enumerate(surfaces):
+            cap = cap_mesh(s, box, subdivision=caps["subdivision"]) if s.enabled else None
+            cap = Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64)) if cap is None \
+                else cull_cap(cap, sprite)
+            vname, fname = f"cap{m}_{k}_vertices", f"cap{m}_{k}_faces"
+            maps[vname] = np.asarray(cap.vertices, np.float64)
+            maps[fname] = np.asarray(cap.faces, np.int32)
+            params["cap_meshes"].append(dict(solid=m, surface=k, object_id=m_count + m * k_count
+                                             + k, vertices=vname, faces=fname,
+                                             n_vertices=int(cap.n_vertices),
+                                             n_faces=int(cap.n_faces)))
+    for k, s in enumerate(surfaces):
+        n = s.normal_map()
+        for i, ch in enumerate("xyz"):
+            maps[f"surface{k}_normal_{ch}"] = np.ascontiguousarray(n[..., i], np.float64)
+        maps[f"surface{k}_occlusion"] = np.ascontiguousarray(
+            s.occlusion_map(radius=occlusion_radius), np.float64)
+    return params, maps
+
+
+def _name_derived_maps(surfaces, maps):
+    """Name each surface's derived maps (:func:`_clip_backend_export`) in its entry."""
+    for k, s in enumerate(surfaces):
+        s["normal_map"] = [f"surface{k}_normal_{ch}" for ch in "xyz"]
+        s["occlusion_map"] = f"surface{k}_occlusion"
+        assert all(name in maps for name in s["normal_map"] + [s["occlusion_map"]])
 
 
 def _clip_ids(draws, surfaces, subdivision):
@@ -292,12 +353,13 @@ def _clipsurface_textured_caps():
         names[key] = [f"cap_{key}_{ch}" for ch in chans]
         for i, name in enumerate(names[key]):
             maps[name] = np.ascontiguousarray(arr[..., i])
+    backend_params, backend_maps = _clip_backend_export(draws, [clip], caps)
+    surfaces = [{**surface, "offset_map": "offset_map", "textures": names}]
+    _name_derived_maps(surfaces, backend_maps)
     return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
                        buffers={**fb.arrays(), "cap_mask": fb.cap_mask},
-                       parameters={"surfaces": [{**surface, "offset_map": "offset_map",
-                                                 "textures": names}],
-                                   **caps},
-                       maps=maps, geometry=False,
+                       parameters={"surfaces": surfaces, **caps, **backend_params},
+                       maps={**maps, **backend_maps}, geometry=False,
                        ids=_clip_ids(draws, [clip], caps.get("subdivision", 1)),
                        may=_clip_decision_may(draws, camera, clip, fb.cap_mask))
 
@@ -380,3 +442,108 @@ def _vds_parity_building():
     return GoldenScene(technique="vds", camera=camera, draws=draws,
                        buffers={**fb.arrays(), "inside": inside}, parameters=params,
                        maps=maps, may=may.reshape(camera.height, camera.width), may_radius=0)
+
+
+# --- clip-surface scenes for options that had none (issue 26 item 5) ------------------------
+
+def _clip_decision_may_multi(draws, camera, clips, cap_mask):
+    """:func:`_clip_decision_may` for K surfaces: a solid fragment is kept iff every enabled
+    surface has ``g_k ≥ 0``, so its decision distance in pixels is ``min_k g_k / (|∇g_k|·s)``
+    (each term as the one-surface function; for K = 1 the two are the same)."""
+    from .. import draw, resolve
+    from ..camera import is_perspective
+    from ..clipsurface import clip_function
+    from ..tolerance import decision_may, edge_epsilon
+    from .allowance import dilate
+    frags = draw([d.mesh for d in draws], **camera.kwargs, model=[d.model for d in draws])
+    pos = frags.world_position()
+    proj = camera.proj
+    if is_perspective(proj):
+        pixel = -frags.eye_position()[:, 2] * 2.0 / (proj[1, 1] * camera.height)
+    else:
+        pixel = np.full(len(frags), 2.0 / (proj[1, 1] * camera.height))
+    h = 1e-4 * max(1.0, float(np.abs(pos).max()))
+    dist = np.full(len(frags), np.inf)
+    for clip in clips:
+        if not clip.enabled:
+            continue
+        g = clip_function(pos, clip)
+        grad = np.stack([(clip_function(pos + h * e, clip) - clip_function(pos - h * e, clip))
+                         / (2 * h) for e in np.eye(3)], axis=1)
+        dist = np.minimum(dist, g / np.maximum(np.linalg.norm(grad, axis=1) * pixel, 1e-12))
+    eps = edge_epsilon(camera.width, camera.height)
+    res = resolve(frags, keep=dist >= 0)
+    return decision_may(frags, res, dist, 1.5 * eps) | dilate(cap_mask, 1)
+
+
+def _clip_scene(draws, camera, surfaces, clips, maps, caps, extra=None):
+    """A clip-surface GoldenScene rendered by ``render_clipped`` with everything a backend
+    needs exported (:func:`_clip_backend_export`)."""
+    from ..clipsurface import render_clipped
+    state = raster_state({})
+    fb = render_clipped([d.mesh for d in draws], clips, **camera.kwargs, **caps,
+                        cull=state["cull"], precision=state["precision"])
+    backend_params, backend_maps = _clip_backend_export(draws, clips, caps)
+    _name_derived_maps(surfaces, backend_maps)
+    return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
+                       buffers={**fb.arrays(), "cap_mask": fb.cap_mask},
+                       ids=_clip_ids(draws, clips, caps["subdivision"]),
+                       parameters={"surfaces": surfaces, **caps, **backend_params,
+                                   **(extra or {})},
+                       maps={**maps, **backend_maps}, geometry=False,
+                       may=_clip_decision_may_multi(draws, camera, clips, fb.cap_mask))
+
+
+@register_scene("clipsurface_two_surfaces", technique="clipsurface",
+                description="Building cut by two 2.5D clip surfaces at once (Trapp & Döllner "
+                            "Sec. 4: several surfaces, each with its own offset map and wrap "
+                            "mode): a Perlin cut of the top (N = −z, repeat) and a sinusoidal "
+                            "cut of the side (N = −x, mirrored_repeat); each surface's caps are "
+                            "clipped by the other surface.")
+def _clipsurface_two_surfaces():
+    from ..clipsurface import ClipSurface
+    from ..offsetmaps import perlin_noise, sinusoid
+    from ..scenes import solid
+    draws = prepare_draws([Draw("building", solid("building"))])
+    camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
+    top = perlin_noise((48, 48), seed=3)
+    side = sinusoid((32, 32), periods=(3, 2))
+    specs = [dict(origin=[0.0, 0.0, 4.0], u=[0.0, 6.25, 0.0], v=[10.0, 0.0, 0.0],
+                  scale=[1.0, 1.0, 0.8], wrap="repeat", enabled=True),
+             dict(origin=[7.0, 0.0, 0.0], u=[0.0, 0.0, 7.0], v=[0.0, 6.25, 0.0],
+                  scale=[1.5, 1.0, 1.0], wrap="mirrored_repeat", enabled=True)]
+    maps = {"offset_map_top": top, "offset_map_side": side}
+    clips = [ClipSurface(s["origin"], s["u"], s["v"], s["scale"], om, wrap=s["wrap"])
+             for s, om in zip(specs, (top, side))]
+    surfaces = [{**specs[0], "offset_map": "offset_map_top"},
+                {**specs[1], "offset_map": "offset_map_side"}]
+    caps = dict(caps=True, cap_style="diffuse", cap_mode="mesh", cap_color=[0.8, 0.3, 0.25],
+                subdivision=1, vds_resolution=512, space="world")
+    return _clip_scene(draws, camera, surfaces, clips, maps, caps)
+
+
+@register_scene("clipsurface_relief_plane", technique="clipsurface",
+                description="Cube cut by a relief clip plane (Trapp & Döllner, RCP poster; "
+                            "MATH.md D8): RCP = (N, P, OM, s) discards N·(X − P) − s·h > 0; the "
+                            "package gives it as its equivalent clip surface (O = P, "
+                            "N_CS = −N, Sz = s, |U| = |V| = extent) beside the RCP's own "
+                            "parameters; offset map wrapped with clamp (to edge).")
+def _clipsurface_relief_plane():
+    from ..clipsurface import ReliefClipPlane
+    from ..offsetmaps import perlin_noise
+    from ..scenes import solid
+    draws = prepare_draws([Draw("cube", solid("cube"))])
+    camera = _framed([d.mesh for d in draws], 160, 120, (0.9, 1.1, 1.5))
+    om = perlin_noise((32, 32), cells=4, seed=5)
+    rcp = dict(normal=[0.6, 0.5, 0.8], point=[0.05, 0.05, 0.1], height_scale=0.2,
+               u=[1.0, 0.0, 0.0], extent=1.2, wrap="clamp_to_edge")
+    plane = ReliefClipPlane(rcp["normal"], rcp["point"], om, rcp["height_scale"], rcp["u"],
+                            extent=rcp["extent"], wrap=rcp["wrap"])
+    cs = plane.clip_surface
+    surfaces = [dict(origin=cs.origin.tolist(), u=cs.u.tolist(), v=cs.v.tolist(),
+                     scale=[float(x) for x in cs.scale], wrap=cs.wrap, enabled=True,
+                     offset_map="offset_map")]
+    caps = dict(caps=True, cap_style="diffuse", cap_mode="mesh", cap_color=[0.8, 0.3, 0.25],
+                subdivision=1, vds_resolution=256, space="world")
+    return _clip_scene(draws, camera, surfaces, [cs], {"offset_map": om}, caps,
+                       extra={"relief_clip_plane": rcp})

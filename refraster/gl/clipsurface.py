@@ -1,0 +1,297 @@
+"""2.5D clip surfaces with caps on the GL path (issue 26, item 1; Trapp & Döllner).
+
+Reads only what the scene package carries (``docs/golden-schema.md``, "Clip surfaces: what
+the package carries"): the solids' PLYs, each surface's offset map and derived normal and
+occlusion maps (and user textures), per solid its volumetric depth sprite, per solid and surface
+the exported cap mesh. Draws the G-buffer of ``shaders/clip.*`` in two passes into one set of
+targets: the solids (Listing 1's discard), then the caps with ``GL_LESS`` (the parity-test
+discard, shading from the maps). ``cap_mask`` is ``object_id ≥ M``.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+
+import numpy as np
+
+from .package import PackageError, matrix, read_map
+
+__all__ = ["supports", "load", "draw", "release", "MAX_SURFACES"]
+
+#: Surfaces one scene may have (``clip.frag``'s ``MAX_SURFACES``).
+MAX_SURFACES = 2
+
+_GL_TEXTURE_2D = 0x0DE1
+_GL_TEXTURE_WRAP_S, _GL_TEXTURE_WRAP_T = 0x2802, 0x2803
+_WRAP = {"repeat": 0x2901, "clamp": 0x812F, "clamp_to_edge": 0x812F,
+         "mirrored_repeat": 0x8370}
+
+
+def supports(scene):
+    """``None`` if this module can draw the clip-surface scene, else the reason."""
+    p = scene.get("parameters", {})
+    surfaces = p.get("surfaces") or []
+    if p.get("cap_mode", "mesh") != "mesh":
+        return f"clipsurface cap_mode {p.get('cap_mode')!r}: only 'mesh' (the exported grid)"
+    if p.get("space", "world") != "world" or p.get("evaluation_space", "world") != "world":
+        return "clipsurface: only the world-space clip test (space 'world') is implemented"
+    if p.get("caps") and p.get("cap_style", "diffuse") != "diffuse":
+        return f"clipsurface cap_style {p.get('cap_style')!r}: only 'diffuse'"
+    if not 1 <= len(surfaces) <= MAX_SURFACES:
+        return f"clipsurface: 1 to {MAX_SURFACES} surfaces, the scene has {len(surfaces)}"
+    if p.get("caps") and ("cap_meshes" not in p or "sprites" not in p
+                          or any("normal_map" not in s for s in surfaces)):
+        return ("clipsurface: the package lacks the cap meshes, sprites or derived maps "
+                "(golden written before issue 25 item 2)")
+    return None
+
+
+def _tex_parameter():
+    path = ctypes.util.find_library("EGL") or "libEGL.so.1"
+    egl = ctypes.CDLL(path)
+    egl.eglGetProcAddress.restype = ctypes.c_void_p
+    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+    u, i = ctypes.c_uint, ctypes.c_int
+    bind = ctypes.CFUNCTYPE(None, u, u)(egl.eglGetProcAddress(b"glBindTexture"))
+    param = ctypes.CFUNCTYPE(None, u, u, i)(egl.eglGetProcAddress(b"glTexParameteri"))
+    return bind, param
+
+
+def _texture(backend, arrays, wrap):
+    """One GL_LINEAR float texture from (H, W) arrays (its channels), row 0 at t = 0 (no
+    flip), with the wrap mode set by glTexParameteri (moderngl knows no mirrored repeat)."""
+    if wrap not in _WRAP:
+        raise PackageError(f"wrap {wrap!r} is not one of {sorted(_WRAP)}")
+    h, w = arrays[0].shape
+    if any(a.shape != (h, w) for a in arrays):
+        raise PackageError("the channels of a map differ in shape")
+    data = np.ascontiguousarray(np.stack(arrays, -1), np.float32)
+    tex = backend.ctx.texture((w, h), len(arrays), data.tobytes(), dtype="f4")
+    tex.filter = (backend.mgl.LINEAR, backend.mgl.LINEAR)
+    if not hasattr(backend, "_clip_texparam"):
+        backend._clip_texparam = _tex_parameter()
+    bind, param = backend._clip_texparam
+    bind(_GL_TEXTURE_2D, tex.glo)
+    param(_GL_TEXTURE_2D, _GL_TEXTURE_WRAP_S, _WRAP[wrap])
+    param(_GL_TEXTURE_2D, _GL_TEXTURE_WRAP_T, _WRAP[wrap])
+    return tex
+
+
+def _program(backend):
+    if getattr(backend, "_clip_prog", None) is None:
+        from . import FAULTS
+        from .driver import shader_source
+        defines = [FAULTS[f][0] for f in backend.faults]
+        backend._clip_prog = backend.ctx.program(
+            vertex_shader=shader_source("clip.vert", defines),
+            geometry_shader=shader_source("clip.geom", defines),
+            fragment_shader=shader_source("clip.frag", defines))
+    return backend._clip_prog
+
+
+def load(backend, package_dir, scene):
+    """Upload the solids, caps, maps and sprites of a clip-surface package; a malformed
+    parameter is a :class:`PackageError` naming it (nothing in the package is trusted)."""
+    try:
+        return _load(backend, package_dir, scene)
+    except PackageError:
+        raise
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise PackageError(f"{package_dir}/scene.json: clipsurface parameters: missing or "
+                           f"malformed field ({type(exc).__name__}: {exc})") from None
+
+
+def _load(backend, package_dir, scene):
+    p = scene["parameters"]
+    solids = backend._upload(package_dir, scene)
+    out = {"solids": solids, "caps": [], "surfaces": [], "sprites": [], "textures": []}
+    for k, s in enumerate(p["surfaces"]):
+        wrap = s.get("wrap", "repeat")
+        entry = {"enabled": bool(s.get("enabled", True)), "s": s}
+        om = read_map(package_dir, scene, s["offset_map"])
+        entry["offset"] = _texture(backend, [om], wrap)
+        if p.get("caps"):
+            maps = [read_map(package_dir, scene, n) for n in s["normal_map"]]
+            maps.append(read_map(package_dir, scene, s["occlusion_map"]))
+            entry["shading"] = _texture(backend, maps, wrap)
+            for key in ("diffuse", "normal", "light"):
+                names = (s.get("textures") or {}).get(key)
+                if names:
+                    entry[key] = _texture(backend, [read_map(package_dir, scene, n)
+                                                    for n in names], wrap)
+        out["textures"] += [t for key, t in entry.items()
+                            if key in ("offset", "shading", "diffuse", "normal", "light")]
+        out["surfaces"].append(entry)
+    if not p.get("caps"):
+        return out
+    for m, sp in enumerate(p["sprites"]):
+        layers = [read_map(package_dir, scene, n) for n in sp["sprite_depth"]]
+        count = read_map(package_dir, scene, sp["sprite_count"])
+        h, w = count.shape
+        if not layers or any(a.shape != (h, w) for a in layers):
+            raise PackageError(f"sprites[{m}]: the maps must all be (h, w) = {(h, w)}")
+        depth = np.ascontiguousarray(np.stack([a[::-1] for a in layers]), np.float32)
+        arr = backend.ctx.texture_array((w, h, len(layers)), 1, depth.tobytes(), dtype="f4")
+        cnt = backend.ctx.texture((w, h), 1,
+                                  np.ascontiguousarray(count[::-1], np.int32).tobytes(),
+                                  dtype="i4")
+        for tex in (arr, cnt):
+            tex.filter = (backend.mgl.NEAREST, backend.mgl.NEAREST)
+        out["sprites"].append((arr, cnt, matrix(sp["sprite_matrix"],
+                                                f"sprites[{m}].sprite_matrix")))
+        out["textures"] += [arr, cnt]
+    view = matrix(scene["camera"]["view"], "camera.view")
+    proj = matrix(scene["camera"]["projection"], "camera.projection")
+    for i, c in enumerate(p["cap_meshes"]):
+        v = np.asarray(read_map(package_dir, scene, c["vertices"]), np.float64)
+        f = np.asarray(read_map(package_dir, scene, c["faces"]))
+        if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 \
+                or (len(f) and (f.min() < 0 or f.max() >= len(v))) or not np.all(np.isfinite(v)):
+            raise PackageError(f"cap_meshes[{i}]: vertices (V, 3) finite and faces (F, 3) in "
+                               "range")
+        if not (0 <= c["solid"] < len(out["sprites"]) and 0 <= c["surface"] < len(out["surfaces"])):
+            raise PackageError(f"cap_meshes[{i}]: solid or surface out of range")
+        draw = {"object_id": int(c["object_id"]), "n_faces": len(f), "solid": c["solid"],
+                "surface": c["surface"], "mvp": (proj @ view).astype(np.float32),
+                "mv": view.astype(np.float32), "model": np.eye(4),
+                "nmat": np.linalg.inv(view[:3, :3]).T.astype(np.float32), "vaos": {},
+                "release": []}
+        if len(f):
+            data = np.concatenate([v.astype(np.float32), np.zeros((len(v), 3), np.float32)], 1)
+            draw["vbo"] = backend.ctx.buffer(np.ascontiguousarray(data).tobytes())
+            draw["ibo"] = backend.ctx.buffer(np.ascontiguousarray(f, np.int32).tobytes())
+            draw["release"] = [draw["vbo"], draw["ibo"]]
+        out["caps"].append(draw)
+    return out
+
+
+def release(loaded):
+    for tex in loaded.get("textures", ()):
+        tex.release()
+    for d in loaded.get("solids", []) + loaded.get("caps", []):
+        for obj in d["release"]:
+            obj.release()
+    loaded.clear()
+
+
+def draw(backend, scene, loaded):
+    """The clip-surface G-buffer → ``{buffer: array}`` as the golden stores it."""
+    ctx, mgl = backend.ctx, backend.mgl
+    prog = _program(backend)
+    p = scene["parameters"]
+    size = (scene["viewport"]["width"], scene["viewport"]["height"])
+    raster, shading = scene["raster"], scene["shading"]
+    view = matrix(scene["camera"]["view"], "camera.view")
+    set_, write = backend._set, backend._write
+    targets = [ctx.texture(size, 1, dtype="f4"), ctx.texture(size, 1, dtype="f4"),
+               ctx.texture(size, 4, dtype="f4"), ctx.texture(size, 4, dtype="f4"),
+               ctx.texture(size, 4, dtype="f4"), ctx.texture(size, 4, dtype="i4")]
+    depth = backend._depth_attachment(size)
+    fbo = ctx.framebuffer(color_attachments=targets, depth_attachment=depth)
+    surfaces = loaded["surfaces"]
+    try:
+        fbo.use()
+        ctx.viewport = (0, 0, *size)
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=float(raster["clear_depth"]))
+        backend._state(scene)
+        set_(prog, "u_light", tuple(float(shading[k]) for k in
+                                    ("ambient", "diffuse", "specular", "shininess")))
+        set_(prog, "u_smooth", raster["normals"] == "smooth")
+        set_(prog, "u_n_surfaces", len(surfaces))
+        O, Uh, Vh, N, lens, S, enabled = [], [], [], [], [], [], []
+        for e in surfaces:
+            s = e["s"]
+            o, u, v = (np.asarray(s[key], np.float64) for key in ("origin", "u", "v"))
+            lu, lv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
+            uh, vh = u / lu, v / lv
+            O.append(tuple(o))
+            Uh.append(tuple(uh))
+            Vh.append(tuple(vh))
+            N.append(tuple(np.cross(uh, vh)))
+            lens.append((lu, lv))
+            S.append(tuple(float(x) for x in s["scale"]))
+            enabled.append(e["enabled"])
+        pad = MAX_SURFACES - len(surfaces)
+        for name, vals, zero in (("u_O", O, (0.0,) * 3), ("u_Uh", Uh, (0.0,) * 3),
+                                 ("u_Vh", Vh, (0.0,) * 3), ("u_N", N, (0.0,) * 3),
+                                 ("u_len", lens, (1.0, 1.0)), ("u_S", S, (0.0,) * 3)):
+            if name in prog:
+                prog[name].value = [tuple(float(x) for x in t) for t in vals] + [zero] * pad
+        if "u_enabled" in prog:
+            prog["u_enabled"].value = enabled + [False] * pad
+        for k, e in enumerate(surfaces):
+            e["offset"].use(location=k)
+            set_(prog, f"u_offset{k}", k)
+        for k in range(len(surfaces), MAX_SURFACES):
+            set_(prog, f"u_offset{k}", 0)
+        # units: 0-1 offset maps, 2 sprite layers, 3 counts, 4 shading, 5-7 user maps
+        for name, unit in (("u_sprite_depth", 2), ("u_sprite_count", 3), ("u_cap_shading", 4),
+                           ("u_cap_diffuse", 5), ("u_cap_normal", 6), ("u_cap_lightmap", 7)):
+            set_(prog, name, unit)
+        palette = shading["palette"]
+        set_(prog, "u_cap", False)
+        for d in loaded["solids"]:
+            if not d["n_faces"]:
+                continue
+            write(prog, "u_mvp", d["mvp"])
+            write(prog, "u_mv", d["mv"])
+            write(prog, "u_model", d["model"].astype(np.float32))
+            write(prog, "u_nmat", d["nmat"])
+            set_(prog, "u_object", int(d["object_id"]))
+            set_(prog, "u_base", tuple(float(c) for c in palette[d["object_id"] % len(palette)]))
+            backend._vao(d, prog).render(mgl.TRIANGLES)
+        if p.get("caps"):
+            set_(prog, "u_cap", True)
+            set_(prog, "u_smooth", False)
+            write(prog, "u_view_nmat", np.linalg.inv(view[:3, :3]).T.astype(np.float32))
+            set_(prog, "u_cap_color", tuple(float(c) for c in p["cap_color"]))
+            for d in loaded["caps"]:
+                if not d["n_faces"]:
+                    continue
+                arr, cnt, tmat = loaded["sprites"][d["solid"]]
+                arr.use(location=2)
+                cnt.use(location=3)
+                e = surfaces[d["surface"]]
+                e["shading"].use(location=4)
+                for key, unit, flag in (("diffuse", 5, "u_has_diffuse"),
+                                        ("normal", 6, "u_has_normal"),
+                                        ("light", 7, "u_has_lightmap")):
+                    if key in e:
+                        e[key].use(location=unit)
+                    set_(prog, flag, key in e)
+                write(prog, "u_tmat", tmat.astype(np.float32))
+                set_(prog, "u_cap_k", int(d["surface"]))
+                write(prog, "u_mvp", d["mvp"])
+                write(prog, "u_mv", d["mv"])
+                write(prog, "u_model", np.eye(4, dtype=np.float32))
+                write(prog, "u_nmat", d["nmat"])
+                set_(prog, "u_object", int(d["object_id"]))
+                backend._vao(d, prog).render(mgl.TRIANGLES)
+        ctx.finish()
+        win, eye = (backend._read(t, "<f4", 1, size)[..., 0] for t in targets[:2])
+        normal, bary, color = (backend._read(t, "<f4", 4, size)[..., :3] for t in targets[2:5])
+        ids = backend._read(targets[5], "<i4", 4, size)
+    finally:
+        backend._parking.use()
+        for obj in (fbo, depth, *targets):
+            obj.release()
+    covered = ids[..., 3] == 1
+    c3 = covered[..., None]
+    bg = np.asarray(shading["background"], np.float32)
+    object_id = np.where(covered, ids[..., 1], -1).astype(np.int32)
+    return {
+        "depth": np.where(covered, win, np.float32(raster["clear_depth"])).astype(np.float32),
+        "eye_depth": np.where(covered, eye, np.float32(np.inf)).astype(np.float32),
+        "normal": np.where(c3, normal, 0).astype(np.float32),
+        "prim_id": np.where(covered, ids[..., 0], -1).astype(np.int32),
+        "object_id": object_id,
+        "front_facing": covered & (ids[..., 2] == 1),
+        "barycentric": np.where(c3, bary, 0).astype(np.float32),
+        "color": np.where(c3, color, bg).astype(np.float32),
+        "cap_mask": object_id >= len(loaded["solids"]),
+    }
+
+
+#: The planted faults of this module (test-only ``#define``s of ``shaders/clip.frag``).
+FAULT_NAMES = ("clip_sign_flipped", "offset_t_flipped", "cap_no_parity")
