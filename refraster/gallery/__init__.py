@@ -10,7 +10,7 @@ from __future__ import annotations
 import importlib
 from dataclasses import dataclass
 
-__all__ = ["Item", "SECTIONS", "section_modules"]
+__all__ = ["Item", "SECTIONS", "WORKER_GROUPS", "PAPERS", "PAGE_ORDER", "section_modules"]
 
 
 @dataclass(frozen=True)
@@ -31,6 +31,40 @@ SECTIONS = [
     ("cutaway", "Adaptive cutaways"),
     ("halos4d", "Volumetric halos for surfaces in 4D"),
 ]
+
+#: The page shows the papers first, the plain G-buffer last.
+PAGE_ORDER = ["clipsurface", "ldi", "edges", "cutaway", "halos4d", "basic"]
+
+#: Per section: the paper it reproduces (shown under the section's title and in the table of
+#: contents) and its headline picture, shown first.
+PAPERS = {
+    "clipsurface": dict(
+        paper="Trapp & Döllner, 2.5D Clip-Surfaces for Technical Visualization; "
+              "Relief Clipping Planes for Real-Time Rendering (poster)",
+        headline="clipsurface_crank_hatched.png"),
+    "ldi": dict(
+        paper="Trapp & Döllner, 2.5D Clip-Surfaces for Technical Visualization, Sec. 5.2–5.4 "
+              "(the layered depth images and the volumetric parity test behind the caps)",
+        headline="ldi/crank_slice.png"),
+    "edges": dict(
+        paper="Nienhaus & Döllner, Edge-Enhancement – An Algorithm for Real-Time "
+              "Non-Photorealistic Rendering, Journal of WSCG 11(1), 2003",
+        headline="edges/edges_crank_gooch.png"),
+    "cutaway": dict(
+        paper="Burns & Finkelstein, Adaptive Cutaways for Comprehensible Rendering of Polygonal "
+              "Scenes, ACM Trans. Graph. 27(5), 2008",
+        headline="cutaway_galleon.png"),
+    "halos4d": dict(
+        paper="Wang, Yan, Fu, Hanson & Heng, Interactive Exploration of 4D Geometry with "
+              "Volumetric Halos, Pacific Graphics 2013",
+        headline="halos4d_fig5ad.png"),
+    "basic": dict(paper="", headline=""),
+}
+
+#: Sections rendered together in one worker process by ``refraster gallery --jobs 2``: the
+#: sections that share kernels (the pipeline, depth peeling, edge maps) stay in one process, so
+#: that a first run compiles each kernel once; the other group's own kernels compile meanwhile.
+WORKER_GROUPS = [("basic", "ldi", "clipsurface", "edges"), ("halos4d", "cutaway")]
 
 
 def section_modules():
