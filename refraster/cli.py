@@ -280,14 +280,14 @@ def _png_size(path):
 
 _CSS = """
 body { font-family: sans-serif; margin: 0; background: #fafafa; color: #222; }
-#toc { position: fixed; top: 0; left: 0; bottom: 0; width: 19em; overflow-y: auto;
+#toc { position: fixed; top: 0; left: 0; bottom: 0; width: 300px; overflow-y: auto;
        box-sizing: border-box; padding: 1em; background: #f0f0f0; border-right: 1px solid #ddd;
        font-size: .85em; }
 #toc h2 { font-size: 1.1em; margin: 0 0 .5em; }
 #toc ol { padding-left: 1.2em; margin: 0; } #toc li { margin-bottom: .6em; }
 #toc .figs { display: block; margin-top: .2em; line-height: 1.5; }
 #toc .figs a { margin-right: .5em; white-space: nowrap; }
-main { margin-left: 19em; padding: 1em 1.5em; }
+main { margin-left: 300px; padding: 1em 1.5em; }
 h1 { font-size: 1.5em; margin: 0 0 .3em; } h2 { font-size: 1.2em; margin: 1.6em 0 .2em; }
 .paper { font-style: italic; margin: 0 0 .8em; font-size: .9em; }
 .grid { display: flex; flex-wrap: wrap; gap: 1em; align-items: flex-start; }
@@ -432,8 +432,9 @@ def _jobs(args):
 
 
 def _worker_groups(modules, jobs):
-    """The sections split into at most ``jobs`` groups for worker processes, or None when they
-    must run in this process (one job, or sections that are not the gallery's own modules)."""
+    """The sections split into groups for worker processes (:data:`refraster.gallery.
+    WORKER_GROUPS`), or None when they must run in this process (one job, or sections that are
+    not the gallery's own modules)."""
     from .gallery import SECTIONS, WORKER_GROUPS
     names = [m.__name__.rsplit(".", 1)[-1] for _, m in modules]
     known = {name for name, _ in SECTIONS}
@@ -443,62 +444,83 @@ def _worker_groups(modules, jobs):
         return None
     groups = [[n for n in g if n in names] for g in WORKER_GROUPS]
     rest = [n for n in names if not any(n in g for g in groups)]
-    groups = [g for g in groups if g]
-    if rest:
-        groups.append(rest)
-    while len(groups) > jobs:   # fewer workers than groups: merge the two smallest
-        groups.sort(key=len)
-        groups[:2] = [groups[0] + groups[1]]
-    return groups
+    return [g for g in groups if g] + ([rest] if rest else [])
 
 
-def _render_in_workers(args, out_dir, groups):
+def _render_in_workers(args, out_dir, groups, jobs):
     """``{section name: (items, error)}`` from worker processes of one thread each
-    (:mod:`refraster.gallery.worker`); kernels they compile go to the progress line."""
+    (:mod:`refraster.gallery.worker`), at most ``jobs`` at a time; kernels they compile go to
+    the progress line. On a first run the pipeline's kernels are compiled here first, while a
+    worker renders the sections that do not need them; the other workers then load them from
+    the cache instead of compiling them side by side."""
     import json
     import threading
 
-    from .gallery import Item
+    from .gallery import WITHOUT_PIPELINE, Item
     from .gallery.worker import COMPILED
+    from .warmup import KERNEL_MODULES, STREAM_KERNELS, cache_state, warm_core
     env = dict(os.environ, NUMBA_NUM_THREADS="1")
     progress = getattr(args, "compile_progress", None)
-    procs = []
-    for group in groups:
-        cmd = [sys.executable, "-m", "refraster.gallery.worker", str(out_dir), *group]
-        if args.quick:
-            cmd.append("--quick")
-        procs.append(subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                      stdin=subprocess.DEVNULL, env=env, text=True))
-    errors = {}
+    results, errors, running = {}, {}, []
 
-    def read_stderr(k, proc):
-        tail = []
-        for line in proc.stderr:
-            if line.startswith(COMPILED):
-                if progress is not None:
-                    progress.add(line[len(COMPILED):].strip())
-            elif line.strip():
-                tail = (tail + [line.strip()])[-5:]
-        errors[k] = tail
+    def read(proc, group):
+        def stderr():
+            tail = []
+            for line in proc.stderr:
+                if line.startswith(COMPILED):
+                    if progress is not None:
+                        progress.add(line[len(COMPILED):].strip())
+                elif line.strip():
+                    tail = (tail + [line.strip()])[-5:]
+            errors[id(proc)] = tail
 
-    threads = [threading.Thread(target=read_stderr, args=(k, p), daemon=True)
-               for k, p in enumerate(procs)]
-    for t in threads:
-        t.start()
-    results = {}
-    try:
-        for k, proc in enumerate(procs):
+        def stdout():
             for line in proc.stdout:
                 r = json.loads(line)
                 results[r["section"]] = ([Item(*i) for i in r["items"]], r["error"])
-            proc.wait()
-            threads[k].join()
-            for name in groups[k]:
+        threads = [threading.Thread(target=f, daemon=True) for f in (stderr, stdout)]
+        for t in threads:
+            t.start()
+        return threads
+
+    def start(group):
+        cmd = [sys.executable, "-m", "refraster.gallery.worker", str(out_dir), *group]
+        if args.quick:
+            cmd.append("--quick")
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                stdin=subprocess.DEVNULL, env=env, text=True)
+        running.append((proc, group, read(proc, group)))
+
+    def reap():
+        for entry in list(running):
+            proc, group, threads = entry
+            if proc.poll() is None:
+                continue
+            for t in threads:
+                t.join()
+            running.remove(entry)
+            for name in group:
                 if name not in results:   # the worker died before it answered
-                    why = "; ".join(errors.get(k) or [f"exit status {proc.returncode}"])
+                    why = "; ".join(errors.get(id(proc)) or [f"exit status {proc.returncode}"])
                     results[name] = ([], f"worker process failed: {why}")
+
+    queue = list(groups)
+    cached, total = cache_state(KERNEL_MODULES, only=STREAM_KERNELS)
+    core_ready = cached == total
+    try:
+        if not core_ready:
+            for group in [g for g in queue if set(g) <= WITHOUT_PIPELINE][:max(jobs - 1, 1)]:
+                queue.remove(group)
+                start(group)
+            warm_core(stream=True)   # in this process: counted by the progress line
+            core_ready = True
+        while queue or running:
+            reap()
+            while queue and len(running) < jobs:
+                start(queue.pop(0))
+            time.sleep(0.05)
     finally:
-        for proc in procs:
+        for proc, _, _ in running:
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
@@ -530,7 +552,7 @@ def _cmd_gallery(args):
     done = {}
     if groups is not None:
         out_dir.mkdir(parents=True, exist_ok=True)
-        done = _render_in_workers(args, out_dir, groups)
+        done = _render_in_workers(args, out_dir, groups, jobs)
     with _progress(args, total=len(modules), desc="gallery", unit="section") as bar:
         for title, module in modules:
             name = module.__name__.rsplit(".", 1)[-1]
@@ -682,10 +704,12 @@ def _compile_progress(args):
         command = "golden generate"
     if command not in ("render", "gallery", "golden generate", "warmup"):
         return contextlib.nullcontext()
-    from .warmup import CORE_MODULES, KERNEL_MODULES, RENDER_KERNELS, CompileProgress
+    from .warmup import (CORE_MODULES, GALLERY_SKIPS, KERNEL_MODULES, RENDER_KERNELS,
+                         CompileProgress)
     if command == "render":
         return CompileProgress(CORE_MODULES, only=RENDER_KERNELS, quiet=args.quiet)
-    return CompileProgress(KERNEL_MODULES, quiet=args.quiet)
+    return CompileProgress(KERNEL_MODULES, skip=GALLERY_SKIPS if command == "gallery" else (),
+                           quiet=args.quiet)
 
 
 def _one_line(exc):

@@ -29,7 +29,9 @@ LEFT_OUT = "refraster.raster.gbuffer.shade"
 
 def test_render_kernels_exist_and_are_the_core_s():
     names = {warmup._name(d) for d in warmup.kernels(warmup.CORE_MODULES)}
+    assert set(warmup.STREAM_KERNELS) <= {warmup._name(d) for d in warmup.kernels()}
     assert set(warmup.RENDER_KERNELS) <= names
+    assert set(warmup.GALLERY_SKIPS) <= {warmup._name(d) for d in warmup.kernels()}
     # the inlined helpers have no cache entry of their own, so they are not counted
     assert all(d.targetoptions.get("inline") != "always" for d in warmup.kernels())
 
@@ -143,3 +145,22 @@ def test_info_tells_a_cold_cache_from_a_warm_one(tmp_path):
                   r"compiles the rest \(minutes\), 'refraster warmup' does it ahead", out)
     assert m and int(m.group(1)) == len(warmup.kernels()), out
     assert np.isfinite(float(m.group(1)))
+
+
+def test_kernel_modules_cover_every_kernel():
+    """A module with kernels missing from ``KERNEL_MODULES`` would compile without being
+    counted in ``n`` (and ``info`` would call a cold cache warm)."""
+    import importlib
+    import pkgutil
+
+    import refraster
+    from numba.core.registry import CPUDispatcher
+    found = set()
+    for m in pkgutil.walk_packages(refraster.__path__, "refraster."):
+        if m.name in ("refraster.cli", "refraster.warmup") or m.name.startswith(
+                ("refraster.gallery", "refraster.golden")):
+            continue
+        mod = importlib.import_module(m.name)
+        found |= {v.py_func.__module__ for v in vars(mod).values()
+                  if isinstance(v, CPUDispatcher) and v.targetoptions.get("inline") != "always"}
+    assert found and found <= set(warmup.KERNEL_MODULES), found - set(warmup.KERNEL_MODULES)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import importlib
 from dataclasses import dataclass
 
-__all__ = ["Item", "SECTIONS", "WORKER_GROUPS", "PAPERS", "PAGE_ORDER", "section_modules"]
+__all__ = ["Item", "SECTIONS", "WORKER_GROUPS", "PAPERS", "PAGE_ORDER", "WITHOUT_PIPELINE", "section_modules"]
 
 
 @dataclass(frozen=True)
@@ -57,14 +57,18 @@ PAPERS = {
     "halos4d": dict(
         paper="Wang, Yan, Fu, Hanson & Heng, Interactive Exploration of 4D Geometry with "
               "Volumetric Halos, Pacific Graphics 2013",
-        headline="halos4d_fig5ad.png"),
+        headline="halos4d_fig1bc.png"),
     "basic": dict(paper="", headline=""),
 }
 
-#: Sections rendered together in one worker process by ``refraster gallery --jobs 2``: the
-#: sections that share kernels (the pipeline, depth peeling, edge maps) stay in one process, so
-#: that a first run compiles each kernel once; the other group's own kernels compile meanwhile.
-WORKER_GROUPS = [("basic", "ldi", "clipsurface", "edges"), ("halos4d", "cutaway")]
+#: Worker processes of ``refraster gallery --jobs N``, started in this order as workers free
+#: up: each group's sections render in one process. Sections sharing kernels beyond the
+#: pipeline's (depth peeling, edge maps) stay in one group, so that a first run compiles each
+#: kernel once; the longest group starts first.
+WORKER_GROUPS = [("cutaway",), ("basic", "ldi", "clipsurface", "edges"), ("halos4d",)]
+#: Sections that do not use the pipeline's kernels: on a first run their worker starts while
+#: the pipeline's kernels compile in the parent (the others wait for those to be cached).
+WITHOUT_PIPELINE = {"halos4d"}
 
 
 def section_modules():
