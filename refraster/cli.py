@@ -512,7 +512,7 @@ def _render_in_workers(args, out_dir, groups, jobs):
             for group in [g for g in queue if set(g) <= WITHOUT_PIPELINE][:max(jobs - 1, 1)]:
                 queue.remove(group)
                 start(group)
-            warm_core(stream=True)   # in this process: counted by the progress line
+            warm_core(clip=True, stream=True)   # here: counted by the progress line
             core_ready = True
         while queue or running:
             reap()
@@ -595,7 +595,7 @@ def _cmd_warmup(args):
 
     from .warmup import cache_state, warm_core
     t0 = time.perf_counter()
-    warm_core()
+    warm_core(clip=True, stream=True)
     with tempfile.TemporaryDirectory(prefix="refraster-warmup-") as tmp:
         sub = argparse.Namespace(**{**vars(args), "out": str(Path(tmp) / "gallery"),
                                     "quick": True, "quiet": True})

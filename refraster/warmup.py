@@ -22,23 +22,28 @@ import sys
 import threading
 import time
 
-__all__ = ["KERNEL_MODULES", "CORE_MODULES", "RENDER_KERNELS", "STREAM_KERNELS", "GALLERY_SKIPS", "kernels", "cache_state", "CompileProgress",
+__all__ = ["KERNEL_MODULES", "CORE_MODULES", "RENDER_KERNELS", "CLIP_KERNELS", "STREAM_KERNELS", "GALLERY_SKIPS", "kernels", "cache_state", "CompileProgress",
            "warm_core", "compile_listener"]
 
 #: The modules whose kernels the pipeline (``refraster.render``) compiles.
 CORE_MODULES = ("refraster.mesh", "refraster.raster.primitive", "refraster.raster.rasterizer",
                 "refraster.raster.gbuffer")
-#: The kernels ``refraster.render`` compiles (a frame and its colour, flat or smooth, with
-#: clipped faces), by ``module.qualname``; the rest of the core's are other paths' (the
-#: fragment stream, float64 vertices, smooth normals with creases).
+#: The kernels ``refraster.render`` compiles for a frame and its colour, flat or smooth, when
+#: no face crosses a clipping plane (a mesh framed by the camera), by ``module.qualname``; the
+#: rest of the core's are other paths' (clipping: :data:`CLIP_KERNELS`; the fragment stream,
+#: float64 vertices, smooth normals with creases).
 RENDER_KERNELS = (
     "refraster.raster.primitive._transform32", "refraster.raster.primitive._vertex_pass",
-    "refraster.raster.primitive._classify", "refraster.raster.primitive._clip_pass",
-    "refraster.raster.primitive._clip_polygon", "refraster.raster.primitive._clipped_face",
-    "refraster.raster.rasterizer._bin_pass", "refraster.raster.rasterizer._fused_pass",
-    "refraster.raster.gbuffer.finalize", "refraster.raster.gbuffer.shade")
-#: ``RENDER_KERNELS`` and the fragment-stream path's (``warm_core(stream=True)``).
-STREAM_KERNELS = RENDER_KERNELS + (
+    "refraster.raster.primitive._classify", "refraster.raster.rasterizer._bin_pass",
+    "refraster.raster.rasterizer._fused_pass", "refraster.raster.gbuffer.finalize",
+    "refraster.raster.gbuffer.shade")
+#: The kernels of faces crossing a clipping plane (compiled only when a frame has one).
+CLIP_KERNELS = ("refraster.raster.primitive._clip_pass",
+                "refraster.raster.primitive._clip_polygon",
+                "refraster.raster.primitive._clipped_face")
+#: ``RENDER_KERNELS``, ``CLIP_KERNELS`` and the fragment-stream path's
+#: (``warm_core(clip=True, stream=True)``, what the gallery's sections share).
+STREAM_KERNELS = RENDER_KERNELS + CLIP_KERNELS + (
     "refraster.raster.rasterizer._stream_pass", "refraster.raster.fragments._interpolate_kernel",
     "refraster.raster.resolve._resolve")
 #: Every module that defines kernels, in pipeline order.
@@ -223,18 +228,18 @@ def _box():
     return v, f
 
 
-def warm_core(normals=("flat", "smooth"), *, stream=False):
+def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False):
     """Compile the kernels of ``refraster.render`` (and the colour read): a 16×12 frame of a
-    cube per normals mode, with the cube's faces crossing the near plane (the clipping kernels).
-    ``stream=True`` also compiles the fragment-stream path (``draw``, a fragment stage,
-    ``resolve``), which the gallery's techniques share."""
+    cube per normals mode. ``clip=True`` also draws the cube cut by the near plane (the
+    clipping kernels), ``stream=True`` through a fragment stage (``draw``, ``resolve``): what
+    the gallery's techniques share."""
     import numpy as np
 
     import refraster
     from refraster.camera import look_at, perspective
     mesh = refraster.as_mesh(_box())
     view = look_at((0.3, 0.4, 2.0), (0.0, 0.0, 0.0))
-    for near in (0.5, 1.9):   # the second cuts the cube: clipped pieces
+    for near in (0.5, 1.9) if clip else (0.5,):   # 1.9 cuts the cube: clipped pieces
         proj = perspective(40.0, 4 / 3, near, 10.0)
         for mode in normals:
             fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12, normals=mode)
