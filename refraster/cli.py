@@ -669,9 +669,13 @@ def _cmd_info(args):
     from .warmup import cache_state
     cached, total = cache_state()
     state = ("warm" if cached == total else "cold" if cached == 0 else "partly warm")
-    warmth = (f"{state}: {cached} of {total} kernels compiled and cached"
-              + ("" if cached == total else "; the first run compiles the rest (minutes), "
-                 f"'{PROG} warmup' does it ahead"))
+    warmth = f"{state}: {cached} of {total} kernels compiled and cached"
+    if cached == 0:
+        warmth += f"; the first run compiles the rest (minutes), '{PROG} warmup' does it ahead"
+    elif cached < total:
+        warmth += ("; the others compile on first use (options the gallery and the goldens "
+                   f"do not use, or sources changed since; '{PROG} warmup' compiles the rest "
+                   "of what they use)")
     ok, detail = llvmpipe_status()
     rows = [
         ("refraster", _version()),
