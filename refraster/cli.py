@@ -457,7 +457,7 @@ def _render_in_workers(args, out_dir, groups, jobs):
     import threading
 
     from .gallery import WITHOUT_PIPELINE, Item
-    from .gallery.worker import COMPILED
+    from .gallery.worker import COMPILED, STARTING
     from .warmup import KERNEL_MODULES, STREAM_KERNELS, cache_state, warm_core
     env = dict(os.environ, NUMBA_NUM_THREADS="1")
     progress = getattr(args, "compile_progress", None)
@@ -470,6 +470,9 @@ def _render_in_workers(args, out_dir, groups, jobs):
                 if line.startswith(COMPILED):
                     if progress is not None:
                         progress.add(line[len(COMPILED):].strip())
+                elif line.startswith(STARTING):
+                    if progress is not None:
+                        progress.starting()
                 elif line.strip():
                     tail = (tail + [line.strip()])[-5:]
             errors[id(proc)] = tail

@@ -124,14 +124,17 @@ def cache_state(modules=KERNEL_MODULES, only=None):
     return sum(map(_cached, ks)), len(ks)
 
 
-def compile_listener(callback):
+def compile_listener(callback, on_start=None):
     """A context manager: ``callback(dispatcher)`` after each kernel compiled (not loaded from
-    the cache) while it is active, in any thread of this process."""
+    the cache) while it is active, in any thread of this process; ``on_start(dispatcher)``
+    when one starts compiling."""
     from numba.core import event
 
     class _Listener(event.Listener):
         def on_start(self, ev):
-            pass
+            disp = ev.data.get("dispatcher")
+            if on_start is not None and disp is not None and _is_kernel(disp):
+                on_start(disp)
 
         def on_end(self, ev):
             disp = ev.data.get("dispatcher")
@@ -166,6 +169,7 @@ class CompileProgress:
         self._lock = threading.Lock()
         self._tty = hasattr(self.stream, "isatty") and self.stream.isatty()
         self._cm = None
+        self._said = False
 
     @property
     def k(self):
@@ -180,27 +184,31 @@ class CompileProgress:
         with self._lock:
             if name in self.done:
                 return
-            first = not self.done
+            self._header()
             self.done.add(name)
-            if first:
-                self.t0 = time.perf_counter() if self.t0 is None else self.t0
-            self._show(first)
+            if self._tty and not self.quiet:
+                self.stream.write(f"\r{COMPILING}: {self.k} of {self.total}")
+                self.stream.flush()
 
-    def _show(self, first):
-        if self.quiet:
+    def starting(self, name=None):
+        """A kernel starts compiling: say so at once (the first compile can take a minute)."""
+        with self._lock:
+            self._header()
+
+    def _header(self):
+        if self._said or self.quiet:
             return
-        n = self.total
+        self._said = True
         if self._tty:
-            self.stream.write(f"\r{COMPILING}: {self.k} of {n}")
-            self.stream.flush()
-        elif first:
-            self.stream.write(f"{COMPILING}: {n} kernels not in the cache "
+            self.stream.write(f"\r{COMPILING}: {self.k} of {self.total}")
+        else:
+            self.stream.write(f"{COMPILING}: {self.total} kernels not in the cache "
                               f"({os.environ.get('NUMBA_CACHE_DIR') or 'Numba default cache'})\n")
-            self.stream.flush()
+        self.stream.flush()
 
     def __enter__(self):
         self.t0 = time.perf_counter()
-        self._cm = compile_listener(lambda d: self.add(_name(d)))
+        self._cm = compile_listener(lambda d: self.add(_name(d)), lambda d: self.starting())
         self._cm.__enter__()
         return self
 

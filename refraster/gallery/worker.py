@@ -4,7 +4,8 @@
 
 Each section's result is one JSON line on stdout: ``{"section", "items", "error"}`` with the
 items as ``[section, filename, caption]``. Each kernel the worker compiles (a cache miss) is
-one line ``refraster-compiled module.qualname`` on stderr, so that the parent counts them in
+one line ``refraster-compiled module.qualname`` on stderr (and
+``refraster-compiling …`` when it starts), so that the parent counts them in
 its progress line. The parent sets ``NUMBA_NUM_THREADS=1``: the sections run side by side, one
 thread each, and a kernel's output bytes do not depend on its thread count.
 """
@@ -17,6 +18,7 @@ import sys
 from pathlib import Path
 
 COMPILED = "refraster-compiled "
+STARTING = "refraster-compiling "
 
 
 def main(argv=None):
@@ -31,7 +33,11 @@ def main(argv=None):
         print(f"{COMPILED}{disp.py_func.__module__}.{disp.py_func.__qualname__}",
               file=sys.stderr, flush=True)
 
-    with compile_listener(compiled):
+    def starting(disp):
+        print(f"{STARTING}{disp.py_func.__module__}.{disp.py_func.__qualname__}",
+              file=sys.stderr, flush=True)
+
+    with compile_listener(compiled, starting):
         for name in names:
             items, error = [], None
             try:
