@@ -213,11 +213,6 @@ def _cmd_render(args):
         raise CLIError(str(exc)) from exc
     _check_camera_options(args)
     mesh = _load_mesh(args.mesh)
-    progress = getattr(args, "compile_progress", None)
-    if progress is not None and progress.n:
-        # first run: compile the pipeline's kernels on a tiny frame, with the progress line
-        from .warmup import warm_core
-        warm_core((args.normals,))
     try:
         view, proj = _camera(args, mesh.bounds)
     except (TypeError, ValueError) as exc:
@@ -226,6 +221,11 @@ def _cmd_render(args):
         # STL and other per-face formats repeat vertices; sharing them makes normals smooth.
         # Merging renumbers vertices only, so face (primitive) ids keep the file's order.
         mesh.merge_vertices()
+    progress = getattr(args, "compile_progress", None)
+    if progress is not None and progress.n:
+        # first run, options checked: compile the pipeline's kernels on a tiny frame first
+        from .warmup import warm_core
+        warm_core((args.normals,))
     with _progress(args, total=3, desc="render", unit="step") as bar:
         bar.set_postfix_str(f"{len(mesh.faces):,} faces")
         bar.update(1)
