@@ -5,8 +5,9 @@
     refraster render MESH_FILE --out image.png [--buffers out.npz] [--width W --height H]
                      [--eye X Y Z] [--target X Y Z] [--fov DEG] [--near N] [--far F]
                      [--cull none|back|front] [--normals flat|smooth]
-    refraster gallery --out DIR [--quick]
+    refraster gallery --out DIR [--quick] [--jobs N]
     refraster info
+    refraster warmup [--jobs N]
     refraster --version
 
 ``-q`` silences progress bars and messages; an error is one line on stderr (exit code 2) and
@@ -95,6 +96,9 @@ def _build_parser():
     _common(g, top=False)
     g.add_argument("--out", required=True, metavar="DIR")
     g.add_argument("--quick", action="store_true", help="small images, light meshes")
+    g.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="render the sections in N worker processes of one thread each "
+                        "(default: the number of CPUs, at most 2; 1 = in this process)")
     g.set_defaults(func=_cmd_gallery)
 
     i = sub.add_parser("info", help="versions, threads, kernel cache, llvmpipe oracle",
@@ -102,6 +106,16 @@ def _build_parser():
                                    "and whether the llvmpipe oracle (moderngl + EGL) works.")
     _common(i, top=False)
     i.set_defaults(func=_cmd_info)
+
+    w = sub.add_parser("warmup", help="compile every kernel into the cache ahead of use",
+                       description="Compile every kernel the commands use into Numba's cache "
+                                   "(for CI images and Docker layers): the pipeline, then the "
+                                   "gallery's sections at quick size and the golden scenes, "
+                                   "into a temporary directory that is removed.")
+    _common(w, top=False)
+    w.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="worker processes for the gallery's sections (as 'gallery --jobs')")
+    w.set_defaults(func=_cmd_warmup)
 
     from .golden.cli import register as register_golden
     register_golden(sub)
@@ -207,6 +221,11 @@ def _cmd_render(args):
         # STL and other per-face formats repeat vertices; sharing them makes normals smooth.
         # Merging renumbers vertices only, so face (primitive) ids keep the file's order.
         mesh.merge_vertices()
+    progress = getattr(args, "compile_progress", None)
+    if progress is not None and progress.n:
+        # first run, options checked: compile the pipeline's kernels on a tiny frame first
+        from .warmup import warm_core
+        warm_core((args.normals,))
     with _progress(args, total=3, desc="render", unit="step") as bar:
         bar.set_postfix_str(f"{len(mesh.faces):,} faces")
         bar.update(1)
@@ -260,22 +279,113 @@ def _png_size(path):
 
 
 _CSS = """
-body { font-family: sans-serif; margin: 1.5em; background: #fafafa; color: #222; }
-h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 2em; }
-.grid { display: flex; flex-wrap: wrap; gap: 1em; }
-figure { margin: 0; background: #fff; border: 1px solid #ddd; padding: .5em; }
-figcaption { font-size: .85em; max-width: 32em; margin-top: .3em; }
-img { display: block; image-rendering: pixelated; }
+body { font-family: sans-serif; margin: 0; background: #fafafa; color: #222; }
+#toc { position: fixed; top: 0; left: 0; bottom: 0; width: 300px; overflow-y: auto;
+       box-sizing: border-box; padding: 1em; background: #f0f0f0; border-right: 1px solid #ddd;
+       font-size: .85em; }
+#toc h2 { font-size: 1.1em; margin: 0 0 .5em; }
+#toc ol { padding-left: 1.2em; margin: 0; } #toc li { margin-bottom: .6em; }
+#toc .figs { display: block; margin-top: .2em; line-height: 1.5; }
+#toc .figs a { margin-right: .5em; white-space: nowrap; }
+main { margin-left: 300px; padding: 1em 1.5em; }
+h1 { font-size: 1.5em; margin: 0 0 .3em; } h2 { font-size: 1.2em; margin: 1.6em 0 .2em; }
+.paper { font-style: italic; margin: 0 0 .8em; font-size: .9em; }
+.grid { display: flex; flex-wrap: wrap; gap: 1em; align-items: flex-start; }
+figure { margin: 0; background: #fff; border: 1px solid #ddd; padding: .5em; max-width: 100%;
+         box-sizing: border-box; }
+figure.headline { border: 2px solid #6a8; }
+figcaption { font-size: .85em; max-width: 40em; margin-top: .3em; }
+.fig { font-weight: bold; }
+img { display: block; max-width: 100%; height: auto; }
 .failed { color: #a00; }
 """
+
+#: "Fig. 10(a)", "Fig. 1/10", "Fig. 4 and 6", "Sec. 5.3" in a caption.
+_FIGURE = None
+
+
+def _figure_label(caption):
+    """The paper's figure (or section) a caption names first, e.g. ``Fig. 10(a)``; "" if none."""
+    import re
+    global _FIGURE
+    if _FIGURE is None:
+        _FIGURE = (re.compile(r"\b(Figs?\.\s*\d+(?:\s*\([a-z]\))?"
+                              r"(?:\s*(?:/|and|–|-)\s*\d+)?)"),
+                   re.compile(r"\b(Sec\.\s*\d+(?:\.\d+)*)"))
+    for pattern in _FIGURE:
+        m = pattern.search(caption)
+        if m:
+            return " ".join(m.group(1).split())
+    return ""
+
+
+def _page_sections(sections):
+    """``sections`` (``(title, items, error)`` in render order) as ``(name, title, items,
+    error)`` in page order: the papers' sections first (:data:`refraster.gallery.PAGE_ORDER`),
+    each with its headline picture first; sections the gallery does not know, then the plain
+    G-buffer section, last."""
+    from .gallery import PAGE_ORDER, PAPERS, SECTIONS
+    names = {title: name for name, title in SECTIONS}
+    named = [(names.get(title, ""), title, list(items), error)
+             for title, items, error in sections]
+    rank = {name: k for k, name in enumerate(PAGE_ORDER)}
+    last = rank.get("basic", len(PAGE_ORDER))
+    named.sort(key=lambda s: rank.get(s[0], last - 0.5))
+    out = []
+    for name, title, items, error in named:
+        head = PAPERS.get(name, {}).get("headline")
+        items.sort(key=lambda i: i.filename != head)     # stable: the headline first
+        out.append((name, title, items, error))
+    return out
+
+
+def _anchor(text):
+    import re
+    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")
 
 
 def gallery_html(sections, out_dir, *, quick=False):
     """The gallery page: ``sections`` is a list of ``(title, items, error)``; images are linked
-    relative to ``out_dir`` (where ``index.html`` goes). Self-contained: no script, no external
+    relative to ``out_dir`` (where ``index.html`` goes). The papers come first: a table of
+    contents by paper and figure on the left, each technique's headline figure first with the
+    paper's citation, the plain G-buffer section last. Self-contained: no script, no external
     resource."""
     from . import __version__
+    from .gallery import PAPERS
     mode = "quick (small images)" if quick else "full size"
+    page = _page_sections(sections)
+    toc, body = [], []
+    for name, title, items, error in page:
+        sid = "s-" + (_anchor(name or title) or "section")
+        paper = PAPERS.get(name, {}).get("paper", "")
+        links = []
+        body.append(f'<section id="{sid}">')
+        body.append(f"<h2>{html.escape(title)}</h2>")
+        if paper:
+            body.append(f'<p class="paper">{html.escape(paper)}</p>')
+        if error:
+            body.append(f'<p class="failed">This section failed: {html.escape(error)}</p>')
+        body.append('<div class="grid">')
+        head = PAPERS.get(name, {}).get("headline")
+        for k, item in enumerate(items):
+            w, h = _png_size(Path(out_dir) / item.filename)
+            fid = f"{sid}-{k}"
+            src = html.escape(quote(Path(item.filename).as_posix()), quote=True)
+            label = _figure_label(item.caption)
+            cls = ' class="headline"' if item.filename == head else ""
+            fig = f'<span class="fig">{html.escape(label)}:</span> ' if label else ""
+            # the first pictures load at once, the rest when scrolled to
+            lazy = "" if k < 2 else ' loading="lazy"'
+            body.append(f'<figure id="{fid}"{cls}><img src="{src}" width="{w}" height="{h}"'
+                        f'{lazy} alt="{html.escape(item.caption, quote=True)}">'
+                        f"<figcaption>{fig}{html.escape(item.caption)}</figcaption></figure>")
+            if label and label not in [lb for lb, _ in links]:
+                links.append((label, fid))
+        body.append("</div>")
+        body.append("</section>")
+        figs = "".join(f'<a href="#{fid}">{html.escape(lb)}</a> ' for lb, fid in links)
+        toc.append(f'<li><a href="#{sid}">{html.escape(title)}</a>'
+                   + (f'<span class="figs">{figs.strip()}</span>' if figs else "") + "</li>")
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en">',
@@ -286,29 +396,141 @@ def gallery_html(sections, out_dir, *, quick=False):
         f"<style>{_CSS}</style>",
         "</head>",
         "<body>",
+        '<nav id="toc"><h2>The papers, figure by figure</h2><ol>',
+        *toc,
+        "</ol></nav>",
+        "<main>",
         "<h1>refraster gallery</h1>",
-        f"<p>refraster {html.escape(__version__)}, {mode}. Every picture is a CPU reference "
-        "rendering; captions say what each shows.</p>",
+        f"<p>refraster {html.escape(__version__)}, {mode}. The papers' figures reproduced by a "
+        "CPU reference rasterizer; each section opens with its headline figure, and captions "
+        "name the paper's figure each picture follows. The plain G-buffer is last.</p>",
+        *body,
+        "</main>",
+        "</body>",
+        "</html>",
+        "",
     ]
-    for title, items, error in sections:
-        parts.append(f"<h2>{html.escape(title)}</h2>")
-        if error:
-            parts.append(f'<p class="failed">This section failed: {html.escape(error)}</p>')
-        parts.append('<div class="grid">')
-        for item in items:
-            w, h = _png_size(Path(out_dir) / item.filename)
-            src = html.escape(quote(Path(item.filename).as_posix()), quote=True)
-            cap = html.escape(item.caption)
-            parts.append(f'<figure><img src="{src}" width="{w}" height="{h}" '
-                         f'alt="{html.escape(item.caption, quote=True)}">'
-                         f"<figcaption>{cap}</figcaption></figure>")
-        parts.append("</div>")
-    parts += ["</body>", "</html>", ""]
     return "\n".join(parts)
 
 
 def _section_items(out_dir, module, quick):
     items = list(module.render(out_dir, quick=quick))
+    for item in items:
+        name = Path(item.filename)
+        if name.is_absolute() or ".." in name.parts:
+            raise ValueError(f"item file {item.filename!r} is not relative to the gallery")
+        if not (out_dir / name).is_file():
+            raise FileNotFoundError(f"item file {item.filename!r} was not written")
+    return items
+
+
+def _jobs(args):
+    jobs = args.jobs if args.jobs is not None else min(os.cpu_count() or 1, 2)
+    if jobs < 1:
+        raise CLIError(f"--jobs must be at least 1, got {jobs}")
+    return jobs
+
+
+def _worker_groups(modules, jobs):
+    """The sections split into groups for worker processes (:data:`refraster.gallery.
+    WORKER_GROUPS`), or None when they must run in this process (one job, or sections that are
+    not the gallery's own modules)."""
+    from .gallery import SECTIONS, WORKER_GROUPS
+    names = [m.__name__.rsplit(".", 1)[-1] for _, m in modules]
+    known = {name for name, _ in SECTIONS}
+    if jobs < 2 or len(names) < 2 or any(
+            n not in known or sys.modules.get(m.__name__) is not m
+            for n, (_, m) in zip(names, modules)):
+        return None
+    groups = [[n for n in g if n in names] for g in WORKER_GROUPS]
+    rest = [n for n in names if not any(n in g for g in groups)]
+    return [g for g in groups if g] + ([rest] if rest else [])
+
+
+def _render_in_workers(args, out_dir, groups, jobs):
+    """``{section name: (items, error)}`` from worker processes of one thread each
+    (:mod:`refraster.gallery.worker`), at most ``jobs`` at a time; kernels they compile go to
+    the progress line. On a first run the pipeline's kernels are compiled here first, while a
+    worker renders the sections that do not need them; the other workers then load them from
+    the cache instead of compiling them side by side."""
+    import json
+    import threading
+
+    from .gallery import WITHOUT_PIPELINE, Item
+    from .gallery.worker import COMPILED, STARTING
+    from .warmup import KERNEL_MODULES, STREAM_KERNELS, cache_state, warm_core
+    env = dict(os.environ, NUMBA_NUM_THREADS="1")
+    progress = getattr(args, "compile_progress", None)
+    results, errors, running = {}, {}, []
+
+    def read(proc, group):
+        def stderr():
+            tail = []
+            for line in proc.stderr:
+                if line.startswith(COMPILED):
+                    if progress is not None:
+                        progress.add(line[len(COMPILED):].strip())
+                elif line.startswith(STARTING):
+                    if progress is not None:
+                        progress.starting()
+                elif line.strip():
+                    tail = (tail + [line.strip()])[-5:]
+            errors[id(proc)] = tail
+
+        def stdout():
+            for line in proc.stdout:
+                r = json.loads(line)
+                results[r["section"]] = ([Item(*i) for i in r["items"]], r["error"])
+        threads = [threading.Thread(target=f, daemon=True) for f in (stderr, stdout)]
+        for t in threads:
+            t.start()
+        return threads
+
+    def start(group):
+        cmd = [sys.executable, "-m", "refraster.gallery.worker", str(out_dir), *group]
+        if args.quick:
+            cmd.append("--quick")
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                stdin=subprocess.DEVNULL, env=env, text=True)
+        running.append((proc, group, read(proc, group)))
+
+    def reap():
+        for entry in list(running):
+            proc, group, threads = entry
+            if proc.poll() is None:
+                continue
+            for t in threads:
+                t.join()
+            running.remove(entry)
+            for name in group:
+                if name not in results:   # the worker died before it answered
+                    why = "; ".join(errors.get(id(proc)) or [f"exit status {proc.returncode}"])
+                    results[name] = ([], f"worker process failed: {why}")
+
+    queue = list(groups)
+    cached, total = cache_state(KERNEL_MODULES, only=STREAM_KERNELS)
+    core_ready = cached == total
+    try:
+        if not core_ready:
+            for group in [g for g in queue if set(g) <= WITHOUT_PIPELINE][:max(jobs - 1, 1)]:
+                queue.remove(group)
+                start(group)
+            warm_core(clip=True, stream=True)   # here: counted by the progress line
+            core_ready = True
+        while queue or running:
+            reap()
+            while queue and len(running) < jobs:
+                start(queue.pop(0))
+            time.sleep(0.05)
+    finally:
+        for proc, _, _ in running:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    return results
+
+
+def _check_items(out_dir, items):
     for item in items:
         name = Path(item.filename)
         if name.is_absolute() or ".." in name.parts:
@@ -325,20 +547,34 @@ def _cmd_gallery(args):
     out_dir = Path(args.out)
     if out_dir.exists() and not out_dir.is_dir():
         raise CLIError(f"--out '{out_dir}' exists and is not a directory")
+    jobs = _jobs(args)
     modules = list(section_modules())
     sections, failures = [], []
     t0 = time.perf_counter()
+    groups = _worker_groups(modules, jobs)
+    done = {}
+    if groups is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        done = _render_in_workers(args, out_dir, groups, jobs)
     with _progress(args, total=len(modules), desc="gallery", unit="section") as bar:
         for title, module in modules:
-            bar.set_postfix_str(module.__name__.rsplit(".", 1)[-1])
+            name = module.__name__.rsplit(".", 1)[-1]
+            bar.set_postfix_str(name)
             try:
-                sections.append((title, _section_items(out_dir, module, args.quick), None))
+                if name in done:
+                    items, error = done[name]
+                    if error:
+                        raise _SectionError(error)
+                    sections.append((title, _check_items(out_dir, items), None))
+                else:
+                    sections.append((title, _section_items(out_dir, module, args.quick), None))
             except Exception as exc:
                 if args.debug:
                     raise
-                msg = f"{type(exc).__name__}: {_one_line(exc)}"
+                msg = str(exc) if isinstance(exc, _SectionError) else \
+                    f"{type(exc).__name__}: {_one_line(exc)}"
                 sections.append((title, [], msg))
-                failures.append(f"{module.__name__.rsplit('.', 1)[-1]} ({msg})")
+                failures.append(f"{name} ({msg})")
             bar.update(1)
     page = gallery_html(sections, out_dir, quick=args.quick)
     index = atomic_write_bytes(out_dir / "index.html", page.encode("utf-8"))
@@ -347,6 +583,33 @@ def _cmd_gallery(args):
                f"{time.perf_counter() - t0:.1f} s")
     if failures:
         raise CLIError(f"{len(failures)} gallery section(s) failed: " + "; ".join(failures))
+    return 0
+
+
+class _SectionError(Exception):
+    """A section's failure reported by a worker process (already one line)."""
+
+
+# ---------------------------------------------------------------------------------------------
+# warmup
+
+def _cmd_warmup(args):
+    import tempfile
+
+    from .warmup import cache_state, warm_core
+    t0 = time.perf_counter()
+    warm_core(clip=True, stream=True)
+    with tempfile.TemporaryDirectory(prefix="refraster-warmup-") as tmp:
+        sub = argparse.Namespace(**{**vars(args), "out": str(Path(tmp) / "gallery"),
+                                    "quick": True, "quiet": True})
+        sub.compile_progress = getattr(args, "compile_progress", None)
+        _cmd_gallery(sub)
+        gen = _build_parser().parse_args(["golden", "generate", "-q", "--out",
+                                          str(Path(tmp) / "golden")])
+        gen.func(gen)
+    cached, total = cache_state()
+    _say(args, f"warmup: {cached} of {total} kernels in the cache "
+               f"({time.perf_counter() - t0:.1f} s)")
     return 0
 
 
@@ -406,6 +669,16 @@ def _cmd_info(args):
             return "not installed"
 
     cache, how = kernel_cache()
+    from .warmup import cache_state
+    cached, total = cache_state()
+    state = ("warm" if cached == total else "cold" if cached == 0 else "partly warm")
+    warmth = f"{state}: {cached} of {total} kernels compiled and cached"
+    if cached == 0:
+        warmth += f"; the first run compiles the rest (minutes), '{PROG} warmup' does it ahead"
+    elif cached < total:
+        warmth += ("; the others compile on first use (options the gallery and the goldens "
+                   f"do not use, or sources changed since; '{PROG} warmup' compiles the rest "
+                   "of what they use)")
     ok, detail = llvmpipe_status()
     rows = [
         ("refraster", _version()),
@@ -417,6 +690,7 @@ def _cmd_info(args):
         ("numba threads", f"{numba.config.NUMBA_NUM_THREADS} (NUMBA_NUM_THREADS"
                           f"{'' if 'NUMBA_NUM_THREADS' in os.environ else ' default: CPU count'})"),
         ("kernel cache", f"{cache} [{how}]"),
+        ("kernels", warmth),
         ("llvmpipe oracle", f"{'available' if ok else 'not available'} ({detail})"),
     ]
     width = max(len(k) for k, _ in rows)
@@ -426,6 +700,24 @@ def _cmd_info(args):
 
 
 # ---------------------------------------------------------------------------------------------
+
+def _compile_progress(args):
+    """The progress line of the kernels a command compiles on its first run
+    (:class:`refraster.warmup.CompileProgress`), or a no-op for commands that compile none."""
+    import contextlib
+    command = args.command
+    if command == "golden" and getattr(args, "golden_command", None) == "generate" and not \
+            getattr(args, "list", False):
+        command = "golden generate"
+    if command not in ("render", "gallery", "golden generate", "warmup"):
+        return contextlib.nullcontext()
+    from .warmup import (CORE_MODULES, GALLERY_SKIPS, KERNEL_MODULES, RENDER_KERNELS,
+                         CompileProgress)
+    if command == "render":
+        return CompileProgress(CORE_MODULES, only=RENDER_KERNELS, quiet=args.quiet)
+    return CompileProgress(KERNEL_MODULES, skip=GALLERY_SKIPS if command == "gallery" else (),
+                           quiet=args.quiet)
+
 
 def _one_line(exc):
     text = " ".join(str(exc).split())
@@ -441,12 +733,14 @@ def main(argv=None):
         with terminate_as_interrupt():  # SIGTERM cleans up like Ctrl-C
             args = _build_parser().parse_args(argv)
             if args.command is None:
-                raise UsageError("a command is required: render, gallery, info or golden "
+                raise UsageError("a command is required: render, gallery, info, warmup or golden "
                                  f"(see '{PROG} --help')")
             from ._logs import one_line_logs
             with one_line_logs(PROG, debug=getattr(args, "debug", debug),
                                quiet=getattr(args, "quiet", False)):
-                return args.func(args)
+                with _compile_progress(args) as progress:
+                    args.compile_progress = progress
+                    return args.func(args)
     except KeyboardInterrupt as exc:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130

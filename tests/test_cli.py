@@ -462,6 +462,66 @@ def test_gallery_page_in_headless_chromium(quick_gallery, tmp_path):
     assert len(np.unique(image[..., :3].reshape(-1, 3), axis=0)) > 500
 
 
+_FIRST_SCREEN = """JSON.stringify((function () {
+  var vh = window.innerHeight, vw = window.innerWidth;
+  function seen(el) { var r = el.getBoundingClientRect();
+    return r.width > 0 && r.height > 0 && r.top >= 0 && r.left >= 0 && r.bottom <= vh &&
+           r.right <= vw; }
+  var toc = document.getElementById("toc");
+  var papers = toc ? Array.prototype.map.call(toc.querySelectorAll("ol > li > a"),
+                                              function (a) { return a.textContent; }) : [];
+  var figLinks = toc ? toc.querySelectorAll(".figs a").length : 0;
+  var sections = Array.prototype.map.call(document.querySelectorAll("main section h2"),
+                                          function (h) { return h.textContent; });
+  var shown = Array.prototype.filter.call(document.querySelectorAll("main figure img"),
+    function (i) { return seen(i) && i.complete && i.naturalWidth > 0; })
+    .map(function (i) { return {src: i.getAttribute("src"),
+                                headline: i.parentNode.className === "headline",
+                                section: i.closest("section").id}; });
+  var firstPaper = document.querySelector("main section .paper");
+  return {tocSeen: !!toc && seen(toc.querySelector("ol")), papers: papers, figLinks: figLinks,
+          sections: sections, shown: shown,
+          citationSeen: !!firstPaper && seen(firstPaper)};
+})())"""
+
+
+def first_screen(index, tmp):
+    """What a 1280×800 browser window shows of the gallery page before any scrolling."""
+    if not Path("/usr/bin/chromium").exists():
+        _chromium()     # skips locally, fails under CI=true
+    from chromium_cdp import Browser
+    with Browser(tmp / "cdp", width=1280, height=800) as browser:
+        browser.open(index.as_uri())
+        return json.loads(browser.js(_FIRST_SCREEN)), browser.screenshot()
+
+
+def _is_papers_first(screen):
+    """The first screen holds the table of contents by paper and figure and a technique's
+    headline figure with its citation; the plain G-buffer section comes last."""
+    return (screen["tocSeen"] and len(screen["papers"]) >= 5 and screen["figLinks"] >= 20
+            and screen["sections"][-1].startswith("Canonical solids")
+            and any(s["headline"] and s["section"] != "s-basic" for s in screen["shown"])
+            and screen["citationSeen"])
+
+
+def test_gallery_first_screen_shows_the_papers(quick_gallery, tmp_path):
+    copy, _ = quick_gallery
+    index = copy / "gallery" / "index.html"
+    screen, shot = first_screen(index, tmp_path)
+    assert _is_papers_first(screen), screen
+    assert screen["shown"][0]["headline"] and screen["shown"][0]["section"] == "s-clipsurface"
+    assert len(np.unique(shot.reshape(-1, 3), axis=0)) > 200     # pictures, not a blank page
+    # the other direction: the old page (G-buffer pictures first, no table of contents) fails
+    old = index.with_name("old.html")
+    text = index.read_text(encoding="utf-8")
+    body = text[text.index("<main>"):]
+    sections = re.findall(r"<section.*?</section>", body, flags=re.S)
+    old.write_text(text[:text.index("<nav")] + "<main>" + sections[-1] + "".join(sections[:-1])
+                   + "</main></body></html>", encoding="utf-8")
+    old_screen, _ = first_screen(old, tmp_path / "old")
+    assert not _is_papers_first(old_screen)
+
+
 def test_chromium_check_fails_on_broken_image_and_script_error(tmp_path):
     from refraster.io import write_png
     write_png(tmp_path / "ok.png", np.full((8, 8, 3), 0.5))

@@ -70,7 +70,17 @@ def _same_bits(a, b):
         return True
     if a.dtype.itemsize != 8 or not (a.flags.c_contiguous and b.flags.c_contiguous):
         return bool(np.array_equal(a, b))   # the rare case: not a validated Mesh's arrays
-    return _differing_words(a.reshape(-1).view(np.int64), b.reshape(-1).view(np.int64)) == 0
+    return _differing_words(_readonly(a.reshape(-1).view(np.int64)),
+                            _readonly(b.reshape(-1).view(np.int64))) == 0
+
+
+def _readonly(a):
+    """``a`` as a read-only view: a kernel's read-only and writable arrays are distinct
+    Numba types, so passing only read-only ones compiles the kernel once, not twice."""
+    if a.flags.writeable:
+        a = a.view()
+        a.setflags(write=False)
+    return a
 
 
 def _known_watertight(v, f):
@@ -816,7 +826,7 @@ def _lighting_args(surfaces, view, occlusion_radius, packed=None):
             np.zeros((s.offset_map.size, 4)) for s in surfaces]
     shading = maps[0] if len(maps) == 1 else np.concatenate(maps)
     view = np.ascontiguousarray(view, np.float64)
-    return (packed.params, packed.wrap, shading, packed.offset, packed.shape, view,
+    return (packed.params, packed.wrap, _readonly(shading), packed.offset, packed.shape, view,
             np.linalg.inv(view[:3, :3]).T)
 
 

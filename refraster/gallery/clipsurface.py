@@ -47,6 +47,19 @@ def _edges(fb, color):
                      profile_color=(0.0, 0.0, 0.0))
 
 
+def _object_box(mask, margin=0.04):
+    """The rows and columns of the pictures of the crank that hold the object, with a margin
+    (a share of the frame's height), so that the object fills the picture; the rendering is
+    the same, only the empty border is left out."""
+    ys, xs = np.nonzero(mask)
+    if ys.size == 0:
+        return slice(None), slice(None)
+    h, w = mask.shape
+    m = max(int(round(margin * h)), 2)
+    return (slice(max(ys.min() - m, 0), min(ys.max() + m + 1, h)),
+            slice(max(xs.min() - m, 0), min(xs.max() + m + 1, w)))
+
+
 def hatch_texture(size=64, *, spacing=8, width=2):
     """A user-style hatch texture image (what Fig. 10 (a) draws its caps with): dark 45° lines
     ``width`` texels wide every ``spacing`` texels on paper white, RGB uint8, tiling."""
@@ -116,7 +129,8 @@ def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
     cam = frame_bounds(crank.bounds, width=w, height=h, direction=(0.3, 0.7, 1.0))
     fb = render_clipped(crank, cs, **cam.kwargs, cap_style="hatch",
                         cap_color=(0.55, 0.12, 0.1), vds_resolution=res)
-    save("crank_hatched", _edges(fb, fb.color),
+    box = _object_box(fb.mask)
+    save("crank_hatched", _edges(fb, fb.color)[box],
          "Crank cut by a ragged 2.5D clip surface; procedural hatched cap with normal and "
          "occlusion maps, edge-enhanced with white inner and black profile edges (after Fig. 1 "
          "and 10).")
@@ -133,7 +147,7 @@ def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
                         textures=CapTextures(diffuse=hatch_png))
     fb = render_clipped(crank, textured, **cam.kwargs, cap_style="diffuse",
                         vds_resolution=res)
-    save("fig10a_texture", _edges(fb, fb.color),
+    save("fig10a_texture", _edges(fb, fb.color)[box],
          "After Fig. 10(a): the crank's cap textured with the user's hatch image (file above) "
          "as its diffuse map, light through the derived occlusion map, white inner "
          "and black profile edges.")
@@ -142,7 +156,7 @@ def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
     solid_px = fb.mask & ~fb.cap_mask
     shaded = np.array(fb.color, np.float64)
     shaded[solid_px] = gooch(fb.normal, mask=solid_px)[solid_px]
-    save("fig10c_gooch", _edges(fb, shaded),
+    save("fig10c_gooch", _edges(fb, shaded)[box],
          "After Fig. 10(c): the clipped crank Gooch-shaded (cool to warm), its cap textured "
          "with the hatch image, white inner and black profile edges.")
 

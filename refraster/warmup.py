@@ -1,0 +1,259 @@
+"""Compiling the kernels ahead, and saying so.
+
+refraster's kernels are Numba functions compiled on first use and kept in Numba's on-disk cache
+(``cache=True``): a fresh clone, a fresh ``NUMBA_CACHE_DIR`` or a changed source file compiles
+them again, which takes minutes for the gallery. This module
+
+* tells which kernels are in the cache (:func:`cache_state`, shown by ``refraster info``),
+* reports compiling while it happens (:class:`CompileProgress`: one line, "compiling kernels,
+  first run only: k of n", then the time it took), and nothing when the cache is warm,
+* compiles ahead (:func:`warm_core` for ``render``; ``refraster warmup`` for everything, e.g.
+  in a CI image or a Docker layer).
+
+It sits beside the command and the gallery (it imports techniques); the core and the
+techniques never import it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+import threading
+import time
+
+__all__ = ["KERNEL_MODULES", "CORE_MODULES", "RENDER_KERNELS", "CLIP_KERNELS", "STREAM_KERNELS", "GALLERY_SKIPS", "kernels", "cache_state", "CompileProgress",
+           "warm_core", "compile_listener"]
+
+#: The modules whose kernels the pipeline (``refraster.render``) compiles.
+CORE_MODULES = ("refraster.mesh", "refraster.raster.primitive", "refraster.raster.rasterizer",
+                "refraster.raster.gbuffer")
+#: The kernels ``refraster.render`` compiles for a frame and its colour, flat or smooth, when
+#: no face crosses a clipping plane (a mesh framed by the camera), by ``module.qualname``; the
+#: rest of the core's are other paths' (clipping: :data:`CLIP_KERNELS`; the fragment stream,
+#: float64 vertices, smooth normals with creases).
+RENDER_KERNELS = (
+    "refraster.raster.primitive._transform32", "refraster.raster.primitive._vertex_pass",
+    "refraster.raster.primitive._classify", "refraster.raster.rasterizer._bin_pass",
+    "refraster.raster.rasterizer._fused_pass", "refraster.raster.gbuffer.finalize",
+    "refraster.raster.gbuffer.shade")
+#: The kernels of faces crossing a clipping plane (compiled only when a frame has one).
+CLIP_KERNELS = ("refraster.raster.primitive._clip_pass",
+                "refraster.raster.primitive._clip_polygon",
+                "refraster.raster.primitive._clipped_face")
+#: ``RENDER_KERNELS``, ``CLIP_KERNELS`` and the fragment-stream path's
+#: (``warm_core(clip=True, stream=True)``, what the gallery's sections share).
+STREAM_KERNELS = RENDER_KERNELS + CLIP_KERNELS + (
+    "refraster.raster.rasterizer._stream_pass", "refraster.raster.fragments._interpolate_kernel",
+    "refraster.raster.resolve._resolve")
+#: Every module that defines kernels, in pipeline order.
+KERNEL_MODULES = CORE_MODULES + (
+    "refraster.raster.fragments", "refraster.raster.resolve", "refraster.ldi",
+    "refraster.clipsurface.offsetmaps", "refraster.clipsurface.capping",
+    "refraster.clipsurface.surfaces", "refraster.clipsurface.textures",
+    "refraster.clipsurface.fused", "refraster.edges", "refraster.npr", "refraster.cutaway.flood",
+    "refraster.halos4d.slicing", "refraster.halos4d.render", "refraster.tolerance")
+
+#: Kernels ``refraster gallery`` never compiles (other options, the goldens' allowances), so
+#: that its progress line counts to the number it compiles: the kernels of
+#: :data:`KERNEL_MODULES` not among the compile events of a cold gallery run
+#: (``python -m benchmarks.cold_start --kernels``, 2026-12-01). A stale entry only makes the
+#: count approximate.
+GALLERY_SKIPS = (
+    "refraster.clipsurface.capping._hatch_kernel",
+    "refraster.clipsurface.surfaces._g_kernel",
+    "refraster.edges._id_kernel",
+    "refraster.edges._sobel_kernel",
+    "refraster.halos4d.slicing._edge",
+    "refraster.halos4d.slicing._face",
+    "refraster.halos4d.slicing._sorted3",
+    "refraster.halos4d.slicing._voxelize_exact",
+    "refraster.halos4d.slicing._voxelize_snapped",
+    "refraster.halos4d.slicing.covered",
+    "refraster.halos4d.slicing.face_orientation",
+    "refraster.halos4d.slicing.inside_tet",
+    "refraster.halos4d.slicing.tet_setup",
+    "refraster.raster.primitive._transform64",
+    "refraster.tolerance._mark_edge",
+    "refraster.tolerance._mark_faces",
+    "refraster.tolerance._plane_z",
+    "refraster.tolerance._seg_dist",
+    "refraster.tolerance._set_pass",
+)
+
+#: The progress line's words (tests look for them).
+COMPILING = "compiling kernels, first run only"
+
+
+def _is_kernel(obj):
+    from numba.core.registry import CPUDispatcher
+    return isinstance(obj, CPUDispatcher) and obj.py_func.__module__.startswith("refraster.")
+
+
+def kernels(modules=KERNEL_MODULES):
+    """The cached kernels defined in ``modules``: one dispatcher each, in definition order.
+    Helpers inlined at Numba IR level (``inline="always"``) are left out: they are compiled
+    into their callers and have no cache entry of their own."""
+    found = {}
+    for name in modules:
+        mod = importlib.import_module(name)
+        for obj in vars(mod).values():
+            if (_is_kernel(obj) and obj.py_func.__module__ == name
+                    and obj.targetoptions.get("inline") != "always"):
+                found.setdefault(id(obj), obj)
+    return list(found.values())
+
+
+def _name(disp):
+    return f"{disp.py_func.__module__}.{disp.py_func.__qualname__}"
+
+
+def _cached(disp):
+    """Whether ``disp`` has at least one compiled specialisation in the on-disk cache that is
+    valid for its current source (Numba drops an index whose source file has changed)."""
+    try:
+        return bool(disp._cache._cache_file._load_index())
+    except Exception:   # an unreadable index is a cold one: Numba will compile
+        return False
+
+
+def cache_state(modules=KERNEL_MODULES, only=None):
+    """``(cached, total)``: how many of the kernels of ``modules`` (of these, those named in
+    ``only``) are in the cache."""
+    ks = [d for d in kernels(modules) if only is None or _name(d) in only]
+    return sum(map(_cached, ks)), len(ks)
+
+
+def compile_listener(callback, on_start=None):
+    """A context manager: ``callback(dispatcher)`` after each kernel compiled (not loaded from
+    the cache) while it is active, in any thread of this process; ``on_start(dispatcher)``
+    when one starts compiling."""
+    from numba.core import event
+
+    class _Listener(event.Listener):
+        def on_start(self, ev):
+            disp = ev.data.get("dispatcher")
+            if on_start is not None and disp is not None and _is_kernel(disp):
+                on_start(disp)
+
+        def on_end(self, ev):
+            disp = ev.data.get("dispatcher")
+            if disp is not None and _is_kernel(disp):
+                callback(disp)
+
+    return event.install_listener("numba:compile", _Listener())
+
+
+class CompileProgress:
+    """Counts the kernels compiled while active and reports them on ``stream``.
+
+    ``n`` is the number of kernels of ``modules`` (of these, those named in ``only`` and not
+    in ``skip``) not in the cache when it starts; a kernel compiled that was not counted adds one. With nothing
+    to compile it prints nothing. On a terminal the line is redrawn as kernels finish
+    ("compiling kernels, first run only: k of n"); elsewhere (logs, CI) it is printed when the
+    first kernel is compiled and once more at the end, with the time it took. Kernels compiled
+    in worker processes are added with :meth:`add`.
+    """
+
+    def __init__(self, modules=KERNEL_MODULES, *, only=None, skip=(), stream=None,
+                 quiet=False):
+        self.stream = sys.stderr if stream is None else stream
+        self.quiet = quiet
+        self.pending = {name for name, d in ((_name(d), d) for d in kernels(modules))
+                        if (only is None or name in only) and name not in skip
+                        and not _cached(d)}
+        self.n = len(self.pending)
+        self.done = set()
+        self.t0 = None
+        self.seconds = 0.0
+        self._lock = threading.Lock()
+        self._tty = hasattr(self.stream, "isatty") and self.stream.isatty()
+        self._cm = None
+        self._said = False
+
+    @property
+    def k(self):
+        return len(self.done)
+
+    @property
+    def total(self):
+        return len(self.pending | self.done)
+
+    def add(self, name):
+        """Count the kernel named ``module.qualname`` as compiled (from any process)."""
+        with self._lock:
+            if name in self.done:
+                return
+            self._header()
+            self.done.add(name)
+            if self._tty and not self.quiet:
+                self.stream.write(f"\r{COMPILING}: {self.k} of {self.total}")
+                self.stream.flush()
+
+    def starting(self, name=None):
+        """A kernel starts compiling: say so at once (the first compile can take a minute)."""
+        with self._lock:
+            self._header()
+
+    def _header(self):
+        if self._said or self.quiet:
+            return
+        self._said = True
+        if self._tty:
+            self.stream.write(f"\r{COMPILING}: {self.k} of {self.total}")
+        else:
+            self.stream.write(f"{COMPILING}: {self.total} kernels not in the cache "
+                              f"({os.environ.get('NUMBA_CACHE_DIR') or 'Numba default cache'})\n")
+        self.stream.flush()
+
+    def __enter__(self):
+        self.t0 = time.perf_counter()
+        self._cm = compile_listener(lambda d: self.add(_name(d)), lambda d: self.starting())
+        self._cm.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        self._cm.__exit__(*exc)
+        self.seconds = time.perf_counter() - self.t0
+        if self.done and not self.quiet:
+            n = self.total
+            self.stream.write(("\r" if self._tty else "")
+                              + f"{COMPILING}: {self.k} of {n}, {self.seconds:.1f} s "
+                              "(later runs load them from the cache)\n")
+            self.stream.flush()
+        return False
+
+
+# ---------------------------------------------------------------------------------------------
+# what compiles the kernels: small workloads with the types of the real ones
+
+def _box():
+    import numpy as np
+    v = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)],
+                 np.float64)
+    f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], np.int64)
+    return v, f
+
+
+def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False):
+    """Compile the kernels of ``refraster.render`` (and the colour read): a 16×12 frame of a
+    cube per normals mode. ``clip=True`` also draws the cube cut by the near plane (the
+    clipping kernels), ``stream=True`` through a fragment stage (``draw``, ``resolve``): what
+    the gallery's techniques share."""
+    import numpy as np
+
+    import refraster
+    from refraster.camera import look_at, perspective
+    mesh = refraster.as_mesh(_box())
+    view = look_at((0.3, 0.4, 2.0), (0.0, 0.0, 0.0))
+    for near in (0.5, 1.9) if clip else (0.5,):   # 1.9 cuts the cube: clipped pieces
+        proj = perspective(40.0, 4 / 3, near, 10.0)
+        for mode in normals:
+            fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12, normals=mode)
+            np.asarray(fb.color)
+            if stream:
+                fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12,
+                                      normals=mode,
+                                      fragment_stage=lambda f: f.world_position()[:, 0] <= 0.0)
+                np.asarray(fb.color)

@@ -1,0 +1,166 @@
+"""The first run says that it compiles: the progress line, the cache state, ``refraster warmup``.
+
+The command tests run ``refraster render`` in a fresh ``NUMBA_CACHE_DIR`` filled with this
+checkout's compiled kernels except one (``gbuffer.shade``): the first run compiles that one and
+says so, the second run loads it and says nothing. (A cache with nothing in it takes the whole
+pipeline's compile, 15 s to minutes: ``benchmarks/cold_start.py`` measures that.)
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from refraster import warmup
+from refraster.warmup import COMPILING, CompileProgress
+
+REPO = Path(__file__).resolve().parents[1]
+LEFT_OUT = "refraster.raster.gbuffer.shade"
+
+
+def test_render_kernels_exist_and_are_the_core_s():
+    names = {warmup._name(d) for d in warmup.kernels(warmup.CORE_MODULES)}
+    assert set(warmup.STREAM_KERNELS) <= {warmup._name(d) for d in warmup.kernels()}
+    assert set(warmup.RENDER_KERNELS) <= names
+    assert set(warmup.GALLERY_SKIPS) <= {warmup._name(d) for d in warmup.kernels()}
+    # the inlined helpers have no cache entry of their own, so they are not counted
+    assert all(d.targetoptions.get("inline") != "always" for d in warmup.kernels())
+
+
+def test_progress_line_only_when_something_compiles():
+    quiet = io.StringIO()
+    with CompileProgress(warmup.CORE_MODULES, stream=quiet) as p:
+        pass
+    assert quiet.getvalue() == "" and p.k == 0
+
+    out = io.StringIO()
+    with CompileProgress(warmup.CORE_MODULES, only=(), stream=out) as p:
+        p.add("refraster.x.kernel_a")
+        p.add("refraster.x.kernel_a")      # the same kernel twice counts once
+        p.add("refraster.x.kernel_b")
+    lines = out.getvalue().splitlines()
+    assert len(lines) == 2 and lines[0].startswith(COMPILING)
+    assert re.fullmatch(rf"{COMPILING}: 2 of 2, \d+\.\d s \(later runs load them from the "
+                        r"cache\)", lines[1])
+
+    silenced = io.StringIO()
+    with CompileProgress(warmup.CORE_MODULES, only=(), stream=silenced, quiet=True) as p:
+        p.add("refraster.x.kernel_a")
+    assert silenced.getvalue() == ""
+
+
+def test_progress_counts_a_real_compile():
+    from numba import njit
+
+    @njit(cache=False)
+    def refraster_probe(x):     # defined here: compiled on its first call, never cached
+        return x + 1
+
+    refraster_probe.py_func.__module__ = "refraster.probe"
+    out = io.StringIO()
+    with CompileProgress(warmup.CORE_MODULES, only=(), stream=out) as p:
+        refraster_probe(1)
+    assert p.done == {"refraster.probe.test_progress_counts_a_real_compile.<locals>."
+                      "refraster_probe"}
+    assert "1 of 1" in out.getvalue()
+
+
+def _cache_paths(env):
+    """``{module.qualname: (cache directory, index file name)}`` of the core kernels, as a
+    process with ``env`` sees them."""
+    code = ("import json\nfrom refraster import warmup\n"
+            "print(json.dumps({warmup._name(d): [d._cache._cache_path, "
+            "d._cache._cache_file._index_name] for d in warmup.kernels(warmup.CORE_MODULES)}))")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         check=True, stdin=subprocess.DEVNULL).stdout
+    return json.loads(out)
+
+
+@pytest.fixture
+def nearly_warm_cache(tmp_path):
+    """A fresh ``NUMBA_CACHE_DIR`` holding this checkout's core kernels but ``LEFT_OUT``."""
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    here = _cache_paths(env)
+    cache = tmp_path / "numba-cache"
+    env["NUMBA_CACHE_DIR"] = str(cache)
+    there = _cache_paths(env)
+    for name, (src, index) in here.items():
+        if name == LEFT_OUT:
+            continue
+        stem = index[:-len(".nbi")]
+        dst = Path(there[name][0])
+        dst.mkdir(parents=True, exist_ok=True)
+        for f in Path(src).glob(f"{stem}.*"):
+            if f.suffix in (".nbi", ".nbc"):
+                shutil.copy2(f, dst / f.name)
+    return env
+
+
+def _render(env, tmp_path, name):
+    import trimesh
+    mesh = tmp_path / "cube.ply"
+    if not mesh.exists():
+        trimesh.creation.box((1.0, 1.0, 1.0)).export(mesh)
+    return subprocess.run([sys.executable, "-m", "refraster.cli", "render", str(mesh), "--out",
+                           str(tmp_path / f"{name}.png"), "--width", "64", "--height", "48"],
+                          env=env, capture_output=True, text=True, timeout=600,
+                          stdin=subprocess.DEVNULL)
+
+
+def test_first_render_in_a_fresh_cache_says_it_compiles(nearly_warm_cache, tmp_path):
+    env = nearly_warm_cache
+    first = _render(env, tmp_path, "first")
+    assert first.returncode == 0, first.stderr
+    lines = [ln for ln in first.stderr.splitlines() if ln.startswith(COMPILING)]
+    assert lines, first.stderr
+    m = re.search(rf"{COMPILING}: (\d+) of (\d+), (\d+\.\d) s", first.stderr)
+    assert m and int(m.group(1)) == int(m.group(2)) >= 1, first.stderr
+    info = subprocess.run([sys.executable, "-m", "refraster.cli", "info"], env=env,
+                          capture_output=True, text=True, timeout=300,
+                          stdin=subprocess.DEVNULL).stdout
+    assert re.search(r"kernels: +(cold|partly warm|warm): \d+ of \d+ kernels", info), info
+
+    second = _render(env, tmp_path, "second")
+    assert second.returncode == 0, second.stderr
+    assert COMPILING not in second.stderr and "compil" not in second.stderr.lower()
+    # the bytes do not depend on whether the kernels were compiled or loaded
+    assert (tmp_path / "first.png").read_bytes() == (tmp_path / "second.png").read_bytes()
+
+
+def test_info_tells_a_cold_cache_from_a_warm_one(tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(REPO), NUMBA_CACHE_DIR=str(tmp_path / "empty"))
+    out = subprocess.run([sys.executable, "-m", "refraster.cli", "info"], env=env,
+                         capture_output=True, text=True, timeout=300,
+                         stdin=subprocess.DEVNULL).stdout
+    m = re.search(r"kernels: +cold: 0 of (\d+) kernels compiled and cached; the first run "
+                  r"compiles the rest \(minutes\), 'refraster warmup' does it ahead", out)
+    assert m and int(m.group(1)) == len(warmup.kernels()), out
+    assert np.isfinite(float(m.group(1)))
+
+
+def test_kernel_modules_cover_every_kernel():
+    """A module with kernels missing from ``KERNEL_MODULES`` would compile without being
+    counted in ``n`` (and ``info`` would call a cold cache warm)."""
+    import importlib
+    import pkgutil
+
+    import refraster
+    from numba.core.registry import CPUDispatcher
+    found = set()
+    for m in pkgutil.walk_packages(refraster.__path__, "refraster."):
+        if m.name in ("refraster.cli", "refraster.warmup") or m.name.startswith(
+                ("refraster.gallery", "refraster.golden")):
+            continue
+        mod = importlib.import_module(m.name)
+        found |= {v.py_func.__module__ for v in vars(mod).values()
+                  if isinstance(v, CPUDispatcher) and v.targetoptions.get("inline") != "always"}
+    assert found and found <= set(warmup.KERNEL_MODULES), found - set(warmup.KERNEL_MODULES)
