@@ -52,7 +52,8 @@ KERNEL_MODULES = CORE_MODULES + (
     "refraster.clipsurface.offsetmaps", "refraster.clipsurface.capping",
     "refraster.clipsurface.surfaces", "refraster.clipsurface.textures",
     "refraster.clipsurface.fused", "refraster.edges", "refraster.npr", "refraster.cutaway.flood",
-    "refraster.halos4d.slicing", "refraster.halos4d.render", "refraster.tolerance")
+    "refraster.halos4d.slicing", "refraster.halos4d.render", "refraster.tolerance",
+    "refraster.golden.layers", "refraster.golden.edge_bounds")
 
 #: Kernels ``refraster gallery`` never compiles (other options, the goldens' allowances), so
 #: that its progress line counts to the number it compiles: the kernels of
@@ -60,6 +61,10 @@ KERNEL_MODULES = CORE_MODULES + (
 #: (``python -m benchmarks.cold_start --kernels``, 2026-12-01). A stale entry only makes the
 #: count approximate.
 GALLERY_SKIPS = (
+    "refraster.golden.edge_bounds._absdiff",
+    "refraster.golden.edge_bounds._bounds_kernel",
+    "refraster.golden.edge_bounds._dot_bounds",
+    "refraster.golden.layers._count_bounds",
     "refraster.clipsurface.capping._hatch_kernel",
     "refraster.clipsurface.surfaces._g_kernel",
     "refraster.edges._id_kernel",
