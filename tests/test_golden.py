@@ -57,7 +57,8 @@ def test_self_compare_passes_and_manifest_is_complete(gold):
         assert result.exit_code == 0, result.summary()
         assert result.failures() == []
     m = load_manifest(gold)
-    assert m["schema_version"] == 2
+    from refraster.golden.schema import MANIFEST_SCHEMA_VERSION
+    assert m["schema_version"] == MANIFEST_SCHEMA_VERSION == 3
     assert set(m["generator"]) >= {"refraster", "numpy", "numba", "python"}
     assert m["raster"] == {"subpixel_bits": 8, "fill_rule": "llvmpipe"}
     assert sorted(m["scenes"]) == sorted(SCENES)
@@ -430,10 +431,12 @@ def test_bad_manifests_are_refused(gold, tmp_path):
     g, m = _copy_golden(gold, tmp_path)
     (tmp_path / "outside.npz").write_bytes(b"secret")
     cases = []
-    newer = dict(m, schema_version=3)
-    cases.append((newer, "schema_version 3 is newer"))
+    newer = dict(m, schema_version=4)
+    cases.append((newer, "schema_version 4 is newer"))
     older = dict(m, schema_version=1)
     cases.append((older, "schema_version 1 is older .*regenerate the golden"))
+    # version 2: technique scenes without allowances of their own (issue 20)
+    cases.append((dict(m, schema_version=2), "schema_version 2 is older .*regenerate"))
     escape = json.loads(json.dumps(m))
     escape["scenes"]["render_cube"]["buffers_file"] = "../outside.npz"
     cases.append((escape, "leaves the golden directory"))

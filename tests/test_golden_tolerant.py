@@ -80,7 +80,9 @@ def test_manifest_lists_allowances_with_hashes(gold):
     assert cube["buffers"]["normal"]["tolerant"]["checks"] == ["angle", "face"]
     assert cube["buffers"]["prim_id"]["tolerant"]["checks"] == ["coverage", "id", "face"]
     edges = m["scenes"]["edges_building"]
-    assert edges["buffers"]["edge_map"]["tolerant"] == {"checks": ["masked"], "may": "may"}
+    # issue 20: the edge map's intervals are propagated through its operator, no may region
+    assert edges["buffers"]["edge_map"]["tolerant"] == {"checks": ["bounds"], "lo": "edge_map_lo",
+                                                        "hi": "edge_map_hi"}
     assert edges["allowances"]["may_radius"] == 2
     clip = m["scenes"]["clipsurface_building"]
     assert clip["allowances"]["method"] == "decision"
@@ -165,22 +167,33 @@ def test_background_pixel_covered_fails(gold, tmp_path):
 
 
 def test_may_region_is_forgiven_for_technique_buffers(gold, tmp_path):
-    scene = "edges_building"
+    """A buffer still on the conformant profile (the clip-surface normal: cap normals come from
+    the normal map) forgives its may region and nothing else; the edge map has none left (issue
+    20): a change there fails."""
+    scene = "clipsurface_building"
     b = _buffers(gold, scene)
     allow = _allowances(gold, scene)
-    may = np.argwhere(allow["may"])
-    for r, c in may[:50]:
-        b["edge_map"][r, c] = 1.0 - b["edge_map"][r, c]
+    covered = b["prim_id"] >= 0
+    for r, c in np.argwhere(allow["id_may"] & covered)[:50]:
+        b["normal"][r, c] = -b["normal"][r, c]
     _write(tmp_path / "cand", scene, b)
     assert compare(gold, tmp_path / "cand", mode="tolerant", scenes=[scene]).exit_code == 0
     assert compare(gold, tmp_path / "cand", mode="exact", scenes=[scene]).exit_code == 1
     # the conformant profile forgives 2e-4 of the pixels (depth ties): change 10 of 19 200
-    for r, c in np.argwhere(~dilate(allow["may"], 2))[::997][:10]:
-        b["edge_map"][r, c] = 1.0 - b["edge_map"][r, c]
+    far = np.argwhere(~dilate(allow["id_may"], 2) & covered)
+    assert len(far) >= 10
+    for r, c in far[::len(far) // 10][:10]:
+        b["normal"][r, c] = -b["normal"][r, c]
     _write(tmp_path / "cand", scene, b)
     bad = compare(gold, tmp_path / "cand", mode="tolerant", scenes=[scene])
+    assert [line.split(":")[0] for line in bad.failures()] == [f"{scene}/normal"]
+    edges = _buffers(gold, "edges_building")
+    may = np.argwhere(_allowances(gold, "edges_building")["may"])
+    for r, c in may[:50]:
+        edges["edge_map"][r, c] = 1.0 - edges["edge_map"][r, c]
+    _write(tmp_path / "cand2", "edges_building", edges)
+    bad = compare(gold, tmp_path / "cand2", mode="tolerant", scenes=["edges_building"])
     assert [line.split(":")[0] for line in bad.failures()] == ["edges_building/edge_map"]
-
 
 def test_report_error_mask_shows_pixels_outside(gold, tmp_path):
     scene = "render_cube"

@@ -63,7 +63,8 @@ from ..tolerance import (COLOR_TOL, DEPTH_EPS, MAY, MUST, MUST_NOT, NORMAL_TOL, 
 
 __all__ = ["scene_allowances", "tolerant_metrics", "dilate", "surface_step", "TOLERANT_CHECKS"]
 
-TOLERANT_CHECKS = ("coverage", "id", "interval", "angle", "masked", "face")
+TOLERANT_CHECKS = ("coverage", "id", "interval", "angle", "masked", "face", "layers", "bounds",
+                   "clip")
 
 #: float32 budgets of the interpolated G-buffer values (see the module docstring).
 EYE_DEPTH_ABS, EYE_DEPTH_REL = 1e-5, 4e-6
@@ -254,6 +255,51 @@ def scene_allowances(scene, raster):
         for key, spec in checks.items():
             if key in _GBUFFER and "masked" not in spec["checks"]:
                 spec["checks"] = spec["checks"] + ["face"]
+    if scene.technique == "edges" and "edge_map" in buffers and sets:
+        # edge maps: intervals propagated through the operator (golden/edge_bounds.py)
+        from ..edges import fit_near_far
+        from .edge_bounds import edge_map_bounds, supported
+        params = scene.parameters or {}
+        if supported(params) and params.get("bounds") is not None:
+            near, far = fit_near_far(cam.view, bounds=np.asarray(params["bounds"], np.float64))
+            arrays["edge_map_lo"], arrays["edge_map_hi"] = edge_map_bounds(
+                arrays, buffers, params, near, far,
+                gbuffer_format=params.get("gbuffer_format", "rgba8"),
+                output_format=params.get("output_format", "rgba8"))
+            checks["edge_map"] = {"checks": ["bounds"], "lo": "edge_map_lo",
+                                  "hi": "edge_map_hi"}
+    if scene.technique == "cutaway" and "cutaway_depth" in buffers \
+            and (scene.parameters or {}).get("accepted_variants"):
+        # cutaways: D_variant − slack ≤ D ≤ D_exact + slack (golden/cutaway_bounds.py)
+        from .cutaway_bounds import cutaway_bounds
+        arrays["cutaway_depth_lo"], arrays["cutaway_depth_hi"], slack = cutaway_bounds(
+            scene, tol.eps)
+        checks["cutaway_depth"] = {"checks": ["bounds"], "lo": "cutaway_depth_lo",
+                                   "hi": "cutaway_depth_hi"}
+        if raster["depth_func"] == "less" and "cut_mask" in buffers:
+            # the cut decision z < D free only where D's interval allows either
+            from .clip_allowance import CLIP_BUFFERS, cutaway_allowances
+            arrays.update(cutaway_allowances(scene, raster, tol.eps, arrays["cutaway_depth_lo"],
+                                             arrays["cutaway_depth_hi"]))
+            for key in CLIP_BUFFERS:
+                if key in checks:
+                    checks[key] = {"checks": ["clip"]}
+    if scene.technique == "clipsurface" and "cap_mask" in buffers \
+            and raster["depth_func"] == "less" and scene.maps is not None:
+        # clip surfaces: the clip decision and cap parity bounded (golden/clip_allowance.py)
+        from .clip_allowance import CLIP_BUFFERS, clip_allowances
+        arrays.update(clip_allowances(scene, raster, tol.eps))
+        for key in CLIP_BUFFERS:
+            if key in checks:
+                checks[key] = {"checks": ["clip"]}
+    if scene.technique == "ldi" and "layer_depth" in buffers:
+        # layered depth images: per-layer face sets and depth intervals (golden/layers.py)
+        from .layers import LAYER_BUFFERS, ldi_allowances
+        arrays.update(ldi_allowances(scene, raster, tol.eps, buffers["layer_depth"].shape[2],
+                                     raster["clear_depth"]))
+        for key, layer in LAYER_BUFFERS.items():
+            if key in checks:
+                checks[key] = {"checks": ["layers"], "layer": layer}
     info = {"method": method, "eps": float(tol.eps), "depth_eps": float(tol.depth_eps),
             "normal_tol": NORMAL_TOL, "color_tol": COLOR_TOL, "may_radius": radius,
             "min_subpixel_bits": 4}
@@ -273,30 +319,7 @@ SET_INTERVALS = {"depth": ("set_depth_lo", "set_depth_hi"),
                  "color": ("set_color_lo", "set_color_hi")}
 
 
-def _face_barycentrics(clip, px, py, width, height):
-    """Perspective-correct barycentrics ``(E, S, 3)`` of faces with clip-space vertices
-    ``clip (E, 3, 4)`` at window points ``px, py (E, S)`` (pixels, GL y-up, centres at +0.5).
-
-    Homogeneous: a point of the face is ``Σ β_i V_i`` (Σ β = 1); its window position
-    ``(Σ β_i X_i) / (Σ β_i w_i)`` with ``X_i = (x_i + w_i)·W/2`` (likewise y), so
-    ``β ∝ M⁻¹ (px, py, 1)`` with M's columns ``(X_i, Y_i, w_i)`` — valid for faces crossing
-    the eye plane too (the homogeneous rasterization of Olano & Greer)."""
-    w = clip[:, :, 3]
-    m = np.empty(clip.shape[:1] + (3, 3))
-    m[:, 0, :] = (clip[:, :, 0] + w) * (0.5 * width)
-    m[:, 1, :] = (clip[:, :, 1] + w) * (0.5 * height)
-    m[:, 2, :] = w
-    rhs = np.stack([px, py, np.ones_like(px)], axis=1)            # (E, 3, S)
-    det = np.linalg.det(m)
-    ok = np.abs(det) > 1e-300
-    m[~ok] = np.eye(3)
-    beta = np.linalg.solve(m, rhs)                                 # (E, 3, S)
-    beta = np.moveaxis(beta, 1, 2)                                 # (E, S, 3)
-    total = beta.sum(axis=2, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        beta = beta / total
-    beta[~ok] = np.nan
-    return beta
+from .homogeneous import face_barycentrics as _face_barycentrics  # noqa: E402
 
 
 def face_sets(scene, raster, id_may, eps):
@@ -782,6 +805,15 @@ def _allowed_at(key, spec, arrays, outside, r, c, named, step):
                         " rad")
         elif name == "face":
             said.append("face: " + face_allowed(key, arrays, r, c, named, step))
+        elif name == "bounds":
+            said.append(f"interval [{_fmt(arrays[spec['lo']][r, c] - step)}, "
+                        f"{_fmt(arrays[spec['hi']][r, c] + step)}]")
+        elif name == "clip":
+            from .clip_allowance import clip_allowed
+            said.append(clip_allowed(key, arrays, r, c, step=step))
+        elif name == "layers":
+            from .layers import layers_allowed
+            said.append(layers_allowed(spec["layer"], arrays, r, c, step=step))
     return "; ".join(said) or None
 
 
@@ -813,7 +845,7 @@ def face_allowed(key, arrays, r, c, named, step=0.0):
 
 
 def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_depth=1.0,
-                     fallback=None, step=0.0, named=None):
+                     fallback=None, step=0.0, named=None, others=None):
     """Metrics, checks and images of one buffer under its tolerant checks.
 
     Parameters
@@ -834,6 +866,9 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
     named : (H, W) int64, optional
         :func:`named_entries` of the candidate's ids (the ``face`` check); ``None`` when the
         candidate sends no ids.
+    others : dict, optional
+        The candidate's buffers of the scene, for checks that read another buffer (the
+        ``layers`` check names each layer's face by the candidate's ``layer_prim_id``).
 
     Returns
     -------
@@ -877,6 +912,20 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
                                     forgive=arrays[spec.get("may", "may")])
         elif name == "face":
             outside["face"] = _face_outside(key, kind, cand, arrays, named, step, clear_depth)
+        elif name == "bounds":   # an interval at every pixel, whatever the visible face
+            lo = arrays[spec["lo"]].astype(np.float64) - step
+            hi = arrays[spec["hi"]].astype(np.float64) + step
+            with np.errstate(invalid="ignore"):
+                bad = ~((cand.astype(np.float64) >= lo) & (cand.astype(np.float64) <= hi))
+            outside["bounds"] = bad.any(axis=2) if bad.ndim == 3 else bad
+        elif name == "clip":
+            from .clip_allowance import clip_outside
+            outside["clip"] = clip_outside(key, cand, arrays, others, step=step,
+                                           clear=clear_depth)
+        elif name == "layers":
+            from .layers import layers_outside
+            outside["layers"] = layers_outside(spec["layer"], cand, arrays, others, step=step,
+                                               clear=clear_depth)
         else:
             raise ValueError(f"unknown tolerant check {name!r}")
     err_el = _elementwise_error(ref, cand)

@@ -380,7 +380,8 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
                 clear = entry["parameters"]["raster"].get("clear_depth", 1.0)
                 metrics, checks, images = tolerant_metrics(
                     key, ref[key], a, spec["kind"], spec["tolerant"], allow, clear_depth=clear,
-                    fallback=tol, step=step, named=named)
+                    fallback=tol, step=step, named=named,
+                    others={k: v[0] for k, v in cand.items()})
                 tol = {**tol, "tolerant": spec["tolerant"]}
                 allowance = buffer_allowance(spec["tolerant"], allow, step=step,
                                              clear_depth=clear)

@@ -243,7 +243,9 @@ def load_manifest(golden_dir, *, verify=True):
             _check_shape_size(spec["shape"], f"{path} $.scenes.{name}.buffers.{key}")
         for key, spec in entry.get("allowances", {}).get("arrays", {}).items():
             where = f"{path} $.scenes.{name}.allowances.arrays.{key}"
-            if key.startswith("set_") or key == "draw_offsets":
+            if key.startswith("set_") or key == "draw_offsets" or (
+                    key.startswith("ldi_") and not key.startswith("ldi_count")) or (
+                    key.startswith("cs_") and key != "cs_bg"):
                 _check_table_size(spec["shape"], where)
             else:
                 _check_shape_size(spec["shape"], where)
@@ -506,6 +508,12 @@ def allowance_arrays(golden_dir, manifest, name):
             needed += ["set_offsets", "set_face", "set_facing", "set_normal",
                        "set_normal_angle", "draw_offsets"]
             needed += [n for pair in _SET_INTERVAL_NAMES for n in pair]
+        if "layers" in t.get("checks", ()):
+            from .layers import LAYER_ARRAYS
+            needed += list(LAYER_ARRAYS)
+        if "clip" in t.get("checks", ()):
+            from .clip_allowance import CLIP_ARRAYS
+            needed += list(CLIP_ARRAYS)
         missing = [n for n in needed if n not in arrays]
         if missing:
             raise GoldenError(f"golden {spec['file']}: buffer {key!r} needs arrays {missing}")
@@ -513,6 +521,10 @@ def allowance_arrays(golden_dir, manifest, name):
     shape = next(iter(entry["buffers"].values()))["shape"] if entry["buffers"] else [0, 0]
     try:
         check_face_sets(arrays, shape[0], shape[1])
+        from .layers import check_layer_arrays
+        check_layer_arrays(arrays, shape[0], shape[1])
+        from .clip_allowance import check_clip_arrays
+        check_clip_arrays(arrays, shape[0], shape[1])
     except (ValueError, KeyError) as exc:
         raise GoldenError(f"golden {spec['file']}: {exc}") from None
     return arrays

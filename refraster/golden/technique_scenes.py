@@ -30,6 +30,9 @@ def _edges_building():
                   depth_filter="diagonal", ids=False, inner_threshold=0.0,
                   profile_threshold=0.0, width=1, k_n=1.0, k_z=1.0)
     edges = edge_map(fb, **{**params, "bounds": np.array(params["bounds"])})
+    # the texture formats a backend may use, as the paper's (RGBA8 G-buffer and edge map); the
+    # edge map's allowance includes their quantisation (docs/tolerance.md, "Edge maps")
+    params.update(gbuffer_format="rgba8", output_format="rgba8")
     # the diagonal operators read the 8-neighbourhood; a "may" pixel of the G-buffer may change
     # the edge map one pixel away (two kept as margin)
     return GoldenScene(technique="edges", camera=camera, draws=draws,
@@ -162,7 +165,10 @@ def _cutaway_shells():
     params = dict(angle=1.0, variant="jfa+1", perspective_compensation=True,
                   edge_compression=0.1, dilation=True, outlines=True, ghost="lines",
                   ghost_distance=0.5, ghost_fade=True, crease_angle=30.0,
-                  interest=["interest"], secondary=["outer_shells"])
+                  interest=["interest"], secondary=["outer_shells"],
+                  # the flooding variants a backend may use: the scene's own, the exact maximum
+                  # and the schedules at least as good (docs/tolerance.md, "Cutaways")
+                  accepted_variants=["jfa+1", "jfa+2", "1+jfa", "exact"])
     fb = render_cutaway([draws[1].mesh], [draws[0].mesh], **camera.kwargs,
                         angle=params["angle"], variant=params["variant"],
                         perspective_compensation=params["perspective_compensation"],

@@ -1,0 +1,553 @@
+"""Goldens with teeth (2), item 6: the fault-injection harness over every technique scene.
+
+For every registered technique scene (``technique != "render"``) and every buffer, an in-domain
+fault at every covered pixel (``tests/faults_techniques.py``); the tolerant check must fail at
+that pixel wherever the allowance does not admit the fault. Aims of the issue:
+
+* ≥ 99 % caught where the allowance is narrower than the fault;
+* covered pixels whose allowance admits the fault: ≤ 5 % for depth-like buffers (and ids,
+  facing, counts, masks), ≤ 30 % for filtered buffers (edge intensities, cutaway effects, halo
+  colour).
+
+Pairs still on the old ``conformant`` profile (a fraction-of-pixels threshold that forgives any
+isolated fault) are listed in ``OLD_PROFILE``; the test fails when that list is wrong in either
+direction, so a pair leaves it exactly when its own allowance meets the aims.
+
+Set ``REFRASTER_FAULT_TABLE=FILE`` to write the measured table (Markdown) for
+``docs/tolerance.md``.
+"""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import faults
+import faults_techniques
+from refraster import golden
+
+TECH = [n for n, e in golden.available_scenes().items() if e.technique != "render"]
+#: Buffers whose aim is the filtered one (≤ 30 % admitted).
+FILTERED = {"edge_map", "cutaway_depth", "ghost", "alpha"} | {
+    ("halos4d_figure1", "color")}
+
+_G = ("barycentric", "color", "depth", "eye_depth", "normal")
+#: (scene, buffer) pairs still on the conformant profile with a fraction-of-pixels threshold
+#: (measured 2026-12-01, docs/tolerance.md): they miss the aims.
+OLD_PROFILE = (
+    {("clipsurface_building", k) for k in ("barycentric", "color", "eye_depth", "normal")}
+    | {("clipsurface_textured_caps", k) for k in ("barycentric", "color", "eye_depth",
+                                                  "normal")}
+    | {("cutaway_shells", k) for k in ("barycentric", "color", "eye_depth", "normal", "ghost")}
+    | {("halos4d_figure1", k) for k in ("alpha", "color", "halo_class")}
+)
+
+
+@pytest.fixture(scope="module")
+def gold(tmp_path_factory):
+    out = tmp_path_factory.mktemp("tfaults") / "g"
+    golden.generate(out, TECH)
+    return out
+
+
+@pytest.fixture(scope="module")
+def tables(gold):
+    return {scene: faults_techniques.fault_table(gold, scene) for scene in TECH}
+
+
+def _aim(scene, key):
+    return 0.30 if key in FILTERED or (scene, key) in FILTERED else 0.05
+
+
+def _meets(scene, key, r):
+    caught = r["caught"] / r["eligible"] if r["eligible"] else 1.0
+    return caught >= 0.99 and r["admitted"] <= _aim(scene, key) * r["covered"]
+
+
+def test_every_technique_scene_is_measured(tables):
+    assert {"edges", "clipsurface", "ldi", "cutaway", "halos4d"} <= {
+        golden.available_scenes()[s].technique for s in tables}
+    rows = [(s, k, r) for s, t in tables.items() for k, r in sorted(t.items())]
+    text = faults.format_table(rows)
+    path = os.environ.get("REFRASTER_FAULT_TABLE")
+    if path:
+        Path(path).write_text(text + "\n")
+    assert all(r is None or r["covered"] > 0 for _, _, r in rows), text
+
+
+@pytest.mark.parametrize("scene", TECH)
+def test_technique_allowances_meet_the_aims(tables, scene):
+    """Every pair off the old profile meets the aims; every pair on it misses them (the list
+    is exact)."""
+    wrong = []
+    for key, r in tables[scene].items():
+        if r is None:
+            continue
+        if _meets(scene, key, r) == ((scene, key) in OLD_PROFILE):
+            wrong.append((key, r["admitted"], r["covered"], r["caught"], r["eligible"],
+                          r["missed"][:5]))
+    assert not wrong, wrong
+
+
+# --- layered depth images (refraster/golden/layers.py) ------------------------------------------
+
+LDI = "ldi_nested_shells"
+#: Conformant variants of refraster's own peeling the LDI golden must accept (specificity).
+LDI_VARIANTS = {"4bit": {"subpixel_bits": 4}, "top_left": {"fill_rule": "top-left"},
+                "4bit_top_left": {"subpixel_bits": 4, "fill_rule": "top-left"},
+                "float64": {"precision": "float64"}}
+
+
+def _ldi_candidate(scene, variant):
+    from refraster.ldi import peel
+    cam = scene.camera
+    lay = peel([d.mesh for d in scene.draws], **cam.kwargs, model=[d.model for d in scene.draws],
+               cull="none", mode="peel", **variant)
+    k = scene.buffers["layer_depth"].shape[2]
+
+    def stack(a, fill):
+        a = np.moveaxis(a, 0, -1)
+        if a.shape[2] < k:
+            a = np.concatenate([a, np.full(a.shape[:2] + (k - a.shape[2],), fill, a.dtype)], 2)
+        return np.ascontiguousarray(a[..., :k])
+    return {"layer_depth": stack(lay.depth, 1.0), "layer_prim_id": stack(lay.prim_id, -1),
+            "layer_front_facing": stack(lay.front_facing, False),
+            "layer_count": np.minimum(lay.count, k).astype(np.int32)}
+
+
+def _write(root, scene, buffers):
+    (root / scene).mkdir(parents=True)
+    np.savez(root / scene / "buffers.npz", **buffers)
+    return root
+
+
+@pytest.mark.parametrize("variant", sorted(LDI_VARIANTS))
+def test_ldi_conformant_variants_pass(gold, tmp_path, variant):
+    """Specificity: refraster's peeling with 4 sub-pixel bits, the top-left rule, both, or a
+    float64 vertex stage passes the LDI golden (tolerant); the 4-bit ones differ from it (exact
+    fails, so their pass is the allowance's doing; no pixel centre of this scene lies on an edge,
+    so the top-left rule alone changes nothing)."""
+    from refraster.golden.compare import compare
+    scene = golden.available_scenes()[LDI].build()
+    cand = _ldi_candidate(scene, LDI_VARIANTS[variant])
+    root = _write(tmp_path, LDI, cand)
+    result = compare(gold, root, mode="tolerant", scenes=[LDI])
+    assert result.exit_code == 0, "\n".join(result.failures()[:10])
+    if variant.startswith("4bit"):
+        assert compare(gold, root, mode="exact", scenes=[LDI]).exit_code == 1
+
+
+def _golden_buffers(gold, scene):
+    with np.load(gold / scene / "buffers.npz", allow_pickle=False) as z:
+        return {k: z[k].copy() for k in z.files}
+
+
+def _run_compare(gold, cand, scene):
+    p = subprocess.run([sys.executable, "-m", "refraster.golden.cli", "golden", "compare",
+                        str(gold), str(cand), "--scene", scene], capture_output=True, text=True)
+    return p.returncode, p.stdout + p.stderr
+
+
+def test_one_ldi_layer_depth_moved_fails_naming_the_pixel(gold, tmp_path):
+    """One layer's depth moved by 0.05 at one pixel (the issue's 0/12 case): the command fails,
+    naming the buffer and the pixel and what the layers may hold there."""
+    b = _golden_buffers(gold, LDI)
+    rr, cc = np.argwhere(b["layer_count"] >= 3)[len(np.argwhere(b["layer_count"] >= 3)) // 2]
+    b["layer_depth"][rr, cc, 1] += np.float32(0.05)
+    code, out = _run_compare(gold, _write(tmp_path / "c", LDI, b), LDI)
+    assert code == 1 and "FAIL" in out, out
+    line = [x for x in out.splitlines() if f"{LDI}/layer_depth: layers" in x][0]
+    assert f"[[{rr}, {cc}]]" in line and "strictly increasing in depth" in line, line
+
+
+def test_one_ldi_layer_count_or_id_moved_fails(gold, tmp_path):
+    """The other LDI buffers, one pixel each: a layer count one too high, a layer naming a face
+    that does not cover the pixel, a flipped facing."""
+    from refraster.golden.compare import compare
+    b0 = _golden_buffers(gold, LDI)
+    pix = np.argwhere(b0["layer_count"] >= 2)
+    rr, cc = pix[len(pix) // 3]
+    for key, edit in (("layer_count", lambda b: b["layer_count"].__setitem__((rr, cc),
+                                                                             b["layer_count"][rr, cc] + 1)),
+                      ("layer_prim_id", lambda b: b["layer_prim_id"].__setitem__((rr, cc, 0), 7)),
+                      ("layer_front_facing", lambda b: b["layer_front_facing"].__setitem__(
+                          (rr, cc, 0), ~b["layer_front_facing"][rr, cc, 0]))):
+        b = {k: v.copy() for k, v in b0.items()}
+        edit(b)
+        root = _write(tmp_path / key, LDI, b)
+        fails = compare(gold, root, mode="tolerant", scenes=[LDI]).failures()
+        assert any(x.startswith(f"{LDI}/{key}: layers") and f"[[{rr}, {cc}]]" in x
+                   for x in fails), (key, fails)
+
+
+def test_harness_sees_a_blind_layers_check(gold, monkeypatch):
+    """The harness's other direction: with the layers check switched off, the LDI faults are
+    reported as missed (not caught), the admits share untouched."""
+    from refraster.golden import layers
+
+    def blind(layer, cand, arrays, others=None, **kw):
+        return np.zeros(np.shape(cand)[:2], np.bool_)
+
+    monkeypatch.setattr(layers, "layers_outside", blind)
+    t = faults_techniques.fault_table(gold, LDI, buffers=["layer_depth"])
+    assert t["layer_depth"]["caught"] == 0 < t["layer_depth"]["eligible"]
+
+
+def test_corrupt_ldi_arrays_are_refused(gold, tmp_path):
+    """A tolerance.npz whose LDI entries index outside themselves (hash rewritten to match) is
+    refused with one line, never indexed with."""
+    import hashlib
+    import json
+    import shutil
+    from refraster.golden.compare import GoldenError, compare
+    g = tmp_path / "g"
+    shutil.copytree(gold, g)
+    with np.load(g / LDI / "tolerance.npz", allow_pickle=False) as z:
+        a = {k: z[k].copy() for k in z.files}
+    a["ldi_offsets"][5] = 10 ** 8
+    np.savez(g / LDI / "tolerance.npz", **a)
+    m = json.loads((g / "manifest.json").read_text())
+    rel = f"{LDI}/tolerance.npz"
+    m["files"][rel] = hashlib.sha256((g / rel).read_bytes()).hexdigest()
+    (g / "manifest.json").write_text(json.dumps(m))
+    root = _write(tmp_path / "cand", LDI, _golden_buffers(gold, LDI))
+    with pytest.raises(GoldenError, match="ldi_offsets is not an offset array"):
+        compare(g, root, mode="tolerant", scenes=[LDI])
+
+
+# --- edge maps (refraster/golden/edge_bounds.py) -------------------------------------------------
+
+EDGES = "edges_building"
+
+
+def _q8(a):
+    return (np.round(np.asarray(a, np.float64) * 255.0) / 255.0).astype(np.float32)
+
+
+#: (raster variant, RGBA8 G-buffer and edge map): refraster's conformant variants of the edge map.
+EDGE_VARIANTS = {"4bit": ({"subpixel_bits": 4}, False), "top_left": ({"fill_rule": "top-left"}, False),
+                 "4bit_top_left_rgba8": ({"subpixel_bits": 4, "fill_rule": "top-left"}, True),
+                 "float64_rgba8": ({"precision": "float64"}, True), "rgba8": ({}, True)}
+
+
+@pytest.mark.parametrize("variant", sorted(EDGE_VARIANTS))
+def test_edge_map_conformant_variants_pass(gold, tmp_path, variant):
+    """Specificity: the edge map of refraster's 4-bit, top-left and float64 G-buffers, and of
+    G-buffers and edge maps stored as RGBA8 (the paper's texture formats, the scene's
+    ``gbuffer_format`` / ``output_format``), passes the golden (tolerant)."""
+    from refraster.edges import EdgeGBuffer, edge_gbuffer, edge_map
+    from refraster.golden.compare import compare
+    from refraster.golden.scenes import raster_state, render_draws
+    scene = golden.available_scenes()[EDGES].build()
+    p = scene.parameters
+    ops = {k: p[k] for k in ("preset", "normal_filter", "depth_filter", "ids",
+                             "inner_threshold", "profile_threshold", "width", "k_n", "k_z")}
+    raster, rgba8 = EDGE_VARIANTS[variant]
+    fb = render_draws(scene.draws, scene.camera, {**raster_state({}), **raster})
+    if rgba8:
+        gb = edge_gbuffer(fb, bounds=np.array(p["bounds"]))
+        gb = EdgeGBuffer(normal=_q8(gb.normal), depth=_q8(gb.depth), object_id=gb.object_id,
+                         near=gb.near, far=gb.far)
+        e = _q8(edge_map(gb, **ops))
+    else:
+        e = edge_map(fb, bounds=np.array(p["bounds"]), **ops)
+    root = _write(tmp_path, EDGES, {**fb.arrays(), "edge_map": e})
+    result = compare(gold, root, mode="tolerant", scenes=[EDGES])
+    assert result.exit_code == 0, "\n".join(result.failures()[:10])
+    if raster.get("subpixel_bits") == 4 or rgba8:
+        assert compare(gold, root, mode="exact", scenes=[EDGES],
+                       buffers=["edge_map"]).exit_code == 1
+
+
+def test_one_edge_pixel_moved_fails_naming_the_pixel(gold, tmp_path):
+    """One edge-map pixel's intensity (every channel) moved by 0.25 where the interval is
+    narrower than that: `refraster golden compare` fails naming the pixel and the interval."""
+    b = _golden_buffers(gold, EDGES)
+    with np.load(gold / EDGES / "tolerance.npz", allow_pickle=False) as z:
+        lo, hi = z["edge_map_lo"], z["edge_map_hi"]
+    narrow = ((hi - lo).max(axis=2) < 0.05) & (b["prim_id"] >= 0) & (b["edge_map"][..., 0] < 0.5)
+    rr, cc = np.argwhere(narrow)[len(np.argwhere(narrow)) // 2]
+    b["edge_map"][rr, cc] += np.float32(0.25)
+    code, out = _run_compare(gold, _write(tmp_path / "c", EDGES, b), EDGES)
+    assert code == 1 and "FAIL" in out, out
+    line = [x for x in out.splitlines() if f"{EDGES}/edge_map: bounds" in x][0]
+    assert f"[[{rr}, {cc}]]" in line and "interval [(" in line, line
+
+
+# --- cutaways (refraster/golden/cutaway_bounds.py) -----------------------------------------------
+
+CUT = "cutaway_shells"
+#: rear-hull raster variants × every flooding variant the scene accepts
+CUT_RASTER = {"8bit": {}, "4bit": {"subpixel_bits": 4}, "top_left": {"fill_rule": "top-left"},
+              "4bit_top_left": {"subpixel_bits": 4, "fill_rule": "top-left"},
+              "float64": {"precision": "float64"}}
+
+
+def _cutaway_depth(scene, raster, variant):
+    """D as a backend computes it: the interest's rear hull (depth test greater, clear 0) with
+    the given raster state, flooded with ``variant``, in window depth (float32)."""
+    from refraster import render
+    from refraster.cutaway.surface import cutaway_surface
+    p = scene.parameters
+    cam = scene.camera
+    draws = [d for d in scene.draws if d.name in p["interest"]]
+    rear = render([d.mesh for d in draws], **cam.kwargs, model=[d.model for d in draws],
+                  depth_func="greater", clear_depth=0.0, **raster)
+    d = cutaway_surface(rear.depth, rear.object_id, proj=cam.proj, view=cam.view,
+                        angle=p["angle"], variant=variant,
+                        perspective_compensation=p["perspective_compensation"],
+                        edge_compression=p["edge_compression"])
+    return (0.5 * d + 0.5).astype(np.float32)
+
+
+@pytest.mark.parametrize("raster", sorted(CUT_RASTER))
+def test_cutaway_conformant_variants_pass(gold, tmp_path, raster):
+    """Specificity: every accepted flooding variant over a rear hull rasterized with 4 or 8
+    sub-pixel bits, either fill rule, a float64 vertex stage, passes; D is what refraster's own
+    pipeline stores (checked for the scene's variant at 8 bits: bit-identical)."""
+    from refraster.golden.compare import compare
+    scene = golden.available_scenes()[CUT].build()
+    b = _golden_buffers(gold, CUT)
+    for variant in scene.parameters["accepted_variants"]:
+        d = _cutaway_depth(scene, CUT_RASTER[raster], variant)
+        if raster == "8bit" and variant == scene.parameters["variant"]:
+            assert np.array_equal(d, b["cutaway_depth"])
+        root = _write(tmp_path / variant, CUT, {**b, "cutaway_depth": d})
+        result = compare(gold, root, mode="tolerant", scenes=[CUT], buffers=["cutaway_depth"])
+        assert result.exit_code == 0, (variant, result.failures()[:5])
+
+
+def test_cutaway_bounds_refuse_just_outside(gold, tmp_path):
+    """The interval is tight in both directions: D one float32 step above D_hi or below D_lo
+    at one pixel fails naming it."""
+    from refraster.golden.compare import compare
+    b = _golden_buffers(gold, CUT)
+    with np.load(gold / CUT / "tolerance.npz", allow_pickle=False) as z:
+        lo, hi = z["cutaway_depth_lo"], z["cutaway_depth_hi"]
+    for name, (rr, cc), value in (
+            ("up", (30, 40), np.nextafter(hi[30, 40], np.float32(2))),
+            ("down", (20, 50), np.nextafter(lo[20, 50], np.float32(-1)))):
+        d = b["cutaway_depth"].copy()
+        d[rr, cc] = value
+        root = _write(tmp_path / name, CUT, {**b, "cutaway_depth": d})
+        fails = compare(gold, root, mode="tolerant", scenes=[CUT],
+                        buffers=["cutaway_depth"]).failures()
+        assert any(f"[[{rr}, {cc}]]" in x for x in fails), (name, fails)
+
+
+def test_one_cutaway_depth_moved_fails_naming_the_pixel(gold, tmp_path):
+    """One pixel of D moved by 0.05 (the issue's 0/12 case): FAIL naming the pixel."""
+    b = _golden_buffers(gold, CUT)
+    rr, cc = 30, 40
+    b["cutaway_depth"][rr, cc] += np.float32(0.05)
+    code, out = _run_compare(gold, _write(tmp_path / "c", CUT, b), CUT)
+    assert code == 1 and "FAIL" in out, out
+    line = [x for x in out.splitlines() if f"{CUT}/cutaway_depth: bounds" in x][0]
+    assert f"[[{rr}, {cc}]]" in line and "interval [" in line, line
+
+
+# --- clip surfaces (refraster/golden/clip_allowance.py) ------------------------------------------
+
+CLIPS = ["clipsurface_building", "clipsurface_textured_caps"]
+CLIP_KEYS = ["cap_mask", "depth", "front_facing", "object_id", "prim_id"]
+#: raster variants × the float32 clip test with 8-bit bilinear weights
+CLIP_VARIANTS = {"4bit": ({"subpixel_bits": 4}, False),
+                 "top_left": ({"fill_rule": "top-left"}, False),
+                 "4bit_top_left": ({"subpixel_bits": 4, "fill_rule": "top-left"}, False),
+                 "float64": ({"precision": "float64"}, False),
+                 "lookup8_float32": ({}, True), "4bit_lookup8_float32": ({"subpixel_bits": 4}, True)}
+
+
+def _wrap(i, size, mode):
+    if mode == "repeat":
+        return np.mod(i, size)
+    if mode == "clamp_to_edge":
+        return np.clip(i, 0, size - 1)
+    m = np.mod(i, 2 * size) - size
+    return (size - 1) - np.where(m >= 0, m, -(1 + m))
+
+
+def _g_lookup8(points, s):
+    """Eq. 1 as a GPU may evaluate it: float32 throughout, the offset map as unorm16 texels
+    sampled GL_LINEAR with weights rounded to 8 bits."""
+    f = np.float32
+    p = np.asarray(points, f)
+    u = np.asarray(s.u, np.float64)
+    v = np.asarray(s.v, np.float64)
+    uh = (u / np.linalg.norm(u)).astype(f)
+    vh = np.asarray(s.v_hat if hasattr(s, "v_hat") else v / np.linalg.norm(v), f)
+    n = np.cross(uh.astype(np.float64), vh.astype(np.float64)).astype(f)
+    d = p - np.asarray(s.origin, f)
+    sc = np.asarray(s.scale, f)
+    ss = (d @ uh) / f(np.linalg.norm(u)) * sc[0]
+    tt = (d @ vh) / f(np.linalg.norm(v)) * sc[1]
+    om = np.round(np.asarray(s.offset_map, np.float64) * 65535.0).astype(f) / f(65535.0)
+    hh, ww = om.shape
+    x = ss * f(ww) - f(0.5)
+    y = tt * f(hh) - f(0.5)
+    i0 = np.floor(x).astype(np.int64)
+    j0 = np.floor(y).astype(np.int64)
+    a = np.round((x - np.floor(x)) * 256.0).astype(f) / f(256.0)
+    b = np.round((y - np.floor(y)) * 256.0).astype(f) / f(256.0)
+    c0, c1 = _wrap(i0, ww, s.wrap), _wrap(i0 + 1, ww, s.wrap)
+    r0, r1 = _wrap(j0, hh, s.wrap), _wrap(j0 + 1, hh, s.wrap)
+    top = om[r0, c0] * (f(1) - a) + om[r0, c1] * a
+    bot = om[r1, c0] * (f(1) - a) + om[r1, c1] * a
+    h = top * (f(1) - b) + bot * b
+    return (d @ n) + sc[2] * h
+
+
+def _clip_candidate(scene, raster, lookup8, monkeypatch):
+    import functools
+
+    from refraster import framebuffer, raster as rr
+    from refraster.clipsurface import render as cr
+    from refraster.clipsurface import render_clipped
+    from refraster.golden.clip_allowance import _surfaces
+    from refraster.golden.scenes import raster_state
+    bits = {k: v for k, v in raster.items() if k in ("subpixel_bits", "fill_rule")}
+    if bits:   # forced over whatever the caller passes
+        for mod in (rr, framebuffer):
+            monkeypatch.setattr(mod, "prepare", functools.partial(
+                lambda orig, *a, **k: orig(*a, **{**k, **bits}), mod.prepare))
+    if lookup8:
+        def clip_mask(points, surfaces, *, space="world", view=None, skip=None):
+            out = np.zeros(len(points), np.bool_)
+            for k, surf in enumerate(surfaces):
+                if surf.enabled:
+                    g = _g_lookup8(points, surf)
+                    out |= (g < 0) & (skip != k)
+            return out
+        monkeypatch.setattr(cr, "_USE_FUSED", False)
+        monkeypatch.setattr(cr, "clip_mask", clip_mask)
+    p = scene.parameters
+    caps = {k: p[k] for k in ("caps", "cap_style", "cap_mode", "cap_color", "subdivision",
+                              "vds_resolution", "space")}
+    fb = render_clipped([d.mesh for d in scene.draws], _surfaces(scene), **scene.camera.kwargs,
+                        **caps, cull=raster_state({})["cull"],
+                        precision=raster.get("precision", "float32"))
+    return {**fb.arrays(), "cap_mask": fb.cap_mask}
+
+
+@pytest.mark.parametrize("variant", sorted(CLIP_VARIANTS))
+@pytest.mark.parametrize("scene_name", CLIPS)
+def test_clip_surface_conformant_variants_pass(gold, tmp_path, monkeypatch, scene_name,
+                                               variant):
+    """Specificity: a clip-surface frame rendered with 4 sub-pixel bits, the top-left rule,
+    both, a float64 vertex stage, or with Eq. 1 in float32 over unorm16 texels sampled with
+    8-bit bilinear weights (also with 4 bits) passes the clip checks (ids, depth, facing, cap
+    mask); the 4-bit frames differ from the golden (the 8-bit-weight lookup alone changes no
+    clip decision of these two scenes: its frames are bit-identical in the checked buffers)."""
+    from refraster.golden.compare import compare
+    scene = golden.available_scenes()[scene_name].build()
+    raster, lookup8 = CLIP_VARIANTS[variant]
+    cand = _clip_candidate(scene, raster, lookup8, monkeypatch)
+    root = _write(tmp_path, scene_name, cand)
+    result = compare(gold, root, mode="tolerant", scenes=[scene_name], buffers=CLIP_KEYS)
+    assert result.exit_code == 0, "\n".join(result.failures()[:10])
+    if raster.get("subpixel_bits") == 4:
+        assert compare(gold, root, mode="exact", scenes=[scene_name],
+                       buffers=CLIP_KEYS).exit_code == 1
+
+
+def test_cap_parity_flipped_fails_naming_the_pixel(gold, tmp_path):
+    """A cap pixel shown as the solid behind it would be (cap parity flipped: cap_mask and the
+    ids of a solid face) — and the cap mask alone flipped — fail `compare` naming the pixel."""
+    from refraster.golden.compare import compare
+    scene = "clipsurface_building"
+    b = _golden_buffers(gold, scene)
+    with np.load(gold / scene / "tolerance.npz", allow_pickle=False) as z:
+        a = {k: z[k].copy() for k in z.files}
+    caps = np.argwhere(b["cap_mask"])
+    rr, cc = caps[len(caps) // 2]
+    b["cap_mask"][rr, cc] = False
+    code, out = _run_compare(gold, _write(tmp_path / "c", scene, b), scene)
+    assert code == 1 and "FAIL" in out, out
+    line = [x for x in out.splitlines() if f"{scene}/cap_mask: clip" in x][0]
+    assert f"[[{rr}, {cc}]]" in line and "(object_id, prim_id) one of" in line, line
+    # parity flipped the other way: the solid's face 0 claimed where a cap must show
+    b["object_id"][rr, cc] = 0
+    b["prim_id"][rr, cc] = 0
+    fails = compare(gold, _write(tmp_path / "d", scene, b), mode="tolerant",
+                    scenes=[scene]).failures()
+    assert any(x.startswith(f"{scene}/prim_id: clip") and f"[[{rr}, {cc}]]" in x
+               for x in fails), fails
+    # the cap flag of the faces allowed there is what cap_mask must say
+    k = rr * b["prim_id"].shape[1] + cc
+    assert (a["cs_flag"][a["cs_offsets"][k]:a["cs_offsets"][k + 1]] == 1).any()
+
+
+def test_clip_depth_moved_fails(gold, tmp_path):
+    """One solid pixel's depth moved by 0.05 (the issue's 0/12 case) fails naming the pixel."""
+    scene = "clipsurface_building"
+    b = _golden_buffers(gold, scene)
+    solid = np.argwhere((b["prim_id"] >= 0) & ~b["cap_mask"])
+    rr, cc = solid[len(solid) // 2]
+    b["depth"][rr, cc] = b["depth"][rr, cc] + np.float32(0.05)
+    code, out = _run_compare(gold, _write(tmp_path / "c", scene, b), scene)
+    assert code == 1, out
+    line = [x for x in out.splitlines() if f"{scene}/depth: clip" in x][0]
+    assert f"[[{rr}, {cc}]]" in line, line
+
+
+def _force_raster(monkeypatch, raster):
+    """refraster's prepare with ``raster``'s sub-pixel bits / fill rule forced over whatever
+    its callers pass (the techniques call render without them)."""
+    import functools
+
+    from refraster import framebuffer, raster as rr
+    bits = {k: v for k, v in raster.items() if k in ("subpixel_bits", "fill_rule")}
+    if bits:
+        for mod in (rr, framebuffer):
+            monkeypatch.setattr(mod, "prepare", functools.partial(
+                lambda orig, *a, **k: orig(*a, **{**k, **bits}), mod.prepare))
+
+
+CUT_KEYS = ["cutaway_depth", "cut_mask", "depth", "front_facing", "object_id", "prim_id"]
+
+
+@pytest.mark.parametrize("raster", ["4bit", "4bit_top_left", "float64"])
+def test_cutaway_frames_of_conformant_variants_pass(gold, tmp_path, monkeypatch, raster):
+    """Specificity of the cut decision: whole cutaway frames (rear hull and scene rasterized
+    with 4 bits, the top-left rule, a float64 vertex stage — ``precision`` is not a
+    render_cutaway option, so float64 goes through prepare too), flooded with each accepted
+    variant, pass the cutaway checks (D, cut mask, ids, depth, facing)."""
+    from refraster.cutaway import render_cutaway
+    from refraster.golden.compare import compare
+    scene = golden.available_scenes()[CUT].build()
+    p = scene.parameters
+    ras = dict(CUT_RASTER[raster])
+    _force_raster(monkeypatch, ras)
+    if "precision" in ras:
+        import functools
+
+        from refraster import framebuffer, raster as rr
+        for mod in (rr, framebuffer):
+            monkeypatch.setattr(mod, "prepare", functools.partial(
+                lambda orig, *a, **k: orig(*a, **{**k, "precision": "float64"}), mod.prepare))
+    opts = {k: p[k] for k in ("angle", "perspective_compensation", "edge_compression",
+                              "dilation", "outlines", "ghost", "ghost_distance", "ghost_fade",
+                              "crease_angle")}
+    interest = [d.mesh for d in scene.draws if d.name in p["interest"]]
+    secondary = [d.mesh for d in scene.draws if d.name in p["secondary"]]
+    for variant in p["accepted_variants"]:
+        fb = render_cutaway(interest, secondary, **scene.camera.kwargs, variant=variant, **opts)
+        cand = {**fb.arrays(), "cutaway_depth": fb.cutaway_depth, "cut_mask": fb.cut_mask}
+        root = _write(tmp_path / variant, CUT, cand)
+        result = compare(gold, root, mode="tolerant", scenes=[CUT], buffers=CUT_KEYS)
+        assert result.exit_code == 0, (variant, result.failures()[:5])
+
+
+def test_cut_mask_flipped_fails_naming_the_pixel(gold, tmp_path):
+    """A cut-surface pixel's cut_mask flipped fails `compare` naming the pixel."""
+    b = _golden_buffers(gold, CUT)
+    cut = np.argwhere(b["cut_mask"])
+    rr, cc = cut[len(cut) // 2]
+    b["cut_mask"][rr, cc] = False
+    code, out = _run_compare(gold, _write(tmp_path / "c", CUT, b), CUT)
+    assert code == 1, out
+    line = [x for x in out.splitlines() if f"{CUT}/cut_mask: clip" in x][0]
+    assert f"[[{rr}, {cc}]]" in line, line
