@@ -25,6 +25,9 @@ SUPPORTED_TECHNIQUES = {
     "render": "the G-buffer in one pass with multiple render targets",
     "ldi": "classic depth peeling (one pass per layer)",
     "vds": "the volumetric parity test in a fragment shader over the sprite as a texture array",
+    # issue 26 (refraster/gl/edges.py)
+    "edges": "the edge G-buffer T_G (RGBA8 or float), one full-screen pass with the diagonal / "
+             "C1 / Sobel / angle operators into an RGBA8 or float edge map, the width dilation",
 }
 
 #: Planted faults, each a test-only ``#define`` (never set in normal use): name → (define,
@@ -41,4 +44,9 @@ FAULTS = {
                             "the volumetric depth sprite's rows read top-down"),
     "parity_wrong_end": ("FAULT_PARITY_WRONG_END", "the parity count run from the back layer "
                                                    "with the front-to-back early exit"),
+    # issue 26: edge maps (shaders/edge_map.frag)
+    "one_diagonal": ("FAULT_ONE_DIAGONAL", "the diagonal normal and depth operators with one "
+                                           "diagonal (A–H) only"),
+    "sobel_transposed": ("FAULT_SOBEL_TRANSPOSED", "the Sobel G_y kernel written transposed "
+                                                   "(it equals G_x: edges along x vanish)"),
 }

@@ -158,6 +158,9 @@ class Backend:
         p = scene.get("parameters", {})
         if technique == "ldi" and p.get("mode", "peel") != "peel":
             return f"ldi mode {p.get('mode')!r}: only classic peeling ('peel') is implemented"
+        if technique == "edges":          # issue 26: refraster/gl/edges.py
+            from .edges import supports
+            return supports(scene)
         if technique == "vds" and (p.get("test") != "parity" or p.get("axis") not in ("z",)
                                    or p.get("rule", "parity") != "parity"):
             return ("vds: only the parity test over one sprite (test 'parity', one axis) is "
@@ -186,7 +189,8 @@ class Backend:
         reason = self.supports(scene)
         if reason is not None:
             raise Unsupported(reason)
-        loaded = {"scene": scene, "draws": self._upload(package_dir, scene), "textures": []}
+        loaded = {"scene": scene, "draws": self._upload(package_dir, scene), "textures": [],
+                  "package_dir": package_dir}
         if scene["technique"] == "vds":
             loaded["textures"] = self._sprite(package_dir, scene)
         return loaded
@@ -210,6 +214,9 @@ class Backend:
 
     def draw(self, loaded, *, layers=None):
         """Render a :meth:`load`-ed scene → ``{buffer name: array}`` (see :meth:`render`)."""
+        if loaded["scene"]["technique"] == "edges":    # issue 26: refraster/gl/edges.py
+            from .edges import render_edges
+            return render_edges(self, loaded, loaded.get("package_dir"))
         if loaded["scene"]["technique"] in ("render", "vds"):
             return self._gbuffer(loaded["scene"], loaded["draws"], loaded["textures"])
         return self._peel(loaded["scene"], loaded["draws"], layers)

@@ -40,6 +40,41 @@ def _edges_building():
                        may_radius=2)
 
 
+def _edges_operator_scene(normal_filter, depth_filter):
+    """The building of ``edges_building`` with other operators (issue 26, item 5: a scene per
+    edge operator), float32 textures, no thresholds."""
+    from ..edges import edge_map
+    from ..scenes import solid
+    state = raster_state({})
+    draws = prepare_draws([Draw("building", solid("building"))])
+    camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
+    fb = render_draws(draws, camera, state)
+    lo, hi = draws[0].mesh.vertices.min(axis=0), draws[0].mesh.vertices.max(axis=0)
+    params = dict(bounds=[lo.tolist(), hi.tolist()], preset="paper", normal_filter=normal_filter,
+                  depth_filter=depth_filter, ids=False, inner_threshold=0.0,
+                  profile_threshold=0.0, width=1, k_n=1.0, k_z=1.0)
+    edges = edge_map(fb, **{**params, "bounds": np.array(params["bounds"])})
+    params.update(gbuffer_format="float32", output_format="float32")
+    return GoldenScene(technique="edges", camera=camera, draws=draws,
+                       buffers={**fb.arrays(), "edge_map": edges}, parameters=params,
+                       may_radius=2)
+
+
+@register_scene("edges_sobel", technique="edges",
+                description="Edge map of the building with the Sobel operators (Nienhaus & "
+                            "Döllner Sec. 4.1.2's alternative): Sobel of the normal channels in "
+                            "RGB, Sobel of depth in A, gains 1, float32 textures.")
+def _edges_sobel():
+    return _edges_operator_scene("sobel", "sobel")
+
+
+@register_scene("edges_c1", technique="edges",
+                description="Edge map of the building with the C1 depth operator (normalized "
+                            "1/12) in A and the angle normal operator in RGB, float32 textures.")
+def _edges_c1():
+    return _edges_operator_scene("angle", "c1")
+
+
 @register_scene("clipsurface_building", technique="clipsurface",
                 description="Building cut by a 2.5D clip surface with a Perlin offset map "
                             "(N = −z: the front half is removed), diffuse caps (Trapp & "

@@ -1,0 +1,150 @@
+"""refraster.gl on the technique scenes (issue 26, part 2 of the GLSL backend): every supported
+technique scene passes the tolerant compare on llvmpipe, and every planted fault of a technique
+(a test-only ``#define``) fails it on a scene of its technique naming the right buffer, while the
+scenes it cannot change pass. The pass/fail matrix is the technique section of docs/backends.md.
+
+Needs a headless EGL context (Mesa llvmpipe through moderngl): skips without one, fails under
+CI=true (the project's optional-oracle rule).
+"""
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import IN_CI
+from refraster import golden
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "backends.md"
+BEGIN = "<!-- gl-techniques-matrix:begin (tests/test_gl_techniques.py) -->"
+END = "<!-- gl-techniques-matrix:end -->"
+
+EDGES = ["edges_building", "edges_sobel", "edges_c1"]
+SCENES = EDGES
+
+#: fault → {scene: buffer that must be named among the failing ones}
+EXPECTED = {
+    "one_diagonal": {"edges_building": "edge_map"},
+    "sobel_transposed": {"edges_sobel": "edge_map"},
+}
+#: scenes a fault cannot change (their operators do not contain the faulty code)
+UNTOUCHED = {
+    "one_diagonal": ["edges_sobel", "edges_c1"],
+    "sobel_transposed": ["edges_building", "edges_c1"],
+}
+
+
+def _backend_or_skip():
+    from refraster.gl.driver import Backend, GLUnavailable
+    try:
+        return Backend()
+    except GLUnavailable as exc:
+        if IN_CI:
+            pytest.fail(f"CI=true but the gl backend has no context: {exc}")
+        pytest.skip(f"no headless OpenGL context (EGL/llvmpipe): {exc}")
+
+
+@pytest.fixture(scope="module")
+def gold(tmp_path_factory):
+    root = tmp_path_factory.mktemp("gltech")
+    golden.generate(root / "golden", SCENES)
+    return root
+
+
+def _cell(scene_result):
+    if scene_result.status == "pass":
+        return "pass"
+    failing = [b.name for b in scene_result.buffers if not b.passed]
+    return "**FAIL** " + ", ".join(f"`{b}`" for b in failing)
+
+
+def test_technique_scenes_pass_and_every_planted_fault_fails(gold):
+    from refraster.golden.candidate import candidate
+    _backend_or_skip().release()
+    columns = ["correct", *EXPECTED]
+    results = {}
+    for column in columns:
+        out = gold / f"cand_{column}"
+        r = candidate(gold / "golden", out, faults=() if column == "correct" else (column,))
+        assert sorted(r["rendered"]) == sorted(SCENES) and not r["skipped"], r["skipped"]
+        marker = json.loads((out / ".refraster-candidate").read_text())
+        assert marker["renderer"].startswith("llvmpipe") or not IN_CI
+        cmp = golden.compare(gold / "golden", out, mode="tolerant", scenes=r["rendered"])
+        results[column] = {s.name: s for s in cmp.scenes}
+        if column == "correct":
+            assert cmp.exit_code == 0, "\n".join(cmp.failures())
+            continue
+        assert cmp.exit_code == 1, f"fault {column} passed every scene"
+        for scene, buffer in EXPECTED[column].items():
+            assert [line for line in cmp.failures() if line.startswith(f"{scene}/{buffer}")], \
+                f"fault {column}: {scene}/{buffer} not named ({cmp.failures()})"
+        for scene in UNTOUCHED[column]:
+            assert results[column][scene].status == "pass", (column, scene)
+    head = ["scene"] + ["correct"] + [f"`{c}`" for c in columns[1:]]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += [f"| {s} | " + " | ".join(_cell(results[c][s]) for c in columns) + " |"
+              for s in SCENES]
+    table = "\n".join(lines)
+    doc = DOC.read_text()
+    begin, end = doc.index(BEGIN) + len(BEGIN), doc.index(END)
+    if os.environ.get("REFRASTER_WRITE_BACKENDS_MATRIX"):
+        DOC.write_text(doc[:begin] + "\n" + table + "\n" + doc[end:])
+        doc = DOC.read_text()
+        begin, end = doc.index(BEGIN) + len(BEGIN), doc.index(END)
+    assert doc[begin:end].strip() == table, (
+        "docs/backends.md's technique matrix differs from this run; re-run with "
+        "REFRASTER_WRITE_BACKENDS_MATRIX=1 and review the change\n" + table)
+
+
+def test_gl_sobel_depth_agrees_with_scipy(gold):
+    """Outside oracle for the Sobel depth operator of the GL edge pass: scipy.ndimage.sobel
+    (mode "nearest" = clamp-to-edge) of the linear depth formed from the golden's own eye depth,
+    |∇| / 4 clipped to 1, away from where the visible face may differ."""
+    from scipy import ndimage
+    base = gold / "golden" / "edges_sobel"
+    scene = json.loads((base / "package" / "scene.json").read_text())
+    with _backend_or_skip() as gl:
+        from refraster.gl.edges import near_far
+        got = gl.render(base / "package")
+        near, far = near_far(scene)
+    with np.load(base / "buffers.npz") as z:
+        eye, obj = z["eye_depth"].astype(np.float64), z["object_id"]
+    with np.load(base / "tolerance.npz") as z:
+        may = z["may"]
+    lin = np.where(obj >= 0, np.clip((eye - near) / (far - near), 0, 1), 1.0)
+    e = np.minimum(np.hypot(ndimage.sobel(lin, 0, mode="nearest"),
+                            ndimage.sobel(lin, 1, mode="nearest")) / 4.0, 1.0)
+    keep = ~ndimage.binary_dilation(may, iterations=1)
+    assert keep.sum() > 0.5 * keep.size
+    np.testing.assert_allclose(got["edge_map"][..., 3][keep], e[keep], atol=2e-4)
+    # the oracle sees a planted fault: the transposed kernel misses edges along x
+    with _backend_or_skip().__class__(faults=["sobel_transposed"]) as bad:
+        wrong = bad.render(base / "package")["edge_map"][..., 3]
+    assert np.abs(wrong[keep] - e[keep]).max() > 0.05
+
+
+def test_edges_parameters_are_checked(gold, tmp_path):
+    """A bad edges parameter is one clear PackageError naming the key."""
+    import shutil
+
+    from refraster.gl.package import PackageError
+    from refraster.gl.edges import options
+    src = gold / "golden" / "edges_building" / "package"
+    good = json.loads((src / "scene.json").read_text())["parameters"]
+    assert options(good)["gbuffer_format"] == "rgba8"
+    for edit, words in (({"depth_filter": "roberts"}, "depth_filter"),
+                        ({"width": 0}, "width"), ({"inner_threshold": 2}, "inner_threshold"),
+                        ({"output_format": "rgb565"}, "output_format"),
+                        ({"preset": "fancy"}, "preset"), ({"ids": "yes"}, "ids")):
+        with pytest.raises(PackageError, match=words):
+            options({**good, **edit})
+    pkg = tmp_path / "pkg"
+    shutil.copytree(src, pkg)
+    doc = json.loads((pkg / "scene.json").read_text())
+    doc["parameters"]["bounds"] = [[0, 0], [1, 1]]
+    (pkg / "scene.json").write_text(json.dumps(doc))
+    with _backend_or_skip() as gl, pytest.raises(PackageError, match="parameters.bounds"):
+        gl.render(pkg)
