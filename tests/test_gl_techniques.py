@@ -62,9 +62,11 @@ def _cell(scene_result):
 
 
 def test_technique_scenes_pass_and_every_planted_fault_fails(gold):
+    from refraster.gl import TECHNIQUE_FAULTS
     from refraster.golden.candidate import candidate
     _backend_or_skip().release()
-    columns = ["correct", *EXPECTED]
+    assert set(EXPECTED) == set(UNTOUCHED) == set(TECHNIQUE_FAULTS)
+    columns = ["correct", *TECHNIQUE_FAULTS]
     results = {}
     for column in columns:
         out = gold / f"cand_{column}"

@@ -18,7 +18,7 @@ On the command line: ``refraster golden candidate GOLDEN_DIR --backend gl --out 
 (docs/backends.md).
 """
 
-__all__ = ["SUPPORTED_TECHNIQUES", "FAULTS"]
+__all__ = ["SUPPORTED_TECHNIQUES", "FAULTS", "TECHNIQUE_FAULTS"]
 
 #: Techniques this backend renders, with what it renders for them.
 SUPPORTED_TECHNIQUES = {
@@ -44,9 +44,15 @@ FAULTS = {
                             "the volumetric depth sprite's rows read top-down"),
     "parity_wrong_end": ("FAULT_PARITY_WRONG_END", "the parity count run from the back layer "
                                                    "with the front-to-back early exit"),
-    # issue 26: edge maps (shaders/edge_map.frag)
+}
+
+#: Planted faults of the technique passes (issue 26; tests/test_gl_techniques.py), also in
+#: :data:`FAULTS`.
+TECHNIQUE_FAULTS = {
+    # edge maps (shaders/edge_map.frag)
     "one_diagonal": ("FAULT_ONE_DIAGONAL", "the diagonal normal and depth operators with one "
                                            "diagonal (A–H) only"),
     "sobel_transposed": ("FAULT_SOBEL_TRANSPOSED", "the Sobel G_y kernel written transposed "
                                                    "(it equals G_x: edges along x vanish)"),
 }
+FAULTS.update(TECHNIQUE_FAULTS)
