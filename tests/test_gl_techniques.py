@@ -23,17 +23,22 @@ BEGIN = "<!-- gl-techniques-matrix:begin (tests/test_gl_techniques.py) -->"
 END = "<!-- gl-techniques-matrix:end -->"
 
 EDGES = ["edges_building", "edges_sobel", "edges_c1"]
-SCENES = EDGES
+CUTAWAYS = ["cutaway_shells"]
+SCENES = EDGES + CUTAWAYS
 
 #: fault → {scene: buffer that must be named among the failing ones}
 EXPECTED = {
     "one_diagonal": {"edges_building": "edge_map"},
     "sobel_transposed": {"edges_sobel": "edge_map"},
+    "schedule_truncated": {"cutaway_shells": "cutaway_depth"},
+    "slope_from_theta": {"cutaway_shells": "cutaway_depth"},
 }
 #: scenes a fault cannot change (their operators do not contain the faulty code)
 UNTOUCHED = {
-    "one_diagonal": ["edges_sobel", "edges_c1"],
-    "sobel_transposed": ["edges_building", "edges_c1"],
+    "one_diagonal": ["edges_sobel", "edges_c1"] + CUTAWAYS,
+    "sobel_transposed": ["edges_building", "edges_c1"] + CUTAWAYS,
+    "schedule_truncated": EDGES,
+    "slope_from_theta": EDGES,
 }
 
 

@@ -28,6 +28,8 @@ SUPPORTED_TECHNIQUES = {
     # issue 26 (refraster/gl/edges.py)
     "edges": "the edge G-buffer T_G (RGBA8 or float), one full-screen pass with the diagonal / "
              "C1 / Sobel / angle operators into an RGBA8 or float edge map, the width dilation",
+    "cutaway": "rear hulls (GREATER), seeds, ping-pong jump flooding with the scene's schedule, "
+               "D_dil and cut normals, the clipped G-buffer with cut surfaces, ghost lines",
 }
 
 #: Planted faults, each a test-only ``#define`` (never set in normal use): name → (define,
@@ -54,5 +56,10 @@ TECHNIQUE_FAULTS = {
                                            "diagonal (A–H) only"),
     "sobel_transposed": ("FAULT_SOBEL_TRANSPOSED", "the Sobel G_y kernel written transposed "
                                                    "(it equals G_x: edges along x vanish)"),
+    # cutaways (refraster/gl/cutaway.py, shaders/cutaway_seed.frag)
+    "schedule_truncated": ("FAULT_SCHEDULE_TRUNCATED", "the jump-flooding schedule without its "
+                                                       "last 3 passes"),
+    "slope_from_theta": ("FAULT_SLOPE_FROM_THETA", "the cutaway slope from tan θ instead of "
+                                                   "cot θ"),
 }
 FAULTS.update(TECHNIQUE_FAULTS)
