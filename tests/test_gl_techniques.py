@@ -24,7 +24,8 @@ END = "<!-- gl-techniques-matrix:end -->"
 
 EDGES = ["edges_building", "edges_sobel", "edges_c1"]
 CUTAWAYS = ["cutaway_shells"]
-SCENES = EDGES + CUTAWAYS
+HALOS = ["halos4d_figure1"]
+SCENES = EDGES + CUTAWAYS + HALOS
 
 #: fault → {scene: buffer that must be named among the failing ones}
 EXPECTED = {
@@ -32,13 +33,17 @@ EXPECTED = {
     "sobel_transposed": {"edges_sobel": "edge_map"},
     "schedule_truncated": {"cutaway_shells": "cutaway_depth"},
     "slope_from_theta": {"cutaway_shells": "cutaway_depth"},
+    "eq3_halved": {"halos4d_figure1": "halo_class"},
+    "slices_front_to_back": {"halos4d_figure1": "color"},
 }
 #: scenes a fault cannot change (their operators do not contain the faulty code)
 UNTOUCHED = {
-    "one_diagonal": ["edges_sobel", "edges_c1"] + CUTAWAYS,
-    "sobel_transposed": ["edges_building", "edges_c1"] + CUTAWAYS,
-    "schedule_truncated": EDGES,
-    "slope_from_theta": EDGES,
+    "one_diagonal": ["edges_sobel", "edges_c1"] + CUTAWAYS + HALOS,
+    "sobel_transposed": ["edges_building", "edges_c1"] + CUTAWAYS + HALOS,
+    "schedule_truncated": EDGES + HALOS,
+    "slope_from_theta": EDGES + HALOS,
+    "eq3_halved": EDGES + CUTAWAYS,
+    "slices_front_to_back": EDGES + CUTAWAYS,
 }
 
 

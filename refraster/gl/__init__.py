@@ -30,6 +30,9 @@ SUPPORTED_TECHNIQUES = {
              "C1 / Sobel / angle operators into an RGBA8 or float edge map, the width dilation",
     "cutaway": "rear hulls (GREATER), seeds, ping-pong jump flooding with the scene's schedule, "
                "D_dil and cut normals, the clipped G-buffer with cut surfaces, ghost lines",
+    "halos4d": "tetrahedra sliced per plane in a geometry shader, Eq. 3's halo depth per "
+               "fragment (MIN blending), the surface fragment by depth test, slices "
+               "composited back to front with blending",
 }
 
 #: Planted faults, each a test-only ``#define`` (never set in normal use): name → (define,
@@ -61,5 +64,9 @@ TECHNIQUE_FAULTS = {
                                                        "last 3 passes"),
     "slope_from_theta": ("FAULT_SLOPE_FROM_THETA", "the cutaway slope from tan θ instead of "
                                                    "cot θ"),
+    # 4D halos (refraster/gl/halos.py, shaders/halo_*.frag)
+    "eq3_halved": ("FAULT_EQ3_HALVED", "Eq. 3's drop-off δd halved"),
+    "slices_front_to_back": ("FAULT_SLICES_FRONT_TO_BACK", "the slices composited front to "
+                                                           "back"),
 }
 FAULTS.update(TECHNIQUE_FAULTS)

@@ -164,6 +164,9 @@ class Backend:
         if technique == "cutaway":        # issue 26: refraster/gl/cutaway.py
             from .cutaway import supports
             return supports(scene)
+        if technique == "halos4d":        # issue 26: refraster/gl/halos.py
+            from .halos import supports
+            return supports(scene)
         if technique == "vds" and (p.get("test") != "parity" or p.get("axis") not in ("z",)
                                    or p.get("rule", "parity") != "parity"):
             return ("vds: only the parity test over one sprite (test 'parity', one axis) is "
@@ -223,6 +226,9 @@ class Backend:
         if loaded["scene"]["technique"] == "cutaway":  # issue 26: refraster/gl/cutaway.py
             from .cutaway import render_cutaway
             return render_cutaway(self, loaded, loaded.get("package_dir"))
+        if loaded["scene"]["technique"] == "halos4d":  # issue 26: refraster/gl/halos.py
+            from .halos import render_halos
+            return render_halos(self, loaded, loaded.get("package_dir"))
         if loaded["scene"]["technique"] in ("render", "vds"):
             return self._gbuffer(loaded["scene"], loaded["draws"], loaded["textures"])
         return self._peel(loaded["scene"], loaded["draws"], layers)
