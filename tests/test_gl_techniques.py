@@ -23,18 +23,19 @@ BEGIN = "<!-- gl-techniques-matrix:begin (tests/test_gl_techniques.py) -->"
 END = "<!-- gl-techniques-matrix:end -->"
 
 EDGES = ["edges_building", "edges_sobel", "edges_c1"]
-CUTAWAYS = ["cutaway_shells"]
-HALOS = ["halos4d_figure1"]
+CUTAWAYS = ["cutaway_shells", "cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa"]
+HALOS = ["halos4d_figure1", "halos4d_perspective"]
 SCENES = EDGES + CUTAWAYS + HALOS
 
 #: fault → {scene: buffer that must be named among the failing ones}
 EXPECTED = {
     "one_diagonal": {"edges_building": "edge_map"},
     "sobel_transposed": {"edges_sobel": "edge_map"},
-    "schedule_truncated": {"cutaway_shells": "cutaway_depth"},
-    "slope_from_theta": {"cutaway_shells": "cutaway_depth"},
-    "eq3_halved": {"halos4d_figure1": "halo_class"},
-    "slices_front_to_back": {"halos4d_figure1": "color"},
+    "schedule_truncated": {"cutaway_shells": "cutaway_depth", "cutaway_shells_jfa": "cutaway_depth",
+                           "cutaway_shells_1jfa": "cutaway_depth"},
+    "slope_from_theta": {s: "cutaway_depth" for s in CUTAWAYS},
+    "eq3_halved": {s: "halo_class" for s in HALOS},
+    "slices_front_to_back": {s: "color" for s in HALOS},
 }
 #: scenes a fault cannot change (their operators do not contain the faulty code)
 UNTOUCHED = {
