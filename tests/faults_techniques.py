@@ -240,7 +240,9 @@ def clip_admits(key, kind, spec, arrays, ref, cand, named, others):
         faces = [int(f) for f in arrays["cs_face"][k0:k1]]
         pr, ob = int(prim[r, c]), int(obj[r, c])
         if pr < 0:
-            out[r, c] = bool(arrays["cs_bg"][r, c]) and (key != "depth" or cand[r, c] >= 1.0)
+            out[r, c] = bool(arrays["cs_bg"][r, c]) and (
+                key != "depth" or cand[r, c] >= 1.0) and (
+                key != "eye_depth" or not np.isfinite(cand[r, c]))
             continue
         if not 0 <= ob < len(draws) - 1 or pr >= draws[ob + 1] - draws[ob]:
             continue
@@ -250,6 +252,8 @@ def clip_admits(key, kind, spec, arrays, ref, cand, named, others):
         e = k0 + faces.index(g)
         if key == "depth":
             out[r, c] = arrays["cs_depth_lo"][e] <= cand[r, c] <= arrays["cs_depth_hi"][e]
+        elif key == "eye_depth":
+            out[r, c] = arrays["cs_eye_lo"][e] <= cand[r, c] <= arrays["cs_eye_hi"][e]
         elif key == "front_facing":
             f = int(arrays["cs_facing"][e])
             out[r, c] = f < 0 or bool(cand[r, c]) == (f == 1)

@@ -38,10 +38,9 @@ _G = ("barycentric", "color", "depth", "eye_depth", "normal")
 #: (scene, buffer) pairs still on the conformant profile with a fraction-of-pixels threshold
 #: (measured 2026-12-01, docs/tolerance.md): they miss the aims.
 OLD_PROFILE = (
-    {("clipsurface_building", k) for k in ("barycentric", "color", "eye_depth", "normal")}
-    | {("clipsurface_textured_caps", k) for k in ("barycentric", "color", "eye_depth",
-                                                  "normal")}
-    | {("cutaway_shells", k) for k in ("barycentric", "color", "eye_depth", "normal", "ghost")}
+    {("clipsurface_building", k) for k in ("barycentric", "color", "normal")}
+    | {("clipsurface_textured_caps", k) for k in ("barycentric", "color", "normal")}
+    | {("cutaway_shells", k) for k in ("barycentric", "color", "normal", "ghost")}
     | {("halos4d_figure1", k) for k in ("alpha", "color", "halo_class")}
     # issue 26's operator scenes: golden/edge_bounds.py covers the diagonal operators only
     | {(s, "edge_map") for s in ("edges_sobel", "edges_c1")}
@@ -358,7 +357,7 @@ def test_one_cutaway_depth_moved_fails_naming_the_pixel(gold, tmp_path):
 # --- clip surfaces (refraster/golden/clip_allowance.py) ------------------------------------------
 
 CLIPS = ["clipsurface_building", "clipsurface_textured_caps"]
-CLIP_KEYS = ["cap_mask", "depth", "front_facing", "object_id", "prim_id"]
+CLIP_KEYS = ["cap_mask", "depth", "eye_depth", "front_facing", "object_id", "prim_id"]
 #: raster variants × the float32 clip test with 8-bit bilinear weights
 CLIP_VARIANTS = {"4bit": ({"subpixel_bits": 4}, False),
                  "top_left": ({"fill_rule": "top-left"}, False),
@@ -512,7 +511,8 @@ def _force_raster(monkeypatch, raster):
                 lambda orig, *a, **k: orig(*a, **{**k, **bits}), mod.prepare))
 
 
-CUT_KEYS = ["cutaway_depth", "cut_mask", "depth", "front_facing", "object_id", "prim_id"]
+CUT_KEYS = ["cutaway_depth", "cut_mask", "depth", "eye_depth", "front_facing", "object_id",
+            "prim_id"]
 
 
 @pytest.mark.parametrize("raster", ["4bit", "4bit_top_left", "float64"])

@@ -36,12 +36,13 @@ import numpy as np
 __all__ = ["clip_allowances", "clip_outside", "clip_allowed", "CLIP_ARRAYS", "CLIP_BUFFERS"]
 
 F32 = 2.0 ** -24
-CLIP_ARRAYS = ("cs_offsets", "cs_face", "cs_depth_lo", "cs_depth_hi", "cs_facing", "cs_flag",
-               "cs_bg", "cs_draw_offsets")
+CLIP_ARRAYS = ("cs_offsets", "cs_face", "cs_depth_lo", "cs_depth_hi", "cs_eye_lo", "cs_eye_hi",
+               "cs_facing", "cs_flag", "cs_bg", "cs_draw_offsets")
 #: the buffers the check covers; the mask buffer (``cap_mask``, ``cut_mask``) must equal the
 #: named entry's ``cs_flag`` (1: a cap face, a back face of a secondary object; 0: not; −1:
 #: either, a sliver whose facing may flip)
-CLIP_BUFFERS = ("prim_id", "object_id", "depth", "front_facing", "cap_mask", "cut_mask")
+CLIP_BUFFERS = ("prim_id", "object_id", "depth", "eye_depth", "front_facing", "cap_mask",
+                "cut_mask")
 
 
 def _surfaces(scene):
@@ -170,6 +171,31 @@ def clip_allowances(scene, raster, eps):
     return _winners(prep, pix, faces, sure, fragile, lo, hi, state, is_cap, h, w)
 
 
+def _eye_interval(lo, hi, proj):
+    """Eye depth (−z_eye) over a window-depth interval: the projection's map is monotone
+    (perspective ``P₂₃/(z_ndc + P₂₂)``, orthographic ``(P₂₃ − z_ndc)/P₂₂``), so its bounds are its
+    values at the bounds, widened by plain rendering's float32 eye-depth budget."""
+    from ..camera import is_perspective
+    from .allowance import EYE_DEPTH_ABS, EYE_DEPTH_REL
+    proj = np.asarray(proj, np.float64)
+    ends = []
+    for d in (lo, hi):
+        z = 2.0 * np.clip(d, 0.0, 1.0) - 1.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            e = (proj[2, 3] / (z + proj[2, 2]) if is_perspective(proj)
+                 else (proj[2, 3] - z) / proj[2, 2])
+        ends.append(e)
+    e_lo = np.minimum(ends[0], ends[1])
+    e_hi = np.maximum(ends[0], ends[1])
+    free = ~np.isfinite(lo) | ~np.isfinite(hi) | ~np.isfinite(e_lo) | ~np.isfinite(e_hi)
+    e_lo = np.where(free, -np.inf, e_lo - EYE_DEPTH_ABS - EYE_DEPTH_REL * np.abs(e_lo))
+    e_hi = np.where(free, np.inf, e_hi + EYE_DEPTH_ABS + EYE_DEPTH_REL * np.abs(e_hi))
+    lo32, hi32 = e_lo.astype(np.float32), e_hi.astype(np.float32)
+    lo32 = np.where(lo32 > e_lo, np.nextafter(lo32, np.float32(-np.inf)), lo32)
+    hi32 = np.where(hi32 < e_hi, np.nextafter(hi32, np.float32(np.inf)), hi32)
+    return lo32.astype(np.float32), hi32.astype(np.float32)
+
+
 def _winners(prep, pix, faces, sure, fragile, lo, hi, state, flag, h, w):
     """The ``cs_*`` arrays from per-entry keep states (0 never, 1 may be, 2 surely kept)."""
     from ..tolerance import _face_facing
@@ -193,7 +219,9 @@ def _winners(prep, pix, faces, sure, fragile, lo, hi, state, flag, h, w):
     return {"cs_offsets": offsets.astype(np.int32), "cs_face": faces.astype(np.int32),
             "cs_depth_lo": lo32.astype(np.float32), "cs_depth_hi": hi32.astype(np.float32),
             "cs_facing": facing, "cs_flag": np.asarray(flag, np.int8)[keep],
-            "cs_bg": bg.reshape(h, w), "cs_draw_offsets": offs.astype(np.int32)}
+            "cs_bg": bg.reshape(h, w), "cs_draw_offsets": offs.astype(np.int32),
+            **dict(zip(("cs_eye_lo", "cs_eye_hi"), _eye_interval(lo[keep], hi[keep],
+                                                                   prep.proj)))}
 
 
 def cutaway_allowances(scene, raster, eps, d_lo, d_hi):
@@ -263,7 +291,7 @@ def check_clip_arrays(arrays, height, width):
         raise ValueError("cs_draw_offsets is not an offset array over the draw calls")
     if n and (face.min() < 0 or face.max() >= draws[-1]):
         raise ValueError("cs_face holds a face outside the scene's draws")
-    for k in ("cs_depth_lo", "cs_depth_hi", "cs_facing", "cs_flag"):
+    for k in ("cs_depth_lo", "cs_depth_hi", "cs_eye_lo", "cs_eye_hi", "cs_facing", "cs_flag"):
         if np.asarray(arrays[k]).shape != (n,):
             raise ValueError(f"{k} does not have one entry per cs_face ({n})")
     if np.asarray(arrays["cs_bg"]).shape != (height, width):
@@ -336,12 +364,13 @@ def clip_outside(key, cand, arrays, others=None, *, step=0.0, clear=1.0):
         e = np.maximum(named, 0)
         f = arrays["cs_facing"][e] if len(arrays["cs_facing"]) else np.full((h, w), -1)
         return (named >= 0) & (f >= 0) & (c.astype(np.bool_) != (f == 1))
-    if key != "depth":
+    if key not in ("depth", "eye_depth"):
         raise ValueError(f"no clip-surface check for buffer {key!r}")
     v = c.astype(np.float64)
-    covered = v < clear
-    lo = arrays["cs_depth_lo"].astype(np.float64)
-    hi = arrays["cs_depth_hi"].astype(np.float64)
+    covered = v < clear if key == "depth" else np.isfinite(v)
+    which = "depth" if key == "depth" else "eye"
+    lo = arrays[f"cs_{which}_lo"].astype(np.float64)
+    hi = arrays[f"cs_{which}_hi"].astype(np.float64)
     if named is not None:
         e = np.maximum(named, 0)
         lo_p = np.where(named >= 0, lo[e] if len(lo) else np.nan, np.nan)
@@ -370,9 +399,10 @@ def clip_allowed(key, arrays, r, c, step=0.0):
         f = int(arrays["cs_face"][i])
         o = int(np.searchsorted(draws[1:], f, side="right"))
         s = f"({o}, {f - int(draws[o])})"
-        if key == "depth":
-            s += (f" depth [{float(arrays['cs_depth_lo'][i]) - step:.6g}, "
-                  f"{float(arrays['cs_depth_hi'][i]) + step:.6g}]")
+        if key in ("depth", "eye_depth"):
+            which = "depth" if key == "depth" else "eye"
+            s += (f" {key} [{float(arrays[f'cs_{which}_lo'][i]) - step:.6g}, "
+                  f"{float(arrays[f'cs_{which}_hi'][i]) + step:.6g}]")
         parts.append(s)
     bg = "; or the background" if arrays["cs_bg"][r, c] else ""
     return "(object_id, prim_id) one of {" + "; ".join(parts) + "}" + bg
