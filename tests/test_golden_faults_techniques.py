@@ -46,7 +46,7 @@ OLD_PROFILE = (
     | {(s, "edge_map") for s in ("edges_sobel", "edges_c1")}
     # issue 26's variant / projection scenes: the same buffers as their base scenes (measured)
     | {(s, k) for s in ("cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa")
-       for k in ("barycentric", "color", "eye_depth", "normal", "ghost")}
+       for k in ("barycentric", "color", "normal", "ghost")}
     | {("halos4d_perspective", k) for k in ("alpha", "color", "halo_class")}
 )
 
