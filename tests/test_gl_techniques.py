@@ -22,14 +22,14 @@ DOC = ROOT / "docs" / "backends.md"
 BEGIN = "<!-- gl-techniques-matrix:begin (tests/test_gl_techniques.py) -->"
 END = "<!-- gl-techniques-matrix:end -->"
 
-EDGES = ["edges_building", "edges_sobel", "edges_c1"]
+EDGES = ["edges_building", "edges_sobel", "edges_c1", "edges_npr_gooch"]
 CUTAWAYS = ["cutaway_shells", "cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa"]
 HALOS = ["halos4d_figure1", "halos4d_perspective"]
 SCENES = EDGES + CUTAWAYS + HALOS
 
 #: fault → {scene: buffer that must be named among the failing ones}
 EXPECTED = {
-    "one_diagonal": {"edges_building": "edge_map"},
+    "one_diagonal": {"edges_building": "edge_map", "edges_npr_gooch": "npr_color"},
     "sobel_transposed": {"edges_sobel": "edge_map"},
     "schedule_truncated": {"cutaway_shells": "cutaway_depth", "cutaway_shells_jfa": "cutaway_depth",
                            "cutaway_shells_1jfa": "cutaway_depth"},
@@ -40,7 +40,7 @@ EXPECTED = {
 #: scenes a fault cannot change (their operators do not contain the faulty code)
 UNTOUCHED = {
     "one_diagonal": ["edges_sobel", "edges_c1"] + CUTAWAYS + HALOS,
-    "sobel_transposed": ["edges_building", "edges_c1"] + CUTAWAYS + HALOS,
+    "sobel_transposed": ["edges_building", "edges_c1", "edges_npr_gooch"] + CUTAWAYS + HALOS,
     "schedule_truncated": EDGES + HALOS,
     "slope_from_theta": EDGES + HALOS,
     "eq3_halved": EDGES + CUTAWAYS,

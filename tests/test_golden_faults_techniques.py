@@ -44,6 +44,7 @@ OLD_PROFILE = (
     | {("halos4d_figure1", k) for k in ("alpha", "color", "halo_class")}
     # issue 26's operator scenes: golden/edge_bounds.py covers the diagonal operators only
     | {(s, "edge_map") for s in ("edges_sobel", "edges_c1")}
+    | {("edges_npr_gooch", "npr_color")}      # the composite: conformant colour, may forgiven
     # issue 26's variant / projection scenes: the same buffers as their base scenes (measured)
     | {(s, k) for s in ("cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa")
        for k in ("barycentric", "color", "normal", "ghost")}

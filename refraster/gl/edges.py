@@ -66,12 +66,44 @@ def options(params, where="parameters"):
     if isinstance(width, bool) or not isinstance(width, int) or not 1 <= width <= 64:
         raise PackageError(f"{where}.width must be an integer in 1..64")
     opt["width"] = width
+    npr = params.get("npr")
+    if npr is not None:
+        opt["npr"] = npr_options(npr, f"{where}.npr")
     for key in ("gbuffer_format", "output_format"):
         v = params.get(key, "float32")
         if v not in FORMATS:
             raise PackageError(f"{where}.{key} must be one of {sorted(FORMATS)}, got {v!r}")
         opt[key] = v
     return opt
+
+
+def _rgb(v, where):
+    if not (isinstance(v, list) and len(v) == 3 and all(
+            isinstance(c, (int, float)) and not isinstance(c, bool) and 0.0 <= c <= 1.0
+            for c in v)):
+        raise PackageError(f"{where} must be 3 numbers in [0, 1]")
+    return [float(c) for c in v]
+
+
+def npr_options(npr, where):
+    """The NPR compositing pass's options (style ``gooch`` only) → dict."""
+    if not isinstance(npr, dict) or npr.get("style") != "gooch":
+        raise PackageError(f"{where}.style must be 'gooch' (the only style the gl backend has)")
+    out = {}
+    light = npr.get("light")
+    if not (isinstance(light, list) and len(light) == 3
+            and all(isinstance(c, (int, float)) and math.isfinite(c) for c in light)) \
+            or not any(light):
+        raise PackageError(f"{where}.light must be a non-zero direction of 3 numbers")
+    out["light"] = (np.array(light, np.float64) / np.linalg.norm(light)).tolist()
+    for key in ("base", "cool", "warm", "background", "inner_color", "profile_color"):
+        out[key] = _rgb(npr.get(key), f"{where}.{key}")
+    for key in ("alpha", "beta"):
+        v = npr.get(key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
+            raise PackageError(f"{where}.{key} must be a number in [0, 1]")
+        out[key] = float(v)
+    return out
 
 
 def supports(scene):
@@ -131,6 +163,10 @@ def _programs(gl):
                                 fragment_shader=shader_source("edge_map.frag", defines)),
             "dilate": ctx.program(vertex_shader=shader_source("fullscreen.vert", defines),
                                   fragment_shader=shader_source("edge_dilate.frag", defines)),
+            "npr": ctx.program(
+                vertex_shader=shader_source("gbuffer.vert", defines),
+                geometry_shader=shader_source("gbuffer.geom", defines),
+                fragment_shader=shader_source("edge_npr.frag", defines)),
         }
     return gl._edge_programs
 
@@ -205,6 +241,9 @@ def render_edges(gl, loaded, package_dir=None):
             gl._set(prog, "u_radius", opt["width"] - 1)
             _fullscreen(gl, prog)
             result = edge[1]
+        npr = None
+        if "npr" in opt:
+            npr = _npr_pass(gl, scene, draws, opt["npr"], result, size, progs["npr"])
         ctx.finish()
         if fmt == "f1":
             e = gl._read(result, "u1", 4, size).astype(np.float32) / np.float32(255.0)
@@ -215,4 +254,42 @@ def render_edges(gl, loaded, package_dir=None):
         for obj in (*fbo_e, fbo, depth, tg, ids, *edge):
             obj.release()
     out["edge_map"] = np.ascontiguousarray(e, np.float32)
+    if npr is not None:
+        out["npr_color"] = npr
     return out
+
+
+def _npr_pass(gl, scene, draws, npr, edge_tex, size, prog):
+    """Pass 3: the objects again with the Gooch style and the edge map blended over it."""
+    mgl, ctx = gl.mgl, gl.ctx
+    target = ctx.texture(size, 4, dtype="f4")
+    depth = gl._depth_attachment(size)
+    fbo = ctx.framebuffer(color_attachments=[target], depth_attachment=depth)
+    try:
+        fbo.use()
+        ctx.viewport = (0, 0, *size)
+        fbo.clear(*npr["background"], 1.0, depth=float(scene["raster"]["clear_depth"]))
+        gl._state(scene)
+        edge_tex.use(location=0)
+        gl._set(prog, "u_edge", 0)
+        kd = np.array(npr["base"])
+        gl._set(prog, "u_light", tuple(npr["light"]))
+        gl._set(prog, "u_cool", tuple(np.array(npr["cool"]) + npr["alpha"] * kd))
+        gl._set(prog, "u_warm", tuple(np.array(npr["warm"]) + npr["beta"] * kd))
+        gl._set(prog, "u_inner_color", tuple(npr["inner_color"]))
+        gl._set(prog, "u_profile_color", tuple(npr["profile_color"]))
+        gl._set(prog, "u_smooth", scene["raster"]["normals"] == "smooth")
+        gl._set(prog, "u_viewport", tuple(float(s) for s in size))
+        for d in draws:
+            if not d["n_faces"]:
+                continue
+            gl._write(prog, "u_mvp", d["mvp"])
+            gl._write(prog, "u_mv", d["mv"])
+            gl._write(prog, "u_nmat", d["nmat"])
+            gl._vao(d, prog).render(mgl.TRIANGLES)
+        ctx.finish()
+        return np.ascontiguousarray(gl._read(target, "<f4", 4, size)[..., :3], np.float32)
+    finally:
+        gl._parking.use()
+        for obj in (fbo, depth, target):
+            obj.release()

@@ -75,6 +75,35 @@ def _edges_c1():
     return _edges_operator_scene("angle", "c1")
 
 
+@register_scene("edges_npr_gooch", technique="edges",
+                description="The paper's edge map of the building composited over Gooch shading "
+                            "(Nienhaus & Döllner Sec. 5.1: inner edges towards white, profile "
+                            "edges towards black, on the objects only), as npr_color.")
+def _edges_npr_gooch():
+    from .. import npr as _npr
+    from ..edges import edge_map
+    from ..scenes import solid
+    state = raster_state({})
+    draws = prepare_draws([Draw("building", solid("building"))])
+    camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
+    fb = render_draws(draws, camera, state)
+    lo, hi = draws[0].mesh.vertices.min(axis=0), draws[0].mesh.vertices.max(axis=0)
+    params = dict(bounds=[lo.tolist(), hi.tolist()], preset="paper", normal_filter="diagonal",
+                  depth_filter="diagonal", ids=False, inner_threshold=0.0,
+                  profile_threshold=0.0, width=1, k_n=1.0, k_z=1.0)
+    edges = edge_map(fb, **{**params, "bounds": np.array(params["bounds"])})
+    style = dict(light=list(_npr.DEFAULT_LIGHT), base=[0.75, 0.75, 0.75], cool=[0.0, 0.0, 0.55],
+                 warm=[0.3, 0.3, 0.0], alpha=0.25, beta=0.5, background=[1.0, 1.0, 1.0])
+    shade = _npr.gooch(fb.normal, **style)
+    colors = dict(inner_color=[1.0, 1.0, 1.0], profile_color=[0.0, 0.0, 0.0])
+    out = _npr.composite(shade, edges, **colors, mask=np.asarray(fb.object_id) >= 0)
+    params.update(gbuffer_format="rgba8", output_format="rgba8",
+                  npr={"style": "gooch", **style, **colors, "mask": "objects"})
+    return GoldenScene(technique="edges", camera=camera, draws=draws,
+                       buffers={**fb.arrays(), "edge_map": edges, "npr_color": out},
+                       parameters=params, may_radius=2)
+
+
 @register_scene("clipsurface_building", technique="clipsurface",
                 description="Building cut by a 2.5D clip surface with a Perlin offset map "
                             "(N = −z: the front half is removed), diffuse caps (Trapp & "
