@@ -161,3 +161,42 @@ def test_edges_parameters_are_checked(gold, tmp_path):
     (pkg / "scene.json").write_text(json.dumps(doc))
     with _backend_or_skip() as gl, pytest.raises(PackageError, match="parameters.bounds"):
         gl.render(pkg)
+
+
+def test_technique_frames_are_bit_identical_across_runs(gold):
+    with _backend_or_skip() as gl:
+        for scene in ("edges_npr_gooch", "cutaway_shells", "halos4d_figure1"):
+            pkg = gold / "golden" / scene / "package"
+            a, b = gl.render(pkg), gl.render(pkg)
+            assert set(a) == set(b)
+            for key in a:
+                np.testing.assert_array_equal(a[key], b[key], err_msg=f"{scene}/{key}")
+
+
+def test_unsupported_options_are_skipped_with_the_reason(gold, tmp_path):
+    """Options the backend does not implement make the scene Unsupported (candidate skips it
+    and says why); a malformed option is one PackageError naming the key."""
+    import shutil
+
+    from refraster.gl.driver import Backend
+    from refraster.gl.package import PackageError
+    cases = [("cutaway_shells", {"variant": "exact"}, "only the jump-flooding schedules"),
+             ("cutaway_shells", {"floor_normal": [0, 1, 0]}, "'floor_normal' is not implemented"),
+             ("halos4d_figure1", {"stereo": True}, "'stereo' is not implemented"),
+             ("cutaway_shells", {"angle": 2.0}, "parameters.angle"),
+             ("halos4d_figure1", {"slices": 0}, "parameters.slices"),
+             ("edges_npr_gooch", {"npr": {"style": "toon"}}, "npr.style")]
+    for scene, edit, words in cases:
+        pkg = tmp_path / scene
+        if pkg.exists():
+            shutil.rmtree(pkg)
+        shutil.copytree(gold / "golden" / scene / "package", pkg)
+        doc = json.loads((pkg / "scene.json").read_text())
+        doc["parameters"].update(edit)
+        assert words in Backend.supports(doc), (edit, Backend.supports(doc))
+    with pytest.raises(PackageError, match="parameters.interest"):
+        from refraster.gl.cutaway import options
+        doc = json.loads((gold / "golden" / "cutaway_shells" / "package" / "scene.json")
+                         .read_text())
+        doc["parameters"]["interest"] = ["nobody"]
+        options(doc)
