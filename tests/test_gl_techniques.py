@@ -181,7 +181,8 @@ def test_unsupported_options_are_skipped_with_the_reason(gold, tmp_path):
     from refraster.gl.driver import Backend
     from refraster.gl.package import PackageError
     cases = [("cutaway_shells", {"variant": "exact"}, "only the jump-flooding schedules"),
-             ("cutaway_shells", {"floor_normal": [0, 1, 0]}, "'floor_normal' is not implemented"),
+             ("cutaway_shells", {"cutaway_size": [48, 36]}, "'cutaway_size' is not implemented"),
+             ("cutaway_shells", {"floor_normal": [0, 0, 0]}, "parameters.floor_normal"),
              ("halos4d_figure1", {"stereo": True}, "'stereo' is not implemented"),
              ("cutaway_shells", {"angle": 2.0}, "parameters.angle"),
              ("halos4d_figure1", {"slices": 0}, "parameters.slices"),
@@ -250,3 +251,34 @@ def test_gl_cutaway_depth_against_a_brute_force_float64_referee(gold):
         wrong = 2.0 * bad.render(base)["cutaway_depth"].astype(np.float64) - 1.0
     assert (np.abs(wrong - exact) < 1e-3).mean() < 0.5
     assert (np.abs(wrong - exact) > 1e-2).any()
+
+
+@pytest.mark.parametrize("floor", [[0.0, 1.0, 0.0], [0.3, 1.0, -0.2]])
+def test_gl_floor_constraint_matches_refraster(gold, tmp_path, floor):
+    """The floor constraint (Sec. 5.5, D-C7) on the GPU: the cutaway_shells scene with a floor
+    normal, exported as a package (no golden: the cutaway allowance does not model the floor
+    constraint yet), against refraster.cutaway.render_cutaway with the same options."""
+    from refraster.cutaway import render_cutaway
+    from refraster.golden import available_scenes
+    from refraster.golden.package import export_package
+    from refraster.golden.scenes import DEFAULT_RASTER
+    base = available_scenes()["cutaway_shells"].build()
+    p = dict(base.parameters)
+    p.update(floor_normal=floor, variant="jfa+1")
+    scene = type(base)(technique="cutaway", camera=base.camera, draws=base.draws, buffers={},
+                       parameters=p)
+    export_package(tmp_path / "floor", "floor", scene, dict(DEFAULT_RASTER))
+    kw = {k: p[k] for k in ("angle", "variant", "perspective_compensation", "edge_compression",
+                            "dilation", "outlines", "ghost", "ghost_distance", "ghost_fade",
+                            "crease_angle")}
+    ref = render_cutaway([base.draws[1].mesh], [base.draws[0].mesh], **base.camera.kwargs,
+                         floor_normal=np.array(floor), **kw)
+    plain = render_cutaway([base.draws[1].mesh], [base.draws[0].mesh], **base.camera.kwargs,
+                           **kw)
+    with _backend_or_skip() as gl:
+        got = gl.render(tmp_path / "floor")["cutaway_depth"]
+    want = np.asarray(ref.cutaway_depth, np.float64)
+    diff = np.abs(got - want)
+    # the constraint changes D (the test sees it) and the GPU follows it
+    assert np.abs(want - plain.cutaway_depth).max() > 1e-2
+    assert (diff < 1e-5).mean() > 0.99 and diff.max() < 1e-3, (diff.max(), (diff >= 1e-5).sum())

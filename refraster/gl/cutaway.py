@@ -70,7 +70,7 @@ def options(scene):
         return None, (f"cutaway variant {variant!r}: only the jump-flooding schedules "
                       f"{list(VARIANTS)} are implemented")
     opt["variant"] = variant
-    for key in ("floor_normal", "stand_ins", "cutaway_size", "cut_color"):
+    for key in ("stand_ins", "cutaway_size", "cut_color"):
         if p.get(key) is not None:
             return None, f"cutaway parameter {key!r} is not implemented by the gl backend"
     if p.get("ghost", "lines") != "lines":
@@ -100,6 +100,18 @@ def options(scene):
                               or not math.isfinite(v) or v < 0):
             raise PackageError(f"parameters.{key} must be a finite number >= 0")
         opt[key] = v
+    fn = p.get("floor_normal")
+    if fn is not None:
+        if not (isinstance(fn, list) and len(fn) == 3 and all(
+                isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
+                for c in fn)) or not any(fn):
+            raise PackageError("parameters.floor_normal must be 3 finite numbers, not all 0")
+        fn = [float(c) for c in fn]
+    opt["floor_normal"] = fn
+    fm = p.get("floor_margin", math.radians(2.0))
+    if isinstance(fm, bool) or not isinstance(fm, (int, float)) or not 0 <= fm <= math.pi / 2:
+        raise PackageError("parameters.floor_margin must be a number in [0, π/2] rad")
+    opt["floor_margin"] = float(fm)
     opt["interest"] = _names(scene, "interest")
     opt["secondary"] = _names(scene, "secondary")
     return opt, None
@@ -245,7 +257,9 @@ def render_cutaway(gl, loaded, package_dir):
         ctx.disable(mgl.DEPTH_TEST)
         # 2. seeds
         recs = [tex(4, "f4"), tex(4, "f4")]
-        fb_rec = [fbo([recs[0]]), fbo([recs[1]])]
+        flr = [tex(4, "f4"), tex(4, "f4")]         # (m_f, n_x, n_y) with the floor constraint
+        fb_rec = [fbo([recs[0], flr[0]]), fbo([recs[1], flr[1]])]
+        floor = opt["floor_normal"] is not None
         prog = progs["seed"]
         fb_rec[0].use()
         rear.use(0)
@@ -258,6 +272,12 @@ def render_cutaway(gl, loaded, package_dir):
         gl._set(prog, "u_r", opt["r"])
         gl._set(prog, "u_kind", 0 if not persp else (1 if opt["perspective_compensation"] else 2))
         gl._set(prog, "u_p", (float(proj[2, 2]), float(proj[0, 0])))
+        gl._set(prog, "u_floor", floor)
+        if floor:
+            n = np.linalg.inv(view[:3, :3]).T @ np.array(opt["floor_normal"])
+            gl._set(prog, "u_floor_n", tuple(float(c) for c in n / np.linalg.norm(n)))
+            gl._set(prog, "u_floor_margin", opt["floor_margin"])
+            gl._write(prog, "u_inv_proj", np.linalg.inv(proj))
         _fullscreen(gl, prog)
         # 3. jump flooding
         steps = step_schedule(h, w, opt["variant"])
@@ -267,12 +287,15 @@ def render_cutaway(gl, loaded, package_dir):
         fb_d = fbo([dtex])
         prog = progs["flood"]
         gl._set(prog, "u_src", 0)
+        gl._set(prog, "u_src_floor", 1)
+        gl._set(prog, "u_floor", floor)
         gl._set(prog, "u_sampling", (2.0 / (w * proj[0, 0]), 2.0 / (h * proj[1, 1])))
         cur = 0
         for n, k in enumerate(steps):
             last = n == len(steps) - 1
             (fb_d if last else fb_rec[1 - cur]).use()
             recs[cur].use(0)
+            flr[cur].use(1)
             gl._set(prog, "u_k", int(k))
             gl._set(prog, "u_final", last)
             _fullscreen(gl, prog)

@@ -8,17 +8,21 @@
 #version 330 core
 
 uniform sampler2D u_src;
+uniform sampler2D u_src_floor;  // (m_f, n_x, n_y) of each record's seed (u_floor)
+uniform bool u_floor;
 uniform int u_k;
 uniform vec2 u_sampling;
 uniform bool u_final;
 
-out vec4 o_out;
+layout(location = 0) out vec4 o_out;
+layout(location = 1) out vec4 o_floor;
 
 void main() {
     ivec2 size = textureSize(u_src, 0);
     ivec2 p = ivec2(gl_FragCoord.xy);
     float row = float(size.y - 1 - p.y), col = float(p.x);
     vec4 best = vec4(-1.0, -1.0, 0.0, 0.0);
+    vec4 best_f = vec4(0.0);
     float best_c = 0.0, best_i = 0.0;
     for (int oy = -1; oy <= 1; ++oy)
         for (int ox = -1; ox <= 1; ++ox) {
@@ -29,12 +33,21 @@ void main() {
             float dx = (col - s.x) * u_sampling.x;
             float dy = (row - s.y) * u_sampling.y;
             float d = sqrt(dy * dy + dx * dx);
-            float c = d == 0.0 ? s.z : s.z - s.w * d;
+            float m = s.w;
+            vec4 f = vec4(0.0);
+            if (u_floor) {
+                // directional slope (D-C7): screen direction with y up, rows grow downward
+                f = texelFetch(u_src_floor, q, 0);
+                float a = -(dx * f.y - dy * f.z) / (d != 0.0 ? d : 1.0);
+                if (a > 0.0) { a = min(a, 1.0); m = (1.0 - a) * m + a * f.x; }
+            }
+            float c = d == 0.0 ? s.z : s.z - m * d;
             float idx = s.y * float(size.x) + s.x;
             if (best.x < 0.0 || c > best_c || (c == best_c && idx < best_i)) {
-                best = s; best_c = c; best_i = idx;
+                best = s; best_f = f; best_c = c; best_i = idx;
             }
         }
     if (u_final) o_out = vec4(best.x < 0.0 ? -1.0 : max(best_c, -1.0), 0.0, 0.0, 0.0);
     else o_out = best;
+    o_floor = best_f;
 }
