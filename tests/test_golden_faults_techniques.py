@@ -42,6 +42,8 @@ OLD_PROFILE = (
     | {("clipsurface_textured_caps", k) for k in ("barycentric", "color", "normal")}
     | {("cutaway_shells", k) for k in ("barycentric", "color", "normal", "ghost")}
     | {("halos4d_figure1", k) for k in ("alpha", "color", "halo_class")}
+    # merged from x25 while this was written: its own decision region, on the masked profile
+    | {("vds_parity_building", "inside")}
     # issue 26's operator scenes: golden/edge_bounds.py covers the diagonal operators only
     | {(s, "edge_map") for s in ("edges_sobel", "edges_c1")}
     | {("edges_npr_gooch", "npr_color")}      # the composite: conformant colour, may forgiven

@@ -280,7 +280,8 @@ def scene_allowances(scene, raster):
             # the cut decision z < D free only where D's interval allows either
             from .clip_allowance import CLIP_BUFFERS, cutaway_allowances
             arrays.update(cutaway_allowances(scene, raster, tol.eps, arrays["cutaway_depth_lo"],
-                                             arrays["cutaway_depth_hi"]))
+                                             arrays["cutaway_depth_hi"],
+                                             (EYE_DEPTH_ABS, EYE_DEPTH_REL)))
             for key in CLIP_BUFFERS:
                 if key in checks:
                     checks[key] = {"checks": ["clip"]}
@@ -288,7 +289,7 @@ def scene_allowances(scene, raster):
             and raster["depth_func"] == "less" and scene.maps is not None:
         # clip surfaces: the clip decision and cap parity bounded (golden/clip_allowance.py)
         from .clip_allowance import CLIP_BUFFERS, clip_allowances
-        arrays.update(clip_allowances(scene, raster, tol.eps))
+        arrays.update(clip_allowances(scene, raster, tol.eps, (EYE_DEPTH_ABS, EYE_DEPTH_REL)))
         for key in CLIP_BUFFERS:
             if key in checks:
                 checks[key] = {"checks": ["clip"]}

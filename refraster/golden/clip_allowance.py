@@ -81,7 +81,7 @@ def _lookup_error(surface, points):
     return sz * (jump / 256.0 + 0.5 / 65535.0 + 4.0 * F32 * (s * w + t * h) * jump)
 
 
-def clip_allowances(scene, raster, eps):
+def clip_allowances(scene, raster, eps, eye_budget):
     """The ``cs_*`` arrays of a clip-surface scene (see the module docstring)."""
     from ..clipsurface import clip_function
     from ..clipsurface.render import _cached_cap, _solid_tests
@@ -168,15 +168,16 @@ def clip_allowances(scene, raster, eps):
                 + _lookup_error(s, pts[sel, 0])
             st = np.where(g > delta, 2, np.where(g < -delta, 0, 1)).astype(np.int8)
             state[sel] = np.minimum(state[sel], st)
-    return _winners(prep, pix, faces, sure, fragile, lo, hi, state, is_cap, h, w)
+    return _winners(prep, pix, faces, sure, fragile, lo, hi, state, is_cap, h, w, eye_budget)
 
 
-def _eye_interval(lo, hi, proj):
+def _eye_interval(lo, hi, proj, budget):
     """Eye depth (−z_eye) over a window-depth interval: the projection's map is monotone
     (perspective ``P₂₃/(z_ndc + P₂₂)``, orthographic ``(P₂₃ − z_ndc)/P₂₂``), so its bounds are its
-    values at the bounds, widened by plain rendering's float32 eye-depth budget."""
+    values at the bounds, widened by plain rendering's float32 eye-depth budget ``(abs, rel)``
+    (:data:`refraster.golden.allowance.EYE_DEPTH_ABS`, ``EYE_DEPTH_REL``)."""
     from ..camera import is_perspective
-    from .allowance import EYE_DEPTH_ABS, EYE_DEPTH_REL
+    eye_abs, eye_rel = budget
     proj = np.asarray(proj, np.float64)
     ends = []
     for d in (lo, hi):
@@ -188,15 +189,15 @@ def _eye_interval(lo, hi, proj):
     e_lo = np.minimum(ends[0], ends[1])
     e_hi = np.maximum(ends[0], ends[1])
     free = ~np.isfinite(lo) | ~np.isfinite(hi) | ~np.isfinite(e_lo) | ~np.isfinite(e_hi)
-    e_lo = np.where(free, -np.inf, e_lo - EYE_DEPTH_ABS - EYE_DEPTH_REL * np.abs(e_lo))
-    e_hi = np.where(free, np.inf, e_hi + EYE_DEPTH_ABS + EYE_DEPTH_REL * np.abs(e_hi))
+    e_lo = np.where(free, -np.inf, e_lo - eye_abs - eye_rel * np.abs(e_lo))
+    e_hi = np.where(free, np.inf, e_hi + eye_abs + eye_rel * np.abs(e_hi))
     lo32, hi32 = e_lo.astype(np.float32), e_hi.astype(np.float32)
     lo32 = np.where(lo32 > e_lo, np.nextafter(lo32, np.float32(-np.inf)), lo32)
     hi32 = np.where(hi32 < e_hi, np.nextafter(hi32, np.float32(np.inf)), hi32)
     return lo32.astype(np.float32), hi32.astype(np.float32)
 
 
-def _winners(prep, pix, faces, sure, fragile, lo, hi, state, flag, h, w):
+def _winners(prep, pix, faces, sure, fragile, lo, hi, state, flag, h, w, eye_budget):
     """The ``cs_*`` arrays from per-entry keep states (0 never, 1 may be, 2 surely kept)."""
     from ..tolerance import _face_facing
     offs = np.asarray(prep.face_offsets, np.int64)
@@ -221,10 +222,10 @@ def _winners(prep, pix, faces, sure, fragile, lo, hi, state, flag, h, w):
             "cs_facing": facing, "cs_flag": np.asarray(flag, np.int8)[keep],
             "cs_bg": bg.reshape(h, w), "cs_draw_offsets": offs.astype(np.int32),
             **dict(zip(("cs_eye_lo", "cs_eye_hi"), _eye_interval(lo[keep], hi[keep],
-                                                                   prep.proj)))}
+                                                                   prep.proj, eye_budget)))}
 
 
-def cutaway_allowances(scene, raster, eps, d_lo, d_hi):
+def cutaway_allowances(scene, raster, eps, d_lo, d_hi, eye_budget):
     """The ``cs_*`` arrays of a cutaway scene: a secondary fragment is cut iff its window depth
     is in front of D (front faces) or of the 3×3 minimum of D (back faces, with dilation);
     with D in ``[d_lo, d_hi]`` (:mod:`refraster.golden.cutaway_bounds`, window depth) and the
@@ -263,7 +264,7 @@ def cutaway_allowances(scene, raster, eps, d_lo, d_hi):
     state[sel] = np.where(lo[sel] >= cut_hi, 2, np.where(hi[sel] < cut_lo, 0, 1))
     # a secondary back face is a cut surface; a sliver whose facing may flip may be either
     flag = np.where(is_sec & (facing < 0), -1, is_sec & (facing == 0)).astype(np.int8)
-    return _winners(prep, pix, faces, sure, fragile, lo, hi, state, flag, h, w)
+    return _winners(prep, pix, faces, sure, fragile, lo, hi, state, flag, h, w, eye_budget)
 
 
 def _face_facing_of(prep, faces, fragile):
