@@ -22,25 +22,29 @@ DOC = ROOT / "docs" / "backends.md"
 BEGIN = "<!-- gl-techniques-matrix:begin (tests/test_gl_techniques.py) -->"
 END = "<!-- gl-techniques-matrix:end -->"
 
-EDGES = ["edges_building", "edges_sobel", "edges_c1", "edges_npr_gooch"]
-CUTAWAYS = ["cutaway_shells", "cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa"]
+EDGES = ["edges_building", "edges_sobel", "edges_c1", "edges_diagonal2", "edges_c1_paper",
+         "edges_npr_gooch"]
+CUTAWAYS = ["cutaway_shells", "cutaway_shells_jfa", "cutaway_shells_jfa2",
+            "cutaway_shells_1jfa"]
 HALOS = ["halos4d_figure1", "halos4d_perspective"]
 SCENES = EDGES + CUTAWAYS + HALOS
 
 #: fault → {scene: buffer that must be named among the failing ones}
 EXPECTED = {
-    "one_diagonal": {"edges_building": "edge_map", "edges_npr_gooch": "npr_color"},
-    "sobel_transposed": {"edges_sobel": "edge_map"},
-    "schedule_truncated": {"cutaway_shells": "cutaway_depth", "cutaway_shells_jfa": "cutaway_depth",
-                           "cutaway_shells_1jfa": "cutaway_depth"},
+    "one_diagonal": {"edges_building": "edge_map", "edges_diagonal2": "edge_map",
+                     "edges_npr_gooch": "npr_color"},
+    "sobel_transposed": {"edges_sobel": "edge_map", "edges_c1_paper": "edge_map"},
+    "schedule_truncated": {s: "cutaway_depth" for s in ("cutaway_shells", "cutaway_shells_jfa",
+                                                         "cutaway_shells_1jfa")},
     "slope_from_theta": {s: "cutaway_depth" for s in CUTAWAYS},
     "eq3_halved": {s: "halo_class" for s in HALOS},
     "slices_front_to_back": {s: "color" for s in HALOS},
 }
 #: scenes a fault cannot change (their operators do not contain the faulty code)
 UNTOUCHED = {
-    "one_diagonal": ["edges_sobel", "edges_c1"] + CUTAWAYS + HALOS,
-    "sobel_transposed": ["edges_building", "edges_c1", "edges_npr_gooch"] + CUTAWAYS + HALOS,
+    "one_diagonal": ["edges_sobel", "edges_c1", "edges_c1_paper"] + CUTAWAYS + HALOS,
+    "sobel_transposed": ["edges_building", "edges_c1", "edges_diagonal2", "edges_npr_gooch"]
+    + CUTAWAYS + HALOS,
     "schedule_truncated": EDGES + HALOS,
     "slope_from_theta": EDGES + HALOS,
     "eq3_halved": EDGES + CUTAWAYS,

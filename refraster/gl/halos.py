@@ -254,9 +254,9 @@ def render_halos(gl, loaded, package_dir):
     rel[:, 0] -= d_ref
     # x, y into the NDC of glOrtho(x0, x1, y0, y1)
     sx, sy = 2.0 / (bounds[1, 0] - bounds[0, 0]), 2.0 / (bounds[1, 1] - bounds[0, 1])
-    xy = np.stack([sx * verts[:, 0] - (bounds[1, 0] + bounds[0, 0]) / (bounds[1, 0] - bounds[0, 0]),
-                   sy * verts[:, 1] - (bounds[1, 1] + bounds[0, 1]) / (bounds[1, 1] - bounds[0, 1])],
-                  1)
+    span = bounds[1, :2] - bounds[0, :2]
+    mid = (bounds[1, :2] + bounds[0, :2]) / span
+    xy = np.stack([sx * verts[:, 0] - mid[0], sy * verts[:, 1] - mid[1]], 1)
     # z relative to the first centre keeps float32 steps fine
     z0 = float(centres[0])
     data = np.concatenate([xy, (verts[:, 2] - z0)[:, None], rel], 1).astype(np.float32)

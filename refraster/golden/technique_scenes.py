@@ -75,6 +75,22 @@ def _edges_c1():
     return _edges_operator_scene("angle", "c1")
 
 
+@register_scene("edges_diagonal2", technique="edges",
+                description="Edge map of the building with the second-difference diagonal depth "
+                            "operator ('diagonal2', docs/edges.md D-E3) in A and the diagonal "
+                            "normal operator in RGB, float32 textures.")
+def _edges_diagonal2():
+    return _edges_operator_scene("diagonal", "diagonal2")
+
+
+@register_scene("edges_c1_paper", technique="edges",
+                description="Edge map of the building with the C1 depth operator at the paper's "
+                            "printed 1/8 scale ('c1-paper') in A and the Sobel normal operator "
+                            "in RGB, float32 textures.")
+def _edges_c1_paper():
+    return _edges_operator_scene("sobel", "c1-paper")
+
+
 @register_scene("edges_npr_gooch", technique="edges",
                 description="The paper's edge map of the building composited over Gooch shading "
                             "(Nienhaus & Döllner Sec. 5.1: inner edges towards white, profile "
