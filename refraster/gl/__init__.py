@@ -18,7 +18,7 @@ On the command line: ``refraster golden candidate GOLDEN_DIR --backend gl --out 
 (docs/backends.md).
 """
 
-__all__ = ["SUPPORTED_TECHNIQUES", "FAULTS"]
+__all__ = ["SUPPORTED_TECHNIQUES", "FAULTS", "TECHNIQUE_FAULTS"]
 
 #: Techniques this backend renders, with what it renders for them.
 SUPPORTED_TECHNIQUES = {
@@ -28,6 +28,14 @@ SUPPORTED_TECHNIQUES = {
     # issue 26 item 1 (refraster/gl/clipsurface.py, shaders/clip.*)
     "clipsurface": "2.5D clip surfaces: Listing 1's discard, caps as the exported displaced "
                    "grid with the parity-test discard, shaded from the derived and user maps",
+    # issue 26 (refraster/gl/edges.py)
+    "edges": "the edge G-buffer T_G (RGBA8 or float), one full-screen pass with the diagonal / "
+             "C1 / Sobel / angle operators into an RGBA8 or float edge map, the width dilation",
+    "cutaway": "rear hulls (GREATER), seeds, ping-pong jump flooding with the scene's schedule, "
+               "D_dil and cut normals, the clipped G-buffer with cut surfaces, ghost lines",
+    "halos4d": "tetrahedra sliced per plane in a geometry shader, Eq. 3's halo depth per "
+               "fragment (MIN blending), the surface fragment by depth test, slices "
+               "composited back to front with blending",
 }
 
 #: Planted faults, each a test-only ``#define`` (never set in normal use): name → (define,
@@ -49,3 +57,23 @@ FAULTS = {
     "offset_t_flipped": ("FAULT_OFFSET_T_FLIPPED", "the offset map's t axis flipped (1 − t)"),
     "cap_no_parity": ("FAULT_CAP_NO_PARITY", "caps drawn without the parity-test discard"),
 }
+
+#: Planted faults of the technique passes (issue 26; tests/test_gl_techniques.py), also in
+#: :data:`FAULTS`.
+TECHNIQUE_FAULTS = {
+    # edge maps (shaders/edge_map.frag)
+    "one_diagonal": ("FAULT_ONE_DIAGONAL", "the diagonal normal and depth operators with one "
+                                           "diagonal (A–H) only"),
+    "sobel_transposed": ("FAULT_SOBEL_TRANSPOSED", "the Sobel G_y kernel written transposed "
+                                                   "(it equals G_x: edges along x vanish)"),
+    # cutaways (refraster/gl/cutaway.py, shaders/cutaway_seed.frag)
+    "schedule_truncated": ("FAULT_SCHEDULE_TRUNCATED", "the jump-flooding schedule without its "
+                                                       "last 3 passes"),
+    "slope_from_theta": ("FAULT_SLOPE_FROM_THETA", "the cutaway slope from tan θ instead of "
+                                                   "cot θ"),
+    # 4D halos (refraster/gl/halos.py, shaders/halo_*.frag)
+    "eq3_halved": ("FAULT_EQ3_HALVED", "Eq. 3's drop-off δd halved"),
+    "slices_front_to_back": ("FAULT_SLICES_FRONT_TO_BACK", "the slices composited front to "
+                                                           "back"),
+}
+FAULTS.update(TECHNIQUE_FAULTS)

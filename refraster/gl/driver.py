@@ -158,6 +158,15 @@ class Backend:
         p = scene.get("parameters", {})
         if technique == "ldi" and p.get("mode", "peel") != "peel":
             return f"ldi mode {p.get('mode')!r}: only classic peeling ('peel') is implemented"
+        if technique == "edges":          # issue 26: refraster/gl/edges.py
+            from .edges import supports
+            return supports(scene)
+        if technique == "cutaway":        # issue 26: refraster/gl/cutaway.py
+            from .cutaway import supports
+            return supports(scene)
+        if technique == "halos4d":        # issue 26: refraster/gl/halos.py
+            from .halos import supports
+            return supports(scene)
         if technique == "vds" and (p.get("test") != "parity" or p.get("axis") not in ("z",)
                                    or p.get("rule", "parity") != "parity"):
             return ("vds: only the parity test over one sprite (test 'parity', one axis) is "
@@ -193,7 +202,8 @@ class Backend:
             from . import clipsurface
             return {"scene": scene, "clip": clipsurface.load(self, package_dir, scene),
                     "draws": [], "textures": []}
-        loaded = {"scene": scene, "draws": self._upload(package_dir, scene), "textures": []}
+        loaded = {"scene": scene, "draws": self._upload(package_dir, scene), "textures": [],
+                  "package_dir": package_dir}
         if scene["technique"] == "vds":
             loaded["textures"] = self._sprite(package_dir, scene)
         return loaded
@@ -220,6 +230,15 @@ class Backend:
         if "clip" in loaded:
             from . import clipsurface
             return clipsurface.draw(self, loaded["scene"], loaded["clip"])
+        if loaded["scene"]["technique"] == "edges":    # issue 26: refraster/gl/edges.py
+            from .edges import render_edges
+            return render_edges(self, loaded, loaded.get("package_dir"))
+        if loaded["scene"]["technique"] == "cutaway":  # issue 26: refraster/gl/cutaway.py
+            from .cutaway import render_cutaway
+            return render_cutaway(self, loaded, loaded.get("package_dir"))
+        if loaded["scene"]["technique"] == "halos4d":  # issue 26: refraster/gl/halos.py
+            from .halos import render_halos
+            return render_halos(self, loaded, loaded.get("package_dir"))
         if loaded["scene"]["technique"] in ("render", "vds"):
             return self._gbuffer(loaded["scene"], loaded["draws"], loaded["textures"])
         return self._peel(loaded["scene"], loaded["draws"], layers)

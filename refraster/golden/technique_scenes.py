@@ -40,6 +40,86 @@ def _edges_building():
                        may_radius=2)
 
 
+def _edges_operator_scene(normal_filter, depth_filter):
+    """The building of ``edges_building`` with other operators (issue 26, item 5: a scene per
+    edge operator), float32 textures, no thresholds."""
+    from ..edges import edge_map
+    from ..scenes import solid
+    state = raster_state({})
+    draws = prepare_draws([Draw("building", solid("building"))])
+    camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
+    fb = render_draws(draws, camera, state)
+    lo, hi = draws[0].mesh.vertices.min(axis=0), draws[0].mesh.vertices.max(axis=0)
+    params = dict(bounds=[lo.tolist(), hi.tolist()], preset="paper", normal_filter=normal_filter,
+                  depth_filter=depth_filter, ids=False, inner_threshold=0.0,
+                  profile_threshold=0.0, width=1, k_n=1.0, k_z=1.0)
+    edges = edge_map(fb, **{**params, "bounds": np.array(params["bounds"])})
+    params.update(gbuffer_format="float32", output_format="float32")
+    return GoldenScene(technique="edges", camera=camera, draws=draws,
+                       buffers={**fb.arrays(), "edge_map": edges}, parameters=params,
+                       may_radius=2)
+
+
+@register_scene("edges_sobel", technique="edges",
+                description="Edge map of the building with the Sobel operators (Nienhaus & "
+                            "Döllner Sec. 4.1.2's alternative): Sobel of the normal channels in "
+                            "RGB, Sobel of depth in A, gains 1, float32 textures.")
+def _edges_sobel():
+    return _edges_operator_scene("sobel", "sobel")
+
+
+@register_scene("edges_c1", technique="edges",
+                description="Edge map of the building with the C1 depth operator (normalized "
+                            "1/12) in A and the angle normal operator in RGB, float32 textures.")
+def _edges_c1():
+    return _edges_operator_scene("angle", "c1")
+
+
+@register_scene("edges_diagonal2", technique="edges",
+                description="Edge map of the building with the second-difference diagonal depth "
+                            "operator ('diagonal2', docs/edges.md D-E3) in A and the diagonal "
+                            "normal operator in RGB, float32 textures.")
+def _edges_diagonal2():
+    return _edges_operator_scene("diagonal", "diagonal2")
+
+
+@register_scene("edges_c1_paper", technique="edges",
+                description="Edge map of the building with the C1 depth operator at the paper's "
+                            "printed 1/8 scale ('c1-paper') in A and the Sobel normal operator "
+                            "in RGB, float32 textures.")
+def _edges_c1_paper():
+    return _edges_operator_scene("sobel", "c1-paper")
+
+
+@register_scene("edges_npr_gooch", technique="edges",
+                description="The paper's edge map of the building composited over Gooch shading "
+                            "(Nienhaus & Döllner Sec. 5.1: inner edges towards white, profile "
+                            "edges towards black, on the objects only), as npr_color.")
+def _edges_npr_gooch():
+    from .. import npr as _npr
+    from ..edges import edge_map
+    from ..scenes import solid
+    state = raster_state({})
+    draws = prepare_draws([Draw("building", solid("building"))])
+    camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
+    fb = render_draws(draws, camera, state)
+    lo, hi = draws[0].mesh.vertices.min(axis=0), draws[0].mesh.vertices.max(axis=0)
+    params = dict(bounds=[lo.tolist(), hi.tolist()], preset="paper", normal_filter="diagonal",
+                  depth_filter="diagonal", ids=False, inner_threshold=0.0,
+                  profile_threshold=0.0, width=1, k_n=1.0, k_z=1.0)
+    edges = edge_map(fb, **{**params, "bounds": np.array(params["bounds"])})
+    style = dict(light=list(_npr.DEFAULT_LIGHT), base=[0.75, 0.75, 0.75], cool=[0.0, 0.0, 0.55],
+                 warm=[0.3, 0.3, 0.0], alpha=0.25, beta=0.5, background=[1.0, 1.0, 1.0])
+    shade = _npr.gooch(fb.normal, **style)
+    colors = dict(inner_color=[1.0, 1.0, 1.0], profile_color=[0.0, 0.0, 0.0])
+    out = _npr.composite(shade, edges, **colors, mask=np.asarray(fb.object_id) >= 0)
+    params.update(gbuffer_format="rgba8", output_format="rgba8",
+                  npr={"style": "gooch", **style, **colors, "mask": "objects"})
+    return GoldenScene(technique="edges", camera=camera, draws=draws,
+                       buffers={**fb.arrays(), "edge_map": edges, "npr_color": out},
+                       parameters=params, may_radius=2)
+
+
 @register_scene("clipsurface_building", technique="clipsurface",
                 description="Building cut by a 2.5D clip surface with a Perlin offset map "
                             "(N = −z: the front half is removed), diffuse caps (Trapp & "
@@ -547,3 +627,100 @@ def _clipsurface_relief_plane():
                 subdivision=1, vds_resolution=256, space="world")
     return _clip_scene(draws, camera, surfaces, [cs], {"offset_map": om}, caps,
                        extra={"relief_clip_plane": rcp})
+
+
+# --- issue 26, item 5: scenes for options that had none (a GPU backend's proof needs them) ---
+
+_VARIANT_ACCEPTS = {"jfa": ["jfa", "jfa+1", "jfa+2", "1+jfa", "exact"],
+                    "jfa+2": ["jfa+2", "exact"], "1+jfa": ["1+jfa", "jfa+2", "exact"]}
+
+
+def _cutaway_variant_scene(variant):
+    """``cutaway_shells`` with another jump-flooding schedule (the same camera and options)."""
+    from ..cutaway import render_cutaway
+    from ..scenes import icosphere, solid
+    outer = solid("nested_shells", quick=True)
+    inner = icosphere(subdivisions=2, radius=0.3)
+    draws = prepare_draws([Draw("outer_shells", outer), Draw("interest", inner)])
+    camera = _framed([d.mesh for d in draws], 96, 72, (1.2, 0.9, 1.6))
+    params = dict(angle=1.0, variant=variant, perspective_compensation=True,
+                  edge_compression=0.1, dilation=True, outlines=True, ghost="lines",
+                  ghost_distance=0.5, ghost_fade=True, crease_angle=30.0,
+                  interest=["interest"], secondary=["outer_shells"],
+                  accepted_variants=list(_VARIANT_ACCEPTS[variant]))
+    fb = render_cutaway([draws[1].mesh], [draws[0].mesh], **camera.kwargs,
+                        **{k: params[k] for k in ("angle", "variant", "perspective_compensation",
+                                                  "edge_compression", "dilation", "outlines",
+                                                  "ghost", "ghost_distance", "ghost_fade",
+                                                  "crease_angle")})
+    buffers = {**fb.arrays(), "cutaway_depth": fb.cutaway_depth, "cut_mask": fb.cut_mask,
+               "ghost": fb.ghost}
+    cut = np.asarray(fb.cut_mask, np.bool_)
+    edge = np.zeros_like(cut)
+    edge[1:, :] |= cut[1:, :] != cut[:-1, :]
+    edge[:-1, :] |= cut[1:, :] != cut[:-1, :]
+    edge[:, 1:] |= cut[:, 1:] != cut[:, :-1]
+    edge[:, :-1] |= cut[:, 1:] != cut[:, :-1]
+    edge |= fb.ghost > 0
+    return GoldenScene(technique="cutaway", camera=camera, draws=draws, buffers=buffers,
+                       parameters=params, kinds={"cutaway_depth": "unorm", "ghost": "unorm"},
+                       geometry=False, may=edge, may_radius=2)
+
+
+@register_scene("cutaway_shells_jfa", technique="cutaway",
+                description="cutaway_shells with the plain jump-flooding schedule n/2 … 1 "
+                            "(Rong & Tan), variant 'jfa'.")
+def _cutaway_shells_jfa():
+    return _cutaway_variant_scene("jfa")
+
+
+@register_scene("cutaway_shells_jfa2", technique="cutaway",
+                description="cutaway_shells with the schedule n/2 … 1, 2, 1 (variant 'jfa+2').")
+def _cutaway_shells_jfa2():
+    return _cutaway_variant_scene("jfa+2")
+
+
+@register_scene("cutaway_shells_1jfa", technique="cutaway",
+                description="cutaway_shells with the schedule 1, n/2 … 1 (variant '1+jfa').")
+def _cutaway_shells_1jfa():
+    return _cutaway_variant_scene("1+jfa")
+
+
+@register_scene("halos4d_perspective", technique="halos4d",
+                description="The Fig. 1 patches of halos4d_figure1 under the perspective 4D → 3D "
+                            "projection (eye on the w axis at 3·max|v|, MATH.md §5.2), 48 slices.")
+def _halos4d_perspective():
+    from ..camera import orthographic
+    from ..halos4d import compose, figure1_scene, render_halos
+    surface = figure1_scene(n=12)
+    rot = compose(("zx", 0.5), ("yz", -1.0))
+    params = dict(rotation=rot.tolist(), projection="perspective", slices=48, delta_t=0.3,
+                  surface_width=0.3, opacity=0.9, halos=True, margin=0.05, width=128,
+                  height=128, background=[0.0, 0.0, 0.0])
+    out = render_halos(surface, rotation=rot, projection="perspective", width=128, height=128,
+                       slices=48, delta_t=0.3, surface_width=0.3, opacity=0.9, halos=True,
+                       volume=True)
+    params["rho"] = float(out.stats["rho"])
+    params.update(delta_d=float(out.stats["delta_d"]), antialias=0.3, halo_opacity=0.0)
+    params["screen_bounds"] = np.asarray(out.bounds).tolist()
+    vol = np.asarray(out.volume)
+    halo_class = np.where((vol == 2).any(axis=0), 2, np.where(
+        (vol == 1).any(axis=0), 1, np.where((vol == 3).any(axis=0), 3, 0))).astype(np.int32)
+    camera = Camera(np.eye(4), orthographic(-1, 1, -1, 1, -1, 1), 128, 128)
+    a = np.asarray(out.alpha, np.float64)
+    edge = np.zeros(a.shape, np.bool_)
+    step = 0.02
+    edge[1:, :] |= np.abs(a[1:, :] - a[:-1, :]) > step
+    edge[:-1, :] |= np.abs(a[1:, :] - a[:-1, :]) > step
+    edge[:, 1:] |= np.abs(a[:, 1:] - a[:, :-1]) > step
+    edge[:, :-1] |= np.abs(a[:, 1:] - a[:, :-1]) > step
+    maps = {"surface_vertices4d": surface.vertices, "surface_faces": surface.faces,
+            "surface_tangents": surface.tangents.reshape(len(surface.vertices), 8),
+            "surface_colors": surface.colors}
+    return GoldenScene(technique="halos4d", camera=camera, draws=[],
+                       buffers={"color": np.asarray(out.image, np.float32),
+                                "alpha": np.asarray(out.alpha, np.float32),
+                                "halo_class": halo_class},
+                       parameters=params, maps=maps, kinds={"alpha": "unorm",
+                                                            "halo_class": "id"},
+                       ids={"halo_class": (0, 3)}, geometry=False, may=edge, may_radius=1)
