@@ -301,6 +301,15 @@ def scene_allowances(scene, raster):
         for key, layer in LAYER_BUFFERS.items():
             if key in checks:
                 checks[key] = {"checks": ["layers"], "layer": layer}
+    if scene.technique == "halos4d" and scene.maps is not None \
+            and "surface_vertices4d" in scene.maps:
+        # 4D halos: class range and alpha / colour intervals from the classification margins
+        # (golden/halo_allowance.py)
+        from .halo_allowance import HALO_CHECKS, halo_allowances
+        arrays.update(halo_allowances(scene))
+        for key, (lo, hi) in HALO_CHECKS.items():
+            if key in checks:
+                checks[key] = {"checks": ["bounds"], "lo": lo, "hi": hi}
     info = {"method": method, "eps": float(tol.eps), "depth_eps": float(tol.depth_eps),
             "normal_tol": NORMAL_TOL, "color_tol": COLOR_TOL, "may_radius": radius,
             "min_subpixel_bits": 4}
