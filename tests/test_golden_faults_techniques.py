@@ -41,7 +41,6 @@ OLD_PROFILE = (
     {("clipsurface_building", k) for k in ("barycentric", "color", "normal")}
     | {("clipsurface_textured_caps", k) for k in ("barycentric", "color", "normal")}
     | {("cutaway_shells", k) for k in ("barycentric", "color", "normal", "ghost")}
-    | {("halos4d_figure1", k) for k in ("alpha", "color", "halo_class")}
     # merged from x25 while this was written: its own decision region, on the masked profile
     | {("vds_parity_building", "inside")}
 )

@@ -50,7 +50,7 @@ Z_REL = 4e-7
 #: Error of |2t − 1| from float32 barycentrics (3 products and sums at 2^-24, times 2).
 T_EPS = 1e-6
 #: float32 compositing of alpha and colour over the slices.
-COMPOSITE_TOL = 2e-4
+COMPOSITE_TOL = 1e-3
 
 HALO_CHECKS = {"halo_class": ("halo_class_lo", "halo_class_hi"),
                "alpha": ("alpha_lo", "alpha_hi"), "color": ("color_lo", "color_hi")}
@@ -65,9 +65,10 @@ def _surface(maps):
 
 
 def render_variant(surface, p, *, dsw=0.0, ddt=0.0, eps_scale=1.0, dz=0.0, dxy=(0.0, 0.0),
-                   f32=False, bits=None):
+                   f32=False, bits=None, voxels=False):
     """One halo render of the scene's parameters ``p`` with a threshold or sample shift.
-    Returns (color (H, W, 3), alpha (H, W), volume (N, H, W)) float64 / int8."""
+    Returns (color (H, W, 3), alpha (H, W), volume (N, H, W)) float64 / int8, and with
+    ``voxels`` each drawn voxel's (r, g, b, α) (N, H, W, 4) (zero where not drawn)."""
     from ..halos4d.render import (_render_bands, _screen_bounds, _bin_bands, BAND_ROWS,
                                   prepare, slice_alpha)
     from ..halos4d.slicing import SUBPIXEL_BITS, _slice, ortho_ndc, setup_window
@@ -97,12 +98,29 @@ def render_variant(surface, p, *, dsw=0.0, ddt=0.0, eps_scale=1.0, dz=0.0, dxy=(
     rgb = np.zeros((h, w, 3))
     a = np.zeros((h, w))
     vol = np.zeros((n, h, w), np.int8)
+    vox = np.zeros((n, h, w, 4))
     _render_bands(X, Y, XF, YF, order, bbox, area, st.slice, band_starts, band_lists, st.attr,
                   w, h, b, BAND_ROWS, float(p["delta_t"]) + ddt, float(p["delta_d"]), sw + dsw,
                   eps, alpha, bool(p["halos"]), aa, 0.0, np.zeros(3), False, 0.15, np.zeros(3),
-                  True, rgb, a, vol)
+                  True, rgb, a, vol, vox)
     bg = np.asarray(p.get("background", [0.0, 0.0, 0.0]), np.float64)
+    if voxels:
+        return rgb + (1.0 - a)[..., None] * bg, a, vol, vox, alpha
     return rgb + (1.0 - a)[..., None] * bg, a, vol
+
+
+def _core_distance(va, alpha, sw, aa):
+    """|2t − 1| of each drawn voxel recovered from its opacity ``1 − (1 − alpha)^cov``,
+    ``cov = (w_s + a − |2t − 1|)/(2a)`` (NaN where not drawn; w_s − a where cov = 1)."""
+    out = np.full(va.shape, np.nan)
+    drawn = va > 0
+    if aa <= 0.0 or alpha >= 1.0:
+        out[drawn] = 0.0
+        return out
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cov = np.log1p(-va[drawn]) / np.log1p(-alpha)
+    out[drawn] = np.clip(sw + aa - 2.0 * aa * np.minimum(cov, 1.0), 0.0, None)
+    return out
 
 
 def column_class(vol):
@@ -116,7 +134,9 @@ def halo_variants(p):
     zmax = max(abs(float(x)) for x in np.asarray(p["screen_bounds"], np.float64)[:, 2])
     out = [{}]
     for s in (-1.0, 1.0):
-        out += [{"dxy": (s * XY_SHIFT, 0.0)}, {"dxy": (0.0, s * XY_SHIFT)},
+        # the square's corners: an edge function is affine in the shift, so its extremes over
+        # the square are at the corners
+        out += [{"dxy": (s * XY_SHIFT, XY_SHIFT)}, {"dxy": (s * XY_SHIFT, -XY_SHIFT)},
                 {"dz": s * Z_REL * max(zmax, 1.0)}, {"dsw": s * T_EPS}, {"ddt": s * T_EPS}]
     out += [{"eps_scale": 0.0}, {"eps_scale": 2.0}, {"f32": True}, {"bits": 4}]
     return out
@@ -127,20 +147,93 @@ def halo_allowances(scene):
     intervals (module docstring)."""
     p = dict(scene.parameters)
     surface = _surface(scene.maps)
-    cls, al, co = [], [], []
+    seen = None      # per voxel, the classes some shift gives it (bit c for class c)
+    a_lo = a_hi = c_lo = c_hi = u_min = u_max = None
+    sw = float(p["surface_width"])
+    aa = float(p.get("antialias", sw))
     for kw in halo_variants(p):
-        rgb, a, vol = render_variant(surface, p, **kw)
-        cls.append(column_class(vol))
-        al.append(a)
-        co.append(rgb)
-    cls, al, co = np.stack(cls), np.stack(al), np.stack(co)
+        rgb, a, vol, vox, alpha = render_variant(surface, p, voxels=True, **kw)
+        u = _core_distance(vox[..., 3], alpha, sw, aa)
+        u_min = u if u_min is None else np.fmin(u_min, u)
+        u_max = u if u_max is None else np.fmax(u_max, u)
+        bit = (np.int8(1) << vol.astype(np.int8)).astype(np.int8)
+        va, vc = vox[..., 3], vox[..., :3]
+        drawn = ((vol == 1) | (vol == 2) | (vol == 4))[..., None]    # a surface colour
+        if seen is None:
+            seen, a_lo, a_hi = bit, va, va.copy()
+            c_lo = np.where(drawn, vc, np.inf)
+            c_hi = np.where(drawn, vc, -np.inf)
+        else:
+            seen |= bit
+            a_lo = np.minimum(a_lo, va)      # a voxel not drawn has α = 0
+            a_hi = np.maximum(a_hi, va)
+            c_lo = np.where(drawn, np.minimum(c_lo, vc), c_lo)
+            c_hi = np.where(drawn, np.maximum(c_hi, vc), c_hi)
+    # |2t − 1| is convex in the sample position (an affine t through a kink at t = ½), so its
+    # smallest value over the shift square may lie inside it, where the voxel's α is largest:
+    # with the centre and the corners sampled, min − (max − min) is below that minimum (if t
+    # crosses ½ inside, the spread exceeds the smallest sampled value; if not, the minimum is a
+    # sampled corner)
+    if aa > 0.0 and alpha < 1.0:
+        u_lo = np.maximum(0.0, u_min - (u_max - u_min))
+        cov = np.clip((sw + aa - u_lo) / (2.0 * aa), 0.0, 1.0)
+        a_hi = np.where(np.isfinite(u_lo), np.maximum(a_hi, 1.0 - (1.0 - alpha) ** cov), a_hi)
+    # a voxel drawn under some shifts only lies on the rim of its slice triangle or of a class
+    # region, and a carved one whose class changes is near a threshold: its sampled |2t − 1|
+    # say nothing of the square's inside, so it may be drawn with the full slice opacity
+    varies = (seen & (seen - 1)) != 0
+    may_draw = ((seen & 2) != 0) | ((seen & 4) != 0)
+    a_hi = np.where(may_draw & varies, np.maximum(a_hi, alpha), a_hi)
+    # colours of voxels never drawn do not matter (α = 0 there)
+    c_lo = np.where(np.isfinite(c_lo), c_lo, 0.0)
+    c_hi = np.where(np.isfinite(c_hi), c_hi, 0.0)
+    # the column's class is its voxels' class of highest priority (carved 2 > surface 1 >
+    # halo 3 > empty 0); each voxel may independently take any class it took under a shift:
+    # the column's class lies between the priority of every voxel at its lowest and of some
+    # voxel at its highest
+    rank_of = np.array([0, 2, 3, 1])           # class → priority rank
+    cls_of = np.array([0, 3, 1, 2])            # rank → class
+    lowest = np.zeros(seen.shape, np.int64)
+    highest = np.zeros(seen.shape, np.int64)
+    for c in (0, 3, 1, 2):                     # ascending priority
+        has = (seen >> c) & 1 == 1
+        highest = np.where(has, rank_of[c], highest)
+    for c in (2, 1, 3, 0):                     # descending priority
+        has = (seen >> c) & 1 == 1
+        lowest = np.where(has, rank_of[c], lowest)
+    r_lo, r_hi = lowest.max(axis=0), highest.max(axis=0)
+    allowed = [(r_lo <= k) & (k <= r_hi) for k in range(4)]
+    # as an interval of class numbers (the "bounds" check): the smallest and largest class
+    # whose rank is allowed (a superset where the ranks' classes are not contiguous)
+    lo = np.full(r_lo.shape, 3, np.int32)
+    hi = np.zeros(r_lo.shape, np.int32)
+    for k in range(4):
+        lo = np.where(allowed[k], np.minimum(lo, cls_of[k]), lo)
+        hi = np.where(allowed[k], np.maximum(hi, cls_of[k]), hi)
+    out = {"halo_class_lo": lo.astype(np.int32), "halo_class_hi": hi.astype(np.int32)}
+    # compositing bounds, back to front, each voxel independently within its (α, colour) box:
+    # A_k = A(1 − α) + α is increasing in A and in α; C_k = C(1 − α) + α·c is increasing in C
+    # and c and affine in α, so its extremes are at α's ends
+    n_sl, h, w = seen.shape
+    al_lo, al_hi = np.zeros((h, w)), np.zeros((h, w))
+    cl_lo, cl_hi = np.zeros((h, w, 3)), np.zeros((h, w, 3))
+    for k in range(n_sl):
+        l, u = a_lo[k], a_hi[k]
+        al_lo = al_lo * (1.0 - l) + l
+        al_hi = al_hi * (1.0 - u) + u
+        l3, u3 = l[..., None], u[..., None]
+        cl_lo = np.minimum(cl_lo * (1.0 - l3) + l3 * c_lo[k], cl_lo * (1.0 - u3) + u3 * c_lo[k])
+        cl_hi = np.maximum(cl_hi * (1.0 - l3) + l3 * c_hi[k], cl_hi * (1.0 - u3) + u3 * c_hi[k])
+    bg = np.asarray(p.get("background", [0.0, 0.0, 0.0]), np.float64)
+    # over the background: C + (1 − A)·bg, decreasing in A
+    cl_lo = cl_lo + (1.0 - al_hi)[..., None] * bg
+    cl_hi = cl_hi + (1.0 - al_lo)[..., None] * bg
     ref = scene.buffers
-    cls = np.concatenate([cls, np.asarray(ref["halo_class"], np.int32)[None]])
-    al = np.concatenate([al, np.asarray(ref["alpha"], np.float64)[None]])
-    co = np.concatenate([co, np.asarray(ref["color"], np.float64)[None]])
-    out = {"halo_class_lo": cls.min(axis=0).astype(np.int32),
-           "halo_class_hi": cls.max(axis=0).astype(np.int32)}
-    for key, v in (("alpha", al), ("color", co)):
-        out[f"{key}_lo"] = (v.min(axis=0) - COMPOSITE_TOL).astype(np.float32)
-        out[f"{key}_hi"] = (v.max(axis=0) + COMPOSITE_TOL).astype(np.float32)
+    for key, lo_, hi_, r in (("alpha", al_lo, al_hi, ref["alpha"]),
+                             ("color", cl_lo, cl_hi, ref["color"])):
+        r = np.asarray(r, np.float64)
+        lo_ = np.minimum(lo_, r) - COMPOSITE_TOL
+        hi_ = np.maximum(hi_, r) + COMPOSITE_TOL
+        out[f"{key}_lo"] = np.clip(lo_, 0.0, 1.0).astype(np.float32)
+        out[f"{key}_hi"] = np.clip(hi_, 0.0, 1.0).astype(np.float32)
     return out
