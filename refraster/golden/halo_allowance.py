@@ -14,9 +14,9 @@ shifts, and only such voxels do: each test is monotone in its threshold):
 ==================  ==========================================================================
 shift               ε and where it comes from
 ==================  ==========================================================================
-sample position     ±1/16 pixel in x and in y: a rasterizer with 4 sub-pixel bits snaps the
-                    slice triangles' vertices by up to 1/32 pixel; the fill rule (top-left or
-                    llvmpipe's) differs only for centres on an edge, which the shift moves off
+sample position     the corners (±1/16, ±1/16) pixel: 4 sub-pixel bits snap each slice vertex
+                    by up to 1/32 pixel; a fill rule differs only for centres on an edge; an
+                    edge function is affine in the shift, so its extremes are at the corners
 slice planes        ±``Z_REL``·max|z| (float32 rounding of the plane ``c_k`` and of the
                     tetrahedron vertices' z: a plane through a vertex)
 w_s (and a)         ±``T_EPS`` on ``|2t − 1|``: t interpolated with float32 barycentrics
@@ -27,14 +27,19 @@ float32 vertices    the thickened vertices and their attributes rounded to float
 4 sub-pixel bits    the slice triangles snapped to 1/16 pixel instead of 1/256
 ==================  ==========================================================================
 
-Per pixel: ``halo_class`` may take any class between the smallest and largest the variants
-give (``halo_class_lo``, ``halo_class_hi``; equal to the golden's where no variant differs);
-``alpha`` and ``color`` lie between the variants' smallest and largest value, widened by
-``COMPOSITE_TOL`` for float32 compositing (48 back-to-front steps, each rounding at 2^-24, and
-the float32 ``pow`` of the opacity correction). The variants' extremes bound the compositing
-because accumulated opacity is increasing in every voxel's α and each colour step is bilinear
-in (accumulated, α); a voxel's α and colour change only with its class or coverage, which the
-variants span.
+From the renders (the kernel's optional per-voxel colour and opacity, ``voxel_rgba``):
+
+* per voxel, the set of classes the shifts give it; the column's ``halo_class`` (the voxels'
+  class of highest priority, carved > surface > halo > empty) lies between every voxel at its
+  lowest and some voxel at its highest (``halo_class_lo/hi``, as class numbers);
+* per voxel, an opacity and colour box: α between the shifts' extremes (0 where a shift does not
+  draw it); the largest α widened for the kink of ``|2t − 1|`` at t = ½ (its minimum over the
+  shift square may lie inside: ``min − (max − min)`` of the sampled values is below it), and to
+  the full slice opacity for a voxel drawn under some shifts only or whose carved / halo class
+  changes (a rim or threshold voxel);
+* the column's ``alpha`` and ``color`` bounds composited back to front from the boxes' ends
+  (``A(1 − α) + α`` increasing in A and α; ``C(1 − α) + α·c`` increasing in C and c, affine in
+  α), over the background, widened by ``COMPOSITE_TOL`` for float32 compositing.
 """
 
 from __future__ import annotations
