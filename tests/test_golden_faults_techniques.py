@@ -42,8 +42,6 @@ OLD_PROFILE = (
     # held to the golden's intervals since 2026-12-02 (caught 100 %), but values are free where
     # a sliver that may flip covers the pixel: 6.6 % of the shells' covered pixels (> 5 %)
     | {("cutaway_shells", k) for k in ("barycentric", "color", "normal")}
-    # merged from x25 while this was written: its own decision region, on the masked profile
-    | {("vds_parity_building", "inside")}
 )
 
 

@@ -293,6 +293,13 @@ def scene_allowances(scene, raster):
         for key in CLIP_BUFFERS:
             if key in checks:
                 checks[key] = {"checks": ["clip"]}
+    if scene.technique == "vds" and "inside" in buffers and scene.may is not None:
+        # the parity decision: equal to the golden's except where the scene's probes found it
+        # may flip (GoldenScene.may, not dilated): a per-pixel check, not a fraction
+        inside = np.asarray(buffers["inside"], np.bool_)
+        arrays["inside_lo"] = inside & ~extra
+        arrays["inside_hi"] = inside | extra
+        checks["inside"] = {"checks": ["bounds"], "lo": "inside_lo", "hi": "inside_hi"}
     if "cs_offsets" in arrays and "prim_id" in buffers:
         # clip surfaces and cutaways: normal, barycentrics and colour held to the golden's
         # interval (its own surface's step over the ε-square) wherever the candidate names the
