@@ -204,11 +204,36 @@ def layers_admits(key, kind, spec, arrays, ref, cand, named, others):
 
 def admits(key, kind, spec, arrays, ref, cand, named, others):
     """The technique checks' own "admits" (``None``: :func:`faults._admits` decides)."""
-    for f in (layers_admits, bounds_admits, clip_admits):
+    for f in (layers_admits, bounds_admits, clip_admits, clip_value_admits):
         a = f(key, kind, spec, arrays, ref, cand, named, others)
         if a is not None:
             return a
     return None
+
+
+def clip_value_admits(key, kind, spec, arrays, ref, cand, named, others):
+    """Clip-surface and cutaway normal, barycentrics, colour (an ``interval`` or ``angle``
+    check with a ``may`` region and the golden's ids): the value is free where another face
+    may win (``face_may``) and the candidate names a face other than the golden's, and where a
+    sliver that may flip covers the pixel (``face_sliver``); elsewhere it must lie in the
+    interval / within the angle."""
+    checks = spec["checks"]
+    if "may" not in spec or "golden_face" not in arrays or not (
+            "interval" in checks or "angle" in checks):
+        return None
+    same = ((np.asarray(others["prim_id"]) == arrays["golden_face"])
+            & (np.asarray(others["object_id"]) == arrays["golden_object"]))
+    free = (arrays[spec["may"]] & ~same) | arrays["face_sliver"]
+    c = np.asarray(cand, np.float64)
+    if "interval" in checks:
+        inside = (c >= arrays[spec["lo"]]) & (c <= arrays[spec["hi"]])
+        inside = inside.all(axis=2) if inside.ndim == 3 else inside
+    else:
+        r = np.asarray(ref, np.float64)
+        cos = np.sum(r * c, axis=-1) / np.maximum(
+            np.linalg.norm(r, axis=-1) * np.linalg.norm(c, axis=-1), 1e-300)
+        inside = np.arccos(np.clip(cos, -1.0, 1.0)) <= arrays[spec["angle"]]
+    return free | inside
 
 
 def bounds_admits(key, kind, spec, arrays, ref, cand, named, others):

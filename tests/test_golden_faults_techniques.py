@@ -35,18 +35,13 @@ FILTERED = {"edge_map", "cutaway_depth", "ghost", "alpha"} | {
     ("halos4d_figure1", "color")}
 
 _G = ("barycentric", "color", "depth", "eye_depth", "normal")
-#: (scene, buffer) pairs still on the conformant profile with a fraction-of-pixels threshold
-#: (measured 2026-12-01, docs/tolerance.md): they miss the aims.
+#: (scene, buffer) pairs that miss the aims (measured 2026-12-02, docs/tolerance.md): on the
+#: conformant profile with a fraction-of-pixels threshold, or admitting more than the aim.
 OLD_PROFILE = (
-    {("clipsurface_building", k) for k in ("barycentric", "color", "normal")}
-    | {("clipsurface_textured_caps", k) for k in ("barycentric", "color", "normal")}
-    # issue 26's clip-surface scenes (as the two above)
-    | {(s, k) for s in ("clipsurface_two_surfaces", "clipsurface_relief_plane")
-       for k in ("barycentric", "color", "normal")}
-    | {("cutaway_shells", k) for k in ("barycentric", "color", "normal", "ghost")}
-    | {("halos4d_figure1", k) for k in ("alpha", "color", "halo_class")}
-    # merged from x25 while this was written: its own decision region, on the masked profile
-    | {("vds_parity_building", "inside")}
+    {("cutaway_shells", "ghost")}
+    # held to the golden's intervals since 2026-12-02 (caught 100 %), but values are free where
+    # a sliver that may flip covers the pixel: 6.6 % of the shells' covered pixels (> 5 %)
+    | {("cutaway_shells", k) for k in ("barycentric", "color", "normal")}
     # issue 26's operator scenes: golden/edge_bounds.py covers the diagonal operators only
     | {(s, "edge_map") for s in ("edges_sobel", "edges_c1", "edges_diagonal2", "edges_c1_paper")}
     | {("edges_npr_gooch", "npr_color")}      # the composite: conformant colour, may forgiven
@@ -363,7 +358,8 @@ def test_one_cutaway_depth_moved_fails_naming_the_pixel(gold, tmp_path):
 # --- clip surfaces (refraster/golden/clip_allowance.py) ------------------------------------------
 
 CLIPS = ["clipsurface_building", "clipsurface_textured_caps"]
-CLIP_KEYS = ["cap_mask", "depth", "eye_depth", "front_facing", "object_id", "prim_id"]
+CLIP_KEYS = ["cap_mask", "depth", "eye_depth", "front_facing", "object_id", "prim_id",
+             "normal", "barycentric", "color"]
 #: raster variants × the float32 clip test with 8-bit bilinear weights
 CLIP_VARIANTS = {"4bit": ({"subpixel_bits": 4}, False),
                  "top_left": ({"fill_rule": "top-left"}, False),
@@ -411,6 +407,25 @@ def _g_lookup8(points, s):
     return (d @ n) + sc[2] * h
 
 
+def _textured_surfaces(scene, plain):
+    """The scene's clip surfaces with the cap textures its maps carry (one map per channel)."""
+    from refraster.clipsurface import ClipSurface
+    from refraster.clipsurface.textures import CapTextures
+    out = []
+    for s, surf in zip(scene.parameters["surfaces"], plain(scene)):
+        names = s.get("textures")
+        if not names:
+            out.append(surf)
+            continue
+        tex = {k: np.stack([scene.maps[n] for n in v], -1) for k, v in names.items()}
+        if tex["light"].shape[-1] == 1:
+            tex["light"] = tex["light"][..., 0]
+        out.append(ClipSurface(s["origin"], s["u"], s["v"], s["scale"],
+                               scene.maps[s["offset_map"]], wrap=s.get("wrap", "repeat"),
+                               textures=CapTextures(**tex)))
+    return out
+
+
 def _clip_candidate(scene, raster, lookup8, monkeypatch):
     import functools
 
@@ -437,7 +452,8 @@ def _clip_candidate(scene, raster, lookup8, monkeypatch):
     p = scene.parameters
     caps = {k: p[k] for k in ("caps", "cap_style", "cap_mode", "cap_color", "subdivision",
                               "vds_resolution", "space")}
-    fb = render_clipped([d.mesh for d in scene.draws], _surfaces(scene), **scene.camera.kwargs,
+    fb = render_clipped([d.mesh for d in scene.draws], _textured_surfaces(scene, _surfaces),
+                        **scene.camera.kwargs,
                         **caps, cull=raster_state({})["cull"],
                         precision=raster.get("precision", "float32"))
     return {**fb.arrays(), "cap_mask": fb.cap_mask}
@@ -518,7 +534,7 @@ def _force_raster(monkeypatch, raster):
 
 
 CUT_KEYS = ["cutaway_depth", "cut_mask", "depth", "eye_depth", "front_facing", "object_id",
-            "prim_id"]
+            "prim_id", "normal", "barycentric", "color"]
 
 
 @pytest.mark.parametrize("raster", ["4bit", "4bit_top_left", "float64"])
@@ -563,3 +579,31 @@ def test_cut_mask_flipped_fails_naming_the_pixel(gold, tmp_path):
     assert code == 1, out
     line = [x for x in out.splitlines() if f"{CUT}/cut_mask: clip" in x][0]
     assert f"[[{rr}, {cc}]]" in line, line
+
+
+def test_clip_cap_normal_and_colour_moved_fail_naming_the_pixel(gold, tmp_path):
+    """A cap pixel's normal turned by 0.1 rad, its colour moved by 0.1, and a solid pixel's
+    barycentrics moved by 0.05 (the golden's ids kept) each fail ``compare``, naming the pixel."""
+    scene = "clipsurface_textured_caps"
+    b0 = _golden_buffers(gold, scene)
+    with np.load(gold / scene / "tolerance.npz", allow_pickle=False) as z:
+        free = z["face_may"] | z["face_sliver"]
+    caps = np.argwhere(b0["cap_mask"] & ~free)
+    rr, cc = caps[len(caps) // 2]
+    solid = np.argwhere((b0["prim_id"] >= 0) & ~b0["cap_mask"] & ~free)
+    sr, sc = solid[len(solid) // 2]
+    n = b0["normal"][rr, cc].astype(np.float64)
+    axis = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    axis /= np.linalg.norm(axis)
+    turned = n * np.cos(0.1) + np.cross(axis, n) * np.sin(0.1)
+    edits = {"normal": ((rr, cc), turned.astype(np.float32)),
+             "color": ((rr, cc), np.clip(b0["color"][rr, cc] + np.float32(0.1), 0, 1)
+                       if b0["color"][rr, cc].max() < 0.9 else b0["color"][rr, cc] - 0.1),
+             "barycentric": ((sr, sc), b0["barycentric"][sr, sc] + np.float32([0.05, -0.05, 0]))}
+    for key, (pix, value) in edits.items():
+        b = {k: v.copy() for k, v in b0.items()}
+        b[key][pix] = value
+        code, out = _run_compare(gold, _write(tmp_path / key, scene, b), scene)
+        line = [x for x in out.splitlines() if x.lstrip().startswith(f"{scene}/{key}:")
+                or f"{scene}/{key}: " in x]
+        assert code == 1 and line and f"[[{pix[0]}, {pix[1]}]]" in line[0], (key, out)

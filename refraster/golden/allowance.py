@@ -293,6 +293,18 @@ def scene_allowances(scene, raster):
         for key in CLIP_BUFFERS:
             if key in checks:
                 checks[key] = {"checks": ["clip"]}
+    if scene.technique == "vds" and "inside" in buffers and scene.may is not None:
+        # the parity decision: equal to the golden's except where the scene's probes found it
+        # may flip (GoldenScene.may, not dilated): a per-pixel check, not a fraction
+        inside = np.asarray(buffers["inside"], np.bool_)
+        arrays["inside_lo"] = inside & ~extra
+        arrays["inside_hi"] = inside | extra
+        checks["inside"] = {"checks": ["bounds"], "lo": "inside_lo", "hi": "inside_hi"}
+    if "cs_offsets" in arrays and "prim_id" in buffers:
+        # clip surfaces and cutaways: normal, barycentrics and colour held to the golden's
+        # interval (its own surface's step over the ε-square) wherever the candidate names the
+        # golden's face; free only where another face may win and the candidate names it
+        _clip_value_checks(arrays, checks, buffers, tol.eps)
     if scene.technique == "ldi" and "layer_depth" in buffers:
         # layered depth images: per-layer face sets and depth intervals (golden/layers.py)
         from .layers import LAYER_BUFFERS, ldi_allowances
@@ -301,6 +313,15 @@ def scene_allowances(scene, raster):
         for key, layer in LAYER_BUFFERS.items():
             if key in checks:
                 checks[key] = {"checks": ["layers"], "layer": layer}
+    if scene.technique == "halos4d" and scene.maps is not None \
+            and "surface_vertices4d" in scene.maps:
+        # 4D halos: class range and alpha / colour intervals from the classification margins
+        # (golden/halo_allowance.py)
+        from .halo_allowance import HALO_CHECKS, halo_allowances
+        arrays.update(halo_allowances(scene))
+        for key, (lo, hi) in HALO_CHECKS.items():
+            if key in checks:
+                checks[key] = {"checks": ["bounds"], "lo": lo, "hi": hi}
     info = {"method": method, "eps": float(tol.eps), "depth_eps": float(tol.depth_eps),
             "normal_tol": NORMAL_TOL, "color_tol": COLOR_TOL, "may_radius": radius,
             "min_subpixel_bits": 4}
@@ -309,6 +330,56 @@ def scene_allowances(scene, raster):
 
 _GBUFFER = ("depth", "eye_depth", "normal", "prim_id", "object_id", "front_facing",
             "barycentric", "color")
+
+
+def _clip_value_checks(arrays, checks, buffers, eps):
+    """Value checks of a clip-surface or cutaway scene (see the call): ``golden_face``,
+    ``golden_object`` the golden's prim_id and object_id, ``face_may`` where another face may
+    win (more than one entry of the clip sets, or the background), ``face_sliver`` where an
+    entry is a sliver whose facing may flip (values free even for the golden's face)."""
+    surface = _surface_labels(buffers)
+    n = np.diff(arrays["cs_offsets"].astype(np.int64)).reshape(surface.shape)
+    prim = np.asarray(buffers["prim_id"], np.int64)
+    obj = np.asarray(buffers.get("object_id", np.zeros_like(prim)), np.int64)
+    arrays["golden_face"] = np.where(prim >= 0, prim, -1).astype(np.int32)
+    arrays["golden_object"] = np.where(prim >= 0, obj, -1).astype(np.int32)
+    # a sliver whose facing may flip (cs_facing −1) has unstable values even when named: free
+    off = arrays["cs_offsets"].astype(np.int64)
+    sliver = np.zeros(off.size - 1, np.int64)
+    np.add.at(sliver, np.repeat(np.arange(off.size - 1), np.diff(off)),
+              (np.asarray(arrays["cs_facing"]) == -1).astype(np.int64))
+    arrays["face_may"] = (n != 1) | np.asarray(arrays["cs_bg"], np.bool_)
+    arrays["face_sliver"] = sliver.reshape(surface.shape) > 0
+    for key in ("barycentric", "color", "normal"):
+        if key not in buffers or key not in checks:
+            continue
+        a = np.asarray(buffers[key])
+        if key == "normal":
+            step = surface_step(a, surface, angle=True)
+            arrays["normal_angle"] = (NORMAL_TOL + SHIFT_MARGIN * eps * step).astype(np.float32)
+            checks[key] = {"checks": ["angle"], "angle": "normal_angle", "may": "face_may"}
+        else:
+            base = BARY_TOL if key == "barycentric" else COLOR_TOL
+            arrays[f"{key}_lo"], arrays[f"{key}_hi"] = _interval(a, surface, eps, base)
+            checks[key] = {"checks": ["interval"], "lo": f"{key}_lo", "hi": f"{key}_hi",
+                           "may": "face_may"}
+
+
+def _value_region(spec, arrays, others):
+    """Where an interval / angle check holds: outside ``id_may``, or — with a ``may`` entry
+    (clip scenes) — outside that region or where the candidate names the golden's face."""
+    if "may" not in spec or "golden_face" not in arrays:
+        return ~arrays["id_may"]
+    region = ~arrays[spec["may"]]
+    if others is not None and "prim_id" in others:
+        prim = np.asarray(others["prim_id"], np.int64)
+        obj = np.asarray(others.get("object_id", np.zeros_like(prim)), np.int64)
+        if prim.shape == region.shape and obj.shape == region.shape:
+            gp = arrays["golden_face"].astype(np.int64)
+            region |= (prim == gp) & (obj == arrays["golden_object"]) & (gp >= 0)
+    if "face_sliver" in arrays:
+        region &= ~arrays["face_sliver"]
+    return region
 
 
 # --- per-pixel face sets (where the visible primitive may differ) --------------------------------
@@ -901,13 +972,14 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
             with np.errstate(invalid="ignore"):
                 bad = ~((c >= lo) & (c <= hi))
             bad = bad.any(axis=2) if bad.ndim == 3 else bad
-            region = ~id_may
+            region = _value_region(spec, arrays, others)
             if key == "depth" and "coverage" in arrays:
                 region &= (arrays["coverage"] == MUST) & (cand < clear_depth)
             outside["interval"] = region & bad
         elif name == "angle":
             limit = arrays[spec["angle"]].astype(np.float64) + step * math.sqrt(3.0)
-            outside["angle"] = ~id_may & ~(_angle(ref, cand) <= limit)
+            outside["angle"] = _value_region(spec, arrays, others) & ~(_angle(ref, cand)
+                                                                         <= limit)
         elif name == "masked":
             masked = buffer_metrics(ref, cand, kind, fallback, step=step,
                                     forgive=arrays[spec.get("may", "may")])

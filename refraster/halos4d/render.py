@@ -190,8 +190,12 @@ def _coverage(u, surface_width, aa):
 @njit(**JIT)
 def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf_d, surf, hit,
                    acc, acc_a, volume, surf_cov, min_db, halo_alpha, halo_rgb, boundary,
-                   boundary_rgb, surf_full):
-    """Occlusion rule of one slice over the touched part of a band, composited back to front."""
+                   boundary_rgb, surf_full, voxel_rgba):
+    """Occlusion rule of one slice over the touched part of a band, composited back to front.
+    With ``want_volume`` and a full-size ``voxel_rgba (N, H, W, 4)``, also each voxel's surface
+    colour (drawn or carved) and opacity (0 if not drawn), for the golden's halo allowance; a
+    (1, 1, 1, 4) one is not written."""
+    per_voxel = want_volume and voxel_rgba.shape[0] == volume.shape[0] and volume.shape[0] > 1
     for li in range(lr0, lr1 + 1):
         for px in range(c0, c1 + 1):
             if not hit[li, px]:
@@ -211,11 +215,17 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
                     col = surf[li, px, c] if cls == SURFACE else boundary_rgb[c]
                     acc[li, px, c] = acc[li, px, c] * (1.0 - a) + a * col
                 acc_a[li, px] = acc_a[li, px] * (1.0 - a) + a
+                if per_voxel:
+                    voxel_rgba[k, r0 + li, px, 3] = a
             elif halo_alpha > 0.0:
                 for c in range(3):
                     acc[li, px, c] = (acc[li, px, c] * (1.0 - halo_alpha)
                                       + halo_alpha * halo_rgb[c])
                 acc_a[li, px] = acc_a[li, px] * (1.0 - halo_alpha) + halo_alpha
+            if per_voxel and cls != HALO:    # the surface fragment's colour, drawn or carved
+                for c in range(3):
+                    voxel_rgba[k, r0 + li, px, c] = (boundary_rgb[c] if cls == BOUNDARY
+                                                     else surf[li, px, c])
             if want_volume:
                 volume[k, r0 + li, px] = cls
             hit[li, px] = False
@@ -230,7 +240,7 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
                   width,
                   height, bits, band_rows, delta_t, delta_d, surface_width, eps, alpha, halos,
                   aa, halo_alpha, halo_rgb, boundary, boundary_width, boundary_rgb,
-                  want_volume, out_rgb, out_a, volume):
+                  want_volume, out_rgb, out_a, volume, voxel_rgba):
     nbands = band_starts.shape[0] - 1
     for band in prange(nbands):
         r0 = band * band_rows
@@ -253,7 +263,8 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
                 if cur >= 0:
                     _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d,
                                    surf_d, surf, hit, acc, acc_a, volume, surf_cov, min_db,
-                                   halo_alpha, halo_rgb, boundary, boundary_rgb, surf_full)
+                                   halo_alpha, halo_rgb, boundary, boundary_rgb, surf_full,
+                                   voxel_rgba)
                 cur = tri_slice[j]
                 lr0, lr1, c0, c1 = rows, -1, width, -1
             ra = max(height - 1 - bbox[j, 3], r0)
@@ -334,7 +345,7 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
         if cur >= 0:
             _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf_d,
                            surf, hit, acc, acc_a, volume, surf_cov, min_db, halo_alpha,
-                           halo_rgb, boundary, boundary_rgb, surf_full)
+                           halo_rgb, boundary, boundary_rgb, surf_full, voxel_rgba)
         for li in range(rows):
             for px in range(width):
                 for c in range(3):
@@ -352,7 +363,8 @@ def _fused(st, width, height, params, want_volume):
     a = np.zeros((height, width))
     vol = np.zeros((n, height, width) if want_volume else (1, 1, 1), np.int8)
     _render_bands(X, Y, XF, YF, order, bbox, area, st.slice, band_starts, band_lists, st.attr, width,
-                  height, SUBPIXEL_BITS, BAND_ROWS, *params, want_volume, rgb, a, vol)
+                  height, SUBPIXEL_BITS, BAND_ROWS, *params, want_volume, rgb, a, vol,
+                  np.zeros((1, 1, 1, 4)))
     return rgb, a, (vol if want_volume else None), int(np.count_nonzero(~valid))
 
 
