@@ -99,6 +99,49 @@ def test_out_is_checked():
         rf.render(box, **kw, out=out, fragment_stage=lambda fr: fr.depth < 1)
 
 
+def test_out_overlap_is_checked_again_after_a_good_frame():
+    """The overlap check of ``out``'s own arrays is skipped only for the very array objects it
+    passed last time: an array swapped in after a good frame is checked again."""
+    box = _mesh(cube())
+    kw = _kw()
+    out = rf.render(box, **kw)
+    rf.render(box, **kw, out=out)     # a good frame: its arrays are remembered
+    rf.render(box, **kw, out=out)
+    out.object_id = out.prim_id       # same shape and dtype, same memory
+    with pytest.raises(ValueError, match="out.prim_id and out.object_id share memory"):
+        rf.render(box, **kw, out=out)
+    out.object_id = out.prim_id.copy()
+    rf.render(box, **kw, out=out)
+    out.color = out.normal            # a colour array aliasing the normals
+    with pytest.raises(ValueError, match="out.normal and out.color share memory"):
+        rf.render(box, **kw, out=out)
+
+
+def test_camera_caches_never_give_another_cameras_normals():
+    """The normal matrix and the projection check are remembered by the matrices' bytes: a
+    loop over cameras, back to the first, gives each camera's own frame (compared with a frame
+    rendered with the caches emptied)."""
+    from refraster import framebuffer as fbm
+    from refraster import raster as rmod
+    box = _mesh(cube())
+    eyes = [(1.6, 1.2, 2.4), (-2.0, 0.5, 1.5), (1.6, 1.2, 2.4), (0.3, -2.2, 1.0)]
+    out = None
+    for eye in eyes:
+        kw = _kw(eye=eye)
+        kw["proj"] = rf.perspective(40 + 5 * eye[0], 96 / 72, 0.5, 10)
+        got = rf.render(box, **kw)
+        got.color
+        out = rf.render(box, **kw, out=out) if out is not None else rf.render(box, **kw)
+        fbm._NMAT_CACHE.clear()
+        rmod._GOOD_PROJ.clear()
+        ref = rf.render(box, **kw)
+        _same(got, ref)
+        _same(out, ref)
+    # a singular projection is still refused after good ones were remembered
+    with pytest.raises(ValueError, match="proj is singular"):
+        rf.render(box, **dict(_kw(), proj=np.zeros((4, 4))))
+
+
 def test_out_never_overwrites_an_input():
     box = _mesh(cube())
     kw = _kw()

@@ -59,11 +59,21 @@ _F32_MAX = float(np.finfo(np.float32).max)
 
 def _check_projection(proj):
     """A projection must be invertible: a singular one (all zeros, w equal to z, …) puts every
-    vertex on one plane or at w = 0 and draws an empty frame."""
+    vertex on one plane or at w = 0 and draws an empty frame. The last few projections that
+    passed are remembered by their bytes (a loop of frames checks one camera once)."""
+    key = proj.tobytes()
+    if key in _GOOD_PROJ:
+        return
     det = float(np.linalg.det(proj))
     if not (np.isfinite(det) and det != 0.0):
         raise ValueError(f"proj is singular (determinant {det:g}): it maps the scene onto a "
                          "plane; give a perspective or orthographic matrix (refraster.camera)")
+    if len(_GOOD_PROJ) >= 16:
+        _GOOD_PROJ.clear()
+    _GOOD_PROJ.add(key)
+
+
+_GOOD_PROJ: set = set()
 
 
 def _check_clip(clip, meshes, prec):
