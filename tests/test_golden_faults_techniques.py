@@ -48,7 +48,6 @@ OLD_PROFILE = (
     # issue 26's variant / projection scenes: the same buffers as their base scenes (measured)
     | {(s, k) for s in ("cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa")
        for k in ("barycentric", "color", "normal", "ghost")}
-    | {("halos4d_perspective", k) for k in ("alpha", "color", "halo_class")}
 )
 
 
