@@ -51,7 +51,8 @@ OLD_PROFILE = (
     | {(s, "edge_map") for s in ("edges_sobel", "edges_c1", "edges_diagonal2", "edges_c1_paper")}
     | {("edges_npr_gooch", "npr_color")}      # the composite: conformant colour, may forgiven
     # issue 26's variant / projection scenes: the same buffers as their base scenes (measured)
-    | {(s, k) for s in ("cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa")
+    | {(s, k) for s in ("cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa",
+                        "cutaway_floor")
        for k in ("barycentric", "color", "normal", "ghost")}
     | {("halos4d_perspective", k) for k in ("alpha", "color", "halo_class")}
 )
