@@ -25,7 +25,7 @@ END = "<!-- gl-techniques-matrix:end -->"
 EDGES = ["edges_building", "edges_sobel", "edges_c1", "edges_diagonal2", "edges_c1_paper",
          "edges_npr_gooch"]
 CUTAWAYS = ["cutaway_shells", "cutaway_shells_jfa", "cutaway_shells_jfa2",
-            "cutaway_shells_1jfa"]
+            "cutaway_shells_1jfa", "cutaway_floor"]
 HALOS = ["halos4d_figure1", "halos4d_perspective"]
 SCENES = EDGES + CUTAWAYS + HALOS
 
@@ -35,8 +35,10 @@ EXPECTED = {
                      "edges_npr_gooch": "npr_color"},
     "sobel_transposed": {"edges_sobel": "edge_map", "edges_c1_paper": "edge_map"},
     "schedule_truncated": {s: "cutaway_depth" for s in ("cutaway_shells", "cutaway_shells_jfa",
-                                                         "cutaway_shells_1jfa")},
+                                                         "cutaway_shells_1jfa",
+                                                         "cutaway_floor")},
     "slope_from_theta": {s: "cutaway_depth" for s in CUTAWAYS},
+    "floor_flipped": {"cutaway_floor": "cutaway_depth"},
     "eq3_halved": {s: "halo_class" for s in HALOS},
     "slices_front_to_back": {s: "color" for s in HALOS},
 }
@@ -47,6 +49,8 @@ UNTOUCHED = {
     + CUTAWAYS + HALOS,
     "schedule_truncated": EDGES + HALOS,
     "slope_from_theta": EDGES + HALOS,
+    # the floor constraint is on in cutaway_floor only
+    "floor_flipped": EDGES + [s for s in CUTAWAYS if s != "cutaway_floor"] + HALOS,
     "eq3_halved": EDGES + CUTAWAYS,
     "slices_front_to_back": EDGES + CUTAWAYS,
 }

@@ -46,7 +46,8 @@ OLD_PROFILE = (
     | {(s, "edge_map") for s in ("edges_sobel", "edges_c1", "edges_diagonal2", "edges_c1_paper")}
     | {("edges_npr_gooch", "npr_color")}      # the composite: conformant colour, may forgiven
     # issue 26's variant / projection scenes: the same buffers as their base scenes (measured)
-    | {(s, k) for s in ("cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa")
+    | {(s, k) for s in ("cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa",
+                        "cutaway_floor")
        for k in ("barycentric", "color", "normal", "ghost")}
 )
 
@@ -352,6 +353,50 @@ def test_one_cutaway_depth_moved_fails_naming_the_pixel(gold, tmp_path):
     assert code == 1 and "FAIL" in out, out
     line = [x for x in out.splitlines() if f"{CUT}/cutaway_depth: bounds" in x][0]
     assert f"[[{rr}, {cc}]]" in line and "interval [" in line, line
+
+
+FLOOR = "cutaway_floor"
+
+
+def _cutaway_floor_depth(scene, raster, variant, floor=True):
+    """As :func:`_cutaway_depth` with the scene's floor constraint (``floor=False``: ignored)."""
+    from refraster import render
+    from refraster.cutaway.surface import cutaway_surface
+    p = scene.parameters
+    cam = scene.camera
+    draws = [d for d in scene.draws if d.name in p["interest"]]
+    rear = render([d.mesh for d in draws], **cam.kwargs, model=[d.model for d in draws],
+                  depth_func="greater", clear_depth=0.0, **raster)
+    extra = dict(floor_normal=p["floor_normal"], floor_margin=p["floor_margin"]) if floor else {}
+    d = cutaway_surface(rear.depth, rear.object_id, proj=cam.proj, view=cam.view,
+                        angle=p["angle"], variant=variant,
+                        perspective_compensation=p["perspective_compensation"],
+                        edge_compression=p["edge_compression"], **extra)
+    return (0.5 * d + 0.5).astype(np.float32)
+
+
+def test_cutaway_floor_bounds_both_directions(gold, tmp_path):
+    """The floor constraint's D bounds (golden/cutaway_bounds.py floods with the scene's floor):
+    every accepted variant over every rear hull of CUT_RASTER passes (refraster's own is
+    bit-identical to the stored D); the same floods without the floor fail naming D."""
+    from refraster.golden.compare import compare
+    scene = golden.available_scenes()[FLOOR].build()
+    b = _golden_buffers(gold, FLOOR)
+    for raster, ras in sorted(CUT_RASTER.items()):
+        for variant in scene.parameters["accepted_variants"]:
+            d = _cutaway_floor_depth(scene, ras, variant)
+            if raster == "8bit" and variant == scene.parameters["variant"]:
+                assert np.array_equal(d, b["cutaway_depth"])
+            root = _write(tmp_path / f"{raster}_{variant}", FLOOR, {**b, "cutaway_depth": d})
+            result = compare(gold, root, mode="tolerant", scenes=[FLOOR],
+                             buffers=["cutaway_depth"])
+            assert result.exit_code == 0, (raster, variant, result.failures()[:5])
+    for variant in scene.parameters["accepted_variants"]:
+        d = _cutaway_floor_depth(scene, {}, variant, floor=False)
+        root = _write(tmp_path / f"nofloor_{variant}", FLOOR, {**b, "cutaway_depth": d})
+        fails = compare(gold, root, mode="tolerant", scenes=[FLOOR],
+                        buffers=["cutaway_depth"]).failures()
+        assert any(x.startswith(f"{FLOOR}/cutaway_depth: bounds") for x in fails), variant
 
 
 # --- clip surfaces (refraster/golden/clip_allowance.py) ------------------------------------------

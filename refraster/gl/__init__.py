@@ -71,6 +71,9 @@ TECHNIQUE_FAULTS = {
                                                        "last 3 passes"),
     "slope_from_theta": ("FAULT_SLOPE_FROM_THETA", "the cutaway slope from tan θ instead of "
                                                    "cot θ"),
+    "floor_flipped": ("FAULT_FLOOR_FLIPPED", "the floor constraint's normal with its sign "
+                                             "flipped (φ negated: the floor side is not "
+                                             "flattened)"),
     # 4D halos (refraster/gl/halos.py, shaders/halo_*.frag)
     "eq3_halved": ("FAULT_EQ3_HALVED", "Eq. 3's drop-off δd halved"),
     "slices_front_to_back": ("FAULT_SLICES_FRONT_TO_BACK", "the slices composited front to "

@@ -46,14 +46,46 @@ def _seed_images(scene, interest, eps):
     cam = scene.camera
     draws = [d for d in scene.draws if d.name in interest]
     h, w = cam.height, cam.width
-    _, pix, faces, sure, _, lo, hi = covering_entries([d.mesh for d in draws],
-                                                      [d.model for d in draws], cam, "none", eps)
+    prep, pix, faces, sure, _, lo, hi = covering_entries([d.mesh for d in draws],
+                                                         [d.model for d in draws], cam, "none",
+                                                         eps)
+    # a sliver's or degenerate face's depth interval is unbounded (±inf), but where a GPU
+    # covers a pixel with it, the depth it shows interpolates the face's vertices: at most
+    # their largest window depth (the far plane if a vertex is behind the eye), plus the
+    # float32 slack
+    free = ~np.isfinite(hi)
+    if free.any():
+        clip = prep.clip[prep.triangles.faces[faces[free]]]
+        wv = clip[:, :, 3]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            zv = 0.5 * clip[:, :, 2] / wv + 0.5
+        zmax = np.where((wv > 0).all(axis=1), zv.max(axis=1), 1.0)
+        hi = hi.copy()
+        hi[free] = np.minimum(zmax + 16.0 * F32, 1.0)
     big = np.full(h * w, -np.inf)
     np.maximum.at(big, pix, hi)
     small = np.full(h * w, -np.inf)
     np.maximum.at(small, pix[sure], lo[sure])
     return (np.clip(big, 0.0, 1.0).reshape(h, w), np.isfinite(big).reshape(h, w),
             np.clip(small, 0.0, 1.0).reshape(h, w), np.isfinite(small).reshape(h, w))
+
+
+def _floor_slope_max(seeded, cam, p, kw):
+    """The largest floor-side slope m_f any seed may have: θ_f depends on the pixel only (φ is
+    the angle of the pixel's ray to the floor), and m_f = −(P₂₂ + z)/tan θ_f is linear in z, so
+    its largest value over the pixels that may be seeds is at z = −1 or z = +1."""
+    from ..cutaway.surface import as_angles, seed_slopes
+    theta = np.full(seeded.shape, float(np.min(as_angles(p["angle"]))))
+    out = 0.0
+    for z in (-1.0, 1.0):
+        zz = np.where(seeded, z, -np.inf)
+        slope, (slope_f, _) = seed_slopes(
+            zz, theta, proj=cam.proj, view=cam.view,
+            perspective_compensation=kw["perspective_compensation"],
+            edge_compression=kw["edge_compression"], floor_normal=kw["floor_normal"],
+            floor_margin=kw["floor_margin"])
+        out = max(out, float(np.max(np.abs(slope))), float(np.max(np.abs(slope_f))))
+    return out
 
 
 def cutaway_bounds(scene, eps):
@@ -65,6 +97,11 @@ def cutaway_bounds(scene, eps):
     kw = dict(proj=cam.proj, view=cam.view, angle=p["angle"],
               perspective_compensation=p["perspective_compensation"],
               edge_compression=p["edge_compression"])
+    floor = p.get("floor_normal")
+    if floor is not None:
+        # the directional constraint: the same floor-constrained flood the scene's D used
+        kw.update(floor_normal=np.asarray(floor, np.float64),
+                  floor_margin=float(p.get("floor_margin", np.radians(2.0))))
 
     def flood(rear, seeded, variant):
         oid = np.where(seeded, 0, -1).astype(np.int32)
@@ -84,6 +121,8 @@ def cutaway_bounds(scene, eps):
     x, y = pixel_ndc(*d_hi.shape)
     diag = float(np.hypot(np.ptp(x), np.ptp(y))) / min(abs(cam.proj[0, 0]), abs(cam.proj[1, 1]))
     m_max = (abs(cam.proj[2, 2]) + 1.0) / np.tan(max(float(np.min(p["angle"])), 1e-3))
+    if floor is not None:
+        m_max = max(m_max, _floor_slope_max(big_seed, cam, p, kw))
     slack = 16.0 * F32 * (2.0 + m_max * diag)
     lo = 0.5 * (np.maximum(d_lo, -1.0) - slack) + 0.5
     hi = 0.5 * (d_hi + slack) + 0.5

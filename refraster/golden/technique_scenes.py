@@ -632,11 +632,13 @@ def _clipsurface_relief_plane():
 # --- issue 26, item 5: scenes for options that had none (a GPU backend's proof needs them) ---
 
 _VARIANT_ACCEPTS = {"jfa": ["jfa", "jfa+1", "jfa+2", "1+jfa", "exact"],
+                    "jfa+1": ["jfa+1", "jfa+2", "1+jfa", "exact"],
                     "jfa+2": ["jfa+2", "exact"], "1+jfa": ["1+jfa", "jfa+2", "exact"]}
 
 
-def _cutaway_variant_scene(variant):
-    """``cutaway_shells`` with another jump-flooding schedule (the same camera and options)."""
+def _cutaway_variant_scene(variant, extra=None):
+    """``cutaway_shells`` with another jump-flooding schedule (the same camera and options);
+    ``extra``: further options of :func:`refraster.cutaway.render_cutaway` (the floor)."""
     from ..cutaway import render_cutaway
     from ..scenes import icosphere, solid
     outer = solid("nested_shells", quick=True)
@@ -648,11 +650,13 @@ def _cutaway_variant_scene(variant):
                   ghost_distance=0.5, ghost_fade=True, crease_angle=30.0,
                   interest=["interest"], secondary=["outer_shells"],
                   accepted_variants=list(_VARIANT_ACCEPTS[variant]))
+    params.update(extra or {})
     fb = render_cutaway([draws[1].mesh], [draws[0].mesh], **camera.kwargs,
                         **{k: params[k] for k in ("angle", "variant", "perspective_compensation",
                                                   "edge_compression", "dilation", "outlines",
                                                   "ghost", "ghost_distance", "ghost_fade",
-                                                  "crease_angle")})
+                                                  "crease_angle")},
+                        **(extra or {}))
     buffers = {**fb.arrays(), "cutaway_depth": fb.cutaway_depth, "cut_mask": fb.cut_mask,
                "ghost": fb.ghost}
     cut = np.asarray(fb.cut_mask, np.bool_)
@@ -684,6 +688,16 @@ def _cutaway_shells_jfa2():
                 description="cutaway_shells with the schedule 1, n/2 … 1 (variant '1+jfa').")
 def _cutaway_shells_1jfa():
     return _cutaway_variant_scene("1+jfa")
+
+
+@register_scene("cutaway_floor", technique="cutaway",
+                description="cutaway_shells (jfa+1) with the directional floor constraint "
+                            "(Burns & Finkelstein Sec. 5.5, D-C7): floor normal +y, safety angle "
+                            "δ = 2°; on the floor side the cut's angle is clamped to φ − δ "
+                            "(φ: the view vector's elevation above the floor).")
+def _cutaway_floor():
+    return _cutaway_variant_scene("jfa+1", dict(floor_normal=[0.0, 1.0, 0.0],
+                                                floor_margin=float(np.radians(2.0))))
 
 
 @register_scene("halos4d_perspective", technique="halos4d",

@@ -54,7 +54,12 @@ void main() {
         vec4 e = u_inv_proj * vec4(ndc, z, 1.0);
         vec3 pos = e.xyz / e.w;
         vec3 v = u_kind == 0 ? vec3(0.0, 0.0, 1.0) : -normalize(pos);
+#ifdef FAULT_FLOOR_FLIPPED
+        // planted fault: the floor normal's sign flipped (the camera seems below the floor)
+        vec3 n = -u_floor_n;
+#else
         vec3 n = u_floor_n;
+#endif
         vec2 np = u_kind == 0 ? n.xy : vec2(-pos.z * n.x + pos.x * n.z, -pos.z * n.y + pos.y * n.z);
         // φ = asin(v̂·n̂), as atan(s, √(1 − s²)): llvmpipe's asin is off by ~1e-4 rad here
         float sphi = clamp(dot(v, n), -1.0, 1.0);
