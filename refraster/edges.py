@@ -217,9 +217,10 @@ def _n(a, y, x, c, encoded):
 
 @njit(**JIT)
 def _dot(a, y0, x0, y1, x1, encoded):
-    return (_n(a, y0, x0, 0, encoded) * _n(a, y1, x1, 0, encoded)
-            + _n(a, y0, x0, 1, encoded) * _n(a, y1, x1, 1, encoded)) \
-        + _n(a, y0, x0, 2, encoded) * _n(a, y1, x1, 2, encoded)
+    c0, c1, c2 = np.int64(0), np.int64(1), np.int64(2)  # not literals: one _n for every caller
+    return (_n(a, y0, x0, c0, encoded) * _n(a, y1, x1, c0, encoded)
+            + _n(a, y0, x0, c1, encoded) * _n(a, y1, x1, c1, encoded)) \
+        + _n(a, y0, x0, c2, encoded) * _n(a, y1, x1, c2, encoded)
 
 
 @njit(**JIT)
@@ -308,10 +309,9 @@ def _id_edge_at(ids, y, x, h, w):
 
 @njit(**JIT)
 def _depth_edge_at(z, y, x, h, w, method, k_z):
-    if method == 0:
-        return _diagonal_depth_at(z, y, x, h, w, 1)
-    if method == 4:
-        return _diagonal_depth_at(z, y, x, h, w, 2)
+    if method == 0 or method == 4:
+        # the order as a variable, not a literal: one _diagonal_depth_at for both orders
+        return _diagonal_depth_at(z, y, x, h, w, np.int64(1) if method == 0 else np.int64(2))
     if method == 1:
         return _c1_depth_at(z, y, x, h, w, 12.0)
     if method == 2:
@@ -336,7 +336,8 @@ def _normal_edge_at(n, y, x, h, w, method, encoded, k_n):
 @njit(**PJIT)
 def _normal_kernel(n, method, encoded, k_n, out):
     h, w = out.shape
-    for y in prange(h):
+    for yu in prange(h):
+        y = np.int64(yu)
         for x in range(w):
             out[y, x] = _normal_edge_at(n, y, x, h, w, method, encoded, k_n)
 
@@ -344,7 +345,8 @@ def _normal_kernel(n, method, encoded, k_n, out):
 @njit(**PJIT)
 def _depth_kernel(z, method, k_z, out):
     h, w = out.shape
-    for y in prange(h):
+    for yu in prange(h):
+        y = np.int64(yu)
         for x in range(w):
             out[y, x] = _depth_edge_at(z, y, x, h, w, method, k_z)
 
@@ -352,7 +354,8 @@ def _depth_kernel(z, method, k_z, out):
 @njit(**PJIT)
 def _sobel_kernel(a, axis, out):
     h, w = out.shape
-    for y in prange(h):
+    for yu in prange(h):
+        y = np.int64(yu)
         for x in range(w):
             gy, gx = _sobel_at(a, y, x, h, w)
             if axis == 0:
@@ -366,7 +369,8 @@ def _sobel_kernel(a, axis, out):
 @njit(**PJIT)
 def _id_kernel(ids, out):
     h, w = out.shape
-    for y in prange(h):
+    for yu in prange(h):
+        y = np.int64(yu)
         for x in range(w):
             out[y, x] = _id_edge_at(ids, y, x, h, w)
 
@@ -375,7 +379,8 @@ def _id_kernel(ids, out):
 def _edge_map_kernel(n, z, ids, use_ids, nmethod, zmethod, encoded, k_n, k_z, t_inner,
                      t_profile, out):
     h, w = z.shape
-    for y in prange(h):
+    for yu in prange(h):
+        y = np.int64(yu)
         for x in range(w):
             e_n = np.float32(0.0)
             if ids[y, x] >= 0:

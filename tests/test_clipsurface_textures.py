@@ -391,3 +391,21 @@ def test_textured_caps_are_deterministic_across_thread_counts():
     from determinism import outputs_by_thread_count
     outs = outputs_by_thread_count(_DETERMINISM.format(tests=os.path.dirname(__file__)))
     assert outs[0] == outs[1] == outs[2] and len(outs[0]) == 64
+
+
+def test_sampling_kernels_compile_once_for_writable_and_read_only_arrays():
+    """The wrapper passes read-only views, so a writable and a read-only texture (or volume)
+    use the same specialisation (issue 27: one compile, not two)."""
+    from refraster.clipsurface import textures
+    tex = np.random.default_rng(0).random((4, 5, 3))
+    ro = tex.copy()
+    ro.setflags(write=False)
+    st = np.random.default_rng(1).random((6, 2))
+    assert np.array_equal(textures.sample_texture(tex, st), textures.sample_texture(ro, st))
+    vol = np.random.default_rng(2).random((3, 4, 5, 2))
+    rv = vol.copy()
+    rv.setflags(write=False)
+    p = np.random.default_rng(3).random((6, 3))
+    assert np.array_equal(textures.sample_volume(vol, p), textures.sample_volume(rv, p))
+    for k in (textures._sample2d_kernel, textures._sample3d_kernel):
+        assert all(not s[0].mutable for s in k.signatures), k.signatures

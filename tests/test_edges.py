@@ -754,3 +754,49 @@ print(h.hexdigest())
 def test_deterministic_across_runs_and_thread_counts():
     digests = set(outputs_by_thread_count(_SCRIPT))
     assert len(digests) == 1
+
+
+def _twin_signatures(module):
+    """Signatures of the module's kernels and helpers that carry a uint64 index or a literal:
+    the second specialisations issue 27 removed (each compiles the helper once more)."""
+    from numba.core.registry import CPUDispatcher
+    bad = []
+    for name, f in vars(module).items():
+        if isinstance(f, CPUDispatcher):
+            bad += [(name, s) for s in f.signatures if "uint64" in str(s) or "Literal" in str(s)]
+    return bad
+
+
+def test_edge_helpers_compile_one_specialisation_per_array_type():
+    """Every operator through the fused map and the single filters: no helper is compiled for
+    a uint64 row index (the parallel loop body's) or a literal order / channel besides the
+    int64 one (docs/performance.md, "The first run"). The cutaway's exact search likewise."""
+    from refraster.cutaway import exact, flood
+    rng = np.random.default_rng(5)
+    n = rng.random((9, 11, 3)).astype(np.float32)
+    z = rng.random((9, 11)).astype(np.float32)
+    ids = rng.integers(-1, 3, (9, 11)).astype(np.int32)
+    gb = edges.EdgeGBuffer(normal=n, depth=z, object_id=ids, near=0.0, far=1.0)
+    for nf in ("diagonal", "sobel", "angle"):
+        for zf in ("diagonal", "diagonal2", "c1", "c1-paper", "sobel"):
+            edges.edge_map(gb, normal_filter=nf, depth_filter=zf, ids=True)
+    edges.diagonal_depth(z, order=2)
+    edges.sobel_normal(n)
+    seed = np.full((9, 11), -np.inf)
+    seed[4, 5] = 0.5
+    exact(seed, 0.3)
+    # a kernel loaded from the cache does not type its helpers: compile fresh, uncached copies
+    # of the fused map and the exact search so that every helper they call is typed here
+    import numba
+    from refraster._config import PJIT
+    fresh = dict(PJIT, cache=False)
+    out = np.zeros((9, 11, 4), np.float32)
+    numba.njit(**fresh)(edges._edge_map_kernel.py_func)(
+        n, z, ids, True, 0, 4, False, 1.0, 1.0, np.float32(0.0), np.float32(0.0), out)
+    zs, params, sy, sx = flood._prepare(seed, 0.3, 1.0, None, None)
+    records, directional = flood._records(params, zs.shape[1])
+    numba.njit(**fresh)(flood._exact.py_func)(
+        np.flatnonzero(zs > -np.inf).astype(np.int32), np.full(zs.shape, -1, np.int32),
+        np.full(zs.shape, -np.inf), records, sy, sx, directional)
+    assert _twin_signatures(edges) == []
+    assert _twin_signatures(flood) == []

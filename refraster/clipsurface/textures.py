@@ -213,6 +213,15 @@ def _sample2d_kernel(tex, height, width, st, mode, out):
             out[n, k] = wa * tex[a, k] + wb * tex[b, k] + wc * tex[c, k] + wd * tex[d, k]
 
 
+def _readonly(a):
+    """``a`` as a read-only view (no copy): read-only and writable arrays are distinct Numba
+    types, so passing only read-only ones compiles each sampling kernel once, not twice."""
+    if a.flags.writeable:
+        a = a.view()
+        a.setflags(write=False)
+    return a
+
+
 def sample_texture(texture, st, *, wrap="repeat"):
     """``texture2D(tex, st)`` with ``GL_LINEAR`` for a multi-channel texture ``(H, W, C)``
     (texel order) at ``st (N, 2)`` → ``(N, C)`` float64. The texel arithmetic is the offset
@@ -226,7 +235,7 @@ def sample_texture(texture, st, *, wrap="repeat"):
     h, w, c = tex.shape
     out = np.zeros((st.shape[0], c))
     if st.shape[0]:
-        _sample2d_kernel(np.ascontiguousarray(tex.reshape(h * w, c)), h, w,
+        _sample2d_kernel(_readonly(np.ascontiguousarray(tex.reshape(h * w, c))), h, w,
                          np.ascontiguousarray(st), WRAP_MODES[as_wrap(wrap)], out)
     return out
 
@@ -278,6 +287,6 @@ def sample_volume(volume, str_, *, wrap="repeat"):
     d, h, w, c = vol.shape
     out = np.zeros((p.shape[0], c))
     if p.shape[0]:
-        _sample3d_kernel(np.ascontiguousarray(vol), d, h, w, np.ascontiguousarray(p),
+        _sample3d_kernel(_readonly(np.ascontiguousarray(vol)), d, h, w, np.ascontiguousarray(p),
                          WRAP_MODES[as_wrap(wrap)], out)
     return out

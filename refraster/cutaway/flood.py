@@ -232,7 +232,8 @@ def _exact(seed_list, seed, out, seeds, sy, sx, directional):
     """Brute force: every pixel tries every seed (listed in row-major order, so the first strict
     maximum is also the smallest flat index among ties)."""
     h, w = seed.shape
-    for i in prange(h):
+    for iu in prange(h):
+        i = np.int64(iu)  # one _cutaway_function: the prange index is uint64 in the parallel pass
         for j in range(w):
             best_c = -np.inf
             best = -1

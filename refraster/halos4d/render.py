@@ -255,8 +255,8 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
         min_db = np.full((rows, width), np.inf)
         acc = np.zeros((rows, width, 3))
         acc_a = np.zeros((rows, width))
-        cur = -1
-        lr0, lr1, c0, c1 = rows, -1, width, -1
+        cur = np.int64(-1)  # int64, not a literal: one _resolve_slice (issue 27)
+        lr0, lr1, c0, c1 = rows, np.int64(-1), width, np.int64(-1)
         for q in range(band_starts[band], band_starts[band + 1]):
             j = band_lists[q]
             if tri_slice[j] != cur:

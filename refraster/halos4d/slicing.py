@@ -346,9 +346,10 @@ def _edge(X, Y, t, k, px, py, bits):
 @njit(**JIT)
 def covered(X, Y, t, px, py, bits):
     """Coverage of pixel (px, py) by stored triangle t; also the raw edge values (λ·2A)."""
-    e0, b0 = _edge(X, Y, t, 0, px, py, bits)
-    e1, b1 = _edge(X, Y, t, 1, px, py, bits)
-    e2, b2 = _edge(X, Y, t, 2, px, py, bits)
+    # k as int64 variables, not literals: one _edge, not three (issue 27)
+    e0, b0 = _edge(X, Y, t, np.int64(0), px, py, bits)
+    e1, b1 = _edge(X, Y, t, np.int64(1), px, py, bits)
+    e2, b2 = _edge(X, Y, t, np.int64(2), px, py, bits)
     return (e0 - b0 >= 0 and e1 - b1 >= 0 and e2 - b2 >= 0), e0, e1, e2
 
 
