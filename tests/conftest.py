@@ -47,3 +47,15 @@ def llvmpipe_frames(gold, out, *, timeout=600):
             pytest.fail(f"llvmpipe backend failed: {proc.stderr[-2000:]}")
         pytest.skip(f"llvmpipe backend failed: {proc.stderr[-500:]}")
     return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def gl_backend_or_skip():
+    """A :class:`refraster.gl.driver.Backend` on a headless context; skips without one (a
+    failure under ``CI=true``)."""
+    from refraster.gl.driver import Backend, GLUnavailable
+    try:
+        return Backend()
+    except GLUnavailable as exc:
+        if IN_CI:
+            pytest.fail(f"CI=true but the gl backend has no context: {exc}")
+        pytest.skip(f"no headless OpenGL context (EGL/llvmpipe): {exc}")

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from conftest import IN_CI
+from conftest import gl_backend_or_skip as _backend_or_skip
 from refraster import golden
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -128,16 +129,6 @@ def test_import_refraster_does_not_import_gl():
 
 
 # --- rendering -------------------------------------------------------------------------------
-
-def _backend_or_skip():
-    from refraster.gl.driver import Backend, GLUnavailable
-    try:
-        return Backend()
-    except GLUnavailable as exc:
-        if IN_CI:
-            pytest.fail(f"CI=true but the gl backend has no context: {exc}")
-        pytest.skip(f"no headless OpenGL context (EGL/llvmpipe): {exc}")
-
 
 @pytest.fixture(scope="module")
 def gold(tmp_path_factory):

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import IN_CI
+from conftest import gl_backend_or_skip as _backend_or_skip
 from refraster import golden
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,16 +32,6 @@ EXPECTED = {
     "offset_t_flipped": {s: "prim_id" for s in SCENES},
     "cap_no_parity": {s: "cap_mask" for s in SCENES},
 }
-
-
-def _backend_or_skip():
-    from refraster.gl.driver import Backend, GLUnavailable
-    try:
-        return Backend()
-    except GLUnavailable as exc:
-        if IN_CI:
-            pytest.fail(f"CI=true but the gl backend has no context: {exc}")
-        pytest.skip(f"no headless OpenGL context (EGL/llvmpipe): {exc}")
 
 
 @pytest.fixture(scope="module")

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from conftest import IN_CI
+from conftest import gl_backend_or_skip as _backend_or_skip
 from refraster import golden
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -54,16 +55,6 @@ UNTOUCHED = {
     "eq3_halved": EDGES + CUTAWAYS,
     "slices_front_to_back": EDGES + CUTAWAYS,
 }
-
-
-def _backend_or_skip():
-    from refraster.gl.driver import Backend, GLUnavailable
-    try:
-        return Backend()
-    except GLUnavailable as exc:
-        if IN_CI:
-            pytest.fail(f"CI=true but the gl backend has no context: {exc}")
-        pytest.skip(f"no headless OpenGL context (EGL/llvmpipe): {exc}")
 
 
 @pytest.fixture(scope="module")
