@@ -213,27 +213,56 @@ def admits(key, kind, spec, arrays, ref, cand, named, others):
 
 def clip_value_admits(key, kind, spec, arrays, ref, cand, named, others):
     """Clip-surface and cutaway normal, barycentrics, colour (an ``interval`` or ``angle``
-    check with a ``may`` region and the golden's ids): the value is free where another face
-    may win (``face_may``) and the candidate names a face other than the golden's, and where a
-    sliver that may flip covers the pixel (``face_sliver``); elsewhere it must lie in the
-    interval / within the angle."""
+    check with a ``may`` region, the golden's ids and per-entry ``cs_*`` value arrays), pixel by
+    pixel from the docstring of ``allowance._clip_value_checks``: the candidate's
+    (object_id, prim_id) names an entry of the pixel's clip set; if it is the golden's face and
+    that entry is not a sliver that may flip, the value must lie in the golden's interval
+    (within the golden's angle); otherwise in the named entry's own bounds (``cs_<buffer>``;
+    ±inf / π where that entry's value is free). A face outside the set: the value is not
+    judged here (the id check fails)."""
     checks = spec["checks"]
     if "may" not in spec or "golden_face" not in arrays or not (
             "interval" in checks or "angle" in checks):
         return None
-    same = ((np.asarray(others["prim_id"]) == arrays["golden_face"])
-            & (np.asarray(others["object_id"]) == arrays["golden_object"]))
-    free = (arrays[spec["may"]] & ~same) | arrays["face_sliver"]
+    h, w = ref.shape[:2]
+    out = np.zeros((h, w), np.bool_)
+    off = arrays["cs_offsets"]
+    draws = [int(x) for x in arrays["cs_draw_offsets"]]
+    prim, obj = np.asarray(others["prim_id"]), np.asarray(others["object_id"])
     c = np.asarray(cand, np.float64)
-    if "interval" in checks:
-        inside = (c >= arrays[spec["lo"]]) & (c <= arrays[spec["hi"]])
-        inside = inside.all(axis=2) if inside.ndim == 3 else inside
-    else:
-        r = np.asarray(ref, np.float64)
-        cos = np.sum(r * c, axis=-1) / np.maximum(
-            np.linalg.norm(r, axis=-1) * np.linalg.norm(c, axis=-1), 1e-300)
-        inside = np.arccos(np.clip(cos, -1.0, 1.0)) <= arrays[spec["angle"]]
-    return free | inside
+    r_ = np.asarray(ref, np.float64)
+
+    def angle(a, b):
+        cos = float(np.dot(a, b)) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-300)
+        return float(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+    for r, cc in np.argwhere(prim >= 0):
+        pr, ob = int(prim[r, cc]), int(obj[r, cc])
+        if not 0 <= ob < len(draws) - 1 or pr >= draws[ob + 1] - draws[ob]:
+            out[r, cc] = True
+            continue
+        k0, k1 = int(off[r * w + cc]), int(off[r * w + cc + 1])
+        faces = [int(f) for f in arrays["cs_face"][k0:k1]]
+        g = draws[ob] + pr
+        if g not in faces:
+            out[r, cc] = True
+            continue
+        e = k0 + faces.index(g)
+        golden = (pr == int(arrays["golden_face"][r, cc])
+                  and ob == int(arrays["golden_object"][r, cc]))
+        if golden and int(arrays["cs_facing"][e]) != -1:
+            if "interval" in checks:
+                out[r, cc] = bool(np.all((c[r, cc] >= arrays[spec["lo"]][r, cc])
+                                         & (c[r, cc] <= arrays[spec["hi"]][r, cc])))
+            else:
+                out[r, cc] = angle(r_[r, cc], c[r, cc]) <= float(arrays[spec["angle"]][r, cc])
+        elif key == "normal":
+            out[r, cc] = angle(arrays["cs_normal"][e], c[r, cc]) <= float(
+                arrays["cs_normal_angle"][e])
+        else:
+            out[r, cc] = bool(np.all((c[r, cc] >= arrays[f"cs_{key}_lo"][e])
+                                     & (c[r, cc] <= arrays[f"cs_{key}_hi"][e])))
+    return out
 
 
 def bounds_admits(key, kind, spec, arrays, ref, cand, named, others):
@@ -251,7 +280,7 @@ def clip_admits(key, kind, spec, arrays, ref, cand, named, others):
     names an entry of the pixel's set (or the pixel is background where the background may
     show), and its depth, facing and mask flag (a cap face; a secondary back face) are that
     entry's."""
-    if "clip" not in spec["checks"]:
+    if "clip" not in spec["checks"] or key in ("barycentric", "color", "normal"):
         return None
     h, w = ref.shape[:2]
     out = np.zeros((h, w), np.bool_)

@@ -304,7 +304,7 @@ def scene_allowances(scene, raster):
         # clip surfaces and cutaways: normal, barycentrics and colour held to the golden's
         # interval (its own surface's step over the ε-square) wherever the candidate names the
         # golden's face; free only where another face may win and the candidate names it
-        _clip_value_checks(arrays, checks, buffers, tol.eps)
+        _clip_value_checks(scene, raster, arrays, checks, buffers, tol.eps)
     if scene.technique == "ldi" and "layer_depth" in buffers:
         # layered depth images: per-layer face sets and depth intervals (golden/layers.py)
         from .layers import LAYER_BUFFERS, ldi_allowances
@@ -332,54 +332,66 @@ _GBUFFER = ("depth", "eye_depth", "normal", "prim_id", "object_id", "front_facin
             "barycentric", "color")
 
 
-def _clip_value_checks(arrays, checks, buffers, eps):
+def _clip_value_checks(scene, raster, arrays, checks, buffers, eps):
     """Value checks of a clip-surface or cutaway scene (see the call): ``golden_face``,
     ``golden_object`` the golden's prim_id and object_id, ``face_may`` where another face may
-    win (more than one entry of the clip sets, or the background), ``face_sliver`` where an
-    entry is a sliver whose facing may flip (values free even for the golden's face)."""
+    win (more than one entry of the clip sets, or the background), ``face_sliver`` where the
+    golden's own entry is a sliver whose facing may flip (its values jump even for the same
+    face: held to the entry's sliver bounds, not to the golden's interval). Where the
+    candidate names the golden's face (and it is not such a sliver) the value is held to the
+    golden's interval; where it names another entry, or the golden's sliver, to that entry's
+    ``cs_<buffer>`` bounds (:func:`refraster.golden.clip_allowance.clip_value_entries`, check
+    ``clip``)."""
+    from .clip_allowance import _named, clip_value_entries
     surface = _surface_labels(buffers)
     n = np.diff(arrays["cs_offsets"].astype(np.int64)).reshape(surface.shape)
     prim = np.asarray(buffers["prim_id"], np.int64)
     obj = np.asarray(buffers.get("object_id", np.zeros_like(prim)), np.int64)
     arrays["golden_face"] = np.where(prim >= 0, prim, -1).astype(np.int32)
     arrays["golden_object"] = np.where(prim >= 0, obj, -1).astype(np.int32)
-    # a sliver whose facing may flip (cs_facing −1) has unstable values even when named: free
-    off = arrays["cs_offsets"].astype(np.int64)
-    sliver = np.zeros(off.size - 1, np.int64)
-    np.add.at(sliver, np.repeat(np.arange(off.size - 1), np.diff(off)),
-              (np.asarray(arrays["cs_facing"]) == -1).astype(np.int64))
+    gold = _named(arrays, prim, obj)
+    facing = np.asarray(arrays["cs_facing"])
     arrays["face_may"] = (n != 1) | np.asarray(arrays["cs_bg"], np.bool_)
-    arrays["face_sliver"] = sliver.reshape(surface.shape) > 0
-    for key in ("barycentric", "color", "normal"):
-        if key not in buffers or key not in checks:
-            continue
+    arrays["face_sliver"] = (gold >= 0) & (facing[np.maximum(gold, 0)] == -1) \
+        if len(facing) else np.zeros(surface.shape, np.bool_)
+    keys = [k for k in ("barycentric", "color", "normal") if k in buffers and k in checks]
+    if keys:
+        arrays.update(clip_value_entries(scene, raster, arrays, eps, keys))
+    for key in keys:
         a = np.asarray(buffers[key])
         if key == "normal":
             step = surface_step(a, surface, angle=True)
             arrays["normal_angle"] = (NORMAL_TOL + SHIFT_MARGIN * eps * step).astype(np.float32)
-            checks[key] = {"checks": ["angle"], "angle": "normal_angle", "may": "face_may"}
+            checks[key] = {"checks": ["angle", "clip"], "angle": "normal_angle",
+                           "may": "face_may"}
         else:
             base = BARY_TOL if key == "barycentric" else COLOR_TOL
             arrays[f"{key}_lo"], arrays[f"{key}_hi"] = _interval(a, surface, eps, base)
-            checks[key] = {"checks": ["interval"], "lo": f"{key}_lo", "hi": f"{key}_hi",
+            checks[key] = {"checks": ["interval", "clip"], "lo": f"{key}_lo", "hi": f"{key}_hi",
                            "may": "face_may"}
 
 
 def _value_region(spec, arrays, others):
     """Where an interval / angle check holds: outside ``id_may``, or — with a ``may`` entry
-    (clip scenes) — outside that region or where the candidate names the golden's face."""
+    (clip scenes) — outside that region or where the candidate names the golden's face, and
+    not where the golden's own entry is a sliver that may flip (``face_sliver``; there and
+    where the candidate names another entry, the ``clip`` check holds the value to the named
+    entry's bounds)."""
     if "may" not in spec or "golden_face" not in arrays:
         return ~arrays["id_may"]
-    region = ~arrays[spec["may"]]
+    return ~arrays[spec["may"]] & ~arrays["face_sliver"] | _golden_named(arrays, others)
+
+
+def _golden_named(arrays, others):
+    """(H, W) bool: the candidate's ids name the golden's face, not a sliver that may flip."""
+    region = np.zeros(arrays["face_may"].shape, np.bool_)
     if others is not None and "prim_id" in others:
         prim = np.asarray(others["prim_id"], np.int64)
         obj = np.asarray(others.get("object_id", np.zeros_like(prim)), np.int64)
         if prim.shape == region.shape and obj.shape == region.shape:
             gp = arrays["golden_face"].astype(np.int64)
-            region |= (prim == gp) & (obj == arrays["golden_object"]) & (gp >= 0)
-    if "face_sliver" in arrays:
-        region &= ~arrays["face_sliver"]
-    return region
+            region = (prim == gp) & (obj == arrays["golden_object"]) & (gp >= 0)
+    return region & ~arrays["face_sliver"]
 
 
 # --- per-pixel face sets (where the visible primitive may differ) --------------------------------
@@ -405,9 +417,8 @@ def face_sets(scene, raster, id_may, eps):
     of being free there. Barycentrics of faces in front of the eye come from the allowed
     snappings (:func:`_snap_barycentrics`), all of a sliver's values from its vertices
     (:func:`_sliver_bounds`)."""
-    from ..framebuffer import _build
     from ..raster import prepare
-    from ..tolerance import _depth_slacks, _face_facing, fragile_faces, may_faces
+    from ..tolerance import may_faces
     cam = scene.camera
     meshes = [d.mesh for d in scene.draws]
     models = [d.model for d in scene.draws]
@@ -416,6 +427,22 @@ def face_sets(scene, raster, id_may, eps):
                                mask=id_may, eps=eps)
     prep = prepare(meshes, **cam.kwargs, model=models, cull=raster["cull"])
     pix = np.repeat(np.arange(h * w), np.diff(offsets))
+    out = entry_values(scene, raster, prep, pix, faces, eps)
+    out["set_offsets"] = offsets.astype(np.int32)
+    out["set_face"] = faces.astype(np.int32)
+    out["draw_offsets"] = np.asarray(prep.face_offsets, np.int32)
+    return out
+
+
+def entry_values(scene, raster, prep, pix, faces, eps):
+    """Per (pixel, face) entry, what the face shows at the pixel centre moved by up to ``eps``
+    (the ``set_*`` value arrays of :func:`face_sets`, without the offsets): ``prep`` the
+    prepared draws of ``scene.draws``, ``pix`` flat pixel indices, ``faces`` global face ids.
+    Shared by the face sets of plain scenes and the clip sets of clip-surface and cutaway
+    scenes (:func:`refraster.golden.clip_allowance.clip_value_entries`)."""
+    from ..framebuffer import _build
+    from ..tolerance import _depth_slacks, _face_facing, fragile_faces
+    h, w = prep.height, prep.width
     rows, cols = np.divmod(pix, w)
     # sample points: the centre and the corners of the square of half-side eps (⊇ the ε-disc);
     # every value here is quasi-linear (affine or a ratio of affine functions of the point), so
@@ -493,9 +520,6 @@ def face_sets(scene, raster, id_may, eps):
         lo[bad] = -np.inf
         hi[bad] = np.inf
     out["set_normal_angle"][bad] = np.pi
-    out["set_offsets"] = offsets.astype(np.int32)
-    out["set_face"] = faces.astype(np.int32)
-    out["draw_offsets"] = np.asarray(prep.face_offsets, np.int32)
     return out
 
 
