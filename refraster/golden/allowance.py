@@ -369,6 +369,32 @@ def _clip_value_checks(scene, raster, arrays, checks, buffers, eps):
             arrays[f"{key}_lo"], arrays[f"{key}_hi"] = _interval(a, surface, eps, base)
             checks[key] = {"checks": ["interval", "clip"], "lo": f"{key}_lo", "hi": f"{key}_hi",
                            "may": "face_may"}
+    if keys and scene.technique == "cutaway" and "cut_mask" in buffers:
+        _cut_entries_from_golden(arrays, buffers, keys)
+
+
+def _cut_entries_from_golden(arrays, buffers, keys):
+    """A cut surface's normal is the cutaway surface's at the pixel (the gradient of D there,
+    whichever secondary back face shows it) and its colour the headlight shade of that normal
+    along the pixel's ray with its object's palette colour: where the golden itself shows a
+    cut surface, another cut entry (``cs_flag`` 1) of the pixel is held to the golden's normal
+    interval, and — of the same object — to its colour interval."""
+    off = arrays["cs_offsets"].astype(np.int64)
+    face = arrays["cs_face"].astype(np.int64)
+    draws = arrays["cs_draw_offsets"].astype(np.int64)
+    pix = np.repeat(np.arange(off.size - 1, dtype=np.int64), np.diff(off))
+    cut_px = np.asarray(buffers["cut_mask"], np.bool_).ravel()
+    sel = (np.asarray(arrays["cs_flag"]) == 1) & cut_px[pix]
+    p = pix[sel]
+    if "normal" in keys:
+        arrays["cs_normal"][sel] = np.asarray(buffers["normal"], np.float32).reshape(-1, 3)[p]
+        arrays["cs_normal_angle"][sel] = arrays["normal_angle"].ravel()[p]
+    if "color" in keys:
+        obj = np.searchsorted(draws[1:], face, side="right")
+        same = sel & (obj == np.asarray(buffers["object_id"], np.int64).ravel()[pix])
+        q = pix[same]
+        arrays["cs_color_lo"][same] = arrays["color_lo"].reshape(-1, 3)[q]
+        arrays["cs_color_hi"][same] = arrays["color_hi"].reshape(-1, 3)[q]
 
 
 def _value_region(spec, arrays, others):
