@@ -167,23 +167,34 @@ def test_background_pixel_covered_fails(gold, tmp_path):
 
 
 def test_may_region_is_forgiven_for_technique_buffers(gold, tmp_path):
-    """The clip-surface normal (held to the golden's face since issue 20's item 2) forgives only
-    where its values are free — a sliver that may flip covers the pixel (``face_sliver``) — and
-    nothing else, not even the rest of the old ``id_may`` region; the edge map has no may region
-    left (issue 20): a change there fails."""
+    """The clip-surface normal (held to the golden's face since issue 20's item 2, and per entry
+    of the clip sets since its cutaway values) forgives only where its values are free — the
+    golden's own entry is a cap face that is a sliver that may flip (``face_sliver`` on a cap
+    pixel: a cap's normal is the cap shading's, not bounded per entry) — and nothing else, not
+    the old ``id_may`` region, nor a solid sliver (held to its bounds from the snapped
+    vertices); the edge map has no may region left (issue 20): a change there fails."""
     scene = "clipsurface_building"
     b = _buffers(gold, scene)
     allow = _allowances(gold, scene)
     covered = b["prim_id"] >= 0
-    free = np.argwhere(allow["face_sliver"] & covered)
+    cap_sliver = allow["face_sliver"] & b["cap_mask"]
+    assert (allow["face_sliver"] & ~b["cap_mask"] & covered).any()
+    free = np.argwhere(cap_sliver & covered)
     assert len(free) >= 1
     for r, c in free[:50]:
         b["normal"][r, c] = -b["normal"][r, c]
     _write(tmp_path / "cand", scene, b)
     assert compare(gold, tmp_path / "cand", mode="tolerant", scenes=[scene]).exit_code == 0
     assert compare(gold, tmp_path / "cand", mode="exact", scenes=[scene]).exit_code == 1
+    # a solid sliver of the golden's own: held to its sliver bounds, negated it fails
+    solo = {k: v.copy() for k, v in _buffers(gold, scene).items()}
+    sr, sc = np.argwhere(allow["face_sliver"] & ~b["cap_mask"] & covered)[0]
+    solo["normal"][sr, sc] = -solo["normal"][sr, sc]
+    _write(tmp_path / "solo", scene, solo)
+    res = compare(gold, tmp_path / "solo", mode="tolerant", scenes=[scene])
+    assert [line.split(":")[0] for line in res.failures()] == [f"{scene}/normal"]
     # elsewhere (in the old id_may region too) one changed pixel fails
-    far = np.argwhere(allow["id_may"] & ~allow["face_sliver"] & covered)
+    far = np.argwhere((allow["id_may"] | allow["face_sliver"]) & ~cap_sliver & covered)
     assert len(far) >= 10
     for r, c in far[::len(far) // 10][:10]:
         b["normal"][r, c] = -b["normal"][r, c]
