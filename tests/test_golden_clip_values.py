@@ -136,3 +136,35 @@ def test_golden_sliver_is_held_to_its_sliver_bounds(gold):
         lo, hi = a["cs_barycentric_lo"][e], a["cs_barycentric_hi"][e]
         assert np.isfinite(lo).all() and np.isfinite(hi).all()
         assert ((b["barycentric"][r, c] >= lo) & (b["barycentric"][r, c] <= hi)).all()
+
+
+@pytest.mark.parametrize("how", ["shape", "missing"])
+def test_corrupt_value_arrays_are_refused(gold, tmp_path, how):
+    """A tolerance.npz whose per-entry value arrays do not match the clip sets (hash rewritten
+    to match), or lacks them, is refused with one line naming the array, never indexed with."""
+    import hashlib
+    import json
+    import shutil
+    from refraster.golden.compare import GoldenError, compare
+    scene = "cutaway_shells"
+    g = tmp_path / "g"
+    shutil.copytree(gold, g)
+    with np.load(g / scene / "tolerance.npz", allow_pickle=False) as z:
+        a = {k: z[k].copy() for k in z.files}
+    m = json.loads((g / "manifest.json").read_text())
+    arrays = m["scenes"][scene]["allowances"]["arrays"]
+    if how == "shape":   # the manifest rewritten to match too: the clip-set check refuses it
+        a["cs_normal"] = a["cs_normal"][:-1]
+        arrays["cs_normal"]["shape"] = list(a["cs_normal"].shape)
+        match = r"cs_normal is not \(1832, 3\)"
+    else:
+        del a["cs_color_lo"]
+        del arrays["cs_color_lo"]
+        match = r"buffer 'color' needs arrays \['cs_color_lo'\]"
+    np.savez(g / scene / "tolerance.npz", **a)
+    rel = f"{scene}/tolerance.npz"
+    m["files"][rel] = hashlib.sha256((g / rel).read_bytes()).hexdigest()
+    (g / "manifest.json").write_text(json.dumps(m))
+    b, _ = _load(gold, scene)
+    with pytest.raises(GoldenError, match=match):
+        compare(g, _write(tmp_path / "cand", scene, b), mode="tolerant", scenes=[scene])

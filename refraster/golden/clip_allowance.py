@@ -359,8 +359,12 @@ def check_clip_arrays(arrays, height, width):
         if n and not np.isin(arrays[k], (-1, 0, 1)).all():
             raise ValueError(f"{k} holds values other than -1, 0, 1")
     for k in (x for pair in CLIP_VALUES.values() for x in pair):
-        if k in arrays and np.asarray(arrays[k]).shape[:1] != (n,):
-            raise ValueError(f"{k} does not have one row per cs_face entry ({n})")
+        want = (n,) if k == "cs_normal_angle" else (n, 3)
+        if k in arrays and np.asarray(arrays[k]).shape != want:
+            raise ValueError(f"{k} is not {want} (one row per cs_face entry)")
+    for k in ("golden_face", "golden_object", "face_may", "face_sliver"):
+        if k in arrays and np.asarray(arrays[k]).shape != (height, width):
+            raise ValueError(f"{k} is not (H, W) = ({height}, {width})")
 
 
 def _named(arrays, prim, obj):

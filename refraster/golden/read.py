@@ -512,8 +512,11 @@ def allowance_arrays(golden_dir, manifest, name):
             from .layers import LAYER_ARRAYS
             needed += list(LAYER_ARRAYS)
         if "clip" in t.get("checks", ()):
-            from .clip_allowance import CLIP_ARRAYS
+            from .clip_allowance import CLIP_ARRAYS, CLIP_VALUES
             needed += list(CLIP_ARRAYS)
+            if key in CLIP_VALUES:   # the values of the entries the candidate names
+                needed += list(CLIP_VALUES[key]) + ["golden_face", "golden_object",
+                                                    "face_sliver"]
         missing = [n for n in needed if n not in arrays]
         if missing:
             raise GoldenError(f"golden {spec['file']}: buffer {key!r} needs arrays {missing}")
