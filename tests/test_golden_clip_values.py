@@ -156,7 +156,7 @@ def test_corrupt_value_arrays_are_refused(gold, tmp_path, how):
     if how == "shape":   # the manifest rewritten to match too: the clip-set check refuses it
         a["cs_normal"] = a["cs_normal"][:-1]
         arrays["cs_normal"]["shape"] = list(a["cs_normal"].shape)
-        match = r"cs_normal is not \(1832, 3\)"
+        match = r"cs_normal is not \(\d+, 3\)"
     else:
         del a["cs_color_lo"]
         del arrays["cs_color_lo"]
