@@ -340,9 +340,9 @@ def _clip_value_checks(scene, raster, arrays, checks, buffers, eps):
     face: held to the entry's sliver bounds, not to the golden's interval). Where the
     candidate names the golden's face (and it is not such a sliver) the value is held to the
     golden's interval; where it names another entry, or the golden's sliver, to that entry's
-    ``cs_<buffer>`` bounds (:func:`refraster.golden.clip_allowance.clip_value_entries`, check
+    ``cs_<buffer>`` bounds (:func:`_clip_value_entries`, check
     ``clip``)."""
-    from .clip_allowance import _named, clip_value_entries
+    from .clip_allowance import _named
     surface = _surface_labels(buffers)
     n = np.diff(arrays["cs_offsets"].astype(np.int64)).reshape(surface.shape)
     prim = np.asarray(buffers["prim_id"], np.int64)
@@ -356,7 +356,7 @@ def _clip_value_checks(scene, raster, arrays, checks, buffers, eps):
         if len(facing) else np.zeros(surface.shape, np.bool_)
     keys = [k for k in ("barycentric", "color", "normal") if k in buffers and k in checks]
     if keys:
-        arrays.update(clip_value_entries(scene, raster, arrays, eps, keys))
+        arrays.update(_clip_value_entries(scene, raster, arrays, eps, keys))
     for key in keys:
         a = np.asarray(buffers[key])
         if key == "normal":
@@ -420,6 +420,88 @@ def _golden_named(arrays, others):
     return region & ~arrays["face_sliver"]
 
 
+def _clip_value_entries(scene, raster, arrays, eps, keys):
+    """Per entry of the clip sets (``cs_*``), what its face may show at its pixel, for the
+    value buffers ``keys`` (of :data:`CLIP_VALUES`): the face sets' own derivation
+    (:func:`refraster.golden.allowance.entry_values`: the ε-square's corners, the allowed
+    snappings' barycentrics, a sliver's bounds from its snapped vertices). Entries whose value
+    is not the face's own shading are free (±inf, angle π): cap faces of a clip-surface scene
+    (their normal and colour come from the cap shading and textures, their faces are not
+    among the scene's draws) and, in a cutaway, the entries that are or may be cut surfaces
+    (``cs_flag`` ≠ 0: normal and colour come from the cutaway depth D's gradient, whose
+    variants are bounded elsewhere) for normal and colour."""
+    from ..raster import prepare
+    from .clip_allowance import CLIP_VALUES
+    cam = scene.camera
+    meshes = [d.mesh for d in scene.draws]
+    models = [d.model for d in scene.draws]
+    prep = prepare(meshes, **cam.kwargs, model=models, cull=raster["cull"])
+    off = arrays["cs_offsets"].astype(np.int64)
+    face = arrays["cs_face"].astype(np.int64)
+    n = len(face)
+    pix = np.repeat(np.arange(off.size - 1, dtype=np.int64), np.diff(off))
+    own = face < int(prep.face_offsets[-1])         # the scene's draws (not a cap)
+    vals = entry_values(scene, raster, prep, pix[own], face[own], eps) if own.any() else None
+    shaded = own.copy()
+    if scene.technique == "cutaway":
+        shaded &= np.asarray(arrays["cs_flag"]) == 0
+    out = {}
+    for key in keys:
+        a, b = CLIP_VALUES[key]
+        if key == "normal":
+            nrm = np.zeros((n, 3), np.float32)
+            ang = np.full(n, np.float32(np.pi), np.float32)
+            if vals is not None:
+                nrm[own] = vals["set_normal"]
+                ang[own] = vals["set_normal_angle"]
+            ang[~shaded] = np.float32(np.pi)
+            out[a], out[b] = nrm, ang
+            continue
+        lo = np.full((n, 3), -np.inf, np.float32)
+        hi = np.full((n, 3), np.inf, np.float32)
+        if vals is not None:
+            lo[own] = vals[f"set_{key}_lo"]
+            hi[own] = vals[f"set_{key}_hi"]
+        if key == "color":
+            lo[~shaded], hi[~shaded] = -np.inf, np.inf
+        out[a], out[b] = lo, hi
+    return out
+
+
+def _clip_value_outside(key, cand, arrays, others, step):
+    """Normal, barycentrics, colour: where the candidate names an entry of the pixel's clip set
+    other than the golden's face — or the golden's face where it is a sliver that may flip —
+    the value must be what that entry's face may show (``cs_<buffer>``); the golden's face
+    elsewhere is held by the ``interval`` / ``angle`` check, a face outside the set by the id
+    check."""
+    from .clip_allowance import CLIP_VALUES, _named
+    h, w = arrays["cs_bg"].shape
+    named = None
+    if others is not None and "prim_id" in others and "object_id" in others:
+        prim = np.asarray(others["prim_id"])
+        obj = np.asarray(others["object_id"])
+        if prim.shape == (h, w) and obj.shape == (h, w):
+            named = _named(arrays, prim, obj)
+    if named is None or CLIP_VALUES[key][0] not in arrays:
+        return np.zeros((h, w), np.bool_)
+    hold = (named >= 0) & ~_golden_named(arrays, others)
+    out = np.zeros((h, w), np.bool_)
+    if not hold.any():
+        return out
+    e = named[hold]
+    v = np.asarray(cand)[hold].astype(np.float64)
+    a, b = CLIP_VALUES[key]
+    if key == "normal":
+        limit = arrays[b][e].astype(np.float64) + step * np.sqrt(3.0)
+        out[hold] = ~(_angle(v, arrays[a][e].astype(np.float64)) <= limit)
+    else:
+        with np.errstate(invalid="ignore"):
+            inside = (v >= arrays[a][e].astype(np.float64) - step) \
+                & (v <= arrays[b][e].astype(np.float64) + step)
+        out[hold] = ~inside.all(axis=1)
+    return out
+
+
 # --- per-pixel face sets (where the visible primitive may differ) --------------------------------
 
 #: Per-entry value arrays of the face sets: buffer → (lo, hi) array names.
@@ -465,7 +547,7 @@ def entry_values(scene, raster, prep, pix, faces, eps):
     (the ``set_*`` value arrays of :func:`face_sets`, without the offsets): ``prep`` the
     prepared draws of ``scene.draws``, ``pix`` flat pixel indices, ``faces`` global face ids.
     Shared by the face sets of plain scenes and the clip sets of clip-surface and cutaway
-    scenes (:func:`refraster.golden.clip_allowance.clip_value_entries`)."""
+    scenes (:func:`_clip_value_entries`)."""
     from ..framebuffer import _build
     from ..tolerance import _depth_slacks, _face_facing, fragile_faces
     h, w = prep.height, prep.width
@@ -1042,9 +1124,11 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
                 bad = ~((cand.astype(np.float64) >= lo) & (cand.astype(np.float64) <= hi))
             outside["bounds"] = bad.any(axis=2) if bad.ndim == 3 else bad
         elif name == "clip":
-            from .clip_allowance import clip_outside
-            outside["clip"] = clip_outside(key, cand, arrays, others, step=step,
-                                           clear=clear_depth)
+            from .clip_allowance import CLIP_VALUES, clip_outside
+            outside["clip"] = (_clip_value_outside(key, cand, arrays, others, step)
+                               if key in CLIP_VALUES else
+                               clip_outside(key, cand, arrays, others, step=step,
+                                            clear=clear_depth))
         elif name == "layers":
             from .layers import layers_outside
             outside["layers"] = layers_outside(spec["layer"], cand, arrays, others, step=step,

@@ -33,8 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["clip_allowances", "clip_outside", "clip_allowed", "clip_value_entries", "CLIP_ARRAYS",
-           "CLIP_BUFFERS", "CLIP_VALUES"]
+__all__ = ["clip_allowances", "clip_outside", "clip_allowed", "CLIP_ARRAYS", "CLIP_BUFFERS",
+           "CLIP_VALUES"]
 
 F32 = 2.0 ** -24
 CLIP_ARRAYS = ("cs_offsets", "cs_face", "cs_depth_lo", "cs_depth_hi", "cs_eye_lo", "cs_eye_hi",
@@ -282,54 +282,6 @@ CLIP_VALUES = {"barycentric": ("cs_barycentric_lo", "cs_barycentric_hi"),
                "normal": ("cs_normal", "cs_normal_angle")}
 
 
-def clip_value_entries(scene, raster, arrays, eps, keys):
-    """Per entry of the clip sets (``cs_*``), what its face may show at its pixel, for the
-    value buffers ``keys`` (of :data:`CLIP_VALUES`): the face sets' own derivation
-    (:func:`refraster.golden.allowance.entry_values`: the ε-square's corners, the allowed
-    snappings' barycentrics, a sliver's bounds from its snapped vertices). Entries whose value
-    is not the face's own shading are free (±inf, angle π): cap faces of a clip-surface scene
-    (their normal and colour come from the cap shading and textures, their faces are not
-    among the scene's draws) and, in a cutaway, the entries that are or may be cut surfaces
-    (``cs_flag`` ≠ 0: normal and colour come from the cutaway depth D's gradient, whose
-    variants are bounded elsewhere) for normal and colour."""
-    from ..raster import prepare
-    from .allowance import entry_values
-    cam = scene.camera
-    meshes = [d.mesh for d in scene.draws]
-    models = [d.model for d in scene.draws]
-    prep = prepare(meshes, **cam.kwargs, model=models, cull=raster["cull"])
-    off = arrays["cs_offsets"].astype(np.int64)
-    face = arrays["cs_face"].astype(np.int64)
-    n = len(face)
-    pix = np.repeat(np.arange(off.size - 1, dtype=np.int64), np.diff(off))
-    own = face < int(prep.face_offsets[-1])         # the scene's draws (not a cap)
-    vals = entry_values(scene, raster, prep, pix[own], face[own], eps) if own.any() else None
-    shaded = own.copy()
-    if scene.technique == "cutaway":
-        shaded &= np.asarray(arrays["cs_flag"]) == 0
-    out = {}
-    for key in keys:
-        a, b = CLIP_VALUES[key]
-        if key == "normal":
-            nrm = np.zeros((n, 3), np.float32)
-            ang = np.full(n, np.float32(np.pi), np.float32)
-            if vals is not None:
-                nrm[own] = vals["set_normal"]
-                ang[own] = vals["set_normal_angle"]
-            ang[~shaded] = np.float32(np.pi)
-            out[a], out[b] = nrm, ang
-            continue
-        lo = np.full((n, 3), -np.inf, np.float32)
-        hi = np.full((n, 3), np.inf, np.float32)
-        if vals is not None:
-            lo[own] = vals[f"set_{key}_lo"]
-            hi[own] = vals[f"set_{key}_hi"]
-        if key == "color":
-            lo[~shaded], hi[~shaded] = -np.inf, np.inf
-        out[a], out[b] = lo, hi
-    return out
-
-
 def check_clip_arrays(arrays, height, width):
     """Raise ``ValueError`` unless the ``cs_*`` arrays (when present) are consistent."""
     if "cs_offsets" not in arrays:
@@ -428,8 +380,6 @@ def clip_outside(key, cand, arrays, others=None, *, step=0.0, clear=1.0):
         e = np.maximum(named, 0)
         f = arrays["cs_facing"][e] if len(arrays["cs_facing"]) else np.full((h, w), -1)
         return (named >= 0) & (f >= 0) & (c.astype(np.bool_) != (f == 1))
-    if key in CLIP_VALUES:
-        return _value_outside(key, c, arrays, named, others, step)
     if key not in ("depth", "eye_depth"):
         raise ValueError(f"no clip-surface check for buffer {key!r}")
     v = c.astype(np.float64)
@@ -452,34 +402,6 @@ def clip_outside(key, cand, arrays, others=None, *, step=0.0, clear=1.0):
     with np.errstate(invalid="ignore"):
         inside = (v >= lo_p - step) & (v <= hi_p + step)
     return (covered & ~inside) | (~covered & ~bg)
-
-
-def _value_outside(key, cand, arrays, named, others, step):
-    """Normal, barycentrics, colour: where the candidate names an entry of the pixel's clip set
-    other than the golden's face — or the golden's face where it is a sliver that may flip —
-    the value must be what that entry's face may show (``cs_<buffer>``); the golden's face
-    elsewhere is held by the ``interval`` / ``angle`` check, a face outside the set by the id
-    check."""
-    from .allowance import _angle, _golden_named
-    h, w = arrays["cs_bg"].shape
-    if named is None or CLIP_VALUES[key][0] not in arrays:
-        return np.zeros((h, w), np.bool_)
-    hold = (named >= 0) & ~_golden_named(arrays, others)
-    out = np.zeros((h, w), np.bool_)
-    if not hold.any():
-        return out
-    e = named[hold]
-    v = np.asarray(cand)[hold].astype(np.float64)
-    a, b = CLIP_VALUES[key]
-    if key == "normal":
-        limit = arrays[b][e].astype(np.float64) + step * np.sqrt(3.0)
-        out[hold] = ~(_angle(v, arrays[a][e].astype(np.float64)) <= limit)
-    else:
-        with np.errstate(invalid="ignore"):
-            inside = (v >= arrays[a][e].astype(np.float64) - step) \
-                & (v <= arrays[b][e].astype(np.float64) + step)
-        out[hold] = ~inside.all(axis=1)
-    return out
 
 
 def clip_allowed(key, arrays, r, c, step=0.0):
