@@ -391,7 +391,7 @@ SET_INTERVALS = {"depth": ("set_depth_lo", "set_depth_hi"),
                  "color": ("set_color_lo", "set_color_hi")}
 
 
-from .homogeneous import face_barycentrics as _face_barycentrics  # noqa: E402
+from .homogeneous import corner_samples  # noqa: E402
 
 
 def face_sets(scene, raster, id_may, eps):
@@ -416,23 +416,15 @@ def face_sets(scene, raster, id_may, eps):
                                mask=id_may, eps=eps)
     prep = prepare(meshes, **cam.kwargs, model=models, cull=raster["cull"])
     pix = np.repeat(np.arange(h * w), np.diff(offsets))
-    rows, cols = np.divmod(pix, w)
     # sample points: the centre and the corners of the square of half-side eps (⊇ the ε-disc);
     # every value here is quasi-linear (affine or a ratio of affine functions of the point), so
     # its extremes over the square are at the corners
-    d = np.array([[0.0, 0.0], [-1, -1], [1, -1], [-1, 1], [1, 1]]) * eps
-    px = cols[:, None] + 0.5 + d[None, :, 0]
-    py = (h - 1 - rows)[:, None] + 0.5 + d[None, :, 1]
     clip = prep.clip[prep.triangles.faces[faces]]
-    beta = _face_barycentrics(clip, px, py, w, h)
-    zc = np.einsum("esk,ek->es", beta, clip[:, :, 2])
-    wc = np.einsum("esk,ek->es", beta, clip[:, :, 3])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        depth = 0.5 * zc / wc + 0.5
+    beta, depth, px, py = corner_samples(clip, pix, w, h, eps)
     n = len(faces)
     smooth = raster["normals"] == "smooth"
     normals = [dd.normals for dd in scene.draws] if smooth else "flat"
-    shape = (n, d.shape[0])
+    shape = depth.shape
     fb = _build(prep.meshes, prep.models, prep.view, prep.proj,
                 np.nan_to_num(depth, nan=1.0).astype(np.float32), np.repeat(faces, 5).reshape(shape),
                 prep.face_offsets, np.zeros(shape, np.bool_),
@@ -461,7 +453,7 @@ def face_sets(scene, raster, id_may, eps):
     nrm = fb.normal.astype(np.float64)
     out["set_normal"] = nrm[:, 0].astype(np.float32)
     ang = np.zeros(n)
-    for k in range(1, d.shape[0]):
+    for k in range(1, depth.shape[1]):
         ang = np.maximum(ang, _angle(nrm[:, 0], nrm[:, k]))
     out["set_normal_angle"] = (NORMAL_TOL + SHIFT_MARGIN * ang).astype(np.float32)
     # a face's facing is definite unless the face itself is a sliver that may flip
