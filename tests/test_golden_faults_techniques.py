@@ -408,6 +408,44 @@ def test_edge_bounds_hold_random_gbuffers_with_width_and_thresholds(gold, op):
         assert np.median((hi1 - lo1).max(axis=2)[covered]) < 0.05
 
 
+def test_npr_bounds_hold_random_gbuffers(gold):
+    """Soundness of ``npr_color_lo/_hi`` by brute force: ``refraster.npr``'s Gooch shading of
+    random in-allowance normals composited with the paper's edge map of the same G-buffer
+    (RGBA8, as the scene states) lies inside the stored bounds; the other direction: the same
+    composite with inner and profile colours swapped leaves them."""
+    from refraster import npr as _npr
+    from refraster.edges import EdgeGBuffer, edge_map, fit_near_far
+    name = "edges_npr_gooch"
+    scene = golden.available_scenes()[name].build()
+    p = scene.parameters
+    with np.load(gold / name / "tolerance.npz", allow_pickle=False) as z:
+        arrays = {k: z[k].copy() for k in z.files}
+    buffers = _golden_buffers(gold, name)
+    near, far = fit_near_far(scene.camera.view, bounds=np.asarray(p["bounds"]))
+    lo, hi = arrays["npr_color_lo"], arrays["npr_color_hi"]
+    n = p["npr"]
+    style = {k: n[k] for k in ("light", "base", "cool", "warm", "alpha", "beta", "background")}
+    rng = np.random.default_rng(2020)
+    swapped_out = 0
+    for _ in range(3):
+        gb = _sample_gbuffer(arrays, buffers, near, far, rng)
+        normal = np.where(gb.object_id[..., None] >= 0, 2.0 * gb.normal - 1.0, 0.0)
+        gb8 = EdgeGBuffer(normal=_q8(gb.normal), depth=_q8(gb.depth), object_id=gb.object_id,
+                          near=near, far=far)
+        e = _q8(edge_map(gb8, **{k: p[k] for k in EDGE_OPS}))
+        shade = _npr.gooch(normal, **style)
+        mask = gb.object_id >= 0
+        c = _npr.composite(shade, e, inner_color=n["inner_color"],
+                           profile_color=n["profile_color"], mask=mask)
+        bad = np.argwhere(((c < lo) | (c > hi)).any(axis=2))
+        assert not len(bad), (bad[:5].tolist(), c[tuple(bad[0])], lo[tuple(bad[0])],
+                              hi[tuple(bad[0])])
+        w = _npr.composite(shade, e, inner_color=n["profile_color"],
+                           profile_color=n["inner_color"], mask=mask)
+        swapped_out += int(((w < lo) | (w > hi)).any(axis=2).sum())
+    assert swapped_out > 100, swapped_out
+
+
 # --- cutaways (refraster/golden/cutaway_bounds.py) -----------------------------------------------
 
 CUT = "cutaway_shells"
