@@ -29,8 +29,25 @@ an *option* of the pixel. Then:
 * ``width > 1``: a grey dilation with the disk of radius ``width − 1`` is monotone, so the
   bounds are the dilated bounds.
 
+The other operators of :func:`refraster.edges.edge_map` read the same options through their
+own 3×3 footprint (clamp-to-edge), docs/tolerance.md "Edge maps" has each derivation:
+
+* normal components (Sobel's input): within α of an axis at θ_c from e_c, ``n_c ∈
+  [cos(min(π, θ_c + α)), cos(max(0, θ_c − α))]``, 0 on the background, ± the decoding error;
+* Sobel (normal ``k_n·√(Σ_c G_y,c² + G_x,c²)/8``, depth ``k_z·√(G_y² + G_x²)/4``): ``G`` is
+  linear, so its interval is the weighted sum of the taps' intervals; squares, sums, ``√`` and
+  ``min(1, ·)`` are monotone;
+* angle ``max_q ½(1 − n_X·n_q)``: the dot-product intervals above, maxima of intervals;
+* C1 ``Σ_k w_k |z_k − z_X| / s`` (s = 12 or 8) and ``diagonal2`` (``z_A + z_H − 2 z_X``): sums
+  of interval differences, then the monotone maps of the operator;
+* thresholds: ``v ↦ v·[v ≥ t]`` is non-decreasing; float32 arithmetic of these operators on a
+  GPU: :data:`ARITH`.
+
 Stored: ``edge_map_lo`` / ``edge_map_hi (H, W, 4)`` float32, checked by ``bounds`` (the
-interval at every pixel, whatever the visible face).
+interval at every pixel, whatever the visible face). For the Gooch NPR composite
+(:func:`npr_color_bounds`): ``npr_color_lo`` / ``npr_color_hi (H, W, 3)`` — t's interval from
+each option's normal cone and the light, the clipped linear shade, and the composite's extremes
+at the corners of the box of (shade, E_N, E_Z) (it is multilinear in them).
 """
 
 from __future__ import annotations
