@@ -258,7 +258,7 @@ def scene_allowances(scene, raster):
     if scene.technique == "edges" and "edge_map" in buffers and sets:
         # edge maps: intervals propagated through the operator (golden/edge_bounds.py)
         from ..edges import fit_near_far
-        from .edge_bounds import edge_map_bounds, supported
+        from .edge_bounds import edge_map_bounds, npr_color_bounds, npr_supported, supported
         params = scene.parameters or {}
         if supported(params) and params.get("bounds") is not None:
             near, far = fit_near_far(cam.view, bounds=np.asarray(params["bounds"], np.float64))
@@ -268,6 +268,13 @@ def scene_allowances(scene, raster):
                 output_format=params.get("output_format", "rgba8"))
             checks["edge_map"] = {"checks": ["bounds"], "lo": "edge_map_lo",
                                   "hi": "edge_map_hi"}
+            if "npr_color" in buffers and npr_supported(params):
+                # the NPR composite over Gooch shading (golden/edge_bounds.py)
+                arrays["npr_color_lo"], arrays["npr_color_hi"] = npr_color_bounds(
+                    arrays, buffers, params, near, far, arrays["edge_map_lo"],
+                    arrays["edge_map_hi"])
+                checks["npr_color"] = {"checks": ["bounds"], "lo": "npr_color_lo",
+                                       "hi": "npr_color_hi"}
     if scene.technique == "cutaway" and "cutaway_depth" in buffers \
             and (scene.parameters or {}).get("accepted_variants"):
         # cutaways: D_variant − slack ≤ D ≤ D_exact + slack (golden/cutaway_bounds.py)
