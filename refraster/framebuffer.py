@@ -358,16 +358,22 @@ def _check_out(out, h, w, inputs):
     last = out.__dict__.get("_checked_arrays")
     same = last is not None and len(last) == len(ident) and all(
         x is y for x, y in zip(last, ident))
+    # likewise an input that is the very array object checked against these arrays before
+    # (held too; a loop of frames passes the same mesh and matrices): only new inputs are
+    # compared (a background given as a tuple is a new array every frame)
+    seen = out.__dict__.get("_checked_inputs", ()) if same else ()
+    fresh = [x for x in inputs if not any(x is y for y in seen)]
     for i, (na, a) in enumerate(arrays):
         if not same:
             for nb, b in arrays[i + 1:]:
                 if np.may_share_memory(a, b):
                     raise ValueError(f"out.{na} and out.{nb} share memory")
-        for x in inputs:
+        for x in fresh:
             if np.may_share_memory(a, x):
                 raise ValueError(f"out.{na} shares memory with an input array (a mesh, "
                                  "normals, matrix or background): render would overwrite it")
     out.__dict__["_checked_arrays"] = ident
+    out.__dict__["_checked_inputs"] = tuple(inputs)
 
 
 def render(meshes, *, view, proj, width, height, normals=None, cull="none", depth_func="less",
