@@ -46,6 +46,10 @@ def _model(angle, t):
     return m
 
 
+#: Turns the cube's axis-aligned faces (a scaling would not change their normals).
+SHEAR = np.array([[1.0, 0.3, -0.2], [0.1, 0.9, 0.4], [0.25, -0.3, 1.1]])
+
+
 def _scenes():
     box, ico = _mesh(cube()), _mesh(icosphere(2))
     kw = _kw()
@@ -110,13 +114,13 @@ def test_pending_colour_uses_the_vertices_as_they_are_when_read(monkeypatch):
         box = _mesh(cube())
         kw = _kw()
         fb = rf.render(box, **kw)
-        box.vertices[:] = box.vertices * [1.0, 2.5, 0.7] + [0.1, 0.0, 0.0]   # in place
+        box.vertices[:] = box.vertices @ SHEAR + [0.1, 0.0, 0.0]   # in place: new face normals
         results.append(fb.color.tobytes())
         # and the same through a reused framebuffer
         out = rf.render(_mesh(icosphere(1)), **kw)
         box2 = _mesh(cube())
         rf.render(box2, **kw, out=out)
-        box2.vertices[:] = box2.vertices * [0.5, 1.5, 1.0]
+        box2.vertices[:] = box2.vertices @ SHEAR.T
         results.append(out.color.tobytes())
     assert results[0] == results[2] and results[1] == results[3]
     # and the change is visible (the check above can fail)
