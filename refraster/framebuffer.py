@@ -288,8 +288,8 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
         finalize(*args, fnormal, per_face, fill_bg, eye_depth, normal, prim, obj)
     color = _PendingShade(*args, _NO_FACE_NORMALS, per_face,
                           int(offsets[-1]) if n_shaded is None else int(n_shaded),
-                          readonly(PALETTE), readonly(np.asarray(background, np.float64)), work=work,
-                          into=into)
+                          readonly(PALETTE), readonly(np.asarray(background, np.float64)),
+                          work=work, into=into)
     if out is not None:
         out.color = color
         out.view, out.proj, out.meshes, out.models = view, proj, meshes, models
