@@ -66,7 +66,7 @@ def test_arc_crossings_of_the_plain_spun_view_are_the_diagram():
 
 def crossings_shown(rotation, surface, halos=True, n_phi=24, **kw):
     """For each of the three crossings: the φ (of n_phi) at which it is visible and the halos
-    change a pixel within 1.5ρ of it. None when the view has no three-crossing diagram."""
+    change a pixel within 1.5ρ of it. None when no meridian maps to a three-crossing diagram."""
     rho = kw.pop("rho")
     common = dict(rotation=rotation, width=SIZE, height=SIZE, slices=SLICES, rho=rho)
     on = h.render_halos(surface, halos=halos, **common, **kw)
@@ -80,11 +80,14 @@ def crossings_shown(rotation, surface, halos=True, n_phi=24, **kw):
                     SLICES - 1 - np.argmax((off.volume == 1)[::-1], axis=0), -1)
     dist = ndimage.distance_transform_edt(~changed)
     shown = [[], [], []]
+    diagrams = 0
     for phi in np.linspace(0.0, 2 * np.pi, n_phi, endpoint=False):
         c = arc_crossings(rotation, phi)
+        # a meridian seen edge-on has other 2D crossings, not 3D intersections: skip that φ
         if len(c) != 3 or not np.allclose(c[:, 2], c[:, 3], atol=1e-6 * np.abs(c).max()) \
                 or np.abs(c[:, 4] - c[:, 5]).min() < 0.1:
-            return None
+            continue
+        diagrams += 1
         col = np.round((c[:, 0] - b[0, 0]) * px - 0.5).astype(int)
         row = np.round((b[1, 1] - c[:, 1]) * px - 0.5).astype(int)
         k = (c[:, 2] - b[0, 2]) / dz - 0.5                    # slice coordinate of the point
@@ -94,7 +97,7 @@ def crossings_shown(rotation, surface, halos=True, n_phi=24, **kw):
             visible = near[row[m], col[m]] <= k[m] + 2 * rho / dz
             if visible and dist[row[m], col[m]] <= 1.5 * rho * px:
                 shown[m].append(round(float(phi), 3))
-    return shown
+    return shown if diagrams else None
 
 
 def fig5ad():
