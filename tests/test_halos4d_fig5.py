@@ -13,7 +13,7 @@ a crossing is *shown* at φ when it is visible and the halos change a pixel with
 Measured (128², 48 slices, the quick mesh, pure halos): the gallery's view from above shows
 crossings 0 and 1 (the ring above the inner disc at 12 of 24 φ, the equator at 7) and never
 crossing 2, whose circle runs below the inner disc, on the far side of the opaque surface of
-revolution. No view of a search (docs/halos4d.md, "Why Fig. 5(d) needs its gaps drawn") showed
+revolution. No view of a search (docs/halos4d.md, "Which crossings Fig. 5(d) shows") showed
 all three; the test asks for the two and records the third as hidden.
 """
 
