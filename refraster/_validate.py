@@ -22,6 +22,15 @@ def as_float_array(value, name, *, shape=None, dtype=np.float64, finite=True):
 
     ``shape`` is a tuple whose entries are ints or ``None`` (any length on that axis).
     """
+    if (type(value) is np.ndarray and value.dtype == dtype and value.ndim
+            and value.flags.c_contiguous):   # already what the checks below would give
+        arr = value
+        if shape is not None:
+            check_shape(arr, name, shape)
+        if finite and arr.size and not np.isfinite(arr).all():
+            bad = int(np.count_nonzero(~np.isfinite(arr)))
+            raise ValueError(f"{name} contains {bad} non-finite value(s) (NaN or inf)")
+        return arr
     if isinstance(value, (str, bytes)) or value is None:
         raise TypeError(f"{name} must be a numeric array, got {type(value).__name__}")
     arr = np.asarray(value)

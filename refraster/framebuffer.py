@@ -13,7 +13,7 @@ from ._validate import as_choice, as_float_array, as_image_size, as_real
 from .mesh import as_meshes, smooth_normals
 from .raster import DEPTH_FUNCS, Fragments, prepare, resolve
 from .raster.fragments import _interpolate
-from .raster.gbuffer import finalize, shade
+from .raster.gbuffer import finalize, per_face_normals, readonly, shade
 from .raster.rasterizer import fused
 
 __all__ = ["Framebuffer", "render", "normalized_linear_depth", "PALETTE"]
@@ -154,8 +154,11 @@ class _PendingShade:
         color = self.into
         if color is None:
             color = np.empty(prim_global.shape + (3,), np.float32)   # shade writes every element
+        args = list(self.args)
+        if args[10]:   # per-face normals: a fresh array, filled by shade from today's vertices
+            args[9] = np.empty((int(args[6][-1]), 3))
         with threads_for(self.work):
-            shade(*self.args, color)
+            shade(*args, color)
         return color
 
 
@@ -219,6 +222,13 @@ def _normals_per_mesh(meshes, normals):
             for k, (n, m) in enumerate(zip(normals, meshes))]
 
 
+#: Placeholders for the kernels' optional arrays (read-only, so never written).
+_NO_NORMALS = readonly(np.zeros((1, 3)))
+_NO_FACE_NORMALS = np.zeros((1, 3))
+#: From this many pixels, a reused framebuffer's background is written by ``finalize``.
+FILL_IN_KERNEL = 1 << 16
+
+
 def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, bary, normals,
            background, geometry=None, n_shaded=None, out=None):
     """Finalize the G-buffer from the visible primitive (global index over all draw calls,
@@ -240,7 +250,7 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
         faces = (np.concatenate([m.faces + vbase[k] for k, m in enumerate(meshes)])
                  if meshes else np.zeros((0, 3), np.int64))
     vnormals = (vn[0] if len(vn) == 1 else np.concatenate(vn)) if vn is not None and meshes \
-        else np.zeros((1, 3))
+        else _NO_NORMALS
     n = max(len(meshes), 1)
     mv = np.zeros((n, 4, 4))
     nmat = np.zeros((n, 3, 3))
@@ -248,7 +258,14 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
         mv[k] = view @ model
         if face_offsets[k + 1] > face_offsets[k]:
             nmat[k] = _normal_matrix(view, model)
-    # the background is filled here (NumPy's fills beat writing it pixel by pixel)
+    offsets = np.asarray(face_offsets, np.int64)
+    smooth = vn is not None
+    per_face = per_face_normals(offsets[-1], h, w, smooth)
+    fnormal = np.empty((int(offsets[-1]), 3)) if per_face else _NO_FACE_NORMALS
+    # the background: NumPy's fills into new arrays (writing it pixel by pixel in the kernel
+    # would page-fault the fresh memory there, slower); written by finalize into a reused
+    # framebuffer's arrays of at least FILL_IN_KERNEL pixels (one sweep instead of five)
+    fill_bg = out is not None and h * w >= FILL_IN_KERNEL
     if out is None:
         eye_depth = np.full((h, w), np.inf, np.float32)
         normal = np.zeros((h, w, 3), np.float32)
@@ -257,20 +274,22 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
         into = None
     else:
         eye_depth, normal, prim, obj = out.eye_depth, out.normal, out.prim_id, out.object_id
-        eye_depth.fill(np.inf)
-        normal.fill(0.0)
-        prim.fill(-1)
-        obj.fill(-1)
+        if not fill_bg:
+            eye_depth.fill(np.inf)
+            normal.fill(0.0)
+            prim.fill(-1)
+            obj.fill(-1)
         into = _reusable_color(out, h, w)
-    offsets = np.asarray(face_offsets, np.int64)
+    # every input read-only (views): one specialisation of each kernel for all callers
+    args = (readonly(prim_global), readonly(bary), readonly(vertices), readonly(faces),
+            readonly(vnormals), smooth, readonly(offsets), readonly(mv), readonly(nmat))
     work = frame_work(offsets[-1], w, h)
     with threads_for(work):
-        finalize(prim_global, bary, vertices, faces, vnormals, vn is not None, offsets, mv, nmat,
-                 eye_depth, normal, prim, obj)
-    color = _PendingShade(prim_global, bary, vertices, faces, vnormals,
-                          vn is not None, offsets, mv, nmat,
-                          int(offsets[-1]) if n_shaded is None else int(n_shaded), PALETTE,
-                          np.asarray(background, np.float64), work=work, into=into)
+        finalize(*args, fnormal, per_face, fill_bg, eye_depth, normal, prim, obj)
+    color = _PendingShade(*args, _NO_FACE_NORMALS, per_face,
+                          int(offsets[-1]) if n_shaded is None else int(n_shaded),
+                          readonly(PALETTE), readonly(np.asarray(background, np.float64)),
+                          work=work, into=into)
     if out is not None:
         out.color = color
         out.view, out.proj, out.meshes, out.models = view, proj, meshes, models
@@ -339,16 +358,22 @@ def _check_out(out, h, w, inputs):
     last = out.__dict__.get("_checked_arrays")
     same = last is not None and len(last) == len(ident) and all(
         x is y for x, y in zip(last, ident))
+    # likewise an input that is the very array object checked against these arrays before
+    # (held too; a loop of frames passes the same mesh and matrices): only new inputs are
+    # compared (a background given as a tuple is a new array every frame)
+    seen = out.__dict__.get("_checked_inputs", ()) if same else ()
+    fresh = [x for x in inputs if not any(x is y for y in seen)]
     for i, (na, a) in enumerate(arrays):
         if not same:
             for nb, b in arrays[i + 1:]:
                 if np.may_share_memory(a, b):
                     raise ValueError(f"out.{na} and out.{nb} share memory")
-        for x in inputs:
+        for x in fresh:
             if np.may_share_memory(a, x):
                 raise ValueError(f"out.{na} shares memory with an input array (a mesh, "
                                  "normals, matrix or background): render would overwrite it")
     out.__dict__["_checked_arrays"] = ident
+    out.__dict__["_checked_inputs"] = tuple(inputs)
 
 
 def render(meshes, *, view, proj, width, height, normals=None, cull="none", depth_func="less",

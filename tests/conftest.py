@@ -59,3 +59,53 @@ def gl_backend_or_skip():
         if IN_CI:
             pytest.fail(f"CI=true but the gl backend has no context: {exc}")
         pytest.skip(f"no headless OpenGL context (EGL/llvmpipe): {exc}")
+
+
+# --- the pass/fail matrices of docs/backends.md (tests/test_gl_*.py) -------------------------
+
+BACKENDS_DOC = Path(__file__).resolve().parents[1] / "docs" / "backends.md"
+
+
+def matrix_cell(scene_result, *, all_count=True):
+    """One cell of a backend matrix: ``pass``, or ``**FAIL**`` with the failing buffers
+    (``(all N)`` when every buffer failed and ``all_count``)."""
+    if scene_result.status == "pass":
+        return "pass"
+    failing = [b.name for b in scene_result.buffers if not b.passed]
+    if all_count and len(failing) == len(scene_result.buffers):
+        return f"**FAIL** (all {len(failing)})"
+    return "**FAIL** " + ", ".join(f"`{b}`" for b in failing)
+
+
+def matrix_table(columns, scenes, results, *, skipped=(), all_count=True):
+    """The Markdown matrix: one row per scene, one column per candidate (``correct`` or a
+    planted fault, in backticks)."""
+    head = ["scene"] + [c if c == "correct" else f"`{c}`" for c in columns]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for scene in scenes:
+        cells = (["skipped"] * len(columns) if scene in skipped else
+                 [matrix_cell(results[c][scene], all_count=all_count) for c in columns])
+        lines.append(f"| {scene} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def check_backends_matrix(begin_marker, end_marker, table, what):
+    """The matrix between the markers of docs/backends.md must be ``table``; with
+    ``REFRASTER_WRITE_BACKENDS_MATRIX=1`` it is written there first."""
+    doc = BACKENDS_DOC.read_text()
+    begin, end = doc.index(begin_marker) + len(begin_marker), doc.index(end_marker)
+    if os.environ.get("REFRASTER_WRITE_BACKENDS_MATRIX"):
+        BACKENDS_DOC.write_text(doc[:begin] + "\n" + table + "\n" + doc[end:])
+        doc = BACKENDS_DOC.read_text()
+        begin, end = doc.index(begin_marker) + len(begin_marker), doc.index(end_marker)
+    assert doc[begin:end].strip() == table, (
+        f"docs/backends.md's {what} differs from this run; re-run with "
+        "REFRASTER_WRITE_BACKENDS_MATRIX=1 and review the change\n" + table)
+
+
+def generate_gold(tmp_path_factory, name, scenes):
+    """A module's golden directory: ``<tmp>/<name>/golden`` with ``scenes`` generated."""
+    from refraster import golden
+    root = tmp_path_factory.mktemp(name)
+    golden.generate(root / "golden", scenes)
+    return root

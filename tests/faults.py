@@ -140,9 +140,24 @@ def _admits(key, kind, spec, arrays, ref, cand, named=None, step=0.0):
     return ok
 
 
-def fault_table(golden_dir, scene, *, buffers=None, seed=SEED):
+def _covered(ref_all, clear=1.0):
+    if "prim_id" in ref_all:
+        return ref_all["prim_id"] >= 0
+    if "depth" in ref_all:
+        return ref_all["depth"] < clear
+    return np.ones(next(iter(ref_all.values())).shape[:2], np.bool_)
+
+
+def fault_table(golden_dir, scene, *, buffers=None, seed=SEED, covered_of=None, inject_at=None,
+                admits=None):
     """Per buffer of ``scene``: ``{buffer: {"covered", "admitted", "eligible", "caught",
-    "missed": [(row, col), ...]}}`` for the tolerant check of a generated golden."""
+    "missed": [(row, col), ...]}}`` for the tolerant check of a generated golden.
+
+    The hooks are for scenes with technique buffers (``tests/faults_techniques.py``):
+    ``covered_of(ref_all, clear)`` the covered pixels, ``inject_at(key, kind, ref, pixels, rng,
+    id_range, ref_all)`` the fault (the check then also sees the scene's other buffers, with the
+    faulty one swapped in), ``admits(key, kind, spec, arrays, ref, cand, named, others)`` where
+    the allowance admits the fault, or ``None`` for checks :func:`_admits` knows."""
     manifest = load_manifest(golden_dir, verify=False)
     entry = manifest["scenes"][scene]
     with np.load(golden_dir / scene / "buffers.npz", allow_pickle=False) as z:
@@ -151,12 +166,7 @@ def fault_table(golden_dir, scene, *, buffers=None, seed=SEED):
         arrays = {k: z[k].copy() for k in z.files}
     info = entry["allowances"]
     clear = entry["parameters"]["raster"].get("clear_depth", 1.0)
-    if "prim_id" in ref_all:
-        covered = ref_all["prim_id"] >= 0
-    elif "depth" in ref_all:
-        covered = ref_all["depth"] < clear
-    else:
-        covered = np.ones(next(iter(ref_all.values())).shape[:2], np.bool_)
+    covered = (covered_of or _covered)(ref_all, clear)
     radius = max(int(info["may_radius"]), 1)
     table = {}
     for key, spec in entry["buffers"].items():
@@ -183,19 +193,27 @@ def fault_table(golden_dir, scene, *, buffers=None, seed=SEED):
                 pix = np.argwhere(lattice & covered)
                 if not len(pix):
                     continue
-                cand = inject(key, kind, ref, pix, rng, spec.get("ids", (-1, 0)))
-                ids = {k: (cand if k == key else ref_all[k]) for k in ("prim_id", "object_id")
-                       if k in ref_all}
+                idr = spec.get("ids", (-1, 0))
+                if inject_at is None:
+                    cand, others = inject(key, kind, ref, pix, rng, idr), None
+                    ids = {**ref_all, key: cand}
+                else:
+                    cand = inject_at(key, kind, ref, pix, rng, idr, ref_all)
+                    ids = others = {**ref_all, key: cand}
                 named = (named_entries(arrays, ids["prim_id"], ids.get("object_id"))
                          if "prim_id" in ids else None)
                 _, checks, images = tolerant_metrics(
                     key, ref, cand, kind, spec["tolerant"], arrays, clear_depth=clear,
-                    fallback=fallback, named=named)
+                    fallback=fallback, named=named, others=others)
                 bad = images["over"] & ~images["forgiven"]
                 ok = all(c["ok"] for c in checks)
                 m = np.zeros_like(covered)
                 m[pix[:, 0], pix[:, 1]] = True
-                admitted |= m & _admits(key, kind, spec["tolerant"], arrays, ref, cand, named)
+                adm = None if admits is None else admits(key, kind, spec["tolerant"], arrays,
+                                                         ref, cand, named, others)
+                if adm is None:
+                    adm = _admits(key, kind, spec["tolerant"], arrays, ref, cand, named)
+                admitted |= m & adm
                 caught |= m & bad & (not ok) & one_fails
         eligible = covered & ~admitted
         table[key] = {"covered": int(covered.sum()), "admitted": int(admitted.sum()),

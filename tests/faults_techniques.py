@@ -33,8 +33,6 @@ from __future__ import annotations
 import numpy as np
 
 import faults
-from refraster.golden.allowance import named_entries, tolerant_metrics
-from refraster.golden.compare import load_manifest
 
 SEED = faults.SEED
 
@@ -92,63 +90,8 @@ def fault_table(golden_dir, scene, *, buffers=None, seed=SEED, admits=None):
     ``admits(key, kind, spec, arrays, ref, cand, named, ref_all)`` → (H, W) bool overrides how
     "admitted" is computed for the checks :func:`faults._admits` does not know."""
     admits = globals()["admits"] if admits is None else admits
-    manifest = load_manifest(golden_dir, verify=False)
-    entry = manifest["scenes"][scene]
-    with np.load(golden_dir / scene / "buffers.npz", allow_pickle=False) as z:
-        ref_all = {k: z[k].copy() for k in z.files}
-    with np.load(golden_dir / scene / "tolerance.npz", allow_pickle=False) as z:
-        arrays = {k: z[k].copy() for k in z.files}
-    info = entry["allowances"]
-    clear = entry["parameters"]["raster"].get("clear_depth", 1.0)
-    covered = covered_pixels(ref_all, clear)
-    radius = max(int(info["may_radius"]), 1)
-    table = {}
-    for key, spec in entry["buffers"].items():
-        if buffers is not None and key not in buffers:
-            continue
-        kind = spec["kind"]
-        ref = ref_all[key]
-        if kind == "id" and spec.get("ids", (-1, 0))[1] <= 0:
-            table[key] = None
-            continue
-        fallback = spec["tolerance"]["conformant"]
-        radius_k = max(radius, int(fallback["deviation_radius"]))
-        gap = 2 * radius_k + 2
-        rng = np.random.default_rng([seed, sum(map(ord, scene)), sum(map(ord, key))])
-        n = ref.shape[0] * ref.shape[1]
-        one_fails = ("masked" not in spec["tolerant"]["checks"]
-                     or 1.0 / n > float(fallback["max_fraction"]))
-        admitted = np.zeros(ref.shape[:2], np.bool_)
-        caught = np.zeros(ref.shape[:2], np.bool_)
-        for dy in range(gap):
-            for dx in range(gap):
-                lattice = np.zeros_like(covered)
-                lattice[dy::gap, dx::gap] = True
-                pix = np.argwhere(lattice & covered)
-                if not len(pix):
-                    continue
-                cand = inject(key, kind, ref, pix, rng, spec.get("ids", (-1, 0)), ref_all)
-                others = {**ref_all, key: cand}
-                named = (named_entries(arrays, others["prim_id"], others.get("object_id"))
-                         if "prim_id" in others else None)
-                _, checks, images = tolerant_metrics(
-                    key, ref, cand, kind, spec["tolerant"], arrays, clear_depth=clear,
-                    fallback=fallback, named=named, others=others)
-                bad = images["over"] & ~images["forgiven"]
-                ok = all(c["ok"] for c in checks)
-                m = np.zeros_like(covered)
-                m[pix[:, 0], pix[:, 1]] = True
-                adm = None if admits is None else admits(key, kind, spec["tolerant"], arrays,
-                                                         ref, cand, named, others)
-                if adm is None:
-                    adm = faults._admits(key, kind, spec["tolerant"], arrays, ref, cand, named)
-                admitted |= m & adm
-                caught |= m & bad & (not ok) & one_fails
-        eligible = covered & ~admitted
-        table[key] = {"covered": int(covered.sum()), "admitted": int(admitted.sum()),
-                      "eligible": int(eligible.sum()), "caught": int((caught & eligible).sum()),
-                      "missed": [tuple(map(int, p)) for p in np.argwhere(eligible & ~caught)]}
-    return table
+    return faults.fault_table(golden_dir, scene, buffers=buffers, seed=seed,
+                              covered_of=covered_pixels, inject_at=inject, admits=admits)
 
 
 def layers_admits(key, kind, spec, arrays, ref, cand, named, others):

@@ -19,11 +19,11 @@ import pytest
 
 from conftest import IN_CI
 from conftest import gl_backend_or_skip as _backend_or_skip
+from conftest import check_backends_matrix, generate_gold, matrix_cell, matrix_table
 from refraster import golden
 
 ROOT = Path(__file__).resolve().parents[1]
 GL_DIR = ROOT / "refraster" / "gl"
-DOC = ROOT / "docs" / "backends.md"
 BEGIN, END = "<!-- gl-matrix:begin (tests/test_gl_backend.py) -->", "<!-- gl-matrix:end -->"
 
 PLAIN = ["render_cube", "render_icosphere_smooth", "render_torus_ortho", "render_fluted_column",
@@ -132,30 +132,7 @@ def test_import_refraster_does_not_import_gl():
 
 @pytest.fixture(scope="module")
 def gold(tmp_path_factory):
-    root = tmp_path_factory.mktemp("gl")
-    golden.generate(root / "golden", SCENES)
-    return root
-
-
-def _cell(scene_result):
-    if scene_result.status == "pass":
-        return "pass"
-    failing = [b.name for b in scene_result.buffers if not b.passed]
-    if len(failing) == len(scene_result.buffers):
-        return f"**FAIL** (all {len(failing)})"
-    return "**FAIL** " + ", ".join(f"`{b}`" for b in failing)
-
-
-def _matrix_text(columns, results, skipped):
-    head = ["scene"] + [f"`{c}`" if c != "correct" else "correct" for c in columns]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for scene in MATRIX_SCENES:
-        if scene in skipped:
-            lines.append(f"| {scene} | " + " | ".join(["skipped"] * len(columns)) + " |")
-            continue
-        lines.append(f"| {scene} | " + " | ".join(_cell(results[c][scene]) for c in columns)
-                     + " |")
-    return "\n".join(lines)
+    return generate_gold(tmp_path_factory, "gl", SCENES)
 
 
 def test_candidate_passes_and_every_planted_fault_fails(gold):
@@ -189,17 +166,9 @@ def test_candidate_passes_and_every_planted_fault_fails(gold):
         for scene in UNTOUCHED.get(column, ()):
             assert results[column][scene].status == "pass", (column, scene)
         if column in ("sprite_rows_flipped", "parity_wrong_end"):   # only the parity decision
-            assert _cell(results[column][VDS]) == "**FAIL** `inside`", column
-    table = _matrix_text(columns, results, skipped)
-    doc = DOC.read_text()
-    begin, end = doc.index(BEGIN) + len(BEGIN), doc.index(END)
-    if os.environ.get("REFRASTER_WRITE_BACKENDS_MATRIX"):
-        DOC.write_text(doc[:begin] + "\n" + table + "\n" + doc[end:])
-        doc = DOC.read_text()
-        begin, end = doc.index(BEGIN) + len(BEGIN), doc.index(END)
-    assert doc[begin:end].strip() == table, (
-        "docs/backends.md's matrix differs from this run; re-run with "
-        "REFRASTER_WRITE_BACKENDS_MATRIX=1 and review the change\n" + table)
+            assert matrix_cell(results[column][VDS]) == "**FAIL** `inside`", column
+    table = matrix_table(columns, MATRIX_SCENES, results, skipped=skipped)
+    check_backends_matrix(BEGIN, END, table, "matrix")
 
 
 def test_peel_layer_slots_and_count(gold):

@@ -9,17 +9,14 @@ CI=true (the project's optional-oracle rule).
 """
 
 import json
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from conftest import gl_backend_or_skip as _backend_or_skip
+from conftest import check_backends_matrix, generate_gold, matrix_table
 from refraster import golden
 
-ROOT = Path(__file__).resolve().parents[1]
-DOC = ROOT / "docs" / "backends.md"
 BEGIN = "<!-- gl-clip-matrix:begin (tests/test_gl_clipsurface.py) -->"
 END = "<!-- gl-clip-matrix:end -->"
 
@@ -36,18 +33,7 @@ EXPECTED = {
 
 @pytest.fixture(scope="module")
 def gold(tmp_path_factory):
-    root = tmp_path_factory.mktemp("glclip")
-    golden.generate(root / "golden", SCENES)
-    return root
-
-
-def _cell(result):
-    if result.status == "pass":
-        return "pass"
-    failing = [b.name for b in result.buffers if not b.passed]
-    if len(failing) == len(result.buffers):
-        return f"**FAIL** (all {len(failing)})"
-    return "**FAIL** " + ", ".join(f"`{b}`" for b in failing)
+    return generate_gold(tmp_path_factory, "glclip", SCENES)
 
 
 def test_clip_candidate_passes_and_every_clip_fault_fails(gold):
@@ -73,21 +59,8 @@ def test_clip_candidate_passes_and_every_clip_fault_fails(gold):
         for scene, buffer in EXPECTED[column].items():
             failing = [line for line in cmp.failures() if line.startswith(f"{scene}/{buffer}")]
             assert failing, f"fault {column}: {scene}/{buffer} not named ({cmp.failures()})"
-    head = ["scene"] + [c if c == "correct" else f"`{c}`" for c in columns]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for scene in SCENES:
-        lines.append(f"| {scene} | " + " | ".join(_cell(results[c][scene]) for c in columns)
-                     + " |")
-    table = "\n".join(lines)
-    doc = DOC.read_text()
-    begin, end = doc.index(BEGIN) + len(BEGIN), doc.index(END)
-    if os.environ.get("REFRASTER_WRITE_BACKENDS_MATRIX"):
-        DOC.write_text(doc[:begin] + "\n" + table + "\n" + doc[end:])
-        doc = DOC.read_text()
-        begin, end = doc.index(BEGIN) + len(BEGIN), doc.index(END)
-    assert doc[begin:end].strip() == table, (
-        "docs/backends.md's clip-surface matrix differs from this run; re-run with "
-        "REFRASTER_WRITE_BACKENDS_MATRIX=1 and review the change\n" + table)
+    table = matrix_table(columns, SCENES, results)
+    check_backends_matrix(BEGIN, END, table, "clip-surface matrix")
 
 
 def test_clip_ids_are_exact_and_frames_bit_identical(gold):

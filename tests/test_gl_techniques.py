@@ -8,18 +8,15 @@ CI=true (the project's optional-oracle rule).
 """
 
 import json
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from conftest import IN_CI
 from conftest import gl_backend_or_skip as _backend_or_skip
+from conftest import check_backends_matrix, generate_gold, matrix_table
 from refraster import golden
 
-ROOT = Path(__file__).resolve().parents[1]
-DOC = ROOT / "docs" / "backends.md"
 BEGIN = "<!-- gl-techniques-matrix:begin (tests/test_gl_techniques.py) -->"
 END = "<!-- gl-techniques-matrix:end -->"
 
@@ -59,16 +56,7 @@ UNTOUCHED = {
 
 @pytest.fixture(scope="module")
 def gold(tmp_path_factory):
-    root = tmp_path_factory.mktemp("gltech")
-    golden.generate(root / "golden", SCENES)
-    return root
-
-
-def _cell(scene_result):
-    if scene_result.status == "pass":
-        return "pass"
-    failing = [b.name for b in scene_result.buffers if not b.passed]
-    return "**FAIL** " + ", ".join(f"`{b}`" for b in failing)
+    return generate_gold(tmp_path_factory, "gltech", SCENES)
 
 
 def test_technique_scenes_pass_and_every_planted_fault_fails(gold):
@@ -95,20 +83,8 @@ def test_technique_scenes_pass_and_every_planted_fault_fails(gold):
                 f"fault {column}: {scene}/{buffer} not named ({cmp.failures()})"
         for scene in UNTOUCHED[column]:
             assert results[column][scene].status == "pass", (column, scene)
-    head = ["scene"] + ["correct"] + [f"`{c}`" for c in columns[1:]]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += [f"| {s} | " + " | ".join(_cell(results[c][s]) for c in columns) + " |"
-              for s in SCENES]
-    table = "\n".join(lines)
-    doc = DOC.read_text()
-    begin, end = doc.index(BEGIN) + len(BEGIN), doc.index(END)
-    if os.environ.get("REFRASTER_WRITE_BACKENDS_MATRIX"):
-        DOC.write_text(doc[:begin] + "\n" + table + "\n" + doc[end:])
-        doc = DOC.read_text()
-        begin, end = doc.index(BEGIN) + len(BEGIN), doc.index(END)
-    assert doc[begin:end].strip() == table, (
-        "docs/backends.md's technique matrix differs from this run; re-run with "
-        "REFRASTER_WRITE_BACKENDS_MATRIX=1 and review the change\n" + table)
+    table = matrix_table(columns, SCENES, results, all_count=False)
+    check_backends_matrix(BEGIN, END, table, "technique matrix")
 
 
 def test_gl_sobel_depth_agrees_with_scipy(gold):

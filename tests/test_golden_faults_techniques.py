@@ -32,16 +32,13 @@ from refraster import golden
 TECH = [n for n, e in golden.available_scenes().items() if e.technique != "render"]
 #: Buffers whose aim is the filtered one (≤ 30 % admitted).
 FILTERED = {"edge_map", "cutaway_depth", "ghost", "alpha"} | {
-    ("halos4d_figure1", "color")}
+    ("halos4d_figure1", "color")} | {("edges_npr_gooch", "npr_color")}   # edge map composited
 
 _G = ("barycentric", "color", "depth", "eye_depth", "normal")
 #: (scene, buffer) pairs that miss the aims (measured 2026-12-02, docs/tolerance.md): on the
 #: conformant profile with a fraction-of-pixels threshold, or admitting more than the aim.
 OLD_PROFILE = (
     {("cutaway_shells", "ghost")}
-    # issue 26's operator scenes: golden/edge_bounds.py covers the diagonal operators only
-    | {(s, "edge_map") for s in ("edges_sobel", "edges_c1", "edges_diagonal2", "edges_c1_paper")}
-    | {("edges_npr_gooch", "npr_color")}      # the composite: conformant colour, may forgiven
     # issue 26's variant / projection scenes: the same buffers as their base scenes (measured)
     | {(s, "ghost") for s in ("cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa",
                              "cutaway_floor")}
@@ -231,23 +228,25 @@ def _q8(a):
 
 #: (raster variant, RGBA8 G-buffer and edge map): refraster's conformant variants of the edge map.
 EDGE_VARIANTS = {"4bit": ({"subpixel_bits": 4}, False), "top_left": ({"fill_rule": "top-left"}, False),
+                 "4bit_top_left": ({"subpixel_bits": 4, "fill_rule": "top-left"}, False),
+                 "float64": ({"precision": "float64"}, False),
                  "4bit_top_left_rgba8": ({"subpixel_bits": 4, "fill_rule": "top-left"}, True),
                  "float64_rgba8": ({"precision": "float64"}, True), "rgba8": ({}, True)}
+#: every edge scene: the paper's operator, issue 26's operator scenes, the NPR composite
+EDGE_SCENES = ["edges_building", "edges_sobel", "edges_c1", "edges_diagonal2", "edges_c1_paper",
+               "edges_npr_gooch"]
+EDGE_OPS = ("preset", "normal_filter", "depth_filter", "ids", "inner_threshold",
+            "profile_threshold", "width", "k_n", "k_z")
 
 
-@pytest.mark.parametrize("variant", sorted(EDGE_VARIANTS))
-def test_edge_map_conformant_variants_pass(gold, tmp_path, variant):
-    """Specificity: the edge map of refraster's 4-bit, top-left and float64 G-buffers, and of
-    G-buffers and edge maps stored as RGBA8 (the paper's texture formats, the scene's
-    ``gbuffer_format`` / ``output_format``), passes the golden (tolerant)."""
+def _edge_candidate(scene, raster, rgba8):
+    """The scene's buffers as refraster makes them with a conformant raster variant, and with
+    the G-buffer, edge map (and NPR colour) rounded to RGBA8."""
+    from refraster import npr as _npr
     from refraster.edges import EdgeGBuffer, edge_gbuffer, edge_map
-    from refraster.golden.compare import compare
     from refraster.golden.scenes import raster_state, render_draws
-    scene = golden.available_scenes()[EDGES].build()
     p = scene.parameters
-    ops = {k: p[k] for k in ("preset", "normal_filter", "depth_filter", "ids",
-                             "inner_threshold", "profile_threshold", "width", "k_n", "k_z")}
-    raster, rgba8 = EDGE_VARIANTS[variant]
+    ops = {k: p[k] for k in EDGE_OPS}
     fb = render_draws(scene.draws, scene.camera, {**raster_state({}), **raster})
     if rgba8:
         gb = edge_gbuffer(fb, bounds=np.array(p["bounds"]))
@@ -256,27 +255,191 @@ def test_edge_map_conformant_variants_pass(gold, tmp_path, variant):
         e = _q8(edge_map(gb, **ops))
     else:
         e = edge_map(fb, bounds=np.array(p["bounds"]), **ops)
-    root = _write(tmp_path, EDGES, {**fb.arrays(), "edge_map": e})
-    result = compare(gold, root, mode="tolerant", scenes=[EDGES])
+    out = {**fb.arrays(), "edge_map": e}
+    if "npr_color" in scene.buffers:
+        n = p["npr"]
+        style = {k: n[k] for k in ("light", "base", "cool", "warm", "alpha", "beta",
+                                   "background")}
+        c = _npr.composite(_npr.gooch(fb.normal, **style), e, inner_color=n["inner_color"],
+                           profile_color=n["profile_color"], mask=np.asarray(fb.object_id) >= 0)
+        out["npr_color"] = _q8(c) if rgba8 else c
+    return out
+
+
+def _rgba8_bounds(gold, scene_name, scene):
+    """The edge map's bounds of ``scene`` had it stated RGBA8 textures (the paper's): its
+    golden's own allowances through :func:`edge_map_bounds` with ``gbuffer_format`` and
+    ``output_format`` "rgba8"."""
+    from refraster.edges import fit_near_far
+    from refraster.golden.edge_bounds import edge_map_bounds
+    with np.load(gold / scene_name / "tolerance.npz", allow_pickle=False) as z:
+        arrays = {k: z[k].copy() for k in z.files}
+    near, far = fit_near_far(scene.camera.view, bounds=np.asarray(scene.parameters["bounds"]))
+    return edge_map_bounds(arrays, _golden_buffers(gold, scene_name), scene.parameters, near, far,
+                           gbuffer_format="rgba8", output_format="rgba8")
+
+
+@pytest.mark.parametrize("variant", sorted(EDGE_VARIANTS))
+@pytest.mark.parametrize("scene_name", EDGE_SCENES)
+def test_edge_map_conformant_variants_pass(gold, tmp_path, scene_name, variant):
+    """Specificity: the edge map (and NPR colour) of refraster's 4-bit, top-left, both and
+    float64 G-buffers, and of G-buffers and edge maps stored as RGBA8 (the paper's texture
+    formats), pass every edge scene. Where the scene states RGBA8 (``gbuffer_format`` /
+    ``output_format``) through ``compare``; where it states float32, the float variants through
+    ``compare`` and the RGBA8 ones inside the bounds derived for RGBA8 from the same golden's
+    allowances (an RGBA8 texture is not the format such a scene asks for)."""
+    from refraster.golden.compare import compare
+    scene = golden.available_scenes()[scene_name].build()
+    raster, rgba8 = EDGE_VARIANTS[variant]
+    cand = _edge_candidate(scene, raster, rgba8)
+    stated8 = scene.parameters.get("gbuffer_format") == "rgba8"
+    if rgba8 and not stated8:
+        lo, hi = _rgba8_bounds(gold, scene_name, scene)
+        e = cand["edge_map"]
+        bad = np.argwhere(((e < lo) | (e > hi)).any(axis=2))
+        assert not len(bad), (bad[:5].tolist(), e[tuple(bad[0])], lo[tuple(bad[0])],
+                              hi[tuple(bad[0])])
+        return
+    root = _write(tmp_path, scene_name, cand)
+    result = compare(gold, root, mode="tolerant", scenes=[scene_name])
     assert result.exit_code == 0, "\n".join(result.failures()[:10])
     if raster.get("subpixel_bits") == 4 or rgba8:
-        assert compare(gold, root, mode="exact", scenes=[EDGES],
+        assert compare(gold, root, mode="exact", scenes=[scene_name],
                        buffers=["edge_map"]).exit_code == 1
 
 
-def test_one_edge_pixel_moved_fails_naming_the_pixel(gold, tmp_path):
+@pytest.mark.parametrize("scene_name", EDGE_SCENES)
+def test_one_edge_pixel_moved_fails_naming_the_pixel(gold, tmp_path, scene_name):
     """One edge-map pixel's intensity (every channel) moved by 0.25 where the interval is
-    narrower than that: `refraster golden compare` fails naming the pixel and the interval."""
-    b = _golden_buffers(gold, EDGES)
+    narrower than that: `refraster golden compare` fails naming the pixel and the interval; on
+    the NPR scene also one ``npr_color`` pixel's red moved by 0.25."""
+    b0 = _golden_buffers(gold, scene_name)
+    with np.load(gold / scene_name / "tolerance.npz", allow_pickle=False) as z:
+        arrays = {k: z[k].copy() for k in z.files}
+    keys = ["edge_map"] + (["npr_color"] if "npr_color" in b0 else [])
+    for key in keys:
+        b = {k: v.copy() for k, v in b0.items()}
+        lo, hi = arrays[f"{key}_lo"], arrays[f"{key}_hi"]
+        narrow = ((hi - lo).max(axis=2) < 0.05) & (b["prim_id"] >= 0) & (b[key][..., 0] < 0.5)
+        rr, cc = np.argwhere(narrow)[len(np.argwhere(narrow)) // 2]
+        if key == "edge_map":
+            b[key][rr, cc] += np.float32(0.25)
+        else:
+            b[key][rr, cc, 0] += np.float32(0.25)
+        code, out = _run_compare(gold, _write(tmp_path / key, scene_name, b), scene_name)
+        assert code == 1 and "FAIL" in out, out
+        line = [x for x in out.splitlines() if f"{scene_name}/{key}: bounds" in x][0]
+        assert f"[[{rr}, {cc}]]" in line and "interval [(" in line, line
+
+
+def _sample_gbuffer(arrays, buffers, near, far, rng):
+    """A random G-buffer inside the golden's allowances: per pixel one of its options (a normal
+    turned by up to the option's half-angle, a depth anywhere in the pixel's interval, often at
+    an end), or the background — what :func:`refraster.golden.edge_bounds` assumes."""
+    from refraster.edges import EdgeGBuffer
+    from refraster.golden.edge_bounds import _options
+    off, nrm, ang, bg, zl, zh, free, _, _ = _options(arrays, buffers, near, far)
+    h, w = np.asarray(buffers["normal"]).shape[:2]
+    n = np.zeros((h * w, 3))
+    z = np.ones(h * w)
+    ids = np.full(h * w, -1, np.int32)
+    for p in range(h * w):
+        if free[p]:
+            continue
+        i = int(rng.integers(off[p], off[p + 1]))
+        if bg[i]:
+            continue
+        a = nrm[i] / np.linalg.norm(nrm[i])
+        t = rng.normal(size=3)
+        t -= a * (t @ a)
+        t /= np.linalg.norm(t)
+        phi = min(float(ang[i]), np.pi) * rng.choice([1.0, rng.random()])
+        n[p] = np.cos(phi) * a + np.sin(phi) * t
+        z[p] = rng.choice([zl[p], zh[p], rng.uniform(zl[p], zh[p])])
+        ids[p] = 0
+    enc = np.where(ids[:, None] >= 0, 0.5 * n + 0.5, 0.5).reshape(h, w, 3).astype(np.float32)
+    return EdgeGBuffer(normal=enc, depth=z.reshape(h, w).astype(np.float32),
+                       object_id=ids.reshape(h, w), near=near, far=far)
+
+
+@pytest.mark.parametrize("op", [("diagonal", "diagonal"), ("sobel", "sobel"), ("angle", "c1"),
+                                ("diagonal", "diagonal2"), ("sobel", "c1-paper")])
+def test_edge_bounds_hold_random_gbuffers_with_width_and_thresholds(gold, op):
+    """Soundness by brute force: :func:`refraster.edges.edge_map` (the operator itself, not the
+    bound code) of random G-buffers drawn inside the golden's allowances — also stored RGBA8 —
+    with ``width`` 3, thresholds and gains lies inside :func:`edge_map_bounds` for the same
+    options at every pixel; the other direction: the bounds without the width dilation (the
+    scene's width 1) miss the dilated maps, and the undilated bounds are narrower than 0.05 at
+    most covered pixels."""
+    from refraster.edges import EdgeGBuffer, edge_map, fit_near_far
+    from refraster.golden.edge_bounds import edge_map_bounds
+    scene = golden.available_scenes()[EDGES].build()
     with np.load(gold / EDGES / "tolerance.npz", allow_pickle=False) as z:
-        lo, hi = z["edge_map_lo"], z["edge_map_hi"]
-    narrow = ((hi - lo).max(axis=2) < 0.05) & (b["prim_id"] >= 0) & (b["edge_map"][..., 0] < 0.5)
-    rr, cc = np.argwhere(narrow)[len(np.argwhere(narrow)) // 2]
-    b["edge_map"][rr, cc] += np.float32(0.25)
-    code, out = _run_compare(gold, _write(tmp_path / "c", EDGES, b), EDGES)
-    assert code == 1 and "FAIL" in out, out
-    line = [x for x in out.splitlines() if f"{EDGES}/edge_map: bounds" in x][0]
-    assert f"[[{rr}, {cc}]]" in line and "interval [(" in line, line
+        arrays = {k: z[k].copy() for k in z.files}
+    buffers = _golden_buffers(gold, EDGES)
+    near, far = fit_near_far(scene.camera.view, bounds=np.asarray(scene.parameters["bounds"]))
+    params = {**scene.parameters, "normal_filter": op[0], "depth_filter": op[1], "width": 3,
+              "inner_threshold": 0.05, "profile_threshold": 0.02, "k_n": 1.5, "k_z": 0.75}
+    ops = {k: params[k] for k in EDGE_OPS}
+    rng = np.random.default_rng([20, sum(map(ord, op[0] + op[1]))])
+    for fmt in ("float32", "rgba8"):
+        lo, hi = edge_map_bounds(arrays, buffers, params, near, far, gbuffer_format=fmt,
+                                 output_format=fmt)
+        lo1, hi1 = edge_map_bounds(arrays, buffers, {**params, "width": 1}, near, far,
+                                   gbuffer_format=fmt, output_format=fmt)
+        missed_by_undilated = 0
+        for _ in range(3):
+            gb = _sample_gbuffer(arrays, buffers, near, far, rng)
+            if fmt == "rgba8":
+                gb = EdgeGBuffer(normal=_q8(gb.normal), depth=_q8(gb.depth),
+                                 object_id=gb.object_id, near=near, far=far)
+            e = edge_map(gb, **ops)
+            e = _q8(e) if fmt == "rgba8" else e
+            bad = np.argwhere(((e < lo) | (e > hi)).any(axis=2))
+            assert not len(bad), (fmt, bad[:5].tolist(), e[tuple(bad[0])], lo[tuple(bad[0])],
+                                  hi[tuple(bad[0])])
+            missed_by_undilated += int(((e < lo1) | (e > hi1)).any(axis=2).sum())
+        assert missed_by_undilated > 100, missed_by_undilated
+        covered = buffers["prim_id"] >= 0
+        assert np.median((hi1 - lo1).max(axis=2)[covered]) < 0.05
+
+
+def test_npr_bounds_hold_random_gbuffers(gold):
+    """Soundness of ``npr_color_lo/_hi`` by brute force: ``refraster.npr``'s Gooch shading of
+    random in-allowance normals composited with the paper's edge map of the same G-buffer
+    (RGBA8, as the scene states) lies inside the stored bounds; the other direction: the same
+    composite with inner and profile colours swapped leaves them."""
+    from refraster import npr as _npr
+    from refraster.edges import EdgeGBuffer, edge_map, fit_near_far
+    name = "edges_npr_gooch"
+    scene = golden.available_scenes()[name].build()
+    p = scene.parameters
+    with np.load(gold / name / "tolerance.npz", allow_pickle=False) as z:
+        arrays = {k: z[k].copy() for k in z.files}
+    buffers = _golden_buffers(gold, name)
+    near, far = fit_near_far(scene.camera.view, bounds=np.asarray(p["bounds"]))
+    lo, hi = arrays["npr_color_lo"], arrays["npr_color_hi"]
+    n = p["npr"]
+    style = {k: n[k] for k in ("light", "base", "cool", "warm", "alpha", "beta", "background")}
+    rng = np.random.default_rng(2020)
+    swapped_out = 0
+    for _ in range(3):
+        gb = _sample_gbuffer(arrays, buffers, near, far, rng)
+        normal = np.where(gb.object_id[..., None] >= 0, 2.0 * gb.normal - 1.0, 0.0)
+        gb8 = EdgeGBuffer(normal=_q8(gb.normal), depth=_q8(gb.depth), object_id=gb.object_id,
+                          near=near, far=far)
+        e = _q8(edge_map(gb8, **{k: p[k] for k in EDGE_OPS}))
+        shade = _npr.gooch(normal, **style)
+        mask = gb.object_id >= 0
+        c = _npr.composite(shade, e, inner_color=n["inner_color"],
+                           profile_color=n["profile_color"], mask=mask)
+        bad = np.argwhere(((c < lo) | (c > hi)).any(axis=2))
+        assert not len(bad), (bad[:5].tolist(), c[tuple(bad[0])], lo[tuple(bad[0])],
+                              hi[tuple(bad[0])])
+        w = _npr.composite(shade, e, inner_color=n["profile_color"],
+                           profile_color=n["inner_color"], mask=mask)
+        swapped_out += int(((w < lo) | (w > hi)).any(axis=2).sum())
+    assert swapped_out > 100, swapped_out
 
 
 # --- cutaways (refraster/golden/cutaway_bounds.py) -----------------------------------------------

@@ -258,7 +258,7 @@ def scene_allowances(scene, raster):
     if scene.technique == "edges" and "edge_map" in buffers and sets:
         # edge maps: intervals propagated through the operator (golden/edge_bounds.py)
         from ..edges import fit_near_far
-        from .edge_bounds import edge_map_bounds, supported
+        from .edge_bounds import edge_map_bounds, npr_color_bounds, npr_supported, supported
         params = scene.parameters or {}
         if supported(params) and params.get("bounds") is not None:
             near, far = fit_near_far(cam.view, bounds=np.asarray(params["bounds"], np.float64))
@@ -268,6 +268,13 @@ def scene_allowances(scene, raster):
                 output_format=params.get("output_format", "rgba8"))
             checks["edge_map"] = {"checks": ["bounds"], "lo": "edge_map_lo",
                                   "hi": "edge_map_hi"}
+            if "npr_color" in buffers and npr_supported(params):
+                # the NPR composite over Gooch shading (golden/edge_bounds.py)
+                arrays["npr_color_lo"], arrays["npr_color_hi"] = npr_color_bounds(
+                    arrays, buffers, params, near, far, arrays["edge_map_lo"],
+                    arrays["edge_map_hi"])
+                checks["npr_color"] = {"checks": ["bounds"], "lo": "npr_color_lo",
+                                       "hi": "npr_color_hi"}
     if scene.technique == "cutaway" and "cutaway_depth" in buffers \
             and (scene.parameters or {}).get("accepted_variants"):
         # cutaways: D_variant − slack ≤ D ≤ D_exact + slack (golden/cutaway_bounds.py)
@@ -511,7 +518,7 @@ SET_INTERVALS = {"depth": ("set_depth_lo", "set_depth_hi"),
                  "color": ("set_color_lo", "set_color_hi")}
 
 
-from .homogeneous import face_barycentrics as _face_barycentrics  # noqa: E402
+from .homogeneous import corner_samples  # noqa: E402
 
 
 def face_sets(scene, raster, id_may, eps):
@@ -551,23 +558,15 @@ def entry_values(scene, raster, prep, pix, faces, eps):
     from ..framebuffer import _build
     from ..tolerance import _depth_slacks, _face_facing, fragile_faces
     h, w = prep.height, prep.width
-    rows, cols = np.divmod(pix, w)
     # sample points: the centre and the corners of the square of half-side eps (⊇ the ε-disc);
     # every value here is quasi-linear (affine or a ratio of affine functions of the point), so
     # its extremes over the square are at the corners
-    d = np.array([[0.0, 0.0], [-1, -1], [1, -1], [-1, 1], [1, 1]]) * eps
-    px = cols[:, None] + 0.5 + d[None, :, 0]
-    py = (h - 1 - rows)[:, None] + 0.5 + d[None, :, 1]
     clip = prep.clip[prep.triangles.faces[faces]]
-    beta = _face_barycentrics(clip, px, py, w, h)
-    zc = np.einsum("esk,ek->es", beta, clip[:, :, 2])
-    wc = np.einsum("esk,ek->es", beta, clip[:, :, 3])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        depth = 0.5 * zc / wc + 0.5
+    beta, depth, px, py = corner_samples(clip, pix, w, h, eps)
     n = len(faces)
     smooth = raster["normals"] == "smooth"
     normals = [dd.normals for dd in scene.draws] if smooth else "flat"
-    shape = (n, d.shape[0])
+    shape = depth.shape
     fb = _build(prep.meshes, prep.models, prep.view, prep.proj,
                 np.nan_to_num(depth, nan=1.0).astype(np.float32), np.repeat(faces, 5).reshape(shape),
                 prep.face_offsets, np.zeros(shape, np.bool_),
@@ -596,7 +595,7 @@ def entry_values(scene, raster, prep, pix, faces, eps):
     nrm = fb.normal.astype(np.float64)
     out["set_normal"] = nrm[:, 0].astype(np.float32)
     ang = np.zeros(n)
-    for k in range(1, d.shape[0]):
+    for k in range(1, depth.shape[1]):
         ang = np.maximum(ang, _angle(nrm[:, 0], nrm[:, k]))
     out["set_normal_angle"] = (NORMAL_TOL + SHIFT_MARGIN * ang).astype(np.float32)
     # a face's facing is definite unless the face itself is a sliver that may flip

@@ -29,8 +29,25 @@ an *option* of the pixel. Then:
 * ``width > 1``: a grey dilation with the disk of radius ``width − 1`` is monotone, so the
   bounds are the dilated bounds.
 
+The other operators of :func:`refraster.edges.edge_map` read the same options through their
+own 3×3 footprint (clamp-to-edge), docs/tolerance.md "Edge maps" has each derivation:
+
+* normal components (Sobel's input): within α of an axis at θ_c from e_c, ``n_c ∈
+  [cos(min(π, θ_c + α)), cos(max(0, θ_c − α))]``, 0 on the background, ± the decoding error;
+* Sobel (normal ``k_n·√(Σ_c G_y,c² + G_x,c²)/8``, depth ``k_z·√(G_y² + G_x²)/4``): ``G`` is
+  linear, so its interval is the weighted sum of the taps' intervals; squares, sums, ``√`` and
+  ``min(1, ·)`` are monotone;
+* angle ``max_q ½(1 − n_X·n_q)``: the dot-product intervals above, maxima of intervals;
+* C1 ``Σ_k w_k |z_k − z_X| / s`` (s = 12 or 8) and ``diagonal2`` (``z_A + z_H − 2 z_X``): sums
+  of interval differences, then the monotone maps of the operator;
+* thresholds: ``v ↦ v·[v ≥ t]`` is non-decreasing; float32 arithmetic of these operators on a
+  GPU: :data:`ARITH`.
+
 Stored: ``edge_map_lo`` / ``edge_map_hi (H, W, 4)`` float32, checked by ``bounds`` (the
-interval at every pixel, whatever the visible face).
+interval at every pixel, whatever the visible face). For the Gooch NPR composite
+(:func:`npr_color_bounds`): ``npr_color_lo`` / ``npr_color_hi (H, W, 3)`` — t's interval from
+each option's normal cone and the light, the clipped linear shade, and the composite's extremes
+at the corners of the box of (shade, E_N, E_Z) (it is multilinear in them).
 """
 
 from __future__ import annotations
@@ -42,17 +59,34 @@ from numba import njit
 
 from .._config import JIT
 
-__all__ = ["edge_map_bounds", "supported"]
+__all__ = ["edge_map_bounds", "npr_color_bounds", "npr_supported", "supported"]
 
 Q8 = 1.0 / 255.0
 
 
+#: :func:`refraster.edges.edge_map`'s operators this module bounds (codes of its kernels)
+NORMAL_OPS = {"diagonal": 0, "sobel": 1, "angle": 2}
+DEPTH_OPS = {"diagonal": 0, "c1": 1, "c1-paper": 2, "sobel": 3, "diagonal2": 4}
+#: float32 arithmetic of the Sobel, C1, angle and second-difference operators on a GPU (a few
+#: tens of float32 operations on values ≤ 16, scaled by ≤ ¼; estimated ≤ 3e−6, docs/tolerance.md)
+ARITH = 1e-5
+
+
 def supported(params):
-    """Whether :func:`edge_map_bounds` covers the scene's operator."""
-    return (params.get("normal_filter") == "diagonal" and params.get("depth_filter") == "diagonal"
-            and not params.get("ids") and float(params.get("inner_threshold", 1)) == 0.0
-            and float(params.get("profile_threshold", 1)) == 0.0
-            and float(params.get("k_n", 1.0)) == 1.0 and float(params.get("k_z", 1.0)) == 1.0)
+    """Whether :func:`edge_map_bounds` covers the scene's operator: every normal and depth
+    filter of :func:`refraster.edges.edge_map`, any thresholds, width and gains; not the id
+    edges (``ids=True``)."""
+    try:
+        t_in = float(params.get("inner_threshold", 0.0))
+        t_pr = float(params.get("profile_threshold", 0.0))
+        k_n = float(params.get("k_n", 1.0))
+        k_z = float(params.get("k_z", 1.0))
+        width = int(params.get("width", 1))
+    except (TypeError, ValueError):
+        return False
+    return (params.get("normal_filter") in NORMAL_OPS and params.get("depth_filter") in DEPTH_OPS
+            and not params.get("ids") and 0.0 <= t_in <= 1.0 and 0.0 <= t_pr <= 1.0
+            and k_n >= 0.0 and k_z >= 0.0 and width >= 1)
 
 
 @njit(**JIT)
@@ -125,6 +159,211 @@ def _bounds_kernel(off, nrm, ang, bg, zlo, zhi, free, may_bg, may_fg, ddot, dz, 
                 hi[y, x, c] = min(en_hi + dout, 1.0)
             lo[y, x, 3] = max(ez_lo - dout, 0.0)
             hi[y, x, 3] = min(ez_hi + dout, 1.0)
+
+
+@njit(**JIT)
+def _component_bounds(off, nrm, ang, bg, free, dn, clo, chi):
+    """Per pixel and channel, the interval of a decoded normal component over the pixel's
+    options: a unit vector within α of an axis at θ_c from the channel's axis e_c has
+    ``n_c = cos ∠(n, e_c) ∈ [cos(min(π, θ_c + α)), cos(max(0, θ_c − α))]``; 0 on the
+    background; ``dn`` the decoding error of the texture format."""
+    n_pix = len(off) - 1
+    for p in range(n_pix):
+        if free[p]:
+            for c in range(3):
+                clo[p, c] = -1.0 - dn
+                chi[p, c] = 1.0 + dn
+            continue
+        for c in range(3):
+            clo[p, c] = np.inf
+            chi[p, c] = -np.inf
+        for i in range(off[p], off[p + 1]):
+            if bg[i]:
+                for c in range(3):
+                    clo[p, c] = min(clo[p, c], -dn)
+                    chi[p, c] = max(chi[p, c], dn)
+                continue
+            length = math.sqrt(nrm[i, 0] * nrm[i, 0] + nrm[i, 1] * nrm[i, 1]
+                               + nrm[i, 2] * nrm[i, 2])
+            for c in range(3):
+                t = math.acos(min(max(nrm[i, c] / length, -1.0), 1.0)) if length > 0 else 0.5 * math.pi
+                a = ang[i] if length > 0 else math.pi
+                clo[p, c] = min(clo[p, c], math.cos(min(math.pi, t + a)) - dn)
+                chi[p, c] = max(chi[p, c], math.cos(max(0.0, t - a)) + dn)
+
+
+@njit(**JIT)
+def _lin(wlo, whi, plo, phi, q):
+    """Add ``w·[plo, phi]`` to ``[wlo, whi]`` (interval arithmetic)."""
+    if q >= 0.0:
+        return wlo + q * plo, whi + q * phi
+    return wlo + q * phi, whi + q * plo
+
+
+@njit(**JIT)
+def _sq(lo, hi):
+    """Bounds of x² for x ∈ [lo, hi]."""
+    if lo >= 0.0:
+        return lo * lo, hi * hi
+    if hi <= 0.0:
+        return hi * hi, lo * lo
+    return 0.0, max(lo * lo, hi * hi)
+
+
+@njit(**JIT)
+def _sobel_bounds(lo3, hi3, y, x, h, w, c):
+    """Bounds of (G_y, G_x) of channel c of the 3×3 neighbourhood (clamp-to-edge): the
+    operator is linear, so each is the weighted sum of its taps' intervals."""
+    ym = max(y - 1, 0)
+    yp = min(y + 1, h - 1)
+    xm = max(x - 1, 0)
+    xp = min(x + 1, w - 1)
+    gylo = 0.0
+    gyhi = 0.0
+    gxlo = 0.0
+    gxhi = 0.0
+    # G_y = (F + 2G + H) − (A + 2B + C); G_x = (C + 2E + H) − (A + 2D + F)
+    for (yy, xx, wy, wx) in ((ym, xm, -1.0, -1.0), (ym, x, -2.0, 0.0), (ym, xp, -1.0, 1.0),
+                             (y, xm, 0.0, -2.0), (y, xp, 0.0, 2.0),
+                             (yp, xm, 1.0, -1.0), (yp, x, 2.0, 0.0), (yp, xp, 1.0, 1.0)):
+        p = yy * w + xx
+        gylo, gyhi = _lin(gylo, gyhi, lo3[p, c], hi3[p, c], wy)
+        gxlo, gxhi = _lin(gxlo, gxhi, lo3[p, c], hi3[p, c], wx)
+    return gylo, gyhi, gxlo, gxhi
+
+
+@njit(**JIT)
+def _normal_op_kernel(method, off, nrm, ang, bg, free, may_bg, may_fg, clo, chi, k_n, ddot,
+                      lo, hi):
+    """E_N bounds of the Sobel (method 1) and angle (method 2) normal operators."""
+    h, w = lo.shape
+    for y in range(h):
+        for x in range(w):
+            p = y * w + x
+            if method == 1:
+                # E_N = min(1, k_n·sqrt(Σ_c G_y,c² + G_x,c²)/8): monotone in each square
+                slo = 0.0
+                shi = 0.0
+                for c in range(3):
+                    gylo, gyhi, gxlo, gxhi = _sobel_bounds(clo, chi, y, x, h, w, c)
+                    a, b = _sq(gylo, gyhi)
+                    slo += a
+                    shi += b
+                    a, b = _sq(gxlo, gxhi)
+                    slo += a
+                    shi += b
+                en_lo = min(k_n * math.sqrt(slo) / 8.0, 1.0)
+                en_hi = min(k_n * math.sqrt(shi) / 8.0, 1.0)
+            else:
+                # E_N = min(1, max_q ½(1 − n_X·n_q)): X's foreground options against each
+                # neighbour's options
+                ym = max(y - 1, 0)
+                yp = min(y + 1, h - 1)
+                xm = max(x - 1, 0)
+                xp = min(x + 1, w - 1)
+                en_lo = 0.0
+                en_hi = 0.0
+                for (yy, xx) in ((ym, xm), (ym, x), (ym, xp), (y, xm), (y, xp), (yp, xm),
+                                 (yp, x), (yp, xp)):
+                    dlo, dhi = _dot_bounds_fg(p, yy * w + xx, off, nrm, ang, bg, free, ddot)
+                    en_lo = max(en_lo, 0.5 * (1.0 - dhi))
+                    en_hi = max(en_hi, 0.5 * (1.0 - dlo))
+                en_lo = min(en_lo, 1.0)
+                en_hi = min(en_hi, 1.0)
+            if not may_fg[p] and not free[p]:
+                en_lo = 0.0
+                en_hi = 0.0
+            elif may_bg[p] or free[p]:
+                en_lo = 0.0
+            lo[y, x] = en_lo
+            hi[y, x] = en_hi
+
+
+@njit(**JIT)
+def _dot_bounds_fg(oa, ob, off, nrm, ang, bg, free, ddot):
+    """As :func:`_dot_bounds`, over the foreground options of ``oa`` only (where X shows the
+    background its E_N is 0 whatever the dot product)."""
+    if free[oa] or free[ob]:
+        return -1.0 - ddot, 1.0 + ddot
+    lo = np.inf
+    hi = -np.inf
+    for i in range(off[oa], off[oa + 1]):
+        if bg[i]:
+            continue
+        for j in range(off[ob], off[ob + 1]):
+            if bg[j]:
+                lo = min(lo, -ddot)
+                hi = max(hi, ddot)
+                continue
+            c = nrm[i, 0] * nrm[j, 0] + nrm[i, 1] * nrm[j, 1] + nrm[i, 2] * nrm[j, 2]
+            t0 = math.acos(min(max(c, -1.0), 1.0))
+            a = ang[i] + ang[j]
+            lo = min(lo, math.cos(min(math.pi, t0 + a)) - ddot)
+            hi = max(hi, math.cos(max(0.0, t0 - a)) + ddot)
+    if lo > hi:     # no foreground option
+        return 1.0, 1.0
+    return lo, hi
+
+
+@njit(**JIT)
+def _depth_op_kernel(method, zlo, zhi, k_z, lo, hi):
+    """E_Z bounds of the C1 (1: /12, 2: /8), Sobel (3) and second-difference diagonal (4)
+    depth operators from the per-pixel depth intervals ``[zlo, zhi]`` (quantisation and
+    rounding already added)."""
+    h, w = lo.shape
+    for y in range(h):
+        for x in range(w):
+            ym = max(y - 1, 0)
+            yp = min(y + 1, h - 1)
+            xm = max(x - 1, 0)
+            xp = min(x + 1, w - 1)
+            p = y * w + x
+            if method == 1 or method == 2:
+                # E = min(1, Σ_k w_k |z_k − z_X| / s): each term bounded alone (sound; X's
+                # interval enters every term)
+                slo = 0.0
+                shi = 0.0
+                for (yy, xx, wk) in ((ym, xm, 1.0), (ym, x, 2.0), (ym, xp, 1.0),
+                                     (y, xm, 2.0), (y, xp, 2.0),
+                                     (yp, xm, 1.0), (yp, x, 2.0), (yp, xp, 1.0)):
+                    q = yy * w + xx
+                    dlo, dhi = _absdiff(zlo[q], zhi[q], zlo[p], zhi[p])
+                    slo += wk * dlo
+                    shi += wk * dhi
+                s = 12.0 if method == 1 else 8.0
+                lo[y, x] = min(slo / s, 1.0)
+                hi[y, x] = min(shi / s, 1.0)
+            elif method == 3:
+                # E = min(1, k_z·sqrt(G_y² + G_x²)/4)
+                gylo = 0.0
+                gyhi = 0.0
+                gxlo = 0.0
+                gxhi = 0.0
+                for (yy, xx, wy, wx) in ((ym, xm, -1.0, -1.0), (ym, x, -2.0, 0.0),
+                                         (ym, xp, -1.0, 1.0), (y, xm, 0.0, -2.0),
+                                         (y, xp, 0.0, 2.0), (yp, xm, 1.0, -1.0),
+                                         (yp, x, 2.0, 0.0), (yp, xp, 1.0, 1.0)):
+                    q = yy * w + xx
+                    gylo, gyhi = _lin(gylo, gyhi, zlo[q], zhi[q], wy)
+                    gxlo, gxhi = _lin(gxlo, gxhi, zlo[q], zhi[q], wx)
+                a0, a1 = _sq(gylo, gyhi)
+                b0, b1 = _sq(gxlo, gxhi)
+                lo[y, x] = min(k_z * math.sqrt(a0 + b0) / 4.0, 1.0)
+                hi[y, x] = min(k_z * math.sqrt(a1 + b1) / 4.0, 1.0)
+            else:
+                # d_AH = z_A + z_H − 2 z_X, d_CF = z_C + z_F − 2 z_X (|d| ≤ 2, where
+                # 1 − (1 − ½|d_AH|)²(1 − ½|d_CF|)² is increasing in both)
+                pa, pc, pf, ph = ym * w + xm, ym * w + xp, yp * w + xm, yp * w + xp
+                d1lo, d1hi = _absdiff(zlo[pa] + zlo[ph], zhi[pa] + zhi[ph],
+                                      2.0 * zlo[p], 2.0 * zhi[p])
+                d2lo, d2hi = _absdiff(zlo[pc] + zlo[pf], zhi[pc] + zhi[pf],
+                                      2.0 * zlo[p], 2.0 * zhi[p])
+                d1lo, d1hi = min(d1lo, 2.0), min(d1hi, 2.0)
+                d2lo, d2hi = min(d2lo, 2.0), min(d2hi, 2.0)
+                a_hi, a_lo = 1.0 - 0.5 * d1lo, 1.0 - 0.5 * d1hi
+                b_hi, b_lo = 1.0 - 0.5 * d2lo, 1.0 - 0.5 * d2hi
+                lo[y, x] = 1.0 - (a_hi * a_hi) * (b_hi * b_hi)
+                hi[y, x] = 1.0 - (a_lo * a_lo) * (b_lo * b_lo)
 
 
 def _options(arrays, buffers, near, far):
@@ -216,7 +455,38 @@ def edge_map_bounds(arrays, buffers, params, near, far, *, gbuffer_format="rgba8
     dout = (0.5 * Q8 if output_format == "rgba8" else 0.0) + 1e-6
     lo = np.zeros((h, w, 4))
     hi = np.zeros((h, w, 4))
-    _bounds_kernel(off, nrm, ang, bg, zl, zh, free, may_bg, may_fg, ddot, dz, dout, lo, hi)
+    nmethod = NORMAL_OPS[params.get("normal_filter", "diagonal")]
+    zmethod = DEPTH_OPS[params.get("depth_filter", "diagonal")]
+    if nmethod == 0 or zmethod == 0:
+        # the paper's diagonal operators
+        _bounds_kernel(off, nrm, ang, bg, zl, zh, free, may_bg, may_fg, ddot, dz, dout, lo, hi)
+    if nmethod != 0:
+        clo = np.zeros((h * w, 3))
+        chi = np.zeros((h * w, 3))
+        # a decoded component is off by ≤ 1/255 in RGBA8 (½/255 encoded, times 2), ≤ 1e−6
+        # in float32
+        _component_bounds(off, nrm, ang, bg, free, 2.0 * 0.5 * q_in + 1e-6, clo, chi)
+        en_lo = np.zeros((h, w))
+        en_hi = np.zeros((h, w))
+        _normal_op_kernel(nmethod, off, nrm, ang, bg, free, may_bg, may_fg, clo, chi,
+                          float(params.get("k_n", 1.0)), ddot, en_lo, en_hi)
+        for c in range(3):
+            lo[..., c] = np.maximum(en_lo - dout - ARITH, 0.0)
+            hi[..., c] = np.minimum(en_hi + dout + ARITH, 1.0)
+    if zmethod != 0:
+        ez_lo = np.zeros((h, w))
+        ez_hi = np.zeros((h, w))
+        _depth_op_kernel(zmethod, (zl - dz).ravel(), (zh + dz).ravel(),
+                         float(params.get("k_z", 1.0)), ez_lo, ez_hi)
+        lo[..., 3] = np.maximum(ez_lo - dout - ARITH, 0.0)
+        hi[..., 3] = np.minimum(ez_hi + dout + ARITH, 1.0)
+    # thresholds: v ↦ v·[v ≥ t] is non-decreasing, so the bounds map to their images
+    for chans, key in (((0, 1, 2), "inner_threshold"), ((3,), "profile_threshold")):
+        t = float(params.get(key, 0.0))
+        if t > 0.0:
+            for c in chans:
+                lo[..., c] = np.where(lo[..., c] >= t, lo[..., c], 0.0)
+                hi[..., c] = np.where(hi[..., c] >= t, hi[..., c], 0.0)
     width = int(params.get("width", 1))
     if width > 1:
         from skimage.morphology import dilation, disk
@@ -224,6 +494,97 @@ def edge_map_bounds(arrays, buffers, params, near, far, *, gbuffer_format="rgba8
         for c in range(4):
             lo[..., c] = dilation(lo[..., c], foot)
             hi[..., c] = dilation(hi[..., c], foot)
+    lo32 = lo.astype(np.float32)
+    hi32 = hi.astype(np.float32)
+    lo32 = np.where(lo32 > lo, np.nextafter(lo32, np.float32(-1)), lo32)
+    hi32 = np.where(hi32 < hi, np.nextafter(hi32, np.float32(2)), hi32)
+    return lo32.astype(np.float32), hi32.astype(np.float32)
+
+
+def npr_supported(params):
+    """Whether :func:`npr_color_bounds` covers the scene's composite (Gooch + edge map)."""
+    npr = params.get("npr")
+    return (isinstance(npr, dict) and npr.get("style") == "gooch"
+            and npr.get("mask") == "objects"
+            and all(k in npr for k in ("light", "base", "cool", "warm", "alpha", "beta",
+                                       "background", "inner_color", "profile_color")))
+
+
+@njit(**JIT)
+def _npr_kernel(off, nrm, ang, bg, free, light, k_cool, k_warm, background, ci, cp, elo, ehi,
+                dcol, lo, hi):
+    h, w = lo.shape[:2]
+    for y in range(h):
+        for x in range(w):
+            p = y * w + x
+            for c in range(3):
+                lo[y, x, c] = np.inf
+                hi[y, x, c] = -np.inf
+            if free[p]:
+                for c in range(3):
+                    lo[y, x, c] = 0.0
+                    hi[y, x, c] = 1.0
+                continue
+            # t = ½(1 + n·l) over the pixel's foreground options
+            tlo = np.inf
+            thi = -np.inf
+            for i in range(off[p], off[p + 1]):
+                if bg[i]:
+                    # composite masked off: the shade there is the background colour
+                    for c in range(3):
+                        lo[y, x, c] = min(lo[y, x, c], background[c])
+                        hi[y, x, c] = max(hi[y, x, c], background[c])
+                    continue
+                length = math.sqrt(nrm[i, 0] * nrm[i, 0] + nrm[i, 1] * nrm[i, 1]
+                                   + nrm[i, 2] * nrm[i, 2])
+                cl = (nrm[i, 0] * light[0] + nrm[i, 1] * light[1] + nrm[i, 2] * light[2]) / length
+                t0 = math.acos(min(max(cl, -1.0), 1.0))
+                tlo = min(tlo, 0.5 * (1.0 + math.cos(min(math.pi, t0 + ang[i]))))
+                thi = max(thi, 0.5 * (1.0 + math.cos(max(0.0, t0 - ang[i]))))
+            if tlo > thi:
+                continue
+            en_lo, en_hi = elo[y, x, 0], ehi[y, x, 0]
+            ez_lo, ez_hi = elo[y, x, 3], ehi[y, x, 3]
+            for c in range(3):
+                # shade = clip(t·k_warm + (1 − t)·k_cool): linear in t, then clipped
+                s1 = min(max(tlo * k_warm[c] + (1.0 - tlo) * k_cool[c], 0.0), 1.0)
+                s2 = min(max(thi * k_warm[c] + (1.0 - thi) * k_cool[c], 0.0), 1.0)
+                slo, shi = min(s1, s2), max(s1, s2)
+                # out = (1 − E_Z)((1 − E_N)·s + E_N·c_i) + E_Z·c_p: multilinear in
+                # (s, E_N, E_Z), so its extremes over the box are at corners
+                for s in (slo, shi):
+                    for en in (en_lo, en_hi):
+                        for ez in (ez_lo, ez_hi):
+                            v = (1.0 - ez) * ((1.0 - en) * s + en * ci[c]) + ez * cp[c]
+                            lo[y, x, c] = min(lo[y, x, c], v)
+                            hi[y, x, c] = max(hi[y, x, c], v)
+            for c in range(3):
+                lo[y, x, c] = lo[y, x, c] - dcol
+                hi[y, x, c] = hi[y, x, c] + dcol
+
+
+def npr_color_bounds(arrays, buffers, params, near, far, edge_lo, edge_hi):
+    """``(lo, hi)``, each ``(H, W, 3)`` float32: what a conformant ``npr_color`` may hold —
+    Gooch shading of each option's normal cone composited with the edge map's interval
+    (``edge_lo`` / ``edge_hi`` from :func:`edge_map_bounds`), or the background colour where
+    the pixel may show the background."""
+    npr = params["npr"]
+    off, nrm, ang, bg, _zl, _zh, free, _may_bg, _may_fg = _options(arrays, buffers, near, far)
+    h, w = np.asarray(buffers["normal"]).shape[:2]
+    light = np.asarray(npr["light"], np.float64)
+    light = light / np.linalg.norm(light)
+    kd = np.asarray(npr["base"], np.float64)
+    k_cool = np.asarray(npr["cool"], np.float64) + float(npr["alpha"]) * kd
+    k_warm = np.asarray(npr["warm"], np.float64) + float(npr["beta"]) * kd
+    # float32 arithmetic (ARITH) and a target that may be RGBA8 (½/255)
+    dcol = 0.5 * Q8 + ARITH
+    lo = np.zeros((h, w, 3))
+    hi = np.zeros((h, w, 3))
+    _npr_kernel(off, nrm, ang, bg, free, light, k_cool, k_warm,
+                np.asarray(npr["background"], np.float64),
+                np.asarray(npr["inner_color"], np.float64),
+                np.asarray(npr["profile_color"], np.float64),
+                np.asarray(edge_lo, np.float64), np.asarray(edge_hi, np.float64), dcol, lo, hi)
     lo32 = lo.astype(np.float32)
     hi32 = hi.astype(np.float32)
     lo32 = np.where(lo32 > lo, np.nextafter(lo32, np.float32(-1)), lo32)

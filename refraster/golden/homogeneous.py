@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["face_barycentrics"]
+__all__ = ["face_barycentrics", "corner_samples"]
 
 
 def face_barycentrics(clip, px, py, width, height):
@@ -33,3 +33,22 @@ def face_barycentrics(clip, px, py, width, height):
         beta = beta / total
     beta[~ok] = np.nan
     return beta
+
+
+def corner_samples(clip, pix, width, height, eps):
+    """Barycentrics and window depth of faces at the centre and the four corners of the
+    ε-square around their pixels: ``clip (E, 3, 4)`` the faces' clip-space vertices, ``pix (E,)``
+    the flat pixel index (row 0 at the top). Returns ``beta (E, 5, 3)``, ``depth (E, 5)``
+    and the sample points ``px, py (E, 5)`` (window pixels, GL y-up; column 0 the centre) (NaN where the face is degenerate in the window; ±inf / NaN where a sample is on its eye
+    plane). Every value that is affine or a ratio of affine functions of the sample point has its
+    extremes over the square at these corners."""
+    rows, cols = np.divmod(pix, width)
+    d = np.array([[0.0, 0.0], [-1, -1], [1, -1], [-1, 1], [1, 1]]) * eps
+    px = cols[:, None] + 0.5 + d[None, :, 0]
+    py = (height - 1 - rows)[:, None] + 0.5 + d[None, :, 1]
+    beta = face_barycentrics(clip, px, py, width, height)
+    zc = np.einsum("esk,ek->es", beta, clip[:, :, 2])
+    wc = np.einsum("esk,ek->es", beta, clip[:, :, 3])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        depth = 0.5 * zc / wc + 0.5
+    return beta, depth, px, py

@@ -158,20 +158,11 @@ def covering_entries(meshes, models, camera, cull, eps, with_beta=False):
     ``with_beta``: also the perspective-correct barycentrics ``(E, 5, 3)`` at the centre and
     the corners of the ε-square."""
     from ..raster import prepare
-    from .homogeneous import face_barycentrics as _face_barycentrics
+    from .homogeneous import corner_samples
     h, w = camera.height, camera.width
     prep = prepare(meshes, **camera.kwargs, model=models, cull=cull)
     pix, faces, sure, fragile, fslack = _covering_faces(prep, eps)
-    rows, cols = np.divmod(pix, w)
-    d = np.array([[0.0, 0.0], [-1, -1], [1, -1], [-1, 1], [1, 1]]) * eps
-    px = cols[:, None] + 0.5 + d[None, :, 0]
-    py = (h - 1 - rows)[:, None] + 0.5 + d[None, :, 1]
-    clip = prep.clip[prep.triangles.faces[faces]]
-    beta = _face_barycentrics(clip, px, py, w, h)
-    zc = np.einsum("esk,ek->es", beta, clip[:, :, 2])
-    wc = np.einsum("esk,ek->es", beta, clip[:, :, 3])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        depth = 0.5 * zc / wc + 0.5
+    beta, depth, _, _ = corner_samples(prep.clip[prep.triangles.faces[faces]], pix, w, h, eps)
     slack = fslack[faces]
     bad = ~np.isfinite(depth).all(axis=1) | fragile[faces]
     lo = np.where(bad, -np.inf, depth.min(axis=1) - slack)
@@ -185,25 +176,16 @@ def ldi_allowances(scene, raster, eps, k_max, clear=1.0):
     """The ``ldi_*`` arrays of a layered-depth-image scene (see the module docstring)."""
     from ..raster import prepare
     from ..tolerance import _face_facing
-    from .homogeneous import face_barycentrics as _face_barycentrics
+    from .homogeneous import corner_samples
     cam = scene.camera
     meshes = [d.mesh for d in scene.draws]
     models = [d.model for d in scene.draws]
     h, w = cam.height, cam.width
     prep = prepare(meshes, **cam.kwargs, model=models, cull=raster["cull"])
     pix, faces, sure, fragile, fslack = _covering_faces(prep, eps)
-    rows, cols = np.divmod(pix, w)
     # the centre and the corners of the square of half-side ε (⊇ the ε-disc): window depth is
     # a ratio of affine functions of the point, so its extremes over the square are corners
-    d = np.array([[0.0, 0.0], [-1, -1], [1, -1], [-1, 1], [1, 1]]) * eps
-    px = cols[:, None] + 0.5 + d[None, :, 0]
-    py = (h - 1 - rows)[:, None] + 0.5 + d[None, :, 1]
-    clip = prep.clip[prep.triangles.faces[faces]]
-    beta = _face_barycentrics(clip, px, py, w, h)
-    zc = np.einsum("esk,ek->es", beta, clip[:, :, 2])
-    wc = np.einsum("esk,ek->es", beta, clip[:, :, 3])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        depth = 0.5 * zc / wc + 0.5
+    _, depth, _, _ = corner_samples(prep.clip[prep.triangles.faces[faces]], pix, w, h, eps)
     slack = fslack[faces]
     facing = _face_facing(prep.triangles)[faces].astype(np.int8)
     facing[fragile[faces]] = -1

@@ -27,9 +27,9 @@ def _object_of(face_offsets, g):
 
 
 @njit(**IJIT)
-def _surface(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, mv, nmat):
-    """Eye-space position and unit normal (float64) of face ``g`` of draw call ``k`` at
-    barycentrics ``(b0, b1, b2)``."""
+def _position(g, k, b0, b1, b2, vertices, faces, mv):
+    """Eye-space position (float64) of face ``g`` of draw call ``k`` at barycentrics
+    ``(b0, b1, b2)``."""
     i0 = faces[g, 0]
     i1 = faces[g, 1]
     i2 = faces[g, 2]
@@ -39,20 +39,12 @@ def _surface(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, mv, nmat):
     ex = ((mv[k, 0, 0] * px + mv[k, 0, 1] * py) + mv[k, 0, 2] * pz) + mv[k, 0, 3]
     ey = ((mv[k, 1, 0] * px + mv[k, 1, 1] * py) + mv[k, 1, 2] * pz) + mv[k, 1, 3]
     ez = ((mv[k, 2, 0] * px + mv[k, 2, 1] * py) + mv[k, 2, 2] * pz) + mv[k, 2, 3]
-    if smooth:
-        nx = (b0 * vnormals[i0, 0] + b1 * vnormals[i1, 0]) + b2 * vnormals[i2, 0]
-        ny = (b0 * vnormals[i0, 1] + b1 * vnormals[i1, 1]) + b2 * vnormals[i2, 1]
-        nz = (b0 * vnormals[i0, 2] + b1 * vnormals[i1, 2]) + b2 * vnormals[i2, 2]
-    else:
-        ax = vertices[i1, 0] - vertices[i0, 0]
-        ay = vertices[i1, 1] - vertices[i0, 1]
-        az = vertices[i1, 2] - vertices[i0, 2]
-        bx = vertices[i2, 0] - vertices[i0, 0]
-        by = vertices[i2, 1] - vertices[i0, 1]
-        bz = vertices[i2, 2] - vertices[i0, 2]
-        nx = ay * bz - az * by
-        ny = az * bx - ax * bz
-        nz = ax * by - ay * bx
+    return ex, ey, ez
+
+
+@njit(**IJIT)
+def _eye_normal(k, nx, ny, nz, nmat):
+    """``(nx, ny, nz)`` through draw call ``k``'s normal matrix, normalized (float64)."""
     mx = (nmat[k, 0, 0] * nx + nmat[k, 0, 1] * ny) + nmat[k, 0, 2] * nz
     my = (nmat[k, 1, 0] * nx + nmat[k, 1, 1] * ny) + nmat[k, 1, 2] * nz
     mz = (nmat[k, 2, 0] * nx + nmat[k, 2, 1] * ny) + nmat[k, 2, 2] * nz
@@ -61,26 +53,103 @@ def _surface(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, mv, nmat):
         mx /= length
         my /= length
         mz /= length
-    return ex, ey, ez, mx, my, mz
+    return mx, my, mz
+
+
+@njit(**IJIT)
+def _flat_normal(g, k, vertices, faces, nmat):
+    """Unit eye-space face normal (float64) of face ``g`` of draw call ``k``: the same at
+    every pixel of the face (it does not depend on the barycentrics)."""
+    i0 = faces[g, 0]
+    i1 = faces[g, 1]
+    i2 = faces[g, 2]
+    ax = vertices[i1, 0] - vertices[i0, 0]
+    ay = vertices[i1, 1] - vertices[i0, 1]
+    az = vertices[i1, 2] - vertices[i0, 2]
+    bx = vertices[i2, 0] - vertices[i0, 0]
+    by = vertices[i2, 1] - vertices[i0, 1]
+    bz = vertices[i2, 2] - vertices[i0, 2]
+    nx = ay * bz - az * by
+    ny = az * bx - ax * bz
+    nz = ax * by - ay * bx
+    return _eye_normal(k, nx, ny, nz, nmat)
+
+
+@njit(**IJIT)
+def _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat):
+    """Unit eye-space normal (float64) of face ``g`` of draw call ``k`` at barycentrics
+    ``(b0, b1, b2)``: the interpolated vertex normal (``smooth``) or the face normal."""
+    if smooth:
+        i0 = faces[g, 0]
+        i1 = faces[g, 1]
+        i2 = faces[g, 2]
+        nx = (b0 * vnormals[i0, 0] + b1 * vnormals[i1, 0]) + b2 * vnormals[i2, 0]
+        ny = (b0 * vnormals[i0, 1] + b1 * vnormals[i1, 1]) + b2 * vnormals[i2, 1]
+        nz = (b0 * vnormals[i0, 2] + b1 * vnormals[i1, 2]) + b2 * vnormals[i2, 2]
+        return _eye_normal(k, nx, ny, nz, nmat)
+    return _flat_normal(g, k, vertices, faces, nmat)
+
+
+@njit(**IJIT)
+def _face_normals(vertices, faces, face_offsets, nmat, fnormal):
+    """Every face's :func:`_flat_normal` into ``fnormal`` (F, 3) float64 (each face writes
+    only its row)."""
+    for g in prange(face_offsets[face_offsets.shape[0] - 1]):
+        k = _object_of(face_offsets, g)
+        mx, my, mz = _flat_normal(g, k, vertices, faces, nmat)
+        fnormal[g, 0] = mx
+        fnormal[g, 1] = my
+        fnormal[g, 2] = mz
+
+
+#: Flat normals are computed once per face (into a per-call array, from the vertices as they
+#: are when the kernel runs) instead of once per covered pixel when the frame has at least this
+#: many pixels per face: a face normal costs about what a pixel's does, and a frame's covered
+#: pixels are a fraction of its pixels. Same float64 expression either way, so the same bits.
+FACE_NORMAL_PIXELS = 16
+
+
+def per_face_normals(n_faces, height, width, smooth):
+    """Whether :func:`finalize` and :func:`shade` take flat normals per face (see
+    :data:`FACE_NORMAL_PIXELS`)."""
+    return (not smooth) and int(n_faces) * FACE_NORMAL_PIXELS <= int(height) * int(width)
 
 
 @njit(**PJIT)
 def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv, nmat,
-             eye_depth, normal, prim_id, object_id):
-    """Eye depth, normal and ids of the covered pixels (``prim_global ≥ 0``); the caller has
-    filled the background (+inf, 0, −1, −1)."""
+             fnormal, per_face, fill_bg, eye_depth, normal, prim_id, object_id):
+    """Eye depth, normal and ids of the covered pixels (``prim_global ≥ 0``); the background
+    (+inf, 0, −1, −1) too when ``fill_bg``, else the caller has filled it. ``per_face``
+    (flat normals only): the face normals are computed first, once per face, into ``fnormal``
+    (F, 3) float64 scratch (:func:`per_face_normals`)."""
+    if per_face:
+        _face_normals(vertices, faces, face_offsets, nmat, fnormal)
     h, w = prim_global.shape
     for r in prange(h):
         for c in range(w):
             g = prim_global[r, c]
             if g < 0:
+                if fill_bg:
+                    prim_id[r, c] = -1
+                    object_id[r, c] = -1
+                    eye_depth[r, c] = np.inf
+                    normal[r, c, 0] = 0.0
+                    normal[r, c, 1] = 0.0
+                    normal[r, c, 2] = 0.0
                 continue
             k = _object_of(face_offsets, g)
             prim_id[r, c] = g - face_offsets[k]
             object_id[r, c] = k
-            ex, ey, ez, mx, my, mz = _surface(
-                g, k, np.float64(bary[r, c, 0]), np.float64(bary[r, c, 1]),
-                np.float64(bary[r, c, 2]), vertices, faces, vnormals, smooth, mv, nmat)
+            b0 = np.float64(bary[r, c, 0])
+            b1 = np.float64(bary[r, c, 1])
+            b2 = np.float64(bary[r, c, 2])
+            ex, ey, ez = _position(g, k, b0, b1, b2, vertices, faces, mv)
+            if per_face:
+                mx = fnormal[g, 0]
+                my = fnormal[g, 1]
+                mz = fnormal[g, 2]
+            else:
+                mx, my, mz = _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat)
             eye_depth[r, c] = np.float32(-ez)
             normal[r, c, 0] = np.float32(mx)
             normal[r, c, 1] = np.float32(my)
@@ -89,11 +158,15 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
 
 @njit(**PJIT)
 def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv, nmat,
-          n_shaded, palette, background, color):
+          fnormal, per_face, n_shaded, palette, background, color):
     """The default colour: a two-sided headlight Blinn–Phong shade of the palette colour of
     each pixel's draw call, from the same float64 position and normal :func:`finalize` rounds;
     ``background`` where nothing was drawn and where the visible face is not one of the first
-    ``n_shaded`` (a caller that shades those itself). Every element of ``color`` is written."""
+    ``n_shaded`` (a caller that shades those itself). Every element of ``color`` is written.
+    ``fnormal``, ``per_face``: as in :func:`finalize` (computed here again, from the vertices
+    as they are now)."""
+    if per_face:
+        _face_normals(vertices, faces, face_offsets, nmat, fnormal)
     h, w = prim_global.shape
     for r in prange(h):
         for c in range(w):
@@ -103,9 +176,16 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
                     color[r, c, j] = background[j]
                 continue
             k = _object_of(face_offsets, g)
-            ex, ey, ez, mx, my, mz = _surface(
-                g, k, np.float64(bary[r, c, 0]), np.float64(bary[r, c, 1]),
-                np.float64(bary[r, c, 2]), vertices, faces, vnormals, smooth, mv, nmat)
+            b0 = np.float64(bary[r, c, 0])
+            b1 = np.float64(bary[r, c, 1])
+            b2 = np.float64(bary[r, c, 2])
+            ex, ey, ez = _position(g, k, b0, b1, b2, vertices, faces, mv)
+            if per_face:
+                mx = fnormal[g, 0]
+                my = fnormal[g, 1]
+                mz = fnormal[g, 2]
+            else:
+                mx, my, mz = _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat)
             # light at the eye, so the half vector is the view vector
             vl = np.sqrt(ex * ex + ey * ey + ez * ez)
             ndv = 1.0
@@ -121,3 +201,14 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
             for j in range(3):
                 v = palette[pk, j] * (AMBIENT + DIFFUSE * d) + SPECULAR * s
                 color[r, c, j] = np.float32(min(max(v, 0.0), 1.0))
+
+
+def readonly(a):
+    """``a`` as a read-only C-contiguous array (a view; a copy only if ``a`` is not
+    C-contiguous): the kernels above take every input array this way, so each compiles one
+    specialisation whether a caller's array is writeable or not."""
+    if not a.flags.writeable and a.flags.c_contiguous:
+        return a
+    v = np.ascontiguousarray(a).view()
+    v.flags.writeable = False
+    return v

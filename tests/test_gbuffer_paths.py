@@ -1,0 +1,206 @@
+"""The G-buffer pass's shortcuts (issue 28, third pass) give the bytes of the plain path.
+
+* flat normals computed once per face (``gbuffer.per_face_normals``) instead of per pixel;
+* ``finalize`` writing the background of a reused framebuffer itself (``FILL_IN_KERNEL``);
+* every kernel input passed read-only, so ``finalize``/``shade`` compile one specialisation;
+* ``render(out=)`` comparing only inputs it has not checked against the same arrays before.
+
+Each is compared with the plain path forced by its threshold, on scenes that make a wrong
+shortcut visible (two draw calls with different models, a stale frame under the new one, the
+vertices changed between the frame and the colour's shading)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import refraster as rf
+from refraster import framebuffer as fbm
+from refraster.mesh import Mesh, as_mesh
+from refraster.raster import gbuffer
+from refraster.scenes import cube, icosphere
+
+FIELDS = ("depth", "eye_depth", "normal", "prim_id", "object_id", "front_facing", "barycentric",
+          "color")
+
+
+def _mesh(tm):
+    return as_mesh((np.array(tm.vertices, np.float64), np.array(tm.faces, np.int64)))
+
+
+def _kw(w=96, h=72, eye=(1.6, 1.2, 2.4)):
+    return dict(view=rf.look_at(list(eye), [0, 0, 0]), proj=rf.perspective(45, w / h, 0.5, 10),
+                width=w, height=h)
+
+
+def _bytes(fb):
+    return {f: getattr(fb, f).tobytes() for f in FIELDS}
+
+
+def _model(angle, t):
+    c, s = np.cos(angle), np.sin(angle)
+    m = np.eye(4)
+    m[:3, :3] = [[c, 0, s], [0, 1, 0], [-s, 0, c]]
+    m[:3, :3] *= [1.0, 0.6, 1.3]   # non-uniform: the normal matrix is not the model's rotation
+    m[:3, 3] = t
+    return m
+
+
+#: Turns the cube's axis-aligned faces (a scaling would not change their normals).
+SHEAR = np.array([[1.0, 0.3, -0.2], [0.1, 0.9, 0.4], [0.25, -0.3, 1.1]])
+
+
+def _scenes():
+    box, ico = _mesh(cube()), _mesh(icosphere(2))
+    kw = _kw()
+    return [("cube", box, kw),
+            ("two draws", [box, ico],
+             dict(kw, model=[_model(0.4, (-0.5, 0, 0)), _model(-0.9, (0.6, 0.1, -0.2))])),
+            ("three draws, empty middle", [ico, Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64)),
+                                          box],
+             dict(kw, model=[_model(0.2, (0.4, 0, 0)), np.eye(4), _model(1.1, (-0.6, 0, 0))])),
+            ("culled", box, dict(kw, cull="back"))]
+
+
+@pytest.mark.parametrize("name", [s[0] for s in _scenes()])
+def test_per_face_normals_give_the_per_pixel_bytes(monkeypatch, name):
+    meshes, kw = next((m, k) for n, m, k in _scenes() if n == name)
+    monkeypatch.setattr(gbuffer, "FACE_NORMAL_PIXELS", 0)        # every frame per face
+    per_face = _bytes(rf.render(meshes, **kw))
+    monkeypatch.setattr(gbuffer, "FACE_NORMAL_PIXELS", 10 ** 12)  # every frame per pixel
+    per_pixel = _bytes(rf.render(meshes, **kw))
+    for f in FIELDS:
+        assert per_face[f] == per_pixel[f], f
+
+
+def test_per_face_normals_match_the_cubes_analytic_normals(monkeypatch):
+    """An outside oracle: the flat cube's eye-space normals are ``view``'s rotation of the six
+    axis directions (the face's outward normal), whichever path computes them."""
+    box = _mesh(cube())
+    kw = _kw(w=128, h=96)
+    rot = kw["view"][:3, :3]
+    for pixels in (0, 10 ** 12):
+        monkeypatch.setattr(gbuffer, "FACE_NORMAL_PIXELS", pixels)
+        fb = rf.render(box, **kw)
+        m = fb.mask
+        n = fb.normal[m].astype(np.float64)
+        world = n @ rot                     # back to world space (rot is orthonormal)
+        axis = np.zeros_like(world)
+        j = np.argmax(np.abs(world), axis=1)
+        axis[np.arange(len(j)), j] = np.sign(world[np.arange(len(j)), j])
+        assert np.abs(world - axis).max() < 1e-6
+        # … and the outward one of the visible face: its centroid's dominant axis
+        cen = box.vertices[box.faces[fb.prim_id[m]]].mean(axis=1)
+        k = np.argmax(np.abs(cen), axis=1)
+        outward = np.zeros_like(cen)
+        outward[np.arange(len(k)), k] = np.sign(cen[np.arange(len(k)), k])
+        assert np.array_equal(axis, outward)
+
+
+def test_per_face_choice():
+    F = gbuffer.FACE_NORMAL_PIXELS
+    assert gbuffer.per_face_normals(12, 120, 160, False)
+    assert not gbuffer.per_face_normals(12, 120, 160, True)            # smooth: per pixel
+    assert gbuffer.per_face_normals(120 * 160 // F, 120, 160, False)
+    assert not gbuffer.per_face_normals(120 * 160 // F + 1, 120, 160, False)
+
+
+def test_pending_colour_uses_the_vertices_as_they_are_when_read(monkeypatch):
+    """The colour is shaded when first read, from the mesh as it is then (documented): the
+    per-face normals must be computed then too, not taken from the frame's ``finalize``."""
+    results = []
+    for pixels in (0, 10 ** 12):
+        monkeypatch.setattr(gbuffer, "FACE_NORMAL_PIXELS", pixels)
+        box = _mesh(cube())
+        kw = _kw()
+        fb = rf.render(box, **kw)
+        box.vertices[:] = box.vertices @ SHEAR + [0.1, 0.0, 0.0]   # in place: new face normals
+        results.append(fb.color.tobytes())
+        # and the same through a reused framebuffer
+        out = rf.render(_mesh(icosphere(1)), **kw)
+        box2 = _mesh(cube())
+        rf.render(box2, **kw, out=out)
+        box2.vertices[:] = box2.vertices @ SHEAR.T
+        results.append(out.color.tobytes())
+    assert results[0] == results[2] and results[1] == results[3]
+    # and the change is visible (the check above can fail)
+    assert results[0] != rf.render(_mesh(cube()), **_kw()).color.tobytes()
+
+
+@pytest.mark.parametrize("fill_in_kernel", [0, 1 << 40])
+def test_background_written_by_finalize_over_a_stale_frame(monkeypatch, fill_in_kernel):
+    """With ``out=``, a frame of at least ``FILL_IN_KERNEL`` pixels has its eye depth, normal
+    and ids' background written by ``finalize``: every pixel the last frame covered and this
+    one does not must get it (both paths, compared with a fresh frame)."""
+    monkeypatch.setattr(fbm, "FILL_IN_KERNEL", fill_in_kernel)
+    big, small = _mesh(icosphere(3)), _mesh(cube())
+    kw = _kw(w=160, h=120, eye=(0.9, 0.7, 1.4))    # the sphere fills most of the frame
+    kw_far = _kw(w=160, h=120, eye=(3.0, 2.2, 4.5))
+    out = rf.render(big, **kw)
+    out.color
+    for _ in range(2):
+        got = _bytes(rf.render(small, **kw_far, out=out))
+        ref = _bytes(rf.render(small, **kw_far))
+        for f in FIELDS:
+            assert got[f] == ref[f], f
+        rf.render(big, **kw, normals="smooth", out=out)
+    assert out.prim_id.size >= fill_in_kernel or fill_in_kernel > 1 << 30
+
+
+def test_default_threshold_uses_both_background_paths():
+    assert 160 * 120 < fbm.FILL_IN_KERNEL <= 512 * 384
+
+
+def test_one_specialisation_per_kernel():
+    """Writeable and read-only meshes, normals and matrices, one or several draw calls, the
+    fused and the fragment-stream paths: ``finalize`` and ``shade`` compile once each."""
+    box = _mesh(cube())
+    ro = Mesh(box.vertices.copy(), box.faces.copy())
+    ro.vertices.flags.writeable = False
+    ro.faces.flags.writeable = False
+    normals = box.vertices / np.linalg.norm(box.vertices, axis=1, keepdims=True)
+    normals.flags.writeable = False
+    kw = _kw(w=32, h=24)
+    for m in (box, ro):
+        rf.render(m, **kw).color
+        rf.render(m, **kw, normals="smooth").color
+        rf.render(m, **kw, normals=normals).color
+        rf.render([m, box], **kw).color
+        rf.render(m, **kw, fragment_stage=lambda fr: np.ones(len(fr), bool)).color
+        out = rf.render(m, **kw)
+        rf.render(m, **kw, out=out).color
+    assert len(gbuffer.finalize.signatures) == 1, gbuffer.finalize.signatures
+    assert len(gbuffer.shade.signatures) == 1, gbuffer.shade.signatures
+    assert not any(t.mutable for t in gbuffer.finalize.signatures[0][:5])
+
+
+def test_out_input_check_after_good_frames():
+    """``render(out=)`` compares only inputs it has not checked against the same arrays: after
+    good frames, a new input living in ``out``'s memory is still refused."""
+    box = _mesh(cube())
+    kw = _kw()
+    out = rf.render(box, **kw)
+    for _ in range(2):
+        rf.render(box, **kw, out=out)          # box, view, proj remembered
+    flat = out.barycentric.reshape(-1).view(np.float64)
+    flat[:24] = box.vertices.reshape(-1)
+    inside = Mesh(flat[:24].reshape(8, 3), box.faces)
+    with pytest.raises(ValueError, match="out.barycentric shares memory with an input"):
+        rf.render(inside, **kw, out=out)
+    rf.render(box, **kw, out=out)
+    proj = out.normal.reshape(-1).view(np.float64)[:16].reshape(4, 4)
+    proj[:] = kw["proj"]
+    with pytest.raises(ValueError, match="out.normal shares memory with an input"):
+        rf.render(box, **dict(kw, proj=proj), out=out)
+    # the framebuffer's arrays swapped after good frames: the remembered inputs are
+    # compared again against the new arrays
+    rf.render(box, **kw, out=out)
+    view = kw["view"].copy()
+    eye = np.empty(out.eye_depth.size, np.float32)
+    as64 = eye.view(np.float64)
+    as64[:16] = view.reshape(-1)
+    kw2 = dict(kw, view=as64[:16].reshape(4, 4))
+    rf.render(box, **kw2, out=out)                       # view not in out: fine
+    out.eye_depth = eye.reshape(out.eye_depth.shape)     # now it is
+    with pytest.raises(ValueError, match="out.eye_depth shares memory with an input"):
+        rf.render(box, **kw2, out=out)
