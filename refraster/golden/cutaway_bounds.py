@@ -19,14 +19,15 @@ two seed images at the cutaway resolution:
   depth the farthest surely-covering face may show (the rear hull is at least that far).
 
 Then ``D_hi = exact(largest) + slack`` (no variant, no seed set exceeds it) and
-``D_lo = min over the accepted variants v of flood_v(smallest), flood_v(largest) − slack``;
-jump flooding is not monotone in its seeds (a new seed can displace a better one on the way),
-so the lower bound takes both seed images and refraster's own rear hull (measured: ``1+jfa``
-over refraster's own seeds falls 1.7e−5 below the floods of the other two at one pixel of
-``cutaway_shells``). This lower bound is the one part not proven for every seed image a GPU may
-make: a rear hull unlike all three could, where jump flooding is trapped, fall lower at isolated
-pixels (none of refraster's 4/8-bit, fill-rule and float64 rear hulls does, for any accepted
-variant). ``slack`` covers float32 evaluation of
+``D_lo = min over the accepted variants v of LB_v − slack``, where ``LB_v``
+(:func:`interval_flood`) follows the flood of v over every seed image between the smallest and
+the largest at once, as per-pixel sets of the seeds a pixel may hold: jump flooding is not
+monotone in its seeds (a new seed can displace a better one on the way), so flooding a few seed
+images would prove nothing about the others. Float ties between seeds and seeds of uncertain
+depth or presence keep every possible winner; the bound is their least (docs/tolerance.md,
+"Cutaways"). With the floor constraint the directional slope is not a cone, and ``D_lo`` keeps
+the measured floods of the smallest, the largest and refraster's own rear hull.
+``slack`` covers float32 evaluation of
 ``z − m·‖x − s‖`` (``16·2⁻²⁴·(1 + |z| + m·‖x − s‖)`` ≤ 16·2⁻²⁴·(2 + m_max·diag)) and of the
 conversion to window depth. The scene states the variants it accepts (``accepted_variants``:
 its own and the exact maximum, and those at least as good as its own).
@@ -132,7 +133,8 @@ def interval_flood(z_lo, z_hi, sure, maybe, m_lo, m_hi, m_max, sy, sx, schedule,
                 if i0 < i1 and j0 < j1:
                     src = (slice(i0 + k * oy, i1 + k * oy), slice(j0 + k * ox, j1 + k * ox))
                     dst = (slice(i0, i1), slice(j0, j1))
-                    qid[dst], qz[dst], qnone[dst], qover[dst] = ids[src], zr[src], none[src], over[src]
+                    qid[dst], qz[dst] = ids[src], zr[src]
+                    qnone[dst], qover[dst] = none[src], over[src]
                     qolo[dst], qohi[dst] = olo[src], ohi[src]
                 s = np.maximum(qid, 0)
                 d = np.hypot(rows[..., None] - srow[s], cols[..., None] - scol[s])

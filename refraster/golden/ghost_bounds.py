@@ -23,9 +23,9 @@ Per pixel the golden stores ``ghost_lo ≤ ghost ≤ ghost_hi``:
 * **lo**: the largest, over the segments that *surely* produce a fragment there, of the
   infimum of α over the segment's chord in the pixel (it holds the foot of the centre, GL's
   interpolation point, and the point on the column's centre line, where llvmpipe's line depth
-  plane puts it). A segment surely produces a fragment at pixel (r, c)
-  where, for its major axis (certain: ``| |Δx| − |Δy| | > 6ε``, the ends moving by 1.5ε; else both rules must agree), the
-  line crosses the column's centre line at ``y_c`` with ``frac(y_c)`` more than
+  plane puts it). A segment surely produces a fragment at pixel (r, c) where, for its major
+  axis (certain: ``| |Δx| − |Δy| | > 6ε``, the ends moving by 1.5ε; else both rules must
+  agree), the line crosses the column's centre line at ``y_c`` with ``frac(y_c)`` more than
   ``1.5·ε·(1 + |slope|)`` from an integer (the pixel's diamond is crossed whatever the vertices'
   moves), ``1.5·ε`` inside the segment's extent along the major axis, and the segment's second
   vertex lies outside the diamond by ``3ε`` in L1 distance (diamond exit: a segment ending
