@@ -71,3 +71,30 @@ def test_the_bound_is_the_flood_itself_without_uncertainty():
         d = jump_flood(np.where(sure, z_lo, -np.inf), A - B * z_lo, variant=variant, sampling=S)
         assert not untracked.any()
         np.testing.assert_allclose(bound, d, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_no_directional_flood_falls_below_the_bound(variant):
+    """The same with the floor constraint (D-C7): a second, steeper slope toward each seed's
+    floor side, blended by the direction only (C stays affine and increasing in z)."""
+    rng, sure, maybe, z_lo, z_hi = _problem(4)
+    ang = rng.uniform(0, 2 * np.pi, (H, W))
+    n = np.stack([np.cos(ang), np.sin(ang)], axis=-1)
+    af, bf = 3.5, 1.2
+    m_lo, m_hi = A - B * z_lo, A - B * z_hi
+    f_lo, f_hi = af - bf * z_lo, af - bf * z_hi
+    bound, untracked, _ = interval_flood(
+        z_lo, z_hi, sure, maybe, m_lo, m_hi, float(f_lo.max()), S[0], S[1],
+        step_schedule(H, W, variant), 1e-12, floor=(f_lo, f_hi, n[..., 0], n[..., 1]))
+    assert np.isfinite(bound).all() and not untracked.any()
+    worst = np.inf
+    for _ in range(100):
+        seeds = sure | (maybe & (rng.random((H, W)) < 0.5))
+        t = rng.random((H, W))
+        t = np.where(rng.random((H, W)) < 0.5, np.round(t), t)
+        z = np.where(seeds, z_lo + t * (z_hi - z_lo), -np.inf)
+        zz = np.where(seeds, z, 0.0)
+        d = jump_flood(z, A - B * zz, variant=variant, sampling=S, floor_slope=af - bf * zz,
+                       floor_normal=n)
+        worst = min(worst, float((d - bound).min()))
+    assert worst >= 0.0, worst

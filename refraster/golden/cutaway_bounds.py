@@ -78,7 +78,8 @@ def _seed_images(scene, interest, eps, with_least=False):
             np.clip(small, 0.0, 1.0).reshape(h, w), np.isfinite(small).reshape(h, w))
 
 
-def interval_flood(z_lo, z_hi, sure, maybe, m_lo, m_hi, m_max, sy, sx, schedule, tau, cap=16):
+def interval_flood(z_lo, z_hi, sure, maybe, m_lo, m_hi, m_max, sy, sx, schedule, tau, cap=16,
+                   floor=None):
     """A lower bound of every jump flood with ``schedule`` over every seed image a conformant
     GPU may render, evaluated with an error of at most ``tau`` per cutaway-function value.
 
@@ -96,6 +97,10 @@ def interval_flood(z_lo, z_hi, sure, maybe, m_lo, m_hi, m_max, sy, sx, schedule,
     * a set larger than ``cap`` is no longer followed: the pixel's seed then has value ≥ T(x)
       and, at a pixel at distance δ, ≥ T(x) − m_max·δ (triangle inequality of the cone).
 
+    ``floor``: ``(m_f at z_lo, m_f at z_hi, n_x, n_y)`` of the directional constraint (D-C7): the
+    slope toward x blends m_e and m_f by the direction only, so C stays affine and increasing in
+    z; the cone's triangle inequality does not hold, so an untracked pixel then bounds nothing.
+
     Returns ``(T, untracked, several)``: ``T`` after the last pass (the flood's D ≥ T, −inf where
     no seed need reach), the pixels not followed at the end, and those where more than one seed
     may win (a tie within float rounding or an uncertain seed)."""
@@ -105,6 +110,8 @@ def interval_flood(z_lo, z_hi, sure, maybe, m_lo, m_hi, m_max, sy, sx, schedule,
     zl, zh, ml, mh = (np.where(seedable, a, 0.0).ravel() for a in (z_lo, z_hi, m_lo, m_hi))
     with np.errstate(divide="ignore", invalid="ignore"):
         g = np.where(zh > zl, (mh - ml) / (zh - zl), 0.0)
+    if floor is not None:
+        mfl, mfh, nxs, nys = (np.where(seedable, a, 0.0).ravel() for a in floor)
     rows, cols = np.mgrid[0:h, 0:w].astype(float)
     srow, scol = rows.ravel() * sy, cols.ravel() * sx
     rows, cols = rows * sy, cols * sx
@@ -118,7 +125,7 @@ def interval_flood(z_lo, z_hi, sure, maybe, m_lo, m_hi, m_max, sy, sx, schedule,
     ohi = np.full((h, w), -np.inf)
     T = None
     for k in schedule:
-        C_lo, C_hi, C_id, C_z, C_d = [], [], [], [], []
+        C_lo, C_hi, C_id, C_z, C_d, C_m, C_g = [], [], [], [], [], [], []
         T = np.full((h, w), -np.inf)
         for oy in (-1, 0, 1):
             for ox in (-1, 0, 1):
@@ -137,16 +144,29 @@ def interval_flood(z_lo, z_hi, sure, maybe, m_lo, m_hi, m_max, sy, sx, schedule,
                     qnone[dst], qover[dst] = none[src], over[src]
                     qolo[dst], qohi[dst] = olo[src], ohi[src]
                 s = np.maximum(qid, 0)
-                d = np.hypot(rows[..., None] - srow[s], cols[..., None] - scol[s])
-                m_at = ml[s] + (qz - zl[s]) * g[s]
+                dy, dx = rows[..., None] - srow[s], cols[..., None] - scol[s]
+                d = np.hypot(dy, dx)
+                if floor is None:
+                    m0, m1, gs = ml[s], mh[s], g[s]
+                else:   # the direction's blend (refraster.cutaway.flood._value_directional)
+                    a = -(dx * nxs[s] - dy * nys[s]) / np.where(d != 0, d, 1.0)
+                    a = np.clip(a, 0.0, 1.0)
+                    m0 = (1.0 - a) * ml[s] + a * mfl[s]
+                    m1 = (1.0 - a) * mh[s] + a * mfh[s]
+                    with np.errstate(divide="ignore", invalid="ignore"):
+                        gs = np.where(zh[s] > zl[s], (m1 - m0) / (zh[s] - zl[s]), 0.0)
+                m_at = m0 + (qz - zl[s]) * gs
                 lo = np.where(d == 0, qz, qz - m_at * d) - tau
-                hi = np.where(d == 0, zh[s], zh[s] - mh[s] * d) + tau
+                hi = np.where(d == 0, zh[s], zh[s] - m1 * d) + tau
                 valid = qid >= 0
                 lo = np.where(valid, lo, np.inf)
                 hi = np.where(valid, hi, -np.inf)
                 dist = np.hypot(oy * k * sy, ox * k * sx)
                 o_lo = qolo - m_max * dist - 2.0 * tau
                 o_hi = qohi + m_max * dist + 2.0 * tau
+                if floor is not None:   # no triangle inequality: nothing known
+                    o_lo = np.where(qover, -np.inf, o_lo)
+                    o_hi = np.where(qover, np.inf, o_hi)
                 least = np.where(qover, o_lo, lo.min(axis=2))
                 T = np.maximum(T, np.where(qnone, -np.inf, least))
                 C_lo.append(np.concatenate([lo, np.where(qover, o_lo, np.inf)[..., None]], 2))
@@ -154,13 +174,16 @@ def interval_flood(z_lo, z_hi, sure, maybe, m_lo, m_hi, m_max, sy, sx, schedule,
                 C_id.append(np.concatenate([qid, np.where(qover, -2, -1)[..., None]], 2))
                 C_z.append(np.concatenate([qz, np.zeros((h, w, 1))], 2))
                 C_d.append(np.concatenate([d, np.zeros((h, w, 1))], 2))
-        Hi, Id, Z, D = (np.concatenate(a, axis=2) for a in (C_hi, C_id, C_z, C_d))
+                C_m.append(np.concatenate([m0 + 0.0 * d, np.zeros((h, w, 1))], 2))
+                C_g.append(np.concatenate([gs + 0.0 * d, np.zeros((h, w, 1))], 2))
+        Hi, Id, Z, D, ML, G = (np.concatenate(a, axis=2)
+                               for a in (C_hi, C_id, C_z, C_d, C_m, C_g))
         may = (Id != -1) & (Hi >= T[..., None])
         # a seed held here has C ≥ T − τ: its depth is at least z* (C affine in z, slope > 0)
         s = np.maximum(Id, 0)
         Tm = np.where(np.isfinite(T), T, -1e300)[..., None] - tau
-        den = 1.0 - D * g[s]
-        zstar = (Tm + D * ml[s] - D * g[s] * zl[s]) / den
+        den = 1.0 - D * G
+        zstar = (Tm + D * ML - D * G * zl[s]) / den
         zstar = np.where(D == 0, Tm, zstar) - 1e-12
         Z = np.minimum(np.maximum(Z, zstar), zh[s])
         key = np.where(may & (Id >= 0), Id, _BIG)
@@ -236,7 +259,8 @@ def cutaway_bounds(scene, eps):
     d_hi = flood(big, big_seed, "exact")
     d_lo = np.full(d_hi.shape, np.inf)
     may = np.zeros(d_hi.shape, np.bool_)
-    if floor is None and np.size(p["angle"]) == 1:
+    proven = np.size(p["angle"]) == 1
+    if proven:
         # proven: the interval flood follows every seed image between the smallest and the
         # largest, and every float evaluation within the slack (interval_flood)
         from ..cutaway.flood import step_schedule
@@ -246,12 +270,19 @@ def cutaway_bounds(scene, eps):
         theta = np.full(big.shape, float(np.min(p["angle"])))
 
         def slopes(z):
+            extra = {k: kw[k] for k in ("floor_normal", "floor_margin") if k in kw}
             return seed_slopes(np.where(big_seed, z, -np.inf), theta, proj=cam.proj,
                                view=cam.view, perspective_compensation=kw[
                                    "perspective_compensation"],
-                               edge_compression=kw["edge_compression"])[0]
-        m_lo, m_hi = slopes(z_lo), slopes(z_hi)
+                               edge_compression=kw["edge_compression"], **extra)
+        (m_lo, f_lo), (m_hi, f_hi) = slopes(z_lo), slopes(z_hi)
         m_seed = float(np.max(m_lo[big_seed])) if big_seed.any() else 0.0
+        floor_args = None
+        if f_lo is not None:
+            # the projected floor normal depends on the pixel's ray only, not on the depth
+            assert np.allclose(f_lo[1][big_seed], f_hi[1][big_seed], atol=1e-9)
+            floor_args = (f_lo[0], f_hi[0], f_lo[1][..., 0], f_lo[1][..., 1])
+            m_seed = max(m_seed, float(np.max(f_lo[0][big_seed])) if big_seed.any() else 0.0)
         sy, sx = tangent_sampling(cam.proj, *big.shape)
         tau = 16.0 * F32 * (2.0 + max(m_max, m_seed) * diag)
         for v in p["accepted_variants"]:
@@ -260,12 +291,13 @@ def cutaway_bounds(scene, eps):
                 continue
             t, _, several = interval_flood(z_lo, z_hi, small_seed, big_seed & ~small_seed,
                                            m_lo, m_hi, m_seed, sy, sx,
-                                           step_schedule(*big.shape, v), tau)
+                                           step_schedule(*big.shape, v), tau,
+                                           floor=floor_args)
             d_lo = np.minimum(d_lo, np.maximum(t, -1.0))
             may |= several
     else:
-        # measured, not proven (the directional slope is not a cone: no triangle inequality):
-        # the floods of the smallest, the largest and refraster's own rear hull
+        # measured, not proven (local angles per object: not followed by interval_flood): the
+        # floods of the smallest, the largest and refraster's own rear hull
         from .. import render
         draws = [d for d in scene.draws if d.name in set(p["interest"])]
         rear = render([d.mesh for d in draws], **cam.kwargs, model=[d.model for d in draws],
