@@ -25,8 +25,9 @@ the largest at once, as per-pixel sets of the seeds a pixel may hold: jump flood
 monotone in its seeds (a new seed can displace a better one on the way), so flooding a few seed
 images would prove nothing about the others. Float ties between seeds and seeds of uncertain
 depth or presence keep every possible winner; the bound is their least (docs/tolerance.md,
-"Cutaways"). With the floor constraint the directional slope is not a cone, and ``D_lo`` keeps
-the measured floods of the smallest, the largest and refraster's own rear hull.
+"Cutaways"), with the floor constraint too (the directional slope blends m_e and m_f by the
+direction only). With one angle per cutaway object ``D_lo`` keeps the measured floods of the
+smallest, the largest and refraster's own rear hull.
 ``slack`` covers float32 evaluation of
 ``z − m·‖x − s‖`` (``16·2⁻²⁴·(1 + |z| + m·‖x − s‖)`` ≤ 16·2⁻²⁴·(2 + m_max·diag)) and of the
 conversion to window depth. The scene states the variants it accepts (``accepted_variants``:
