@@ -292,6 +292,13 @@ def scene_allowances(scene, raster):
             for key in CLIP_BUFFERS:
                 if key in checks:
                     checks[key] = {"checks": ["clip"]}
+            if "ghost" in buffers:
+                # ghost lines: α intervals from D's, the occluder's and the line's (ghost_bounds.py)
+                from .ghost_bounds import ghost_bounds
+                gb = ghost_bounds(scene, arrays, tol.eps)
+                if gb is not None:
+                    arrays["ghost_lo"], arrays["ghost_hi"] = gb
+                    checks["ghost"] = {"checks": ["bounds"], "lo": "ghost_lo", "hi": "ghost_hi"}
     if scene.technique == "clipsurface" and "cap_mask" in buffers \
             and raster["depth_func"] == "less" and scene.maps is not None:
         # clip surfaces: the clip decision and cap parity bounded (golden/clip_allowance.py)
