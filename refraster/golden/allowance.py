@@ -90,6 +90,21 @@ def dilate(mask, radius):
     return out
 
 
+def changes(a, step=0.0):
+    """Pixels whose value differs by more than ``step`` from a 4-neighbour's (both pixels of
+    each such pair), for an (H, W) bool or numeric image."""
+    a = np.asarray(a)
+    d = a if a.dtype == np.bool_ else a.astype(np.float64)
+    v = (d[1:, :] != d[:-1, :]) if a.dtype == np.bool_ else np.abs(d[1:, :] - d[:-1, :]) > step
+    u = (d[:, 1:] != d[:, :-1]) if a.dtype == np.bool_ else np.abs(d[:, 1:] - d[:, :-1]) > step
+    out = np.zeros(a.shape, np.bool_)
+    out[1:, :] |= v
+    out[:-1, :] |= v
+    out[:, 1:] |= u
+    out[:, :-1] |= u
+    return out
+
+
 def _neighbour_pairs(h, w):
     """(a, b) slice pairs of the right and lower 4-neighbours."""
     yield (slice(None), slice(0, w - 1)), (slice(None), slice(1, w))
