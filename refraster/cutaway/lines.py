@@ -88,18 +88,25 @@ def _clip_range(ca, cb):
     return t0, t1
 
 
-def segment_pieces(segments, *, view, proj, width, height):
+def segment_pieces(segments, *, view, proj, width, height, window=False):
     """Split world-space segments into their pixel chords (supercover traversal).
 
     Each segment is clipped to the view volume in clip space, projected, and cut where it
     crosses a pixel boundary; every chord of positive length becomes one piece. Returns
     ``(pixel, z_a, z_b, segment index)``: the flat pixel index (row-major, row 0 at the top) and
     the NDC depths at the chord's two ends, obtained perspective-correctly from the segment's own
-    3D parameter, so a piece's depth is exactly that of its segment.
+    3D parameter, so a piece's depth is exactly that of its segment. With ``window=True`` a fifth
+    item ``(x_a, y_a, x_b, y_b)``: the chords' ends in window coordinates (x right, y down from
+    the top row), and a sixth, the clipped segments' window ends ``(N', 4)`` with their NDC
+    depths ``(N', 2)`` and indices (for the golden's line allowance).
     """
     seg = np.asarray(segments, np.float64).reshape(-1, 2, 3)
     empty_i = np.zeros(0, np.int64)
     if len(seg) == 0:
+        if window:
+            z0 = np.zeros(0)
+            return (empty_i, z0, z0, empty_i, (z0, z0, z0, z0),
+                    (np.zeros((0, 4)), np.zeros((0, 2)), empty_i))
         return empty_i, np.zeros(0), np.zeros(0), empty_i
     mvp = np.asarray(proj, np.float64) @ np.asarray(view, np.float64)
     hom = np.concatenate([seg, np.ones(seg.shape[:2] + (1,))], axis=-1)
@@ -148,6 +155,12 @@ def segment_pieces(segments, *, view, proj, width, height):
         c = ca[g] + t[:, None] * (cb[g] - ca[g])
         return np.clip(c[:, 2] / c[:, 3], -1.0, 1.0)
 
+    if window:
+        ends = (xa[g] + s0 * (xb[g] - xa[g]), ya[g] + s0 * (yb[g] - ya[g]),
+                xa[g] + s1 * (xb[g] - xa[g]), ya[g] + s1 * (yb[g] - ya[g]))
+        whole = (np.stack([xa, ya, xb, yb], axis=1),
+                 np.clip(np.stack([pa[:, 2] / wa, pb[:, 2] / wb], axis=1), -1.0, 1.0), idx)
+        return row * width + col, depth_at(s0), depth_at(s1), idx[g], ends, whole
     return row * width + col, depth_at(s0), depth_at(s1), idx[g]
 
 

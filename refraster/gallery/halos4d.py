@@ -118,6 +118,12 @@ def figures(quick=False):
          "paper; ρ = 0.6): inside, the halos cut the sheet that is farther in 4D where two "
          "sheets cross, and the cut edge is the knotted arc",
          dict(rotation=v["knot_open"], rho=0.6), {}, False),
+        ("fig5d_translucent", spun, "Fig. 5(d) translucent (opacity 0.45, the option of "
+         "Fig. 5(b) and Fig. 8, not the default 0.9), ρ = 0.6, the carved gaps drawn dark: "
+         "through the nearer sheets all three crossing circles of the knot's diagram show "
+         "their under-sheet cut, the ring below the inner disc too",
+         dict(rotation=v["knot"], opacity=0.45, rho=KNOT_RHO, boundary_color=GAP_DARK,
+              boundary_width=GAP_WIDTH), {}, False),
         ("fig5b", spun, "Fig. 5(b): the spun trefoil translucent (opacity 0.45), halos off | on "
          "(ρ = 0.6)", dict(rotation=v["knot"], opacity=0.45, rho=KNOT_RHO), {}, False),
         ("fig6a", fermat, "Fig. 6(a): quadratic Fermat surface z1² + z2² = 1, Hanson's view, "

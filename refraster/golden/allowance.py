@@ -90,6 +90,21 @@ def dilate(mask, radius):
     return out
 
 
+def changes(a, step=0.0):
+    """Pixels whose value differs by more than ``step`` from a 4-neighbour's (both pixels of
+    each such pair), for an (H, W) bool or numeric image."""
+    a = np.asarray(a)
+    d = a if a.dtype == np.bool_ else a.astype(np.float64)
+    v = (d[1:, :] != d[:-1, :]) if a.dtype == np.bool_ else np.abs(d[1:, :] - d[:-1, :]) > step
+    u = (d[:, 1:] != d[:, :-1]) if a.dtype == np.bool_ else np.abs(d[:, 1:] - d[:, :-1]) > step
+    out = np.zeros(a.shape, np.bool_)
+    out[1:, :] |= v
+    out[:-1, :] |= v
+    out[:, 1:] |= u
+    out[:, :-1] |= u
+    return out
+
+
 def _neighbour_pairs(h, w):
     """(a, b) slice pairs of the right and lower 4-neighbours."""
     yield (slice(None), slice(0, w - 1)), (slice(None), slice(1, w))
@@ -292,6 +307,13 @@ def scene_allowances(scene, raster):
             for key in CLIP_BUFFERS:
                 if key in checks:
                     checks[key] = {"checks": ["clip"]}
+            if "ghost" in buffers:
+                # ghost lines: α intervals from D's, the occluder's and the line's (ghost_bounds.py)
+                from .ghost_bounds import ghost_bounds
+                gb = ghost_bounds(scene, arrays, tol.eps)
+                if gb is not None:
+                    arrays["ghost_lo"], arrays["ghost_hi"] = gb
+                    checks["ghost"] = {"checks": ["bounds"], "lo": "ghost_lo", "hi": "ghost_hi"}
     if scene.technique == "clipsurface" and "cap_mask" in buffers \
             and raster["depth_func"] == "less" and scene.maps is not None:
         # clip surfaces: the clip decision and cap parity bounded (golden/clip_allowance.py)

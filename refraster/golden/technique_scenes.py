@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..camera import Camera
+from .allowance import changes
 from .scenes import Draw, GoldenScene, _framed, prepare_draws, raster_state, register_scene, \
     render_draws
 
@@ -295,41 +296,10 @@ def _ldi_nested_shells():
                             "compression 0.1, dilation, outlines and ghost lines (the removed "
                             "shells' silhouettes within g_max = 0.5, faded).")
 def _cutaway_shells():
-    from ..cutaway import render_cutaway
-    from ..scenes import icosphere, solid
-    outer = solid("nested_shells", quick=True)
-    inner = icosphere(subdivisions=2, radius=0.3)
-    draws = prepare_draws([Draw("outer_shells", outer), Draw("interest", inner)])
-    camera = _framed([d.mesh for d in draws], 96, 72, (1.2, 0.9, 1.6))
     # θ = 1 rad: wide enough that the cut removes the inner shells' silhouettes, so the ghost
-    # buffer is not empty (issue 23)
-    params = dict(angle=1.0, variant="jfa+1", perspective_compensation=True,
-                  edge_compression=0.1, dilation=True, outlines=True, ghost="lines",
-                  ghost_distance=0.5, ghost_fade=True, crease_angle=30.0,
-                  interest=["interest"], secondary=["outer_shells"],
-                  # the flooding variants a backend may use: the scene's own, the exact maximum
-                  # and the schedules at least as good (docs/tolerance.md, "Cutaways")
-                  accepted_variants=["jfa+1", "jfa+2", "1+jfa", "exact"])
-    fb = render_cutaway([draws[1].mesh], [draws[0].mesh], **camera.kwargs,
-                        angle=params["angle"], variant=params["variant"],
-                        perspective_compensation=params["perspective_compensation"],
-                        edge_compression=params["edge_compression"],
-                        dilation=params["dilation"], outlines=params["outlines"],
-                        ghost=params["ghost"], ghost_distance=params["ghost_distance"],
-                        ghost_fade=params["ghost_fade"], crease_angle=params["crease_angle"])
-    buffers = {**fb.arrays(), "cutaway_depth": fb.cutaway_depth, "cut_mask": fb.cut_mask,
-               "ghost": fb.ghost}
-    # the cut decision z < D(x) is free within a pixel of where the cut region changes
-    cut = np.asarray(fb.cut_mask, np.bool_)
-    edge = np.zeros_like(cut)
-    edge[1:, :] |= cut[1:, :] != cut[:-1, :]
-    edge[:-1, :] |= cut[1:, :] != cut[:-1, :]
-    edge[:, 1:] |= cut[:, 1:] != cut[:, :-1]
-    edge[:, :-1] |= cut[:, 1:] != cut[:, :-1]
-    edge |= fb.ghost > 0        # a line's pixels depend on the line rasterizer
-    return GoldenScene(technique="cutaway", camera=camera, draws=draws, buffers=buffers,
-                       parameters=params, kinds={"cutaway_depth": "unorm", "ghost": "unorm"},
-                       geometry=False, may=edge, may_radius=2)
+    # buffer is not empty (issue 23); the flooding variants a backend may use: the scene's own,
+    # the exact maximum and the schedules at least as good (docs/tolerance.md, "Cutaways")
+    return _cutaway_variant_scene("jfa+1")
 
 
 @register_scene("halos4d_figure1", technique="halos4d",
@@ -340,17 +310,22 @@ def _cutaway_shells():
                             "only). The 4D surface travels as maps (vertices (V, 4), "
                             "faces, per-vertex tangents and colours), the rotation as a parameter.")
 def _halos4d_figure1():
+    return _halos4d_patches("orthographic")
+
+
+def _halos4d_patches(projection):
+    """The Fig. 1 patches (``halos4d_figure1``) under the given 4D → 3D projection."""
     from ..camera import orthographic
     from ..halos4d import compose, figure1_scene, render_halos
     surface = figure1_scene(n=12)
     rot = compose(("zx", 0.5), ("yz", -1.0))
-    params = dict(rotation=rot.tolist(), projection="orthographic", slices=48, delta_t=0.3,
+    params = dict(rotation=rot.tolist(), projection=projection, slices=48, delta_t=0.3,
                   surface_width=0.3, opacity=0.9, halos=True, margin=0.05, width=128,
                   height=128, background=[0.0, 0.0, 0.0])
-    out = render_halos(surface, rotation=rot, projection="orthographic", width=128, height=128,
+    out = render_halos(surface, rotation=rot, projection=projection, width=128, height=128,
                        slices=48, delta_t=0.3, surface_width=0.3, opacity=0.9, halos=True,
                        volume=True)
-    params["rho"] = out.stats.get("rho") if isinstance(out.stats.get("rho"), float) else None
+    params["rho"] = float(out.stats["rho"])
     # the defaults the reference derived (issue 21), so a backend can use the same values
     params.update(delta_d=float(out.stats["delta_d"]), antialias=0.3, halo_opacity=0.0)
     params["screen_bounds"] = np.asarray(out.bounds).tolist()
@@ -362,13 +337,7 @@ def _halos4d_figure1():
     camera = Camera(np.eye(4), orthographic(-1, 1, -1, 1, -1, 1), 128, 128)
     # slicing moves a surface's boundary by up to a slice spacing: every pixel where the
     # opacity changes between neighbours may differ
-    a = np.asarray(out.alpha, np.float64)
-    edge = np.zeros(a.shape, np.bool_)
-    step = 0.02
-    edge[1:, :] |= np.abs(a[1:, :] - a[:-1, :]) > step
-    edge[:-1, :] |= np.abs(a[1:, :] - a[:-1, :]) > step
-    edge[:, 1:] |= np.abs(a[:, 1:] - a[:, :-1]) > step
-    edge[:, :-1] |= np.abs(a[:, 1:] - a[:, :-1]) > step
+    edge = changes(np.asarray(out.alpha, np.float64), 0.02)
     maps = {"surface_vertices4d": surface.vertices, "surface_faces": surface.faces,
             "surface_tangents": surface.tangents.reshape(len(surface.vertices), 8),
             "surface_colors": surface.colors}
@@ -659,13 +628,9 @@ def _cutaway_variant_scene(variant, extra=None):
                         **(extra or {}))
     buffers = {**fb.arrays(), "cutaway_depth": fb.cutaway_depth, "cut_mask": fb.cut_mask,
                "ghost": fb.ghost}
-    cut = np.asarray(fb.cut_mask, np.bool_)
-    edge = np.zeros_like(cut)
-    edge[1:, :] |= cut[1:, :] != cut[:-1, :]
-    edge[:-1, :] |= cut[1:, :] != cut[:-1, :]
-    edge[:, 1:] |= cut[:, 1:] != cut[:, :-1]
-    edge[:, :-1] |= cut[:, 1:] != cut[:, :-1]
-    edge |= fb.ghost > 0
+    # the cut decision z < D(x) is free within a pixel of where the cut region changes
+    edge = changes(np.asarray(fb.cut_mask, np.bool_))
+    edge |= fb.ghost > 0        # a line's pixels depend on the line rasterizer
     return GoldenScene(technique="cutaway", camera=camera, draws=draws, buffers=buffers,
                        parameters=params, kinds={"cutaway_depth": "unorm", "ghost": "unorm"},
                        geometry=False, may=edge, may_radius=2)
@@ -704,37 +669,4 @@ def _cutaway_floor():
                 description="The Fig. 1 patches of halos4d_figure1 under the perspective 4D → 3D "
                             "projection (eye on the w axis at 3·max|v|, MATH.md §5.2), 48 slices.")
 def _halos4d_perspective():
-    from ..camera import orthographic
-    from ..halos4d import compose, figure1_scene, render_halos
-    surface = figure1_scene(n=12)
-    rot = compose(("zx", 0.5), ("yz", -1.0))
-    params = dict(rotation=rot.tolist(), projection="perspective", slices=48, delta_t=0.3,
-                  surface_width=0.3, opacity=0.9, halos=True, margin=0.05, width=128,
-                  height=128, background=[0.0, 0.0, 0.0])
-    out = render_halos(surface, rotation=rot, projection="perspective", width=128, height=128,
-                       slices=48, delta_t=0.3, surface_width=0.3, opacity=0.9, halos=True,
-                       volume=True)
-    params["rho"] = float(out.stats["rho"])
-    params.update(delta_d=float(out.stats["delta_d"]), antialias=0.3, halo_opacity=0.0)
-    params["screen_bounds"] = np.asarray(out.bounds).tolist()
-    vol = np.asarray(out.volume)
-    halo_class = np.where((vol == 2).any(axis=0), 2, np.where(
-        (vol == 1).any(axis=0), 1, np.where((vol == 3).any(axis=0), 3, 0))).astype(np.int32)
-    camera = Camera(np.eye(4), orthographic(-1, 1, -1, 1, -1, 1), 128, 128)
-    a = np.asarray(out.alpha, np.float64)
-    edge = np.zeros(a.shape, np.bool_)
-    step = 0.02
-    edge[1:, :] |= np.abs(a[1:, :] - a[:-1, :]) > step
-    edge[:-1, :] |= np.abs(a[1:, :] - a[:-1, :]) > step
-    edge[:, 1:] |= np.abs(a[:, 1:] - a[:, :-1]) > step
-    edge[:, :-1] |= np.abs(a[:, 1:] - a[:, :-1]) > step
-    maps = {"surface_vertices4d": surface.vertices, "surface_faces": surface.faces,
-            "surface_tangents": surface.tangents.reshape(len(surface.vertices), 8),
-            "surface_colors": surface.colors}
-    return GoldenScene(technique="halos4d", camera=camera, draws=[],
-                       buffers={"color": np.asarray(out.image, np.float32),
-                                "alpha": np.asarray(out.alpha, np.float32),
-                                "halo_class": halo_class},
-                       parameters=params, maps=maps, kinds={"alpha": "unorm",
-                                                            "halo_class": "id"},
-                       ids={"halo_class": (0, 3)}, geometry=False, may=edge, may_radius=1)
+    return _halos4d_patches("perspective")

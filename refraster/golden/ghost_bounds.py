@@ -1,0 +1,249 @@
+"""Allowance of the cutaway's ghost lines ("Goldens with teeth (2)", item 4; MATH.md D-C11).
+
+The ghost buffer (:func:`refraster.cutaway.lines.ghost_alpha`) is, per pixel, the largest opacity
+over the line fragments of the secondary meshes' feature segments there:
+
+    α(z) = 1 − (e(D) − e(z)) / g_max   where z < min(D, occ) and e(D) − e(z) < g_max, else 0
+
+(``e`` the eye depth of an NDC depth, ``occ`` the NDC depth of a visible object of interest, +∞
+elsewhere; without the fade α = 1 there). refraster draws a segment on every pixel its window
+projection crosses (supercover) and takes the largest α over the chord; a GPU draws it as
+``GL_LINES`` (diamond exit: one fragment per column of an x-major line, at the pixel whose
+diamond the line crosses) and evaluates α at one point of the line, the foot of the pixel
+centre, which lies inside the pixel (a line through the diamond passes within 0.5 of the centre).
+
+Per pixel the golden stores ``ghost_lo ≤ ghost ≤ ghost_hi``:
+
+* **hi**: the supremum of α over every fragment a conformant line rasterizer may put there —
+  the chords of the supercover (a superset of the diamond-exit fragments) and, for a line that
+  passes within ``1.5·ε`` of the pixel's square (vertices moved by the edge ε), its chord in the
+  neighbouring pixel — over the chord's depth range widened by the line depth allowance, D in
+  ``[D_lo, D_hi]`` (:mod:`.cutaway_bounds`) and the occluder in the range the cut frame's face
+  sets allow (``cs_*`` of :func:`.clip_allowance.cutaway_allowances`);
+* **lo**: the largest, over the segments that *surely* produce a fragment there, of the
+  infimum of α over the segment's chord in the pixel (it holds the foot of the centre, GL's
+  interpolation point, and the point on the column's centre line, where llvmpipe's line depth
+  plane puts it). A segment surely produces a fragment at pixel (r, c) where, for its major
+  axis (certain: ``| |Δx| − |Δy| | > 6ε``, the ends moving by 1.5ε; else both rules must
+  agree), the line crosses the column's centre line at ``y_c`` with ``frac(y_c)`` more than
+  ``1.5·ε·(1 + |slope|)`` from an integer (the pixel's diamond is crossed whatever the vertices'
+  moves), ``1.5·ε`` inside the segment's extent along the major axis, and the segment's second
+  vertex lies outside the diamond by ``3ε`` in L1 distance (diamond exit: a segment ending
+  inside a diamond does not produce it; one starting inside does).
+
+The line depth allowance: window depth is affine along a projected line (GL interpolates line
+depth linearly in window space; refraster's perspective-correct chord depth is the same
+function), so moving the ends by ε moves a point's depth by at most ``2·ε·|dz/ds|`` (``dz/ds``
+the segment's NDC depth per window pixel) to first order, plus ``32·2⁻²⁴`` for float32
+interpolation. The opacity itself is evaluated in float32 on a GPU: the gap ``e(D) − e(z)``
+carries ``32·2⁻²⁴·(e(D) + e(z))``.
+
+Not admitted: GL's licence for line algorithms other than diamond exit to put a fragment one
+pixel off the diamond-exit one (its rule 1), which would leave every pixel next to a line free.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["ghost_bounds", "GHOST_ARRAYS"]
+
+F32 = 2.0 ** -24
+#: Margin on the edge ε, as the other intervals' (``SHIFT_MARGIN``).
+MARGIN = 1.5
+GHOST_ARRAYS = ("ghost_lo", "ghost_hi")
+
+
+def _occluder_bounds(arrays, interest_draws, h, w):
+    """(occ_lo, occ_hi) NDC per pixel from the cut frame's face sets: the least depth an object
+    of interest that may be visible may show (+∞: none may be), and +∞ unless only objects of
+    interest may be visible (then the largest depth they may show)."""
+    off = arrays["cs_offsets"].astype(np.int64)
+    face = arrays["cs_face"].astype(np.int64)
+    draws = arrays["cs_draw_offsets"].astype(np.int64)
+    n = np.diff(off)
+    pix = np.repeat(np.arange(h * w), n)
+    obj = np.searchsorted(draws[1:], face, side="right")
+    ooi = np.isin(obj, list(interest_draws))
+    lo = 2.0 * arrays["cs_depth_lo"].astype(np.float64) - 1.0
+    hi = 2.0 * arrays["cs_depth_hi"].astype(np.float64) - 1.0
+    occ_lo = np.full(h * w, np.inf)
+    np.minimum.at(occ_lo, pix[ooi], lo[ooi])
+    occ_hi = np.full(h * w, -np.inf)
+    np.maximum.at(occ_hi, pix[ooi], hi[ooi])
+    other = np.zeros(h * w, np.int64)
+    np.add.at(other, pix[~ooi], 1)
+    only = (other == 0) & (n > 0) & ~np.asarray(arrays["cs_bg"], np.bool_).ravel()
+    occ_hi = np.where(only, occ_hi, np.inf)
+    return occ_lo, occ_hi
+
+
+class _Alpha:
+    """The ghost opacity of D-C11 with its float32 gap allowance."""
+
+    def __init__(self, proj, g_max, fade):
+        from ..cutaway.surface import ndc_to_eye_depth
+        self.e = lambda z: ndc_to_eye_depth(np.clip(z, -1.0, 1.0), proj)
+        self.g, self.fade = float(g_max), bool(fade)
+
+    def _of_gap(self, gap):
+        a = np.clip(1.0 - gap / self.g, 0.0, 1.0) if self.fade else np.ones(gap.shape)
+        return np.where(gap < self.g, a, 0.0)
+
+    def sup(self, zl, zh, d_lo, d_hi, occ_hi):
+        """Supremum of α over z ∈ [zl, zh], D ∈ [d_lo, d_hi], occ ≤ occ_hi (α increases with
+        occ). For fixed D, α increases with z below L = min(D, occ): z* = min(zh, L); as a
+        function of D it is 0 up to zl, 1 up to c = min(zh, occ), then falls: the supremum is at
+        d_lo, d_hi or c clamped into the interval."""
+        best = np.zeros(zl.shape)
+        c = np.minimum(zh, occ_hi)
+        for d in (d_lo, d_hi, np.clip(c, d_lo, d_hi)):
+            lim = np.minimum(d, occ_hi)
+            zs = np.minimum(zh, lim)
+            ed, ez = self.e(d), self.e(zs)
+            gap = np.maximum(ed - ez - 32.0 * F32 * (np.abs(ed) + np.abs(ez)), 0.0)
+            best = np.maximum(best, np.where(zl < lim, self._of_gap(gap), 0.0))
+        return best
+
+    def inf(self, zl, zh, d_lo, d_hi, occ_lo):
+        """Infimum of α over the same box (occ ≥ occ_lo): 0 if some z may lie at or behind
+        min(D, occ); else the largest gap, at zl and d_hi."""
+        ed, ez = self.e(d_hi), self.e(zl)
+        gap = ed - ez + 32.0 * F32 * (np.abs(ed) + np.abs(ez))
+        return np.where(zh < np.minimum(d_lo, occ_lo), self._of_gap(gap), 0.0)
+
+
+def _sure_fragments(whole, eps, h, w):
+    """(segment row, pixel, foot parameter t) of the fragments every accepted line rasterizer
+    produces (see the module docstring)."""
+    ends, _, _ = whole
+    xa, ya, xb, yb = ends.T
+    dx, dy = xb - xa, yb - ya
+    m = MARGIN * eps
+    out = {}
+    for axis in ("x", "y"):
+        # parametrise by the major coordinate u, the minor v
+        ua, ub, va, vb = (xa, xb, ya, yb) if axis == "x" else (ya, yb, xa, xb)
+        du, dv = ub - ua, vb - va
+        # the columns whose centre line the segment crosses, ε to spare
+        lo_u = np.ceil(np.minimum(ua, ub) + m - 0.5)
+        hi_u = np.floor(np.maximum(ua, ub) - m - 0.5)
+        n = np.maximum(hi_u - lo_u + 1.0, 0.0).astype(np.int64)
+        n = np.where(np.abs(du) > 0, n, 0)
+        seg = np.repeat(np.arange(len(ua)), n)
+        k = lo_u[seg] + (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n))
+        uc = k + 0.5
+        with np.errstate(divide="ignore", invalid="ignore"):
+            slope = dv[seg] / du[seg]
+        vc = va[seg] + (uc - ua[seg]) * slope
+        r = np.floor(vc)
+        f = vc - r
+        delta = m * (1.0 + np.abs(slope)) + 1e-9 * (1.0 + np.abs(vc))
+        ok = (f > delta) & (f < 1.0 - delta)
+        # diamond exit: the fragment is lost where the segment's second vertex lies inside the
+        # diamond (a start inside it still exits); the vertex moves by ε per axis
+        ok &= np.abs(ub[seg] - uc) + np.abs(vb[seg] - (r + 0.5)) >= 0.5 + 2.0 * m
+        row, col = (r, k) if axis == "x" else (k, r)
+        ok &= (row >= 0) & (row < h) & (col >= 0) & (col < w)
+        seg, row, col = seg[ok], row[ok].astype(np.int64), col[ok].astype(np.int64)
+        out[axis] = set(zip(seg.tolist(), (row * w + col).tolist()))
+    xmaj = np.abs(dx) - np.abs(dy) > 4.0 * m
+    ymaj = np.abs(dy) - np.abs(dx) > 4.0 * m
+    keep = [(s, p) for s, p in out["x"] if xmaj[s]] + [(s, p) for s, p in out["y"] if ymaj[s]]
+    both = out["x"] & out["y"]
+    keep += [(s, p) for s, p in both if not xmaj[s] and not ymaj[s]]
+    if not keep:
+        z = np.zeros(0, np.int64)
+        return z, z, np.zeros(0)
+    seg, pix = (np.array(v, np.int64) for v in zip(*sorted(keep)))
+    # the foot of the pixel centre on the line (window space)
+    cx, cy = pix % w + 0.5, pix // w + 0.5
+    ll = dx[seg] ** 2 + dy[seg] ** 2
+    t = ((cx - xa[seg]) * dx[seg] + (cy - ya[seg]) * dy[seg]) / ll
+    return seg, pix, t
+
+
+def ghost_bounds(scene, arrays, eps):
+    """``(lo, hi)`` float32 (H, W) of the ghost opacity, or ``None`` when the scene's ghost is
+    not the line variant. ``arrays`` must hold ``cutaway_depth_lo/_hi`` and the ``cs_*`` sets."""
+    from ..cutaway.lines import feature_segments, segment_pieces
+    p = scene.parameters or {}
+    if p.get("ghost", "lines") != "lines":
+        return None
+    cam = scene.camera
+    h, w = cam.height, cam.width
+    lo = np.zeros(h * w)
+    hi = np.zeros(h * w)
+    names = [d.name for d in scene.draws]
+    secondary = [d for d in scene.draws if d.name in set(p["secondary"])]
+    g_max = p.get("ghost_distance")
+    meshes = []
+    from ..mesh import Mesh
+    for d in secondary:
+        v = np.asarray(d.mesh.vertices, np.float64)
+        v = (np.c_[v, np.ones(len(v))] @ np.asarray(d.model, np.float64).T)[:, :3]
+        meshes.append(Mesh(v, d.mesh.faces))
+    if g_max is None:
+        v = np.concatenate([m.vertices for m in meshes]) if meshes else np.zeros((0, 3))
+        g_max = 0.1 * float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))) if len(v) else 0.0
+    if not meshes or g_max <= 0:
+        return lo.reshape(h, w).astype(np.float32), hi.reshape(h, w).astype(np.float32)
+    view, proj = np.asarray(cam.view, np.float64), np.asarray(cam.proj, np.float64)
+    segs = feature_segments(meshes, view=view, proj=proj,
+                            crease_angle=float(p.get("crease_angle", 30.0)))
+    pix, za, zb, sidx, (x0, y0, x1, y1), whole = segment_pieces(
+        segs, view=view, proj=proj, width=w, height=h, window=True)
+    alpha = _Alpha(proj, g_max, p.get("ghost_fade", True))
+    d_lo = 2.0 * np.asarray(arrays["cutaway_depth_lo"], np.float64).ravel() - 1.0
+    d_hi = 2.0 * np.asarray(arrays["cutaway_depth_hi"], np.float64).ravel() - 1.0
+    interest = {i for i, n in enumerate(names) if n in set(p["interest"])}
+    occ_lo, occ_hi = _occluder_bounds(arrays, interest, h, w)
+    # the line depth allowance per clipped segment: 2ε·|dz/ds| + 32·2⁻²⁴
+    ends, zends, widx = whole
+    length = np.hypot(ends[:, 2] - ends[:, 0], ends[:, 3] - ends[:, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        grad = np.where(length > 0, np.abs(zends[:, 1] - zends[:, 0]) / length, np.inf)
+    m = MARGIN * eps
+    slack_of = dict(zip(widx.tolist(), (2.0 * m * grad + 32.0 * F32).tolist()))
+    dz = np.array([slack_of[int(s)] for s in sidx]) if len(sidx) else np.zeros(0)
+    zl = np.minimum(za, zb) - dz
+    zh = np.maximum(za, zb) + dz
+    # hi: every chord at its pixel and at the neighbours its line passes within 1.5ε of
+    r, c = pix // w, pix % w
+    xmin, xmax = np.minimum(x0, x1), np.maximum(x0, x1)
+    ymin, ymax = np.minimum(y0, y1), np.maximum(y0, y1)
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            if di == 0 and dj == 0:
+                reach = np.ones(len(pix), np.bool_)
+            else:
+                gx = {-1: xmin - c, 0: 0.0 * xmin, 1: (c + 1) - xmax}[dj]
+                gy = {-1: ymin - r, 0: 0.0 * ymin, 1: (r + 1) - ymax}[di]
+                reach = (gx <= m) & (gy <= m)
+            rr, cc = r + di, c + dj
+            reach &= (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
+            q = (rr * w + cc)[reach]
+            a = alpha.sup(zl[reach], zh[reach], d_lo[q], d_hi[q], occ_hi[q])
+            np.maximum.at(hi, q, a)
+    # lo: the fragments every accepted rasterizer produces, at the foot of the centre
+    sseg, spix, t = _sure_fragments(whole, eps, h, w)
+    if len(sseg):
+        # the depth range of the segment's chord in that pixel: it holds the foot of the centre
+        # (GL's t) and the point on the column's centre line (llvmpipe's line depth plane has no
+        # minor-axis slope: measured at cutaway_shells (45, 54))
+        top = h * w
+        keys = sidx.astype(np.int64) * top + pix
+        order = np.argsort(keys, kind="stable")
+        q = widx[sseg].astype(np.int64) * top + spix
+        j = np.clip(np.searchsorted(keys[order], q), 0, max(len(keys) - 1, 0))
+        hit = keys[order][j] == q
+        e = order[j[hit]]
+        a = alpha.inf(zl[e], zh[e], d_lo[spix[hit]], d_hi[spix[hit]], occ_lo[spix[hit]])
+        np.maximum.at(lo, spix[hit], a)
+    pos_lo, pos_hi = lo > 0, hi > 0
+    lo = np.where(pos_lo, np.clip(lo - 16.0 * F32, 0.0, 1.0), 0.0)
+    hi = np.where(pos_hi, np.clip(np.maximum(hi + 16.0 * F32, lo), 0.0, 1.0), 0.0)
+    lo32, hi32 = lo.astype(np.float32), hi.astype(np.float32)
+    lo32 = np.where(lo32 > lo, np.nextafter(lo32, np.float32(-1)), lo32)
+    hi32 = np.where(hi32 < hi, np.nextafter(hi32, np.float32(2)), hi32)
+    return lo32.reshape(h, w), hi32.reshape(h, w)
