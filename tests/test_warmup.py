@@ -164,3 +164,82 @@ def test_kernel_modules_cover_every_kernel():
         found |= {v.py_func.__module__ for v in vars(mod).values()
                   if isinstance(v, CPUDispatcher) and v.targetoptions.get("inline") != "always"}
     assert found and found <= set(warmup.KERNEL_MODULES), found - set(warmup.KERNEL_MODULES)
+
+
+def _specialisations(disp):
+    return [str(s) for s in disp.signatures]
+
+
+def test_pipeline_and_cap_helpers_compile_one_specialisation():
+    """``raster.primitive._clip_polygon``/``_clipped_face`` (a literal and a variable count or
+    outcode), ``capping._face_box`` (the parallel loop body's uint64 face index and read-only
+    or writable cap vertices) and ``mesh._bounds`` (read-only or writable vertices) compile
+    once each (issue 27, docs/performance.md "The first run")."""
+    import numba
+    from numba.core.caching import NullCache
+    from numba.core.registry import CPUDispatcher
+
+    import refraster
+    from refraster import offsetmaps as om
+    from refraster._config import PJIT
+    from refraster.camera import look_at, perspective
+    from refraster.clipsurface import ClipSurface, capping
+    from refraster.ldi import VolumetricDepthSprite
+    from refraster.mesh import Mesh, bounds
+    from refraster.raster import primitive
+
+    v, f = warmup._box()
+    ro = v.copy()
+    ro.setflags(write=False)
+    assert np.array_equal(bounds(v), bounds(ro))
+    # record the arguments the wrappers pass, then compile fresh, uncached copies of the
+    # parallel kernels so that the helpers they call are typed here (a kernel loaded from the
+    # cache types nothing)
+    calls = {}
+    real = {name: getattr(mod, name) for mod, name in (
+        (primitive, "_clip_pass"), (capping, "_footprint_kernel"), (capping, "_sure_kernel"))}
+
+    def spy(name):
+        def run(*args):
+            calls.setdefault(name, []).append(args)
+            return real[name](*args)
+        return run
+
+    for mod, name in ((primitive, "_clip_pass"), (capping, "_footprint_kernel"),
+                      (capping, "_sure_kernel")):
+        setattr(mod, name, spy(name))
+    try:
+        mesh = refraster.as_mesh((v, f))
+        refraster.render(mesh, view=look_at((0.3, 0.4, 2.0), (0.0, 0.0, 0.0)),
+                         proj=perspective(40.0, 4 / 3, 1.9, 10.0), width=16, height=12)
+        sprite = VolumetricDepthSprite.from_mesh(Mesh(v, f), resolution=16)
+        cs = ClipSurface([0.05, 0, 0], [0, 2.0, 0.4], [0, -0.4, 2.0], (1, 1, 0.4),
+                         om.perlin_noise(8, seed=5))
+        cap = capping.cap_mesh(cs, bounds(v))
+        writable = Mesh(np.array(cap.vertices), np.array(cap.faces))
+        for m in (cap, writable):
+            capping.surely_inside(capping.cull_cap(m, sprite), sprite)
+    finally:
+        for mod, name in ((primitive, "_clip_pass"), (capping, "_footprint_kernel"),
+                          (capping, "_sure_kernel")):
+            setattr(mod, name, real[name])
+    assert set(calls) == set(real)
+    helpers = [primitive._clip_polygon, primitive._clipped_face, capping._face_box,
+               refraster.mesh._bounds]
+    assert all(isinstance(h, CPUDispatcher) for h in helpers)
+    fresh = dict(PJIT, cache=False)
+    saved = [h._cache for h in helpers]
+    try:
+        for h in helpers[:3]:   # a helper loaded from the cache would not type its callees
+            h._cache = NullCache()
+        for name, arglists in calls.items():
+            k = numba.njit(**fresh)(real[name].py_func)
+            for args in arglists:
+                k(*args)
+    finally:
+        for h, c in zip(helpers, saved):
+            h._cache = c
+    twins = {h.py_func.__qualname__: _specialisations(h) for h in helpers}
+    bad = {name: sigs for name, sigs in twins.items()
+           if len(sigs) != 1 or "uint64" in sigs[0] or "Literal" in sigs[0]}
+    assert bad == {}
