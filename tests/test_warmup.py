@@ -243,3 +243,62 @@ def test_pipeline_and_cap_helpers_compile_one_specialisation():
     bad = {name: sigs for name, sigs in twins.items()
            if len(sigs) != 1 or "uint64" in sigs[0] or "Literal" in sigs[0]}
     assert bad == {}
+
+
+def test_clipsurface_side_warmup_compiles_what_the_section_uses(tmp_path):
+    """``warm_clipsurface_side`` types each of its kernels exactly as the gallery's
+    clip-surface section calls them: after it, the section (quick) adds no specialisation to
+    any of them, and uses every one (so that a worker compiling them ahead saves the section
+    that compile; issue 27)."""
+    from refraster.gallery import clipsurface
+
+    ks = {warmup._name(k): k for k in warmup.kernels()}
+    side = [ks[n] for n in warmup.CLIPSURFACE_SIDE_KERNELS]
+    assert all(k.signatures == [] for k in side)   # nothing else in this process typed them
+    warmup.warm_clipsurface_side()
+    warmed = {warmup._name(k): list(k.signatures) for k in side}
+    assert all(len(s) == 1 for s in warmed.values()), warmed
+    calls, real = [], {}
+
+    def spy(name, fn):
+        def run(*args):
+            calls.append(name)
+            return fn(*args)
+        return run
+
+    import importlib
+    for name in warmup.CLIPSURFACE_SIDE_KERNELS:
+        mod, attr = name.rsplit(".", 1)
+        m = importlib.import_module(mod)
+        real[name] = (m, attr, getattr(m, attr))
+        setattr(m, attr, spy(name, getattr(m, attr)))
+    try:
+        clipsurface.render(tmp_path, quick=True)
+    finally:
+        for m, attr, fn in real.values():
+            setattr(m, attr, fn)
+    assert {warmup._name(k): list(k.signatures) for k in side} == warmed
+    assert set(calls) == set(warmup.CLIPSURFACE_SIDE_KERNELS)
+
+
+def test_first_gallery_run_compiles_clip_surface_kernels_beside_the_pipeline():
+    """On a first run the worker that needs no pipeline kernels (the halos) also compiles the
+    clip surfaces' side kernels ("warm-clipsurface"), only while they are cold, only with the
+    clip-surface section queued and two or more jobs."""
+    from refraster.cli import _while_the_pipeline_compiles as first
+    groups = [["ldi", "clipsurface"], ["edges", "cutaway", "basic"], ["halos4d"]]
+    q = [list(g) for g in groups]
+    assert first(q, 2, True) == [["halos4d", "warm-clipsurface"]]
+    assert q == groups[:2]
+    assert first([list(g) for g in groups], 2, False) == [["halos4d"]]
+    assert first([list(g) for g in groups], 1, True) == [["halos4d"]]
+    assert first([["ldi", "clipsurface"], ["edges"]], 2, True) == [["warm-clipsurface"]]
+    assert first([["edges"], ["halos4d"]], 2, True) == [["halos4d"]]
+
+
+def test_worker_warm_task_compiles_ahead_and_answers_without_pictures(tmp_path, capsys):
+    from refraster.gallery import worker
+    assert worker.main([str(tmp_path), "warm-clipsurface"]) == 0
+    out = [json.loads(ln) for ln in capsys.readouterr().out.splitlines()]
+    assert out == [{"section": "warm-clipsurface", "items": [], "error": None}]
+    assert list(tmp_path.iterdir()) == []
