@@ -302,3 +302,45 @@ def test_worker_warm_task_compiles_ahead_and_answers_without_pictures(tmp_path, 
     out = [json.loads(ln) for ln in capsys.readouterr().out.splitlines()]
     assert out == [{"section": "warm-clipsurface", "items": [], "error": None}]
     assert list(tmp_path.iterdir()) == []
+
+
+_TWIN_KERNEL = '''
+import sys
+import numpy as np
+from numba import njit, prange
+
+@njit(cache=True, parallel=True)
+def k(a, out):
+    for i in prange(a.shape[0]):
+        s = 0.0
+        for j in range(a.shape[1]):
+            s += np.sin(a[i, j]) * np.cos(a[i, j] * 0.5)
+        out[i] = s
+
+if __name__ == "__main__":
+    a = np.arange(12.0).reshape(3, 4)
+    out = np.zeros(3)
+    k(a, out)
+    print(repr(out.tolist()), k.stats.cache_hits.get(k.signatures[0], 0) if k.signatures else -1)
+'''
+
+
+def test_two_processes_compiling_the_same_kernel_at_once_share_one_cache(tmp_path):
+    """Two processes compiling the same kernel (same signature) into one cache at the same
+    time — as a gallery worker warming kernels ahead and the section that needs them may —
+    both succeed, and a third process loads the entry and computes the same numbers (Numba
+    writes the index and the data atomically, under the same names for the same key)."""
+    (tmp_path / "twin.py").write_text(_TWIN_KERNEL)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), NUMBA_NUM_THREADS="1")
+    cmd = [sys.executable, str(tmp_path / "twin.py")]
+    procs = [subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True, stdin=subprocess.DEVNULL) for _ in range(2)]
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert all(p.returncode == 0 for p in procs), outs
+    third = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300,
+                           stdin=subprocess.DEVNULL)
+    assert third.returncode == 0, third.stderr
+    values = {o.rsplit(" ", 1)[0] for o, _ in outs} | {third.stdout.strip().rsplit(" ", 1)[0]}
+    assert len(values) == 1
+    assert third.stdout.strip().rsplit(" ", 1)[1] == "1"   # loaded from the cache
+    assert len(list((tmp_path / "cache").rglob("*.nbi"))) == 1
