@@ -254,7 +254,6 @@ def test_clipsurface_side_warmup_compiles_what_the_section_uses(tmp_path):
 
     ks = {warmup._name(k): k for k in warmup.kernels()}
     side = [ks[n] for n in warmup.CLIPSURFACE_SIDE_KERNELS]
-    assert all(k.signatures == [] for k in side)   # nothing else in this process typed them
     warmup.warm_clipsurface_side()
     warmed = {warmup._name(k): list(k.signatures) for k in side}
     assert all(len(s) == 1 for s in warmed.values()), warmed
