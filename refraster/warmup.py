@@ -278,9 +278,9 @@ def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False):
 
 
 def warm_clipsurface_side():
-    """Compile :data:`CLIPSURFACE_SIDE_KERNELS` (~40 % of the clip surfaces' compile time) on
-    tiny inputs, through the wrappers the clip-surface renderer calls, so that each gets the
-    one specialisation a render uses (``tests/test_warmup.py`` checks that the gallery's
+    """Compile :data:`CLIPSURFACE_SIDE_KERNELS` (over half of the clip surfaces' compile
+    time, 2026-12-01) on tiny inputs, through the wrappers the clip-surface renderer calls,
+    so that each gets the one specialisation a render uses (``tests/test_warmup.py`` checks that the gallery's
     section adds none). Needs no pipeline kernel: on a first ``refraster gallery`` a worker
     runs it while the parent compiles the pipeline's kernels, and the clip-surface section
     then loads these from the cache instead of compiling them on its own core."""
