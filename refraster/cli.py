@@ -447,6 +447,27 @@ def _worker_groups(modules, jobs):
     return [g for g in groups if g] + ([rest] if rest else [])
 
 
+def _while_the_pipeline_compiles(queue, jobs, clip_side_cold):
+    """The worker groups to start on a first run while this process compiles the pipeline's
+    kernels, taken off ``queue``: the sections that do not use them (at most ``jobs - 1``
+    groups), and — when the clip-surface section is still queued and ``clip_side_cold`` —
+    ``warm-clipsurface`` after them: the clip surfaces' kernels that need no pipeline kernel
+    (:func:`refraster.warmup.warm_clipsurface_side`). Their section compiles longest (the
+    critical path of a first run), so a core that would otherwise idle while the pipeline
+    compiles here compiles ~40 % of it ahead, and the section loads those from the cache."""
+    from .gallery import WITHOUT_PIPELINE
+    first = [g for g in queue if set(g) <= WITHOUT_PIPELINE][:max(jobs - 1, 1)]
+    for group in first:
+        queue.remove(group)
+    first = [list(g) for g in first]
+    if jobs >= 2 and clip_side_cold and any("clipsurface" in g for g in queue):
+        if first:
+            first[0].append("warm-clipsurface")
+        else:
+            first = [["warm-clipsurface"]]
+    return first
+
+
 def _render_in_workers(args, out_dir, groups, jobs):
     """``{section name: (items, error)}`` from worker processes of one thread each
     (:mod:`refraster.gallery.worker`), at most ``jobs`` at a time; kernels they compile go to
@@ -456,9 +477,10 @@ def _render_in_workers(args, out_dir, groups, jobs):
     import json
     import threading
 
-    from .gallery import WITHOUT_PIPELINE, Item
+    from .gallery import Item
     from .gallery.worker import COMPILED, STARTING
-    from .warmup import KERNEL_MODULES, STREAM_KERNELS, cache_state, warm_core
+    from .warmup import (CLIPSURFACE_SIDE_KERNELS, KERNEL_MODULES, STREAM_KERNELS, cache_state,
+                         warm_core)
     env = dict(os.environ, NUMBA_NUM_THREADS="1")
     progress = getattr(args, "compile_progress", None)
     results, errors, running = {}, {}, []
@@ -512,8 +534,8 @@ def _render_in_workers(args, out_dir, groups, jobs):
     core_ready = cached == total
     try:
         if not core_ready:
-            for group in [g for g in queue if set(g) <= WITHOUT_PIPELINE][:max(jobs - 1, 1)]:
-                queue.remove(group)
+            side, n_side = cache_state(KERNEL_MODULES, only=CLIPSURFACE_SIDE_KERNELS)
+            for group in _while_the_pipeline_compiles(queue, jobs, side < n_side):
                 start(group)
             warm_core(clip=True, stream=True)   # here: counted by the progress line
             core_ready = True

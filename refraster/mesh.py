@@ -307,6 +307,9 @@ def bounds(vertices):
     if v.ndim != 2 or v.shape[1] != 3 or v.shape[0] == 0:
         raise ValueError(f"vertices must be a non-empty (V, 3) array, got shape {v.shape}")
     out = np.zeros((2, 3))
+    if v.flags.writeable:   # a read-only view: one _bounds specialisation for both kinds
+        v = v.view()
+        v.setflags(write=False)
     _bounds(v, out)
     return out
 

@@ -23,7 +23,7 @@ import threading
 import time
 
 __all__ = ["KERNEL_MODULES", "CORE_MODULES", "RENDER_KERNELS", "CLIP_KERNELS", "STREAM_KERNELS", "GALLERY_SKIPS", "kernels", "cache_state", "CompileProgress",
-           "warm_core", "compile_listener"]
+           "warm_core", "compile_listener", "CLIPSURFACE_SIDE_KERNELS", "warm_clipsurface_side"]
 
 #: The modules whose kernels the pipeline (``refraster.render``) compiles.
 CORE_MODULES = ("refraster.mesh", "refraster.raster.primitive", "refraster.raster.rasterizer",
@@ -46,6 +46,19 @@ CLIP_KERNELS = ("refraster.raster.primitive._clip_pass",
 STREAM_KERNELS = RENDER_KERNELS + CLIP_KERNELS + (
     "refraster.raster.rasterizer._stream_pass", "refraster.raster.fragments._interpolate_kernel",
     "refraster.raster.resolve._resolve")
+#: The clip-surface kernels :func:`warm_clipsurface_side` compiles: those that need neither
+#: the pipeline's kernels nor a depth-peeled solid to be called (the rest of the clip
+#: surfaces' — the fused pass, the cap culling, the exact caps' ray roots — compile where the
+#: section first renders).
+CLIPSURFACE_SIDE_KERNELS = (
+    "refraster.clipsurface.offsetmaps._occlusion_kernel",
+    "refraster.clipsurface.offsetmaps._sample_kernel",
+    "refraster.clipsurface.capping._cap_pixels_kernel",
+    "refraster.clipsurface.surfaces._clip_kernel",
+    "refraster.clipsurface.capping._cap_light_kernel",
+    "refraster.clipsurface.textures._sample2d_kernel",
+    "refraster.clipsurface.textures._sample3d_kernel",
+    "refraster.clipsurface.capping._differing_words")
 #: Every module that defines kernels, in pipeline order.
 KERNEL_MODULES = CORE_MODULES + (
     "refraster.raster.fragments", "refraster.raster.resolve", "refraster.ldi",
@@ -270,3 +283,42 @@ def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False):
                                       normals=mode,
                                       fragment_stage=lambda f: f.world_position()[:, 0] <= 0.0)
                 np.asarray(fb.color)
+
+
+def warm_clipsurface_side():
+    """Compile :data:`CLIPSURFACE_SIDE_KERNELS` (over half of the clip surfaces' compile
+    time, 2026-12-01) on tiny inputs, through the wrappers the clip-surface renderer calls,
+    so that each gets the one specialisation a render uses (``tests/test_warmup.py`` checks that the gallery's
+    section adds none). Needs no pipeline kernel: on a first ``refraster gallery`` a worker
+    runs it while the parent compiles the pipeline's kernels, and the clip-surface section
+    then loads these from the cache instead of compiling them on its own core."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from refraster.clipsurface import ClipSurface, capping, clip_mask, offsetmaps, textures
+    rng = np.random.default_rng(0)
+    surface = ClipSurface([0.05, 0.0, 0.0], [0.0, 2.0, 0.4], [0.0, -0.4, 2.0], (1.0, 1.0, 0.4),
+                          offsetmaps.perlin_noise(8, seed=5))
+    surface.occlusion_map()
+    offsetmaps.sample(surface.offset_map, rng.random((4, 2)))
+    v, f = _box()
+    h, w = 2, 3
+    gbuffer = SimpleNamespace(
+        object_id=np.ones((h, w), np.int32), prim_id=np.zeros((h, w), np.int32),
+        barycentric=np.full((h, w, 3), 1 / 3, np.float32), color=np.zeros((h, w, 3), np.float32),
+        normal=np.zeros((h, w, 3), np.float32))
+    view = np.eye(4)
+    view[2, 3] = -3.0
+    # every pixel: draw call 1 (the cap of surface 0 on solid 0), its face 0 (draw call 1's
+    # faces start at face 0 here: face_offsets [0, 0])
+    capping.shade_cap_pixels(np.arange(h * w, dtype=np.int64), gbuffer, 1, 1, f,
+                             np.zeros(2, np.int64), v, [surface], view=view,
+                             style="diffuse", color=(0.5, 0.5, 0.5), hatch_spacing=0.1,
+                             frequency=1.0)
+    points = rng.random((4, 3)) - 0.5
+    clip_mask(points, [surface])
+    capping.light_caps(points, np.zeros(4, np.int64), [surface], view=view)
+    textures.sample_texture(rng.random((4, 4, 3)), rng.random((4, 2)))
+    textures.sample_volume(rng.random((2, 3, 4, 3)), rng.random((4, 3)))
+    capping._same_bits(v, v.copy())

@@ -164,3 +164,182 @@ def test_kernel_modules_cover_every_kernel():
         found |= {v.py_func.__module__ for v in vars(mod).values()
                   if isinstance(v, CPUDispatcher) and v.targetoptions.get("inline") != "always"}
     assert found and found <= set(warmup.KERNEL_MODULES), found - set(warmup.KERNEL_MODULES)
+
+
+def _specialisations(disp):
+    return [str(s) for s in disp.signatures]
+
+
+def test_pipeline_and_cap_helpers_compile_one_specialisation():
+    """``raster.primitive._clip_polygon``/``_clipped_face`` (a literal and a variable count or
+    outcode), ``capping._face_box`` (the parallel loop body's uint64 face index and read-only
+    or writable cap vertices) and ``mesh._bounds`` (read-only or writable vertices) compile
+    once each (issue 27, docs/performance.md "The first run")."""
+    import numba
+    from numba.core.caching import NullCache
+    from numba.core.registry import CPUDispatcher
+
+    import refraster
+    from refraster import offsetmaps as om
+    from refraster._config import PJIT
+    from refraster.camera import look_at, perspective
+    from refraster.clipsurface import ClipSurface, capping
+    from refraster.ldi import VolumetricDepthSprite
+    from refraster.mesh import Mesh, bounds
+    from refraster.raster import primitive
+
+    v, f = warmup._box()
+    ro = v.copy()
+    ro.setflags(write=False)
+    assert np.array_equal(bounds(v), bounds(ro))
+    # record the arguments the wrappers pass, then compile fresh, uncached copies of the
+    # parallel kernels so that the helpers they call are typed here (a kernel loaded from the
+    # cache types nothing)
+    calls = {}
+    real = {name: getattr(mod, name) for mod, name in (
+        (primitive, "_clip_pass"), (capping, "_footprint_kernel"), (capping, "_sure_kernel"))}
+
+    def spy(name):
+        def run(*args):
+            calls.setdefault(name, []).append(args)
+            return real[name](*args)
+        return run
+
+    for mod, name in ((primitive, "_clip_pass"), (capping, "_footprint_kernel"),
+                      (capping, "_sure_kernel")):
+        setattr(mod, name, spy(name))
+    try:
+        mesh = refraster.as_mesh((v, f))
+        refraster.render(mesh, view=look_at((0.3, 0.4, 2.0), (0.0, 0.0, 0.0)),
+                         proj=perspective(40.0, 4 / 3, 1.9, 10.0), width=16, height=12)
+        sprite = VolumetricDepthSprite.from_mesh(Mesh(v, f), resolution=16)
+        cs = ClipSurface([0.05, 0, 0], [0, 2.0, 0.4], [0, -0.4, 2.0], (1, 1, 0.4),
+                         om.perlin_noise(8, seed=5))
+        cap = capping.cap_mesh(cs, bounds(v))
+        writable = Mesh(np.array(cap.vertices), np.array(cap.faces))
+        for m in (cap, writable):
+            capping.surely_inside(capping.cull_cap(m, sprite), sprite)
+    finally:
+        for mod, name in ((primitive, "_clip_pass"), (capping, "_footprint_kernel"),
+                          (capping, "_sure_kernel")):
+            setattr(mod, name, real[name])
+    assert set(calls) == set(real)
+    helpers = [primitive._clip_polygon, primitive._clipped_face, capping._face_box,
+               refraster.mesh._bounds]
+    assert all(isinstance(h, CPUDispatcher) for h in helpers)
+    fresh = dict(PJIT, cache=False)
+    saved = [h._cache for h in helpers]
+    try:
+        for h in helpers[:3]:   # a helper loaded from the cache would not type its callees
+            h._cache = NullCache()
+        for name, arglists in calls.items():
+            k = numba.njit(**fresh)(real[name].py_func)
+            for args in arglists:
+                k(*args)
+    finally:
+        for h, c in zip(helpers, saved):
+            h._cache = c
+    twins = {h.py_func.__qualname__: _specialisations(h) for h in helpers}
+    bad = {name: sigs for name, sigs in twins.items()
+           if len(sigs) != 1 or "uint64" in sigs[0] or "Literal" in sigs[0]}
+    assert bad == {}
+
+
+def test_clipsurface_side_warmup_compiles_what_the_section_uses(tmp_path):
+    """``warm_clipsurface_side`` types each of its kernels exactly as the gallery's
+    clip-surface section calls them: after it, the section (quick) adds no specialisation to
+    any of them, and uses every one (so that a worker compiling them ahead saves the section
+    that compile; issue 27)."""
+    from refraster.gallery import clipsurface
+
+    ks = {warmup._name(k): k for k in warmup.kernels()}
+    side = [ks[n] for n in warmup.CLIPSURFACE_SIDE_KERNELS]
+    warmup.warm_clipsurface_side()
+    warmed = {warmup._name(k): list(k.signatures) for k in side}
+    assert all(len(s) == 1 for s in warmed.values()), warmed
+    calls, real = [], {}
+
+    def spy(name, fn):
+        def run(*args):
+            calls.append(name)
+            return fn(*args)
+        return run
+
+    import importlib
+    for name in warmup.CLIPSURFACE_SIDE_KERNELS:
+        mod, attr = name.rsplit(".", 1)
+        m = importlib.import_module(mod)
+        real[name] = (m, attr, getattr(m, attr))
+        setattr(m, attr, spy(name, getattr(m, attr)))
+    try:
+        clipsurface.render(tmp_path, quick=True)
+    finally:
+        for m, attr, fn in real.values():
+            setattr(m, attr, fn)
+    assert {warmup._name(k): list(k.signatures) for k in side} == warmed
+    assert set(calls) == set(warmup.CLIPSURFACE_SIDE_KERNELS)
+
+
+def test_first_gallery_run_compiles_clip_surface_kernels_beside_the_pipeline():
+    """On a first run the worker that needs no pipeline kernels (the halos) also compiles the
+    clip surfaces' side kernels ("warm-clipsurface"), only while they are cold, only with the
+    clip-surface section queued and two or more jobs."""
+    from refraster.cli import _while_the_pipeline_compiles as first
+    groups = [["ldi", "clipsurface"], ["edges", "cutaway", "basic"], ["halos4d"]]
+    q = [list(g) for g in groups]
+    assert first(q, 2, True) == [["halos4d", "warm-clipsurface"]]
+    assert q == groups[:2]
+    assert first([list(g) for g in groups], 2, False) == [["halos4d"]]
+    assert first([list(g) for g in groups], 1, True) == [["halos4d"]]
+    assert first([["ldi", "clipsurface"], ["edges"]], 2, True) == [["warm-clipsurface"]]
+    assert first([["edges"], ["halos4d"]], 2, True) == [["halos4d"]]
+
+
+def test_worker_warm_task_compiles_ahead_and_answers_without_pictures(tmp_path, capsys):
+    from refraster.gallery import worker
+    assert worker.main([str(tmp_path), "warm-clipsurface"]) == 0
+    out = [json.loads(ln) for ln in capsys.readouterr().out.splitlines()]
+    assert out == [{"section": "warm-clipsurface", "items": [], "error": None}]
+    assert list(tmp_path.iterdir()) == []
+
+
+_TWIN_KERNEL = '''
+import sys
+import numpy as np
+from numba import njit, prange
+
+@njit(cache=True, parallel=True)
+def k(a, out):
+    for i in prange(a.shape[0]):
+        s = 0.0
+        for j in range(a.shape[1]):
+            s += np.sin(a[i, j]) * np.cos(a[i, j] * 0.5)
+        out[i] = s
+
+if __name__ == "__main__":
+    a = np.arange(12.0).reshape(3, 4)
+    out = np.zeros(3)
+    k(a, out)
+    print(repr(out.tolist()), k.stats.cache_hits.get(k.signatures[0], 0) if k.signatures else -1)
+'''
+
+
+def test_two_processes_compiling_the_same_kernel_at_once_share_one_cache(tmp_path):
+    """Two processes compiling the same kernel (same signature) into one cache at the same
+    time — as a gallery worker warming kernels ahead and the section that needs them may —
+    both succeed, and a third process loads the entry and computes the same numbers (Numba
+    writes the index and the data atomically, under the same names for the same key)."""
+    (tmp_path / "twin.py").write_text(_TWIN_KERNEL)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), NUMBA_NUM_THREADS="1")
+    cmd = [sys.executable, str(tmp_path / "twin.py")]
+    procs = [subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True, stdin=subprocess.DEVNULL) for _ in range(2)]
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert all(p.returncode == 0 for p in procs), outs
+    third = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300,
+                           stdin=subprocess.DEVNULL)
+    assert third.returncode == 0, third.stderr
+    values = {o.rsplit(" ", 1)[0] for o, _ in outs} | {third.stdout.strip().rsplit(" ", 1)[0]}
+    assert len(values) == 1
+    assert third.stdout.strip().rsplit(" ", 1)[1] == "1"   # loaded from the cache
+    assert len(list((tmp_path / "cache").rglob("*.nbi"))) == 1

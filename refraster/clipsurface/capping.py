@@ -227,7 +227,8 @@ def _footprint_kernel(verts, faces, mats, depth, count, start, cstart, hw, margi
     test calls inside: at some texel of its (s, t) box, widened by one texel and ``margin``
     of its size, its r range (widened alike) meets an inside segment ``[d_2j, d_2j+1]`` of
     the layers (the last one open-ended for an odd count)."""
-    for fi in prange(faces.shape[0]):
+    for fu in prange(faces.shape[0]):
+        fi = np.int64(fu)   # one _face_box specialisation (the parfor body's index is uint64)
         n_in = 0
         for ld in range(mats.shape[0]):
             h = hw[ld, 0]
@@ -280,8 +281,8 @@ def cull_cap(cap, sprite):
     culled and unculled renders are compared in tests/test_clipsurface_fused.py)."""
     mats, depth, sign, count, start, cstart, hw = sprite.packed()
     votes = np.zeros(cap.n_faces, np.int64)
-    _footprint_kernel(np.ascontiguousarray(cap.vertices), np.ascontiguousarray(cap.faces),
-                      mats, depth, count, start, cstart, hw, FOOTPRINT_MARGIN, votes)
+    _footprint_kernel(_readonly(np.ascontiguousarray(cap.vertices)),
+                      _readonly(np.ascontiguousarray(cap.faces)), mats, depth, count, start, cstart, hw, FOOTPRINT_MARGIN, votes)
     faces = cap.faces[votes * 2 > len(mats)]
     used = np.unique(faces)
     remap = np.zeros(cap.n_vertices, np.int64)
@@ -318,7 +319,8 @@ def _sure_kernel(verts, faces, mats, depth, count, start, cstart, hw, margin, ro
     coordinates' magnitude) lies in [0, 1]³ and at texels where the parity test says inside:
     the count of leading layers ≤ r is the same odd number at both ends of the r range (it
     is monotone in r, so it is that number in between)."""
-    for fi in prange(faces.shape[0]):
+    for fu in prange(faces.shape[0]):
+        fi = np.int64(fu)   # one _face_box specialisation (the parfor body's index is uint64)
         n_in = 0
         for ld in range(mats.shape[0]):
             h = hw[ld, 0]
@@ -361,7 +363,8 @@ def surely_inside(cap, sprite):
     the flag never changes a pixel. Returns ``(F,) bool``."""
     mats, depth, sign, count, start, cstart, hw = sprite.packed()
     votes = np.zeros(cap.n_faces, np.int64)
-    _sure_kernel(np.ascontiguousarray(cap.vertices), np.ascontiguousarray(cap.faces), mats,
+    _sure_kernel(_readonly(np.ascontiguousarray(cap.vertices)),
+                 _readonly(np.ascontiguousarray(cap.faces)), mats,
                  depth, count, start, cstart, hw, FOOTPRINT_MARGIN, _SURE_ROUNDING, votes)
     return votes * 2 > len(mats)
 

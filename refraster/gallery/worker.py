@@ -2,7 +2,8 @@
 
 ``python -m refraster.gallery.worker OUT_DIR [--quick] SECTION ...``
 
-Each section's result is one JSON line on stdout: ``{"section", "items", "error"}`` with the
+A name of :data:`WARM_TASKS` compiles kernels ahead instead of rendering. Each section's
+result is one JSON line on stdout: ``{"section", "items", "error"}`` with the
 items as ``[section, filename, caption]``. Each kernel the worker compiles (a cache miss) is
 one line ``refraster-compiled module.qualname`` on stderr (and
 ``refraster-compiling …`` when it starts), so that the parent counts them in
@@ -19,6 +20,10 @@ from pathlib import Path
 
 COMPILED = "refraster-compiled "
 STARTING = "refraster-compiling "
+#: Names a worker takes besides sections: compile kernels ahead (no pictures), by the
+#: function of :mod:`refraster.warmup` that does it. ``refraster gallery`` gives one to a
+#: worker on a first run, so that a section later loads those kernels from the cache.
+WARM_TASKS = {"warm-clipsurface": "warm_clipsurface_side"}
 
 
 def main(argv=None):
@@ -41,9 +46,12 @@ def main(argv=None):
         for name in names:
             items, error = [], None
             try:
-                module = importlib.import_module(f"refraster.gallery.{name}")
-                items = [[i.section, i.filename, i.caption]
-                         for i in module.render(out_dir, quick=quick)]
+                if name in WARM_TASKS:
+                    getattr(importlib.import_module("refraster.warmup"), WARM_TASKS[name])()
+                else:
+                    module = importlib.import_module(f"refraster.gallery.{name}")
+                    items = [[i.section, i.filename, i.caption]
+                             for i in module.render(out_dir, quick=quick)]
             except Exception as exc:
                 error = f"{type(exc).__name__}: {' '.join(str(exc).split()) or type(exc).__name__}"
             print(json.dumps({"section": name, "items": items, "error": error}), flush=True)

@@ -246,7 +246,7 @@ def _clipped_face(c, f, i, codes, poly, tmp, X, Y, Z, IW, XF, YF, width, height,
             poly[k, j] = c[v, j]
         for j in range(3):
             poly[k, 4 + j] = 1.0 if j == k else 0.0
-    n = _clip_polygon(poly, tmp, 3, codes, gx, gy)
+    n = _clip_polygon(poly, tmp, np.int64(3), codes, gx, gy)   # int64: one compile
     if n < 3:
         return 0, np.int64(0)
     hw = np.float32(width * 0.5)
@@ -317,7 +317,7 @@ def _clip_pass(c, f, idx, width, height, bits, gx, gy, cull, counts, offsets, wr
         o = offsets[ch]
         for r in range(ch * _CHUNK, min(n_idx, (ch + 1) * _CHUNK)):
             i = idx[r]
-            codes = 0
+            codes = np.int64(0)   # not the literal 0: _clipped_face compiles once
             for k in range(3):
                 v = f[i, k]
                 codes |= _outcode(c[v, 0], c[v, 1], c[v, 2], c[v, 3], gx, gy)
