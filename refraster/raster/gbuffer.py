@@ -109,6 +109,25 @@ def _face_normals(vertices, faces, face_offsets, nmat, fnormal):
 FACE_NORMAL_PIXELS = 16
 
 
+@njit(**IJIT)
+def _surface(g, k, beta, vertices, faces, vnormals, smooth, mv, nmat, fnormal, per_face):
+    """The float64 eye-space position and normal of face ``g`` (draw call ``k``) at the
+    barycentrics ``beta`` (3,): what :func:`finalize` rounds and :func:`shade` lights. The
+    normal is ``fnormal[g]`` where ``per_face`` (flat normals computed once per face), else
+    interpolated or flat per pixel (:func:`_normal`); both are the same expression."""
+    b0 = np.float64(beta[0])
+    b1 = np.float64(beta[1])
+    b2 = np.float64(beta[2])
+    ex, ey, ez = _position(g, k, b0, b1, b2, vertices, faces, mv)
+    if per_face:
+        mx = fnormal[g, 0]
+        my = fnormal[g, 1]
+        mz = fnormal[g, 2]
+    else:
+        mx, my, mz = _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat)
+    return ex, ey, ez, mx, my, mz
+
+
 def per_face_normals(n_faces, height, width, smooth):
     """Whether :func:`finalize` and :func:`shade` take flat normals per face (see
     :data:`FACE_NORMAL_PIXELS`)."""
@@ -140,16 +159,8 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
             k = _object_of(face_offsets, g)
             prim_id[r, c] = g - face_offsets[k]
             object_id[r, c] = k
-            b0 = np.float64(bary[r, c, 0])
-            b1 = np.float64(bary[r, c, 1])
-            b2 = np.float64(bary[r, c, 2])
-            ex, ey, ez = _position(g, k, b0, b1, b2, vertices, faces, mv)
-            if per_face:
-                mx = fnormal[g, 0]
-                my = fnormal[g, 1]
-                mz = fnormal[g, 2]
-            else:
-                mx, my, mz = _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat)
+            ex, ey, ez, mx, my, mz = _surface(g, k, bary[r, c], vertices, faces, vnormals,
+                                              smooth, mv, nmat, fnormal, per_face)
             eye_depth[r, c] = np.float32(-ez)
             normal[r, c, 0] = np.float32(mx)
             normal[r, c, 1] = np.float32(my)
@@ -176,16 +187,8 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
                     color[r, c, j] = background[j]
                 continue
             k = _object_of(face_offsets, g)
-            b0 = np.float64(bary[r, c, 0])
-            b1 = np.float64(bary[r, c, 1])
-            b2 = np.float64(bary[r, c, 2])
-            ex, ey, ez = _position(g, k, b0, b1, b2, vertices, faces, mv)
-            if per_face:
-                mx = fnormal[g, 0]
-                my = fnormal[g, 1]
-                mz = fnormal[g, 2]
-            else:
-                mx, my, mz = _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat)
+            ex, ey, ez, mx, my, mz = _surface(g, k, bary[r, c], vertices, faces, vnormals,
+                                              smooth, mv, nmat, fnormal, per_face)
             # light at the eye, so the half vector is the view vector
             vl = np.sqrt(ex * ex + ey * ey + ez * ez)
             ndv = 1.0
