@@ -109,3 +109,24 @@ def generate_gold(tmp_path_factory, name, scenes):
     root = tmp_path_factory.mktemp(name)
     golden.generate(root / "golden", scenes)
     return root
+
+
+# --- framebuffers rendered again (tests/test_render_reuse.py, tests/test_gbuffer_paths.py) ----
+
+#: Every array of a :class:`refraster.Framebuffer`, the colour included.
+FB_FIELDS = ("depth", "eye_depth", "normal", "prim_id", "object_id", "front_facing",
+             "barycentric", "color")
+
+
+def mesh_of(tm):
+    """A refraster mesh with the vertices and faces of a trimesh (copies, float64 / int64)."""
+    import numpy as np
+    from refraster.mesh import as_mesh
+    return as_mesh((np.array(tm.vertices, np.float64), np.array(tm.faces, np.int64)))
+
+
+def camera_kw(w=96, h=72, eye=(1.6, 1.2, 2.4)):
+    """``view``, ``proj``, ``width``, ``height`` of a perspective camera looking at the origin."""
+    import refraster as rf
+    return dict(view=rf.look_at(list(eye), [0, 0, 0]), proj=rf.perspective(45, w / h, 0.5, 10),
+                width=w, height=h)

@@ -14,27 +14,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import FB_FIELDS, camera_kw, mesh_of
 import refraster as rf
 from refraster import framebuffer as fbm
-from refraster.mesh import Mesh, as_mesh
+from refraster.mesh import Mesh
 from refraster.raster import gbuffer
 from refraster.scenes import cube, icosphere
 
-FIELDS = ("depth", "eye_depth", "normal", "prim_id", "object_id", "front_facing", "barycentric",
-          "color")
-
-
-def _mesh(tm):
-    return as_mesh((np.array(tm.vertices, np.float64), np.array(tm.faces, np.int64)))
-
-
-def _kw(w=96, h=72, eye=(1.6, 1.2, 2.4)):
-    return dict(view=rf.look_at(list(eye), [0, 0, 0]), proj=rf.perspective(45, w / h, 0.5, 10),
-                width=w, height=h)
-
 
 def _bytes(fb):
-    return {f: getattr(fb, f).tobytes() for f in FIELDS}
+    return {f: getattr(fb, f).tobytes() for f in FB_FIELDS}
 
 
 def _model(angle, t):
@@ -51,8 +40,8 @@ SHEAR = np.array([[1.0, 0.3, -0.2], [0.1, 0.9, 0.4], [0.25, -0.3, 1.1]])
 
 
 def _scenes():
-    box, ico = _mesh(cube()), _mesh(icosphere(2))
-    kw = _kw()
+    box, ico = mesh_of(cube()), mesh_of(icosphere(2))
+    kw = camera_kw()
     return [("cube", box, kw),
             ("two draws", [box, ico],
              dict(kw, model=[_model(0.4, (-0.5, 0, 0)), _model(-0.9, (0.6, 0.1, -0.2))])),
@@ -69,15 +58,15 @@ def test_per_face_normals_give_the_per_pixel_bytes(monkeypatch, name):
     per_face = _bytes(rf.render(meshes, **kw))
     monkeypatch.setattr(gbuffer, "FACE_NORMAL_PIXELS", 10 ** 12)  # every frame per pixel
     per_pixel = _bytes(rf.render(meshes, **kw))
-    for f in FIELDS:
+    for f in FB_FIELDS:
         assert per_face[f] == per_pixel[f], f
 
 
 def test_per_face_normals_match_the_cubes_analytic_normals(monkeypatch):
     """An outside oracle: the flat cube's eye-space normals are ``view``'s rotation of the six
     axis directions (the face's outward normal), whichever path computes them."""
-    box = _mesh(cube())
-    kw = _kw(w=128, h=96)
+    box = mesh_of(cube())
+    kw = camera_kw(w=128, h=96)
     rot = kw["view"][:3, :3]
     for pixels in (0, 10 ** 12):
         monkeypatch.setattr(gbuffer, "FACE_NORMAL_PIXELS", pixels)
@@ -111,20 +100,20 @@ def test_pending_colour_uses_the_vertices_as_they_are_when_read(monkeypatch):
     results = []
     for pixels in (0, 10 ** 12):
         monkeypatch.setattr(gbuffer, "FACE_NORMAL_PIXELS", pixels)
-        box = _mesh(cube())
-        kw = _kw()
+        box = mesh_of(cube())
+        kw = camera_kw()
         fb = rf.render(box, **kw)
         box.vertices[:] = box.vertices @ SHEAR + [0.1, 0.0, 0.0]   # in place: new face normals
         results.append(fb.color.tobytes())
         # and the same through a reused framebuffer
-        out = rf.render(_mesh(icosphere(1)), **kw)
-        box2 = _mesh(cube())
+        out = rf.render(mesh_of(icosphere(1)), **kw)
+        box2 = mesh_of(cube())
         rf.render(box2, **kw, out=out)
         box2.vertices[:] = box2.vertices @ SHEAR.T
         results.append(out.color.tobytes())
     assert results[0] == results[2] and results[1] == results[3]
     # and the change is visible (the check above can fail)
-    assert results[0] != rf.render(_mesh(cube()), **_kw()).color.tobytes()
+    assert results[0] != rf.render(mesh_of(cube()), **camera_kw()).color.tobytes()
 
 
 @pytest.mark.parametrize("fill_in_kernel", [0, 1 << 40])
@@ -133,15 +122,15 @@ def test_background_written_by_finalize_over_a_stale_frame(monkeypatch, fill_in_
     and ids' background written by ``finalize``: every pixel the last frame covered and this
     one does not must get it (both paths, compared with a fresh frame)."""
     monkeypatch.setattr(fbm, "FILL_IN_KERNEL", fill_in_kernel)
-    big, small = _mesh(icosphere(3)), _mesh(cube())
-    kw = _kw(w=160, h=120, eye=(0.9, 0.7, 1.4))    # the sphere fills most of the frame
-    kw_far = _kw(w=160, h=120, eye=(3.0, 2.2, 4.5))
+    big, small = mesh_of(icosphere(3)), mesh_of(cube())
+    kw = camera_kw(w=160, h=120, eye=(0.9, 0.7, 1.4))    # the sphere fills most of the frame
+    kw_far = camera_kw(w=160, h=120, eye=(3.0, 2.2, 4.5))
     out = rf.render(big, **kw)
     out.color
     for _ in range(2):
         got = _bytes(rf.render(small, **kw_far, out=out))
         ref = _bytes(rf.render(small, **kw_far))
-        for f in FIELDS:
+        for f in FB_FIELDS:
             assert got[f] == ref[f], f
         rf.render(big, **kw, normals="smooth", out=out)
     assert out.prim_id.size >= fill_in_kernel or fill_in_kernel > 1 << 30
@@ -154,13 +143,13 @@ def test_default_threshold_uses_both_background_paths():
 def test_one_specialisation_per_kernel():
     """Writeable and read-only meshes, normals and matrices, one or several draw calls, the
     fused and the fragment-stream paths: ``finalize`` and ``shade`` compile once each."""
-    box = _mesh(cube())
+    box = mesh_of(cube())
     ro = Mesh(box.vertices.copy(), box.faces.copy())
     ro.vertices.flags.writeable = False
     ro.faces.flags.writeable = False
     normals = box.vertices / np.linalg.norm(box.vertices, axis=1, keepdims=True)
     normals.flags.writeable = False
-    kw = _kw(w=32, h=24)
+    kw = camera_kw(w=32, h=24)
     for m in (box, ro):
         rf.render(m, **kw).color
         rf.render(m, **kw, normals="smooth").color
@@ -177,8 +166,8 @@ def test_one_specialisation_per_kernel():
 def test_out_input_check_after_good_frames():
     """``render(out=)`` compares only inputs it has not checked against the same arrays: after
     good frames, a new input living in ``out``'s memory is still refused."""
-    box = _mesh(cube())
-    kw = _kw()
+    box = mesh_of(cube())
+    kw = camera_kw()
     out = rf.render(box, **kw)
     for _ in range(2):
         rf.render(box, **kw, out=out)          # box, view, proj remembered

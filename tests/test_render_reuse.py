@@ -7,41 +7,30 @@ import numba
 import numpy as np
 import pytest
 
+from conftest import FB_FIELDS, camera_kw, mesh_of
 import refraster as rf
 from refraster import _threads
-from refraster.mesh import Mesh, as_mesh, smooth_normals, vertex_normals
+from refraster.mesh import Mesh, smooth_normals, vertex_normals
 from refraster.scenes import cube, icosphere, torus
-
-FIELDS = ("depth", "eye_depth", "normal", "prim_id", "object_id", "front_facing", "barycentric",
-          "color")
-
-
-def _mesh(tm):
-    return as_mesh((np.array(tm.vertices, np.float64), np.array(tm.faces, np.int64)))
-
-
-def _kw(w=96, h=72, eye=(1.6, 1.2, 2.4)):
-    return dict(view=rf.look_at(list(eye), [0, 0, 0]), proj=rf.perspective(45, w / h, 0.5, 10),
-                width=w, height=h)
 
 
 def _same(a, b):
-    for f in FIELDS:
+    for f in FB_FIELDS:
         x, y = getattr(a, f), getattr(b, f)
         assert x.dtype == y.dtype and x.shape == y.shape, f
         assert x.tobytes() == y.tobytes(), f
 
 
 def test_out_gives_the_bytes_of_a_fresh_render_over_a_stale_frame():
-    ico, box = _mesh(icosphere(3)), _mesh(cube())
-    kw = _kw()
+    ico, box = mesh_of(icosphere(3)), mesh_of(cube())
+    kw = camera_kw()
     out = rf.render(ico, **kw, normals="smooth")   # another scene's data in every buffer
     out.color                                         # … colour included
-    ids = {f: id(getattr(out, f)) for f in FIELDS if f != "color"}
-    got = rf.render(box, **_kw(eye=(2.0, -1.0, 2.5)), out=out)
+    ids = {f: id(getattr(out, f)) for f in FB_FIELDS if f != "color"}
+    got = rf.render(box, **camera_kw(eye=(2.0, -1.0, 2.5)), out=out)
     assert got is out
     assert all(id(getattr(out, f)) == ids[f] for f in ids)   # written in place
-    _same(got, rf.render(box, **_kw(eye=(2.0, -1.0, 2.5))))
+    _same(got, rf.render(box, **camera_kw(eye=(2.0, -1.0, 2.5))))
     # twice more, alternating scenes and options, colour pending or read
     _same(rf.render(ico, **kw, cull="back", out=out), rf.render(ico, **kw, cull="back"))
     _same(rf.render(box, **kw, depth_func="greater", clear_depth=0.0, out=out),
@@ -49,8 +38,8 @@ def test_out_gives_the_bytes_of_a_fresh_render_over_a_stale_frame():
 
 
 def test_out_colour_read_before_and_after_reuse():
-    box, ico = _mesh(cube()), _mesh(icosphere(2))
-    kw = _kw()
+    box, ico = mesh_of(cube()), mesh_of(icosphere(2))
+    kw = camera_kw()
     out = rf.render(box, **kw)
     first = out.color.copy()
     rf.render(ico, **kw, out=out)
@@ -60,25 +49,25 @@ def test_out_colour_read_before_and_after_reuse():
 
 def test_fresh_frames_never_share_memory():
     """Without out=, every frame's arrays are new: a frame a user holds never changes."""
-    box = _mesh(cube())
-    kw = _kw()
+    box = mesh_of(cube())
+    kw = camera_kw()
     a = rf.render(box, **kw)
-    keep = {f: getattr(a, f).copy() for f in FIELDS}
-    b = rf.render(_mesh(icosphere(2)), **kw)
-    for f in FIELDS:
-        for g in FIELDS:
+    keep = {f: getattr(a, f).copy() for f in FB_FIELDS}
+    b = rf.render(mesh_of(icosphere(2)), **kw)
+    for f in FB_FIELDS:
+        for g in FB_FIELDS:
             assert not np.may_share_memory(getattr(a, f), getattr(b, g)), (f, g)
         assert getattr(a, f).tobytes() == keep[f].tobytes(), f
 
 
 def test_out_is_checked():
-    box = _mesh(cube())
-    kw = _kw()
+    box = mesh_of(cube())
+    kw = camera_kw()
     out = rf.render(box, **kw)
     with pytest.raises(TypeError, match="out must be a Framebuffer"):
         rf.render(box, **kw, out=out.depth)
     with pytest.raises(ValueError, match=r"out.depth must be float32 of shape \(60, 80\)"):
-        rf.render(box, **_kw(80, 60), out=out)
+        rf.render(box, **camera_kw(80, 60), out=out)
     bad = rf.render(box, **kw)
     bad.prim_id = bad.prim_id.astype(np.int64)
     with pytest.raises(ValueError, match="out.prim_id must be int32"):
@@ -102,8 +91,8 @@ def test_out_is_checked():
 def test_out_overlap_is_checked_again_after_a_good_frame():
     """The overlap check of ``out``'s own arrays is skipped only for the very array objects it
     passed last time: an array swapped in after a good frame is checked again."""
-    box = _mesh(cube())
-    kw = _kw()
+    box = mesh_of(cube())
+    kw = camera_kw()
     out = rf.render(box, **kw)
     rf.render(box, **kw, out=out)     # a good frame: its arrays are remembered
     rf.render(box, **kw, out=out)
@@ -123,11 +112,11 @@ def test_camera_caches_never_give_another_cameras_normals():
     rendered with the caches emptied)."""
     from refraster import framebuffer as fbm
     from refraster import raster as rmod
-    box = _mesh(cube())
+    box = mesh_of(cube())
     eyes = [(1.6, 1.2, 2.4), (-2.0, 0.5, 1.5), (1.6, 1.2, 2.4), (0.3, -2.2, 1.0)]
     out = None
     for eye in eyes:
-        kw = _kw(eye=eye)
+        kw = camera_kw(eye=eye)
         kw["proj"] = rf.perspective(40 + 5 * eye[0], 96 / 72, 0.5, 10)
         got = rf.render(box, **kw)
         got.color
@@ -139,12 +128,12 @@ def test_camera_caches_never_give_another_cameras_normals():
         _same(out, ref)
     # a singular projection is still refused after good ones were remembered
     with pytest.raises(ValueError, match="proj is singular"):
-        rf.render(box, **dict(_kw(), proj=np.zeros((4, 4))))
+        rf.render(box, **dict(camera_kw(), proj=np.zeros((4, 4))))
 
 
 def test_out_never_overwrites_an_input():
-    box = _mesh(cube())
-    kw = _kw()
+    box = mesh_of(cube())
+    kw = camera_kw()
     out = rf.render(box, **kw)
     # a mesh whose vertices live in out's barycentric buffer
     flat = out.barycentric.reshape(-1).view(np.float64)
@@ -160,8 +149,8 @@ def test_out_never_overwrites_an_input():
 
 
 def test_smooth_normals_cache_follows_the_content():
-    t = _mesh(torus(major_segments=24, minor_segments=10))
-    kw = _kw(eye=(0.5, 2.2, 2.0))
+    t = mesh_of(torus(major_segments=24, minor_segments=10))
+    kw = camera_kw(eye=(0.5, 2.2, 2.0))
     n1 = smooth_normals(t)
     assert smooth_normals(t) is n1                             # cached
     assert smooth_normals(Mesh(t.vertices.copy(), t.faces.copy())) is n1   # same content
@@ -188,7 +177,7 @@ def test_smooth_normals_cache_follows_the_content():
 def test_normals_cache_is_bounded(monkeypatch):
     from refraster import mesh as mesh_mod
     monkeypatch.setattr(mesh_mod, "_NORMALS_CACHE_ENTRIES", 2)
-    ms = [_mesh(icosphere(1, radius=1.0 + k)) for k in range(4)]
+    ms = [mesh_of(icosphere(1, radius=1.0 + k)) for k in range(4)]
     for m in ms:
         smooth_normals(m)
     assert len(mesh_mod._NORMALS_CACHE) <= 2
@@ -220,8 +209,8 @@ def test_small_frames_run_serially_and_the_override(monkeypatch):
 
 
 def test_thread_choice_restores_numba_and_keeps_the_bytes(monkeypatch):
-    ico = _mesh(icosphere(4))
-    kw = _kw(256, 192)
+    ico = mesh_of(icosphere(4))
+    kw = camera_kw(256, 192)
     before = numba.get_num_threads()
     frames = []
     for n in ("1", str(numba.config.NUMBA_NUM_THREADS), "auto"):
@@ -245,12 +234,12 @@ def test_reused_scratch_never_reaches_a_frame(monkeypatch):
     from refraster._scratch import frame_scratch
     monkeypatch.setattr(framebuffer, "SCRATCH_FACES", 0)   # these small meshes use it too
     frame_scratch().clear()
-    ico, t = _mesh(icosphere(3)), _mesh(torus(major_segments=24, minor_segments=10))
-    kw = _kw()
+    ico, t = mesh_of(icosphere(3)), mesh_of(torus(major_segments=24, minor_segments=10))
+    kw = camera_kw()
     a = rf.render(ico, **kw, normals="smooth")        # colour left pending
-    held = {f: getattr(a, f).copy() for f in FIELDS if f != "color"}
+    held = {f: getattr(a, f).copy() for f in FB_FIELDS if f != "color"}
     pending = a.__dict__["_color"].args
-    rf.render(t, **_kw(eye=(0.5, 2.2, 2.0)), cull="back")   # reuses every scratch buffer
+    rf.render(t, **camera_kw(eye=(0.5, 2.2, 2.0)), cull="back")   # reuses every scratch buffer
     bufs = list(frame_scratch()._bufs.values())
     assert bufs
     for x in [getattr(a, f) for f in held] + [p for p in pending if isinstance(p, np.ndarray)]:
@@ -263,9 +252,9 @@ def test_reused_scratch_never_reaches_a_frame(monkeypatch):
 def test_public_prepare_never_uses_the_scratch():
     from refraster._scratch import SCRATCH_FACES, frame_scratch
     from refraster.raster import prepare
-    ico = _mesh(icosphere(5))
+    ico = mesh_of(icosphere(5))
     assert ico.n_faces >= SCRATCH_FACES
-    kw = _kw()
+    kw = camera_kw()
     frame_scratch().clear()
     rf.render(ico, **kw)
     assert frame_scratch().nbytes > 0                     # the default path uses the scratch
