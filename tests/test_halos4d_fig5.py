@@ -55,6 +55,18 @@ def arc_crossings(rotation, phi, step=8):
     return np.column_stack([pa[:, :2], pa[:, 2], pb[:, 2], pa[:, 3], pb[:, 3]])
 
 
+
+def diagram_meridians(rotation, n_phi):
+    """``(φ, crossings)`` (:func:`arc_crossings`) of each of ``n_phi`` meridians whose image is a
+    three-crossing diagram of true 3D intersections; a meridian seen edge-on has other 2D
+    crossings, not 3D intersections, and is skipped."""
+    for phi in np.linspace(0.0, 2 * np.pi, n_phi, endpoint=False):
+        c = arc_crossings(rotation, phi)
+        if len(c) != 3 or not np.allclose(c[:, 2], c[:, 3], atol=1e-6 * np.abs(c).max()) \
+                or np.abs(c[:, 4] - c[:, 5]).min() < 0.1:
+            continue
+        yield phi, c
+
 def test_arc_crossings_of_the_plain_spun_view_are_the_diagram():
     """Seen along z (z ↔ w), the meridian φ = π is the knot's xy diagram mirrored about the
     plane: three crossings, true 3D intersections, the strands' 4D depths ±1 (z = ±sin 3u)."""
@@ -81,12 +93,7 @@ def crossings_shown(rotation, surface, halos=True, n_phi=24, **kw):
     dist = ndimage.distance_transform_edt(~changed)
     shown = [[], [], []]
     diagrams = 0
-    for phi in np.linspace(0.0, 2 * np.pi, n_phi, endpoint=False):
-        c = arc_crossings(rotation, phi)
-        # a meridian seen edge-on has other 2D crossings, not 3D intersections: skip that φ
-        if len(c) != 3 or not np.allclose(c[:, 2], c[:, 3], atol=1e-6 * np.abs(c).max()) \
-                or np.abs(c[:, 4] - c[:, 5]).min() < 0.1:
-            continue
+    for phi, c in diagram_meridians(rotation, n_phi):
         diagrams += 1
         col = np.round((c[:, 0] - b[0, 0]) * px - 0.5).astype(int)
         row = np.round((b[1, 1] - c[:, 1]) * px - 0.5).astype(int)
@@ -156,11 +163,7 @@ def crossings_seen_translucent(rotation, surface, halos=True, n_phi=24, **kw):
     r = 1.5 * rho
     shown = [[], [], []]
     diagrams = 0
-    for phi in np.linspace(0.0, 2 * np.pi, n_phi, endpoint=False):
-        c = arc_crossings(rotation, phi)
-        if len(c) != 3 or not np.allclose(c[:, 2], c[:, 3], atol=1e-6 * np.abs(c).max()) \
-                or np.abs(c[:, 4] - c[:, 5]).min() < 0.1:
-            continue
+    for phi, c in diagram_meridians(rotation, n_phi):
         diagrams += 1
         for m in range(3):
             x, y, z = c[m, :3]
