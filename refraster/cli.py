@@ -414,14 +414,7 @@ def gallery_html(sections, out_dir, *, quick=False):
 
 
 def _section_items(out_dir, module, quick):
-    items = list(module.render(out_dir, quick=quick))
-    for item in items:
-        name = Path(item.filename)
-        if name.is_absolute() or ".." in name.parts:
-            raise ValueError(f"item file {item.filename!r} is not relative to the gallery")
-        if not (out_dir / name).is_file():
-            raise FileNotFoundError(f"item file {item.filename!r} was not written")
-    return items
+    return _check_items(out_dir, list(module.render(out_dir, quick=quick)))
 
 
 def _jobs(args):
