@@ -130,3 +130,39 @@ def camera_kw(w=96, h=72, eye=(1.6, 1.2, 2.4)):
     import refraster as rf
     return dict(view=rf.look_at(list(eye), [0, 0, 0]), proj=rf.perspective(45, w / h, 0.5, 10),
                 width=w, height=h)
+
+
+def fault_matrix(gold, columns, scenes, expected, untouched=None, *, only_scenes=False):
+    """Render the golden ``gold/golden``'s scenes with refraster.gl once correct and once per
+    planted fault (``columns``: ``correct`` and fault names) and compare each candidate
+    tolerantly: the correct one must pass every scene; each fault must fail, naming
+    ``expected[fault]``'s ``{scene: buffer}``, and pass ``untouched[fault]``'s scenes. Returns
+    ``{column: {scene: SceneResult}}`` (the matrix's cells). ``only_scenes``: render just
+    ``scenes`` (the golden holds others)."""
+    import json
+
+    from refraster import golden
+    from refraster.golden.candidate import candidate
+    results = {}
+    for column in columns:
+        out = gold / f"cand_{column}"
+        faults = () if column == "correct" else (column,)
+        r = candidate(gold / "golden", out, faults=faults,
+                      **({"scenes": scenes} if only_scenes else {}))
+        assert sorted(r["rendered"]) == sorted(scenes) and not r["skipped"], r["skipped"]
+        marker = json.loads((out / ".refraster-candidate").read_text())
+        assert marker["faults"] == list(faults)
+        assert marker["renderer"].startswith("llvmpipe") or not IN_CI
+        cmp = golden.compare(gold / "golden", out, mode="tolerant", scenes=r["rendered"])
+        results[column] = {s.name: s for s in cmp.scenes}
+        assert all(s.status in ("pass", "fail") for s in cmp.scenes), cmp.summary()
+        if column == "correct":
+            assert cmp.exit_code == 0, "\n".join(cmp.failures())
+            continue
+        assert cmp.exit_code == 1, f"fault {column} passed every scene"
+        for scene, buffer in expected[column].items():
+            assert [line for line in cmp.failures() if line.startswith(f"{scene}/{buffer}")], \
+                f"fault {column}: {scene}/{buffer} not named ({cmp.failures()})"
+        for scene in (untouched or {}).get(column, ()):
+            assert results[column][scene].status == "pass", (column, scene)
+    return results

@@ -17,10 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import IN_CI
 from conftest import gl_backend_or_skip as _backend_or_skip
-from conftest import check_backends_matrix, generate_gold, matrix_cell, matrix_table
-from refraster import golden
+from conftest import check_backends_matrix, fault_matrix, generate_gold, matrix_cell, matrix_table
 
 ROOT = Path(__file__).resolve().parents[1]
 GL_DIR = ROOT / "refraster" / "gl"
@@ -138,36 +136,16 @@ def gold(tmp_path_factory):
 def test_candidate_passes_and_every_planted_fault_fails(gold):
     from refraster.gl import FAULTS, TECHNIQUE_FAULTS
     from refraster.gl.clipsurface import FAULT_NAMES as CLIP_FAULTS
-    from refraster.golden.candidate import candidate
     _backend_or_skip().release()
     # the clip-surface scenes and faults have their own matrix (tests/test_gl_clipsurface.py),
     # the technique passes' faults theirs (tests/test_gl_techniques.py)
     columns = ["correct", *(f for f in FAULTS if f not in CLIP_FAULTS
                             and f not in TECHNIQUE_FAULTS)]
-    results, skipped = {}, {}
-    for column in columns:
-        out = gold / f"cand_{column}"
-        r = candidate(gold / "golden", out, faults=() if column == "correct" else (column,),
-                      scenes=MATRIX_SCENES)
-        assert sorted(r["rendered"]) == sorted(MATRIX_SCENES) and not r["skipped"]
-        marker = json.loads((out / ".refraster-candidate").read_text())
-        assert marker["faults"] == ([] if column == "correct" else [column])
-        assert marker["renderer"].startswith("llvmpipe") or not IN_CI
-        cmp = golden.compare(gold / "golden", out, mode="tolerant", scenes=r["rendered"])
-        results[column] = {s.name: s for s in cmp.scenes}
-        assert all(s.status in ("pass", "fail") for s in cmp.scenes), cmp.summary()
-        if column == "correct":
-            assert cmp.exit_code == 0, "\n".join(cmp.failures())
-            continue
-        assert cmp.exit_code == 1, f"fault {column} passed every scene"
-        for scene, buffer in EXPECTED[column].items():
-            failing = [line for line in cmp.failures() if line.startswith(f"{scene}/{buffer}")]
-            assert failing, f"fault {column}: {scene}/{buffer} not named ({cmp.failures()})"
-        for scene in UNTOUCHED.get(column, ()):
-            assert results[column][scene].status == "pass", (column, scene)
-        if column in ("sprite_rows_flipped", "parity_wrong_end"):   # only the parity decision
+    results = fault_matrix(gold, columns, MATRIX_SCENES, EXPECTED, UNTOUCHED, only_scenes=True)
+    for column in ("sprite_rows_flipped", "parity_wrong_end"):   # only the parity decision
+        if column in results:
             assert matrix_cell(results[column][VDS]) == "**FAIL** `inside`", column
-    table = matrix_table(columns, MATRIX_SCENES, results, skipped=skipped)
+    table = matrix_table(columns, MATRIX_SCENES, results)
     check_backends_matrix(BEGIN, END, table, "matrix")
 
 

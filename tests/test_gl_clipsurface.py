@@ -14,8 +14,7 @@ import numpy as np
 import pytest
 
 from conftest import gl_backend_or_skip as _backend_or_skip
-from conftest import check_backends_matrix, generate_gold, matrix_table
-from refraster import golden
+from conftest import check_backends_matrix, fault_matrix, generate_gold, matrix_table
 
 BEGIN = "<!-- gl-clip-matrix:begin (tests/test_gl_clipsurface.py) -->"
 END = "<!-- gl-clip-matrix:end -->"
@@ -39,26 +38,10 @@ def gold(tmp_path_factory):
 def test_clip_candidate_passes_and_every_clip_fault_fails(gold):
     from refraster.gl import FAULTS
     from refraster.gl.clipsurface import FAULT_NAMES
-    from refraster.golden.candidate import candidate
     _backend_or_skip().release()
     assert set(FAULT_NAMES) == set(EXPECTED) and set(FAULT_NAMES) <= set(FAULTS)
     columns = ["correct", *FAULT_NAMES]
-    results = {}
-    for column in columns:
-        out = gold / f"cand_{column}"
-        r = candidate(gold / "golden", out, faults=() if column == "correct" else (column,))
-        assert sorted(r["rendered"]) == sorted(SCENES) and not r["skipped"], r["skipped"]
-        marker = json.loads((out / ".refraster-candidate").read_text())
-        assert marker["faults"] == ([] if column == "correct" else [column])
-        cmp = golden.compare(gold / "golden", out, mode="tolerant", scenes=r["rendered"])
-        results[column] = {s.name: s for s in cmp.scenes}
-        if column == "correct":
-            assert cmp.exit_code == 0, "\n".join(cmp.failures())
-            continue
-        assert cmp.exit_code == 1, f"fault {column} passed every scene"
-        for scene, buffer in EXPECTED[column].items():
-            failing = [line for line in cmp.failures() if line.startswith(f"{scene}/{buffer}")]
-            assert failing, f"fault {column}: {scene}/{buffer} not named ({cmp.failures()})"
+    results = fault_matrix(gold, columns, SCENES, EXPECTED)
     table = matrix_table(columns, SCENES, results)
     check_backends_matrix(BEGIN, END, table, "clip-surface matrix")
 

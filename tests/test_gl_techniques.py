@@ -12,10 +12,8 @@ import json
 import numpy as np
 import pytest
 
-from conftest import IN_CI
 from conftest import gl_backend_or_skip as _backend_or_skip
-from conftest import check_backends_matrix, generate_gold, matrix_table
-from refraster import golden
+from conftest import check_backends_matrix, fault_matrix, generate_gold, matrix_table
 
 BEGIN = "<!-- gl-techniques-matrix:begin (tests/test_gl_techniques.py) -->"
 END = "<!-- gl-techniques-matrix:end -->"
@@ -61,28 +59,10 @@ def gold(tmp_path_factory):
 
 def test_technique_scenes_pass_and_every_planted_fault_fails(gold):
     from refraster.gl import TECHNIQUE_FAULTS
-    from refraster.golden.candidate import candidate
     _backend_or_skip().release()
     assert set(EXPECTED) == set(UNTOUCHED) == set(TECHNIQUE_FAULTS)
     columns = ["correct", *TECHNIQUE_FAULTS]
-    results = {}
-    for column in columns:
-        out = gold / f"cand_{column}"
-        r = candidate(gold / "golden", out, faults=() if column == "correct" else (column,))
-        assert sorted(r["rendered"]) == sorted(SCENES) and not r["skipped"], r["skipped"]
-        marker = json.loads((out / ".refraster-candidate").read_text())
-        assert marker["renderer"].startswith("llvmpipe") or not IN_CI
-        cmp = golden.compare(gold / "golden", out, mode="tolerant", scenes=r["rendered"])
-        results[column] = {s.name: s for s in cmp.scenes}
-        if column == "correct":
-            assert cmp.exit_code == 0, "\n".join(cmp.failures())
-            continue
-        assert cmp.exit_code == 1, f"fault {column} passed every scene"
-        for scene, buffer in EXPECTED[column].items():
-            assert [line for line in cmp.failures() if line.startswith(f"{scene}/{buffer}")], \
-                f"fault {column}: {scene}/{buffer} not named ({cmp.failures()})"
-        for scene in UNTOUCHED[column]:
-            assert results[column][scene].status == "pass", (column, scene)
+    results = fault_matrix(gold, columns, SCENES, EXPECTED, UNTOUCHED)
     table = matrix_table(columns, SCENES, results, all_count=False)
     check_backends_matrix(BEGIN, END, table, "technique matrix")
 
