@@ -15,11 +15,9 @@ from .scenes import Draw, GoldenScene, _framed, prepare_draws, raster_state, reg
     render_draws
 
 
-@register_scene("edges_building", technique="edges",
-                description="Edge map (Nienhaus & Döllner), the paper's operator: diagonal "
-                            "normal filter in RGB, diagonal depth filter as printed in A, no id "
-                            "edges, no thresholds (raw intensities).")
-def _edges_building():
+def _building_edges(normal_filter, depth_filter):
+    """The building rendered as the edge scenes show it and its edge map with the given
+    operators (no ids, no thresholds, width 1, gains 1): ``(draws, camera, fb, params, edges)``."""
     from ..edges import edge_map
     from ..scenes import solid
     state = raster_state({})
@@ -27,10 +25,19 @@ def _edges_building():
     camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
     fb = render_draws(draws, camera, state)
     lo, hi = draws[0].mesh.vertices.min(axis=0), draws[0].mesh.vertices.max(axis=0)
-    params = dict(bounds=[lo.tolist(), hi.tolist()], preset="paper", normal_filter="diagonal",
-                  depth_filter="diagonal", ids=False, inner_threshold=0.0,
+    params = dict(bounds=[lo.tolist(), hi.tolist()], preset="paper", normal_filter=normal_filter,
+                  depth_filter=depth_filter, ids=False, inner_threshold=0.0,
                   profile_threshold=0.0, width=1, k_n=1.0, k_z=1.0)
     edges = edge_map(fb, **{**params, "bounds": np.array(params["bounds"])})
+    return draws, camera, fb, params, edges
+
+
+@register_scene("edges_building", technique="edges",
+                description="Edge map (Nienhaus & Döllner), the paper's operator: diagonal "
+                            "normal filter in RGB, diagonal depth filter as printed in A, no id "
+                            "edges, no thresholds (raw intensities).")
+def _edges_building():
+    draws, camera, fb, params, edges = _building_edges("diagonal", "diagonal")
     # the texture formats a backend may use, as the paper's (RGBA8 G-buffer and edge map); the
     # edge map's allowance includes their quantisation (docs/tolerance.md, "Edge maps")
     params.update(gbuffer_format="rgba8", output_format="rgba8")
@@ -44,17 +51,7 @@ def _edges_building():
 def _edges_operator_scene(normal_filter, depth_filter):
     """The building of ``edges_building`` with other operators (issue 26, item 5: a scene per
     edge operator), float32 textures, no thresholds."""
-    from ..edges import edge_map
-    from ..scenes import solid
-    state = raster_state({})
-    draws = prepare_draws([Draw("building", solid("building"))])
-    camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
-    fb = render_draws(draws, camera, state)
-    lo, hi = draws[0].mesh.vertices.min(axis=0), draws[0].mesh.vertices.max(axis=0)
-    params = dict(bounds=[lo.tolist(), hi.tolist()], preset="paper", normal_filter=normal_filter,
-                  depth_filter=depth_filter, ids=False, inner_threshold=0.0,
-                  profile_threshold=0.0, width=1, k_n=1.0, k_z=1.0)
-    edges = edge_map(fb, **{**params, "bounds": np.array(params["bounds"])})
+    draws, camera, fb, params, edges = _building_edges(normal_filter, depth_filter)
     params.update(gbuffer_format="float32", output_format="float32")
     return GoldenScene(technique="edges", camera=camera, draws=draws,
                        buffers={**fb.arrays(), "edge_map": edges}, parameters=params,
@@ -98,17 +95,7 @@ def _edges_c1_paper():
                             "edges towards black, on the objects only), as npr_color.")
 def _edges_npr_gooch():
     from .. import npr as _npr
-    from ..edges import edge_map
-    from ..scenes import solid
-    state = raster_state({})
-    draws = prepare_draws([Draw("building", solid("building"))])
-    camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
-    fb = render_draws(draws, camera, state)
-    lo, hi = draws[0].mesh.vertices.min(axis=0), draws[0].mesh.vertices.max(axis=0)
-    params = dict(bounds=[lo.tolist(), hi.tolist()], preset="paper", normal_filter="diagonal",
-                  depth_filter="diagonal", ids=False, inner_threshold=0.0,
-                  profile_threshold=0.0, width=1, k_n=1.0, k_z=1.0)
-    edges = edge_map(fb, **{**params, "bounds": np.array(params["bounds"])})
+    draws, camera, fb, params, edges = _building_edges("diagonal", "diagonal")
     style = dict(light=list(_npr.DEFAULT_LIGHT), base=[0.75, 0.75, 0.75], cool=[0.0, 0.0, 0.55],
                  warm=[0.3, 0.3, 0.0], alpha=0.25, beta=0.5, background=[1.0, 1.0, 1.0])
     shade = _npr.gooch(fb.normal, **style)
