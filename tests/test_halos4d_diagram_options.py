@@ -53,6 +53,10 @@ def test_colored_by_depth_runs_from_red_near_to_blue_far():
         want = colorsys.hsv_to_rgb(0.66 * (1 - q[k]), 0.85, 1.0)
         np.testing.assert_allclose(s.colors[k], want, atol=1e-12)
     np.testing.assert_allclose(s.colors[int(np.argmax(w))], [1.0, 0.15, 0.15], atol=1e-12)
+    with pytest.raises(ValueError, match="saturation"):
+        h.colored_by_depth(s, rot, saturation=1.5)
+    with pytest.raises(ValueError, match="rotation"):
+        h.colored_by_depth(s, np.eye(3))
 
 
 def test_ambient_scales_a_tilted_sheet_by_the_headlight_formula():

@@ -438,6 +438,7 @@ def colored_by_depth(surface, rotation=None, saturation=0.85):
     through yellow and green to blue (farthest), spread over the surface's depth range."""
     if not isinstance(surface, Surface4D):
         raise TypeError(f"surface must be a Surface4D, got {type(surface).__name__}")
+    saturation = as_real(saturation, "saturation", lo=0.0, hi=1.0)
     r = np.eye(4) if rotation is None else as_float_array(rotation, "rotation", shape=(4, 4))
     w = surface.vertices @ r[3]
     span = float(w.max() - w.min())
