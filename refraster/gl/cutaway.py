@@ -354,13 +354,10 @@ def render_cutaway(gl, loaded, package_dir):
                                           palette[d["object_id"] % len(palette)]))
             gl._vao(d, prog).render(mgl.TRIANGLES)
         ctx.finish()
-        win, eye = (gl._read(t, "<f4", 1, size)[..., 0] for t in targets[:2])
-        normal, bary, color = (gl._read(t, "<f4", 4, size)[..., :3] for t in targets[2:5])
-        ids = gl._read(targets[5], "<i4", 4, size)
+        out, covered = gl._read_gbuffer(scene, targets, size)
         cut = gl._read(targets[6], "<i4", 1, size)[..., 0]
         d_ndc = gl._read(dtex, "<f4", 1, size)[..., 0]
         # 6. ghost lines
-        covered = ids[..., 3] == 1
         ghost = np.zeros((h, w), np.float32)
         g_max = opt["ghost_distance"]
         if g_max is None:
@@ -377,8 +374,9 @@ def render_cutaway(gl, loaded, package_dir):
                                              not persp, float(opt["crease_angle"])))
             seg = np.concatenate(segs) if segs else np.zeros((0, 2, 3))
             if len(seg):
-                ooi = covered & np.isin(ids[..., 1], list(interest_ids))
-                occ = np.where(ooi, 2.0 * win - 1.0, 2.0).astype(np.float32)
+                # where covered, object_id and depth are the ids and window depth read back
+                ooi = covered & np.isin(out["object_id"], list(interest_ids))
+                occ = np.where(ooi, 2.0 * out["depth"] - 1.0, 2.0).astype(np.float32)
                 occ_tex = ctx.texture(size, 1, np.ascontiguousarray(occ[::-1]).tobytes(),
                                       dtype="f4")
                 owned.append(occ_tex)
@@ -413,22 +411,10 @@ def render_cutaway(gl, loaded, package_dir):
         gl._parking.use()
         for obj in owned:
             obj.release()
-    c3 = covered[..., None]
-    raster = scene["raster"]
-    bg = np.asarray(scene["shading"]["background"], np.float32)
-    return {
-        "depth": np.where(covered, win, np.float32(raster["clear_depth"])).astype(np.float32),
-        "eye_depth": np.where(covered, eye, np.float32(np.inf)).astype(np.float32),
-        "normal": np.where(c3, normal, 0).astype(np.float32),
-        "prim_id": np.where(covered, ids[..., 0], -1).astype(np.int32),
-        "object_id": np.where(covered, ids[..., 1], -1).astype(np.int32),
-        "front_facing": covered & (ids[..., 2] == 1),
-        "barycentric": np.where(c3, bary, 0).astype(np.float32),
-        "color": np.where(c3, color, bg).astype(np.float32),
-        "cutaway_depth": (np.float32(0.5) * d_ndc + np.float32(0.5)).astype(np.float32),
-        "cut_mask": covered & (cut == 1),
-        "ghost": np.ascontiguousarray(ghost, np.float32),
-    }
+    out["cutaway_depth"] = (np.float32(0.5) * d_ndc + np.float32(0.5)).astype(np.float32)
+    out["cut_mask"] = covered & (cut == 1)
+    out["ghost"] = np.ascontiguousarray(ghost, np.float32)
+    return out
 
 
 def _diagonal(package_dir, scene, indices):

@@ -337,6 +337,29 @@ class Backend:
         a = np.frombuffer(tex.read(), dtype=dtype).reshape(h, w, comps)
         return np.ascontiguousarray(a[::-1])          # GL's row 0 is the bottom
 
+    def _read_gbuffer(self, scene, targets, size):
+        """The G-buffer's first six targets (window depth, eye depth, normal, barycentric,
+        colour, ids + covered) read back → ``({buffer: array}, covered)``: the golden's eight
+        G-buffer buffers with the background values (``docs/golden-schema.md``) filled in where
+        no fragment was written. Used by :meth:`_gbuffer` and the cutaway's clipped G-buffer."""
+        win, eye = (self._read(t, "<f4", 1, size)[..., 0] for t in targets[:2])
+        normal, bary, color = (self._read(t, "<f4", 4, size)[..., :3] for t in targets[2:5])
+        ids = self._read(targets[5], "<i4", 4, size)
+        covered = ids[..., 3] == 1
+        c3 = covered[..., None]
+        raster = scene["raster"]
+        bg = np.asarray(scene["shading"]["background"], np.float32)
+        return {
+            "depth": np.where(covered, win, np.float32(raster["clear_depth"])).astype(np.float32),
+            "eye_depth": np.where(covered, eye, np.float32(np.inf)).astype(np.float32),
+            "normal": np.where(c3, normal, 0).astype(np.float32),
+            "prim_id": np.where(covered, ids[..., 0], -1).astype(np.int32),
+            "object_id": np.where(covered, ids[..., 1], -1).astype(np.int32),
+            "front_facing": covered & (ids[..., 2] == 1),
+            "barycentric": np.where(c3, bary, 0).astype(np.float32),
+            "color": np.where(c3, color, bg).astype(np.float32),
+        }, covered
+
     # --- the G-buffer -----------------------------------------------------------------------
     def _gbuffer(self, scene, draws, textures=()):
         ctx = self.ctx
@@ -379,27 +402,12 @@ class Backend:
                                                 palette[d["object_id"] % len(palette)]))
                 self._vao(d, prog).render(self.mgl.TRIANGLES)
             ctx.finish()
-            win, eye = (self._read(t, "<f4", 1, size)[..., 0] for t in targets[:2])
-            normal, bary, color = (self._read(t, "<f4", 4, size)[..., :3] for t in targets[2:5])
-            ids = self._read(targets[5], "<i4", 4, size)
+            out, covered = self._read_gbuffer(scene, targets, size)
             inside = self._read(targets[6], "<i4", 1, size)[..., 0] if vds else None
         finally:
             self._parking.use()
             for obj in (fbo, depth, *targets):
                 obj.release()
-        covered = ids[..., 3] == 1
-        c3 = covered[..., None]
-        bg = np.asarray(shading["background"], np.float32)
-        out = {
-            "depth": np.where(covered, win, np.float32(raster["clear_depth"])).astype(np.float32),
-            "eye_depth": np.where(covered, eye, np.float32(np.inf)).astype(np.float32),
-            "normal": np.where(c3, normal, 0).astype(np.float32),
-            "prim_id": np.where(covered, ids[..., 0], -1).astype(np.int32),
-            "object_id": np.where(covered, ids[..., 1], -1).astype(np.int32),
-            "front_facing": covered & (ids[..., 2] == 1),
-            "barycentric": np.where(c3, bary, 0).astype(np.float32),
-            "color": np.where(c3, color, bg).astype(np.float32),
-        }
         if vds:
             out["inside"] = covered & (inside == 1)
         return out
