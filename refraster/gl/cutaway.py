@@ -184,39 +184,25 @@ def feature_segments(vertices, faces, view, model, ortho, crease_angle):
     return (hom @ model.T)[..., :3]
 
 
-def _programs(gl):
-    if getattr(gl, "_cutaway_programs", None) is None:
-        from . import FAULTS
-        from .driver import shader_source
-        defines = [FAULTS[f][0] for f in gl.faults]
-        ctx = gl.ctx
-
-        def full(frag):
-            return ctx.program(vertex_shader=shader_source("fullscreen.vert", defines),
-                               fragment_shader=shader_source(frag, defines))
-        gl._cutaway_programs = {
-            "hull": ctx.program(vertex_shader=shader_source("gbuffer.vert", defines),
-                                fragment_shader=shader_source("cutaway_hull.frag", defines)),
-            "seed": full("cutaway_seed.frag"), "flood": full("cutaway_flood.frag"),
-            "dilate": full("cutaway_dilate.frag"),
-            "gbuffer": ctx.program(
-                vertex_shader=shader_source("gbuffer.vert", defines),
-                geometry_shader=shader_source("gbuffer.geom", defines),
-                fragment_shader=shader_source("cutaway_gbuffer.frag", defines)),
-            "ghost": ctx.program(vertex_shader=shader_source("line.vert", defines),
-                                 fragment_shader=shader_source("cutaway_ghost.frag", defines)),
-        }
-    return gl._cutaway_programs
+#: The programs (vertex, geometry, fragment shader), compiled by refraster.gl.driver.programs.
+SHADERS = {
+    "hull": ("gbuffer.vert", None, "cutaway_hull.frag"),
+    "seed": ("fullscreen.vert", None, "cutaway_seed.frag"),
+    "flood": ("fullscreen.vert", None, "cutaway_flood.frag"),
+    "dilate": ("fullscreen.vert", None, "cutaway_dilate.frag"),
+    "gbuffer": ("gbuffer.vert", "gbuffer.geom", "cutaway_gbuffer.frag"),
+    "ghost": ("line.vert", None, "cutaway_ghost.frag"),
+}
 
 
 def render_cutaway(gl, loaded, package_dir):
+    from .driver import Unsupported, programs
     from .edges import _fullscreen
     scene, draws = loaded["scene"], loaded["draws"]
     opt, reason = options(scene)
     if reason is not None:
-        from .driver import Unsupported
         raise Unsupported(reason)
-    progs = _programs(gl)
+    progs = programs(gl, SHADERS)
     mgl, ctx = gl.mgl, gl.ctx
     w, h = size = (scene["viewport"]["width"], scene["viewport"]["height"])
     view = matrix(scene["camera"]["view"], "camera.view")

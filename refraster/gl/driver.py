@@ -32,7 +32,7 @@ import numpy as np
 from . import FAULTS, SUPPORTED_TECHNIQUES
 from .package import PackageError, matrix, read_map, read_ply, read_scene
 
-__all__ = ["Backend", "GLUnavailable", "Unsupported", "shader_source"]
+__all__ = ["Backend", "GLUnavailable", "Unsupported", "programs", "shader_source"]
 
 SHADER_DIR = Path(__file__).with_name("shaders")
 
@@ -65,6 +65,23 @@ def shader_source(name, defines=()):
     lines = text.splitlines(keepends=True)
     at = next(i for i, line in enumerate(lines) if line.startswith("#version")) + 1
     return "".join(lines[:at] + [f"#define {d}\n" for d in defines] + lines[at:])
+
+
+def programs(gl, shaders):
+    """A technique module's programs: ``shaders`` maps a name to the shader files
+    ``(vertex, geometry or None, fragment)`` under ``shaders/``; they are compiled once per
+    backend (its context, with its planted faults) and cached on it, keyed by ``shaders``.
+    → ``{name: program}``."""
+    key = tuple(shaders.items())
+    if key not in gl._programs:
+        defines = [FAULTS[f][0] for f in gl.faults]
+        gl._programs[key] = {
+            name: gl.ctx.program(
+                vertex_shader=shader_source(vert, defines),
+                geometry_shader=None if geom is None else shader_source(geom, defines),
+                fragment_shader=shader_source(frag, defines))
+            for name, (vert, geom, frag) in shaders.items()}
+    return gl._programs[key]
 
 
 def _gl_functions():
@@ -119,6 +136,7 @@ class Backend:
                                 f"driver such as Mesa's libegl-mesa0): {exc}") from None
         self.mgl, self.ctx = moderngl, ctx
         self.faults = tuple(faults)
+        self._programs = {}         # the technique modules' programs: see programs()
         self.renderer = f"{ctx.info['GL_RENDERER']}; OpenGL {ctx.info['GL_VERSION']}"
         self._gl = _gl_functions()
         defines = [FAULTS[f][0] for f in self.faults]
