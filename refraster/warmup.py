@@ -79,7 +79,6 @@ GALLERY_SKIPS = (
     "refraster.golden.edge_bounds._component_bounds",
     "refraster.golden.edge_bounds._depth_op_kernel",
     "refraster.golden.edge_bounds._dot_bounds",
-    "refraster.golden.edge_bounds._dot_bounds_fg",
     "refraster.golden.edge_bounds._lin",
     "refraster.golden.edge_bounds._normal_op_kernel",
     "refraster.golden.edge_bounds._npr_kernel",
