@@ -112,7 +112,9 @@ FACE_NORMAL_PIXELS = 16
 @njit(**IJIT)
 def _surface(g, k, beta, vertices, faces, vnormals, smooth, mv, nmat, fnormal, per_face):
     """The float64 eye-space position and normal of face ``g`` (draw call ``k``) at the
-    barycentrics ``beta`` (3,): what :func:`finalize` rounds and :func:`shade` lights. The
+    barycentrics ``beta`` (3,): what :func:`finalize` rounds and :func:`shade` lights (both
+    write this expression out, in this order, with the loads that depend on the face only
+    done once per run of a face's pixels; the digests pin the bytes). The
     normal is ``fnormal[g]`` where ``per_face`` (flat normals computed once per face), else
     interpolated or flat per pixel (:func:`_normal`); both are the same expression."""
     b0 = np.float64(beta[0])
