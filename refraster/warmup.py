@@ -287,7 +287,8 @@ def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False):
 
 #: The kernel the second process of :func:`warm_core_split` compiles: the fused tile kernel,
 #: over half of a first ``render``'s compile time (``_fused_pass`` 57.7 of 109.0 s of compiling
-#: at load 5, 2026-12-02; docs/performance.md, "The first render, split over two processes").
+#: at load 5, 2026-12-02; docs/performance.md, "The first render: inlining traded or not, and
+#: two processes").
 SPLIT_KERNEL = "refraster.raster.rasterizer._fused_pass"
 
 
@@ -336,7 +337,9 @@ def warm_only(kernels, normals="flat"):
     """Compile only ``kernels`` (names of :data:`RENDER_KERNELS`) of ``render``'s path: the
     16×12 frame of :func:`warm_core` with every other kernel of the path replaced by a no-op
     for the call, so that these get the argument types a render gives them (the arrays around
-    a replaced kernel are allocated by the same wrappers; they keep their fill values)."""
+    a replaced kernel are allocated by the same wrappers; they keep their fill values). The
+    replacement is process-wide for the call: for the command's process or the second
+    process, not while other threads of the process render."""
     import numpy as np
 
     import refraster
