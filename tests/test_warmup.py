@@ -421,6 +421,8 @@ def test_first_render_compiles_the_fused_kernel_in_a_second_process(tmp_path):
     compiles the fused kernel into the cache (this one does not: Numba's cache log of this
     process names only ``shade`` among the saved entries), the progress line counts both,
     and the picture is byte for byte the one a warm run makes."""
+    if not warmup._split_worth_it():
+        pytest.skip("one CPU: render compiles in one process by design (warm_core_split)")
     env = _cache_without(tmp_path, (warmup.SPLIT_KERNEL, LEFT_OUT))
     env["NUMBA_DEBUG_CACHE"] = "1"
     first = _render(env, tmp_path, "first")
