@@ -263,3 +263,24 @@ def test_public_prepare_never_uses_the_scratch():
     t = p.triangles
     for x in (p.clip, t.vx, t.vy, t.vz, t.status, t.bbox):
         assert not any(np.may_share_memory(x, b) for b in bufs)
+
+
+def test_prepare_called_alone_chooses_its_threads(monkeypatch):
+    """``prepare`` on its own picks the frame's threads as ``render`` does (on busy cores a
+    plain 2-thread ``prepare`` of a cube took 32 ms against 0.07 ms on one); inside ``render``
+    the frame's one choice is kept (asked once, not again)."""
+    from refraster.raster import prepare
+    asked = []
+
+    def record(work):
+        asked.append(work)
+        return 1
+
+    monkeypatch.setattr(_threads, "frame_threads", record)
+    box = mesh_of(cube())
+    kw = camera_kw(160, 120)
+    prepare(box, **kw)
+    assert asked == [_threads.frame_work(box.n_faces, 160, 120)]
+    asked.clear()
+    rf.render(box, **kw)
+    assert asked == [_threads.frame_work(box.n_faces, 160, 120)]

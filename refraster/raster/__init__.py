@@ -96,8 +96,21 @@ def prepare(meshes, *, view, proj, width, height, model=None, cull="none", preci
     """Validate draw calls and run the vertex and primitive stages (shared by draw and render).
     ``scratch`` (internal, ``render``): a :class:`refraster._scratch.Scratch` for the clip
     coordinates and the primitive stage's arrays — the result is then valid only until that
-    scratch is used again."""
+    scratch is used again.
+
+    Called on its own, its kernels run on the threads :mod:`refraster._threads` chooses for the
+    frame (one for small frames and on busy cores), as ``render`` and ``draw`` do; inside them
+    it keeps their choice."""
     meshes = as_meshes(meshes)
+    w, h = as_image_size(width, height)
+    with threads_for(frame_work(sum(m.n_faces for m in meshes), w, h)):
+        return _prepare(meshes, view=view, proj=proj, width=w, height=h, model=model, cull=cull,
+                        precision=precision, subpixel_bits=subpixel_bits, fill_rule=fill_rule,
+                        scratch=scratch)
+
+
+def _prepare(meshes, *, view, proj, width, height, model, cull, precision, subpixel_bits,
+             fill_rule, scratch):
     view = as_matrix(view, "view")
     proj = as_matrix(proj, "proj")
     width, height = as_image_size(width, height)
