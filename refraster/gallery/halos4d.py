@@ -142,13 +142,24 @@ def figures(quick=False):
     ]
 
 
+def _on_off(surface, kw, off_kw):
+    """The figure with halos (``kw``) and its halos-off twin (``kw`` updated by ``off_kw``,
+    without halos and boundaries). With nothing else changed for the twin, both come from one
+    slicing (:func:`refraster.halos4d.render.render_halos_pair`: the same bits as two
+    :func:`~refraster.halos4d.render_halos` calls, ~1/6 less time, issue 27)."""
+    from refraster.halos4d.render import render_halos, render_halos_pair
+    if not off_kw:
+        return render_halos_pair(surface, **kw)
+    off_kw = {**kw, **off_kw, "halos": False}
+    off_kw.pop("boundary_color", None)
+    return render_halos(surface, **kw), render_halos(surface, **off_kw)
+
+
 def render(out_dir: pathlib.Path, *, quick: bool = False, measurements=None,
            only=None) -> list[Item]:
     """Render the halo figures into ``out_dir``; ``quick`` uses small images and meshes.
     ``measurements``, a dict, receives ``name -> (changed, covered, stats)``; ``only``, a
     collection of names, renders just those figures."""
-    import refraster.halos4d as h
-
     out_dir = pathlib.Path(out_dir)
     size = 128 if quick else 512
     slices = 48 if quick else 256
@@ -157,10 +168,7 @@ def render(out_dir: pathlib.Path, *, quick: bool = False, measurements=None,
         if only is not None and name not in only:
             continue
         kw = dict(width=size, height=size, slices=slices, **on_kw)
-        on = h.render_halos(surface, **kw)
-        off_kw = {**kw, **off_kw, "halos": False}
-        off_kw.pop("boundary_color", None)
-        off = h.render_halos(surface, **off_kw)
+        on, off = _on_off(surface, kw, off_kw)
         changed, covered = change_share(on, off)
         share = changed / max(covered, 1)
         if measurements is not None:
