@@ -142,6 +142,12 @@ def figures(quick=False):
     ]
 
 
+#: ``refraster gallery`` renders this section as two work items when the kernel cache is warm
+#: (one per worker, :data:`refraster.gallery.PARTS`): part 0 the figures up to and including
+#: this one, part 1 the rest — each about half of the section's time (issue 27)
+SPLIT_AFTER = "fig5d_translucent"
+
+
 def _on_off(surface, kw, off_kw):
     """The figure with halos (``kw``) and its halos-off twin (``kw`` updated by ``off_kw``,
     without halos and boundaries). With nothing else changed for the twin, both come from one
@@ -156,15 +162,22 @@ def _on_off(surface, kw, off_kw):
 
 
 def render(out_dir: pathlib.Path, *, quick: bool = False, measurements=None,
-           only=None) -> list[Item]:
+           only=None, part=None) -> list[Item]:
     """Render the halo figures into ``out_dir``; ``quick`` uses small images and meshes.
     ``measurements``, a dict, receives ``name -> (changed, covered, stats)``; ``only``, a
-    collection of names, renders just those figures."""
+    collection of names, renders just those figures; ``part`` 0 or 1 just those up to and
+    including :data:`SPLIT_AFTER`, or the others."""
     out_dir = pathlib.Path(out_dir)
     size = 128 if quick else 512
     slices = 48 if quick else 256
     items = []
-    for name, surface, caption, on_kw, off_kw, stacked in figures(quick):
+    figs = figures(quick)
+    if part is not None:
+        if part not in (0, 1):
+            raise ValueError(f"part must be 0 or 1, got {part!r}")
+        k = [f[0] for f in figs].index(SPLIT_AFTER) + 1
+        figs = figs[:k] if part == 0 else figs[k:]
+    for name, surface, caption, on_kw, off_kw, stacked in figs:
         if only is not None and name not in only:
             continue
         kw = dict(width=size, height=size, slices=slices, **on_kw)
