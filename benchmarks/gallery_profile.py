@@ -1,6 +1,6 @@
 """Where a warm gallery's time goes, per section and per picture (issue 27).
 
-``python -m benchmarks.gallery_profile [--sections a,b] [--quick] [--out DIR]``
+``python -m benchmarks.gallery_profile [--sections a,b#k] [--quick] [--out DIR]``
 
 Runs each gallery section in this process, one Numba thread (as ``refraster gallery``'s
 workers do), with the kernel cache warm, and prints per section and per written picture the
@@ -42,8 +42,10 @@ def profile(sections, out_dir, quick=False):
 
     rio.write_png = timed_write
     try:
+        from refraster.gallery import split_item
         for name in sections:
-            module = importlib.import_module(f"refraster.gallery.{name}")
+            section, part = split_item(name)   # a work item "name#k": part k
+            module = importlib.import_module(f"refraster.gallery.{section}")
             # sections import write_png by name: patch their module too
             patched = [m for m in list(sys.modules.values())
                        if m is not None and getattr(m, "__name__", "").startswith(
@@ -53,7 +55,7 @@ def profile(sections, out_dir, quick=False):
             log.clear()
             c0, w0 = time.process_time(), time.perf_counter()
             mark[0] = c0
-            module.render(out_dir, quick=quick)
+            module.render(out_dir, quick=quick, **({} if part is None else {"part": part}))
             rows.append((name, time.process_time() - c0, time.perf_counter() - w0, list(log)))
             for m in patched:
                 m.write_png = real
@@ -64,7 +66,8 @@ def profile(sections, out_dir, quick=False):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--sections", default="clipsurface,ldi,edges,cutaway,halos4d,basic")
+    p.add_argument("--sections", default="clipsurface,ldi,edges,cutaway,halos4d#0,halos4d#1,basic",
+                   help="sections or work items (halos4d#0: part 0 of the halo section)")
     p.add_argument("--quick", action="store_true")
     p.add_argument("--out", default=None)
     a = p.parse_args(argv)
