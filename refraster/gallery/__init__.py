@@ -81,8 +81,8 @@ PARTS = {"halos4d": 2}
 #: CPU seconds of each work item of a warm full-size run, one thread
 #: (``python -m benchmarks.gallery_profile``, 2026-12-02): a warm run hands the items to its
 #: workers longest first (:func:`warm_plan`). An item not listed counts as 1 s.
-WARM_SECONDS = {"halos4d#0": 14.0, "halos4d#1": 14.0, "clipsurface": 5.3, "edges": 4.2,
-                "cutaway": 2.6, "basic": 1.2, "ldi": 1.1}
+WARM_SECONDS = {"halos4d#0": 15.6, "halos4d#1": 21.5, "clipsurface": 6.3, "edges": 4.6,
+                "cutaway": 3.5, "basic": 1.7, "ldi": 1.4}
 
 
 def work_items(names):
