@@ -470,7 +470,7 @@ def _render_in_workers(args, out_dir, groups, jobs):
     import json
     import threading
 
-    from .gallery import Item
+    from .gallery import Item, merge_parts, warm_plan, work_items
     from .gallery.worker import COMPILED, STARTING
     from .warmup import (CLIPSURFACE_SIDE_KERNELS, KERNEL_MODULES, STREAM_KERNELS, cache_state,
                          warm_core)
@@ -525,6 +525,10 @@ def _render_in_workers(args, out_dir, groups, jobs):
     queue = list(groups)
     cached, total = cache_state(KERNEL_MODULES, only=STREAM_KERNELS)
     core_ready = cached == total
+    if core_ready and _gallery_kernels_cached():
+        # warm: nothing to compile; the work balanced over the workers, longest first, the
+        # longest section in parts (issue 27)
+        queue = warm_plan(work_items([n for g in groups for n in g]), jobs)
     try:
         if not core_ready:
             side, n_side = cache_state(KERNEL_MODULES, only=CLIPSURFACE_SIDE_KERNELS)
@@ -542,7 +546,13 @@ def _render_in_workers(args, out_dir, groups, jobs):
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
-    return results
+    return merge_parts(results)
+
+
+def _gallery_kernels_cached():
+    """Whether every kernel a gallery run compiles is in the cache (none to compile)."""
+    from .warmup import GALLERY_SKIPS, _cached, _name, kernels
+    return all(_cached(d) for d in kernels() if _name(d) not in GALLERY_SKIPS)
 
 
 def _check_items(out_dir, items):

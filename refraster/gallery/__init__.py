@@ -10,7 +10,9 @@ from __future__ import annotations
 import importlib
 from dataclasses import dataclass
 
-__all__ = ["Item", "SECTIONS", "WORKER_GROUPS", "PAPERS", "PAGE_ORDER", "WITHOUT_PIPELINE", "section_modules"]
+__all__ = ["Item", "SECTIONS", "WORKER_GROUPS", "PAPERS", "PAGE_ORDER", "WITHOUT_PIPELINE",
+           "PARTS", "WARM_SECONDS", "work_items", "split_item", "warm_plan", "merge_parts",
+           "section_modules"]
 
 
 @dataclass(frozen=True)
@@ -70,6 +72,64 @@ WORKER_GROUPS = [("ldi", "clipsurface"), ("edges", "cutaway", "basic"), ("halos4
 #: Sections that do not use the pipeline's kernels: on a first run their worker starts while
 #: the pipeline's kernels compile in the parent (the others wait for those to be cached).
 WITHOUT_PIPELINE = {"halos4d"}
+
+
+#: Sections a warm run renders as several work items, one per worker (issue 27): the item
+#: ``"name#k"`` is the module's ``render(out_dir, quick=…, part=k)`` for k < n, and the
+#: section's items are the parts' items in part order.
+PARTS = {"halos4d": 2}
+#: CPU seconds of each work item of a warm full-size run, one thread
+#: (``python -m benchmarks.gallery_profile``, 2026-12-02): a warm run hands the items to its
+#: workers longest first (:func:`warm_plan`). An item not listed counts as 1 s.
+WARM_SECONDS = {"halos4d#0": 15.6, "halos4d#1": 21.5, "clipsurface": 6.3, "edges": 4.6,
+                "cutaway": 3.5, "basic": 1.7, "ldi": 1.4}
+
+
+def work_items(names):
+    """The work items of sections ``names``: each section, or its parts (:data:`PARTS`)."""
+    return [item for n in names
+            for item in ([f"{n}#{k}" for k in range(PARTS[n])] if n in PARTS else [n])]
+
+
+def split_item(item):
+    """``(section, part)`` of a work item; ``part`` is None for a whole section."""
+    name, sep, part = item.partition("#")
+    return (name, int(part)) if sep else (name, None)
+
+
+def warm_plan(items, jobs, seconds=None):
+    """Work items split into at most ``jobs`` lists, one per worker process: longest first,
+    each to the worker with the least work so far (ties: the lower worker; equal costs keep
+    their order). Each item is in exactly one list."""
+    seconds = WARM_SECONDS if seconds is None else seconds
+    order = sorted(range(len(items)), key=lambda i: (-seconds.get(items[i], 1.0), i))
+    plan = [[] for _ in range(max(1, min(jobs, len(items))))]
+    load = [0.0] * len(plan)
+    for i in order:
+        w = min(range(len(plan)), key=lambda k: (load[k], k))
+        plan[w].append(items[i])
+        load[w] += seconds.get(items[i], 1.0)
+    return [p for p in plan if p]
+
+
+def merge_parts(results):
+    """``{work item: (items, error)}`` → ``{section: (items, error)}``: the parts of a section
+    (:data:`PARTS`) joined in part order, the first part's error if any; a part that did not
+    answer is an error naming it."""
+    out = {}
+    for item in results:
+        name, part = split_item(item)
+        if part is None:
+            out[name] = results[item]
+        elif name not in out:
+            keys = [f"{name}#{k}" for k in range(PARTS.get(name, part + 1))]
+            items, error = [], None
+            for key in keys:
+                got, err = results.get(key, ([], f"work item {key} did not answer"))
+                items += got
+                error = error or err
+            out[name] = (items, error)
+    return out
 
 
 def section_modules():

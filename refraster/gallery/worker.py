@@ -33,6 +33,7 @@ def main(argv=None):
     out_dir, names = Path(argv[0]), argv[1:]
 
     from ..warmup import compile_listener
+    from . import split_item
 
     def compiled(disp):
         print(f"{COMPILED}{disp.py_func.__module__}.{disp.py_func.__qualname__}",
@@ -49,9 +50,11 @@ def main(argv=None):
                 if name in WARM_TASKS:
                     getattr(importlib.import_module("refraster.warmup"), WARM_TASKS[name])()
                 else:
-                    module = importlib.import_module(f"refraster.gallery.{name}")
+                    section, part = split_item(name)   # "name#k": part k of the section
+                    module = importlib.import_module(f"refraster.gallery.{section}")
+                    kw = {} if part is None else {"part": part}
                     items = [[i.section, i.filename, i.caption]
-                             for i in module.render(out_dir, quick=quick)]
+                             for i in module.render(out_dir, quick=quick, **kw)]
             except Exception as exc:
                 error = f"{type(exc).__name__}: {' '.join(str(exc).split()) or type(exc).__name__}"
             print(json.dumps({"section": name, "items": items, "error": error}), flush=True)

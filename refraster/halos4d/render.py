@@ -353,12 +353,11 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
                 out_a[r0 + li, px] = acc_a[li, px]
 
 
-def _fused(st, width, height, params, want_volume):
-    X, Y, order, bbox, valid, XF, YF = setup_window(st.xy, width, height)
-    area = ((X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0]))
+def _fused(st, width, height, params, want_volume, win=None):
+    """``win``: :func:`_window` of ``st`` computed before (the same for every fill pass)."""
+    X, Y, order, bbox, valid, XF, YF, area, band_starts, band_lists = (
+        _window(st, width, height) if win is None else win)
     n = len(st.starts) - 1
-    nbands = (height + BAND_ROWS - 1) // BAND_ROWS
-    band_starts, band_lists = _bin_bands(bbox, valid, height, BAND_ROWS, nbands)
     rgb = np.zeros((height, width, 3))
     a = np.zeros((height, width))
     vol = np.zeros((n, height, width) if want_volume else (1, 1, 1), np.int8)
@@ -366,6 +365,16 @@ def _fused(st, width, height, params, want_volume):
                   height, SUBPIXEL_BITS, BAND_ROWS, *params, want_volume, rgb, a, vol,
                   np.zeros((1, 1, 1, 4)))
     return rgb, a, (vol if want_volume else None), int(np.count_nonzero(~valid))
+
+
+def _window(st, width, height):
+    """The fill pass's set-up of slice triangles ``st``: window coordinates, areas and the
+    triangles of each band of rows (independent of the fill parameters)."""
+    X, Y, order, bbox, valid, XF, YF = setup_window(st.xy, width, height)
+    area = ((X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0]))
+    nbands = (height + BAND_ROWS - 1) // BAND_ROWS
+    band_starts, band_lists = _bin_bands(bbox, valid, height, BAND_ROWS, nbands)
+    return X, Y, order, bbox, valid, XF, YF, area, band_starts, band_lists
 
 
 # ----------------------------------------------------------------------------- reference engine
@@ -550,7 +559,8 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
                  else as_real(antialias, "antialias", lo=0.0, hi=surface_width))
     if rotation is not None:
         rotation = as_matrix(rotation, "rotation")
-    for name, flag in (("halos", halos), ("stereo", stereo), ("volume", volume)):
+    pair = halos is _PAIR
+    for name, flag in (("halos", True if pair else halos), ("stereo", stereo), ("volume", volume)):
         if not isinstance(flag, (bool, np.bool_)):
             raise TypeError(f"{name} must be a bool, got {type(flag).__name__}")
     if stereo and volume:
@@ -584,30 +594,67 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
                   if halos and halo_opacity > 0.0 else 0.0)
     params = (delta_t, delta_d, surface_width, eps, alpha, bool(halos), antialias, halo_alpha,
               halo_rgb, bool(boundary and halos), boundary_width, boundary_rgb)
-    images, alphas = [], []
-    vol = None
+    stats = {"tetrahedra": int(len(geo.tets)), "normal_fallbacks": geo.n_fallback,
+             "degenerate_faces": geo.n_degenerate, "rho": rho, "delta_d": delta_d,
+             "slice_alpha": alpha, "crossing_pairs": n_pairs, "halo_slice_alpha": halo_alpha}
+    if not pair:
+        return _draw(geo, views, bounds, centres, width, height, [params], engine, volume, bg,
+                     stats)[0]
+    # halos off: the same geometry, slices and window set-up; no carving, no halo colour
+    # (halo_alpha 0), no boundaries — what render_halos(halos=False) passes
+    off = params[:5] + (False, antialias, 0.0, halo_rgb, False) + params[10:]
+    return tuple(_draw(geo, views, bounds, centres, width, height, [params, off], engine, volume,
+                       bg, stats))
+
+
+#: ``render_halos(halos=_PAIR)``: both pictures of :func:`render_halos_pair`
+_PAIR = object()
+
+
+def render_halos_pair(surface, **kwargs):
+    """``(render_halos(surface, **kwargs), render_halos(surface, **kwargs, halos=False))`` —
+    the same two results, bit for bit, from one projection, thickening, tetrahedralization,
+    slicing and window set-up: only the fill pass runs twice (the slicing does not depend on
+    the halos). ``kwargs`` as :func:`render_halos` without ``halos``; ``boundary_color`` and
+    ``halo_opacity`` act on the first picture only, as they do with ``halos=False``."""
+    if "halos" in kwargs:
+        raise TypeError("render_halos_pair renders with and without halos: do not pass halos")
+    return render_halos(surface, halos=_PAIR, **kwargs)
+
+
+def _draw(geo, views, bounds, centres, width, height, variants, engine, volume, bg, stats):
+    """One :class:`HaloRender` per fill-parameter tuple of ``variants``, each view sliced and
+    set up once for all of them."""
+    outs = [([], []) for _ in variants]
+    vols = [None] * len(variants)
     n_tri = n_skip = 0
     for verts in views:
         st = _slice(verts[:, 2].copy(), geo.tets, centres, geo.attributes,
                     ortho_ndc(verts, bounds))
-        run = _fused if engine == "fused" else _reference
-        rgb, a, vol, skipped = run(st, width, height, params, bool(volume))
+        win = _window(st, width, height) if engine == "fused" and len(variants) > 1 else None
+        skipped = None
+        for v, params in enumerate(variants):
+            if engine == "fused":
+                rgb, a, vols[v], skipped = _fused(st, width, height, params, bool(volume), win)
+            else:
+                rgb, a, vols[v], _ = _reference(st, width, height, params, bool(volume))
+            outs[v][0].append(rgb + (1.0 - a)[..., None] * bg)
+            outs[v][1].append(a)
         if skipped is None:
             skipped = int(np.count_nonzero(~setup_window(st.xy, width, height)[4]))
         n_tri += len(st)
         n_skip += skipped
-        images.append(rgb + (1.0 - a)[..., None] * bg)
-        alphas.append(a)
-    if stereo:
-        gap = max(2, width // 32)
-        pad = np.broadcast_to(bg, (height, gap, 3))
-        image = np.concatenate([images[0], pad, images[1]], axis=1)
-        alpha_img = np.concatenate([alphas[0], np.zeros((height, gap)), alphas[1]], axis=1)
-    else:
-        image, alpha_img = images[0], alphas[0]
-    stats = {"tetrahedra": int(len(geo.tets)), "slice_triangles": n_tri,
-             "skipped_zero_area": n_skip, "normal_fallbacks": geo.n_fallback,
-             "degenerate_faces": geo.n_degenerate, "rho": rho, "delta_d": delta_d,
-             "slice_alpha": alpha, "crossing_pairs": n_pairs, "halo_slice_alpha": halo_alpha}
-    return HaloRender(image.astype(np.float32), alpha_img.astype(np.float32), vol, bounds,
-                      centres, stats)
+    results = []
+    for (images, alphas), vol, params in zip(outs, vols, variants):
+        if len(views) == 2:    # stereo
+            gap = max(2, width // 32)
+            pad = np.broadcast_to(bg, (height, gap, 3))
+            image = np.concatenate([images[0], pad, images[1]], axis=1)
+            alpha_img = np.concatenate([alphas[0], np.zeros((height, gap)), alphas[1]], axis=1)
+        else:
+            image, alpha_img = images[0], alphas[0]
+        s = {"tetrahedra": stats["tetrahedra"], "slice_triangles": n_tri,
+             "skipped_zero_area": n_skip, **stats, "halo_slice_alpha": params[7]}
+        results.append(HaloRender(image.astype(np.float32), alpha_img.astype(np.float32), vol,
+                                  bounds, centres, s))
+    return results
