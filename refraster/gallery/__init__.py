@@ -79,9 +79,10 @@ WITHOUT_PIPELINE = {"halos4d"}
 #: section's items are the parts' items in part order.
 PARTS = {"halos4d": 2}
 #: CPU seconds of each work item of a warm full-size run, one thread
-#: (``python -m benchmarks.gallery_profile``, 2026-12-02): a warm run hands the items to its
+#: (``python -m benchmarks.gallery_profile``, 2026-12-02; the halo parts re-measured after
+#: ``fig5d_diagram`` joined, split after it): a warm run hands the items to its
 #: workers longest first (:func:`warm_plan`). An item not listed counts as 1 s.
-WARM_SECONDS = {"halos4d#0": 15.6, "halos4d#1": 21.5, "clipsurface": 6.3, "edges": 4.6,
+WARM_SECONDS = {"halos4d#0": 21.1, "halos4d#1": 21.2, "clipsurface": 6.3, "edges": 4.6,
                 "cutaway": 3.5, "basic": 1.7, "ldi": 1.4}
 
 

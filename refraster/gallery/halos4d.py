@@ -164,7 +164,7 @@ def figures(quick=False):
 #: ``refraster gallery`` renders this section as two work items when the kernel cache is warm
 #: (one per worker, :data:`refraster.gallery.PARTS`): part 0 the figures up to and including
 #: this one, part 1 the rest — each about half of the section's time (issue 27)
-SPLIT_AFTER = "fig5d_translucent"
+SPLIT_AFTER = "fig5d_diagram"
 
 
 def _on_off(surface, kw, off_kw):
