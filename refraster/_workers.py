@@ -189,8 +189,7 @@ def run_groups(module, groups, jobs, *, key, command=None, progress=None, cold_s
         ended = []
         for entry in list(running):
             if entry[0].poll() is not None:
-                for t in entry[2]:
-                    t.join()
+                _close(entry)
                 running.remove(entry)
                 ended.append(entry)
         out = drain()
@@ -220,7 +219,17 @@ def run_groups(module, groups, jobs, *, key, command=None, progress=None, cold_s
                 start(queue.pop(0))
             time.sleep(0.05)
     finally:
-        for proc, *_ in running:
-            if proc.poll() is None:
-                proc.kill()
-            proc.wait()
+        for entry in running:
+            if entry[0].poll() is None:
+                entry[0].kill()
+            entry[0].wait()
+            _close(entry)
+
+
+def _close(entry):
+    """A worker that ended: its readers finish (end of its output) and its pipes close."""
+    proc, _, threads = entry[:3]
+    for t in threads:
+        t.join()
+    proc.stdout.close()
+    proc.stderr.close()

@@ -259,19 +259,22 @@ def _run_serial(tasks, progress, bar):
 WORKER_GROUPS = [("clipsurface",), ("render", "edges", "cutaway", "ldi", "vds"), ("halos4d",)]
 #: Techniques whose scenes use none of the pipeline's kernels: on a first run their worker
 #: starts while this process compiles those (then ``warm-clipsurface``, the clip surfaces'
-#: kernels that need no pipeline kernel, runs after them in the same worker).
-WITHOUT_PIPELINE = {"halos4d"}
+#: kernels that need no pipeline kernel, runs after them in the same worker). None today: the
+#: halos' golden scenes use the pipeline's binning and fragment stream (their masks and
+#: allowances), unlike the gallery's halos section; so on a first run one worker compiles only
+#: ``warm-clipsurface`` while this process compiles the pipeline.
+WITHOUT_PIPELINE = set()
 #: The module a worker process runs (``python -m``).
 WORKER_MODULE = "refraster.golden.worker"
 
 
 def _in_worker(entry):
-    """Whether a worker process builds the same scene from its name: a scene registered by a
-    module of :data:`~refraster.golden.scenes.SCENE_MODULES` (not a TOML scene file, not one
-    registered at run time)."""
-    from .scenes import SCENE_MODULES, SCENES
-    return SCENES.get(entry.name) is entry and getattr(entry.build, "__module__",
-                                                       None) in SCENE_MODULES
+    """Whether a worker process builds the same scene from its name: a scene registered by
+    :mod:`refraster.golden.scenes` or a module of its ``SCENE_MODULES`` (not a TOML scene file,
+    not one registered at run time by other code)."""
+    from . import scenes
+    return scenes.SCENES.get(entry.name) is entry and getattr(
+        entry.build, "__module__", None) in (scenes.__name__, *scenes.SCENE_MODULES)
 
 
 def worker_groups(tasks, jobs):
@@ -307,7 +310,7 @@ def _answer(name, result):
                 raise ValueError(f"file {rel!r} is not under {name}/")
             out[rel] = base64.b64decode(text.encode("ascii"), validate=True)
     except (KeyError, TypeError, ValueError, AttributeError, binascii.Error) as exc:
-        raise GenerationError(f"scene {name}: unreadable answer from its worker process "
+        raise GenerationError(f"scene {name} failed in a worker process: unreadable answer "
                               f"({type(exc).__name__}: {exc})") from None
     return item, out
 
