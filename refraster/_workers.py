@@ -7,7 +7,9 @@ a kernel's output bytes do not depend on its thread count. In the worker, :func:
 group's tasks one after the other and prints one JSON line per task on stdout (``{KEY: name,
 …result, "error": one line or null}``); each kernel it compiles (a cache miss) is one line
 ``refraster-compiled module.qualname`` on stderr (``refraster-compiling …`` when it starts), so
-that the parent counts it in its progress line (:class:`refraster.warmup.CompileProgress`).
+that the parent counts it in its progress line (:class:`refraster.warmup.CompileProgress`);
+a log record of warning level and up is one line ``refraster-logged LOGGER<TAB>message``,
+which the parent logs again (the command shows it as one line, as in process).
 
 On a first run (the pipeline's kernels not in the cache) the parent compiles the pipeline's
 kernels itself (:func:`refraster.warmup.warm_core`) while the groups that do not need them run
@@ -30,20 +32,19 @@ import sys
 import threading
 import time
 
-__all__ = ["COMPILED", "STARTING", "WARM_TASKS", "serve", "run_groups", "cold_start_groups",
-           "WorkerFailed"]
+__all__ = ["COMPILED", "STARTING", "LOGGED", "WARM_TASKS", "serve", "run_groups",
+           "cold_start_groups"]
 
 COMPILED = "refraster-compiled "
 STARTING = "refraster-compiling "
+#: A log record of a worker (warning level and up), ``LOGGER<TAB>message`` after this: the
+#: parent logs it again, so that it reaches the command's one-line warnings
+#: (:mod:`refraster._logs`) as it would in process.
+LOGGED = "refraster-logged "
 #: Names a worker takes besides its own tasks: compile kernels ahead (no result), by the
 #: function of :mod:`refraster.warmup` that does it. On a first run the parent gives one to a
 #: worker, so that a later task loads those kernels from the cache.
 WARM_TASKS = {"warm-clipsurface": "warm_clipsurface_side"}
-
-
-class WorkerFailed(RuntimeError):
-    """A worker process ended without answering for one of its tasks (it died, or its output
-    could not be read)."""
 
 
 def _one_line(exc):
@@ -70,6 +71,20 @@ def serve(names, run, *, key, empty=None, stream=None):
         print(f"{STARTING}{disp.py_func.__module__}.{disp.py_func.__qualname__}",
               file=sys.stderr, flush=True)
 
+    import logging
+
+    class Relay(logging.Handler):
+        def emit(self, record):
+            try:
+                text = " ".join(record.getMessage().split())
+                if record.exc_info and record.exc_info[1] is not None:
+                    text += f" ({_one_line(record.exc_info[1])})"
+                print(f"{LOGGED}{record.name}\t{text}", file=sys.stderr, flush=True)
+            except Exception:   # a broken record must not break the task
+                self.handleError(record)
+
+    relay = Relay(logging.WARNING)
+    logging.getLogger().addHandler(relay)
     saved, sys.stdout = sys.stdout, sys.stderr
     try:
         with compile_listener(compiled, starting):
@@ -86,6 +101,7 @@ def serve(names, run, *, key, empty=None, stream=None):
                 out.flush()
     finally:
         sys.stdout = saved
+        logging.getLogger().removeHandler(relay)
 
 
 def cold_start_groups(queue, jobs, independent, clip_side_cold, *, clip_group=None):
@@ -125,6 +141,8 @@ def run_groups(module, groups, jobs, *, key, command=None, progress=None, cold_s
     stderr, or its exit status). With ``fail_fast`` the first error stops the run: the yield is
     the last one and every worker still running is killed. Closing the generator (or an
     exception in the consumer) kills every worker still running."""
+    import logging
+
     from .warmup import (CLIPSURFACE_SIDE_KERNELS, KERNEL_MODULES, STREAM_KERNELS, cache_state,
                          warm_core)
     command = (lambda group: list(group)) if command is None else command
@@ -143,6 +161,9 @@ def run_groups(module, groups, jobs, *, key, command=None, progress=None, cold_s
                 elif line.startswith(STARTING):
                     if progress is not None:
                         progress.starting()
+                elif line.startswith(LOGGED):
+                    name, _, text = line[len(LOGGED):].rstrip("\n").partition("\t")
+                    logging.getLogger(name or "refraster.worker").warning("%s", text)
                 elif line.strip():
                     tail[:] = (tail + [line.strip()])[-5:]
 

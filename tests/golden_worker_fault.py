@@ -7,7 +7,8 @@ worker (:func:`refraster.golden.worker.main`):
 * ``raise`` — the scene raises (the worker answers with the error and goes on),
 * ``die`` — the worker process dies without answering (``os._exit``),
 * ``escape`` — the answer holds a file outside the scene's directory,
-* ``compiled`` — the worker announces a compiled kernel named SCENE on stderr, then works.
+* ``compiled`` — the worker announces a compiled kernel named SCENE on stderr, then works,
+* ``warn`` — the scene logs a warning (logger ``trimesh``), then renders.
 
 ``REFRASTER_TEST_WORKER_LOG`` names a file each worker appends its group to (one JSON line).
 """
@@ -36,6 +37,9 @@ def main():
     def planted(name, entry, params):
         if name == target and kind == "raise":
             raise RuntimeError(f"planted fault in {name}")
+        if name == target and kind == "warn":
+            import logging
+            logging.getLogger("trimesh").warning("planted warning in %s", name)
         if name == target and kind == "die":
             sys.stderr.write("dying on purpose\n")
             sys.stderr.flush()

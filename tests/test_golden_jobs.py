@@ -151,6 +151,16 @@ def test_worker_compiles_reach_the_progress_line(fault_worker, tmp_path):
     assert f"{COMPILING}:" in stream.getvalue()
 
 
+def test_a_worker_s_warning_is_the_command_s_one_line_warning(fault_worker, tmp_path, capsys):
+    fault_worker.setenv(FAULT, "warn:edges_c1_paper")
+    scenes = [a for n in SCENES[:2] for a in ("--scene", n)]
+    assert cli.main(["generate", "--out", str(tmp_path / "g"), "--jobs", "2", *scenes]) == 0
+    err = capsys.readouterr().err
+    assert "refraster: warning: trimesh: planted warning in edges_c1_paper\n" in err
+    assert cli.main(["-q", "generate", "--out", str(tmp_path / "q"), "--jobs", "2", *scenes]) == 0
+    assert "planted warning" not in capsys.readouterr().err
+
+
 def test_first_run_compiles_the_pipeline_here_and_clip_surface_kernels_beside_it(
         fault_worker, serial, tmp_path):
     """On a cold cache (told so here) this process compiles the pipeline's kernels while one

@@ -18,7 +18,9 @@ import importlib
 import sys
 from pathlib import Path
 
-from .._workers import COMPILED, STARTING, WARM_TASKS, serve  # noqa: F401  (re-exported)
+from .._workers import COMPILED, STARTING, WARM_TASKS, serve
+
+__all__ = ["main", "COMPILED", "STARTING", "WARM_TASKS"]   # the names moved, kept here too
 
 
 def main(argv=None):

@@ -4,7 +4,8 @@
 
     refraster golden generate --out DIR [--scene NAME ...] [--scene-file SCENE.toml ...]
                               [--update] [--list] [--sweep KEY=V1,V2 ...] [--size WxH ...]
-                              [--jobs N | --workers N | --scheduler ADDRESS] [--no-wait]
+                              [--jobs N | --workers N | --scheduler ADDRESS]
+                              [--no-wait]
     refraster golden compare GOLDEN_DIR CANDIDATE_DIR [--report DIR] [--mode tolerant|exact]
                              [--profile exact|conformant] [--tolerance [SCENE:][BUFFER.]KEY=VALUE ...]
                              [--scene NAME ...] [--json FILE] [--no-wait]
@@ -112,7 +113,8 @@ def _cmd_generate(args):
                       ValueError("--jobs excludes --workers and --scheduler"), usage=True)
     import os
     jobs = args.jobs if args.jobs is not None else (
-        1 if args.workers is not None or args.scheduler is not None else min(os.cpu_count() or 1, 2))
+        1 if args.workers is not None or args.scheduler is not None
+        else min(os.cpu_count() or 1, 2))
     quiet = getattr(args, "quiet", False)
     retried = []
 
