@@ -114,7 +114,8 @@ def _build_parser():
                                    "into a temporary directory that is removed.")
     _common(w, top=False)
     w.add_argument("--jobs", type=int, default=None, metavar="N",
-                   help="worker processes for the gallery's sections (as 'gallery --jobs')")
+                   help="worker processes for the gallery's sections and the golden scenes "
+                        "(as 'gallery --jobs', 'golden generate --jobs')")
     w.set_defaults(func=_cmd_warmup)
 
     from .golden.cli import register as register_golden
@@ -549,8 +550,9 @@ def _cmd_warmup(args):
                                     "quick": True, "quiet": True})
         sub.compile_progress = getattr(args, "compile_progress", None)
         _cmd_gallery(sub)
-        gen = _build_parser().parse_args(["golden", "generate", "-q", "--out",
-                                          str(Path(tmp) / "golden")])
+        gen = _build_parser().parse_args(["golden", "generate", "-q", "--jobs",
+                                          str(_jobs(args)), "--out", str(Path(tmp) / "golden")])
+        gen.compile_progress = sub.compile_progress   # its workers' kernels on the line too
         gen.func(gen)
     cached, total = cache_state()
     _say(args, f"warmup: {cached} of {total} kernels in the cache "
