@@ -89,15 +89,16 @@ def serve(names, run, *, key, empty=None, stream=None):
     try:
         with compile_listener(compiled, starting):
             for name in names:
-                result, error = dict(empty), None
                 try:
+                    result = dict(empty)
                     if name in WARM_TASKS:
                         getattr(importlib.import_module("refraster.warmup"), WARM_TASKS[name])()
                     else:
                         result = dict(run(name))
-                except Exception as exc:
-                    result, error = dict(empty), _one_line(exc)
-                out.write(json.dumps({key: name, **result, "error": error}) + "\n")
+                    line = json.dumps({key: name, **result, "error": None})
+                except Exception as exc:   # the task's error, one line; the next task runs
+                    line = json.dumps({key: name, **empty, "error": _one_line(exc)})
+                out.write(line + "\n")
                 out.flush()
     finally:
         sys.stdout = saved
