@@ -31,6 +31,7 @@ def test_every_figure_is_rendered_with_its_twin(tmp_path):
     items = g.render(tmp_path, quick=True, measurements=m)
     names = [f[0] for f in g.figures(quick=True)]
     assert names == ["fig1a", "fig1bc", "fig3e", "fig5ad", "fig5d_open", "fig5d_translucent",
+                     "fig5d_diagram",
                      "fig5b", "fig6a",
                      "fig6b", "fig7", "fig8"]
     assert [i.filename for i in items] == [f"halos4d_{n}.png" for n in names]

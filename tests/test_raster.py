@@ -415,3 +415,61 @@ def test_bad_rasterize_and_resolve_arguments():
         rf.resolve(fr, clear_depth=2.0)
     with pytest.raises(ValueError, match="fragment_stage"):
         rf.render(TRI, fragment_stage=lambda f: np.ones(3), **GOOD)
+
+
+def test_fused_post_pass_reloads_each_winning_triangle():
+    """The fused pass's post-pass loads a triangle's set-up (vertices, facing, piece, 1/area
+    and 1/unsnapped area) once per run of pixels won by the same item: a scene whose winners
+    change within rows, mix front and back faces and clipped pieces, and include slivers that
+    snapping flipped (interpolated with the snapped edge functions and 1/snapped area), gives
+    the bytes of the fragment stream + resolve (the oracle: every fragment computed alone)."""
+    from refraster.raster.primitive import setup_triangles
+    rng = np.random.default_rng(11)
+    w, h, bits = 48, 40, 4
+    n = 400
+    # thin random triangles (many flip or flatten when snapped to 1/16 pixel) at random
+    # depths, both orientations (window = (ndc + 1) / 2 · size)
+    c = rng.uniform(-1.0, 1.0, (n, 2))
+    d = rng.normal(0.0, 1.0, (n, 2))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    length = rng.uniform(0.1, 0.8, n)[:, None]
+    thin = rng.uniform(-0.004, 0.004, n)[:, None]
+    p0 = c
+    p1 = c + d * length
+    p2 = c + d * length * rng.uniform(0.2, 0.8, n)[:, None] + d[:, ::-1] * [1, -1] * thin
+    xy = np.stack([p0, p1, p2], axis=1).reshape(-1, 2)
+    z = np.repeat(rng.uniform(-0.9, 0.9, n), 3) + rng.uniform(-0.05, 0.05, 3 * n)
+    # and a few large triangles reaching past the near plane (clipped pieces)
+    big = rng.uniform(-3.0, 3.0, (6 * 3, 2))
+    zb = rng.uniform(-1.6, 0.9, 6 * 3)
+    ndc = np.concatenate([np.column_stack([xy, z]), np.column_stack([big, zb])])
+    ww = rng.uniform(1.0, 4.0, len(ndc))   # perspective: 1/w differs per vertex
+    clip = np.column_stack([ndc * ww[:, None], ww])
+    faces = np.arange(len(clip)).reshape(-1, 3)
+    st = setup_triangles(clip, faces, w, h, subpixel_bits=bits)
+    assert len(st.clipped) > 0
+    depth, prim, front, bary = fused(st)
+    pixel, fd, fprim, ffront, fbary, _ = stream(st)
+    frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, w, h)
+    res = rf.resolve(frags)
+    want = np.where(res.winner >= 0, fprim[res.winner], -1)
+    # the scene exercises what the set-up reuse must get right
+    won = np.unique(want[want >= 0])
+    won = won[won < n]   # unclipped slivers
+    sx = st.vx[faces[won]].astype(np.float64)
+    sy = st.vy[faces[won]].astype(np.float64)
+    snapped = ((sx[:, 1] - sx[:, 0]) * (sy[:, 2] - sy[:, 0])
+               - (sx[:, 2] - sx[:, 0]) * (sy[:, 1] - sy[:, 0]))
+    fx = st.vxf[faces[won]].astype(np.float64)
+    fy = st.vyf[faces[won]].astype(np.float64)
+    unsnapped = ((fx[:, 1] - fx[:, 0]) * (fy[:, 2] - fy[:, 0])
+                 - (fx[:, 2] - fx[:, 0]) * (fy[:, 1] - fy[:, 0]))
+    assert np.count_nonzero(np.sign(snapped) * unsnapped <= 0) >= 2   # flipped by snapping
+    assert np.any(want[:, 1:] != want[:, :-1])        # winners change within rows
+    assert front.any() and (~front & (prim >= 0)).any()
+    assert np.isin(st.clipped.prim, want).any()
+    assert res.depth.tobytes() == depth.tobytes()
+    assert np.array_equal(want, prim)
+    assert np.array_equal(np.where(res.winner >= 0, ffront[res.winner], False), front)
+    m = res.winner.ravel() >= 0
+    assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes()

@@ -30,6 +30,13 @@ KNOT_RHO = 0.6
 #: nearly the same colour (docs/halos4d.md, "Why Fig. 5(d) needs its gaps drawn")
 GAP_DARK = (0.02, 0.02, 0.02)
 GAP_WIDTH = 0.95
+#: Fig. 5(d) as a knot diagram (`fig5d_diagram`): the band φ ∈ [−b, b] of the spun sphere
+#: around one meridian, coloured by 4D depth, seen along the spin direction; the band is seen
+#: edge-on, so the headlight's ambient part sets its brightness, and a narrow anti-aliasing
+#: ramp keeps its edges sharp (docs/halos4d.md, "Fig. 5(d) as a knot diagram")
+DIAGRAM_BAND = 0.15
+DIAGRAM_AMBIENT = 0.7
+DIAGRAM_ANTIALIAS = 0.05
 
 
 def views():
@@ -46,6 +53,9 @@ def views():
         # ring around the inner disc (the two crossings next to the spinning plane)
         "knot": h.compose(("zw", np.pi / 2), ("yz", 0.75), ("zx", 0.2)),
         "knot_open": h.compose(("zw", np.pi / 2), ("zx", 0.3), ("yz", 0.25)),
+        # along the spin direction at the meridian φ = 0: the knotted arc's xy diagram, the
+        # knot's z as the 4D depth
+        "knot_band": h.rotation("zw", np.pi / 2),
         "twist": h.compose(("zw", np.pi / 2), ("yz", -0.5), ("zx", 0.3)),
         "fermat": h.compose(h.hanson_view(0.6), ("zx", 0.35), ("yz", -0.5)),
         "product": h.compose(("zw", 0.5), ("zx", 0.4), ("yz", -0.5)),
@@ -93,6 +103,8 @@ def figures(quick=False):
     fig1 = h.figure1_scene(int(24 * res) + 4)
     spun = h.spun_trefoil(int(240 * res), int(64 * res))
     spun_open = h.spun_trefoil(int(240 * res), int(48 * res), cut_open=True)
+    spun_band = h.colored_by_depth(h.spun_trefoil(int(240 * res), 8, band=DIAGRAM_BAND),
+                                   v["knot_band"])
     twist = h.twist_spun_trefoil(int(320 * res), int(64 * res), k=2)
     # the paper's curvature-adaptive u and v lists (Sec. 4.1)
     fermat = h.quadratic_fermat(int(40 * res) + 4, int(40 * res) + 4, adaptive=True)
@@ -124,6 +136,13 @@ def figures(quick=False):
          "their under-sheet cut, the ring below the inner disc too",
          dict(rotation=v["knot"], opacity=0.45, rho=KNOT_RHO, boundary_color=GAP_DARK,
               boundary_width=GAP_WIDTH), {}, False),
+        ("fig5d_diagram", spun_band, "Fig. 5(d) as a knot diagram (not in the paper: the "
+         f"band |φ| ≤ {DIAGRAM_BAND} of the spun sphere, coloured by 4D depth from red, near, "
+         "to blue, far; ambient 0.7, anti-aliasing a = 0.05; ρ = 0.6): seen along the spin "
+         "direction the band is the knotted arc, and the halos break the strand farther in 4D "
+         "at each of the diagram's three crossings",
+         dict(rotation=v["knot_band"], rho=KNOT_RHO, ambient=DIAGRAM_AMBIENT,
+              antialias=DIAGRAM_ANTIALIAS), {}, False),
         ("fig5b", spun, "Fig. 5(b): the spun trefoil translucent (opacity 0.45), halos off | on "
          "(ρ = 0.6)", dict(rotation=v["knot"], opacity=0.45, rho=KNOT_RHO), {}, False),
         ("fig6a", fermat, "Fig. 6(a): quadratic Fermat surface z1² + z2² = 1, Hanson's view, "

@@ -78,16 +78,8 @@ def _texture(backend, arrays, wrap):
     return tex
 
 
-def _program(backend):
-    if getattr(backend, "_clip_prog", None) is None:
-        from . import FAULTS
-        from .driver import shader_source
-        defines = [FAULTS[f][0] for f in backend.faults]
-        backend._clip_prog = backend.ctx.program(
-            vertex_shader=shader_source("clip.vert", defines),
-            geometry_shader=shader_source("clip.geom", defines),
-            fragment_shader=shader_source("clip.frag", defines))
-    return backend._clip_prog
+#: The program (vertex, geometry, fragment shader), compiled by refraster.gl.driver.programs.
+SHADERS = {"clip": ("clip.vert", "clip.geom", "clip.frag")}
 
 
 def load(backend, package_dir, scene):
@@ -177,8 +169,9 @@ def release(loaded):
 
 def draw(backend, scene, loaded):
     """The clip-surface G-buffer → ``{buffer: array}`` as the golden stores it."""
+    from .driver import programs
     ctx, mgl = backend.ctx, backend.mgl
-    prog = _program(backend)
+    prog = programs(backend, SHADERS)["clip"]
     p = scene["parameters"]
     size = (scene["viewport"]["width"], scene["viewport"]["height"])
     raster, shading = scene["raster"], scene["shading"]

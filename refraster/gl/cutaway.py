@@ -184,39 +184,25 @@ def feature_segments(vertices, faces, view, model, ortho, crease_angle):
     return (hom @ model.T)[..., :3]
 
 
-def _programs(gl):
-    if getattr(gl, "_cutaway_programs", None) is None:
-        from . import FAULTS
-        from .driver import shader_source
-        defines = [FAULTS[f][0] for f in gl.faults]
-        ctx = gl.ctx
-
-        def full(frag):
-            return ctx.program(vertex_shader=shader_source("fullscreen.vert", defines),
-                               fragment_shader=shader_source(frag, defines))
-        gl._cutaway_programs = {
-            "hull": ctx.program(vertex_shader=shader_source("gbuffer.vert", defines),
-                                fragment_shader=shader_source("cutaway_hull.frag", defines)),
-            "seed": full("cutaway_seed.frag"), "flood": full("cutaway_flood.frag"),
-            "dilate": full("cutaway_dilate.frag"),
-            "gbuffer": ctx.program(
-                vertex_shader=shader_source("gbuffer.vert", defines),
-                geometry_shader=shader_source("gbuffer.geom", defines),
-                fragment_shader=shader_source("cutaway_gbuffer.frag", defines)),
-            "ghost": ctx.program(vertex_shader=shader_source("line.vert", defines),
-                                 fragment_shader=shader_source("cutaway_ghost.frag", defines)),
-        }
-    return gl._cutaway_programs
+#: The programs (vertex, geometry, fragment shader), compiled by refraster.gl.driver.programs.
+SHADERS = {
+    "hull": ("gbuffer.vert", None, "cutaway_hull.frag"),
+    "seed": ("fullscreen.vert", None, "cutaway_seed.frag"),
+    "flood": ("fullscreen.vert", None, "cutaway_flood.frag"),
+    "dilate": ("fullscreen.vert", None, "cutaway_dilate.frag"),
+    "gbuffer": ("gbuffer.vert", "gbuffer.geom", "cutaway_gbuffer.frag"),
+    "ghost": ("line.vert", None, "cutaway_ghost.frag"),
+}
 
 
 def render_cutaway(gl, loaded, package_dir):
+    from .driver import Unsupported, programs
     from .edges import _fullscreen
     scene, draws = loaded["scene"], loaded["draws"]
     opt, reason = options(scene)
     if reason is not None:
-        from .driver import Unsupported
         raise Unsupported(reason)
-    progs = _programs(gl)
+    progs = programs(gl, SHADERS)
     mgl, ctx = gl.mgl, gl.ctx
     w, h = size = (scene["viewport"]["width"], scene["viewport"]["height"])
     view = matrix(scene["camera"]["view"], "camera.view")
@@ -354,13 +340,10 @@ def render_cutaway(gl, loaded, package_dir):
                                           palette[d["object_id"] % len(palette)]))
             gl._vao(d, prog).render(mgl.TRIANGLES)
         ctx.finish()
-        win, eye = (gl._read(t, "<f4", 1, size)[..., 0] for t in targets[:2])
-        normal, bary, color = (gl._read(t, "<f4", 4, size)[..., :3] for t in targets[2:5])
-        ids = gl._read(targets[5], "<i4", 4, size)
+        out, covered = gl._read_gbuffer(scene, targets, size)
         cut = gl._read(targets[6], "<i4", 1, size)[..., 0]
         d_ndc = gl._read(dtex, "<f4", 1, size)[..., 0]
         # 6. ghost lines
-        covered = ids[..., 3] == 1
         ghost = np.zeros((h, w), np.float32)
         g_max = opt["ghost_distance"]
         if g_max is None:
@@ -377,8 +360,9 @@ def render_cutaway(gl, loaded, package_dir):
                                              not persp, float(opt["crease_angle"])))
             seg = np.concatenate(segs) if segs else np.zeros((0, 2, 3))
             if len(seg):
-                ooi = covered & np.isin(ids[..., 1], list(interest_ids))
-                occ = np.where(ooi, 2.0 * win - 1.0, 2.0).astype(np.float32)
+                # where covered, object_id and depth are the ids and window depth read back
+                ooi = covered & np.isin(out["object_id"], list(interest_ids))
+                occ = np.where(ooi, 2.0 * out["depth"] - 1.0, 2.0).astype(np.float32)
                 occ_tex = ctx.texture(size, 1, np.ascontiguousarray(occ[::-1]).tobytes(),
                                       dtype="f4")
                 owned.append(occ_tex)
@@ -413,22 +397,10 @@ def render_cutaway(gl, loaded, package_dir):
         gl._parking.use()
         for obj in owned:
             obj.release()
-    c3 = covered[..., None]
-    raster = scene["raster"]
-    bg = np.asarray(scene["shading"]["background"], np.float32)
-    return {
-        "depth": np.where(covered, win, np.float32(raster["clear_depth"])).astype(np.float32),
-        "eye_depth": np.where(covered, eye, np.float32(np.inf)).astype(np.float32),
-        "normal": np.where(c3, normal, 0).astype(np.float32),
-        "prim_id": np.where(covered, ids[..., 0], -1).astype(np.int32),
-        "object_id": np.where(covered, ids[..., 1], -1).astype(np.int32),
-        "front_facing": covered & (ids[..., 2] == 1),
-        "barycentric": np.where(c3, bary, 0).astype(np.float32),
-        "color": np.where(c3, color, bg).astype(np.float32),
-        "cutaway_depth": (np.float32(0.5) * d_ndc + np.float32(0.5)).astype(np.float32),
-        "cut_mask": covered & (cut == 1),
-        "ghost": np.ascontiguousarray(ghost, np.float32),
-    }
+    out["cutaway_depth"] = (np.float32(0.5) * d_ndc + np.float32(0.5)).astype(np.float32)
+    out["cut_mask"] = covered & (cut == 1)
+    out["ghost"] = np.ascontiguousarray(ghost, np.float32)
+    return out
 
 
 def _diagonal(package_dir, scene, indices):

@@ -32,7 +32,7 @@ import numpy as np
 from . import FAULTS, SUPPORTED_TECHNIQUES
 from .package import PackageError, matrix, read_map, read_ply, read_scene
 
-__all__ = ["Backend", "GLUnavailable", "Unsupported", "shader_source"]
+__all__ = ["Backend", "GLUnavailable", "Unsupported", "programs", "shader_source"]
 
 SHADER_DIR = Path(__file__).with_name("shaders")
 
@@ -65,6 +65,23 @@ def shader_source(name, defines=()):
     lines = text.splitlines(keepends=True)
     at = next(i for i, line in enumerate(lines) if line.startswith("#version")) + 1
     return "".join(lines[:at] + [f"#define {d}\n" for d in defines] + lines[at:])
+
+
+def programs(gl, shaders):
+    """A technique module's programs: ``shaders`` maps a name to the shader files
+    ``(vertex, geometry or None, fragment)`` under ``shaders/``; they are compiled once per
+    backend (its context, with its planted faults) and cached on it, keyed by ``shaders``.
+    → ``{name: program}``."""
+    key = tuple(shaders.items())
+    if key not in gl._programs:
+        defines = [FAULTS[f][0] for f in gl.faults]
+        gl._programs[key] = {
+            name: gl.ctx.program(
+                vertex_shader=shader_source(vert, defines),
+                geometry_shader=None if geom is None else shader_source(geom, defines),
+                fragment_shader=shader_source(frag, defines))
+            for name, (vert, geom, frag) in shaders.items()}
+    return gl._programs[key]
 
 
 def _gl_functions():
@@ -119,6 +136,7 @@ class Backend:
                                 f"driver such as Mesa's libegl-mesa0): {exc}") from None
         self.mgl, self.ctx = moderngl, ctx
         self.faults = tuple(faults)
+        self._programs = {}         # the technique modules' programs: see programs()
         self.renderer = f"{ctx.info['GL_RENDERER']}; OpenGL {ctx.info['GL_VERSION']}"
         self._gl = _gl_functions()
         defines = [FAULTS[f][0] for f in self.faults]
@@ -337,6 +355,29 @@ class Backend:
         a = np.frombuffer(tex.read(), dtype=dtype).reshape(h, w, comps)
         return np.ascontiguousarray(a[::-1])          # GL's row 0 is the bottom
 
+    def _read_gbuffer(self, scene, targets, size):
+        """The G-buffer's first six targets (window depth, eye depth, normal, barycentric,
+        colour, ids + covered) read back → ``({buffer: array}, covered)``: the golden's eight
+        G-buffer buffers with the background values (``docs/golden-schema.md``) filled in where
+        no fragment was written. Used by :meth:`_gbuffer` and the cutaway's clipped G-buffer."""
+        win, eye = (self._read(t, "<f4", 1, size)[..., 0] for t in targets[:2])
+        normal, bary, color = (self._read(t, "<f4", 4, size)[..., :3] for t in targets[2:5])
+        ids = self._read(targets[5], "<i4", 4, size)
+        covered = ids[..., 3] == 1
+        c3 = covered[..., None]
+        raster = scene["raster"]
+        bg = np.asarray(scene["shading"]["background"], np.float32)
+        return {
+            "depth": np.where(covered, win, np.float32(raster["clear_depth"])).astype(np.float32),
+            "eye_depth": np.where(covered, eye, np.float32(np.inf)).astype(np.float32),
+            "normal": np.where(c3, normal, 0).astype(np.float32),
+            "prim_id": np.where(covered, ids[..., 0], -1).astype(np.int32),
+            "object_id": np.where(covered, ids[..., 1], -1).astype(np.int32),
+            "front_facing": covered & (ids[..., 2] == 1),
+            "barycentric": np.where(c3, bary, 0).astype(np.float32),
+            "color": np.where(c3, color, bg).astype(np.float32),
+        }, covered
+
     # --- the G-buffer -----------------------------------------------------------------------
     def _gbuffer(self, scene, draws, textures=()):
         ctx = self.ctx
@@ -379,27 +420,12 @@ class Backend:
                                                 palette[d["object_id"] % len(palette)]))
                 self._vao(d, prog).render(self.mgl.TRIANGLES)
             ctx.finish()
-            win, eye = (self._read(t, "<f4", 1, size)[..., 0] for t in targets[:2])
-            normal, bary, color = (self._read(t, "<f4", 4, size)[..., :3] for t in targets[2:5])
-            ids = self._read(targets[5], "<i4", 4, size)
+            out, covered = self._read_gbuffer(scene, targets, size)
             inside = self._read(targets[6], "<i4", 1, size)[..., 0] if vds else None
         finally:
             self._parking.use()
             for obj in (fbo, depth, *targets):
                 obj.release()
-        covered = ids[..., 3] == 1
-        c3 = covered[..., None]
-        bg = np.asarray(shading["background"], np.float32)
-        out = {
-            "depth": np.where(covered, win, np.float32(raster["clear_depth"])).astype(np.float32),
-            "eye_depth": np.where(covered, eye, np.float32(np.inf)).astype(np.float32),
-            "normal": np.where(c3, normal, 0).astype(np.float32),
-            "prim_id": np.where(covered, ids[..., 0], -1).astype(np.int32),
-            "object_id": np.where(covered, ids[..., 1], -1).astype(np.int32),
-            "front_facing": covered & (ids[..., 2] == 1),
-            "barycentric": np.where(c3, bary, 0).astype(np.float32),
-            "color": np.where(c3, color, bg).astype(np.float32),
-        }
         if vds:
             out["inside"] = covered & (inside == 1)
         return out

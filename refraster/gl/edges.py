@@ -147,28 +147,13 @@ def near_far(scene, package_dir=None):
     return near, far
 
 
-def _programs(gl):
-    """The three programs, compiled once per backend with its planted faults."""
-    if getattr(gl, "_edge_programs", None) is None:
-        from .driver import shader_source
-        from . import FAULTS
-        defines = [FAULTS[f][0] for f in gl.faults]
-        ctx = gl.ctx
-        gl._edge_programs = {
-            "gbuffer": ctx.program(
-                vertex_shader=shader_source("gbuffer.vert", defines),
-                geometry_shader=shader_source("gbuffer.geom", defines),
-                fragment_shader=shader_source("edge_gbuffer.frag", defines)),
-            "edge": ctx.program(vertex_shader=shader_source("fullscreen.vert", defines),
-                                fragment_shader=shader_source("edge_map.frag", defines)),
-            "dilate": ctx.program(vertex_shader=shader_source("fullscreen.vert", defines),
-                                  fragment_shader=shader_source("edge_dilate.frag", defines)),
-            "npr": ctx.program(
-                vertex_shader=shader_source("gbuffer.vert", defines),
-                geometry_shader=shader_source("gbuffer.geom", defines),
-                fragment_shader=shader_source("edge_npr.frag", defines)),
-        }
-    return gl._edge_programs
+#: The programs (vertex, geometry, fragment shader), compiled by refraster.gl.driver.programs.
+SHADERS = {
+    "gbuffer": ("gbuffer.vert", "gbuffer.geom", "edge_gbuffer.frag"),
+    "edge": ("fullscreen.vert", None, "edge_map.frag"),
+    "dilate": ("fullscreen.vert", None, "edge_dilate.frag"),
+    "npr": ("gbuffer.vert", "gbuffer.geom", "edge_npr.frag"),
+}
 
 
 def _fullscreen(gl, prog):
@@ -185,7 +170,8 @@ def render_edges(gl, loaded, package_dir=None):
     out = gl._gbuffer(scene, draws)
     opt = options(scene.get("parameters", {}))
     near, far = near_far(scene, package_dir)
-    progs = _programs(gl)
+    from .driver import programs
+    progs = programs(gl, SHADERS)
     mgl, ctx = gl.mgl, gl.ctx
     size = (scene["viewport"]["width"], scene["viewport"]["height"])
     tg = ctx.texture(size, 4, dtype=FORMATS[opt["gbuffer_format"]])

@@ -189,32 +189,20 @@ def _screen_bounds(points, width, height, margin):
                      [centre[0] + half[0], centre[1] + half[1], zhi]])
 
 
-def _programs(gl):
-    if getattr(gl, "_halo_programs", None) is None:
-        from . import FAULTS
-        from .driver import shader_source
-        defines = [FAULTS[f][0] for f in gl.faults]
-        ctx = gl.ctx
-
-        def sliced(frag):
-            return ctx.program(vertex_shader=shader_source("halo_slice.vert", defines),
-                               geometry_shader=shader_source("halo_slice.geom", defines),
-                               fragment_shader=shader_source(frag, defines))
-        gl._halo_programs = {
-            "depth": sliced("halo_depth.frag"), "surface": sliced("halo_surface.frag"),
-            "resolve": ctx.program(
-                vertex_shader=shader_source("fullscreen.vert", defines),
-                fragment_shader=shader_source("halo_resolve.frag", defines)),
-        }
-    return gl._halo_programs
+#: The programs (vertex, geometry, fragment shader), compiled by refraster.gl.driver.programs.
+SHADERS = {
+    "depth": ("halo_slice.vert", "halo_slice.geom", "halo_depth.frag"),
+    "surface": ("halo_slice.vert", "halo_slice.geom", "halo_surface.frag"),
+    "resolve": ("fullscreen.vert", None, "halo_resolve.frag"),
+}
 
 
 def render_halos(gl, loaded, package_dir):
+    from .driver import Unsupported, programs
     from .edges import _fullscreen
     scene = loaded["scene"]
     opt, reason = options(scene)
     if reason is not None:
-        from .driver import Unsupported
         raise Unsupported(reason)
     v4 = read_map(package_dir, scene, "surface_vertices4d")
     faces = read_map(package_dir, scene, "surface_faces")
@@ -260,7 +248,7 @@ def render_halos(gl, loaded, package_dir):
     # z relative to the first centre keeps float32 steps fine
     z0 = float(centres[0])
     data = np.concatenate([xy, (verts[:, 2] - z0)[:, None], rel], 1).astype(np.float32)
-    progs = _programs(gl)
+    progs = programs(gl, SHADERS)
     mgl, ctx = gl.mgl, gl.ctx
     size = (w, h)
     owned = []

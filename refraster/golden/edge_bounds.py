@@ -90,10 +90,18 @@ def supported(params):
 
 
 @njit(**JIT)
-def _dot_bounds(oa, ob, off, nrm, ang, bg, free, ddot):
+def _dot_bounds(oa, ob, off, nrm, ang, bg, free, ddot, fg_only):
+    """Bounds of the dot product of the normals of an option of pixel ``oa`` and one of
+    ``ob`` (0 ± ``ddot`` with a background option; [−1, 1] ± ``ddot`` where either pixel is
+    free). ``fg_only``: over the foreground options of ``oa`` only (the angle operator: where X
+    shows the background its E_N is 0 whatever the dot product), (1, 1) if it has none."""
+    if free[oa] or free[ob]:
+        return -1.0 - ddot, 1.0 + ddot
     lo = np.inf
     hi = -np.inf
     for i in range(off[oa], off[oa + 1]):
+        if fg_only and bg[i]:
+            continue
         for j in range(off[ob], off[ob + 1]):
             if bg[i] or bg[j]:
                 lo = min(lo, -ddot)
@@ -104,9 +112,8 @@ def _dot_bounds(oa, ob, off, nrm, ang, bg, free, ddot):
             a = ang[i] + ang[j]
             lo = min(lo, math.cos(min(math.pi, t0 + a)) - ddot)
             hi = max(hi, math.cos(max(0.0, t0 - a)) + ddot)
-    if free[oa] or free[ob]:
-        lo = -1.0 - ddot
-        hi = 1.0 + ddot
+    if fg_only and lo > hi:     # no foreground option
+        return 1.0, 1.0
     return lo, hi
 
 
@@ -134,8 +141,8 @@ def _bounds_kernel(off, nrm, ang, bg, zlo, zhi, free, may_bg, may_fg, ddot, dz, 
             pa, pc, pf, ph = ym * w + xm, ym * w + xp, yp * w + xm, yp * w + xp
             p = y * w + x
             # inner edges (RGB)
-            ah_lo, ah_hi = _dot_bounds(pa, ph, off, nrm, ang, bg, free, ddot)
-            cf_lo, cf_hi = _dot_bounds(pc, pf, off, nrm, ang, bg, free, ddot)
+            ah_lo, ah_hi = _dot_bounds(pa, ph, off, nrm, ang, bg, free, ddot, False)
+            cf_lo, cf_hi = _dot_bounds(pc, pf, off, nrm, ang, bg, free, ddot, False)
             i_lo = 0.5 * (ah_lo + cf_lo)
             i_hi = 0.5 * (ah_hi + cf_hi)
             en_lo = 1.0 - min(max(i_hi, 0.0), 1.0)
@@ -265,7 +272,7 @@ def _normal_op_kernel(method, off, nrm, ang, bg, free, may_bg, may_fg, clo, chi,
                 en_hi = 0.0
                 for (yy, xx) in ((ym, xm), (ym, x), (ym, xp), (y, xm), (y, xp), (yp, xm),
                                  (yp, x), (yp, xp)):
-                    dlo, dhi = _dot_bounds_fg(p, yy * w + xx, off, nrm, ang, bg, free, ddot)
+                    dlo, dhi = _dot_bounds(p, yy * w + xx, off, nrm, ang, bg, free, ddot, True)
                     en_lo = max(en_lo, 0.5 * (1.0 - dhi))
                     en_hi = max(en_hi, 0.5 * (1.0 - dlo))
                 en_lo = min(en_lo, 1.0)
@@ -277,32 +284,6 @@ def _normal_op_kernel(method, off, nrm, ang, bg, free, may_bg, may_fg, clo, chi,
                 en_lo = 0.0
             lo[y, x] = en_lo
             hi[y, x] = en_hi
-
-
-@njit(**JIT)
-def _dot_bounds_fg(oa, ob, off, nrm, ang, bg, free, ddot):
-    """As :func:`_dot_bounds`, over the foreground options of ``oa`` only (where X shows the
-    background its E_N is 0 whatever the dot product)."""
-    if free[oa] or free[ob]:
-        return -1.0 - ddot, 1.0 + ddot
-    lo = np.inf
-    hi = -np.inf
-    for i in range(off[oa], off[oa + 1]):
-        if bg[i]:
-            continue
-        for j in range(off[ob], off[ob + 1]):
-            if bg[j]:
-                lo = min(lo, -ddot)
-                hi = max(hi, ddot)
-                continue
-            c = nrm[i, 0] * nrm[j, 0] + nrm[i, 1] * nrm[j, 1] + nrm[i, 2] * nrm[j, 2]
-            t0 = math.acos(min(max(c, -1.0), 1.0))
-            a = ang[i] + ang[j]
-            lo = min(lo, math.cos(min(math.pi, t0 + a)) - ddot)
-            hi = max(hi, math.cos(max(0.0, t0 - a)) + ddot)
-    if lo > hi:     # no foreground option
-        return 1.0, 1.0
-    return lo, hi
 
 
 @njit(**JIT)

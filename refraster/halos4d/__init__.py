@@ -9,7 +9,8 @@ Stages, one module each: :mod:`.surfaces` (uv-sampled 4D surfaces with tangents)
 
 from .render import HaloGeometry, HaloRender, prepare, render_halos, slice_alpha
 from .slicing import SliceTriangles, slice_tetrahedra, voxel_centres, voxelize
-from .surfaces import (Surface4D, calabi_yau_quartic, fermat_surface, figure1_scene, merge,
+from .surfaces import (Surface4D, calabi_yau_quartic, colored_by_depth, fermat_surface,
+                       figure1_scene, merge,
                        product_polynomial, quadratic_fermat, spun_trefoil, twist_spun_trefoil,
                        uv_surface)
 from .thicken import (default_halo_parameters, halo_depth, prism_tetrahedra, thicken,
@@ -19,7 +20,8 @@ from .transforms import PLANES, Projection, compose, hanson_view, project, rotat
 __all__ = [
     "HaloGeometry", "HaloRender", "prepare", "render_halos", "slice_alpha",
     "SliceTriangles", "slice_tetrahedra", "voxel_centres", "voxelize",
-    "Surface4D", "calabi_yau_quartic", "fermat_surface", "figure1_scene", "merge",
+    "Surface4D", "calabi_yau_quartic", "colored_by_depth", "fermat_surface", "figure1_scene",
+    "merge",
     "product_polynomial", "quadratic_fermat", "spun_trefoil", "twist_spun_trefoil", "uv_surface",
     "default_halo_parameters", "halo_depth", "prism_tetrahedra", "thicken", "thickening_normals",
     "PLANES", "Projection", "compose", "hanson_view", "project", "rotate_3d", "rotation",

@@ -106,10 +106,10 @@ def slice_alpha(opacity, spacing, rho, surface_width):
 
 
 def prepare(surface, *, rotation=None, projection="orthographic", eye=None, scale=1.0,
-            rho=None):
+            rho=None, ambient=AMBIENT):
     """Project, thicken and tetrahedralize ``surface`` (Sec. 4.2–4.4). Returns
     ``(HaloGeometry, rho)``; ``rho=None`` picks RHO_FRACTION (2 %) of the projected
-    bounding-box diagonal."""
+    bounding-box diagonal; ``ambient`` is the ambient part of the headlight shading."""
     if not isinstance(surface, Surface4D):
         raise TypeError(f"surface must be a Surface4D, got {type(surface).__name__}")
     f = surface.faces
@@ -125,7 +125,7 @@ def prepare(surface, *, rotation=None, projection="orthographic", eye=None, scal
         rho = RHO_FRACTION * diag if diag > 0 else 1.0
     rho = as_real(rho, "rho", lo=0.0, lo_open=True)
     verts, t = thicken(pr.points, normals, rho)
-    shade = AMBIENT + (1.0 - AMBIENT) * np.abs(normals[:, 2])
+    shade = ambient + (1.0 - ambient) * np.abs(normals[:, 2])
     rgb = surface.colors * shade[:, None]
     n = surface.n_vertices
     attr = np.column_stack([np.concatenate([pr.depth, pr.depth]), t,
@@ -456,7 +456,7 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
                  opacity=0.9, halos=True, eye=None, scale=1.0, background=(0.0, 0.0, 0.0),
                  depth_eps=None, margin=0.05, stereo=False, stereo_angle=6.0, volume=False,
                  engine="fused", halo_color=(0.5, 0.5, 0.5), halo_opacity=0.0,
-                 boundary_color=None, boundary_width=0.15, antialias=None):
+                 boundary_color=None, boundary_width=0.15, antialias=None, ambient=AMBIENT):
     """Render a surface in 4D with depth-dependent volumetric halos (Wang et al. 2013).
 
     Parameters
@@ -516,6 +516,9 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
         c = ``clamp((w_s + a − |2t − 1|)/(2a), 0, 1)`` of its voxel's thickness, so its opacity is
         ``1 − (1 − α)^c`` instead of the hard threshold ``|2t − 1| < w_s``; the mean thickness,
         and so the accumulated opacity, is unchanged. 0: the hard threshold (before issue 21).
+    ambient : float in [0, 1]
+        Ambient part of the headlight shading ``ambient + (1 − ambient)·|n̂_z|`` (default 0.3);
+        a sheet seen edge-on (n̂_z = 0) is drawn at ``ambient`` × its colour.
 
     Returns
     -------
@@ -554,8 +557,9 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
         raise ValueError("volume is not available for a stereo pair")
     if n * width * height > (1 << 31) and volume:
         raise ValueError(f"volume of {n}×{height}×{width} voxels is too large")
+    ambient = as_real(ambient, "ambient", lo=0.0, hi=1.0)
     geo, rho = prepare(surface, rotation=rotation, projection=projection, eye=eye, scale=scale,
-                       rho=rho)
+                       rho=rho, ambient=ambient)
     depth = geo.attributes[:, 0]
     n_pairs = None
     if delta_d is None:

@@ -30,7 +30,7 @@ from .._validate import as_float_array, as_index_array, as_real
 __all__ = [
     "Surface4D", "uv_surface", "merge", "spun_trefoil", "twist_spun_trefoil", "fermat_surface",
     "quadratic_fermat", "calabi_yau_quartic", "product_polynomial", "figure1_scene",
-    "trefoil_arc",
+    "trefoil_arc", "colored_by_depth",
 ]
 
 _FD_STEP = 1e-6
@@ -402,7 +402,7 @@ def twist_spun_trefoil(n_s=200, n_phi=50, *, k=2, adaptive=False):
                       name=name)
 
 
-def spun_trefoil(n_s=200, n_phi=50, *, adaptive=False, cut_open=False):
+def spun_trefoil(n_s=200, n_phi=50, *, adaptive=False, cut_open=False, band=None):
     """Artin's spun trefoil (Wang et al. Fig. 5), a knotted 2-sphere in 4D.
 
     The trefoil, cut open at its maximum x, is joined by two short fillets to the plane
@@ -410,9 +410,19 @@ def spun_trefoil(n_s=200, n_phi=50, *, adaptive=False, cut_open=False):
     (MATH.md §5.7, revised construction: no ball, no legs; the knot is spun at radius
     0.2 … 5.6). ``2·(n_s − 2)·n_phi`` triangles. ``cut_open=True`` keeps half of the sphere,
     φ ∈ [0, π] (a disc whose boundary is the knotted arc and its mirror image, for pictures
-    that show the inside).
+    that show the inside). ``band=b`` (not in the paper) keeps the band φ ∈ [−b, b] around
+    the meridian φ = 0: a ribbon whose centre line is the knotted arc, so that a view along
+    the spin direction shows the knot's diagram with the halos' gaps at its three crossings
+    (``2·(n_s − 2)·(n_phi − 1)`` triangles).
     """
     total = trefoil_arc(False)[1][-1]
+    if band is not None:
+        if cut_open:
+            raise ValueError("band and cut_open exclude each other")
+        band = as_real(band, "band", lo=0.0, hi=np.pi / 2, lo_open=True)
+        return uv_surface(_spin(0, False), (0.0, total), (-band, band), n_s, n_phi, poles=True,
+                          adaptive=adaptive, color=_knot_color(total),
+                          name="spun trefoil, band")
     if cut_open:
         return uv_surface(_spin(0, False), (0.0, total), (0.0, np.pi), n_s, n_phi, poles=True,
                           adaptive=adaptive, color=_knot_color(total),
@@ -420,6 +430,22 @@ def spun_trefoil(n_s=200, n_phi=50, *, adaptive=False, cut_open=False):
     return uv_surface(_spin(0, False), (0.0, total), (0.0, 2 * np.pi), n_s, n_phi,
                       periodic_v=True, poles=True, adaptive=adaptive, color=_knot_color(total),
                       name="spun trefoil")
+
+
+def colored_by_depth(surface, rotation=None, saturation=0.85):
+    """``surface`` with its vertices coloured by their 4D depth in the view ``rotation``
+    (orthographic: δ = e − w of the rotated vertex): a hue ramp from red (nearest in 4D)
+    through yellow and green to blue (farthest), spread over the surface's depth range."""
+    if not isinstance(surface, Surface4D):
+        raise TypeError(f"surface must be a Surface4D, got {type(surface).__name__}")
+    saturation = as_real(saturation, "saturation", lo=0.0, hi=1.0)
+    r = np.eye(4) if rotation is None else as_float_array(rotation, "rotation", shape=(4, 4))
+    w = surface.vertices @ r[3]
+    span = float(w.max() - w.min())
+    q = (w - w.min()) / span if span > 0 else np.full_like(w, 0.5)
+    cols = _hsv(0.66 * (1.0 - q), saturation)
+    return Surface4D(surface.vertices, surface.faces, surface.tangents, cols,
+                     f"{surface.name}, coloured by 4D depth")
 
 
 # ----------------------------------------------------------------------------- CP² curves

@@ -112,7 +112,9 @@ FACE_NORMAL_PIXELS = 16
 @njit(**IJIT)
 def _surface(g, k, beta, vertices, faces, vnormals, smooth, mv, nmat, fnormal, per_face):
     """The float64 eye-space position and normal of face ``g`` (draw call ``k``) at the
-    barycentrics ``beta`` (3,): what :func:`finalize` rounds and :func:`shade` lights. The
+    barycentrics ``beta`` (3,): what :func:`finalize` rounds and :func:`shade` lights (both
+    write this expression out, in this order, with the loads that depend on the face only
+    done once per run of a face's pixels; the digests pin the bytes). The
     normal is ``fnormal[g]`` where ``per_face`` (flat normals computed once per face), else
     interpolated or flat per pixel (:func:`_normal`); both are the same expression."""
     b0 = np.float64(beta[0])
@@ -145,6 +147,14 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
         _face_normals(vertices, faces, face_offsets, nmat, fnormal)
     h, w = prim_global.shape
     for r in prange(h):
+        # what depends on the face only (its draw call, id, vertices, the model-view rows
+        # and, per face, its normal) is loaded once per run of pixels of one face, not once
+        # per pixel; the per-pixel arithmetic is _surface's, in its order (the same bits)
+        last = np.int64(-1)
+        k = np.int64(0)
+        pid = np.int64(0)
+        ax = ay = az = bx = by = bz = cx = cy = cz = 0.0
+        fm0 = fm1 = fm2 = 0.0
         for c in range(w):
             g = prim_global[r, c]
             if g < 0:
@@ -156,11 +166,41 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
                     normal[r, c, 1] = 0.0
                     normal[r, c, 2] = 0.0
                 continue
-            k = _object_of(face_offsets, g)
-            prim_id[r, c] = g - face_offsets[k]
+            if g != last:
+                last = g
+                k = _object_of(face_offsets, g)
+                pid = g - face_offsets[k]
+                i0 = faces[g, 0]
+                i1 = faces[g, 1]
+                i2 = faces[g, 2]
+                ax = vertices[i0, 0]
+                ay = vertices[i0, 1]
+                az = vertices[i0, 2]
+                bx = vertices[i1, 0]
+                by = vertices[i1, 1]
+                bz = vertices[i1, 2]
+                cx = vertices[i2, 0]
+                cy = vertices[i2, 1]
+                cz = vertices[i2, 2]
+                if per_face:
+                    fm0 = fnormal[g, 0]
+                    fm1 = fnormal[g, 1]
+                    fm2 = fnormal[g, 2]
+            prim_id[r, c] = pid
             object_id[r, c] = k
-            ex, ey, ez, mx, my, mz = _surface(g, k, bary[r, c], vertices, faces, vnormals,
-                                              smooth, mv, nmat, fnormal, per_face)
+            b0 = np.float64(bary[r, c, 0])
+            b1 = np.float64(bary[r, c, 1])
+            b2 = np.float64(bary[r, c, 2])
+            px = (b0 * ax + b1 * bx) + b2 * cx
+            py = (b0 * ay + b1 * by) + b2 * cy
+            pz = (b0 * az + b1 * bz) + b2 * cz
+            ez = ((mv[k, 2, 0] * px + mv[k, 2, 1] * py) + mv[k, 2, 2] * pz) + mv[k, 2, 3]
+            if per_face:
+                mx = fm0
+                my = fm1
+                mz = fm2
+            else:
+                mx, my, mz = _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat)
             eye_depth[r, c] = np.float32(-ez)
             normal[r, c, 0] = np.float32(mx)
             normal[r, c, 1] = np.float32(my)
@@ -180,15 +220,52 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
         _face_normals(vertices, faces, face_offsets, nmat, fnormal)
     h, w = prim_global.shape
     for r in prange(h):
+        # a face's draw call, vertices and (per face) normal loaded once per run of its
+        # pixels, as in finalize; the per-pixel arithmetic is _surface's, in its order
+        last = np.int64(-1)
+        k = np.int64(0)
+        ax = ay = az = bx = by = bz = cx = cy = cz = 0.0
+        fm0 = fm1 = fm2 = 0.0
         for c in range(w):
             g = prim_global[r, c]
             if g < 0 or g >= n_shaded:
                 for j in range(3):
                     color[r, c, j] = background[j]
                 continue
-            k = _object_of(face_offsets, g)
-            ex, ey, ez, mx, my, mz = _surface(g, k, bary[r, c], vertices, faces, vnormals,
-                                              smooth, mv, nmat, fnormal, per_face)
+            if g != last:
+                last = g
+                k = _object_of(face_offsets, g)
+                i0 = faces[g, 0]
+                i1 = faces[g, 1]
+                i2 = faces[g, 2]
+                ax = vertices[i0, 0]
+                ay = vertices[i0, 1]
+                az = vertices[i0, 2]
+                bx = vertices[i1, 0]
+                by = vertices[i1, 1]
+                bz = vertices[i1, 2]
+                cx = vertices[i2, 0]
+                cy = vertices[i2, 1]
+                cz = vertices[i2, 2]
+                if per_face:
+                    fm0 = fnormal[g, 0]
+                    fm1 = fnormal[g, 1]
+                    fm2 = fnormal[g, 2]
+            b0 = np.float64(bary[r, c, 0])
+            b1 = np.float64(bary[r, c, 1])
+            b2 = np.float64(bary[r, c, 2])
+            px = (b0 * ax + b1 * bx) + b2 * cx
+            py = (b0 * ay + b1 * by) + b2 * cy
+            pz = (b0 * az + b1 * bz) + b2 * cz
+            ex = ((mv[k, 0, 0] * px + mv[k, 0, 1] * py) + mv[k, 0, 2] * pz) + mv[k, 0, 3]
+            ey = ((mv[k, 1, 0] * px + mv[k, 1, 1] * py) + mv[k, 1, 2] * pz) + mv[k, 1, 3]
+            ez = ((mv[k, 2, 0] * px + mv[k, 2, 1] * py) + mv[k, 2, 2] * pz) + mv[k, 2, 3]
+            if per_face:
+                mx = fm0
+                my = fm1
+                mz = fm2
+            else:
+                mx, my, mz = _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat)
             # light at the eye, so the half vector is the view vector
             vl = np.sqrt(ex * ex + ey * ey + ez * ez)
             ndv = 1.0
