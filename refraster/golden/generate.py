@@ -253,16 +253,18 @@ def _run_serial(tasks, progress, bar):
 #: Worker processes of ``generate(jobs=N)``, by technique, started in this order as workers free
 #: up: each group's scenes render in one process, so that each kernel compiles in one process.
 #: On a first run the clip surfaces' scenes compile longest (~half of a cold generation's
-#: compile time, 2026-12-02: ``_fused_clip_pass`` alone ~30 %), so they start first (their
-#: depth-peeling kernels with them); the others share the second worker. Techniques not listed
-#: (TOML techniques, new ones) join the last group.
+#: compile time, 2026-12-02: ``_fused_clip_pass`` alone ~30 %), so they start first; the
+#: others share the second worker (the layered depth images and the parity test there too:
+#: with the clip surfaces they would lengthen the critical path), the halos after. Techniques
+#: not listed (new ones) join the second group.
 WORKER_GROUPS = [("clipsurface",), ("render", "edges", "cutaway", "ldi", "vds"), ("halos4d",)]
 #: Techniques whose scenes use none of the pipeline's kernels: on a first run their worker
 #: starts while this process compiles those (then ``warm-clipsurface``, the clip surfaces'
-#: kernels that need no pipeline kernel, runs after them in the same worker). None today: the
-#: halos' golden scenes use the pipeline's binning and fragment stream (their masks and
-#: allowances), unlike the gallery's halos section; so on a first run one worker compiles only
-#: ``warm-clipsurface`` while this process compiles the pipeline.
+#: kernels that need no pipeline kernel, runs after them in the same worker). None today:
+#: unlike the gallery's halos section, the halos' golden scenes use the pipeline's kernels (a
+#: fresh cache rendering only them compiles ``_bin_pass``, ``_stream_pass``, ``_resolve``…);
+#: so on a first run one worker compiles only ``warm-clipsurface`` while this process compiles
+#: the pipeline.
 WITHOUT_PIPELINE = set()
 #: The module a worker process runs (``python -m``).
 WORKER_MODULE = "refraster.golden.worker"
