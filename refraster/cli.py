@@ -114,7 +114,8 @@ def _build_parser():
                                    "into a temporary directory that is removed.")
     _common(w, top=False)
     w.add_argument("--jobs", type=int, default=None, metavar="N",
-                   help="worker processes for the gallery's sections (as 'gallery --jobs')")
+                   help="worker processes for the gallery's sections and the golden scenes "
+                        "(as 'gallery --jobs', 'golden generate --jobs')")
     w.set_defaults(func=_cmd_warmup)
 
     from .golden.cli import register as register_golden
@@ -448,105 +449,38 @@ def _while_the_pipeline_compiles(queue, jobs, clip_side_cold):
     (:func:`refraster.warmup.warm_clipsurface_side`). Their section compiles longest (the
     critical path of a first run), so a core that would otherwise idle while the pipeline
     compiles here compiles ~40 % of it ahead, and the section loads those from the cache."""
+    from ._workers import cold_start_groups
     from .gallery import WITHOUT_PIPELINE
-    first = [g for g in queue if set(g) <= WITHOUT_PIPELINE][:max(jobs - 1, 1)]
-    for group in first:
-        queue.remove(group)
-    first = [list(g) for g in first]
-    if jobs >= 2 and clip_side_cold and any("clipsurface" in g for g in queue):
-        if first:
-            first[0].append("warm-clipsurface")
-        else:
-            first = [["warm-clipsurface"]]
-    return first
+    return cold_start_groups(queue, jobs, WITHOUT_PIPELINE.__contains__, clip_side_cold,
+                             clip_group=lambda g: "clipsurface" in g)
 
 
 def _render_in_workers(args, out_dir, groups, jobs):
     """``{section name: (items, error)}`` from worker processes of one thread each
-    (:mod:`refraster.gallery.worker`), at most ``jobs`` at a time; kernels they compile go to
-    the progress line. On a first run the pipeline's kernels are compiled here first, while a
-    worker renders the sections that do not need them; the other workers then load them from
-    the cache instead of compiling them side by side."""
-    import json
-    import threading
-
+    (:mod:`refraster.gallery.worker`, run by :func:`refraster._workers.run_groups`), at most
+    ``jobs`` at a time; kernels they compile go to the progress line. On a first run the
+    pipeline's kernels are compiled here first, while a worker renders the sections that do
+    not need them; the other workers then load them from the cache instead of compiling them
+    side by side."""
+    from ._workers import run_groups
     from .gallery import Item, merge_parts, warm_plan, work_items
-    from .gallery.worker import COMPILED, STARTING
-    from .warmup import (CLIPSURFACE_SIDE_KERNELS, KERNEL_MODULES, STREAM_KERNELS, cache_state,
-                         warm_core)
-    env = dict(os.environ, NUMBA_NUM_THREADS="1")
-    progress = getattr(args, "compile_progress", None)
-    results, errors, running = {}, {}, []
+    from .warmup import KERNEL_MODULES, STREAM_KERNELS, cache_state
 
-    def read(proc, group):
-        def stderr():
-            tail = []
-            for line in proc.stderr:
-                if line.startswith(COMPILED):
-                    if progress is not None:
-                        progress.add(line[len(COMPILED):].strip())
-                elif line.startswith(STARTING):
-                    if progress is not None:
-                        progress.starting()
-                elif line.strip():
-                    tail = (tail + [line.strip()])[-5:]
-            errors[id(proc)] = tail
-
-        def stdout():
-            for line in proc.stdout:
-                r = json.loads(line)
-                results[r["section"]] = ([Item(*i) for i in r["items"]], r["error"])
-        threads = [threading.Thread(target=f, daemon=True) for f in (stderr, stdout)]
-        for t in threads:
-            t.start()
-        return threads
-
-    def start(group):
-        cmd = [sys.executable, "-m", "refraster.gallery.worker", str(out_dir), *group]
-        if args.quick:
-            cmd.append("--quick")
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                stdin=subprocess.DEVNULL, env=env, text=True)
-        running.append((proc, group, read(proc, group)))
-
-    def reap():
-        for entry in list(running):
-            proc, group, threads = entry
-            if proc.poll() is None:
-                continue
-            for t in threads:
-                t.join()
-            running.remove(entry)
-            for name in group:
-                if name not in results:   # the worker died before it answered
-                    why = "; ".join(errors.get(id(proc)) or [f"exit status {proc.returncode}"])
-                    results[name] = ([], f"worker process failed: {why}")
-
-    queue = list(groups)
     cached, total = cache_state(KERNEL_MODULES, only=STREAM_KERNELS)
-    core_ready = cached == total
-    if core_ready and _gallery_kernels_cached():
+    if cached == total and _gallery_kernels_cached():
         # warm: nothing to compile; the work balanced over the workers, longest first, the
         # longest section in parts (issue 27)
-        queue = warm_plan(work_items([n for g in groups for n in g]), jobs)
-    try:
-        if not core_ready:
-            side, n_side = cache_state(KERNEL_MODULES, only=CLIPSURFACE_SIDE_KERNELS)
-            for group in _while_the_pipeline_compiles(queue, jobs, side < n_side):
-                start(group)
-            warm_core(clip=True, stream=True)   # here: counted by the progress line
-            core_ready = True
-        while queue or running:
-            reap()
-            while queue and len(running) < jobs:
-                start(queue.pop(0))
-            time.sleep(0.05)
-    finally:
-        for proc, _, _ in running:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-    return merge_parts(results)
+        groups = warm_plan(work_items([n for g in groups for n in g]), jobs)
+
+    def command(group):
+        return [str(out_dir), *group] + (["--quick"] if args.quick else [])
+
+    answers = run_groups("refraster.gallery.worker", groups, jobs, key="section",
+                         command=command, progress=getattr(args, "compile_progress", None),
+                         cold_start=lambda queue, side_cold: _while_the_pipeline_compiles(
+                             queue, jobs, side_cold))
+    return merge_parts({name: ([Item(*i) for i in (result or {}).get("items", [])], error)
+                        for name, result, error in answers})
 
 
 def _gallery_kernels_cached():
@@ -629,8 +563,9 @@ def _cmd_warmup(args):
                                     "quick": True, "quiet": True})
         sub.compile_progress = getattr(args, "compile_progress", None)
         _cmd_gallery(sub)
-        gen = _build_parser().parse_args(["golden", "generate", "-q", "--out",
-                                          str(Path(tmp) / "golden")])
+        gen = _build_parser().parse_args(["golden", "generate", "-q", "--jobs",
+                                          str(_jobs(args)), "--out", str(Path(tmp) / "golden")])
+        gen.compile_progress = sub.compile_progress   # its workers' kernels on the line too
         gen.func(gen)
     cached, total = cache_state()
     _say(args, f"warmup: {cached} of {total} kernels in the cache "

@@ -8,22 +8,19 @@ items as ``[section, filename, caption]``. Each kernel the worker compiles (a ca
 one line ``refraster-compiled module.qualname`` on stderr (and
 ``refraster-compiling …`` when it starts), so that the parent counts them in
 its progress line. The parent sets ``NUMBA_NUM_THREADS=1``: the sections run side by side, one
-thread each, and a kernel's output bytes do not depend on its thread count.
+thread each, and a kernel's output bytes do not depend on its thread count. The protocol and
+the process handling are :mod:`refraster._workers`' (shared with ``golden generate --jobs``).
 """
 
 from __future__ import annotations
 
 import importlib
-import json
 import sys
 from pathlib import Path
 
-COMPILED = "refraster-compiled "
-STARTING = "refraster-compiling "
-#: Names a worker takes besides sections: compile kernels ahead (no pictures), by the
-#: function of :mod:`refraster.warmup` that does it. ``refraster gallery`` gives one to a
-#: worker on a first run, so that a section later loads those kernels from the cache.
-WARM_TASKS = {"warm-clipsurface": "warm_clipsurface_side"}
+from .._workers import COMPILED, STARTING, WARM_TASKS, serve
+
+__all__ = ["main", "COMPILED", "STARTING", "WARM_TASKS"]   # the names moved, kept here too
 
 
 def main(argv=None):
@@ -32,32 +29,16 @@ def main(argv=None):
     argv = [a for a in argv if a != "--quick"]
     out_dir, names = Path(argv[0]), argv[1:]
 
-    from ..warmup import compile_listener
     from . import split_item
 
-    def compiled(disp):
-        print(f"{COMPILED}{disp.py_func.__module__}.{disp.py_func.__qualname__}",
-              file=sys.stderr, flush=True)
+    def run(name):
+        section, part = split_item(name)   # "name#k": part k of the section
+        module = importlib.import_module(f"refraster.gallery.{section}")
+        kw = {} if part is None else {"part": part}
+        return {"items": [[i.section, i.filename, i.caption]
+                          for i in module.render(out_dir, quick=quick, **kw)]}
 
-    def starting(disp):
-        print(f"{STARTING}{disp.py_func.__module__}.{disp.py_func.__qualname__}",
-              file=sys.stderr, flush=True)
-
-    with compile_listener(compiled, starting):
-        for name in names:
-            items, error = [], None
-            try:
-                if name in WARM_TASKS:
-                    getattr(importlib.import_module("refraster.warmup"), WARM_TASKS[name])()
-                else:
-                    section, part = split_item(name)   # "name#k": part k of the section
-                    module = importlib.import_module(f"refraster.gallery.{section}")
-                    kw = {} if part is None else {"part": part}
-                    items = [[i.section, i.filename, i.caption]
-                             for i in module.render(out_dir, quick=quick, **kw)]
-            except Exception as exc:
-                error = f"{type(exc).__name__}: {' '.join(str(exc).split()) or type(exc).__name__}"
-            print(json.dumps({"section": name, "items": items, "error": error}), flush=True)
+    serve(names, run, key="section", empty={"items": []})
     return 0
 
 

@@ -4,7 +4,8 @@
 
     refraster golden generate --out DIR [--scene NAME ...] [--scene-file SCENE.toml ...]
                               [--update] [--list] [--sweep KEY=V1,V2 ...] [--size WxH ...]
-                              [--workers N | --scheduler ADDRESS] [--no-wait]
+                              [--jobs N | --workers N | --scheduler ADDRESS]
+                              [--no-wait]
     refraster golden compare GOLDEN_DIR CANDIDATE_DIR [--report DIR] [--mode tolerant|exact]
                              [--profile exact|conformant] [--tolerance [SCENE:][BUFFER.]KEY=VALUE ...]
                              [--scene NAME ...] [--json FILE] [--no-wait]
@@ -107,6 +108,13 @@ def _cmd_generate(args):
     if args.workers is not None and args.scheduler is not None:
         return _error(args, "golden generate",
                       ValueError("--workers and --scheduler exclude each other"), usage=True)
+    if args.jobs is not None and (args.workers is not None or args.scheduler is not None):
+        return _error(args, "golden generate",
+                      ValueError("--jobs excludes --workers and --scheduler"), usage=True)
+    import os
+    jobs = args.jobs if args.jobs is not None else (
+        1 if args.workers is not None or args.scheduler is not None
+        else min(os.cpu_count() or 1, 2))
     quiet = getattr(args, "quiet", False)
     retried = []
 
@@ -121,7 +129,8 @@ def _cmd_generate(args):
                             scheduler=args.scheduler, progress_bar=not quiet,
                             on_retry=on_retry, wait=not args.no_wait,
                             on_wait=lambda holder: _say(args, f"waiting for {holder} to finish "
-                                                              f"writing {args.out}"))
+                                                              f"writing {args.out}"),
+                            jobs=jobs, compile_progress=getattr(args, "compile_progress", None))
     except (ValueError, TypeError, OSError, GenerationError) as exc:
         return _error(args, "golden generate", exc)
     if retried:
@@ -232,6 +241,9 @@ def register(subparsers):
     g.add_argument("--size", metavar="WxH", action="append",
                    help="render at this resolution too (repeatable); scenes are named "
                         "<scene>__<W>x<H>")
+    g.add_argument("--jobs", metavar="N", type=_positive_int,
+                   help="render in N worker processes of one thread each, the scenes grouped "
+                        "by technique (default: min(CPUs, 2); 1 = in this process)")
     g.add_argument("--workers", metavar="N", type=_positive_int,
                    help="render on a Dask LocalCluster of N processes (N > 1; 1 = serial)")
     g.add_argument("--scheduler", metavar="ADDRESS",

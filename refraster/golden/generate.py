@@ -36,7 +36,7 @@ from .tolerance import default_tolerances
 from . import write
 
 __all__ = ["generate", "versions", "swap_directory", "suite", "render_task", "parse_sweep",
-           "parse_size", "GenerationError"]
+           "parse_size", "GenerationError", "WORKER_GROUPS", "WITHOUT_PIPELINE", "worker_groups"]
 
 
 def versions():
@@ -236,7 +236,8 @@ def render_task(name, entry, params):
 
 
 class GenerationError(RuntimeError):
-    """A scene failed twice (once and its retry) in a distributed run."""
+    """A scene failed twice (once and its retry) in a distributed run, or once in a worker
+    process of ``jobs > 1``."""
 
 
 def _run_serial(tasks, progress, bar):
@@ -245,6 +246,110 @@ def _run_serial(tasks, progress, bar):
             progress(name)
         yield render_task(name, entry, params)
         bar.update(1)
+
+
+# --- worker processes of one thread each (jobs > 1) -------------------------------------------
+
+#: Worker processes of ``generate(jobs=N)``, by technique, started in this order as workers free
+#: up: each group's scenes render in one process, so that each kernel compiles in one process.
+#: On a first run the clip surfaces' scenes compile longest (~half of a cold generation's
+#: compile time, 2026-12-02: ``_fused_clip_pass`` alone ~30 %), so they start first; the
+#: others share the second worker (the layered depth images and the parity test there too:
+#: with the clip surfaces they would lengthen the critical path), the halos after. Techniques
+#: not listed (new ones) join the second group.
+WORKER_GROUPS = [("clipsurface",), ("render", "edges", "cutaway", "ldi", "vds"), ("halos4d",)]
+#: Techniques whose scenes use none of the pipeline's kernels: on a first run their worker
+#: starts while this process compiles those (then ``warm-clipsurface``, the clip surfaces'
+#: kernels that need no pipeline kernel, runs after them in the same worker). None today:
+#: unlike the gallery's halos section, the halos' golden scenes use the pipeline's kernels (a
+#: fresh cache rendering only them compiles ``_bin_pass``, ``_stream_pass``, ``_resolve``…);
+#: so on a first run one worker compiles only ``warm-clipsurface`` while this process compiles
+#: the pipeline.
+WITHOUT_PIPELINE = set()
+#: The module a worker process runs (``python -m``).
+WORKER_MODULE = "refraster.golden.worker"
+
+
+def _in_worker(entry):
+    """Whether a worker process builds the same scene from its name: a scene registered by
+    :mod:`refraster.golden.scenes` or a module of its ``SCENE_MODULES`` (not a TOML scene file,
+    not one registered at run time by other code)."""
+    from . import scenes
+    return scenes.SCENES.get(entry.name) is entry and getattr(
+        entry.build, "__module__", None) in (scenes.__name__, *scenes.SCENE_MODULES)
+
+
+def worker_groups(tasks, jobs):
+    """The task names split into groups for ``jobs`` worker processes (:data:`WORKER_GROUPS`,
+    the longest first; empty groups dropped), or None when they run in this process: one job,
+    one task, or a task a worker cannot build (:func:`_in_worker`)."""
+    if jobs < 2 or len(tasks) < 2 or not all(_in_worker(entry) for _, entry, _ in tasks):
+        return None
+    groups = [[n for n, e, _ in tasks if e.technique in techniques]
+              for techniques in WORKER_GROUPS]
+    listed = {t for g in WORKER_GROUPS for t in g}
+    groups[1] += [n for n, e, _ in tasks if e.technique not in listed]
+    return [g for g in groups if g]
+
+
+_SAFE_REL = re.compile(r"^[A-Za-z0-9_.\-]+(/[A-Za-z0-9_.\-]+)*$")
+
+
+def _answer(name, result):
+    """The manifest entry and files of a worker's answer for task ``name``, checked: a dict
+    entry, and files only under ``name/`` (relative, no ``..``), base64 bytes."""
+    import base64
+    import binascii
+    try:
+        item, files = result["item"], result["files"]
+        if not isinstance(item, dict) or not isinstance(files, dict):
+            raise TypeError("item and files must be objects")
+        out = {}
+        for rel, text in files.items():
+            parts = rel.split("/") if isinstance(rel, str) else []
+            if (not _SAFE_REL.match(rel or "") or parts[0] != name or len(parts) < 2
+                    or any(p in (".", "..") for p in parts)):
+                raise ValueError(f"file {rel!r} is not under {name}/")
+            out[rel] = base64.b64decode(text.encode("ascii"), validate=True)
+    except (KeyError, TypeError, ValueError, AttributeError, binascii.Error) as exc:
+        raise GenerationError(f"scene {name} failed in a worker process: unreadable answer "
+                              f"({type(exc).__name__}: {exc})") from None
+    return item, out
+
+
+def _run_jobs(tasks, groups, jobs, progress, bar, compile_progress):
+    """Render ``tasks`` in worker processes of one thread each (:mod:`refraster.golden.worker`
+    by :func:`refraster._workers.run_groups`), ``groups`` of them at most ``jobs`` at a time;
+    yield ``(name, entry, files)`` as each arrives. The first failure stops the run
+    (:class:`GenerationError` naming the scene; every worker is killed); nothing is written
+    here."""
+    import contextlib
+
+    from .._workers import cold_start_groups, run_groups
+    spec = {name: [entry.name, params] for name, entry, params in tasks}
+    technique = {name: entry.technique for name, entry, _ in tasks}
+
+    def command(group):
+        return [json.dumps({n: spec[n] for n in group if n in spec}, sort_keys=True), *group]
+
+    def cold_start(queue, side_cold):
+        return cold_start_groups(queue, jobs, lambda n: technique[n] in WITHOUT_PIPELINE,
+                                 side_cold,
+                                 clip_group=lambda g: any(technique.get(n) == "clipsurface"
+                                                          for n in g))
+
+    answers = run_groups(WORKER_MODULE, groups, jobs, key="scene",
+                         command=command, progress=compile_progress, cold_start=cold_start,
+                         fail_fast=True)
+    with contextlib.closing(answers):
+        for name, result, error in answers:
+            if error is not None:
+                raise GenerationError(f"scene {name} failed in a worker process: {error}")
+            item, files = _answer(name, result)
+            if progress is not None:
+                progress(name)
+            bar.update(1)
+            yield name, item, files
 
 
 def _open_client(workers, scheduler):
@@ -318,7 +423,7 @@ class _NoBar:
 
 def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, sweeps=(),
              sizes=(), workers=1, scheduler=None, progress_bar=False, on_retry=None,
-             wait=True, on_wait=None):
+             wait=True, on_wait=None, jobs=1, compile_progress=None):
     """Render ``scenes`` (names; default all registered) and write a golden directory ``out``.
 
     Parameters
@@ -353,6 +458,15 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
         :class:`refraster.golden.write.LockedError` naming it.
     on_wait : callable, optional
         ``on_wait(holder)`` before waiting for the lock (``holder`` describes the other run).
+    jobs : int
+        More than 1 (and no ``workers``/``scheduler``): render in that many worker processes
+        of one thread each, the scenes grouped by technique (:data:`WORKER_GROUPS`), each
+        process answering this one with the bytes it would have written; on a first run the
+        pipeline's kernels compile here while a worker compiles kernels that need none of
+        them. Scenes a worker cannot build from their name (TOML scene files, scenes
+        registered at run time) make the run serial. The bytes written do not depend on it.
+    compile_progress : refraster.warmup.CompileProgress, optional
+        Counts the kernels the worker processes compile (the command's progress line).
 
     A symbolic link at ``out`` is followed: the golden it points to is updated, the link stays.
     The run refuses (:class:`refraster.golden.write.RefusedError`, nothing deleted) if at the
@@ -367,6 +481,8 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
     out = Path(out)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"workers must be an int >= 1, got {workers!r}")
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ValueError(f"jobs must be an int >= 1, got {jobs!r}")
     sweeps = [parse_sweep(x) if isinstance(x, str) else (x[0], list(x[1])) for x in sweeps]
     sizes = [parse_size(x) if isinstance(x, str) else tuple(x) for x in sizes]
     registry = available_scenes()
@@ -391,10 +507,11 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
         write._hook("locked", target=out)
         write.clean_debris(out)
         return _generate_locked(out, tasks, update, progress, workers, scheduler, progress_bar,
-                                on_retry)
+                                on_retry, jobs, compile_progress)
 
 
-def _generate_locked(out, tasks, update, progress, workers, scheduler, progress_bar, on_retry):
+def _generate_locked(out, tasks, update, progress, workers, scheduler, progress_bar, on_retry,
+                     jobs=1, compile_progress=None):
     generated = {t[0] for t in tasks}
     old = None
     found = write.snapshot(out)
@@ -416,14 +533,20 @@ def _generate_locked(out, tasks, update, progress, workers, scheduler, progress_
         bar = tqdm(total=len(tasks), desc="golden", unit="scene")
     try:
         manifest_scenes = {}
+        groups = worker_groups(tasks, jobs)
         if scheduler is not None or workers > 1:
             results = _run_distributed(tasks, workers, scheduler, progress, bar, on_retry)
+        elif groups is not None:
+            results = _run_jobs(tasks, groups, jobs, progress, bar, compile_progress)
         else:
             results = _run_serial(tasks, progress, bar)
-        for name, item, files in results:
-            for rel, data in files.items():
-                rio.atomic_write_bytes(tmp / rel, data)
-            manifest_scenes[name] = item
+        try:
+            for name, item, files in results:
+                for rel, data in files.items():
+                    rio.atomic_write_bytes(tmp / rel, data)
+                manifest_scenes[name] = item
+        finally:
+            results.close()   # worker processes still running are stopped now
         if old is not None:
             for name, item in old["scenes"].items():
                 if name not in manifest_scenes:
