@@ -27,19 +27,26 @@ def _object_of(face_offsets, g):
 
 
 @njit(**IJIT)
-def _position(g, k, b0, b1, b2, vertices, faces, mv):
-    """Eye-space position (float64) of face ``g`` of draw call ``k`` at barycentrics
-    ``(b0, b1, b2)``."""
+def _face_corners(g, vertices, faces):
+    """The three corners of face ``g``: ``(ax, ay, az, bx, by, bz, cx, cy, cz)``, loaded once
+    per run of a face's pixels by :func:`finalize` and :func:`shade`."""
     i0 = faces[g, 0]
     i1 = faces[g, 1]
     i2 = faces[g, 2]
-    px = (b0 * vertices[i0, 0] + b1 * vertices[i1, 0]) + b2 * vertices[i2, 0]
-    py = (b0 * vertices[i0, 1] + b1 * vertices[i1, 1]) + b2 * vertices[i2, 1]
-    pz = (b0 * vertices[i0, 2] + b1 * vertices[i1, 2]) + b2 * vertices[i2, 2]
-    ex = ((mv[k, 0, 0] * px + mv[k, 0, 1] * py) + mv[k, 0, 2] * pz) + mv[k, 0, 3]
-    ey = ((mv[k, 1, 0] * px + mv[k, 1, 1] * py) + mv[k, 1, 2] * pz) + mv[k, 1, 3]
-    ez = ((mv[k, 2, 0] * px + mv[k, 2, 1] * py) + mv[k, 2, 2] * pz) + mv[k, 2, 3]
-    return ex, ey, ez
+    return (vertices[i0, 0], vertices[i0, 1], vertices[i0, 2],
+            vertices[i1, 0], vertices[i1, 1], vertices[i1, 2],
+            vertices[i2, 0], vertices[i2, 1], vertices[i2, 2])
+
+
+@njit(**IJIT)
+def _at(b0, b1, b2, ax, ay, az, bx, by, bz, cx, cy, cz):
+    """The object-space position (float64) at barycentrics ``(b0, b1, b2)`` of a face with
+    corners ``a, b, c``; :func:`finalize` and :func:`shade` take its eye-space z (and x, y)
+    through the draw call's model-view rows, in the same order (the same bits)."""
+    px = (b0 * ax + b1 * bx) + b2 * cx
+    py = (b0 * ay + b1 * by) + b2 * cy
+    pz = (b0 * az + b1 * bz) + b2 * cz
+    return px, py, pz
 
 
 @njit(**IJIT)
@@ -109,27 +116,6 @@ def _face_normals(vertices, faces, face_offsets, nmat, fnormal):
 FACE_NORMAL_PIXELS = 16
 
 
-@njit(**IJIT)
-def _surface(g, k, beta, vertices, faces, vnormals, smooth, mv, nmat, fnormal, per_face):
-    """The float64 eye-space position and normal of face ``g`` (draw call ``k``) at the
-    barycentrics ``beta`` (3,): what :func:`finalize` rounds and :func:`shade` lights (both
-    write this expression out, in this order, with the loads that depend on the face only
-    done once per run of a face's pixels; the digests pin the bytes). The
-    normal is ``fnormal[g]`` where ``per_face`` (flat normals computed once per face), else
-    interpolated or flat per pixel (:func:`_normal`); both are the same expression."""
-    b0 = np.float64(beta[0])
-    b1 = np.float64(beta[1])
-    b2 = np.float64(beta[2])
-    ex, ey, ez = _position(g, k, b0, b1, b2, vertices, faces, mv)
-    if per_face:
-        mx = fnormal[g, 0]
-        my = fnormal[g, 1]
-        mz = fnormal[g, 2]
-    else:
-        mx, my, mz = _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat)
-    return ex, ey, ez, mx, my, mz
-
-
 def per_face_normals(n_faces, height, width, smooth):
     """Whether :func:`finalize` and :func:`shade` take flat normals per face (see
     :data:`FACE_NORMAL_PIXELS`)."""
@@ -149,7 +135,7 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
     for r in prange(h):
         # what depends on the face only (its draw call, id, vertices, the model-view rows
         # and, per face, its normal) is loaded once per run of pixels of one face, not once
-        # per pixel; the per-pixel arithmetic is _surface's, in its order (the same bits)
+        # per pixel; the per-pixel arithmetic is the same in shade (the same bits)
         last = np.int64(-1)
         k = np.int64(0)
         pid = np.int64(0)
@@ -170,18 +156,7 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
                 last = g
                 k = _object_of(face_offsets, g)
                 pid = g - face_offsets[k]
-                i0 = faces[g, 0]
-                i1 = faces[g, 1]
-                i2 = faces[g, 2]
-                ax = vertices[i0, 0]
-                ay = vertices[i0, 1]
-                az = vertices[i0, 2]
-                bx = vertices[i1, 0]
-                by = vertices[i1, 1]
-                bz = vertices[i1, 2]
-                cx = vertices[i2, 0]
-                cy = vertices[i2, 1]
-                cz = vertices[i2, 2]
+                ax, ay, az, bx, by, bz, cx, cy, cz = _face_corners(g, vertices, faces)
                 if per_face:
                     fm0 = fnormal[g, 0]
                     fm1 = fnormal[g, 1]
@@ -191,9 +166,7 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
             b0 = np.float64(bary[r, c, 0])
             b1 = np.float64(bary[r, c, 1])
             b2 = np.float64(bary[r, c, 2])
-            px = (b0 * ax + b1 * bx) + b2 * cx
-            py = (b0 * ay + b1 * by) + b2 * cy
-            pz = (b0 * az + b1 * bz) + b2 * cz
+            px, py, pz = _at(b0, b1, b2, ax, ay, az, bx, by, bz, cx, cy, cz)
             ez = ((mv[k, 2, 0] * px + mv[k, 2, 1] * py) + mv[k, 2, 2] * pz) + mv[k, 2, 3]
             if per_face:
                 mx = fm0
@@ -221,7 +194,7 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
     h, w = prim_global.shape
     for r in prange(h):
         # a face's draw call, vertices and (per face) normal loaded once per run of its
-        # pixels, as in finalize; the per-pixel arithmetic is _surface's, in its order
+        # pixels, as in finalize; the per-pixel arithmetic is finalize's, in its order
         last = np.int64(-1)
         k = np.int64(0)
         ax = ay = az = bx = by = bz = cx = cy = cz = 0.0
@@ -235,18 +208,7 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
             if g != last:
                 last = g
                 k = _object_of(face_offsets, g)
-                i0 = faces[g, 0]
-                i1 = faces[g, 1]
-                i2 = faces[g, 2]
-                ax = vertices[i0, 0]
-                ay = vertices[i0, 1]
-                az = vertices[i0, 2]
-                bx = vertices[i1, 0]
-                by = vertices[i1, 1]
-                bz = vertices[i1, 2]
-                cx = vertices[i2, 0]
-                cy = vertices[i2, 1]
-                cz = vertices[i2, 2]
+                ax, ay, az, bx, by, bz, cx, cy, cz = _face_corners(g, vertices, faces)
                 if per_face:
                     fm0 = fnormal[g, 0]
                     fm1 = fnormal[g, 1]
@@ -254,9 +216,7 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
             b0 = np.float64(bary[r, c, 0])
             b1 = np.float64(bary[r, c, 1])
             b2 = np.float64(bary[r, c, 2])
-            px = (b0 * ax + b1 * bx) + b2 * cx
-            py = (b0 * ay + b1 * by) + b2 * cy
-            pz = (b0 * az + b1 * bz) + b2 * cz
+            px, py, pz = _at(b0, b1, b2, ax, ay, az, bx, by, bz, cx, cy, cz)
             ex = ((mv[k, 0, 0] * px + mv[k, 0, 1] * py) + mv[k, 0, 2] * pz) + mv[k, 0, 3]
             ey = ((mv[k, 1, 0] * px + mv[k, 1, 1] * py) + mv[k, 1, 2] * pz) + mv[k, 1, 3]
             ez = ((mv[k, 2, 0] * px + mv[k, 2, 1] * py) + mv[k, 2, 2] * pz) + mv[k, 2, 3]
