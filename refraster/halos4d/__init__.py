@@ -7,7 +7,8 @@ Stages, one module each: :mod:`.surfaces` (uv-sampled 4D surfaces with tangents)
 ``docs/halos4d.md`` and MATH.md §5.
 """
 
-from .render import HaloGeometry, HaloRender, prepare, render_halos, slice_alpha
+from .render import (HaloGeometry, HaloRender, prepare, render_halos, render_halos_pair,
+                     slice_alpha)
 from .slicing import SliceTriangles, slice_tetrahedra, voxel_centres, voxelize
 from .surfaces import (Surface4D, calabi_yau_quartic, colored_by_depth, fermat_surface,
                        figure1_scene, merge,
@@ -18,7 +19,7 @@ from .thicken import (default_halo_parameters, halo_depth, prism_tetrahedra, thi
 from .transforms import PLANES, Projection, compose, hanson_view, project, rotate_3d, rotation
 
 __all__ = [
-    "HaloGeometry", "HaloRender", "prepare", "render_halos", "slice_alpha",
+    "HaloGeometry", "HaloRender", "prepare", "render_halos", "render_halos_pair", "slice_alpha",
     "SliceTriangles", "slice_tetrahedra", "voxel_centres", "voxelize",
     "Surface4D", "calabi_yau_quartic", "colored_by_depth", "fermat_surface", "figure1_scene",
     "merge",
