@@ -38,7 +38,7 @@ from numba import njit, prange
 
 from .._config import JIT, PJIT
 from .._validate import as_choice, as_float_array, as_image_size, as_matrix, as_real
-from ..raster.rasterizer import _inv_float_area, lambdas
+from ..raster.rasterizer import _inv_float_area, lambdas, row_span
 from .slicing import MAX_SLICES, SUBPIXEL_BITS, _slice, ortho_ndc, setup_window
 from .surfaces import Surface4D
 from .thicken import (RHO_FRACTION, default_halo_parameters, prism_tetrahedra, thicken,
@@ -295,50 +295,61 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
             sx0 = -(dy0 << bits)
             sx1 = -(dy1 << bits)
             sx2 = -(dy2 << bits)
+            # the triangle's attributes (δ, t) in locals: read once, not per pixel (issue 27)
+            d0, d1, d2 = attr[j, 0, 0], attr[j, 1, 0], attr[j, 2, 0]
+            t0, t1, t2 = attr[j, 0, 1], attr[j, 1, 1], attr[j, 2, 1]
             for r in range(ra, rb + 1):
                 py = height - 1 - r
                 li = r - r0
                 e0 = dx0 * ((py << bits) - Y[j, 1]) - dy0 * ((x0 << bits) - X[j, 1])
                 e1 = dx1 * ((py << bits) - Y[j, 2]) - dy1 * ((x0 << bits) - X[j, 2])
                 e2 = dx2 * ((py << bits) - Y[j, 0]) - dy2 * ((x0 << bits) - X[j, 0])
-                for px in range(x0, x1 + 1):
-                    if e0 - bias0 >= 0 and e1 - bias1 >= 0 and e2 - bias2 >= 0:
-                        # barycentrics as the foundation's fragment stream (w = 1):
-                        # float32(λ_k / Σλ), λ from the unsnapped positions
-                        l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, px, py,
-                                             e0, e1, e2, inv_area)
-                        sl = l0 + l1 + l2
-                        q0 = np.float64(np.float32(l0 / sl))
-                        q1 = np.float64(np.float32(l1 / sl))
-                        q2 = np.float64(np.float32(l2 / sl))
-                        if swap:
-                            q1, q2 = q2, q1
-                        t = q0 * attr[j, 0, 1] + q1 * attr[j, 1, 1] + q2 * attr[j, 2, 1]
-                        d = q0 * attr[j, 0, 0] + q1 * attr[j, 1, 0] + q2 * attr[j, 2, 0]
-                        u = abs(2.0 * t - 1.0)
-                        core = u < surface_width + aa
-                        if halos:
-                            dn = d + max(0.0, u - delta_t) * delta_d
-                            if dn < min_d[li, px]:
-                                min_d[li, px] = dn
-                            if boundary and u + boundary_width <= 1.0:
-                                db = d + max(0.0, u + boundary_width - delta_t) * delta_d
-                                if db < min_db[li, px]:
-                                    min_db[li, px] = db
-                        elif core and d < min_d[li, px]:
-                            min_d[li, px] = d
-                        hit[li, px] = True
-                        full = u < surface_width
-                        # the surface fragment of the voxel: a full-core one (|2t − 1| < w_s)
-                        # before an anti-aliasing fringe one, then the smallest δ
-                        if core and ((full and not surf_full[li, px])
-                                     or (full == surf_full[li, px] and d < surf_d[li, px])):
-                            surf_d[li, px] = d
-                            surf_full[li, px] = full
-                            surf_cov[li, px] = _coverage(u, surface_width, aa)
-                            for c in range(3):
-                                surf[li, px, c] = (q0 * attr[j, 0, 2 + c] + q1 * attr[j, 1, 2 + c]
-                                                   + q2 * attr[j, 2, 2 + c])
+                # the row's exact span (all three biased edge functions ≥ 0): the pixels the
+                # bounding-box scan would accept, without visiting the empty corners (issue 27)
+                sa, sb = row_span(e0 - bias0, sx0, e1 - bias1, sx1, e2 - bias2, sx2,
+                                  x1 - x0 + 1)
+                if sa > sb:
+                    continue
+                e0 += sa * sx0
+                e1 += sa * sx1
+                e2 += sa * sx2
+                for px in range(x0 + sa, x0 + sb + 1):
+                    # barycentrics as the foundation's fragment stream (w = 1):
+                    # float32(λ_k / Σλ), λ from the unsnapped positions
+                    l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, px, py,
+                                         e0, e1, e2, inv_area)
+                    sl = l0 + l1 + l2
+                    q0 = np.float64(np.float32(l0 / sl))
+                    q1 = np.float64(np.float32(l1 / sl))
+                    q2 = np.float64(np.float32(l2 / sl))
+                    if swap:
+                        q1, q2 = q2, q1
+                    t = q0 * t0 + q1 * t1 + q2 * t2
+                    d = q0 * d0 + q1 * d1 + q2 * d2
+                    u = abs(2.0 * t - 1.0)
+                    core = u < surface_width + aa
+                    if halos:
+                        dn = d + max(0.0, u - delta_t) * delta_d
+                        if dn < min_d[li, px]:
+                            min_d[li, px] = dn
+                        if boundary and u + boundary_width <= 1.0:
+                            db = d + max(0.0, u + boundary_width - delta_t) * delta_d
+                            if db < min_db[li, px]:
+                                min_db[li, px] = db
+                    elif core and d < min_d[li, px]:
+                        min_d[li, px] = d
+                    hit[li, px] = True
+                    full = u < surface_width
+                    # the surface fragment of the voxel: a full-core one (|2t − 1| < w_s)
+                    # before an anti-aliasing fringe one, then the smallest δ
+                    if core and ((full and not surf_full[li, px])
+                                 or (full == surf_full[li, px] and d < surf_d[li, px])):
+                        surf_d[li, px] = d
+                        surf_full[li, px] = full
+                        surf_cov[li, px] = _coverage(u, surface_width, aa)
+                        for c in range(3):
+                            surf[li, px, c] = (q0 * attr[j, 0, 2 + c] + q1 * attr[j, 1, 2 + c]
+                                               + q2 * attr[j, 2, 2 + c])
                     e0 += sx0
                     e1 += sx1
                     e2 += sx2
