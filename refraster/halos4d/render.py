@@ -26,7 +26,9 @@ rendering); ``Δz`` is the slice spacing.
 Two engines give the same bits: ``"fused"`` (default) slices and fills in Numba kernels,
 parallel over bands of rows (each band owns its rows and walks the slices back to front);
 ``"reference"`` draws each slice with :func:`refraster.rasterize` and does the per-fragment
-work in NumPy.
+work in NumPy. :func:`render_halos_pair` (fused, no volume) fills the halos picture and its
+halos-off twin in one pass: they share every fragment and surface fragment, only the depth
+buffer differs.
 """
 
 from __future__ import annotations
