@@ -107,7 +107,7 @@ def render_variant(surface, p, *, dsw=0.0, ddt=0.0, eps_scale=1.0, dz=0.0, dxy=(
     _render_bands(X, Y, XF, YF, order, bbox, area, st.slice, band_starts, band_lists, st.attr,
                   w, h, b, BAND_ROWS, float(p["delta_t"]) + ddt, float(p["delta_d"]), sw + dsw,
                   eps, alpha, bool(p["halos"]), aa, 0.0, np.zeros(3), False, 0.15, np.zeros(3),
-                  True, rgb, a, vol, vox)
+                  True, rgb, a, vol, vox, False, np.zeros((1, 1, 3)), np.zeros((1, 1)))
     bg = np.asarray(p.get("background", [0.0, 0.0, 0.0]), np.float64)
     if voxels:
         return rgb + (1.0 - a)[..., None] * bg, a, vol, vox, alpha

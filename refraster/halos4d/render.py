@@ -26,7 +26,9 @@ rendering); ``Δz`` is the slice spacing.
 Two engines give the same bits: ``"fused"`` (default) slices and fills in Numba kernels,
 parallel over bands of rows (each band owns its rows and walks the slices back to front);
 ``"reference"`` draws each slice with :func:`refraster.rasterize` and does the per-fragment
-work in NumPy.
+work in NumPy. :func:`render_halos_pair` (fused, no volume) fills the halos picture and its
+halos-off twin in one pass: they share every fragment and surface fragment, only the depth
+buffer differs.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ from numba import njit, prange
 
 from .._config import JIT, PJIT
 from .._validate import as_choice, as_float_array, as_image_size, as_matrix, as_real
-from ..raster.rasterizer import _inv_float_area, lambdas
+from ..raster.rasterizer import _inv_float_area, lambdas, row_span
 from .slicing import MAX_SLICES, SUBPIXEL_BITS, _slice, ortho_ndc, setup_window
 from .surfaces import Surface4D
 from .thicken import (RHO_FRACTION, default_halo_parameters, prism_tetrahedra, thicken,
@@ -190,11 +192,12 @@ def _coverage(u, surface_width, aa):
 @njit(**JIT)
 def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf_d, surf, hit,
                    acc, acc_a, volume, surf_cov, min_db, halo_alpha, halo_rgb, boundary,
-                   boundary_rgb, surf_full, voxel_rgba):
+                   boundary_rgb, surf_full, voxel_rgba, pair, min_d2, acc2, acc_a2):
     """Occlusion rule of one slice over the touched part of a band, composited back to front.
     With ``want_volume`` and a full-size ``voxel_rgba (N, H, W, 4)``, also each voxel's surface
     colour (drawn or carved) and opacity (0 if not drawn), for the golden's halo allowance; a
-    (1, 1, 1, 4) one is not written."""
+    (1, 1, 1, 4) one is not written. With ``pair``, also the halos-off twin into ``acc2``,
+    ``acc_a2`` from its depth buffer ``min_d2`` (no halo colour, no boundaries)."""
     per_voxel = want_volume and voxel_rgba.shape[0] == volume.shape[0] and volume.shape[0] > 1
     for li in range(lr0, lr1 + 1):
         for px in range(c0, c1 + 1):
@@ -228,6 +231,14 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
                                                      else surf[li, px, c])
             if want_volume:
                 volume[k, r0 + li, px] = cls
+            if pair:    # the halos-off twin: the same surface fragment, its own depth buffer
+                if surf_d[li, px] < np.inf and surf_d[li, px] <= min_d2[li, px] + eps:
+                    cov = surf_cov[li, px]
+                    a = alpha if cov == 1.0 else 1.0 - (1.0 - alpha) ** cov
+                    for c in range(3):
+                        acc2[li, px, c] = acc2[li, px, c] * (1.0 - a) + a * surf[li, px, c]
+                    acc_a2[li, px] = acc_a2[li, px] * (1.0 - a) + a
+                min_d2[li, px] = np.inf
             hit[li, px] = False
             min_d[li, px] = np.inf
             surf_d[li, px] = np.inf
@@ -240,7 +251,11 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
                   width,
                   height, bits, band_rows, delta_t, delta_d, surface_width, eps, alpha, halos,
                   aa, halo_alpha, halo_rgb, boundary, boundary_width, boundary_rgb,
-                  want_volume, out_rgb, out_a, volume, voxel_rgba):
+                  want_volume, out_rgb, out_a, volume, voxel_rgba, pair, out_rgb2, out_a2):
+    """The fill pass, parallel over bands of rows. With ``pair`` (and ``halos``), also the
+    halos-off twin (``halos`` False, ``halo_alpha`` 0, no boundaries, the other parameters the
+    same) into ``out_rgb2``, ``out_a2``: its fragments, barycentrics and surface fragments are
+    the first picture's, only the depth buffer differs (issue 27)."""
     nbands = band_starts.shape[0] - 1
     for band in prange(nbands):
         r0 = band * band_rows
@@ -255,6 +270,11 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
         min_db = np.full((rows, width), np.inf)
         acc = np.zeros((rows, width, 3))
         acc_a = np.zeros((rows, width))
+        prow = rows if pair else 1
+        pcol = width if pair else 1
+        min_d2 = np.full((prow, pcol), np.inf)
+        acc2 = np.zeros((prow, pcol, 3))
+        acc_a2 = np.zeros((prow, pcol))
         cur = np.int64(-1)  # int64, not a literal: one _resolve_slice (issue 27)
         lr0, lr1, c0, c1 = rows, np.int64(-1), width, np.int64(-1)
         for q in range(band_starts[band], band_starts[band + 1]):
@@ -264,7 +284,7 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
                     _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d,
                                    surf_d, surf, hit, acc, acc_a, volume, surf_cov, min_db,
                                    halo_alpha, halo_rgb, boundary, boundary_rgb, surf_full,
-                                   voxel_rgba)
+                                   voxel_rgba, pair, min_d2, acc2, acc_a2)
                 cur = tri_slice[j]
                 lr0, lr1, c0, c1 = rows, -1, width, -1
             ra = max(height - 1 - bbox[j, 3], r0)
@@ -295,76 +315,101 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
             sx0 = -(dy0 << bits)
             sx1 = -(dy1 << bits)
             sx2 = -(dy2 << bits)
+            # the triangle's attributes (δ, t) in locals: read once, not per pixel (issue 27)
+            d0, d1, d2 = attr[j, 0, 0], attr[j, 1, 0], attr[j, 2, 0]
+            t0, t1, t2 = attr[j, 0, 1], attr[j, 1, 1], attr[j, 2, 1]
             for r in range(ra, rb + 1):
                 py = height - 1 - r
                 li = r - r0
                 e0 = dx0 * ((py << bits) - Y[j, 1]) - dy0 * ((x0 << bits) - X[j, 1])
                 e1 = dx1 * ((py << bits) - Y[j, 2]) - dy1 * ((x0 << bits) - X[j, 2])
                 e2 = dx2 * ((py << bits) - Y[j, 0]) - dy2 * ((x0 << bits) - X[j, 0])
-                for px in range(x0, x1 + 1):
-                    if e0 - bias0 >= 0 and e1 - bias1 >= 0 and e2 - bias2 >= 0:
-                        # barycentrics as the foundation's fragment stream (w = 1):
-                        # float32(λ_k / Σλ), λ from the unsnapped positions
-                        l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, px, py,
-                                             e0, e1, e2, inv_area)
-                        sl = l0 + l1 + l2
-                        q0 = np.float64(np.float32(l0 / sl))
-                        q1 = np.float64(np.float32(l1 / sl))
-                        q2 = np.float64(np.float32(l2 / sl))
-                        if swap:
-                            q1, q2 = q2, q1
-                        t = q0 * attr[j, 0, 1] + q1 * attr[j, 1, 1] + q2 * attr[j, 2, 1]
-                        d = q0 * attr[j, 0, 0] + q1 * attr[j, 1, 0] + q2 * attr[j, 2, 0]
-                        u = abs(2.0 * t - 1.0)
-                        core = u < surface_width + aa
-                        if halos:
-                            dn = d + max(0.0, u - delta_t) * delta_d
-                            if dn < min_d[li, px]:
-                                min_d[li, px] = dn
-                            if boundary and u + boundary_width <= 1.0:
-                                db = d + max(0.0, u + boundary_width - delta_t) * delta_d
-                                if db < min_db[li, px]:
-                                    min_db[li, px] = db
-                        elif core and d < min_d[li, px]:
-                            min_d[li, px] = d
-                        hit[li, px] = True
-                        full = u < surface_width
-                        # the surface fragment of the voxel: a full-core one (|2t − 1| < w_s)
-                        # before an anti-aliasing fringe one, then the smallest δ
-                        if core and ((full and not surf_full[li, px])
-                                     or (full == surf_full[li, px] and d < surf_d[li, px])):
-                            surf_d[li, px] = d
-                            surf_full[li, px] = full
-                            surf_cov[li, px] = _coverage(u, surface_width, aa)
-                            for c in range(3):
-                                surf[li, px, c] = (q0 * attr[j, 0, 2 + c] + q1 * attr[j, 1, 2 + c]
-                                                   + q2 * attr[j, 2, 2 + c])
+                # the row's exact span (all three biased edge functions ≥ 0): the pixels the
+                # bounding-box scan would accept, without visiting the empty corners (issue 27)
+                sa, sb = row_span(e0 - bias0, sx0, e1 - bias1, sx1, e2 - bias2, sx2,
+                                  x1 - x0 + 1)
+                if sa > sb:
+                    continue
+                e0 += sa * sx0
+                e1 += sa * sx1
+                e2 += sa * sx2
+                for px in range(x0 + sa, x0 + sb + 1):
+                    # barycentrics as the foundation's fragment stream (w = 1):
+                    # float32(λ_k / Σλ), λ from the unsnapped positions
+                    l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, px, py,
+                                         e0, e1, e2, inv_area)
+                    sl = l0 + l1 + l2
+                    q0 = np.float64(np.float32(l0 / sl))
+                    q1 = np.float64(np.float32(l1 / sl))
+                    q2 = np.float64(np.float32(l2 / sl))
+                    if swap:
+                        q1, q2 = q2, q1
+                    t = q0 * t0 + q1 * t1 + q2 * t2
+                    d = q0 * d0 + q1 * d1 + q2 * d2
+                    u = abs(2.0 * t - 1.0)
+                    core = u < surface_width + aa
+                    if halos:
+                        dn = d + max(0.0, u - delta_t) * delta_d
+                        if dn < min_d[li, px]:
+                            min_d[li, px] = dn
+                        if boundary and u + boundary_width <= 1.0:
+                            db = d + max(0.0, u + boundary_width - delta_t) * delta_d
+                            if db < min_db[li, px]:
+                                min_db[li, px] = db
+                    elif core and d < min_d[li, px]:
+                        min_d[li, px] = d
+                    if pair and core and d < min_d2[li, px]:
+                        min_d2[li, px] = d
+                    hit[li, px] = True
+                    full = u < surface_width
+                    # the surface fragment of the voxel: a full-core one (|2t − 1| < w_s)
+                    # before an anti-aliasing fringe one, then the smallest δ
+                    if core and ((full and not surf_full[li, px])
+                                 or (full == surf_full[li, px] and d < surf_d[li, px])):
+                        surf_d[li, px] = d
+                        surf_full[li, px] = full
+                        surf_cov[li, px] = _coverage(u, surface_width, aa)
+                        for c in range(3):
+                            surf[li, px, c] = (q0 * attr[j, 0, 2 + c] + q1 * attr[j, 1, 2 + c]
+                                               + q2 * attr[j, 2, 2 + c])
                     e0 += sx0
                     e1 += sx1
                     e2 += sx2
         if cur >= 0:
             _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf_d,
                            surf, hit, acc, acc_a, volume, surf_cov, min_db, halo_alpha,
-                           halo_rgb, boundary, boundary_rgb, surf_full, voxel_rgba)
+                           halo_rgb, boundary, boundary_rgb, surf_full, voxel_rgba, pair,
+                           min_d2, acc2, acc_a2)
         for li in range(rows):
             for px in range(width):
                 for c in range(3):
                     out_rgb[r0 + li, px, c] = acc[li, px, c]
                 out_a[r0 + li, px] = acc_a[li, px]
+        if pair:
+            for li in range(rows):
+                for px in range(width):
+                    for c in range(3):
+                        out_rgb2[r0 + li, px, c] = acc2[li, px, c]
+                    out_a2[r0 + li, px] = acc_a2[li, px]
 
 
-def _fused(st, width, height, params, want_volume, win=None):
-    """``win``: :func:`_window` of ``st`` computed before (the same for every fill pass)."""
+def _fused(st, width, height, params, want_volume, win=None, pair=False):
+    """``win``: :func:`_window` of ``st`` computed before (the same for every fill pass).
+    ``pair`` (``params`` with halos, no volume): also the halos-off twin's colour and alpha,
+    from the same pass; they are appended to the result."""
     X, Y, order, bbox, valid, XF, YF, area, band_starts, band_lists = (
         _window(st, width, height) if win is None else win)
     n = len(st.starts) - 1
     rgb = np.zeros((height, width, 3))
     a = np.zeros((height, width))
     vol = np.zeros((n, height, width) if want_volume else (1, 1, 1), np.int8)
+    rgb2 = np.zeros((height, width, 3) if pair else (1, 1, 3))
+    a2 = np.zeros((height, width) if pair else (1, 1))
     _render_bands(X, Y, XF, YF, order, bbox, area, st.slice, band_starts, band_lists, st.attr, width,
                   height, SUBPIXEL_BITS, BAND_ROWS, *params, want_volume, rgb, a, vol,
-                  np.zeros((1, 1, 1, 4)))
-    return rgb, a, (vol if want_volume else None), int(np.count_nonzero(~valid))
+                  np.zeros((1, 1, 1, 4)), pair, rgb2, a2)
+    out = rgb, a, (vol if want_volume else None), int(np.count_nonzero(~valid))
+    return out + (rgb2, a2) if pair else out
 
 
 def _window(st, width, height):
@@ -628,12 +673,23 @@ def _draw(geo, views, bounds, centres, width, height, variants, engine, volume, 
     outs = [([], []) for _ in variants]
     vols = [None] * len(variants)
     n_tri = n_skip = 0
+    # render_halos_pair's variants: (halos on, its halos-off twin), which differs only in
+    # halos, halo_alpha and boundary: one fill pass draws both when no volume is asked for
+    fuse = (engine == "fused" and len(variants) == 2 and not volume and variants[0][5]
+            and not variants[1][5] and variants[1][7] == 0.0 and not variants[1][9]
+            and all(variants[0][i] == variants[1][i] for i in (0, 1, 2, 3, 4, 6, 10)))
     for verts in views:
         st = _slice(verts[:, 2].copy(), geo.tets, centres, geo.attributes,
                     ortho_ndc(verts, bounds))
         win = _window(st, width, height) if engine == "fused" and len(variants) > 1 else None
         skipped = None
-        for v, params in enumerate(variants):
+        if fuse:    # both pictures from one fill pass (issue 27)
+            rgb, a, _, skipped, rgb2, a2 = _fused(st, width, height, variants[0], False, win,
+                                                   pair=True)
+            for v, (c, al) in enumerate(((rgb, a), (rgb2, a2))):
+                outs[v][0].append(c + (1.0 - al)[..., None] * bg)
+                outs[v][1].append(al)
+        for v, params in enumerate(variants if not fuse else ()):
             if engine == "fused":
                 rgb, a, vols[v], skipped = _fused(st, width, height, params, bool(volume), win)
             else:
