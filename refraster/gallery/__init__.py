@@ -80,8 +80,9 @@ WITHOUT_PIPELINE = {"halos4d"}
 PARTS = {"halos4d": 2}
 #: CPU seconds of each work item of a warm full-size run, one thread
 #: (``python -m benchmarks.gallery_profile``, 2026-12-02; the halo parts re-measured after
-#: ``fig5d_diagram`` joined, split after it, and after the one-pass halo pair): a warm run hands the items to its
-#: workers longest first (:func:`warm_plan`). An item not listed counts as 1 s.
+#: ``fig5d_diagram`` joined, split after it, and after the one-pass halo pair): a warm run
+#: hands the items to its workers longest first (:func:`warm_plan`). An item not listed
+#: counts as 1 s.
 WARM_SECONDS = {"halos4d#0": 12.4, "halos4d#1": 14.7, "clipsurface": 6.3, "edges": 4.6,
                 "cutaway": 3.5, "basic": 1.7, "ldi": 1.4}
 
