@@ -110,7 +110,7 @@ def cold_start_groups(queue, jobs, independent, clip_side_cold, *, clip_group=No
     taken off ``queue`` (a list of groups, each a list of task names): the groups whose tasks
     all need no pipeline kernel (``independent(name)``; at most ``jobs - 1`` groups) and —
     with two or more jobs, ``clip_side_cold`` and a queued group for which ``clip_group(group)``
-    is true — ``warm-clipsurface`` first in the first of them, the clip surfaces' kernels that need no pipeline
+    is true — ``warm-clipsurface`` after them, the clip surfaces' kernels that need no pipeline
     kernel (:func:`refraster.warmup.warm_clipsurface_side`): their tasks compile longest (the
     critical path of a first run), so the core that would idle while the pipeline compiles
     compiles those ahead."""
@@ -120,8 +120,8 @@ def cold_start_groups(queue, jobs, independent, clip_side_cold, *, clip_group=No
     first = [list(g) for g in first]
     if jobs >= 2 and clip_side_cold and clip_group is not None and any(
             clip_group(g) for g in queue):
-        if first:   # before the group's own tasks: the clip surfaces wait for these
-            first[0].insert(0, "warm-clipsurface")
+        if first:
+            first[0].append("warm-clipsurface")
         else:
             first = [["warm-clipsurface"]]
     return first
