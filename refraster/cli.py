@@ -225,8 +225,8 @@ def _cmd_render(args):
     progress = getattr(args, "compile_progress", None)
     if progress is not None and progress.n:
         # first run, options checked: compile the pipeline's kernels on a tiny frame first
-        from .warmup import warm_core
-        warm_core((args.normals,))
+        from .warmup import warm_core_split
+        warm_core_split((args.normals,), progress=progress)
     with _progress(args, total=3, desc="render", unit="step") as bar:
         bar.set_postfix_str(f"{len(mesh.faces):,} faces")
         bar.update(1)

@@ -22,7 +22,7 @@ import sys
 import threading
 import time
 
-__all__ = ["KERNEL_MODULES", "CORE_MODULES", "RENDER_KERNELS", "CLIP_KERNELS", "STREAM_KERNELS", "GALLERY_SKIPS", "kernels", "cache_state", "CompileProgress",
+__all__ = ["SPLIT_KERNEL", "warm_only", "warm_core_split", "KERNEL_MODULES", "CORE_MODULES", "RENDER_KERNELS", "CLIP_KERNELS", "STREAM_KERNELS", "GALLERY_SKIPS", "kernels", "cache_state", "CompileProgress",
            "warm_core", "compile_listener", "CLIPSURFACE_SIDE_KERNELS", "warm_clipsurface_side"]
 
 #: The modules whose kernels the pipeline (``refraster.render``) compiles.
@@ -284,6 +284,116 @@ def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False):
                 np.asarray(fb.color)
 
 
+#: The kernel the second process of :func:`warm_core_split` compiles: the fused tile kernel,
+#: over half of a first ``render``'s compile time (``_fused_pass`` 57.7 of 109.0 s of compiling
+#: at load 5, 2026-12-02; docs/performance.md, "The first render: inlining traded or not, and
+#: two processes").
+SPLIT_KERNEL = "refraster.raster.rasterizer._fused_pass"
+
+
+def _nothing(*args):
+    """Stands in for a kernel in a half of :func:`warm_core_split`: the other process
+    compiles that one; here only the types of the arrays around it matter."""
+    return None
+
+
+class _stubbed:
+    """Replace module attributes (kernels) by :func:`_nothing` for the body of a ``with``;
+    restored after it, whatever happens."""
+
+    def __init__(self, names):
+        self.names = names
+        self.saved = []
+
+    def __enter__(self):
+        for name in self.names:
+            module, attr = name.rsplit(".", 1)
+            mod = importlib.import_module(module)
+            self.saved.append((mod, attr, getattr(mod, attr)))
+            setattr(mod, attr, _nothing)
+        return self
+
+    def __exit__(self, *exc):
+        for mod, attr, value in reversed(self.saved):
+            setattr(mod, attr, value)
+        return False
+
+
+#: Where ``render``'s path calls each of :data:`RENDER_KERNELS` (the module attribute a half of
+#: :func:`warm_core_split` replaces so as not to compile it).
+_CALL_SITES = {
+    "refraster.raster.primitive._transform32": ("refraster.raster.primitive._transform32",),
+    "refraster.raster.primitive._vertex_pass": ("refraster.raster.primitive._vertex_pass",),
+    "refraster.raster.primitive._classify": ("refraster.raster.primitive._classify",),
+    "refraster.raster.rasterizer._bin_pass": ("refraster.raster.rasterizer._bin_pass",),
+    "refraster.raster.rasterizer._fused_pass": ("refraster.raster.rasterizer._fused_pass",),
+    "refraster.raster.gbuffer.finalize": ("refraster.framebuffer.finalize",),
+    "refraster.raster.gbuffer.shade": ("refraster.framebuffer.shade",),
+}
+
+
+def warm_only(kernels, normals="flat"):
+    """Compile only ``kernels`` (names of :data:`RENDER_KERNELS`) of ``render``'s path: the
+    16×12 frame of :func:`warm_core` with every other kernel of the path replaced by a no-op
+    for the call, so that these get the argument types a render gives them (the arrays around
+    a replaced kernel are allocated by the same wrappers; they keep their fill values). The
+    replacement is process-wide for the call: for the command's process or the second
+    process, not while other threads of the process render."""
+    import numpy as np
+
+    import refraster
+    from refraster.camera import look_at, perspective
+    others = [site for name, sites in _CALL_SITES.items() if name not in kernels
+              for site in sites]
+    mesh = refraster.as_mesh(_box())
+    view = look_at((0.3, 0.4, 2.0), (0.0, 0.0, 0.0))
+    proj = perspective(40.0, 4 / 3, 0.5, 10.0)
+    with _stubbed(others):
+        fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12, normals=normals)
+        np.asarray(fb.color)
+
+
+def _split_worth_it():
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cpus = os.cpu_count() or 1
+    return cpus >= 2
+
+
+def warm_core_split(normals=("flat",), *, progress=None):
+    """:func:`warm_core` for a first ``render`` on two cores: when :data:`SPLIT_KERNEL` (the
+    fused tile kernel, over half the compile time) is not in the cache, a second process
+    (``python -m refraster.warmup``) compiles it into the cache while this one compiles the
+    other six kernels of the path (:func:`warm_only`); this one then waits for it and runs
+    :func:`warm_core`, which loads all seven. Same kernels, same specialisations, same cache
+    as :func:`warm_core` (``tests/test_warmup.py``); if the second process fails, this one
+    compiles the kernel itself. ``progress``: a :class:`CompileProgress` to add the kernel
+    the second process compiled to."""
+    import subprocess
+
+    fused = [d for d in kernels(CORE_MODULES) if _name(d) == SPLIT_KERNEL]
+    proc = None
+    if fused and not _cached(fused[0]) and _split_worth_it():
+        try:
+            proc = subprocess.Popen([sys.executable, "-m", "refraster.warmup", SPLIT_KERNEL],
+                                    stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                    stderr=subprocess.DEVNULL)
+        except OSError:
+            proc = None
+    if proc is not None:
+        if progress is not None:
+            progress.starting()
+        try:
+            for mode in normals:
+                warm_only([k for k in RENDER_KERNELS if k != SPLIT_KERNEL], mode)
+        finally:
+            status = proc.wait()
+        if status == 0 and progress is not None and _cached(fused[0]):
+            progress.add(SPLIT_KERNEL)
+    warm_core(tuple(normals))
+
+
 def warm_clipsurface_side():
     """Compile :data:`CLIPSURFACE_SIDE_KERNELS` (over half of the clip surfaces' compile
     time, 2026-12-01) on tiny inputs, through the wrappers the clip-surface renderer calls,
@@ -321,3 +431,7 @@ def warm_clipsurface_side():
     textures.sample_texture(rng.random((4, 4, 3)), rng.random((4, 2)))
     textures.sample_volume(rng.random((2, 3, 4, 3)), rng.random((4, 3)))
     capping._same_bits(v, v.copy())
+
+
+if __name__ == "__main__":   # the second process of warm_core_split: compile the named kernels
+    warm_only(sys.argv[1:])

@@ -88,13 +88,17 @@ def _cache_paths(env):
 @pytest.fixture
 def nearly_warm_cache(tmp_path):
     """A fresh ``NUMBA_CACHE_DIR`` holding this checkout's core kernels but ``LEFT_OUT``."""
+    return _cache_without(tmp_path, (LEFT_OUT,))
+
+
+def _cache_without(tmp_path, left_out):
     env = dict(os.environ, PYTHONPATH=str(REPO))
     here = _cache_paths(env)
     cache = tmp_path / "numba-cache"
     env["NUMBA_CACHE_DIR"] = str(cache)
     there = _cache_paths(env)
     for name, (src, index) in here.items():
-        if name == LEFT_OUT:
+        if name in left_out:
             continue
         stem = index[:-len(".nbi")]
         dst = Path(there[name][0])
@@ -343,3 +347,93 @@ def test_two_processes_compiling_the_same_kernel_at_once_share_one_cache(tmp_pat
     assert len(values) == 1
     assert third.stdout.strip().rsplit(" ", 1)[1] == "1"   # loaded from the cache
     assert len(list((tmp_path / "cache").rglob("*.nbi"))) == 1
+
+
+# ---------------------------------------------------------------- the first render on two cores
+
+_SIGNATURES = """
+import json, sys
+from refraster import warmup
+ks = {warmup._name(d): d for d in warmup.kernels(warmup.CORE_MODULES)}
+def sigs():
+    return {n: [str(s) for s in ks[n].signatures] for n in warmup.RENDER_KERNELS}
+out = []
+warmup.warm_only([warmup.SPLIT_KERNEL])            # what the second process does
+out.append(sigs())
+warmup.warm_only([k for k in warmup.RENDER_KERNELS if k != warmup.SPLIT_KERNEL])
+out.append(sigs())
+import trimesh, refraster as rf
+from refraster.camera import frame_bounds
+for mesh, (w, h) in ((trimesh.creation.box(), (640, 480)), (trimesh.creation.icosphere(3), (96, 64))):
+    for normals in ("flat", "smooth"):
+        cam = frame_bounds(mesh.bounds, width=w, height=h, margin=1.0)
+        fb = rf.render((mesh.vertices, mesh.faces), view=cam.view, proj=cam.proj, width=w,
+                       height=h, normals=normals)
+        fb.color
+out.append(sigs())
+print(json.dumps(out))
+"""
+
+
+def test_split_halves_compile_render_s_kernels_with_render_s_types():
+    """The two halves of ``warm_core_split`` (issue 27): the second process's half
+    (``warm_only([SPLIT_KERNEL])``) gives the fused tile kernel a specialisation and no other
+    kernel of the path one; this process's half gives the other six one each and the fused
+    kernel none more; real renders (the cube at 640×480, a sphere, flat and smooth) then add
+    no specialisation to any of the seven: the halves typed them as ``render`` does, so the
+    cache entries they write are the ones a render loads. Run in a process of its own (the
+    dispatchers of this one may have been called by other tests); the kernels load from this
+    checkout's cache."""
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    r = subprocess.run([sys.executable, "-c", _SIGNATURES], env=env, capture_output=True,
+                       text=True, timeout=900, stdin=subprocess.DEVNULL)
+    assert r.returncode == 0, r.stderr
+    child, parent, after = json.loads(r.stdout.strip().splitlines()[-1])
+    split = warmup.SPLIT_KERNEL
+    assert {n for n, s in child.items() if s} == {split}, child
+    assert len(child[split]) == 1
+    assert all(len(s) == 1 for s in parent.values()), parent
+    assert parent[split] == child[split]
+    assert after == parent, (after, parent)
+
+
+def test_split_call_sites_are_the_kernels_render_calls():
+    """Each kernel of ``RENDER_KERNELS`` has the module attribute through which ``render``
+    calls it in ``_CALL_SITES``, and that attribute is that kernel (a stale entry would
+    leave a kernel compiling in both halves, or in neither)."""
+    import importlib
+    ks = {warmup._name(d): d for d in warmup.kernels(warmup.CORE_MODULES)}
+    assert set(warmup._CALL_SITES) == set(warmup.RENDER_KERNELS)
+    for name, sites in warmup._CALL_SITES.items():
+        for site in sites:
+            mod, attr = site.rsplit(".", 1)
+            assert getattr(importlib.import_module(mod), attr) is ks[name], site
+    # the stubs are put back, whatever happens inside
+    with pytest.raises(RuntimeError):
+        with warmup._stubbed(["refraster.framebuffer.shade"]):
+            raise RuntimeError
+    import refraster.framebuffer
+    assert refraster.framebuffer.shade is ks["refraster.raster.gbuffer.shade"]
+
+
+def test_first_render_compiles_the_fused_kernel_in_a_second_process(tmp_path):
+    """A first ``render`` with the fused tile kernel cold (and ``shade``): a second process
+    compiles the fused kernel into the cache (this one does not: Numba's cache log of this
+    process names only ``shade`` among the saved entries), the progress line counts both,
+    and the picture is byte for byte the one a warm run makes."""
+    if not warmup._split_worth_it():
+        pytest.skip("one CPU: render compiles in one process by design (warm_core_split)")
+    env = _cache_without(tmp_path, (warmup.SPLIT_KERNEL, LEFT_OUT))
+    env["NUMBA_DEBUG_CACHE"] = "1"
+    first = _render(env, tmp_path, "first")
+    assert first.returncode == 0, first.stderr
+    assert re.search(rf"{COMPILING}: 2 of 2, \d+\.\d s", first.stderr), first.stderr
+    saved = [ln for ln in first.stdout.splitlines() + first.stderr.splitlines()
+             if "data saved to" in ln]
+    assert any("shade" in ln for ln in saved), first.stdout + first.stderr
+    assert not any("_fused_pass" in ln for ln in saved), saved
+    cache = Path(env["NUMBA_CACHE_DIR"])
+    assert any(p.name.startswith("rasterizer._fused_pass") for p in cache.rglob("*.nbi"))
+    second = _render(env, tmp_path, "second")
+    assert second.returncode == 0 and "data saved to" not in second.stdout, second.stderr
+    assert (tmp_path / "first.png").read_bytes() == (tmp_path / "second.png").read_bytes()
