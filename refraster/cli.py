@@ -651,12 +651,21 @@ def _cmd_info(args):
                           f"{'' if 'NUMBA_NUM_THREADS' in os.environ else ' default: CPU count'})"),
         ("kernel cache", f"{cache} [{how}]"),
         ("kernels", warmth),
+        ("fast compile", _compile_speed_state()),
         ("llvmpipe oracle", f"{'available' if ok else 'not available'} ({detail})"),
     ]
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
         print(f"{key + ':':<{width + 1}} {value}")
     return 0
+
+
+def _compile_speed_state():
+    from . import _compile_speed
+    on, reason = _compile_speed.state()
+    if on:
+        return "on (Numba's copy propagation, same machine code; REFRASTER_COMPILE_SPEEDUP=0 turns it off)"
+    return reason
 
 
 # ---------------------------------------------------------------------------------------------

@@ -207,6 +207,18 @@ def test_info_reports_versions_threads_cache_and_llvmpipe(tmp_path):
     assert rows["numba threads"].startswith("1 ")
     assert rows["kernel cache"] == f"{tmp_path / 'cache'} [NUMBA_CACHE_DIR]"
     assert rows["llvmpipe oracle"].split()[0] in ("available", "not")
+    assert rows["fast compile"].split()[0] in ("on", "off")
+
+
+def test_info_names_the_compile_speedup_switch(tmp_path):
+    from refraster import _compile_speed
+    env = dict(os.environ, REFRASTER_COMPILE_SPEEDUP="0")
+    rows = dict(line.split(":", 1) for line in _run("info", env=env).stdout.splitlines())
+    assert rows["fast compile"].strip() == "off (REFRASTER_COMPILE_SPEEDUP=0)"
+    if _compile_speed.check() is None:
+        env["REFRASTER_COMPILE_SPEEDUP"] = "1"
+        rows = dict(line.split(":", 1) for line in _run("info", env=env).stdout.splitlines())
+        assert rows["fast compile"].split()[0] == "on"
 
 
 def test_info_default_cache_is_beside_the_modules():
