@@ -41,8 +41,8 @@ def _face_corners(g, vertices, faces):
 @njit(**IJIT)
 def _at(b0, b1, b2, ax, ay, az, bx, by, bz, cx, cy, cz):
     """The object-space position (float64) at barycentrics ``(b0, b1, b2)`` of a face with
-    corners ``a, b, c``; :func:`finalize` and :func:`shade` take its eye-space z (and x, y)
-    through the draw call's model-view rows, in the same order (the same bits)."""
+    corners ``a, b, c``; :func:`_surface` takes it through the draw call's model-view rows
+    for :func:`finalize` and :func:`shade` (the same bits)."""
     px = (b0 * ax + b1 * bx) + b2 * cx
     py = (b0 * ay + b1 * by) + b2 * cy
     pz = (b0 * az + b1 * bz) + b2 * cz
@@ -116,6 +116,32 @@ def _face_normals(vertices, faces, face_offsets, nmat, fnormal):
 FACE_NORMAL_PIXELS = 16
 
 
+@njit(**IJIT)
+def _surface(bary, r, c, g, k, corners, fm, per_face, vertices, faces, vnormals, smooth, mv,
+             nmat):
+    """The float64 eye-space position and unit eye-space normal of face ``g`` (draw call ``k``)
+    at pixel ``(r, c)``'s barycentrics: what :func:`finalize` rounds (it uses z only; LLVM drops
+    x and y there) and :func:`shade` lights, one expression (the same bits). ``corners``: the
+    face's :func:`_face_corners`; ``fm``: its normal from ``fnormal`` where ``per_face`` (flat
+    normals computed once per face), else the normal is taken per pixel (:func:`_normal`). The
+    position comes before the normal's branch, in the order the kernels had written it out:
+    so both compile to the same instructions as before this helper (with the position after
+    the branch, LLVM recomputed the model-view row's address per pixel; finalize ~1.1x)."""
+    b0 = np.float64(bary[r, c, 0])
+    b1 = np.float64(bary[r, c, 1])
+    b2 = np.float64(bary[r, c, 2])
+    ax, ay, az, bx, by, bz, cx, cy, cz = corners
+    px, py, pz = _at(b0, b1, b2, ax, ay, az, bx, by, bz, cx, cy, cz)
+    ex = ((mv[k, 0, 0] * px + mv[k, 0, 1] * py) + mv[k, 0, 2] * pz) + mv[k, 0, 3]
+    ey = ((mv[k, 1, 0] * px + mv[k, 1, 1] * py) + mv[k, 1, 2] * pz) + mv[k, 1, 3]
+    ez = ((mv[k, 2, 0] * px + mv[k, 2, 1] * py) + mv[k, 2, 2] * pz) + mv[k, 2, 3]
+    if per_face:
+        mx, my, mz = fm
+    else:
+        mx, my, mz = _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat)
+    return ex, ey, ez, mx, my, mz
+
+
 def per_face_normals(n_faces, height, width, smooth):
     """Whether :func:`finalize` and :func:`shade` take flat normals per face (see
     :data:`FACE_NORMAL_PIXELS`)."""
@@ -163,17 +189,9 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
                     fm2 = fnormal[g, 2]
             prim_id[r, c] = pid
             object_id[r, c] = k
-            b0 = np.float64(bary[r, c, 0])
-            b1 = np.float64(bary[r, c, 1])
-            b2 = np.float64(bary[r, c, 2])
-            px, py, pz = _at(b0, b1, b2, ax, ay, az, bx, by, bz, cx, cy, cz)
-            ez = ((mv[k, 2, 0] * px + mv[k, 2, 1] * py) + mv[k, 2, 2] * pz) + mv[k, 2, 3]
-            if per_face:
-                mx = fm0
-                my = fm1
-                mz = fm2
-            else:
-                mx, my, mz = _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat)
+            _, _, ez, mx, my, mz = _surface(
+                bary, r, c, g, k, (ax, ay, az, bx, by, bz, cx, cy, cz), (fm0, fm1, fm2),
+                per_face, vertices, faces, vnormals, smooth, mv, nmat)
             eye_depth[r, c] = np.float32(-ez)
             normal[r, c, 0] = np.float32(mx)
             normal[r, c, 1] = np.float32(my)
@@ -213,19 +231,9 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
                     fm0 = fnormal[g, 0]
                     fm1 = fnormal[g, 1]
                     fm2 = fnormal[g, 2]
-            b0 = np.float64(bary[r, c, 0])
-            b1 = np.float64(bary[r, c, 1])
-            b2 = np.float64(bary[r, c, 2])
-            px, py, pz = _at(b0, b1, b2, ax, ay, az, bx, by, bz, cx, cy, cz)
-            ex = ((mv[k, 0, 0] * px + mv[k, 0, 1] * py) + mv[k, 0, 2] * pz) + mv[k, 0, 3]
-            ey = ((mv[k, 1, 0] * px + mv[k, 1, 1] * py) + mv[k, 1, 2] * pz) + mv[k, 1, 3]
-            ez = ((mv[k, 2, 0] * px + mv[k, 2, 1] * py) + mv[k, 2, 2] * pz) + mv[k, 2, 3]
-            if per_face:
-                mx = fm0
-                my = fm1
-                mz = fm2
-            else:
-                mx, my, mz = _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat)
+            ex, ey, ez, mx, my, mz = _surface(
+                bary, r, c, g, k, (ax, ay, az, bx, by, bz, cx, cy, cz), (fm0, fm1, fm2),
+                per_face, vertices, faces, vnormals, smooth, mv, nmat)
             # light at the eye, so the half vector is the view vector
             vl = np.sqrt(ex * ex + ey * ey + ez * ez)
             ndv = 1.0
