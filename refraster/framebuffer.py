@@ -355,8 +355,8 @@ def _owned(fb):
     :meth:`Framebuffer.reusable` handed out, and whether the clear record may be trusted:
     every array is such a view and no private array was made writeable since the last frame
     (that taints the framebuffer for good: a writeable view of it may exist)."""
-    owners = fb.__dict__.get("_owners")
-    if not owners:
+    owners = fb.__dict__.get("_owners") if type(fb) is Framebuffer else None
+    if not owners:   # (not a Framebuffer: _check_out says so)
         return {}, False
     got = {}
     for name, (view, own) in owners.items():
