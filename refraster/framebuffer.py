@@ -494,7 +494,10 @@ def render(meshes, *, view, proj, width, height, normals=None, cull="none", dept
         bytes per pixel). Its arrays (and any array taken from it earlier, ``color``
         included) are written in place; it is returned. Its arrays must have this frame's
         shapes and dtypes, be C-contiguous and writeable, and share no memory with each other
-        or with any input (ValueError otherwise). Not with ``fragment_stage``.
+        or with any input (ValueError otherwise). Not with ``fragment_stage``. Every byte is
+        written each frame (the user may have written into the arrays), unless ``out`` is a
+        :meth:`Framebuffer.reusable`: its arrays are read-only views, and a frame clears only
+        the pixels the previous one covered.
 
     Returns
     -------
