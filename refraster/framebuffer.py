@@ -146,10 +146,14 @@ class Framebuffer:
         writeable. So the pixels a frame did not cover still hold the clear values when the
         next frame starts, and that frame clears only the rows' spans the previous one covered
         (:func:`refraster.raster.gbuffer.clear_spans`) instead of every byte. Copy an array to
-        change it. Putting another array into the framebuffer (``fb.depth = a``), or making
-        the private memory behind a view writeable (``fb.depth.base``), makes the next frames
-        clear everything, as with any other ``out=`` framebuffer; a frame that fails midway
-        does too. ``color`` is written whole by the shade and stays an ordinary array.
+        change it. Putting another array into the framebuffer (``fb.depth = a``) makes the
+        frames clear everything until every view is back; a private memory found writeable
+        at the start of a frame (made so through ``fb.depth.base``) makes every later frame
+        clear everything; a frame that fails midway makes the next one clear everything. Not
+        detected, so not supported: making the private memory writeable, writing into it and
+        making it read-only again between two frames; writes through raw pointers; another
+        thread writing into it while ``render`` runs. ``color`` is written whole by the shade
+        and stays an ordinary array.
         """
         w, h = as_image_size(width, height)
         own = {}
