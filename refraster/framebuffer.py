@@ -169,6 +169,7 @@ class Framebuffer:
         face = np.full((h, w), -1, np.int64)
         fb.__dict__["_prim_scratch"] = face
         fb.__dict__["_owners"] = {name: (public[name], a) for name, a in own.items()}
+        fb.__dict__["_owner_id"] = id(fb)   # a copy (copy.copy, deepcopy, pickle) is not it
         # nothing covered yet, clear depth 1: the record of an empty frame
         fb.__dict__["_record"] = (np.tile(np.array([0, -1], np.int64), (h, 1)), 1.0, face)
         return fb
@@ -360,6 +361,11 @@ def _owned(fb):
     every array is such a view and no private array was made writeable since the last frame
     (that taints the framebuffer for good: a writeable view of it may exist)."""
     owners = fb.__dict__.get("_owners") if type(fb) is Framebuffer else None
+    if owners and fb.__dict__.get("_owner_id") != id(fb):
+        # a copy of a reusable framebuffer: its views are read-only and not backed by memory
+        # it owns alone (a shallow copy shares the original's, with a record that goes stale)
+        raise ValueError("out is a copy of a Framebuffer.reusable: reuse the original, or make "
+                         "a new one with Framebuffer.reusable(width, height)")
     if not owners:   # (not a Framebuffer: _check_out says so)
         return {}, False
     got = {}

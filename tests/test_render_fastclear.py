@@ -210,6 +210,24 @@ def test_a_frame_that_fails_midway_leaves_no_record(scene, monkeypatch):
     _check(fb, box, **kw, model=_moved(0.5, 0, s=0.3))
 
 
+def test_copies_are_refused_and_the_original_stays_right(scene):
+    """A shallow copy shares the private memory with a record of its own (stale once the
+    original draws); a deep copy's views are no longer backed by the memory it would write:
+    both are refused as ``out``, and the original keeps giving fresh frames' bytes."""
+    import copy
+    import pickle
+    ico, box = scene["ico"], scene["box"]
+    kw = camera_kw()
+    fb = rf.Framebuffer.reusable(kw["width"], kw["height"])
+    _check(fb, ico, **kw)
+    twins = (copy.copy(fb), copy.deepcopy(fb), pickle.loads(pickle.dumps(fb)))
+    _check(fb, box, **kw, model=_moved(0.3, 0, s=0.4))
+    for twin in twins:
+        with pytest.raises(ValueError, match="copy of a Framebuffer.reusable"):
+            rf.render(ico, **kw, model=_moved(-0.3, 0, s=0.5), out=twin)
+    _check(fb, ico, **kw, model=_moved(-0.3, 0, s=0.5))
+
+
 def test_two_threads_same_bytes(scene, monkeypatch):
     """The record and the two clears run per row in parallel: the same bytes on 2 threads."""
     import numba
