@@ -96,6 +96,8 @@ class Framebuffer:
 
     def eye_position(self):
         """Eye-space position of the visible surface, ``(H, W, 3)`` float64, NaN background."""
+        if self.meshes is None:
+            raise ValueError("this framebuffer carries no meshes")
         out = np.full(self.mask.shape + (3,), np.nan)
         m = self.mask
         out[m] = _eye_positions(self.meshes, self.models, self.view, self.object_id[m],

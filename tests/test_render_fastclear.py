@@ -63,6 +63,10 @@ def test_reusable_arrays_are_read_only_and_stay_so(scene):
         with pytest.raises(ValueError):
             a.reshape(-1)[:5].flags.writeable = True
     assert fb.color.flags.writeable      # written whole by the shade: an ordinary array
+    empty = rf.Framebuffer.reusable(8, 6)
+    for method in (empty.eye_position, lambda: empty.interpolate(np.zeros(3))):
+        with pytest.raises(ValueError, match="carries no meshes"):
+            method()
     # a view taken now stays read-only across frames
     keep = fb.normal[..., 2]
     _check(fb, scene["ico"], **kw)
