@@ -7,7 +7,8 @@ Speed work must not change a byte: record before a change, check after, and with
 ``NUMBA_NUM_THREADS`` = 1 and 2 (the outputs are bit-identical across thread counts). Covers the
 fused path (flat, smooth and given normals, culling, depth functions, clear depth, two draw
 calls, models, float64, 4 sub-pixel bits, top-left rule), the fragment-stream path (a fragment
-stage) and reuse of a framebuffer (``out=``) when ``render`` has it.
+stage) and reuse of a framebuffer (``out=``) when ``render`` has it, and of a
+``Framebuffer.reusable`` (one per size, each frame after another scene's) when it exists.
 """
 
 from __future__ import annotations
@@ -78,6 +79,8 @@ def _digest(fb):
 def digests():
     import refraster as rf
     has_out = "out" in inspect.signature(rf.render).parameters
+    has_reusable = hasattr(rf.Framebuffer, "reusable")
+    reusable = {}   # one per size, shared by the cases in turn: each frame follows another scene
     res = {}
     for name, args, kw in _cases():
         fb = rf.render(*args, **kw)
@@ -89,6 +92,14 @@ def digests():
                 d2 = _digest(fb2)
                 if d2 != res[name]:
                     res[name + " (out=)"] = d2
+        if has_reusable and "fragment_stage" not in kw:   # cleared from the last frame's record
+            size = (kw["width"], kw["height"])
+            if size not in reusable:
+                reusable[size] = rf.Framebuffer.reusable(*size)
+            for _ in range(2):
+                d3 = _digest(rf.render(*args, **kw, out=reusable[size]))
+                if d3 != res[name]:
+                    res[name + " (reusable out=)"] = d3
     return res
 
 

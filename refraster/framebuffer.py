@@ -13,8 +13,8 @@ from ._validate import as_choice, as_float_array, as_image_size, as_real
 from .mesh import as_meshes, smooth_normals
 from .raster import DEPTH_FUNCS, Fragments, prepare, resolve
 from .raster.fragments import _interpolate
-from .raster.gbuffer import finalize, per_face_normals, readonly, shade
-from .raster.rasterizer import fused
+from .raster.gbuffer import clear_spans, finalize, per_face_normals, readonly, shade
+from .raster.rasterizer import _fused_pass, _geometry, bin_primitives, fused
 
 __all__ = ["Framebuffer", "render", "normalized_linear_depth", "PALETTE"]
 
@@ -96,6 +96,8 @@ class Framebuffer:
 
     def eye_position(self):
         """Eye-space position of the visible surface, ``(H, W, 3)`` float64, NaN background."""
+        if self.meshes is None:
+            raise ValueError("this framebuffer carries no meshes")
         out = np.full(self.mask.shape + (3,), np.nan)
         m = self.mask
         out[m] = _eye_positions(self.meshes, self.models, self.view, self.object_id[m],
@@ -135,6 +137,44 @@ class Framebuffer:
         bary[m] = frags.bary[idx]
         return _build(frags.meshes, frags.models, frags.view, frags.proj, resolved.depth,
                       prim_global, offsets, front, bary, normals, background)
+
+    @classmethod
+    def reusable(cls, width, height):
+        """An empty framebuffer (every pixel background) for a loop of ``render(out=fb)``
+        frames that clear only what the previous frame drew.
+
+        Its seven arrays (``depth`` … ``barycentric``; not ``color``) are **read-only** views
+        of memory only ``render`` writes: numpy refuses to make them, or any view of them,
+        writeable. So the pixels a frame did not cover still hold the clear values when the
+        next frame starts, and that frame clears only the rows' spans the previous one covered
+        (:func:`refraster.raster.gbuffer.clear_spans`) instead of every byte. Copy an array to
+        change it. Putting another array into the framebuffer (``fb.depth = a``) makes the
+        frames clear everything until every view is back; a private memory found writeable
+        at the start of a frame (made so through ``fb.depth.base``) makes every later frame
+        clear everything; a frame that fails midway makes the next one clear everything. Not
+        detected, so not supported: making the private memory writeable, writing into it and
+        making it read-only again between two frames; writes through raw pointers; another
+        thread writing into it while ``render`` runs. ``color`` is written whole by the shade
+        and stays an ordinary array.
+        """
+        w, h = as_image_size(width, height)
+        own = {}
+        public = {}
+        for name, tail, dtype in _OUT_ARRAYS:
+            a = np.full((h, w) + tail, _BACKGROUND[name], dtype)
+            a.flags.writeable = False
+            v = a.view()
+            own[name] = a
+            public[name] = v
+        fb = cls(**public, color=np.ones((h, w, 3), np.float32), view=np.eye(4),
+                 proj=np.eye(4), meshes=None, models=None)
+        face = np.full((h, w), -1, np.int64)
+        fb.__dict__["_prim_scratch"] = face
+        fb.__dict__["_owners"] = {name: (public[name], a) for name, a in own.items()}
+        fb.__dict__["_owner_id"] = id(fb)   # a copy (copy.copy, deepcopy, pickle) is not it
+        # nothing covered yet, clear depth 1: the record of an empty frame
+        fb.__dict__["_record"] = (np.tile(np.array([0, -1], np.int64), (h, 1)), 1.0, face)
+        return fb
 
 
 class _PendingShade:
@@ -230,14 +270,17 @@ FILL_IN_KERNEL = 1 << 16
 
 
 def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, bary, normals,
-           background, geometry=None, n_shaded=None, out=None):
+           background, geometry=None, n_shaded=None, out=None, targets=None, spans=None):
     """Finalize the G-buffer from the visible primitive (global index over all draw calls,
     −1 background) and its barycentrics. ``geometry``: the draw calls' vertices and faces
     already concatenated (faces indexing the concatenation), when the caller has them.
     ``n_shaded``: only pixels of the first ``n_shaded`` faces get the default colour (the
     others the background), for a caller that colours the rest itself. ``out``: a framebuffer
     checked by :func:`_check_out` whose arrays (``depth``, ``front`` and ``bary`` already among
-    them) are filled and returned instead of new ones."""
+    them) are filled and returned instead of new ones; ``targets``: the arrays to write its
+    eye depth, normal and ids into (the private memory of a :meth:`Framebuffer.reusable`,
+    already holding the background: then nothing else is filled) instead of ``out``'s own.
+    ``spans``: an (H, 2) int64 array for :func:`finalize`'s record of the covered spans."""
     h, w = depth.shape
     vn = _normals_per_mesh(meshes, normals)
     if geometry is not None:
@@ -265,8 +308,13 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
     # the background: NumPy's fills into new arrays (writing it pixel by pixel in the kernel
     # would page-fault the fresh memory there, slower); written by finalize into a reused
     # framebuffer's arrays of at least FILL_IN_KERNEL pixels (one sweep instead of five)
-    fill_bg = out is not None and h * w >= FILL_IN_KERNEL
-    if out is None:
+    fill_bg = out is not None and targets is None and h * w >= FILL_IN_KERNEL
+    if spans is None:
+        spans = np.empty((h, 2), np.int64)
+    if targets is not None:
+        eye_depth, normal, prim, obj = targets
+        into = _reusable_color(out, h, w)
+    elif out is None:
         eye_depth = np.full((h, w), np.inf, np.float32)
         normal = np.zeros((h, w, 3), np.float32)
         prim = np.full((h, w), -1, np.int32)
@@ -285,7 +333,7 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
             readonly(vnormals), smooth, readonly(offsets), readonly(mv), readonly(nmat))
     work = frame_work(offsets[-1], w, h)
     with threads_for(work):
-        finalize(*args, fnormal, per_face, fill_bg, eye_depth, normal, prim, obj)
+        finalize(*args, fnormal, per_face, fill_bg, eye_depth, normal, prim, obj, spans)
     color = _PendingShade(*args, _NO_FACE_NORMALS, per_face,
                           int(offsets[-1]) if n_shaded is None else int(n_shaded),
                           readonly(PALETTE), readonly(np.asarray(background, np.float64)),
@@ -304,6 +352,49 @@ _OUT_ARRAYS = (("depth", (), np.float32), ("eye_depth", (), np.float32),
                ("normal", (3,), np.float32), ("prim_id", (), np.int32),
                ("object_id", (), np.int32), ("front_facing", (), np.bool_),
                ("barycentric", (3,), np.float32))
+#: Their background values (the depth's is the frame's clear depth; 1 for a new one).
+_BACKGROUND = dict(depth=1.0, eye_depth=np.inf, normal=0.0, prim_id=-1, object_id=-1,
+                   front_facing=False, barycentric=0.0)
+
+
+def _owned(fb):
+    """``{name: private array}`` of the arrays of ``fb`` that are still the read-only views a
+    :meth:`Framebuffer.reusable` handed out, and whether the clear record may be trusted:
+    every array is such a view and no private array was made writeable since the last frame
+    (that taints the framebuffer for good: a writeable view of it may exist)."""
+    owners = fb.__dict__.get("_owners") if type(fb) is Framebuffer else None
+    if owners and fb.__dict__.get("_owner_id") != id(fb):
+        # a copy of a reusable framebuffer: its views are read-only and not backed by memory
+        # it owns alone (a shallow copy shares the original's, with a record that goes stale)
+        raise ValueError("out is a copy of a Framebuffer.reusable: reuse the original, or make "
+                         "a new one with Framebuffer.reusable(width, height)")
+    if not owners:   # (not a Framebuffer: _check_out says so)
+        return {}, False
+    got = {}
+    for name, (view, own) in owners.items():
+        if own.flags.writeable:
+            fb.__dict__["_tainted"] = True
+        if getattr(fb, name) is view:
+            got[name] = own
+    trusted = len(got) == len(owners) and not fb.__dict__.get("_tainted", False)
+    return got, trusted
+
+
+class _Unlocked:
+    """The private arrays writeable for the body of a ``with`` (a frame's writes), read-only
+    again after it, whatever happens."""
+
+    def __init__(self, arrays):
+        self.arrays = arrays
+
+    def __enter__(self):
+        for a in self.arrays:
+            a.flags.writeable = True
+
+    def __exit__(self, *exc):
+        for a in self.arrays:
+            a.flags.writeable = False
+        return False
 
 
 def _reusable_color(fb, h, w):
@@ -332,12 +423,16 @@ def _input_arrays(meshes, normals, view, proj, model, background):
     return [a for a in arrs if isinstance(a, np.ndarray)]
 
 
-def _check_out(out, h, w, inputs):
+def _check_out(out, h, w, inputs, owners=None):
     """``out`` must be a :class:`Framebuffer` whose arrays have this frame's shapes and dtypes,
-    are C-contiguous, writeable, do not overlap each other and do not overlap any input."""
+    are C-contiguous, writeable (or the read-only views of ``owners``, ``{name: private
+    array}``, which are written through the private array), do not overlap each other and
+    do not overlap any input. Returns the seven arrays to write, in :data:`_OUT_ARRAYS`'
+    order."""
     if type(out) is not Framebuffer:
         raise TypeError(f"out must be a Framebuffer returned by refraster.render, got "
                         f"{type(out).__name__}")
+    owners = owners or {}
     arrays = []
     for name, tail, dtype in _OUT_ARRAYS:
         a = getattr(out, name)
@@ -346,7 +441,8 @@ def _check_out(out, h, w, inputs):
         if a.shape != (h, w) + tail or a.dtype != dtype:
             raise ValueError(f"out.{name} must be {np.dtype(dtype).name} of shape "
                              f"{(h, w) + tail} for this frame, got {a.dtype} {a.shape}")
-        if not (a.flags.c_contiguous and a.flags.writeable):
+        a = owners.get(name, a)
+        if not (a.flags.c_contiguous and (a.flags.writeable or name in owners)):
             raise ValueError(f"out.{name} must be a C-contiguous, writeable array")
         arrays.append((name, a))
     c = _reusable_color(out, h, w)
@@ -374,6 +470,7 @@ def _check_out(out, h, w, inputs):
                                  "normals, matrix or background): render would overwrite it")
     out.__dict__["_checked_arrays"] = ident
     out.__dict__["_checked_inputs"] = tuple(inputs)
+    return [a for _, a in arrays[:len(_OUT_ARRAYS)]]
 
 
 def render(meshes, *, view, proj, width, height, normals=None, cull="none", depth_func="less",
@@ -409,7 +506,10 @@ def render(meshes, *, view, proj, width, height, normals=None, cull="none", dept
         bytes per pixel). Its arrays (and any array taken from it earlier, ``color``
         included) are written in place; it is returned. Its arrays must have this frame's
         shapes and dtypes, be C-contiguous and writeable, and share no memory with each other
-        or with any input (ValueError otherwise). Not with ``fragment_stage``.
+        or with any input (ValueError otherwise). Not with ``fragment_stage``. Every byte is
+        written each frame (the user may have written into the arrays), unless ``out`` is a
+        :meth:`Framebuffer.reusable`: its arrays are read-only views, and a frame clears only
+        the pixels the previous one covered.
 
     Returns
     -------
@@ -453,12 +553,16 @@ def _render(meshes, view, proj, width, height, normals, cull, depth_func, model,
         h, w = height, width
         buffers = None
         if out is not None:
-            _check_out(out, h, w, _input_arrays(prep.meshes, normals, prep.view, prep.proj,
-                                                model, bg))
+            owners, trusted = _owned(out)
+            arrays = _check_out(out, h, w, _input_arrays(prep.meshes, normals, prep.view,
+                                                         prep.proj, model, bg), owners)
             faces = out.__dict__.get("_prim_scratch")
             if not (isinstance(faces, np.ndarray) and faces.shape == (h, w)):
                 faces = np.empty((h, w), np.int64)   # private: never handed out
             out.__dict__["_prim_scratch"] = faces
+            if owners:
+                return _render_reusable(prep, out, owners, trusted, arrays, faces, normals,
+                                        depth_func, clear, bg, scratch)
             buffers = (out.depth, faces, out.front_facing, out.barycentric.reshape(h * w, 3))
         depth, prim_global, front, bary = fused(
             prep.triangles, fill_rule=prep.fill_rule, depth_func=DEPTH_FUNCS[depth_func.lower()],
@@ -476,6 +580,49 @@ def _render(meshes, view, proj, width, height, normals, cull, depth_func, model,
                          f"got {keep.dtype} {keep.shape}")
     res = resolve(frags, depth_func=depth_func, keep=keep, clear_depth=clear)
     return Framebuffer.from_fragments(frags, res, normals=normals, background=bg)
+
+
+def _render_reusable(prep, out, owners, trusted, arrays, faces, normals, depth_func, clear,
+                     bg, scratch):
+    """A frame into a :meth:`Framebuffer.reusable`: clear what the previous frame covered
+    (its record: each row's covered span, the clear depth and the face image it used) or,
+    without a record to trust, everything; rasterize; finalize, recording this frame's spans.
+    The record is dropped first and stored last, so a frame that fails midway leaves none."""
+    h, w = prep.height, prep.width
+    depth, eye_depth, normal, prim, obj, front, bary = arrays
+    record = out.__dict__.pop("_record", None)
+    if not (trusted and record is not None and record[2] is faces
+            and record[0].shape == (h, 2)):
+        record = None
+    with _Unlocked(owners.values()):
+        if record is None:
+            spans = np.empty((h, 2), np.int64)
+            for a, name in ((depth, None), (eye_depth, "eye_depth"), (normal, "normal"),
+                            (prim, "prim_id"), (obj, "object_id"), (front, "front_facing"),
+                            (bary, "barycentric")):
+                a.fill(np.float32(clear) if name is None else _BACKGROUND[name])
+            faces.fill(-1)
+        else:
+            spans = record[0]
+            if record[1] != clear:
+                depth.fill(np.float32(clear))
+            clears = (spans, np.float32(clear), depth, faces, front, bary.reshape(h, 3 * w),
+                      eye_depth, normal.reshape(h, 3 * w), prim, obj)
+            clear_spans(clears[0], False, *clears[1:])
+            old_spans, spans = spans, np.empty((h, 2), np.int64)
+        ntx, _, starts, lists = bin_primitives(prep.triangles, scratch)
+        _fused_pass(*_geometry(prep.triangles), starts, lists, ntx, w, h,
+                    prep.triangles.subpixel_bits, prep.fill_rule,
+                    DEPTH_FUNCS[depth_func.lower()], np.float32(clear), depth, faces, front,
+                    bary.reshape(h * w, 3))
+        _build(prep.meshes, prep.models, prep.view, prep.proj, depth, faces,
+               prep.face_offsets, front, bary, normals, bg, out=out,
+               targets=(eye_depth, normal, prim, obj), spans=spans)
+        if record is not None:   # the previous frame's pixels this one left uncovered
+            clear_spans(old_spans, True, *clears[1:])
+    if trusted:
+        out.__dict__["_record"] = (spans, clear, faces)
+    return out
 
 
 def normalized_linear_depth(fb, near, far):

@@ -150,15 +150,19 @@ def per_face_normals(n_faces, height, width, smooth):
 
 @njit(**PJIT)
 def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv, nmat,
-             fnormal, per_face, fill_bg, eye_depth, normal, prim_id, object_id):
+             fnormal, per_face, fill_bg, eye_depth, normal, prim_id, object_id, spans):
     """Eye depth, normal and ids of the covered pixels (``prim_global ≥ 0``); the background
     (+inf, 0, −1, −1) too when ``fill_bg``, else the caller has filled it. ``per_face``
     (flat normals only): the face normals are computed first, once per face, into ``fnormal``
-    (F, 3) float64 scratch (:func:`per_face_normals`)."""
+    (F, 3) float64 scratch (:func:`per_face_normals`). ``spans`` (H, 2) int64: each row's
+    first and last covered column (``(0, −1)`` for a row with none), the record a reused
+    framebuffer clears from on its next frame (:func:`clear_spans`)."""
     if per_face:
         _face_normals(vertices, faces, face_offsets, nmat, fnormal)
     h, w = prim_global.shape
     for r in prange(h):
+        first = np.int64(w)
+        end = np.int64(-1)
         # what depends on the face only (its draw call, id, vertices, the model-view rows
         # and, per face, its normal) is loaded once per run of pixels of one face, not once
         # per pixel; the per-pixel arithmetic is the same in shade (the same bits)
@@ -187,6 +191,9 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
                     fm0 = fnormal[g, 0]
                     fm1 = fnormal[g, 1]
                     fm2 = fnormal[g, 2]
+            if first == w:
+                first = c
+            end = c
             prim_id[r, c] = pid
             object_id[r, c] = k
             _, _, ez, mx, my, mz = _surface(
@@ -196,6 +203,42 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
             normal[r, c, 0] = np.float32(mx)
             normal[r, c, 1] = np.float32(my)
             normal[r, c, 2] = np.float32(mz)
+        if end < 0:
+            first = 0
+        spans[r, 0] = first
+        spans[r, 1] = end
+
+
+@njit(**PJIT)
+def clear_spans(spans, after, clear_depth, depth, face, front, bary, eye_depth, normal, prim_id,
+                object_id):
+    """Clear a reused framebuffer's pixels that its previous frame covered: columns
+    ``spans[r, 0] … spans[r, 1]`` of each row ``r`` (:func:`finalize`'s record), the only ones
+    that may hold anything but the clear values. In two steps around the frame's passes, so
+    that a pixel the new frame covers again is written once, not cleared and written:
+    ``after=False`` (before the tile pass) resets the face image there to −1; ``after=True``
+    (after :func:`finalize`) writes the clear values (depth ``clear_depth``, facing False,
+    barycentrics 0, eye depth +inf, normal 0, ids −1) into the pixels of those spans that the
+    new frame left uncovered (face image still −1). ``bary`` and ``normal`` are (H, 3·W)
+    views."""
+    for r in prange(spans.shape[0]):
+        c0 = spans[r, 0]
+        c1 = spans[r, 1] + 1
+        if not after:
+            for c in range(c0, c1):
+                face[r, c] = -1
+            continue
+        for c in range(c0, c1):
+            if face[r, c] >= 0:
+                continue
+            depth[r, c] = clear_depth
+            front[r, c] = False
+            eye_depth[r, c] = np.inf
+            prim_id[r, c] = -1
+            object_id[r, c] = -1
+            for j in range(3 * c, 3 * c + 3):
+                bary[r, j] = 0.0
+                normal[r, j] = 0.0
 
 
 @njit(**PJIT)
