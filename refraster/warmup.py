@@ -261,11 +261,13 @@ def _box():
     return v, f
 
 
-def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False):
+def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False, reusable=False):
     """Compile the kernels of ``refraster.render`` (and the colour read): a 16×12 frame of a
     cube per normals mode. ``clip=True`` also draws the cube cut by the near plane (the
     clipping kernels), ``stream=True`` through a fragment stage (``draw``, ``resolve``): what
-    the gallery's techniques share."""
+    the gallery's techniques share. ``reusable=True`` also renders twice into a
+    :meth:`Framebuffer.reusable <refraster.framebuffer.Framebuffer.reusable>` (its span clear,
+    ``refraster warmup``'s)."""
     import numpy as np
 
     import refraster
@@ -282,6 +284,12 @@ def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False):
                                       normals=mode,
                                       fragment_stage=lambda f: f.world_position()[:, 0] <= 0.0)
                 np.asarray(fb.color)
+    if reusable:
+        from refraster.framebuffer import Framebuffer
+        proj = perspective(40.0, 4 / 3, 0.5, 10.0)
+        fb = Framebuffer.reusable(16, 12)
+        for _ in range(2):
+            refraster.render(mesh, view=view, proj=proj, width=16, height=12, out=fb)
 
 
 #: The kernel the second process of :func:`warm_core_split` compiles: the fused tile kernel,

@@ -437,3 +437,31 @@ def test_first_render_compiles_the_fused_kernel_in_a_second_process(tmp_path):
     second = _render(env, tmp_path, "second")
     assert second.returncode == 0 and "data saved to" not in second.stdout, second.stderr
     assert (tmp_path / "first.png").read_bytes() == (tmp_path / "second.png").read_bytes()
+
+
+def test_warmup_command_warms_the_reusable_framebuffer_s_span_clear():
+    # `refraster warmup` calls warm_core(reusable=True): the span clear of a
+    # Framebuffer.reusable gets its one specialisation (the one a reusable frame uses: a third
+    # frame adds none); without the option it gets none (so the test can fail).
+    code = ("import sys\n"
+            "from refraster import warmup\n"
+            "from refraster.raster import gbuffer\n"
+            "warmup.warm_core(('flat',), reusable=sys.argv[1] == '1')\n"
+            "n = len(gbuffer.clear_spans.signatures)\n"
+            "if n:\n"
+            "    import refraster\n"
+            "    from refraster.camera import look_at, perspective\n"
+            "    from refraster.framebuffer import Framebuffer\n"
+            "    fb = Framebuffer.reusable(40, 30)\n"
+            "    for near in (0.5, 1.9):\n"
+            "        refraster.render(refraster.as_mesh(warmup._box()), view=look_at((0.3, 0.4, 2.0),"
+            " (0, 0, 0)), proj=perspective(40.0, 4 / 3, near, 10.0), width=40, height=30, out=fb)\n"
+            "print(n, len(gbuffer.clear_spans.signatures))\n")
+    cli = (Path(warmup.__file__).parent / "cli.py").read_text()
+    assert "warm_core(clip=True, stream=True, reusable=True)" in cli
+    on = subprocess.run([sys.executable, "-c", code, "1"], capture_output=True, text=True,
+                        check=True, timeout=600).stdout.split()
+    off = subprocess.run([sys.executable, "-c", code, "0"], capture_output=True, text=True,
+                         check=True, timeout=600).stdout.split()
+    assert on == ["1", "1"]
+    assert off == ["0", "0"]
