@@ -14,8 +14,9 @@ which the parent logs again (the command shows it as one line, as in process).
 On a first run (the pipeline's kernels not in the cache) the parent compiles the pipeline's
 kernels itself (:func:`refraster.warmup.warm_core`) while the groups that do not need them run
 in a worker — with :data:`WARM_TASKS` appended, the clip surfaces' kernels that need no
-pipeline kernel — and only then starts the other groups, which load the pipeline's kernels from
-the cache instead of each compiling them.
+pipeline kernel (and, for the goldens, their fused tile pass) — and only then starts the other
+groups, which load the pipeline's kernels from the cache instead of each compiling them (a
+group that needs a warm task's kernels waits for that worker: ``after_warm``).
 
 Nothing here writes a file: the workers' results come back to the parent, which decides what to
 write. Used by the command and the goldens; the core and the techniques never import it.
@@ -44,7 +45,7 @@ LOGGED = "refraster-logged "
 #: Names a worker takes besides its own tasks: compile kernels ahead (no result), by the
 #: function of :mod:`refraster.warmup` that does it. On a first run the parent gives one to a
 #: worker, so that a later task loads those kernels from the cache.
-WARM_TASKS = {"warm-clipsurface": "warm_clipsurface_side"}
+WARM_TASKS = {"warm-clipsurface": "warm_clipsurface_side", "warm-fused-clip": "warm_fused_clip"}
 
 
 def _one_line(exc):
@@ -105,7 +106,8 @@ def serve(names, run, *, key, empty=None, stream=None):
         logging.getLogger().removeHandler(relay)
 
 
-def cold_start_groups(queue, jobs, independent, clip_side_cold, *, clip_group=None):
+def cold_start_groups(queue, jobs, independent, clip_side_cold, *, clip_group=None,
+                      fused_clip=False):
     """The groups to start on a first run while the parent compiles the pipeline's kernels,
     taken off ``queue`` (a list of groups, each a list of task names): the groups whose tasks
     all need no pipeline kernel (``independent(name)``; at most ``jobs - 1`` groups) and —
@@ -113,22 +115,34 @@ def cold_start_groups(queue, jobs, independent, clip_side_cold, *, clip_group=No
     is true — ``warm-clipsurface`` after them, the clip surfaces' kernels that need no pipeline
     kernel (:func:`refraster.warmup.warm_clipsurface_side`): their tasks compile longest (the
     critical path of a first run), so the core that would idle while the pipeline compiles
-    compiles those ahead."""
+    compiles those ahead. With ``fused_clip`` (and the same conditions, the fused pass not in
+    the cache) ``warm-fused-clip`` follows: the clip surfaces' fused tile pass
+    (:func:`refraster.warmup.warm_fused_clip`), the largest single compile of the run; pass
+    ``clip_group`` to :func:`run_groups` as ``after_warm`` too, so that the clip surfaces'
+    group waits for it instead of compiling the pass a second time beside it."""
     first = [g for g in queue if all(independent(n) for n in g)][:max(jobs - 1, 1)]
     for group in first:
         queue.remove(group)
     first = [list(g) for g in first]
-    if jobs >= 2 and clip_side_cold and clip_group is not None and any(
-            clip_group(g) for g in queue):
+    warm = []
+    if jobs >= 2 and clip_group is not None and any(clip_group(g) for g in queue):
+        if clip_side_cold:
+            warm.append("warm-clipsurface")
+        if fused_clip:
+            from .warmup import FUSED_CLIP_KERNEL, KERNEL_MODULES, cache_state
+            cached, n = cache_state(KERNEL_MODULES, only=(FUSED_CLIP_KERNEL,))
+            if cached < n:
+                warm.append("warm-fused-clip")
+    if warm:
         if first:
-            first[0].append("warm-clipsurface")
+            first[0].extend(warm)
         else:
-            first = [["warm-clipsurface"]]
+            first = [warm]
     return first
 
 
 def run_groups(module, groups, jobs, *, key, command=None, progress=None, cold_start=None,
-               fail_fast=False):
+               fail_fast=False, after_warm=None):
     """Run ``groups`` (lists of task names) in worker processes ``python -m module …`` of one
     thread each, at most ``jobs`` at a time, in order; yield ``(name, result, error)`` for every
     task name (not for :data:`WARM_TASKS`) as the answers arrive, in this thread.
@@ -141,7 +155,10 @@ def run_groups(module, groups, jobs, *, key, command=None, progress=None, cold_s
     ended without answering yields the error ``"worker process failed …"`` (its last line on
     stderr, or its exit status). With ``fail_fast`` the first error stops the run: the yield is
     the last one and every worker still running is killed. Closing the generator (or an
-    exception in the consumer) kills every worker still running."""
+    exception in the consumer) kills every worker still running. A queued group for which
+    ``after_warm(group)`` is true does not start while a worker given a :data:`WARM_TASKS`
+    name runs (it would compile those kernels a second time beside it); the next group in
+    the queue that may start does."""
     import logging
 
     from .warmup import (CLIPSURFACE_SIDE_KERNELS, KERNEL_MODULES, STREAM_KERNELS, cache_state,
@@ -238,7 +255,12 @@ def run_groups(module, groups, jobs, *, key, command=None, progress=None, cold_s
                 if error is not None and fail_fast:
                     return
             while queue and len(running) < jobs:
-                start(queue.pop(0))
+                warming = after_warm is not None and any(
+                    n in WARM_TASKS for entry in running for n in entry[1])
+                ready = [i for i, g in enumerate(queue) if not (warming and after_warm(g))]
+                if not ready:
+                    break
+                start(queue.pop(ready[0]))
             time.sleep(0.05)
     finally:
         for entry in running:

@@ -23,7 +23,8 @@ import threading
 import time
 
 __all__ = ["SPLIT_KERNEL", "warm_only", "warm_core_split", "KERNEL_MODULES", "CORE_MODULES", "RENDER_KERNELS", "CLIP_KERNELS", "STREAM_KERNELS", "GALLERY_SKIPS", "kernels", "cache_state", "CompileProgress",
-           "warm_core", "compile_listener", "CLIPSURFACE_SIDE_KERNELS", "warm_clipsurface_side"]
+           "warm_core", "compile_listener", "CLIPSURFACE_SIDE_KERNELS", "warm_clipsurface_side",
+           "FUSED_CLIP_KERNEL", "warm_fused_clip"]
 
 #: The modules whose kernels the pipeline (``refraster.render``) compiles.
 CORE_MODULES = ("refraster.mesh", "refraster.raster.primitive", "refraster.raster.rasterizer",
@@ -439,6 +440,54 @@ def warm_clipsurface_side():
     textures.sample_texture(rng.random((4, 4, 3)), rng.random((4, 2)))
     textures.sample_volume(rng.random((2, 3, 4, 3)), rng.random((4, 3)))
     capping._same_bits(v, v.copy())
+
+
+#: The pipeline kernels :func:`warm_fused_clip` replaces by no-ops (the module attributes
+#: ``prepare`` and ``bin_primitives`` call): the arrays around them are allocated by the same
+#: wrappers, zero-filled, so every face stays ``SKIP`` and the tile lists empty.
+_FUSED_CLIP_STUBS = ("refraster.raster.primitive._transform32",
+                     "refraster.raster.primitive._transform64",
+                     "refraster.raster.primitive._vertex_pass",
+                     "refraster.raster.primitive._classify",
+                     "refraster.raster.primitive._clip_pass",
+                     "refraster.raster.rasterizer._bin_pass")
+
+#: The clip surfaces' fused tile pass, compiled by :func:`warm_fused_clip`.
+FUSED_CLIP_KERNEL = "refraster.clipsurface.fused._fused_clip_pass"
+
+
+def warm_fused_clip():
+    """Compile :data:`FUSED_CLIP_KERNEL` (the clip surfaces' fused tile pass, the largest single
+    compile of a cold golden generation) without the pipeline's kernels: ``render_clipped``'s
+    own call (``refraster.clipsurface.fused._fused_clip``) on a 16×12 frame whose primitive
+    stage and binning are replaced by no-ops (:data:`_FUSED_CLIP_STUBS`; every face stays
+    ``SKIP``, so the pass draws nothing), with the argument types a render passes: a solid and
+    a cap draw call (the vertices concatenated, writable), no sprite (the sprites' arrays are
+    typed as the real ones). It is the one specialisation the golden clip-surface scenes use
+    (a single draw call of read-only vertices would pass them read-only: another one).
+    ``tests/test_warmup.py`` checks that a real clip-surface golden scene then compiles no new
+    specialisation. The replacement is process-wide for the call: for a worker's warm task,
+    not while other threads of the process render."""
+    import numpy as np
+
+    import refraster
+    from refraster.camera import look_at, perspective
+    from refraster.clipsurface import ClipSurface, offsetmaps
+    from refraster.clipsurface.fused import _fused_clip
+    from refraster.clipsurface.render import _concat_vertices, _surfaces_in_space
+    from refraster.raster import prepare
+    from refraster.raster.fragments import vertices_in
+    surface = ClipSurface([0.05, 0.0, 0.0], [0.0, 2.0, 0.4], [0.0, -0.4, 2.0], (1.0, 1.0, 0.4),
+                          offsetmaps.perlin_noise(8, seed=5))
+    solid = refraster.as_mesh(_box())
+    view = look_at((0.3, 0.4, 2.0), (0.0, 0.0, 0.0))
+    proj = perspective(40.0, 4 / 3, 0.5, 10.0)
+    with _stubbed(_FUSED_CLIP_STUBS):
+        draws = [solid, solid]   # the solid and its cap: render_clipped's draw list with caps
+        prep = prepare(draws, view=view, proj=proj, width=16, height=12,
+                       model=[np.eye(4)] * len(draws))
+        tv = _concat_vertices(vertices_in(prep.meshes, prep.models, view, "world"))
+        _fused_clip(prep, tv, tv, 1, _surfaces_in_space([surface], "world", view), None, [None])
 
 
 if __name__ == "__main__":   # the second process of warm_core_split: compile the named kernels

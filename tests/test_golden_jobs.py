@@ -164,8 +164,9 @@ def test_a_worker_s_warning_is_the_command_s_one_line_warning(fault_worker, tmp_
 def test_first_run_compiles_the_pipeline_here_and_clip_surface_kernels_beside_it(
         fault_worker, serial, tmp_path):
     """On a cold cache (told so here) this process compiles the pipeline's kernels while one
-    worker compiles the clip surfaces' side kernels ("warm-clipsurface"); then the groups run,
-    the clip surfaces first. The bytes are the same."""
+    worker compiles the clip surfaces' side kernels ("warm-clipsurface") and their fused pass
+    ("warm-fused-clip"); then the groups run, the clip surfaces' once that worker has ended.
+    The bytes are the same."""
     from refraster import warmup
     log = tmp_path / "groups.jsonl"
     fault_worker.setenv(LOG, str(log))
@@ -176,7 +177,46 @@ def test_first_run_compiles_the_pipeline_here_and_clip_surface_kernels_beside_it
                          lambda *a, **k: (calls.append(k), real_warm(*a, **k))[1])
     golden.generate(tmp_path / "g", SCENES, jobs=2)
     groups = [json.loads(ln) for ln in log.read_text().splitlines()]   # as the workers start
-    assert sorted(groups) == sorted([["warm-clipsurface"], ["clipsurface_relief_plane"],
+    assert sorted(groups) == sorted([["warm-clipsurface", "warm-fused-clip"],
+                                     ["clipsurface_relief_plane"],
                                      ["render_cube", "edges_c1_paper"], ["halos4d_perspective"]])
     assert calls == [dict(clip=True, stream=True)]
     _same_golden(serial, tmp_path / "g")
+
+
+def test_a_group_waits_for_the_worker_compiling_its_kernel_ahead(monkeypatch, tmp_path):
+    """On a first run the clip surfaces' group does not start while the worker given
+    ``warm-fused-clip`` runs (it would compile the fused pass a second time beside it); the
+    next group that may start does (``run_groups(after_warm=…)``, issue 27)."""
+    from refraster import _workers, warmup
+    log = tmp_path / "events.jsonl"
+    here = str(Path(__file__).parent)
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(
+        [here] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
+    monkeypatch.setenv(LOG, str(log))
+    monkeypatch.setenv("REFRASTER_TEST_WARM_SECONDS", "3")
+    monkeypatch.setattr(warmup, "cache_state", lambda modules=None, only=None: (0, 1))
+    monkeypatch.setattr(warmup, "warm_core", lambda *a, **k: None)
+
+    def run(after_warm):
+        log.write_text("")
+        answers = list(_workers.run_groups(
+            "warm_wait_worker", [["clip"], ["other"], ["last"]], 2, key="task",
+            cold_start=lambda queue, cold: _workers.cold_start_groups(
+                queue, 2, lambda n: False, True, clip_group=lambda g: "clip" in g,
+                fused_clip=True),
+            after_warm=after_warm))
+        assert sorted(n for n, _, _ in answers) == ["clip", "last", "other"]
+        assert all(e is None for _, _, e in answers)
+        events = [json.loads(ln) for ln in log.read_text().splitlines()]
+        at = {(ev, tuple(g)): t for ev, g, t in events}
+        warm = ("warm-clipsurface", "warm-fused-clip")
+        assert ("start", warm) in at, events
+        return at, warm
+
+    at, warm = run(lambda g: "clip" in g)
+    assert at[("start", ("clip",))] >= at[("end", warm)]
+    assert at[("start", ("other",))] < at[("end", warm)]
+    # the fault: without the wait the clip group starts beside the warm worker
+    at, warm = run(None)
+    assert at[("start", ("clip",))] < at[("end", warm)]

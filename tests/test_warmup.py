@@ -465,3 +465,49 @@ def test_warmup_command_warms_the_reusable_framebuffer_s_span_clear():
                          check=True, timeout=600).stdout.split()
     assert on == ["1", "1"]
     assert off == ["0", "0"]
+
+
+def test_fused_clip_warmup_types_the_pass_as_the_golden_clip_scenes_do():
+    """``warm_fused_clip`` (a worker's ``warm-fused-clip`` task on a first golden generation,
+    beside the pipeline's compile, issue 27) calls the clip surfaces' fused tile pass with
+    exactly the argument types the golden clip-surface scenes then pass it: the dispatcher
+    types each argument as below, so a cache it filled holds the specialisation those scenes
+    load, and they compile none of their own. Its stubs of the pipeline's kernels are put
+    back."""
+    from refraster import golden
+    from refraster.clipsurface import fused
+    from refraster.raster import primitive, rasterizer
+    gen = sys.modules["refraster.golden.generate"]
+
+    real = fused._fused_clip_pass
+    seen = []
+
+    def spy(*args):
+        seen.append(tuple(str(real.typeof_pyval(a)) for a in args))
+        return real(*args)
+
+    before = {n: getattr(importlib_module(n), n.rsplit(".", 1)[1])
+              for n in warmup._FUSED_CLIP_STUBS}
+    fused._fused_clip_pass = spy
+    try:
+        warmup.warm_fused_clip()
+        warmed = set(seen)
+        seen.clear()
+        reg = golden.available_scenes()
+        scenes = [n for n, e in reg.items() if e.technique == "clipsurface"]
+        assert len(scenes) >= 2, scenes
+        for name, entry, params in gen.suite({n: reg[n] for n in scenes}):
+            gen.render_task(name, entry, params)
+    finally:
+        fused._fused_clip_pass = real
+    assert {n: getattr(importlib_module(n), n.rsplit(".", 1)[1])
+            for n in warmup._FUSED_CLIP_STUBS} == before
+    assert primitive._vertex_pass is before["refraster.raster.primitive._vertex_pass"]
+    assert rasterizer._bin_pass is before["refraster.raster.rasterizer._bin_pass"]
+    assert len(warmed) == 1
+    assert seen and set(seen) == warmed, (set(seen) - warmed)
+
+
+def importlib_module(name):
+    import importlib
+    return importlib.import_module(name.rsplit(".", 1)[0])

@@ -263,8 +263,9 @@ WORKER_GROUPS = [("clipsurface",), ("render", "edges", "cutaway", "ldi", "vds"),
 #: kernels that need no pipeline kernel, runs after them in the same worker). None today:
 #: unlike the gallery's halos section, the halos' golden scenes use the pipeline's kernels (a
 #: fresh cache rendering only them compiles ``_bin_pass``, ``_stream_pass``, ``_resolve``…);
-#: so on a first run one worker compiles only ``warm-clipsurface`` while this process compiles
-#: the pipeline.
+#: so on a first run one worker compiles only ``warm-clipsurface`` and ``warm-fused-clip`` (the
+#: clip surfaces' fused tile pass, the largest single compile) while this process compiles the
+#: pipeline; the clip surfaces' group starts when that worker has ended.
 WITHOUT_PIPELINE = set()
 #: The module a worker process runs (``python -m``).
 WORKER_MODULE = "refraster.golden.worker"
@@ -332,15 +333,16 @@ def _run_jobs(tasks, groups, jobs, progress, bar, compile_progress):
     def command(group):
         return [json.dumps({n: spec[n] for n in group if n in spec}, sort_keys=True), *group]
 
+    def clip_group(g):
+        return any(technique.get(n) == "clipsurface" for n in g)
+
     def cold_start(queue, side_cold):
         return cold_start_groups(queue, jobs, lambda n: technique[n] in WITHOUT_PIPELINE,
-                                 side_cold,
-                                 clip_group=lambda g: any(technique.get(n) == "clipsurface"
-                                                          for n in g))
+                                 side_cold, clip_group=clip_group, fused_clip=True)
 
     answers = run_groups(WORKER_MODULE, groups, jobs, key="scene",
                          command=command, progress=compile_progress, cold_start=cold_start,
-                         fail_fast=True)
+                         fail_fast=True, after_warm=clip_group)
     with contextlib.closing(answers):
         for name, result, error in answers:
             if error is not None:
