@@ -14,7 +14,7 @@ from .mesh import as_meshes, smooth_normals
 from .raster import DEPTH_FUNCS, Fragments, prepare, resolve
 from .raster.fragments import _interpolate
 from .raster.gbuffer import clear_spans, finalize, per_face_normals, readonly, shade
-from .raster.rasterizer import _fused_pass, _geometry, bin_primitives, fused
+from .raster.rasterizer import fused
 
 __all__ = ["Framebuffer", "render", "normalized_linear_depth", "PALETTE"]
 
@@ -610,11 +610,10 @@ def _render_reusable(prep, out, owners, trusted, arrays, faces, normals, depth_f
                       eye_depth, normal.reshape(h, 3 * w), prim, obj)
             clear_spans(clears[0], False, *clears[1:])
             old_spans, spans = spans, np.empty((h, 2), np.int64)
-        ntx, _, starts, lists = bin_primitives(prep.triangles, scratch)
-        _fused_pass(*_geometry(prep.triangles), starts, lists, ntx, w, h,
-                    prep.triangles.subpixel_bits, prep.fill_rule,
-                    DEPTH_FUNCS[depth_func.lower()], np.float32(clear), depth, faces, front,
-                    bary.reshape(h * w, 3))
+        fused(prep.triangles, fill_rule=prep.fill_rule,
+              depth_func=DEPTH_FUNCS[depth_func.lower()], clear_depth=clear,
+              buffers=(depth, faces, front, bary.reshape(h * w, 3)), scratch=scratch,
+              cleared=True)
         _build(prep.meshes, prep.models, prep.view, prep.proj, depth, faces,
                prep.face_offsets, front, bary, normals, bg, out=out,
                targets=(eye_depth, normal, prim, obj), spans=spans)

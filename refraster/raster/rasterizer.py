@@ -518,19 +518,24 @@ def resolved_buffers(height, width, clear_depth):
             np.zeros((height * width, 3), np.float32))
 
 
-def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, scratch=None):
+def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, scratch=None,
+          cleared=False):
     """Rasterize and depth-resolve in one pass (no fragment stream, depth writes on).
 
     Returns ``(depth (H, W) float32, prim (H, W) int64 face index or −1, front (H, W) bool,
     bary (H·W, 3) float32)``; bit-identical to :func:`stream` followed by
     :func:`refraster.raster.resolve.resolve` with the same ``depth_func`` (a test checks it).
     ``buffers``: four such arrays (C-contiguous, checked by the caller) to fill and reuse
-    instead of new ones. ``scratch``: for the tile lists (:func:`bin_primitives`).
+    instead of new ones; with ``cleared`` they already hold the clear values (a
+    :meth:`~refraster.framebuffer.Framebuffer.reusable`'s, cleared where the previous frame
+    drew) and are not filled again. ``scratch``: for the tile lists (:func:`bin_primitives`).
     """
     ntx, nty, starts, lists = bin_primitives(prims, scratch)
     h, w = prims.height, prims.width
     if buffers is None:
         depth, prim, front, bary = resolved_buffers(h, w, clear_depth)
+    elif cleared:
+        depth, prim, front, bary = buffers
     else:   # the same clear values, written into the caller's arrays
         depth, prim, front, bary = buffers
         depth.fill(np.float32(clear_depth))
