@@ -1,6 +1,7 @@
 """Issue 28 in one run: small frames, the default environment beside the tuned one, shared cores.
 
     python -m benchmarks.small_frames [--repeats N] [--rounds R] [--no-load] [--threads N]
+                                      [--loop | --loop-only] [--loop-frames N]
 
 1. **Small frames**: a 12-face cube at 160×120 and 512×384, ``render`` with new outputs and
    with a reused framebuffer (``out=``: one from ``render``, cleared whole each frame, and a
@@ -22,6 +23,14 @@
    choice, :mod:`refraster._threads`), ``2`` (``REFRASTER_THREADS=2``: Numba's plain
    behaviour), the same with ``OMP_WAIT_POLICY=passive`` and with the ``workqueue`` layer, and
    ``1`` thread (:data:`MODES`); the ratios to ``1`` are the issue's measure.
+
+4. **Loops** (``--loop``): the same numbers as 1–2, but each call alone in a process of its
+   own, repeated (:func:`worker_loop`) — a loop over frames that drops each framebuffer, or
+   reuses one — in three environments: as a user has it, tuned, and as a user had it before
+   the output pool (``REFRASTER_POOL_MB=0``). In part 1 every call follows a different one
+   (the 82k-face frames among them), so caches are cold and malloc's state is the one those
+   left behind; in a loop, malloc's own behaviour shows (a loop of fresh 512×384 outputs
+   page-faults every frame with glibc's defaults).
 
 Wall times are medians of per-round medians (rounds alternate the cases, so a slow spell of a
 shared machine hits all alike); ``cpu`` is the calling thread's CPU time (``time.thread_time``;
@@ -127,6 +136,88 @@ def worker_frames(repeats, rounds):
     return _rounds(fns, repeats, rounds)
 
 
+#: The calls of the loop part: each alone in a process, as a loop of frames makes it.
+LOOP_KINDS = ("new", "new+colour", "out=", "out=reusable", "alloc+fill")
+LOOP_CASES = ("cube 160x120", "cube 512x384", "ico 81,920 1024x768", "ico 81,920 smooth")
+#: Environments of the loop part: as a user has it, with malloc tuning, and as a user had it
+#: before the output pool (``REFRASTER_POOL_MB=0``: every frame's outputs new NumPy arrays).
+LOOP_ENVS = {"default": {}, "tuned": {"GLIBC_TUNABLES": TUNED},
+             "default, pool off": {"REFRASTER_POOL_MB": "0"}}
+
+
+def worker_loop(case, kind, frames):
+    """One call repeated ``frames`` times after 20 warm-up calls (nothing else in between: a
+    loop over frames that drops each one, or reuses one framebuffer): (wall ms, cpu ms, page
+    faults per call), medians."""
+    import refraster as rf
+    m, kw = _scenes()[case]
+    if kind == "alloc+fill":
+        def fn():
+            return _alloc_fill(kw["height"], kw["width"])
+    elif kind in ("out=", "out=reusable"):
+        fb = (rf.render(m, **kw) if kind == "out=" else
+              rf.Framebuffer.reusable(kw["width"], kw["height"]))
+
+        def fn():
+            return rf.render(m, **kw, out=fb)
+    else:
+        colour = kind == "new+colour"
+
+        def fn():
+            fb = rf.render(m, **kw)
+            return fb.color if colour else fb
+    for _ in range(20):
+        fn()
+    walls, cpus = [], []
+    f0 = _faults()
+    for _ in range(frames):
+        wall, cpu = _time(fn)
+        walls.append(wall)
+        cpus.append(cpu)
+    return (float(np.median(walls)), float(np.median(cpus)), (_faults() - f0) / frames)
+
+
+def _loop(base, a):
+    """Part 1-2 as loops: every (case, call, environment) in a process of its own, the
+    environments alternating process by process over ``rounds``; medians of the processes."""
+    print(f"\nloops (each call alone in a process, {a.loop_frames} frames after 20 warm-up; "
+          f"load before: {_loadavg()})")
+    res = {}
+    for _ in range(a.rounds):
+        for case in LOOP_CASES:
+            kinds = LOOP_KINDS if case.startswith("cube") else LOOP_KINDS[:4]
+            for kind in kinds:
+                for env, extra in LOOP_ENVS.items():
+                    code = (f"import json; from benchmarks.small_frames import worker_loop as w; "
+                            f"print(json.dumps(w({case!r}, {kind!r}, {a.loop_frames})))")
+                    r = subprocess.run([sys.executable, "-c", code], env=dict(base, **extra),
+                                       capture_output=True, text=True, timeout=1800)
+                    if r.returncode != 0:
+                        raise RuntimeError(r.stderr)
+                    res.setdefault((case, kind, env), []).append(
+                        json.loads(r.stdout.strip().splitlines()[-1]))
+    print(f"load after: {_loadavg()}")
+    med = {k: tuple(float(np.median([x[j] for x in v])) for j in range(3))
+           for k, v in res.items()}
+    envs = list(LOOP_ENVS)
+    print(f"{'case':22} {'call':13}" + "".join(f" {e + ' cpu':>19} {'faults':>7}" for e in envs)
+          + f" {'default/tuned':>14}")
+    for case in LOOP_CASES:
+        for kind in LOOP_KINDS:
+            if (case, kind, "default") not in med:
+                continue
+            cells = "".join(f" {med[case, kind, e][1]:19.3f} {med[case, kind, e][2]:7.0f}"
+                            for e in envs)
+            ratio = med[case, kind, "default"][1] / med[case, kind, "tuned"][1]
+            print(f"{case:22} {kind:13}{cells} {ratio:14.2f}")
+    for case in ("cube 160x120", "cube 512x384"):
+        for env in envs:
+            new, fill = med[case, "new", env][1], med[case, "alloc+fill", env][1]
+            print(f"{case} {env}: new / alloc+fill = {new / fill:.2f} ({new:.3f} / {fill:.3f} "
+                  f"ms cpu); out= {med[case, 'out=', env][1]:.3f}, out=reusable "
+                  f"{med[case, 'out=reusable', env][1]:.3f} ms cpu")
+
+
 SHARED = ("cube 512x384", "ico 81,920 1024x768")
 #: Thread modes of the shared-core part: refraster's choice, Numba's plain 2 threads (OpenMP
 #: layer, libgomp's default wait policy; then passive waiting; then the workqueue layer), 1.
@@ -172,6 +263,11 @@ def main(argv=None):
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--no-load", action="store_true", help="skip the shared-core part")
     ap.add_argument("--shared-only", action="store_true", help="only the shared-core part")
+    ap.add_argument("--loop", action="store_true",
+                    help="also the loop part: each call alone in its own process (as a loop "
+                         "of frames makes it), default / tuned / pool off")
+    ap.add_argument("--loop-only", action="store_true", help="only the loop part")
+    ap.add_argument("--loop-frames", type=int, default=200)
     ap.add_argument("--threads", default=None,
                     help="REFRASTER_THREADS for parts 1-2 (default: refraster's choice; 1 gives "
                          "the one-thread CPU times the issue's aims are stated in)")
@@ -180,9 +276,12 @@ def main(argv=None):
             if k not in ("GLIBC_TUNABLES", "REFRASTER_THREADS", "OMP_WAIT_POLICY",
                          "GOMP_SPINCOUNT", "NUMBA_THREADING_LAYER")}
     base["NUMBA_NUM_THREADS"] = "2"
-    if not a.shared_only:
-        _frames(base if a.threads is None else dict(base, REFRASTER_THREADS=str(a.threads)), a)
-    if not a.no_load:
+    fbase = base if a.threads is None else dict(base, REFRASTER_THREADS=str(a.threads))
+    if not a.shared_only and not a.loop_only:
+        _frames(fbase, a)
+    if a.loop or a.loop_only:
+        _loop(fbase, a)
+    if not a.no_load and not a.loop_only:
         _shared(base, a)
 
 

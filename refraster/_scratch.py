@@ -17,7 +17,9 @@ overlap (the fused path calls no user code), and each thread has its own buffers
 from __future__ import annotations
 
 import math
+import sys
 import threading
+import weakref
 
 import numpy as np
 
@@ -69,3 +71,141 @@ def frame_scratch():
     if s is None:
         s = _local.scratch = Scratch()
     return s
+
+
+# ---------------------------------------------------------------------------------------------
+# Output arrays recycled once nobody holds them (issue 28 item 3)
+
+#: Output arrays of at least this many bytes come from :data:`OUTPUTS` (smaller ones are below
+#: glibc's initial mmap threshold and come from malloc's free lists without page faults).
+POOL_MIN_BYTES = 64 << 10
+#: ``REFRASTER_POOL_MB`` (default): the most bytes of outputs the pool keeps; 0 turns it off.
+POOL_MB = 128
+#: At most this many arrays of one shape and dtype are kept (a frame asks for at most two:
+#: depth and eye depth; normal and colour), so a user keeping a few frames alive still finds
+#: one free and the scan stays short.
+POOL_PER_KIND = 6
+
+
+def _pool_limit():
+    import os
+    raw = os.environ.get("REFRASTER_POOL_MB", "")
+    try:
+        mb = float(raw) if raw.strip() else POOL_MB
+    except ValueError:
+        mb = POOL_MB   # a malformed value: the default (refraster info shows what is in use)
+    return max(int(mb * (1 << 20)), 0)
+
+
+class OutputPool:
+    """Arrays handed out as a frame's outputs (a new :class:`~refraster.Framebuffer`'s depth,
+    eye depth, normal, ids, facing, barycentrics, its private face image and its colour),
+    taken back when **nobody else holds them**.
+
+    Why: with glibc's default malloc settings, a loop of frames that drops each framebuffer
+    gives the freed output memory back to the system and page-faults it in again for the next
+    frame — for a 512×384 frame ~1.3 ms of its ~1.5 ms, for the 82k-face frame at 1024×768
+    ~2,400 faults (``docs/performance.md``). ``GLIBC_TUNABLES`` malloc tuning avoids it; users
+    do not have it, and refraster changes no allocator setting. The pool keeps the memory of
+    recent outputs and hands an array out again only when its reference count says the pool
+    holds the only reference: no framebuffer, no view, slice, memoryview or ``np.frombuffer``
+    of it, no pending colour, no other thread (each of them holds a reference to the array or
+    to its base, which is this array), and no weak reference to it. The caller then writes every byte it would have written
+    into a new array (``full``: the fill value; ``empty``: a kernel that writes every element),
+    so a recycled array gives the same bytes as a new one. Like memory malloc reuses, a raw
+    pointer (``a.ctypes.data``, ``__array_interface__``) kept past the array's life is not a
+    reference. ``REFRASTER_POOL_MB`` (default 128) bounds the bytes kept (the oldest arrays are
+    dropped first: one that is still held simply stays the user's); ``0`` turns it off.
+    """
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._entries = []   # arrays, oldest first
+        self._nbytes = 0
+        self.base_refs = None   # the reference count of a free entry during the scan
+
+    def _free(self, a):
+        # references: the entry list, the scan's loop variable, getrefcount's argument (the
+        # count is calibrated below on this very code path, so it holds on any CPython). A
+        # weak reference is no reference, but it would still reach the array (which the pool
+        # keeps alive) where a freed array's would be dead: such an array is never reused.
+        return sys.getrefcount(a) <= self.base_refs and weakref.getweakrefcount(a) == 0
+
+    def _scan(self, shape, dtype):
+        for i, a in enumerate(self._entries):
+            if a.shape == shape and a.dtype == dtype and self._free(a):
+                del self._entries[i]
+                self._entries.append(a)   # most recently used last
+                return a
+        return None
+
+    def empty(self, shape, dtype):
+        """An array of ``shape`` and ``dtype`` whose contents are undefined (as ``np.empty``):
+        recycled when a kept one is free, else new (and kept, within the limit)."""
+        dtype = np.dtype(dtype)
+        nbytes = math.prod(shape) * dtype.itemsize
+        if nbytes < POOL_MIN_BYTES:
+            return np.empty(shape, dtype)
+        limit = _pool_limit()
+        if limit <= 0:
+            if self._entries:
+                self.clear()
+            return np.empty(shape, dtype)
+        with self._lock:
+            a = self._scan(shape, dtype)
+            if a is not None:
+                return a
+            a = np.empty(shape, dtype)
+            same = [k for k, b in enumerate(self._entries)
+                    if b.shape == shape and b.dtype == dtype]
+            drop = set(same[:max(len(same) + 1 - POOL_PER_KIND, 0)])
+            kept = self._nbytes + nbytes - sum(self._entries[k].nbytes for k in drop)
+            for k, b in enumerate(self._entries):   # oldest first, until the new one fits
+                if kept <= limit:
+                    break
+                if k not in drop:
+                    drop.add(k)
+                    kept -= b.nbytes
+            if kept <= limit:
+                self._entries = [b for k, b in enumerate(self._entries) if k not in drop]
+                self._entries.append(a)
+                self._nbytes = kept
+            return a
+
+    def full(self, shape, value, dtype):
+        """As ``np.full(shape, value, dtype)`` (every element written)."""
+        a = self.empty(shape, dtype)
+        a.fill(value)
+        return a
+
+    @property
+    def nbytes(self):
+        """Bytes of the arrays kept (held by users or free)."""
+        return self._nbytes
+
+    def __len__(self):
+        return len(self._entries)
+
+    def clear(self):
+        """Drop every kept array (those users hold stay theirs)."""
+        with self._lock:
+            self._entries = []
+            self._nbytes = 0
+
+
+def _calibrate(pool):
+    """The reference count a free entry shows during :meth:`OutputPool._scan`, measured on the
+    scan itself with an array only the pool holds."""
+    probe = OutputPool()
+    probe.base_refs = 1 << 30   # anything is "free" while measuring
+    probe._entries.append(np.empty(1))
+    seen = []
+    probe._free = lambda a: seen.append(sys.getrefcount(a)) or True
+    probe._scan((1,), np.dtype(np.float64))
+    # the lambda adds no reference of its own beyond the method's argument: the same count
+    pool.base_refs = seen[0]
+
+
+#: The process's output pool (one for all threads; a lock guards the scan).
+OUTPUTS = OutputPool()
+_calibrate(OUTPUTS)

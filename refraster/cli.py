@@ -652,12 +652,22 @@ def _cmd_info(args):
         ("kernel cache", f"{cache} [{how}]"),
         ("kernels", warmth),
         ("fast compile", _compile_speed_state()),
+        ("output pool", _pool_state()),
         ("llvmpipe oracle", f"{'available' if ok else 'not available'} ({detail})"),
     ]
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
         print(f"{key + ':':<{width + 1}} {value}")
     return 0
+
+
+def _pool_state():
+    from ._scratch import _pool_limit
+    limit = _pool_limit()
+    if limit <= 0:
+        return "off (REFRASTER_POOL_MB=0: every frame's outputs are new arrays)"
+    return (f"up to {limit / (1 << 20):g} MiB of dropped frames' outputs recycled "
+            "(REFRASTER_POOL_MB; 0 turns it off)")
 
 
 def _compile_speed_state():

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._scratch import SCRATCH_FACES, frame_scratch
+from ._scratch import OUTPUTS, SCRATCH_FACES, frame_scratch
 from ._threads import frame_work, threads_for
 from ._validate import as_choice, as_float_array, as_image_size, as_real
 from .mesh import as_meshes, smooth_normals
@@ -193,7 +193,8 @@ class _PendingShade:
         prim_global = self.args[0]
         color = self.into
         if color is None:
-            color = np.empty(prim_global.shape + (3,), np.float32)   # shade writes every element
+            # shade writes every element (recycled memory gives the same bytes)
+            color = OUTPUTS.empty(prim_global.shape + (3,), np.float32)
         args = list(self.args)
         if args[10]:   # per-face normals: a fresh array, filled by shade from today's vertices
             args[9] = np.empty((int(args[6][-1]), 3))
@@ -315,10 +316,10 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
         eye_depth, normal, prim, obj = targets
         into = _reusable_color(out, h, w)
     elif out is None:
-        eye_depth = np.full((h, w), np.inf, np.float32)
-        normal = np.zeros((h, w, 3), np.float32)
-        prim = np.full((h, w), -1, np.int32)
-        obj = np.full((h, w), -1, np.int32)
+        eye_depth = OUTPUTS.full((h, w), np.inf, np.float32)
+        normal = OUTPUTS.full((h, w, 3), 0.0, np.float32)
+        prim = OUTPUTS.full((h, w), -1, np.int32)
+        obj = OUTPUTS.full((h, w), -1, np.int32)
         into = None
     else:
         eye_depth, normal, prim, obj = out.eye_depth, out.normal, out.prim_id, out.object_id
@@ -521,7 +522,10 @@ def render(meshes, *, view, proj, width, height, normals=None, cull="none", dept
     Without a fragment stage, a fused tile kernel rasterizes and depth-tests in one pass; it
     gives the same bits as ``draw`` + ``resolve`` (tested). Small frames run on one thread, and
     so do frames on cores other processes are using (:mod:`refraster._threads`;
-    ``REFRASTER_THREADS`` overrides); the bytes are the same for any thread count.
+    ``REFRASTER_THREADS`` overrides); the bytes are the same for any thread count. Without
+    ``out``, the arrays are new to the caller: their memory may be that of an earlier frame
+    nobody holds any more (no framebuffer, view or memoryview of it), recycled and written
+    whole (:class:`refraster._scratch.OutputPool`; ``REFRASTER_POOL_MB=0`` turns it off).
     """
     as_choice(depth_func, "depth_func", DEPTH_FUNCS)
     clear = as_real(clear_depth, "clear_depth", lo=0.0, hi=1.0)

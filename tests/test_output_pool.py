@@ -1,0 +1,195 @@
+"""Issue 28 item 3: a new frame's output arrays come from a pool that recycles the memory of
+frames nobody holds any more (:class:`refraster._scratch.OutputPool`). The pool must never
+hand out memory a user can still reach, and a recycled array must give the bytes of a new one."""
+
+from __future__ import annotations
+
+import gc
+import threading
+import weakref
+
+import numpy as np
+import pytest
+
+from conftest import FB_FIELDS, camera_kw, mesh_of
+import refraster as rf
+from refraster import _scratch
+from refraster._scratch import OUTPUTS, OutputPool
+from refraster.scenes import cube, icosphere, torus
+
+#: Large enough that every output but the facing mask is at least POOL_MIN_BYTES.
+KW = camera_kw(256, 192)
+
+
+def _bytes(fb):
+    return {f: getattr(fb, f).tobytes() for f in FB_FIELDS}
+
+
+def _addr(a):
+    return a.__array_interface__["data"][0]
+
+
+def _addresses(fb):
+    return {_addr(getattr(fb, f)) for f in FB_FIELDS}
+
+
+def _fresh(monkeypatch, *args, **kw):
+    """The frame rendered with the pool turned off (new arrays from NumPy)."""
+    with monkeypatch.context() as m:
+        m.setenv("REFRASTER_POOL_MB", "0")
+        fb = rf.render(*args, **kw)
+        return _bytes(fb)
+
+
+@pytest.fixture(autouse=True)
+def _empty_pool(monkeypatch):
+    monkeypatch.delenv("REFRASTER_POOL_MB", raising=False)
+    OUTPUTS.clear()
+    yield
+    OUTPUTS.clear()
+
+
+def test_a_dropped_frame_is_recycled_and_gives_the_bytes_of_a_new_one(monkeypatch):
+    ico, box = mesh_of(icosphere(3)), mesh_of(cube())
+    want = _fresh(monkeypatch, box, **KW, cull="back")
+    a = rf.render(ico, **KW, normals="smooth")   # another scene in every buffer
+    a.color
+    old = _addresses(a)
+    del a
+    b = rf.render(box, **KW, cull="back")
+    assert len(old & _addresses(b)) >= 6   # recycled (all but the small facing mask)
+    assert _bytes(b) == want
+    del b
+    # and again with the colour left pending, then other options
+    c = rf.render(ico, **KW)
+    del c
+    want = _fresh(monkeypatch, box, **KW, depth_func="greater", clear_depth=0.0)
+    assert _bytes(rf.render(box, **KW, depth_func="greater", clear_depth=0.0)) == want
+
+
+def test_a_frame_the_user_holds_is_never_reused():
+    box, ico = mesh_of(cube()), mesh_of(icosphere(2))
+    a = rf.render(box, **KW)
+    a.color
+    keep = _bytes(a)
+    frames = [rf.render(ico, **KW, cull=c) for c in ("none", "back", "front")]
+    for b in frames:
+        for f in FB_FIELDS:
+            for g in FB_FIELDS:
+                assert not np.may_share_memory(getattr(a, f), getattr(b, g)), (f, g)
+    assert _bytes(a) == keep
+
+
+@pytest.mark.parametrize("hold", ["slice", "ravel", "memoryview", "frombuffer", "list",
+                                  "transpose", "weakref", "astype-copy-is-free"])
+def test_whatever_still_reaches_a_dropped_frame_keeps_it(hold):
+    """A view, a memoryview, an ndarray over its buffer, or the array in a container keeps the
+    memory out of the pool; only a copy lets it go."""
+    box, ico = mesh_of(cube()), mesh_of(icosphere(3))
+    a = rf.render(box, **KW)
+    src = {"slice": a.depth[10:150, 20:], "ravel": a.normal.ravel(),
+           "memoryview": memoryview(a.eye_depth), "frombuffer": np.frombuffer(a.barycentric,
+                                                                               np.uint8),
+           "list": [a.prim_id], "transpose": a.object_id.T, "weakref": weakref.ref(a.depth),
+           "astype-copy-is-free": a.depth.astype(np.float32)}[hold]
+    if hold == "weakref":   # a weak reference does not keep the array, but it reaches it
+        src = [src]
+        reach = lambda s: s[0]()   # noqa: E731
+    else:
+        reach = lambda s: s[0] if isinstance(s, list) else np.asarray(s)   # noqa: E731
+    snapshot = bytes(src) if isinstance(src, memoryview) else (
+        reach(src).tobytes() if isinstance(src, list) else src.tobytes())
+    held = _addresses(a)
+    del a
+    gc.collect()
+    for _ in range(3):
+        b = rf.render(ico, **KW, normals="smooth")
+        b.color
+        now = bytes(src) if isinstance(src, memoryview) else (
+            reach(src).tobytes() if isinstance(src, list) else src.tobytes())
+        assert now == snapshot
+        if hold != "astype-copy-is-free":
+            for f in FB_FIELDS:
+                assert not np.may_share_memory(reach(src), getattr(b, f)), f
+        else:
+            assert held & _addresses(b)   # nothing reaches it: recycled
+
+
+def test_a_pending_colour_keeps_its_inputs():
+    """The colour is shaded when read, from the face image and barycentrics the framebuffer
+    keeps: frames rendered in between must not recycle them."""
+    box, ico, tor = mesh_of(cube()), mesh_of(icosphere(3)), mesh_of(torus())
+    a = rf.render(box, **KW)   # colour not read
+    for m in (ico, tor, ico):
+        b = rf.render(m, **KW, normals="smooth")
+        b.color
+        del b
+    assert a.color.tobytes() == rf.render(box, **KW).color.tobytes()
+
+
+def test_the_pool_off_and_bounded(monkeypatch):
+    box = mesh_of(cube())
+    monkeypatch.setenv("REFRASTER_POOL_MB", "0")
+    a = rf.render(box, **KW)
+    a.color
+    assert len(OUTPUTS) == 0
+    old = _addresses(a)
+    del a
+    b = rf.render(box, **KW)
+    b.color
+    assert len(OUTPUTS) == 0 and OUTPUTS.nbytes == 0
+    del b
+    monkeypatch.setenv("REFRASTER_POOL_MB", "0.5")   # 512 KiB: a few arrays of this frame
+    frames = [rf.render(box, **KW) for _ in range(3)]
+    assert 0 < OUTPUTS.nbytes <= 1 << 19
+    del frames, old
+    monkeypatch.setenv("REFRASTER_POOL_MB", "not a number")   # the default, not an error
+    rf.render(box, **KW)
+
+
+def test_pool_unit():
+    pool = OutputPool()
+    _scratch._calibrate(pool)
+    a = pool.full((256, 256), 7, np.int32)
+    assert a.shape == (256, 256) and (a == 7).all() and len(pool) == 1
+    b = pool.empty((256, 256), np.int32)   # a is held: a new array
+    assert not np.may_share_memory(a, b) and len(pool) == 2
+    pa = _addr(a)
+    del a
+    c = pool.full((256, 256), -1, np.int32)
+    assert _addr(c) == pa and (c == -1).all()   # recycled, every element written
+    d = pool.empty((256, 128), np.int32)         # another shape: never a recycled (256, 256)
+    assert d.shape == (256, 128)
+    small = pool.empty((8, 8), np.float64)       # below POOL_MIN_BYTES: not kept
+    assert len(pool) == 3 and small.shape == (8, 8)
+    # at most POOL_PER_KIND of one kind are kept, the oldest dropped first
+    held = [pool.empty((256, 256), np.int32) for _ in range(_scratch.POOL_PER_KIND + 2)]
+    assert sum(e.shape == (256, 256) for e in pool._entries) == _scratch.POOL_PER_KIND
+    assert held[-1] is pool._entries[-1]
+    pool.clear()
+    assert len(pool) == 0 and pool.nbytes == 0
+
+
+def test_threads_rendering_at_once(monkeypatch):
+    """Several Python threads rendering at once (a threaded Dask scheduler): each frame has
+    the bytes of the same scene rendered alone."""
+    scenes = [(mesh_of(cube()), {}), (mesh_of(icosphere(3)), {"normals": "smooth"}),
+              (mesh_of(torus()), {"cull": "back"})]
+    want = [_fresh(monkeypatch, m, **KW, **o) for m, o in scenes]
+    bad = []
+
+    def run(k):
+        m, o = scenes[k % 3]
+        for i in range(6):
+            fb = rf.render(m, **KW, **o)
+            if i % 2:
+                fb.color
+            if _bytes(fb) != want[k % 3]:
+                bad.append(k)
+
+    ts = [threading.Thread(target=run, args=(k,)) for k in range(3)]
+    for t in ts:
+        t.start()
+    for t in ts:
+        t.join()
+    assert not bad
