@@ -17,6 +17,7 @@ overlap (the fused path calls no user code), and each thread has its own buffers
 from __future__ import annotations
 
 import math
+import os
 import sys
 import threading
 import weakref
@@ -87,14 +88,21 @@ POOL_MB = 128
 POOL_PER_KIND = 6
 
 
+_LIMIT = [None, 0]   # the last REFRASTER_POOL_MB string read and its limit in bytes
+
+
 def _pool_limit():
-    import os
     raw = os.environ.get("REFRASTER_POOL_MB", "")
+    if raw == _LIMIT[0]:
+        return _LIMIT[1]
     try:
         mb = float(raw) if raw.strip() else POOL_MB
     except ValueError:
         mb = POOL_MB   # a malformed value: the default (refraster info shows what is in use)
-    return max(int(mb * (1 << 20)), 0)
+    if not math.isfinite(mb):
+        mb = POOL_MB
+    _LIMIT[:] = [raw, max(int(mb * (1 << 20)), 0)]
+    return _LIMIT[1]
 
 
 class OutputPool:
