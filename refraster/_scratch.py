@@ -128,20 +128,24 @@ class OutputPool:
 
     def __init__(self):
         self._lock = threading.Lock()
-        self._entries = []   # arrays, oldest first
+        self._entries = [np.empty(0)]   # the sentinel (see _scan), then arrays, oldest first
         self._nbytes = 0
-        self.base_refs = None   # the reference count of a free entry during the scan
-
-    def _free(self, a):
-        # references: the entry list, the scan's loop variable, getrefcount's argument (the
-        # count is calibrated below on this very code path, so it holds on any CPython). A
-        # weak reference is no reference, but it would still reach the array (which the pool
-        # keeps alive) where a freed array's would be dead: such an array is never reused.
-        return sys.getrefcount(a) <= self.base_refs and weakref.getweakrefcount(a) == 0
 
     def _scan(self, shape, dtype):
+        """A kept array of ``shape`` and ``dtype`` that nobody else holds, or None. The first
+        entry is a sentinel array only this list holds: its reference count, taken on the same
+        line as every entry's, is what a free entry shows (the list, the loop variable,
+        ``enumerate``'s tuple, ``getrefcount``'s argument — and whatever a tracer or debugger
+        adds to every local alike, so the comparison holds under them too)."""
+        free = None
         for i, a in enumerate(self._entries):
-            if a.shape == shape and a.dtype == dtype and self._free(a):
+            n = sys.getrefcount(a)
+            if free is None:
+                free = n   # the sentinel
+            elif (n <= free and a.shape == shape and a.dtype == dtype
+                  and weakref.getweakrefcount(a) == 0):
+                # (a weak reference is no reference, but it still reaches the array, which
+                # the pool keeps alive where a freed one would be dead: never reused)
                 del self._entries[i]
                 self._entries.append(a)   # most recently used last
                 return a
@@ -156,7 +160,7 @@ class OutputPool:
             return np.empty(shape, dtype)
         limit = _pool_limit()
         if limit <= 0:
-            if self._entries:
+            if len(self._entries) > 1:
                 self.clear()
             return np.empty(shape, dtype)
         with self._lock:
@@ -165,13 +169,13 @@ class OutputPool:
                 return a
             a = np.empty(shape, dtype)
             same = [k for k, b in enumerate(self._entries)
-                    if b.shape == shape and b.dtype == dtype]
+                    if k and b.shape == shape and b.dtype == dtype]
             drop = set(same[:max(len(same) + 1 - POOL_PER_KIND, 0)])
             kept = self._nbytes + nbytes - sum(self._entries[k].nbytes for k in drop)
             for k, b in enumerate(self._entries):   # oldest first, until the new one fits
                 if kept <= limit:
                     break
-                if k not in drop:
+                if k and k not in drop:
                     drop.add(k)
                     kept -= b.nbytes
             if kept <= limit:
@@ -192,28 +196,14 @@ class OutputPool:
         return self._nbytes
 
     def __len__(self):
-        return len(self._entries)
+        return len(self._entries) - 1
 
     def clear(self):
         """Drop every kept array (those users hold stay theirs)."""
         with self._lock:
-            self._entries = []
+            del self._entries[1:]
             self._nbytes = 0
-
-
-def _calibrate(pool):
-    """The reference count a free entry shows during :meth:`OutputPool._scan`, measured on the
-    scan itself with an array only the pool holds."""
-    probe = OutputPool()
-    probe.base_refs = 1 << 30   # anything is "free" while measuring
-    probe._entries.append(np.empty(1))
-    seen = []
-    probe._free = lambda a: seen.append(sys.getrefcount(a)) or True
-    probe._scan((1,), np.dtype(np.float64))
-    # the lambda adds no reference of its own beyond the method's argument: the same count
-    pool.base_refs = seen[0]
 
 
 #: The process's output pool (one for all threads; a lock guards the scan).
 OUTPUTS = OutputPool()
-_calibrate(OUTPUTS)

@@ -149,7 +149,6 @@ def test_the_pool_off_and_bounded(monkeypatch):
 
 def test_pool_unit():
     pool = OutputPool()
-    _scratch._calibrate(pool)
     a = pool.full((256, 256), 7, np.int32)
     assert a.shape == (256, 256) and (a == 7).all() and len(pool) == 1
     b = pool.empty((256, 256), np.int32)   # a is held: a new array
@@ -193,3 +192,30 @@ def test_threads_rendering_at_once(monkeypatch):
     for t in ts:
         t.join()
     assert not bad
+
+
+@pytest.mark.parametrize("tracer", ["python", "none"])
+def test_held_and_free_told_apart_under_a_tracer(tracer):
+    """A Python trace function that reads ``frame.f_locals`` (a debugger) gives every local an
+    extra reference through the locals' dict: the sentinel's count, taken the same way, moves
+    with them (a count measured once, without the tracer, would call every array held)."""
+    import sys
+    pool = OutputPool()
+
+    def trace(frame, event, arg):
+        frame.f_locals   # as a debugger does: the locals copied into a dict (one more ref)
+        return trace
+
+    old = sys.gettrace()
+    if tracer == "python":
+        sys.settrace(trace)
+    try:
+        a = pool.full((256, 256), 1.0, np.float32)
+        b = pool.full((256, 256), 2.0, np.float32)   # a is held: not recycled
+        assert not np.may_share_memory(a, b) and (a == 1.0).all()
+        pa = _addr(a)
+        del a
+        c = pool.full((256, 256), 3.0, np.float32)   # a was dropped: recycled
+        assert _addr(c) == pa and (b == 2.0).all()
+    finally:
+        sys.settrace(old)
