@@ -118,37 +118,51 @@ class OutputPool:
     recent outputs and hands an array out again only when its reference count says the pool
     holds the only reference: no framebuffer, no view, slice, memoryview or ``np.frombuffer``
     of it, no pending colour, no other thread (each of them holds a reference to the array or
-    to its base, which is this array), and no weak reference to it. The caller then writes every byte it would have written
-    into a new array (``full``: the fill value; ``empty``: a kernel that writes every element),
-    so a recycled array gives the same bytes as a new one. Like memory malloc reuses, a raw
+    to its base, which is this array), and no weak reference to it. The caller then writes
+    every byte it would have written into a new array (``full``: the fill value; ``empty``: a
+    kernel that writes every element), so a recycled array gives the same bytes as a new one. Like memory malloc reuses, a raw
     pointer (``a.ctypes.data``, ``__array_interface__``) kept past the array's life is not a
     reference. ``REFRASTER_POOL_MB`` (default 128) bounds the bytes kept (the oldest arrays are
-    dropped first: one that is still held simply stays the user's); ``0`` turns it off.
+    dropped first: one that is still held simply stays the user's); ``0`` turns it off. One
+    difference from a new array remains: a dropped frame's array cannot be ``resize``\ d in
+    place while the pool keeps it (NumPy's reference check sees the pool's reference).
     """
 
     def __init__(self):
-        self._lock = threading.Lock()
+        # reentrant: a finalizer run by a garbage collection inside the pool (an allocation
+        # can trigger one) may itself render in this thread
+        self._lock = threading.RLock()
         self._entries = [np.empty(0)]   # the sentinel (see _scan), then arrays, oldest first
-        self._nbytes = 0
+
+    def _reset_after_fork(self):
+        # a fork while another thread held the lock would leave the child's copy locked
+        self._lock = threading.RLock()
 
     def _scan(self, shape, dtype):
-        """A kept array of ``shape`` and ``dtype`` that nobody else holds, or None. The first
-        entry is a sentinel array only this list holds: its reference count, taken on the same
-        line as every entry's, is what a free entry shows (the list, the loop variable,
-        ``enumerate``'s tuple, ``getrefcount``'s argument — and whatever a tracer or debugger
-        adds to every local alike, so the comparison holds under them too)."""
-        free = None
-        for i, a in enumerate(self._entries):
-            n = sys.getrefcount(a)
-            if free is None:
-                free = n   # the sentinel
-            elif (n <= free and a.shape == shape and a.dtype == dtype
-                  and weakref.getweakrefcount(a) == 0):
-                # (a weak reference is no reference, but it still reaches the array, which
-                # the pool keeps alive where a freed one would be dead: never reused)
+        """A kept array of ``shape`` and ``dtype`` that nobody else holds, or None.
+
+        The first entry is a sentinel array only the list holds: its reference count is what
+        a free entry shows. Every count is taken by ``map`` over the list, so no local
+        variable (which a tracer, a debugger or a signal handler reading ``f_locals`` could
+        copy into a dict and keep) names an entry while it is counted. An entry its last user
+        changed in place (made read-only, unaligned, given other strides) is not what a new
+        array is: it is dropped, never handed out.
+        """
+        counts = list(map(sys.getrefcount, self._entries))
+        free = counts[0]
+        for i in range(len(counts) - 1, 0, -1):   # most recently kept first
+            if counts[i] > free:
+                continue
+            a = self._entries[i]
+            # (a weak reference is no reference, but it still reaches the array, which the
+            # pool keeps alive where a freed one would be dead: never reused)
+            if a.shape != shape or a.dtype != dtype or weakref.getweakrefcount(a):
+                continue
+            if not (a.flags.writeable and a.flags.aligned and a.flags.c_contiguous):
                 del self._entries[i]
-                self._entries.append(a)   # most recently used last
-                return a
+                continue
+            self._entries.append(self._entries.pop(i))   # most recently used last
+            return a
         return None
 
     def empty(self, shape, dtype):
@@ -171,7 +185,7 @@ class OutputPool:
             same = [k for k, b in enumerate(self._entries)
                     if k and b.shape == shape and b.dtype == dtype]
             drop = set(same[:max(len(same) + 1 - POOL_PER_KIND, 0)])
-            kept = self._nbytes + nbytes - sum(self._entries[k].nbytes for k in drop)
+            kept = self.nbytes + nbytes - sum(self._entries[k].nbytes for k in drop)
             for k, b in enumerate(self._entries):   # oldest first, until the new one fits
                 if kept <= limit:
                     break
@@ -181,7 +195,6 @@ class OutputPool:
             if kept <= limit:
                 self._entries = [b for k, b in enumerate(self._entries) if k not in drop]
                 self._entries.append(a)
-                self._nbytes = kept
             return a
 
     def full(self, shape, value, dtype):
@@ -192,8 +205,9 @@ class OutputPool:
 
     @property
     def nbytes(self):
-        """Bytes of the arrays kept (held by users or free)."""
-        return self._nbytes
+        """Bytes of the arrays kept (held by users or free); summed, not tracked, so an
+        interrupt between two updates cannot make it drift."""
+        return sum(e.nbytes for e in self._entries[1:])
 
     def __len__(self):
         return len(self._entries) - 1
@@ -202,8 +216,9 @@ class OutputPool:
         """Drop every kept array (those users hold stay theirs)."""
         with self._lock:
             del self._entries[1:]
-            self._nbytes = 0
 
 
 #: The process's output pool (one for all threads; a lock guards the scan).
 OUTPUTS = OutputPool()
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=OUTPUTS._reset_after_fork)

@@ -5,8 +5,8 @@ changes because of a later frame, and a recycled array gives the bytes (and is t
 array) a new one would. Each test below is one way a user, or a library a user calls, might
 still reach a dropped frame's memory, or get a frame that differs from the same frame rendered
 with the pool off (``REFRASTER_POOL_MB=0``). Frames are 256×192, so every output but the
-facing mask is at least ``POOL_MIN_BYTES``. A test marked ``xfail(strict=True)`` is an attack
-that succeeds on the current code (see its reason)."""
+facing mask is at least ``POOL_MIN_BYTES``. The one test marked ``xfail(strict=True)`` is a
+documented difference from a new array (see its reason)."""
 
 from __future__ import annotations
 
@@ -546,12 +546,9 @@ def test_the_pending_colour_of_copies_read_late(monkeypatch, scenes):
 
 
 # ---------------------------------------------------------------------------------------------
-# Attacks that succeed on the current code (xfail strict: the lead fixes them)
+# Attacks that succeeded on the first version of the pool, fixed in _scratch.OutputPool._scan
+# (counts taken by map, entries changed in place dropped, nbytes summed), and one difference kept
 
-@pytest.mark.xfail(strict=True, reason="issue 28 attack: the pool hands out an array a user "
-                   "made read-only (fb.depth.flags.writeable = False) after dropping it; "
-                   "full() then raises 'assignment destination is read-only' in a later, "
-                   "unrelated render")
 @pytest.mark.parametrize("field", ["depth", "eye_depth", "color"])
 def test_an_array_frozen_by_its_user_then_dropped(monkeypatch, scenes, field):
     want = _fresh(monkeypatch, scenes["cube"], **KW)
@@ -563,11 +560,6 @@ def test_an_array_frozen_by_its_user_then_dropped(monkeypatch, scenes, field):
     assert all(getattr(fb, f).flags.writeable for f in FB_FIELDS)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 28 attack: a recycled array keeps the flags and "
-                   "strides its last user set on it (aligned=False; strides set in place, "
-                   "deprecated but allowed), so it is not the array np.full would give: "
-                   "unaligned or F-ordered outputs (and a new Numba specialisation of every "
-                   "kernel they reach)")
 @pytest.mark.parametrize("change", ["aligned", "strides"])
 def test_a_recycled_array_is_the_kind_of_array_a_new_one_is(change):
     pool = OutputPool()
@@ -611,11 +603,6 @@ def _look_once_at_pool_locals(nth):
     return trace, looked
 
 
-@pytest.mark.xfail(strict=True, reason="issue 28 attack: a look at _scan's frame locals while "
-                   "the sentinel is the loop variable (pdb stop + continue, a signal handler "
-                   "or another thread reading frame.f_locals) leaves the sentinel one "
-                   "reference more for the rest of the scan: an array the user holds once "
-                   "counts as free and is overwritten by the next frame")
 def test_the_pool_locals_looked_at_once(monkeypatch, scenes):
     """Wherever the look happens in the pool's first scans of a frame, a held frame keeps its
     bytes and the frame has the bytes of a new one."""
@@ -645,10 +632,6 @@ def test_the_pool_locals_looked_at_once(monkeypatch, scenes):
     assert not bad
 
 
-@pytest.mark.xfail(strict=True, reason="issue 28 bookkeeping (not corruption): an interrupt "
-                   "between `del self._entries[i]` and the append in _scan (or between the "
-                   "entries and _nbytes updates in empty) loses an entry that nbytes still "
-                   "counts; enough of them and the pool believes itself full and keeps nothing")
 def test_the_pool_bookkeeping_survives_an_interrupt(scenes):
     lost = []
     for code, line in _pool_lines():
