@@ -100,6 +100,32 @@ def test_fused_equals_stream_and_resolve(func):
     assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes()
 
 
+@pytest.mark.parametrize("func", sorted(DEPTH_FUNCS))
+def test_fused_ties_equal_stream_and_resolve(func):
+    """Depth ties, through both loops of the tile pass (its own loop for "less" with the
+    unsnapped depth plane, the general one for the other functions): every triangle is drawn
+    twice, the second time with its corners in the other order (a back face with the same
+    depth at every pixel), so at each covered pixel the depth function alone decides whether
+    the later copy replaces the earlier."""
+    rng = np.random.default_rng(11)
+    v, f = _random_soup(rng, 40, 1.2)
+    f = np.stack([f, f[:, ::-1]], axis=1).reshape(-1, 3)   # each face, then its mirror
+    clear = 0.0 if func in ("greater", "gequal") else 1.0
+    prep = rf.raster.prepare((v, f), view=VIEW, proj=PROJ, width=64, height=48)
+    depth, prim, front, bary = fused(prep.triangles, depth_func=DEPTH_FUNCS[func],
+                                     clear_depth=clear)
+    pixel, fd, fprim, ffront, fbary, _ = stream(prep.triangles)
+    frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, 64, 48)
+    res = rf.resolve(frags, depth_func=func, clear_depth=clear)
+    if func in ("less", "lequal", "gequal", "always"):
+        assert ((prim % 2 == 1) == (func != "less")).sum() > 100   # ties decided both ways
+    assert res.depth.tobytes() == depth.tobytes()
+    assert np.array_equal(np.where(res.winner >= 0, fprim[res.winner], -1), prim)
+    assert np.array_equal(np.where(res.winner >= 0, ffront[res.winner], False), front)
+    m = res.winner.ravel() >= 0
+    assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes()
+
+
 def test_fused_keeps_the_first_clipped_piece():
     """Regression: the fused pass once marked "no winner" with −1, which is also the binned
     item of clipped piece 0, so that piece's pixels came out as background (ids, normal,
