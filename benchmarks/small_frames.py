@@ -2,6 +2,7 @@
 
     python -m benchmarks.small_frames [--repeats N] [--rounds R] [--no-load] [--threads N]
                                       [--loop | --loop-only] [--loop-frames N]
+                                      [--shared-ab [--ab-frames N]]
 
 1. **Small frames**: a 12-face cube at 160×120 and 512×384, ``render`` with new outputs and
    with a reused framebuffer (``out=``: one from ``render``, cleared whole each frame, and a
@@ -24,6 +25,9 @@
    behaviour), the same with ``OMP_WAIT_POLICY=passive`` and with the ``workqueue`` layer, and
    ``1`` thread (:data:`MODES`); the ratios to ``1`` are the issue's measure.
 
+   ``--shared-ab``: the same comparison without the process-to-process noise of busy
+   cores — ``auto`` and ``1`` alternating frame by frame in one process (the variable is read
+   per frame), one process per round.
 4. **Loops** (``--loop``): the same numbers as 1–2, but each call alone in a process of its
    own, repeated (:func:`worker_loop`) — a loop over frames that drops each framebuffer, or
    reuses one — in three environments: as a user has it, tuned, and as a user had it before
@@ -184,7 +188,7 @@ def _loop(base, a):
           f"load before: {_loadavg()})")
     res = {}
     for _ in range(a.rounds):
-        for case in LOOP_CASES:
+        for case in a.loop_cases.split(","):
             kinds = LOOP_KINDS if case.startswith("cube") else LOOP_KINDS[:4]
             for kind in kinds:
                 for env, extra in LOOP_ENVS.items():
@@ -202,7 +206,7 @@ def _loop(base, a):
     envs = list(LOOP_ENVS)
     print(f"{'case':22} {'call':13}" + "".join(f" {e + ' cpu':>19} {'faults':>7}" for e in envs)
           + f" {'default/tuned':>14}")
-    for case in LOOP_CASES:
+    for case in a.loop_cases.split(","):
         for kind in LOOP_KINDS:
             if (case, kind, "default") not in med:
                 continue
@@ -211,6 +215,8 @@ def _loop(base, a):
             ratio = med[case, kind, "default"][1] / med[case, kind, "tuned"][1]
             print(f"{case:22} {kind:13}{cells} {ratio:14.2f}")
     for case in ("cube 160x120", "cube 512x384"):
+        if (case, "new", "default") not in med:
+            continue
         for env in envs:
             new, fill = med[case, "new", env][1], med[case, "alloc+fill", env][1]
             print(f"{case} {env}: new / alloc+fill = {new / fill:.2f} ({new:.3f} / {fill:.3f} "
@@ -267,7 +273,13 @@ def main(argv=None):
                     help="also the loop part: each call alone in its own process (as a loop "
                          "of frames makes it), default / tuned / pool off")
     ap.add_argument("--loop-only", action="store_true", help="only the loop part")
+    ap.add_argument("--shared-ab", action="store_true",
+                    help="only part 3b: auto and 1 thread alternating frame by frame in one "
+                         "process under two busy loops (one process per round)")
+    ap.add_argument("--ab-frames", type=int, default=400)
     ap.add_argument("--loop-frames", type=int, default=200)
+    ap.add_argument("--loop-cases", default=",".join(LOOP_CASES),
+                    help="comma-separated cases of the loop part (default: all)")
     ap.add_argument("--threads", default=None,
                     help="REFRASTER_THREADS for parts 1-2 (default: refraster's choice; 1 gives "
                          "the one-thread CPU times the issue's aims are stated in)")
@@ -277,6 +289,9 @@ def main(argv=None):
                          "GOMP_SPINCOUNT", "NUMBA_THREADING_LAYER")}
     base["NUMBA_NUM_THREADS"] = "2"
     fbase = base if a.threads is None else dict(base, REFRASTER_THREADS=str(a.threads))
+    if a.shared_ab:
+        _shared_ab(base, a)
+        return
     if not a.shared_only and not a.loop_only:
         _frames(fbase, a)
     if a.loop or a.loop_only:
@@ -308,6 +323,55 @@ def _frames(base, a):
                   f"{r[k][0] / r[k + ' alloc+fill'][0]:.2f} (wall), "
                   f"{r[k][1] / r[k + ' alloc+fill'][1]:.2f} (cpu); out= {r[k + ' out='][0]:.3f} ms"
                   f" wall, {r[k + ' out='][1]:.3f} ms cpu{reu}")
+
+
+def worker_shared_ab(frames):
+    """In this one process, with the busy loops of the caller running: the same frame with
+    ``REFRASTER_THREADS=auto`` and ``=1`` alternating frame by frame (the variable is read per
+    frame), so both see the same moments of the shared machine; {case: (auto ms, 1-thread ms)},
+    median wall times."""
+    import refraster as rf
+    sc = _scenes()
+    out = {}
+    for name in SHARED:
+        m, kw = sc[name]
+        n = frames if name.startswith("cube") else max(frames // 10, 5)
+        res = {"auto": [], "1": []}
+        for mode in res:
+            os.environ["REFRASTER_THREADS"] = mode
+            rf.render(m, **kw)
+        for r in range(n):
+            for mode in (("auto", "1") if r % 2 else ("1", "auto")):
+                os.environ["REFRASTER_THREADS"] = mode
+                res[mode].append(_time(lambda: rf.render(m, **kw))[0])
+        out[name] = (float(np.median(res["auto"])), float(np.median(res["1"])))
+    return out
+
+
+def _shared_ab(base, a):
+    hogs = _hogs(2)
+    try:
+        time.sleep(1.0)
+        print(f"\n3b. shared cores, one process, auto and 1 thread alternating frame by frame; "
+              f"two busy loops; load: {_loadavg()}")
+        code = ("import json; from benchmarks.small_frames import worker_shared_ab as w; "
+                f"print(json.dumps(w({a.ab_frames})))")
+        runs = []
+        for _ in range(a.rounds):
+            r = subprocess.run([sys.executable, "-c", code], env=dict(base), capture_output=True,
+                               text=True, timeout=1800)
+            if r.returncode != 0:
+                raise RuntimeError(r.stderr)
+            runs.append(json.loads(r.stdout.strip().splitlines()[-1]))
+        print(f"   load at the end: {_loadavg()}")
+    finally:
+        for p in hogs:
+            p.kill()
+            p.wait()
+    for name in SHARED:
+        cells = " ".join(f"{r[name][0]:.2f}/{r[name][1]:.2f} ({r[name][0] / r[name][1]:.2f})"
+                         for r in runs)
+        print(f"{name:24} auto/1-thread wall ms (ratio), one process per round: {cells}")
 
 
 def _shared(base, a):

@@ -183,6 +183,37 @@ def test_normals_cache_is_bounded(monkeypatch):
     assert len(mesh_mod._NORMALS_CACHE) <= 2
 
 
+def test_runnable_count_read_through_a_kept_descriptor(monkeypatch):
+    """The load is read with one pread on a descriptor kept open: it follows the file (two
+    busy processes raise it), and without the file there is no load to read (None)."""
+    import os
+    import subprocess
+    import sys
+    import time
+    if not os.path.exists("/proc/loadavg"):
+        pytest.skip("no /proc/loadavg on this system")
+    monkeypatch.setattr(_threads, "_LOADAVG", [None])
+    idle = _threads._runnable()
+    fd = _threads._LOADAVG[0]
+    assert isinstance(idle, int) and idle >= 1 and isinstance(fd, int)
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+    try:
+        time.sleep(0.5)
+        busy = max(_threads._runnable() for _ in range(50))
+    finally:
+        for p in hogs:
+            p.kill()
+            p.wait()
+    assert busy >= 3   # the two busy loops and this process
+    assert _threads._LOADAVG[0] == fd   # the same descriptor, not reopened per frame
+    monkeypatch.setattr(_threads, "_LOADAVG", [None])
+    real_open = os.open
+    monkeypatch.setattr(os, "open", lambda *a, **k: (_ for _ in ()).throw(OSError("no")))
+    assert _threads._runnable() is None and _threads._LOADAVG[0] is False
+    monkeypatch.setattr(os, "open", real_open)
+    assert _threads._runnable() is None   # stays off: not retried every frame
+
+
 def test_small_frames_run_serially_and_the_override(monkeypatch):
     monkeypatch.delenv("REFRASTER_THREADS", raising=False)
     monkeypatch.setattr(_threads, "_runnable", lambda: 1)   # idle cores
