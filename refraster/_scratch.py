@@ -12,6 +12,9 @@ Only arrays that die with the frame come from here: never an array ``render`` re
 a :class:`~refraster.Framebuffer` (or its pending colour) keeps, nor any array of the public
 ``refraster.raster.prepare`` (which does not use a scratch). Two frames in one thread never
 overlap (the fused path calls no user code), and each thread has its own buffers.
+
+The arrays a frame *does* return or keep come from :data:`OUTPUTS`, an :class:`OutputPool`
+shared by all threads: it hands an array out again only once nothing else holds it.
 """
 
 from __future__ import annotations
@@ -124,8 +127,9 @@ class OutputPool:
     pointer (``a.ctypes.data``, ``__array_interface__``) kept past the array's life is not a
     reference. ``REFRASTER_POOL_MB`` (default 128) bounds the bytes kept (the oldest arrays are
     dropped first: one that is still held simply stays the user's); ``0`` turns it off. One
-    difference from a new array remains: a dropped frame's array cannot be ``resize``\ d in
-    place while the pool keeps it (NumPy's reference check sees the pool's reference).
+    difference from a new array remains: a dropped frame's array cannot be resized in place
+    (``ndarray.resize``) while the pool keeps it (NumPy's reference check sees the pool's
+    reference).
     """
 
     def __init__(self):

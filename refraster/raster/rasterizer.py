@@ -542,10 +542,11 @@ def resolved_buffers(height, width, clear_depth):
     """The outputs of a fused tile pass, holding what a pixel no fragment won keeps: depth
     ``clear_depth``, face −1, facing False, barycentrics 0 (NumPy's fills are ~10× faster than
     writing the background pixel by pixel in the tile loop)."""
-    pool = OUTPUTS   # recycled once nobody holds them (refraster._scratch.OutputPool)
-    return (pool.full((height, width), np.float32(clear_depth), np.float32),
-            pool.full((height, width), -1, np.int64), pool.full((height, width), False, np.bool_),
-            pool.full((height * width, 3), 0.0, np.float32))
+    # from the output pool: recycled once nobody holds them (refraster._scratch.OutputPool)
+    return (OUTPUTS.full((height, width), np.float32(clear_depth), np.float32),
+            OUTPUTS.full((height, width), -1, np.int64),
+            OUTPUTS.full((height, width), False, np.bool_),
+            OUTPUTS.full((height * width, 3), 0.0, np.float32))
 
 
 def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, scratch=None,
