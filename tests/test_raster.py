@@ -126,6 +126,38 @@ def test_fused_ties_equal_stream_and_resolve(func):
     assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes()
 
 
+@pytest.mark.parametrize("func", sorted(DEPTH_FUNCS))
+def test_fused_pixel_centres_on_shared_edges(func):
+    """Shared edges through pixel centres, in both loops of the tile pass: a square viewport
+    tiled by two triangles split along its diagonal (which passes through every centre
+    (k + ½, k + ½)) and by two rectangles sharing the vertical line x = 16.5 px. A tiling covers
+    every pixel centre exactly once (the fill rule gives each edge centre to one side): every
+    pixel is covered, and the fused pass equals the fragment stream + resolve."""
+    n = 32
+    xm = 16.5 / n * 2 - 1   # the vertical edge at x = 16.5 px, exact in binary
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0],
+                  [xm, -1, 0], [xm, 1, 0]], np.float64)
+    scenes = {"diagonal": np.array([[0, 1, 2], [0, 2, 3]]),
+              "vertical": np.array([[0, 4, 5], [0, 5, 3], [4, 1, 2], [4, 2, 5]])}
+    # each face's corners in its three rotations: the shared edge is edge 0, 1 and 2 in turn
+    scenes = {f"{name} {r}": np.roll(f, r, axis=1) for name, f in scenes.items()
+              for r in range(3)}
+    clear = {"greater": 0.0, "gequal": 0.0, "equal": 0.5}.get(func, 1.0)
+    for name, f in scenes.items():
+        prep = rf.raster.prepare((v, f), view=np.eye(4), proj=np.eye(4), width=n, height=n)
+        depth, prim, front, bary = fused(prep.triangles, depth_func=DEPTH_FUNCS[func],
+                                         clear_depth=clear)
+        pixel, fd, fprim, ffront, fbary, _ = stream(prep.triangles)
+        assert len(pixel) == n * n, name   # each centre once: the tiling, by the fill rule
+        frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, n, n)
+        res = rf.resolve(frags, depth_func=func, clear_depth=clear)
+        assert ((prim >= 0).all() if func != "never" else (prim < 0).all()), name
+        assert res.depth.tobytes() == depth.tobytes(), name
+        assert np.array_equal(np.where(res.winner >= 0, fprim[res.winner], -1), prim), name
+        m = res.winner.ravel() >= 0
+        assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes(), name
+
+
 def test_fused_keeps_the_first_clipped_piece():
     """Regression: the fused pass once marked "no winner" with −1, which is also the binned
     item of clipped piece 0, so that piece's pixels came out as background (ids, normal,
