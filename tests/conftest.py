@@ -166,3 +166,14 @@ def fault_matrix(gold, columns, scenes, expected, untouched=None, *, only_scenes
         for scene in (untouched or {}).get(column, ()):
             assert results[column][scene].status == "pass", (column, scene)
     return results
+
+
+@pytest.fixture
+def empty_output_pool(monkeypatch):
+    """The output pool (``refraster._scratch.OUTPUTS``) emptied before and after the test, with
+    ``REFRASTER_POOL_MB`` unset (its default)."""
+    from refraster._scratch import OUTPUTS
+    monkeypatch.delenv("REFRASTER_POOL_MB", raising=False)
+    OUTPUTS.clear()
+    yield OUTPUTS
+    OUTPUTS.clear()

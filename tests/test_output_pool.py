@@ -41,12 +41,7 @@ def _fresh(monkeypatch, *args, **kw):
         return _bytes(fb)
 
 
-@pytest.fixture(autouse=True)
-def _empty_pool(monkeypatch):
-    monkeypatch.delenv("REFRASTER_POOL_MB", raising=False)
-    OUTPUTS.clear()
-    yield
-    OUTPUTS.clear()
+pytestmark = pytest.mark.usefixtures("empty_output_pool")
 
 
 def test_a_dropped_frame_is_recycled_and_gives_the_bytes_of_a_new_one(monkeypatch):

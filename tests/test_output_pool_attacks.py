@@ -32,12 +32,7 @@ KW = camera_kw(256, 192)
 H, W = 192, 256
 
 
-@pytest.fixture(autouse=True)
-def _empty_pool(monkeypatch):
-    monkeypatch.delenv("REFRASTER_POOL_MB", raising=False)
-    OUTPUTS.clear()
-    yield
-    OUTPUTS.clear()
+pytestmark = pytest.mark.usefixtures("empty_output_pool")
 
 
 @pytest.fixture(scope="module")

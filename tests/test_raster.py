@@ -77,6 +77,23 @@ def test_fill_rule_on_shared_pixel_centres():
 
 # ---------------------------------------------------------------- fused path == stream + resolve
 
+def _assert_fused_equals_resolve(prep, func, clear):
+    """The fused pass's depth, face, facing and barycentrics equal the fragment stream of the
+    same triangles resolved with ``func``; returns ``(prim, number of fragments)``."""
+    w, h = prep.width, prep.height
+    depth, prim, front, bary = fused(prep.triangles, depth_func=DEPTH_FUNCS[func],
+                                     clear_depth=clear)
+    pixel, fd, fprim, ffront, fbary, _ = stream(prep.triangles)
+    frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, w, h)
+    res = rf.resolve(frags, depth_func=func, clear_depth=clear)
+    assert res.depth.tobytes() == depth.tobytes()
+    assert np.array_equal(np.where(res.winner >= 0, fprim[res.winner], -1), prim)
+    assert np.array_equal(np.where(res.winner >= 0, ffront[res.winner], False), front)
+    m = res.winner.ravel() >= 0
+    assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes()
+    return prim, len(pixel)
+
+
 @pytest.mark.parametrize("func", sorted(DEPTH_FUNCS))
 def test_fused_equals_stream_and_resolve(func):
     rng = np.random.default_rng(7)
@@ -88,16 +105,7 @@ def test_fused_equals_stream_and_resolve(func):
     clear = 0.0 if func in ("greater", "gequal") else 1.0
     prep = rf.raster.prepare((v, f), view=VIEW, proj=PROJ, width=40, height=30)
     assert len(prep.triangles.clipped) > 0
-    depth, prim, front, bary = fused(prep.triangles, depth_func=DEPTH_FUNCS[func],
-                                     clear_depth=clear)
-    pixel, fd, fprim, ffront, fbary, _ = stream(prep.triangles)
-    frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, 40, 30)
-    res = rf.resolve(frags, depth_func=func, clear_depth=clear)
-    assert res.depth.tobytes() == depth.tobytes()
-    assert np.array_equal(np.where(res.winner >= 0, fprim[res.winner], -1), prim)
-    assert np.array_equal(np.where(res.winner >= 0, ffront[res.winner], False), front)
-    m = res.winner.ravel() >= 0
-    assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes()
+    _assert_fused_equals_resolve(prep, func, clear)
 
 
 @pytest.mark.parametrize("func", sorted(DEPTH_FUNCS))
@@ -112,18 +120,9 @@ def test_fused_ties_equal_stream_and_resolve(func):
     f = np.stack([f, f[:, ::-1]], axis=1).reshape(-1, 3)   # each face, then its mirror
     clear = 0.0 if func in ("greater", "gequal") else 1.0
     prep = rf.raster.prepare((v, f), view=VIEW, proj=PROJ, width=64, height=48)
-    depth, prim, front, bary = fused(prep.triangles, depth_func=DEPTH_FUNCS[func],
-                                     clear_depth=clear)
-    pixel, fd, fprim, ffront, fbary, _ = stream(prep.triangles)
-    frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, 64, 48)
-    res = rf.resolve(frags, depth_func=func, clear_depth=clear)
+    prim, _ = _assert_fused_equals_resolve(prep, func, clear)
     if func in ("less", "lequal", "gequal", "always"):
         assert ((prim % 2 == 1) == (func != "less")).sum() > 100   # ties decided both ways
-    assert res.depth.tobytes() == depth.tobytes()
-    assert np.array_equal(np.where(res.winner >= 0, fprim[res.winner], -1), prim)
-    assert np.array_equal(np.where(res.winner >= 0, ffront[res.winner], False), front)
-    m = res.winner.ravel() >= 0
-    assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes()
 
 
 @pytest.mark.parametrize("func", sorted(DEPTH_FUNCS))
@@ -145,17 +144,9 @@ def test_fused_pixel_centres_on_shared_edges(func):
     clear = {"greater": 0.0, "gequal": 0.0, "equal": 0.5}.get(func, 1.0)
     for name, f in scenes.items():
         prep = rf.raster.prepare((v, f), view=np.eye(4), proj=np.eye(4), width=n, height=n)
-        depth, prim, front, bary = fused(prep.triangles, depth_func=DEPTH_FUNCS[func],
-                                         clear_depth=clear)
-        pixel, fd, fprim, ffront, fbary, _ = stream(prep.triangles)
-        assert len(pixel) == n * n, name   # each centre once: the tiling, by the fill rule
-        frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, n, n)
-        res = rf.resolve(frags, depth_func=func, clear_depth=clear)
+        prim, n_frags = _assert_fused_equals_resolve(prep, func, clear)
+        assert n_frags == n * n, name   # each centre once: the tiling, by the fill rule
         assert ((prim >= 0).all() if func != "never" else (prim < 0).all()), name
-        assert res.depth.tobytes() == depth.tobytes(), name
-        assert np.array_equal(np.where(res.winner >= 0, fprim[res.winner], -1), prim), name
-        m = res.winner.ravel() >= 0
-        assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes(), name
 
 
 def test_fused_keeps_the_first_clipped_piece():
