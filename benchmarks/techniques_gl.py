@@ -45,7 +45,7 @@ TUNED_MALLOC = "glibc.malloc.trim_threshold=4294967296"
 def _packages(root, quick):
     """Write the two scene packages; return [(name, refraster callable, package dir)]."""
     import refraster
-    from refraster.golden.package import export_package
+    from refraster.golden.io.package import export_package
     from refraster.golden.scenes import (DEFAULT_RASTER, Draw, GoldenScene, _framed,
                                          prepare_draws, render_draws)
     from refraster.ldi import peel
@@ -90,7 +90,7 @@ def _technique_packages(root, quick):
     from refraster.clipsurface import ClipSurface, render_clipped
     from refraster.cutaway import render_cutaway
     from refraster.edges import edge_map
-    from refraster.golden.package import export_package
+    from refraster.golden.io.package import export_package
     from refraster.golden.scenes import (DEFAULT_RASTER, Draw, GoldenScene, _framed,
                                          prepare_draws, render_draws)
     from refraster.golden.technique_scenes import _clip_backend_export, _name_derived_maps

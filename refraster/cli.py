@@ -203,7 +203,7 @@ def _camera(args, bounds):
 def _cmd_render(args):
     import refraster
     from ._validate import as_image_size
-    from .golden.write import Outputs
+    from .golden.io.write import Outputs
     from .io import npz_bytes
 
     out = _check_output(args.out, ".png", "--out")
@@ -705,7 +705,7 @@ def _one_line(exc):
 
 def main(argv=None):
     """Run the command line; return the exit status (0 success, 2 error)."""
-    from .golden.write import Terminated, terminate_as_interrupt
+    from .golden.io.write import Terminated, terminate_as_interrupt
     argv = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in argv
     try:

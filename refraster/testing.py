@@ -43,7 +43,7 @@ class GoldenFixture:
     """What the ``golden`` fixture returns (one per test)."""
 
     def __init__(self, golden_dir, tmp_path):
-        from .golden.compare import GoldenError, has_allowances, load_manifest
+        from .golden.compare.run import GoldenError, has_allowances, load_manifest
         self.dir = Path(golden_dir)
         try:
             self.manifest = load_manifest(self.dir)
@@ -62,7 +62,7 @@ class GoldenFixture:
         """Directory of ``scene``'s package (``scene.json``, ``meshes/``, ``maps/``), validated
         again on every call: ``scene.json`` against its schema, every file it names listed in
         the manifest and matching its sha256 (:func:`refraster.golden.read.check_package`)."""
-        from .golden.read import GoldenError, check_package
+        from .golden.io.read import GoldenError, check_package
         entry = self._entry(scene)
         try:
             check_package(self.dir, self.manifest, scene)
@@ -72,7 +72,7 @@ class GoldenFixture:
 
     def reference(self, scene):
         """The golden buffers of ``scene`` (dict name → array)."""
-        from .golden.read import GoldenError, reference_buffers
+        from .golden.io.read import GoldenError, reference_buffers
         self._entry(scene)
         try:
             return reference_buffers(self.dir, self.manifest, scene)
@@ -103,8 +103,8 @@ class GoldenFixture:
         refraster.golden.Comparison
             When it passes; otherwise the test fails.
         """
-        from .golden.compare import GoldenError, compare
-        from .golden.package import npz_bytes
+        from .golden.compare.run import GoldenError, compare
+        from .golden.io.package import npz_bytes
         from .io import atomic_write_bytes
         self._entry(scene)
         if not isinstance(buffers, dict) or not buffers:

@@ -66,8 +66,8 @@ KERNEL_MODULES = CORE_MODULES + (
     "refraster.clipsurface.offsetmaps", "refraster.clipsurface.capping",
     "refraster.clipsurface.surfaces", "refraster.clipsurface.textures",
     "refraster.clipsurface.fused", "refraster.edges", "refraster.npr", "refraster.cutaway.flood",
-    "refraster.halos4d.slicing", "refraster.halos4d.render", "refraster.tolerance",
-    "refraster.golden.layers", "refraster.golden.edge_bounds")
+    "refraster.halos4d.slicing", "refraster.halos4d.render", "refraster.conformance",
+    "refraster.golden.allowances.layers", "refraster.golden.allowances.edges")
 
 #: Kernels ``refraster gallery`` never compiles (other options, the goldens' allowances), so
 #: that its progress line counts to the number it compiles: the kernels of
@@ -75,17 +75,17 @@ KERNEL_MODULES = CORE_MODULES + (
 #: (``python -m benchmarks.cold_start --kernels``, 2026-12-01). A stale entry only makes the
 #: count approximate.
 GALLERY_SKIPS = (
-    "refraster.golden.edge_bounds._absdiff",
-    "refraster.golden.edge_bounds._bounds_kernel",
-    "refraster.golden.edge_bounds._component_bounds",
-    "refraster.golden.edge_bounds._depth_op_kernel",
-    "refraster.golden.edge_bounds._dot_bounds",
-    "refraster.golden.edge_bounds._lin",
-    "refraster.golden.edge_bounds._normal_op_kernel",
-    "refraster.golden.edge_bounds._npr_kernel",
-    "refraster.golden.edge_bounds._sobel_bounds",
-    "refraster.golden.edge_bounds._sq",
-    "refraster.golden.layers._count_bounds",
+    "refraster.golden.allowances.edges._absdiff",
+    "refraster.golden.allowances.edges._bounds_kernel",
+    "refraster.golden.allowances.edges._component_bounds",
+    "refraster.golden.allowances.edges._depth_op_kernel",
+    "refraster.golden.allowances.edges._dot_bounds",
+    "refraster.golden.allowances.edges._lin",
+    "refraster.golden.allowances.edges._normal_op_kernel",
+    "refraster.golden.allowances.edges._npr_kernel",
+    "refraster.golden.allowances.edges._sobel_bounds",
+    "refraster.golden.allowances.edges._sq",
+    "refraster.golden.allowances.layers._count_bounds",
     "refraster.clipsurface.capping._hatch_kernel",
     "refraster.clipsurface.surfaces._g_kernel",
     "refraster.edges._id_kernel",
@@ -100,11 +100,11 @@ GALLERY_SKIPS = (
     "refraster.halos4d.slicing.inside_tet",
     "refraster.halos4d.slicing.tet_setup",
     "refraster.raster.primitive._transform64",
-    "refraster.tolerance._mark_edge",
-    "refraster.tolerance._mark_faces",
-    "refraster.tolerance._plane_z",
-    "refraster.tolerance._seg_dist",
-    "refraster.tolerance._set_pass",
+    "refraster.conformance._mark_edge",
+    "refraster.conformance._mark_faces",
+    "refraster.conformance._plane_z",
+    "refraster.conformance._seg_dist",
+    "refraster.conformance._set_pass",
     # a Framebuffer.reusable's span clear (issue 28): `refraster warmup` compiles it
     "refraster.raster.gbuffer.clear_spans",
 )

@@ -31,8 +31,8 @@ import math
 
 import numpy as np
 
-from refraster.golden.allowance import named_entries, tolerant_metrics
-from refraster.golden.compare import load_manifest
+from refraster.golden.allowances.core import named_entries, tolerant_metrics
+from refraster.golden.compare.run import load_manifest
 
 SEED = 20261201
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from refraster.cutaway.flood import VARIANTS, jump_flood, step_schedule
-from refraster.golden.cutaway_bounds import interval_flood
+from refraster.golden.allowances.cutaway import interval_flood
 
 H, W = 20, 24
 S = (0.1, 0.08)              # row, column spacing (tangent units)

@@ -313,7 +313,7 @@ def test_gl_peel_under_the_sprite_camera_rebuilds_the_exported_sprite(gold, tmp_
     T_r) gives the exported layers and counts (the building has no coincident fragments, where
     peeling and refraster's A-buffer would differ: MATH.md §2.3)."""
     import refraster
-    from refraster.golden.package import export_package
+    from refraster.golden.io.package import export_package
     from refraster.golden.scenes import DEFAULT_RASTER, Draw, GoldenScene, prepare_draws
     from refraster.scenes import solid
     base = gold / "golden" / VDS / "package"

@@ -215,7 +215,7 @@ def test_gl_floor_constraint_matches_refraster(gold, tmp_path, floor):
     constraint yet), against refraster.cutaway.render_cutaway with the same options."""
     from refraster.cutaway import render_cutaway
     from refraster.golden import available_scenes
-    from refraster.golden.package import export_package
+    from refraster.golden.io.package import export_package
     from refraster.golden.scenes import DEFAULT_RASTER
     base = available_scenes()["cutaway_shells"].build()
     p = dict(base.parameters)

@@ -13,11 +13,11 @@ import pytest
 
 from refraster import golden
 from refraster.golden import cli
-from refraster.golden.compare import (GoldenError, buffer_metrics, compare, load_manifest,
+from refraster.golden.compare.run import (GoldenError, buffer_metrics, compare, load_manifest,
                                       local_variation, pixel_error, position_deviation)
-from refraster.golden.schema import (MANIFEST_SCHEMA, SCENE_SCHEMA, SchemaError, check_version,
+from refraster.golden.io.schema import (MANIFEST_SCHEMA, SCENE_SCHEMA, SchemaError, check_version,
                                      validate)
-from refraster.golden.tolerance import parse_override
+from refraster.golden.compare.profiles import parse_override
 
 SCENES = ["render_cube", "render_multi_draw", "render_icosphere_smooth"]
 
@@ -57,7 +57,7 @@ def test_self_compare_passes_and_manifest_is_complete(gold):
         assert result.exit_code == 0, result.summary()
         assert result.failures() == []
     m = load_manifest(gold)
-    from refraster.golden.schema import MANIFEST_SCHEMA_VERSION
+    from refraster.golden.io.schema import MANIFEST_SCHEMA_VERSION
     assert m["schema_version"] == MANIFEST_SCHEMA_VERSION == 3
     assert set(m["generator"]) >= {"refraster", "numpy", "numba", "python"}
     assert m["raster"] == {"subpixel_bits": 8, "fill_rule": "llvmpipe"}

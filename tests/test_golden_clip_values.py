@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from refraster import golden
-from refraster.golden.allowance import _angle
+from refraster.golden.allowances.core import _angle
 
 SCENES = ("cutaway_shells", "clipsurface_building")
 KEYS = ("barycentric", "color", "normal")
@@ -99,7 +99,7 @@ def test_other_allowed_face_is_held_to_its_own_values(gold, tmp_path, scene, key
     """A candidate naming another face that may win there: with that face's values it passes
     (tolerant); with the golden's values — outside the named face's bounds — the buffer fails
     ``refraster golden compare`` naming the pixel, and nothing else fails."""
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     b, a = _load(gold, scene)
     r, c, e = _other_entry(b, a, key)
     good = _naming(b, a, r, c, e)
@@ -145,7 +145,7 @@ def test_corrupt_value_arrays_are_refused(gold, tmp_path, how):
     import hashlib
     import json
     import shutil
-    from refraster.golden.compare import GoldenError, compare
+    from refraster.golden.compare.run import GoldenError, compare
     scene = "cutaway_shells"
     g = tmp_path / "g"
     shutil.copytree(gold, g)

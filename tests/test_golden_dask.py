@@ -11,7 +11,7 @@ import pytest
 
 from refraster import golden
 from refraster.golden import cli
-from refraster.golden.compare import load_manifest
+from refraster.golden.compare.run import load_manifest
 from refraster.golden.generate import GenerationError
 
 KILL_MARKER = "REFRASTER_TEST_KILL_MARKER"

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from refraster import golden
-from refraster.golden.compare import EXIT_FAIL, EXIT_PASS, GoldenError, compare, load_manifest
-from refraster.golden.domain import NORMAL_LENGTH_TOL, domain_checks
+from refraster.golden.compare.run import EXIT_FAIL, EXIT_PASS, GoldenError, compare, load_manifest
+from refraster.golden.compare.domain import NORMAL_LENGTH_TOL, domain_checks
 
 SCENES = ["render_cube", "render_crank"]
 MODES = ["tolerant", "exact", "conformant"]

@@ -83,7 +83,7 @@ def test_allowance_admits_few_faults(tables, scene):
 def test_conformant_variants_pass(gold, tmp_path, variant):
     """Specificity in the same run: refraster with 4 sub-pixel bits, the top-left rule, both,
     or a float64 vertex stage passes every plain golden (tolerant), and fails exact."""
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     from refraster.golden.scenes import raster_state, render_draws
     registry = golden.available_scenes()
     for name in PLAIN:
@@ -98,7 +98,7 @@ def test_conformant_variants_pass(gold, tmp_path, variant):
 
 def test_llvmpipe_passes_every_plain_golden(gold, tmp_path, oracle):
     oracle("moderngl")
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     info = llvmpipe_frames(gold, tmp_path / "gl")
     assert info["renderer"].startswith("llvmpipe") and sorted(info["scenes"]) == sorted(PLAIN)
     result = compare(gold, tmp_path / "gl", mode="tolerant", scenes=PLAIN)
@@ -108,7 +108,7 @@ def test_llvmpipe_passes_every_plain_golden(gold, tmp_path, oracle):
 def test_harness_sees_a_blind_check(gold, monkeypatch):
     """The other direction: a checker that forgives every depth fault (a skipped interval
     check) is reported as missing them; the other buffers stay caught."""
-    from refraster.golden import allowance
+    from refraster.golden.allowances import core as allowance
 
     real = allowance.tolerant_metrics
 
@@ -164,7 +164,7 @@ def test_values_are_checked_against_the_named_face(gold, tmp_path):
     """At an edge between two cube faces: naming the other face with the reference's values
     fails (its normal is 90° off, its depth elsewhere); naming it with that face's own values
     (the centre of its set entry) passes; naming a face outside the set fails the id check."""
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     scene = "render_cube"
     a, b, r, c, e = _set_pixel(gold, scene)
     g_ref = int(b["prim_id"][r, c])
@@ -199,7 +199,7 @@ def test_corrupt_face_sets_are_refused(gold, tmp_path):
     import hashlib
     import json
     import shutil
-    from refraster.golden.compare import GoldenError, compare
+    from refraster.golden.compare.run import GoldenError, compare
     g = tmp_path / "g"
     shutil.copytree(gold, g)
     scene = "render_cube"
@@ -221,7 +221,7 @@ def test_corrupt_face_sets_are_refused(gold, tmp_path):
 def test_without_ids_the_envelope_of_the_set_applies(gold, tmp_path):
     """A candidate that sends no ids is held to the envelope of the pixel's set: the other
     face's normal passes at a two-face pixel, a normal between no face's passes nowhere."""
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     scene = "render_cube"
     a, b, r, c, e = _set_pixel(gold, scene)
     g_ref = int(b["prim_id"][r, c])
@@ -285,7 +285,7 @@ def test_command_names_pixel_value_and_allowed_interval(gold, tmp_path):
 def test_report_states_the_face_allowance(gold, tmp_path):
     """The HTML report's read-out names what the face check admits where the visible primitive
     may differ: the set of faces for ids (embedded with the crop of the failing buffer)."""
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     scene = "render_cube"
     a, b, r, c, e = _set_pixel(gold, scene)
     b["prim_id"][r, c] = [f for f in range(12) if f not in a["set_face"][e]][0]
@@ -304,7 +304,7 @@ def test_harness_sees_unbounded_slivers(tmp_path, monkeypatch):
     """The other direction for the crank: with the slivers' bounds dropped (their values and
     facing free, as before they were bounded by their vertices and the allowed snappings) the
     harness reports the fault admitted at about half the covered pixels again."""
-    from refraster.golden import allowance
+    from refraster.golden.allowances import core as allowance
 
     def free(out, facing, fragile, *args):
         facing[fragile] = -1

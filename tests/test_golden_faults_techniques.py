@@ -127,7 +127,7 @@ def test_ldi_conformant_variants_pass(gold, tmp_path, variant):
     float64 vertex stage passes the LDI golden (tolerant); the 4-bit ones differ from it (exact
     fails, so their pass is the allowance's doing; no pixel centre of this scene lies on an edge,
     so the top-left rule alone changes nothing)."""
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     scene = golden.available_scenes()[LDI].build()
     cand = _ldi_candidate(scene, LDI_VARIANTS[variant])
     root = _write(tmp_path, LDI, cand)
@@ -163,7 +163,7 @@ def test_one_ldi_layer_depth_moved_fails_naming_the_pixel(gold, tmp_path):
 def test_one_ldi_layer_count_or_id_moved_fails(gold, tmp_path):
     """The other LDI buffers, one pixel each: a layer count one too high, a layer naming a face
     that does not cover the pixel, a flipped facing."""
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     b0 = _golden_buffers(gold, LDI)
     pix = np.argwhere(b0["layer_count"] >= 2)
     rr, cc = pix[len(pix) // 3]
@@ -183,7 +183,7 @@ def test_one_ldi_layer_count_or_id_moved_fails(gold, tmp_path):
 def test_harness_sees_a_blind_layers_check(gold, monkeypatch):
     """The harness's other direction: with the layers check switched off, the LDI faults are
     reported as missed (not caught), the admits share untouched."""
-    from refraster.golden import layers
+    from refraster.golden.allowances import layers
 
     def blind(layer, cand, arrays, others=None, **kw):
         return np.zeros(np.shape(cand)[:2], np.bool_)
@@ -199,7 +199,7 @@ def test_corrupt_ldi_arrays_are_refused(gold, tmp_path):
     import hashlib
     import json
     import shutil
-    from refraster.golden.compare import GoldenError, compare
+    from refraster.golden.compare.run import GoldenError, compare
     g = tmp_path / "g"
     shutil.copytree(gold, g)
     with np.load(g / LDI / "tolerance.npz", allow_pickle=False) as z:
@@ -269,7 +269,7 @@ def _rgba8_bounds(gold, scene_name, scene):
     golden's own allowances through :func:`edge_map_bounds` with ``gbuffer_format`` and
     ``output_format`` "rgba8"."""
     from refraster.edges import fit_near_far
-    from refraster.golden.edge_bounds import edge_map_bounds
+    from refraster.golden.allowances.edges import edge_map_bounds
     with np.load(gold / scene_name / "tolerance.npz", allow_pickle=False) as z:
         arrays = {k: z[k].copy() for k in z.files}
     near, far = fit_near_far(scene.camera.view, bounds=np.asarray(scene.parameters["bounds"]))
@@ -286,7 +286,7 @@ def test_edge_map_conformant_variants_pass(gold, tmp_path, scene_name, variant):
     ``output_format``) through ``compare``; where it states float32, the float variants through
     ``compare`` and the RGBA8 ones inside the bounds derived for RGBA8 from the same golden's
     allowances (an RGBA8 texture is not the format such a scene asks for)."""
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     scene = golden.available_scenes()[scene_name].build()
     raster, rgba8 = EDGE_VARIANTS[variant]
     cand = _edge_candidate(scene, raster, rgba8)
@@ -335,7 +335,7 @@ def _sample_gbuffer(arrays, buffers, near, far, rng):
     turned by up to the option's half-angle, a depth anywhere in the pixel's interval, often at
     an end), or the background — what :func:`refraster.golden.edge_bounds` assumes."""
     from refraster.edges import EdgeGBuffer
-    from refraster.golden.edge_bounds import _options
+    from refraster.golden.allowances.edges import _options
     off, nrm, ang, bg, zl, zh, free, _, _ = _options(arrays, buffers, near, far)
     h, w = np.asarray(buffers["normal"]).shape[:2]
     n = np.zeros((h * w, 3))
@@ -370,7 +370,7 @@ def test_edge_bounds_hold_random_gbuffers_with_width_and_thresholds(gold, op):
     scene's width 1) miss the dilated maps, and the undilated bounds are narrower than 0.05 at
     most covered pixels."""
     from refraster.edges import EdgeGBuffer, edge_map, fit_near_far
-    from refraster.golden.edge_bounds import edge_map_bounds
+    from refraster.golden.allowances.edges import edge_map_bounds
     scene = golden.available_scenes()[EDGES].build()
     with np.load(gold / EDGES / "tolerance.npz", allow_pickle=False) as z:
         arrays = {k: z[k].copy() for k in z.files}
@@ -471,7 +471,7 @@ def test_cutaway_conformant_variants_pass(gold, tmp_path, raster):
     """Specificity: every accepted flooding variant over a rear hull rasterized with 4 or 8
     sub-pixel bits, either fill rule, a float64 vertex stage, passes; D is what refraster's own
     pipeline stores (checked for the scene's variant at 8 bits: bit-identical)."""
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     scene = golden.available_scenes()[CUT].build()
     b = _golden_buffers(gold, CUT)
     for variant in scene.parameters["accepted_variants"]:
@@ -491,7 +491,7 @@ def test_cutaway_float32_floods_pass(gold, tmp_path, raster):
     float64 flood bit-wise (so the pass is the allowance's doing)."""
     from flood_f32 import flood_f32
     from refraster import render
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     scene = golden.available_scenes()[CUT].build()
     b = _golden_buffers(gold, CUT)
     p, cam = scene.parameters, scene.camera
@@ -511,7 +511,7 @@ def test_cutaway_float32_floods_pass(gold, tmp_path, raster):
 def test_cutaway_bounds_refuse_just_outside(gold, tmp_path):
     """The interval is tight in both directions: D one float32 step above D_hi or below D_lo
     at one pixel fails naming it."""
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     b = _golden_buffers(gold, CUT)
     with np.load(gold / CUT / "tolerance.npz", allow_pickle=False) as z:
         lo, hi = z["cutaway_depth_lo"], z["cutaway_depth_hi"]
@@ -561,7 +561,7 @@ def test_cutaway_floor_bounds_both_directions(gold, tmp_path):
     """The floor constraint's D bounds (golden/cutaway_bounds.py floods with the scene's floor):
     every accepted variant over every rear hull of CUT_RASTER passes (refraster's own is
     bit-identical to the stored D); the same floods without the floor fail naming D."""
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     scene = golden.available_scenes()[FLOOR].build()
     b = _golden_buffers(gold, FLOOR)
     for raster, ras in sorted(CUT_RASTER.items()):
@@ -658,7 +658,7 @@ def _clip_candidate(scene, raster, lookup8, monkeypatch):
     from refraster import framebuffer, raster as rr
     from refraster.clipsurface import render as cr
     from refraster.clipsurface import render_clipped
-    from refraster.golden.clip_allowance import _surfaces
+    from refraster.golden.allowances.clip import _surfaces
     from refraster.golden.scenes import raster_state
     bits = {k: v for k, v in raster.items() if k in ("subpixel_bits", "fill_rule")}
     if bits:   # forced over whatever the caller passes
@@ -694,7 +694,7 @@ def test_clip_surface_conformant_variants_pass(gold, tmp_path, monkeypatch, scen
     8-bit bilinear weights (also with 4 bits) passes the clip checks (ids, depth, facing, cap
     mask); the 4-bit frames differ from the golden (the 8-bit-weight lookup alone changes no
     clip decision of these two scenes: its frames are bit-identical in the checked buffers)."""
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     scene = golden.available_scenes()[scene_name].build()
     raster, lookup8 = CLIP_VARIANTS[variant]
     cand = _clip_candidate(scene, raster, lookup8, monkeypatch)
@@ -709,7 +709,7 @@ def test_clip_surface_conformant_variants_pass(gold, tmp_path, monkeypatch, scen
 def test_cap_parity_flipped_fails_naming_the_pixel(gold, tmp_path):
     """A cap pixel shown as the solid behind it would be (cap parity flipped: cap_mask and the
     ids of a solid face) — and the cap mask alone flipped — fail `compare` naming the pixel."""
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     scene = "clipsurface_building"
     b = _golden_buffers(gold, scene)
     with np.load(gold / scene / "tolerance.npz", allow_pickle=False) as z:
@@ -770,7 +770,7 @@ def test_cutaway_frames_of_conformant_variants_pass(gold, tmp_path, monkeypatch,
     render_cutaway option, so float64 goes through prepare too), flooded with each accepted
     variant, pass the cutaway checks (D, cut mask, ids, depth, facing)."""
     from refraster.cutaway import render_cutaway
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     scene = golden.available_scenes()[CUT].build()
     p = scene.parameters
     ras = dict(CUT_RASTER[raster])

@@ -81,7 +81,7 @@ def test_ghosts_over_every_accepted_flood_pass(gold, tmp_path, arithmetic):
     from flood_f32 import flood_f32
     from refraster import render
     from refraster.cutaway.surface import cutaway_surface
-    from refraster.golden.compare import compare
+    from refraster.golden.compare.run import compare
     scene = golden.available_scenes()[CUT].build()
     p, cam = scene.parameters, scene.camera
     b = _buffers(gold)

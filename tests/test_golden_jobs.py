@@ -14,7 +14,7 @@ import pytest
 
 from refraster import golden
 from refraster.golden import cli
-from refraster.golden.compare import load_manifest
+from refraster.golden.compare.run import load_manifest
 
 gen = importlib.import_module("refraster.golden.generate")   # the module, not the function
 

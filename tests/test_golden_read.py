@@ -17,7 +17,7 @@ import pytest
 
 from refraster import golden
 from refraster.golden import cli
-from refraster.golden.compare import GoldenError, compare, load_manifest
+from refraster.golden.compare.run import GoldenError, compare, load_manifest
 
 SCENE = "render_cube"
 MiB = 1 << 20
@@ -309,8 +309,8 @@ def test_update_copies_kept_scenes_from_the_file_list_without_links(tmp_path, ca
     golden holding files refraster did not write (a link to a private key, the user's notes)
     is not replaced at all: `--update` refuses, naming them, and nothing is lost (the write
     rules of docs/golden.md)."""
-    from refraster.golden.read import copy_listed_scene
-    from refraster.golden.write import RefusedError
+    from refraster.golden.io.read import copy_listed_scene
+    from refraster.golden.io.write import RefusedError
     out = tmp_path / "g"
     golden.generate(out, [SCENE])
     secret = tmp_path / "private.key"
@@ -450,7 +450,7 @@ def test_png_bomb_and_memory_error_are_one_line_in_both_entry_points(gold, tmp_p
                               capture_output=True, text=True, timeout=300)
         assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
         assert "the PNG is 14000x14000" in proc.stderr, proc.stderr
-    compare_module = __import__("sys").modules["refraster.golden.compare"]
+    compare_module = __import__("sys").modules["refraster.golden.compare.run"]
 
     def boom(*args, **kwargs):
         raise MemoryError()

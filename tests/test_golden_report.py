@@ -166,7 +166,7 @@ def id_pixel(allow):
 
 def make_report(root, name, **patches):
     """Compare the two scenes (passing first) into ``root/name``, with report internals patched."""
-    from refraster.golden import report as rep
+    from refraster.golden.compare import report as rep
     saved = {k: getattr(rep, k) for k in patches}
     try:
         for k, v in patches.items():
@@ -356,7 +356,7 @@ def test_first_screen_shows_the_failing_crop(two_scenes, browser):
 
 def test_first_screen_check_catches_planted_faults(two_scenes, browser):
     root, _, _ = two_scenes
-    from refraster.golden import report as rep
+    from refraster.golden.compare import report as rep
     # the passing scene first (the compare's order kept)
     page = make_report(root, "plant_order", scene_order=lambda scenes: list(scenes))
     problems = first_screen_problems(browser, page, "render_cube", "render_multi_draw", (55, 80))
@@ -390,7 +390,7 @@ def test_hover_shows_the_values(two_scenes, browser):
     assert hover_problems(browser, page, ref, allow, cand) == []
     assert browser.console() == []
     # planted: the embedded values one column off, or missing
-    from refraster.golden import report as rep
+    from refraster.golden.compare import report as rep
     crop_data = rep._crop_data
 
     def shifted(b, box, bad):
@@ -441,7 +441,7 @@ def test_cells_that_do_not_apply_say_why(two_scenes):
     assert len(na) >= 2 * 7 and bad == []         # FLIP of 7 non-colour buffers per scene, …
     assert any("FLIP" in t and "normal is a snorm buffer" in t for t, _ in na)
     assert any("tolerant mode" in t for t, _ in na)
-    from refraster.golden.schema import MANIFEST_SCHEMA_VERSION
+    from refraster.golden.io.schema import MANIFEST_SCHEMA_VERSION
     assert "Compare mode <b>tolerant" in page and \
         f"version <b>{MANIFEST_SCHEMA_VERSION}</b>" in page
     # planted: a cell without its reason is found
@@ -468,8 +468,8 @@ def test_fifty_scene_report_is_small_and_opens_fast(two_scenes, browser, tmp_pat
     import copy
     from dataclasses import replace
 
-    from refraster.golden.compare import load_manifest
-    from refraster.golden.report import write_report
+    from refraster.golden.compare.run import load_manifest
+    from refraster.golden.compare.report import write_report
     root, _, _ = two_scenes
     cand = tmp_path / "cand"
     for scene in ("render_cube", "render_multi_draw"):
@@ -505,7 +505,7 @@ def test_fifty_scene_report_is_small_and_opens_fast(two_scenes, browser, tmp_pat
 
 
 def test_crop_box_zoom_and_magnify():
-    from refraster.golden.report import CROP_MAX, crop_box, crop_zoom, magnify
+    from refraster.golden.compare.report import CROP_MAX, crop_box, crop_zoom, magnify
     assert CROP_MAX == 32
     bad = np.zeros((120, 160), bool)
     err = np.zeros((120, 160))
@@ -541,7 +541,7 @@ def test_hover_in_profile_mode_shows_threshold_and_forgiven(two_scenes, browser,
     """Conformant profile: a colour pixel forgiven by the position-deviation compare reads
     "forgiven here", differs but allowed; an inverted pixel next to it is outside, with its
     per-pixel threshold ``threshold + slope · v(p)`` (v: the largest difference to a neighbour)."""
-    from refraster.golden.compare import local_variation
+    from refraster.golden.compare.run import local_variation
     root, ref, _ = two_scenes
     scene = root / "cand" / "render_cube" / "buffers.npz"
     with np.load(scene) as z:

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from refraster.golden.allowance import MAX_SNAP_BITS, MIN_SNAP_BITS, _snap_barycentrics
-from refraster.tolerance import edge_epsilon
+from refraster.golden.allowances.core import MAX_SNAP_BITS, MIN_SNAP_BITS, _snap_barycentrics
+from refraster.conformance import edge_epsilon
 
 EPS = edge_epsilon(160, 120)
 DELTA = EPS - math.sqrt(2.0) * (2.0 ** -5 + 2.0 ** -9)      # the float part of ε

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from refraster.golden.compare import compare, load_manifest
+from refraster.golden.compare.run import compare, load_manifest
 from refraster.golden.generate import generate
 
 from test_golden import candidate_from

@@ -8,10 +8,10 @@ from conftest import llvmpipe_frames
 
 from refraster import golden
 from refraster.golden import cli
-from refraster.golden.allowance import dilate, surface_step
-from refraster.golden.compare import GoldenError, compare, load_manifest
+from refraster.golden.allowances.core import dilate, surface_step
+from refraster.golden.compare.run import GoldenError, compare, load_manifest
 from refraster.golden.scenes import raster_state, render_draws
-from refraster.tolerance import MAY, MUST, MUST_NOT
+from refraster.conformance import MAY, MUST, MUST_NOT
 
 RENDER = ["render_cube", "render_multi_draw", "render_icosphere_smooth", "render_torus_ortho",
           "render_crank"]

@@ -18,8 +18,9 @@ import pytest
 
 from refraster import cli as rcli
 from refraster import golden
-from refraster.golden import cli, write
-from refraster.golden.compare import load_manifest
+from refraster.golden import cli
+from refraster.golden.io import write
+from refraster.golden.compare.run import load_manifest
 
 REPO = Path(__file__).resolve().parents[1]
 SIZE = ["32x24"]
@@ -180,7 +181,7 @@ def test_two_new_runs_into_one_path_the_second_refuses(tmp_path, hooks, capsys):
 HOLD = """
 import sys
 from refraster import golden
-from refraster.golden import write
+from refraster.golden.io import write
 def hold(**info):
     print("locked", flush=True)
     sys.stdin.readline()
@@ -295,7 +296,7 @@ def test_report_directory_with_foreign_files_survives(g, tmp_path, hooks):
 KILL = """
 import os, signal, sys
 from refraster import golden
-from refraster.golden import write
+from refraster.golden.io import write
 write.FORCE_FALLBACK = sys.argv[3] == "journal"
 write.HOOKS[sys.argv[2]] = lambda **info: os.kill(os.getpid(), signal.SIGKILL)
 golden.generate(sys.argv[1], ["render_multi_draw"], sizes=["32x24"], update=True)
@@ -378,7 +379,7 @@ def test_a_live_runs_debris_is_never_cleaned(g):
 SIGTERM = """
 import os, signal, sys
 from refraster import cli
-from refraster.golden import write
+from refraster.golden.io import write
 write.HOOKS["before_commit"] = lambda **info: os.kill(os.getpid(), signal.SIGTERM)
 sys.exit(cli.main(["golden", "generate", "--out", sys.argv[1], "--scene", "render_multi_draw",
                    "--size", "32x24", "--update", "-q"]))
@@ -543,23 +544,40 @@ def test_directories_follow_the_umask(tmp_path, umask):
 # --- one owner per concern: no import circle in refraster.golden ---------------------------------
 
 def _golden_imports():
-    """{module: set of refraster.golden modules it imports} (function-level imports too)."""
+    """{module: set of refraster.golden modules it imports} (function-level imports too), the
+    modules named by their dotted path below ``refraster/golden`` (``compare.run``, ``io.write``,
+    ``generate``; a subpackage by its own name)."""
     pkg = REPO / "refraster" / "golden"
-    mods = {p.stem for p in pkg.glob("*.py")} - {"__init__"}
+    paths = {}
+    for path in pkg.rglob("*.py"):
+        parts = path.relative_to(pkg).with_suffix("").parts
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        if parts:
+            paths[".".join(parts)] = path
+    mods = set(paths)
+
+    def imported(target, names):
+        found = {f"{target}.{n}" for n in names if f"{target}.{n}" in mods}
+        return found or ({target} if target in mods else set())
+
     graph = {}
-    for m in mods:
-        tree = ast.parse((pkg / f"{m}.py").read_text())
+    for m, path in paths.items():
+        package = m.split(".") if path.name == "__init__.py" else m.split(".")[:-1]
         deps = set()
-        for node in ast.walk(tree):
-            if isinstance(node, ast.ImportFrom) and node.level == 1:
-                if node.module:
-                    deps.add(node.module.split(".")[0])
-                else:
-                    deps.update(a.name for a in node.names)
-            elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith(
-                    "refraster.golden."):
-                deps.add(node.module.split(".")[2])
-        graph[m] = deps & mods
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            names = [a.name for a in node.names]
+            if node.level:
+                if node.level - 1 > len(package):
+                    continue                      # above refraster.golden
+                base = package[:len(package) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+                deps |= imported(target, names) if target else {n for n in names if n in mods}
+            elif (node.module or "").startswith("refraster.golden."):
+                deps |= imported(node.module[len("refraster.golden."):], names)
+        graph[m] = deps - {m}
     return graph
 
 
@@ -587,13 +605,19 @@ def _cycle(graph):
 
 def test_no_import_circle_in_golden():
     graph = _golden_imports()
-    assert {"write", "common", "metrics"} <= set(graph)
+    assert {"io.write", "io.errors", "compare.metrics", "allowances.core"} <= set(graph)
     assert _cycle(graph) is None, _cycle(graph)
-    assert "report" not in graph["compare"] or "compare" not in graph["report"]
-    assert not {"compare", "generate"} & graph["report"]
-    assert "compare" not in graph["allowance"]
+    assert "compare.report" not in graph["compare.run"] or \
+        "compare.run" not in graph["compare.report"]
+    assert not {"compare.run", "generate"} & graph["compare.report"]
+    assert "compare.run" not in graph["allowances.core"]
+    # the scan sees relative imports across subpackages and module names imported from a package
+    assert {"io.read", "compare.metrics", "allowances.core", "compare.profiles"} <= \
+        graph["compare.run"]
+    assert {"io.write", "io.package", "allowances.core"} <= graph["generate"]
+    assert "io.write" in graph["compare.report"]
     # the detector finds a planted circle
-    assert _cycle(dict(graph, write=graph["write"] | {"report"})) is not None
+    assert _cycle(dict(graph, **{"io.write": graph["io.write"] | {"compare.report"}})) is not None
 
 
 def test_discarding_a_tree_deletes_only_what_its_listing_names(tmp_path):

@@ -3,7 +3,7 @@ a backend whose halos do not carve fails on ``halo_class`` and ``color``."""
 
 import numpy as np
 
-from refraster.golden.compare import compare, load_manifest
+from refraster.golden.compare.run import compare, load_manifest
 from refraster.golden.generate import generate
 
 from test_golden import candidate_from

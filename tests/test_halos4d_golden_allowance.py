@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from refraster import golden
-from refraster.golden import halo_allowance as H
-from refraster.golden.compare import compare
+from refraster.golden.allowances import halos as H
+from refraster.golden.compare.run import compare
 from refraster.golden.generate import generate
 
 SCENE = "halos4d_figure1"

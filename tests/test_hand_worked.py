@@ -128,7 +128,7 @@ def test_slice_alpha_accumulates_to_the_opacity_across_the_core():
 def test_surface_step_ignores_steps_across_surfaces():
     """surface_step is the largest change to a 4-neighbour *on the same surface*: a jump of 10
     between two surfaces is a silhouette, not a slope, and must not widen the allowance."""
-    from refraster.golden.allowance import surface_step
+    from refraster.golden.allowances.core import surface_step
     values = np.array([[0.0, 10.0, 11.0]])
     assert surface_step(values, np.array([[0, 1, 1]])).tolist() == [[0.0, 1.0, 1.0]]
     assert surface_step(values, np.array([[0, 0, 0]])).tolist() == [[10.0, 10.0, 1.0]]

@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 import refraster as rf
-from refraster.tolerance import MAY, MUST, MUST_NOT, check, decision_may, edge_epsilon, tolerance
+from refraster.conformance import MAY, MUST, MUST_NOT, check, decision_may, edge_epsilon, tolerance
 
 KW = dict(view=rf.look_at([0.3, 0.2, 3.0], [0, 0, 0]), proj=rf.perspective(45, 4 / 3, 0.5, 10),
           width=160, height=120)

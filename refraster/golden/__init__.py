@@ -8,13 +8,13 @@ against it and writes an HTML report. ``refraster golden generate|compare`` are 
 twins (:mod:`refraster.golden.cli`). See ``docs/golden.md`` and ``docs/golden-schema.md``.
 """
 
-from .compare import (EXIT_FAIL, EXIT_PASS, EXIT_UNUSABLE, CandidateError, Comparison,
+from .compare.run import (EXIT_FAIL, EXIT_PASS, EXIT_UNUSABLE, CandidateError, Comparison,
                       GoldenError, compare, load_manifest, position_deviation)
 from .generate import generate
 from .scenes import (DEFAULT_RASTER, SCENES, Draw, GoldenScene, available_scenes,
                      load_scene_file, prepare_draws, register_scene, register_technique,
                      render_scene)
-from .schema import (MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION, SCENE_SCHEMA,
+from .io.schema import (MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION, SCENE_SCHEMA,
                      SCENE_SCHEMA_VERSION, SchemaError)
 
 __all__ = [

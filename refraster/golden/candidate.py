@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import write
-from .common import GoldenError
-from .read import load_manifest
+from .io import write
+from .io.errors import GoldenError
+from .io.read import load_manifest
 
 __all__ = ["BACKENDS", "candidate"]
 

@@ -30,9 +30,9 @@ import functools
 import json
 import sys
 
-from .common import EXIT_PASS, EXIT_UNUSABLE, GoldenError
-from .compare import MODES
-from .tolerance import PROFILES
+from .io.errors import EXIT_PASS, EXIT_UNUSABLE, GoldenError
+from .compare.run import MODES
+from .compare.profiles import PROFILES
 
 __all__ = ["register", "main"]
 
@@ -80,7 +80,7 @@ def _guarded(prog):
                 try:
                     return fn(args)
                 except KeyboardInterrupt as exc:
-                    from .write import Terminated
+                    from .io.write import Terminated
                     print(f"{prog}: interrupted", file=sys.stderr)
                     return 143 if isinstance(exc, Terminated) else 130
                 except Exception as exc:
@@ -143,9 +143,9 @@ def _cmd_generate(args):
 
 @_guarded("golden compare")
 def _cmd_compare(args):
-    from . import write
-    from .compare import compare
-    from .compare import has_allowances, load_manifest
+    from .io import write
+    from .compare.run import compare
+    from .compare.run import has_allowances, load_manifest
     try:
         write.recover(args.golden_dir)  # before reading the manifest for the default mode
     except (GoldenError, OSError) as exc:
@@ -308,7 +308,7 @@ def main(argv=None):
                  len(argv))
     if argv[first:first + 1] != ["golden"]:
         argv.insert(first, "golden")
-    from .write import Terminated, terminate_as_interrupt
+    from .io.write import Terminated, terminate_as_interrupt
     parser = _Parser(prog="refraster")
     parser.add_argument("-q", "--quiet", action="store_true")
     parser.add_argument("--debug", action="store_true")

@@ -27,13 +27,13 @@ import numpy as np
 
 from .. import io as rio
 from .._validate import check_shape
-from .buffers import DTYPES, KINDS, infer_kind, preview, preview_range
-from .package import export_package, npz_bytes, sha256_file
-from .read import copy_listed_scene
+from .io.buffers import DTYPES, KINDS, infer_kind, preview, preview_range
+from .io.package import export_package, npz_bytes, sha256_file
+from .io.read import copy_listed_scene
 from .scenes import DEFAULT_RASTER, GoldenScene, available_scenes, id_range, raster_state
-from .schema import MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION, validate
-from .tolerance import default_tolerances
-from . import write
+from .io.schema import MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION, validate
+from .compare.profiles import default_tolerances
+from .io import write
 
 __all__ = ["generate", "versions", "swap_directory", "suite", "render_task", "parse_sweep",
            "parse_size", "GenerationError", "WORKER_GROUPS", "WITHOUT_PIPELINE", "worker_groups"]
@@ -93,7 +93,7 @@ def _id_range(name, key, scene, a):
 
 def _write_scene(root, name, scene):
     """Write one scene under ``root``; return its manifest entry."""
-    from .allowance import scene_allowances
+    from .allowances.core import scene_allowances
     raster = raster_state(scene.raster)
     export_package(root / name / "package", name, scene, raster)
     rio.atomic_write_bytes(root / name / "buffers.npz", npz_bytes(scene.buffers))
@@ -411,7 +411,7 @@ def _run_distributed(tasks, workers, scheduler, progress, bar, on_retry):
 
 
 def _old_manifest(out):
-    from .compare import load_manifest
+    from .compare.run import load_manifest
     return load_manifest(out)
 
 

@@ -437,7 +437,7 @@ _MAX_TOML_BYTES = 16 << 20
 
 
 def _toml_enums():
-    from .schema import SCENE_SCHEMA
+    from .io.schema import SCENE_SCHEMA
     raster = SCENE_SCHEMA["properties"]["raster"]["properties"]
     enums = {("raster", k): raster[k]["enum"] for k in ("precision", "cull", "depth_func",
                                                         "normals")}

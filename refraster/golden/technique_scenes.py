@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..camera import Camera
-from .allowance import changes
+from .allowances.core import changes
 from .scenes import Draw, GoldenScene, _framed, prepare_draws, raster_state, register_scene, \
     render_draws
 
@@ -227,8 +227,8 @@ def _clip_decision_may(draws, camera, clip, cap_mask):
     from .. import draw, resolve
     from ..camera import is_perspective
     from ..clipsurface import clip_function
-    from ..tolerance import decision_may, edge_epsilon
-    from .allowance import dilate
+    from ..conformance import decision_may, edge_epsilon
+    from .allowances.core import dilate
     frags = draw([d.mesh for d in draws], **camera.kwargs, model=[d.model for d in draws])
     pos = frags.world_position()
     g = clip_function(pos, clip)
@@ -428,7 +428,7 @@ def _vds_parity_building():
     from ..camera import is_perspective
     from ..ldi import VolumetricDepthSprite
     from ..scenes import solid
-    from ..tolerance import edge_epsilon
+    from ..conformance import edge_epsilon
     state = raster_state({})
     building = solid("building")
     resolution, axis, margin = 128, "z", 2
@@ -489,8 +489,8 @@ def _clip_decision_may_multi(draws, camera, clips, cap_mask):
     from .. import draw, resolve
     from ..camera import is_perspective
     from ..clipsurface import clip_function
-    from ..tolerance import decision_may, edge_epsilon
-    from .allowance import dilate
+    from ..conformance import decision_may, edge_epsilon
+    from .allowances.core import dilate
     frags = draw([d.mesh for d in draws], **camera.kwargs, model=[d.model for d in draws])
     pos = frags.world_position()
     proj = camera.proj

@@ -58,7 +58,7 @@ import math
 
 import numpy as np
 
-from ..tolerance import (COLOR_TOL, DEPTH_EPS, MAY, MUST, MUST_NOT, NORMAL_TOL, edge_may,
+from ...conformance import (COLOR_TOL, DEPTH_EPS, MAY, MUST, MUST_NOT, NORMAL_TOL, edge_may,
                          facing_may, tolerance)
 
 __all__ = ["scene_allowances", "tolerant_metrics", "dilate", "surface_step", "TOLERANT_CHECKS"]
@@ -272,8 +272,8 @@ def scene_allowances(scene, raster):
                 spec["checks"] = spec["checks"] + ["face"]
     if scene.technique == "edges" and "edge_map" in buffers and sets:
         # edge maps: intervals propagated through the operator (golden/edge_bounds.py)
-        from ..edges import fit_near_far
-        from .edge_bounds import edge_map_bounds, npr_color_bounds, npr_supported, supported
+        from ...edges import fit_near_far
+        from .edges import edge_map_bounds, npr_color_bounds, npr_supported, supported
         params = scene.parameters or {}
         if supported(params) and params.get("bounds") is not None:
             near, far = fit_near_far(cam.view, bounds=np.asarray(params["bounds"], np.float64))
@@ -293,14 +293,14 @@ def scene_allowances(scene, raster):
     if scene.technique == "cutaway" and "cutaway_depth" in buffers \
             and (scene.parameters or {}).get("accepted_variants"):
         # cutaways: D_variant − slack ≤ D ≤ D_exact + slack (golden/cutaway_bounds.py)
-        from .cutaway_bounds import cutaway_bounds
+        from .cutaway import cutaway_bounds
         arrays["cutaway_depth_lo"], arrays["cutaway_depth_hi"], slack = cutaway_bounds(
             scene, tol.eps)
         checks["cutaway_depth"] = {"checks": ["bounds"], "lo": "cutaway_depth_lo",
                                    "hi": "cutaway_depth_hi"}
         if raster["depth_func"] == "less" and "cut_mask" in buffers:
             # the cut decision z < D free only where D's interval allows either
-            from .clip_allowance import CLIP_BUFFERS, cutaway_allowances
+            from .clip import CLIP_BUFFERS, cutaway_allowances
             arrays.update(cutaway_allowances(scene, raster, tol.eps, arrays["cutaway_depth_lo"],
                                              arrays["cutaway_depth_hi"],
                                              (EYE_DEPTH_ABS, EYE_DEPTH_REL)))
@@ -309,7 +309,7 @@ def scene_allowances(scene, raster):
                     checks[key] = {"checks": ["clip"]}
             if "ghost" in buffers:
                 # ghost lines: α intervals from D's, the occluder's and the line's (ghost_bounds.py)
-                from .ghost_bounds import ghost_bounds
+                from .ghosts import ghost_bounds
                 gb = ghost_bounds(scene, arrays, tol.eps)
                 if gb is not None:
                     arrays["ghost_lo"], arrays["ghost_hi"] = gb
@@ -317,7 +317,7 @@ def scene_allowances(scene, raster):
     if scene.technique == "clipsurface" and "cap_mask" in buffers \
             and raster["depth_func"] == "less" and scene.maps is not None:
         # clip surfaces: the clip decision and cap parity bounded (golden/clip_allowance.py)
-        from .clip_allowance import CLIP_BUFFERS, clip_allowances
+        from .clip import CLIP_BUFFERS, clip_allowances
         arrays.update(clip_allowances(scene, raster, tol.eps, (EYE_DEPTH_ABS, EYE_DEPTH_REL)))
         for key in CLIP_BUFFERS:
             if key in checks:
@@ -346,7 +346,7 @@ def scene_allowances(scene, raster):
             and "surface_vertices4d" in scene.maps:
         # 4D halos: class range and alpha / colour intervals from the classification margins
         # (golden/halo_allowance.py)
-        from .halo_allowance import HALO_CHECKS, halo_allowances
+        from .halos import HALO_CHECKS, halo_allowances
         arrays.update(halo_allowances(scene))
         for key, (lo, hi) in HALO_CHECKS.items():
             if key in checks:
@@ -371,7 +371,7 @@ def _clip_value_checks(scene, raster, arrays, checks, buffers, eps):
     golden's interval; where it names another entry, or the golden's sliver, to that entry's
     ``cs_<buffer>`` bounds (:func:`_clip_value_entries`, check
     ``clip``)."""
-    from .clip_allowance import _named
+    from .clip import _named
     surface = _surface_labels(buffers)
     n = np.diff(arrays["cs_offsets"].astype(np.int64)).reshape(surface.shape)
     prim = np.asarray(buffers["prim_id"], np.int64)
@@ -459,8 +459,8 @@ def _clip_value_entries(scene, raster, arrays, eps, keys):
     among the scene's draws) and, in a cutaway, the entries that are or may be cut surfaces
     (``cs_flag`` ≠ 0: normal and colour come from the cutaway depth D's gradient, whose
     variants are bounded elsewhere) for normal and colour."""
-    from ..raster import prepare
-    from .clip_allowance import CLIP_VALUES
+    from ...raster import prepare
+    from .clip import CLIP_VALUES
     cam = scene.camera
     meshes = [d.mesh for d in scene.draws]
     models = [d.model for d in scene.draws]
@@ -503,7 +503,7 @@ def _clip_value_outside(key, cand, arrays, others, step):
     the value must be what that entry's face may show (``cs_<buffer>``); the golden's face
     elsewhere is held by the ``interval`` / ``angle`` check, a face outside the set by the id
     check."""
-    from .clip_allowance import CLIP_VALUES, _named
+    from .clip import CLIP_VALUES, _named
     h, w = arrays["cs_bg"].shape
     named = None
     if others is not None and "prim_id" in others and "object_id" in others:
@@ -554,8 +554,8 @@ def face_sets(scene, raster, id_may, eps):
     of being free there. Barycentrics of faces in front of the eye come from the allowed
     snappings (:func:`_snap_barycentrics`), all of a sliver's values from its vertices
     (:func:`_sliver_bounds`)."""
-    from ..raster import prepare
-    from ..tolerance import may_faces
+    from ...raster import prepare
+    from ...conformance import may_faces
     cam = scene.camera
     meshes = [d.mesh for d in scene.draws]
     models = [d.model for d in scene.draws]
@@ -577,8 +577,8 @@ def entry_values(scene, raster, prep, pix, faces, eps):
     prepared draws of ``scene.draws``, ``pix`` flat pixel indices, ``faces`` global face ids.
     Shared by the face sets of plain scenes and the clip sets of clip-surface and cutaway
     scenes (:func:`_clip_value_entries`)."""
-    from ..framebuffer import _build
-    from ..tolerance import _depth_slacks, _face_facing, fragile_faces
+    from ...framebuffer import _build
+    from ...conformance import _depth_slacks, _face_facing, fragile_faces
     h, w = prep.height, prep.width
     # sample points: the centre and the corners of the square of half-side eps (⊇ the ε-disc);
     # every value here is quasi-linear (affine or a ratio of affine functions of the point), so
@@ -799,8 +799,8 @@ def _sliver_bounds(out, facing, fragile, prep, raster, scene, faces, px, py, bet
     (``θ_v`` the cone of the eye-position box). A facing is free (−1) only where both signs can
     cover ``p``.
     """
-    from ..framebuffer import PALETTE, _build
-    from ..raster.gbuffer import AMBIENT, DIFFUSE, SHININESS, SPECULAR
+    from ...framebuffer import PALETTE, _build
+    from ...raster.gbuffer import AMBIENT, DIFFUSE, SHININESS, SPECULAR
     idx = np.flatnonzero(fragile)
     g = faces[idx]
     m = len(idx)
@@ -838,7 +838,7 @@ def _sliver_bounds(out, facing, fragile, prep, raster, scene, faces, px, py, bet
     nrm = fb.normal.astype(np.float64)
     obj, _ = prep.split(g)
     if raster["normals"] == "smooth":
-        from ..framebuffer import _normal_matrix, _normals_per_mesh
+        from ...framebuffer import _normal_matrix, _normals_per_mesh
         vn = np.concatenate(_normals_per_mesh(prep.meshes, normals)).astype(np.float64)
         nmat = np.stack([_normal_matrix(prep.view, mm) for mm in prep.models])
         u = np.einsum("mij,mkj->mki", nmat[obj], vn[vid])
@@ -1034,7 +1034,7 @@ def _allowed_at(key, spec, arrays, outside, r, c, named, step):
             said.append(f"interval [{_fmt(arrays[spec['lo']][r, c] - step)}, "
                         f"{_fmt(arrays[spec['hi']][r, c] + step)}]")
         elif name == "clip":
-            from .clip_allowance import clip_allowed
+            from .clip import clip_allowed
             said.append(clip_allowed(key, arrays, r, c, step=step))
         elif name == "layers":
             from .layers import layers_allowed
@@ -1100,7 +1100,7 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
     (metrics, checks, images) as :func:`refraster.golden.metrics.buffer_metrics`, plus
     ``metrics["outside"]`` (pixels outside the allowance per check) and ``images["may"]``.
     """
-    from .metrics import _elementwise_error, buffer_metrics
+    from ..compare.metrics import _elementwise_error, buffer_metrics
     ref = np.asarray(reference)
     cand = np.asarray(candidate)
     id_may = arrays["id_may"]
@@ -1145,7 +1145,7 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
                 bad = ~((cand.astype(np.float64) >= lo) & (cand.astype(np.float64) <= hi))
             outside["bounds"] = bad.any(axis=2) if bad.ndim == 3 else bad
         elif name == "clip":
-            from .clip_allowance import CLIP_VALUES, clip_outside
+            from .clip import CLIP_VALUES, clip_outside
             outside["clip"] = (_clip_value_outside(key, cand, arrays, others, step)
                                if key in CLIP_VALUES else
                                clip_outside(key, cand, arrays, others, step=step,
@@ -1167,7 +1167,7 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
         bad |= images["over"] & ~images["forgiven"]
     else:
         mse = float(np.mean(err_el ** 2)) if err_el.size else 0.0
-        from .buffers import peak
+        from ..io.buffers import peak
         p = peak(ref, kind)
         psnr = math.inf if mse == 0 else (-math.inf if not math.isfinite(mse)
                                           else 10.0 * math.log10(p * p / mse))

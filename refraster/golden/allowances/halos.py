@@ -62,7 +62,7 @@ HALO_CHECKS = {"halo_class": ("halo_class_lo", "halo_class_hi"),
 
 
 def _surface(maps):
-    from ..halos4d import Surface4D
+    from ...halos4d import Surface4D
     v = np.asarray(maps["surface_vertices4d"], np.float64)
     return Surface4D(v, np.asarray(maps["surface_faces"], np.int64),
                      np.asarray(maps["surface_tangents"], np.float64).reshape(len(v), 2, 4),
@@ -74,9 +74,9 @@ def render_variant(surface, p, *, dsw=0.0, ddt=0.0, eps_scale=1.0, dz=0.0, dxy=(
     """One halo render of the scene's parameters ``p`` with a threshold or sample shift.
     Returns (color (H, W, 3), alpha (H, W), volume (N, H, W)) float64 / int8, and with
     ``voxels`` each drawn voxel's (r, g, b, α) (N, H, W, 4) (zero where not drawn)."""
-    from ..halos4d.render import (_render_bands, _screen_bounds, _bin_bands, BAND_ROWS,
+    from ...halos4d.render import (_render_bands, _screen_bounds, _bin_bands, BAND_ROWS,
                                   prepare, slice_alpha)
-    from ..halos4d.slicing import SUBPIXEL_BITS, _slice, ortho_ndc, setup_window
+    from ...halos4d.slicing import SUBPIXEL_BITS, _slice, ortho_ndc, setup_window
     w, h, n = int(p["width"]), int(p["height"]), int(p["slices"])
     geo, rho = prepare(surface, rotation=np.asarray(p["rotation"], np.float64),
                        projection=p["projection"], rho=p.get("rho"))

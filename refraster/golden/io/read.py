@@ -33,8 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validate import MAX_PIXELS, MAX_SIDE
-from .common import CandidateError, GoldenError
+from ..._validate import MAX_PIXELS, MAX_SIDE
+from .errors import CandidateError, GoldenError
 from .schema import (MANIFEST_SCHEMA, MANIFEST_SCHEMA_OLDEST, MANIFEST_SCHEMA_VERSION, SCENE_SCHEMA,
                      SCENE_SCHEMA_VERSION, SchemaError, check_version, is_safe_relpath,
                      validate)
@@ -509,10 +509,10 @@ def allowance_arrays(golden_dir, manifest, name):
                        "set_normal_angle", "draw_offsets"]
             needed += [n for pair in _SET_INTERVAL_NAMES for n in pair]
         if "layers" in t.get("checks", ()):
-            from .layers import LAYER_ARRAYS
+            from ..allowances.layers import LAYER_ARRAYS
             needed += list(LAYER_ARRAYS)
         if "clip" in t.get("checks", ()):
-            from .clip_allowance import CLIP_ARRAYS, CLIP_VALUES
+            from ..allowances.clip import CLIP_ARRAYS, CLIP_VALUES
             needed += list(CLIP_ARRAYS)
             if key in CLIP_VALUES:   # the values of the entries the candidate names
                 needed += list(CLIP_VALUES[key]) + ["golden_face", "golden_object",
@@ -520,13 +520,13 @@ def allowance_arrays(golden_dir, manifest, name):
         missing = [n for n in needed if n not in arrays]
         if missing:
             raise GoldenError(f"golden {spec['file']}: buffer {key!r} needs arrays {missing}")
-    from .allowance import check_face_sets
+    from ..allowances.core import check_face_sets
     shape = next(iter(entry["buffers"].values()))["shape"] if entry["buffers"] else [0, 0]
     try:
         check_face_sets(arrays, shape[0], shape[1])
-        from .layers import check_layer_arrays
+        from ..allowances.layers import check_layer_arrays
         check_layer_arrays(arrays, shape[0], shape[1])
-        from .clip_allowance import check_clip_arrays
+        from ..allowances.clip import check_clip_arrays
         check_clip_arrays(arrays, shape[0], shape[1])
     except (ValueError, KeyError) as exc:
         raise GoldenError(f"golden {spec['file']}: {exc}") from None

@@ -34,9 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import io as rio
-from .buffers import preview, preview_range
-from . import write
+from ... import io as rio
+from ..io.buffers import preview, preview_range
+from ..io import write
 
 __all__ = ["write_report", "check_report_dir", "difference_image", "mask_image", "crop_box",
            "crop_zoom", "magnify", "failing_pixels", "scene_order", "CROP_MAX", "CROP_PAD",
@@ -409,7 +409,7 @@ def _typed(a):
 
 def _crop_data(b, box, bad):
     """The crop's values for the page's read-out: JSON metadata and the arrays, deflated."""
-    from .allowance import _angle
+    from ..allowances.core import _angle
     from .metrics import local_variation
     r0, r1, c0, c1 = box
     sl = (slice(r0, r1), slice(c0, c1))
@@ -429,7 +429,7 @@ def _crop_data(b, box, bad):
         if "angle" in al:
             arrays["angle_value"] = _angle(ref, cand)
         if "sets" in al:   # where the id may differ: what the face check admits, in words
-            from .allowance import face_allowed
+            from ..allowances.core import face_allowed
             may = np.asarray(al["id_may"])
             meta["face"] = [face_allowed(b.name, al["sets"], r, c, al["named"], al["step"])
                             if may[r, c] else None

@@ -18,11 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import io as rio
-from ..io import npy_bytes, npz_bytes
-from ..camera import is_perspective, near_far
-from ..framebuffer import PALETTE
-from ..raster.gbuffer import AMBIENT, DIFFUSE, SHININESS, SPECULAR
+from ... import io as rio
+from ...io import npy_bytes, npz_bytes
+from ...camera import is_perspective, near_far
+from ...framebuffer import PALETTE
+from ...raster.gbuffer import AMBIENT, DIFFUSE, SHININESS, SPECULAR
 from .schema import SCENE_SCHEMA, SCENE_SCHEMA_VERSION, validate
 
 __all__ = ["export_package", "scene_document", "npz_bytes", "npy_bytes", "sha256_file",

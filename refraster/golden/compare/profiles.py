@@ -28,7 +28,7 @@ Profiles
 
 from __future__ import annotations
 
-from .schema import SchemaError, validate, _TOLERANCE
+from ..io.schema import SchemaError, validate, _TOLERANCE
 
 __all__ = ["PROFILES", "default_tolerances", "parse_override", "apply_overrides", "TOLERANCE_KEYS"]
 

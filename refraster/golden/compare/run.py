@@ -20,16 +20,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .buffers import peak, png_decode  # noqa: F401  (old names importable from here)
-from .common import EXIT_FAIL, EXIT_PASS, EXIT_UNUSABLE, CandidateError, GoldenError
+from ..io.buffers import peak, png_decode  # noqa: F401  (old names importable from here)
+from ..io.errors import EXIT_FAIL, EXIT_PASS, EXIT_UNUSABLE, CandidateError, GoldenError
 from .domain import domain_checks
 from .metrics import (_elementwise_error, _offsets, buffer_metrics, local_variation,  # noqa: F401
                       pixel_error, position_deviation)
-from .read import (_check_candidate, _inside, _manifest_paths, load_candidate,  # noqa: F401
+from ..io.read import (_check_candidate, _inside, _manifest_paths, load_candidate,  # noqa: F401
                    load_manifest)
-from .read import allowance_arrays as _read_allowances
-from .read import reference_buffers as _read_reference
-from .tolerance import PROFILES, apply_overrides, parse_override
+from ..io.read import allowance_arrays as _read_allowances
+from ..io.read import reference_buffers as _read_reference
+from .profiles import PROFILES, apply_overrides, parse_override
 
 __all__ = ["GoldenError", "CandidateError", "BufferResult", "SceneResult", "Comparison",
            "compare", "load_manifest", "load_candidate", "pixel_error", "position_deviation",
@@ -294,7 +294,7 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
         The golden directory, the arguments or the report directory are unusable.
     """
     golden_dir, candidate_dir = Path(golden_dir), Path(candidate_dir)
-    from .write import recover
+    from ..io.write import recover
     recover(golden_dir)  # a swap a killed generate left half-done (journal fallback)
     if mode is not None and mode not in MODES:
         raise GoldenError(f"mode must be one of {MODES}, got {mode!r}")
@@ -360,7 +360,7 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
         coverage = _candidate_coverage(cand, entry["buffers"])
         named = None
         if allow is not None and coverage is not None:
-            from .allowance import named_entries
+            from ..allowances.core import named_entries
             obj = cand["object_id"][0] if "object_id" in cand else None
             named = named_entries(allow, cand["prim_id"][0],
                                   obj if obj is not None and obj.ndim == 2 else None)
@@ -376,7 +376,7 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
                 raise GoldenError(str(exc)) from None
             a, source, step, raw = cand[key]
             if allow is not None:
-                from .allowance import tolerant_metrics
+                from ..allowances.core import tolerant_metrics
                 clear = entry["parameters"]["raster"].get("clear_depth", 1.0)
                 metrics, checks, images = tolerant_metrics(
                     key, ref[key], a, spec["kind"], spec["tolerant"], allow, clear_depth=clear,

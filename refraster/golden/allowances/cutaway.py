@@ -216,7 +216,7 @@ def _floor_slope_max(seeded, cam, p, kw):
     """The largest floor-side slope m_f any seed may have: θ_f depends on the pixel only (φ is
     the angle of the pixel's ray to the floor), and m_f = −(P₂₂ + z)/tan θ_f is linear in z, so
     its largest value over the pixels that may be seeds is at z = −1 or z = +1."""
-    from ..cutaway.surface import as_angles, seed_slopes
+    from ...cutaway.surface import as_angles, seed_slopes
     theta = np.full(seeded.shape, float(np.min(as_angles(p["angle"]))))
     out = 0.0
     for z in (-1.0, 1.0):
@@ -232,7 +232,7 @@ def _floor_slope_max(seeded, cam, p, kw):
 
 def cutaway_bounds(scene, eps):
     """``(lo, hi)`` float32 (H, W): the window-depth interval of the cutaway depth D."""
-    from ..cutaway.surface import cutaway_surface, pixel_ndc
+    from ...cutaway.surface import cutaway_surface, pixel_ndc
     p = scene.parameters
     cam = scene.camera
     big, big_seed, small, small_seed, least = _seed_images(scene, set(p["interest"]), eps,
@@ -264,8 +264,8 @@ def cutaway_bounds(scene, eps):
     if proven:
         # proven: the interval flood follows every seed image between the smallest and the
         # largest, and every float evaluation within the slack (interval_flood)
-        from ..cutaway.flood import step_schedule
-        from ..cutaway.surface import seed_slopes, tangent_sampling
+        from ...cutaway.flood import step_schedule
+        from ...cutaway.surface import seed_slopes, tangent_sampling
         z_lo = np.where(small_seed, 2.0 * small - 1.0, 2.0 * least - 1.0)
         z_hi = 2.0 * big - 1.0
         theta = np.full(big.shape, float(np.min(p["angle"])))
@@ -299,7 +299,7 @@ def cutaway_bounds(scene, eps):
     else:
         # measured, not proven (local angles per object: not followed by interval_flood): the
         # floods of the smallest, the largest and refraster's own rear hull
-        from .. import render
+        from ... import render
         draws = [d for d in scene.draws if d.name in set(p["interest"])]
         rear = render([d.mesh for d in draws], **cam.kwargs, model=[d.model for d in draws],
                       depth_func="greater", clear_depth=0.0)

@@ -82,7 +82,7 @@ class _Alpha:
     """The ghost opacity of D-C11 with its float32 gap allowance."""
 
     def __init__(self, proj, g_max, fade):
-        from ..cutaway.surface import ndc_to_eye_depth
+        from ...cutaway.surface import ndc_to_eye_depth
         self.e = lambda z: ndc_to_eye_depth(np.clip(z, -1.0, 1.0), proj)
         self.g, self.fade = float(g_max), bool(fade)
 
@@ -166,7 +166,7 @@ def _sure_fragments(whole, eps, h, w):
 def ghost_bounds(scene, arrays, eps):
     """``(lo, hi)`` float32 (H, W) of the ghost opacity, or ``None`` when the scene's ghost is
     not the line variant. ``arrays`` must hold ``cutaway_depth_lo/_hi`` and the ``cs_*`` sets."""
-    from ..cutaway.lines import feature_segments, segment_pieces
+    from ...cutaway.lines import feature_segments, segment_pieces
     p = scene.parameters or {}
     if p.get("ghost", "lines") != "lines":
         return None
@@ -178,7 +178,7 @@ def ghost_bounds(scene, arrays, eps):
     secondary = [d for d in scene.draws if d.name in set(p["secondary"])]
     g_max = p.get("ghost_distance")
     meshes = []
-    from ..mesh import Mesh
+    from ...mesh import Mesh
     for d in secondary:
         v = np.asarray(d.mesh.vertices, np.float64)
         v = (np.c_[v, np.ones(len(v))] @ np.asarray(d.model, np.float64).T)[:, :3]

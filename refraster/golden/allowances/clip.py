@@ -47,7 +47,7 @@ CLIP_BUFFERS = ("prim_id", "object_id", "depth", "eye_depth", "front_facing", "c
 
 
 def _surfaces(scene):
-    from ..clipsurface import ClipSurface
+    from ...clipsurface import ClipSurface
     out = []
     for s in scene.parameters["surfaces"]:
         om = scene.maps[s["offset_map"]] if s.get("offset_map") else None
@@ -84,11 +84,11 @@ def _lookup_error(surface, points):
 
 def clip_allowances(scene, raster, eps, eye_budget):
     """The ``cs_*`` arrays of a clip-surface scene (see the module docstring)."""
-    from ..clipsurface import clip_function
-    from ..clipsurface.render import _cached_cap, _solid_tests
-    from ..ldi import VolumetricDepthSprite
-    from ..mesh import Mesh, bounds
-    from ..raster.fragments import vertices_in
+    from ...clipsurface import clip_function
+    from ...clipsurface.render import _cached_cap, _solid_tests
+    from ...ldi import VolumetricDepthSprite
+    from ...mesh import Mesh, bounds
+    from ...raster.fragments import vertices_in
     from .layers import covering_entries
     p = scene.parameters
     cam = scene.camera
@@ -177,7 +177,7 @@ def _eye_interval(lo, hi, proj, budget):
     (perspective ``P₂₃/(z_ndc + P₂₂)``, orthographic ``(P₂₃ − z_ndc)/P₂₂``), so its bounds are its
     values at the bounds, widened by plain rendering's float32 eye-depth budget ``(abs, rel)``
     (:data:`refraster.golden.allowance.EYE_DEPTH_ABS`, ``EYE_DEPTH_REL``)."""
-    from ..camera import is_perspective
+    from ...camera import is_perspective
     eye_abs, eye_rel = budget
     proj = np.asarray(proj, np.float64)
     ends = []
@@ -200,7 +200,7 @@ def _eye_interval(lo, hi, proj, budget):
 
 def _winners(prep, pix, faces, sure, fragile, lo, hi, state, flag, h, w, eye_budget):
     """The ``cs_*`` arrays from per-entry keep states (0 never, 1 may be, 2 surely kept)."""
-    from ..tolerance import _face_facing
+    from ...conformance import _face_facing
     offs = np.asarray(prep.face_offsets, np.int64)
     # which entries may win: may be kept, and not behind the nearest sure one
     zsure = np.full(h * w, np.inf)
@@ -233,7 +233,7 @@ def cutaway_allowances(scene, raster, eps, d_lo, d_hi, eye_budget):
     minimum filter monotone, it is surely kept where its least depth is ≥ the largest cut
     depth, surely cut where its largest depth is < the least, else either. Objects of
     interest are always kept. The flag is "a back face of a secondary object" (``cut_mask``)."""
-    from ..cutaway.surface import min_filter_3x3
+    from ...cutaway.surface import min_filter_3x3
     from .layers import covering_entries
     p = scene.parameters
     cam = scene.camera
@@ -269,7 +269,7 @@ def cutaway_allowances(scene, raster, eps, d_lo, d_hi, eye_budget):
 
 
 def _face_facing_of(prep, faces, fragile):
-    from ..tolerance import _face_facing
+    from ...conformance import _face_facing
     f = _face_facing(prep.triangles)[faces].astype(np.int8)
     f[fragile[faces]] = -1
     return f

@@ -55,7 +55,7 @@ import threading
 import time
 from pathlib import Path
 
-from .common import GoldenError
+from .errors import GoldenError
 
 __all__ = ["HOOKS", "RefusedError", "LockedError", "Terminated", "locked", "snapshot",
            "make_tree", "commit_tree", "recover", "clean_debris", "discard_tree", "Outputs",

@@ -57,7 +57,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .._config import JIT
+from ..._config import JIT
 
 __all__ = ["edge_map_bounds", "npr_color_bounds", "npr_supported", "supported"]
 
@@ -350,7 +350,7 @@ def _depth_op_kernel(method, zlo, zhi, k_z, lo, hi):
 def _options(arrays, buffers, near, far):
     """Per G-buffer pixel, its options as CSR: normal cone, linear-depth interval,
     background; ``free`` where nothing bounds the pixel."""
-    from ..tolerance import MUST, MUST_NOT
+    from ...conformance import MUST, MUST_NOT
     normal = np.asarray(buffers["normal"], np.float64)
     h, w = normal.shape[:2]
     cov = np.asarray(arrays["coverage"])

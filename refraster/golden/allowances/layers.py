@@ -38,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .._config import JIT
+from ..._config import JIT
 
 __all__ = ["ldi_allowances", "layers_outside", "layers_allowed", "LAYER_ARRAYS"]
 
@@ -52,7 +52,7 @@ LAYER_BUFFERS = {"layer_depth": "depth", "layer_prim_id": "prim_id",
 def _covering_faces(prep, eps):
     """Per pixel, every face (hidden ones included) whose footprint dilated by ``eps`` covers
     the centre: :func:`refraster.tolerance.may_faces` without its visibility test."""
-    from ..tolerance import DEPTH_EPS, _depth_slacks, _set_pass, fragile_faces
+    from ...conformance import DEPTH_EPS, _depth_slacks, _set_pass, fragile_faces
     w, h = prep.width, prep.height
     p = prep.triangles
     scale = float(1 << p.subpixel_bits)
@@ -157,7 +157,7 @@ def covering_entries(meshes, models, camera, cull, eps, with_beta=False):
     ``lo``/``hi`` float64 (±inf where a sliver's or degenerate face's depth is free);
     ``with_beta``: also the perspective-correct barycentrics ``(E, 5, 3)`` at the centre and
     the corners of the ε-square."""
-    from ..raster import prepare
+    from ...raster import prepare
     from .homogeneous import corner_samples
     h, w = camera.height, camera.width
     prep = prepare(meshes, **camera.kwargs, model=models, cull=cull)
@@ -174,8 +174,8 @@ def covering_entries(meshes, models, camera, cull, eps, with_beta=False):
 
 def ldi_allowances(scene, raster, eps, k_max, clear=1.0):
     """The ``ldi_*`` arrays of a layered-depth-image scene (see the module docstring)."""
-    from ..raster import prepare
-    from ..tolerance import _face_facing
+    from ...raster import prepare
+    from ...conformance import _face_facing
     from .homogeneous import corner_samples
     cam = scene.camera
     meshes = [d.mesh for d in scene.draws]

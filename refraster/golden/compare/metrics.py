@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 
-from .buffers import peak
-from .common import GoldenError
+from ..io.buffers import peak
+from ..io.errors import GoldenError
 
 __all__ = ["pixel_error", "local_variation", "position_deviation", "buffer_metrics",
            "elementwise_error"]
