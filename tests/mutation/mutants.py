@@ -129,7 +129,8 @@ MUTANTS = [
            "refraster/clipsurface/surfaces.py", "        if enabled[k] and k != skip:",
            "        if enabled[k] and (k < skip or skip < 0):", CLIP_ALL),
     Mutant("compare_skips_bary", "golden", "compare skips the barycentric buffer",
-           "refraster/golden/compare/run.py", "        for key, spec in entry[\"buffers\"].items():",
+           "refraster/golden/compare/run.py",
+           "        for key, spec in entry[\"buffers\"].items():",
            "        for key, spec in [(k, v) for k, v in entry[\"buffers\"].items()\n"
            "                          if k != \"barycentric\"]:", GOLD, fast=True,
            ci=["tests/test_golden.py::test_every_stored_buffer_is_compared"]),
@@ -249,7 +250,8 @@ MUTANTS = [
            "Δz/(2·w_s·ρ)", HREN, "(spacing / (2.0 * surface_width * rho))",
            "(spacing / (surface_width * rho))", H4),
     Mutant("golden_deviation_one_way", "golden", "position-deviation compare accepts either "
-           "direction (`&` → `|`), as a one-way check would", "refraster/golden/compare/metrics.py",
+           "direction (`&` → `|`), as a one-way check would",
+           "refraster/golden/compare/metrics.py",
            "            & _matched_within(reference, candidate, thr, radius))",
            "            | _matched_within(reference, candidate, thr, radius))", GOLD),
     Mutant("allowance_across_surfaces", "golden", "allowance step measured across different "

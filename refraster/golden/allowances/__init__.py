@@ -9,6 +9,7 @@ check; one module per technique bounds that technique's output by its own arithm
 :mod:`~refraster.golden.allowances.edges` (edge maps and the NPR composite),
 :mod:`~refraster.golden.allowances.cutaway` (the cutaway depth D),
 :mod:`~refraster.golden.allowances.ghosts` (ghost lines) and
-:mod:`~refraster.golden.allowances.halos` (4D halos); :mod:`~refraster.golden.allowances.homogeneous`
-is the leaf they share. Why they live here and not beside each technique: docs/architecture.md.
-Import the modules themselves; this package re-exports nothing."""
+:mod:`~refraster.golden.allowances.halos` (4D halos);
+:mod:`~refraster.golden.allowances.homogeneous` is the leaf they share. Why they live here and
+not beside each technique: ``docs/architecture.md``, "The goldens". Import the modules
+themselves; this package re-exports nothing."""
