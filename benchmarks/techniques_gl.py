@@ -16,7 +16,7 @@ Run from the repository root: ``python -m benchmarks.techniques_gl [--quick]``.
    at 512² (Burns & Finkelstein), the spun trefoil's 4D halos, 256 slices at 512² (Wang et al.
    Table 1). ``--techniques-only`` runs these alone.
 
-All scenes go through scene packages (:func:`refraster.golden.package.export_package`), as a
+All scenes go through scene packages (:func:`refraster.golden.io.package.export_package`), as a
 GPU team's would. refraster runs with 2 Numba threads in this process; refraster.gl runs in a
 process of its own with ``LP_NUM_THREADS=2`` and ``GLIBC_TUNABLES=glibc.malloc.trim_threshold=
 4294967296`` (malloc trimming costs llvmpipe about 40 % on large frames: /work/shared/LLVMPIPE.md).

@@ -61,7 +61,7 @@ class GoldenFixture:
     def package(self, scene):
         """Directory of ``scene``'s package (``scene.json``, ``meshes/``, ``maps/``), validated
         again on every call: ``scene.json`` against its schema, every file it names listed in
-        the manifest and matching its sha256 (:func:`refraster.golden.read.check_package`)."""
+        the manifest and matching its sha256 (:func:`refraster.golden.io.read.check_package`)."""
         from .golden.io.read import GoldenError, check_package
         entry = self._entry(scene)
         try:

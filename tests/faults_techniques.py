@@ -96,8 +96,8 @@ def fault_table(golden_dir, scene, *, buffers=None, seed=SEED, admits=None):
 
 def layers_admits(key, kind, spec, arrays, ref, cand, named, others):
     """Where the ``layers`` allowance admits the faulty value — written from the module
-    docstring of :mod:`refraster.golden.layers`, pixel by pixel, not with its code: the entry
-    the layer's id names (the candidate's ids) holds the depth / facing, the id is one of the
+    docstring of :mod:`refraster.golden.allowances.layers`, pixel by pixel, not with its code: the
+    entry the layer's id names (the candidate's ids) holds the depth / facing, the id is one of the
     pixel's faces and no face that must show went missing, the count lies in its bounds and
     agrees with the layers shown. ``None`` for other checks."""
     if "layers" not in spec["checks"]:
@@ -219,7 +219,7 @@ def bounds_admits(key, kind, spec, arrays, ref, cand, named, others):
 
 def clip_admits(key, kind, spec, arrays, ref, cand, named, others):
     """Where the ``clip`` allowance admits the faulty value, pixel by pixel from the module
-    docstring of :mod:`refraster.golden.clip_allowance`: the candidate's (object_id, prim_id)
+    docstring of :mod:`refraster.golden.allowances.clip`: the candidate's (object_id, prim_id)
     names an entry of the pixel's set (or the pixel is background where the background may
     show), and its depth, facing and mask flag (a cap face; a secondary back face) are that
     entry's."""

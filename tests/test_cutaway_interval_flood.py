@@ -1,5 +1,5 @@
 """D's lower bound is a proof, not a measurement (issue 20, item 4; docs/tolerance.md, "Cutaways"):
-``refraster.golden.cutaway_bounds.interval_flood`` bounds from below every jump flood over every
+``refraster.golden.allowances.cutaway.interval_flood`` bounds from below every jump flood over every
 seed image between the smallest and the largest. Brute force: hundreds of random seed images
 (sure seeds always, uncertain seeds at random, every depth drawn from its interval, the slope
 affine in the depth as perspective compensation makes it) flooded by refraster's own

@@ -89,7 +89,7 @@ def test_technique_allowances_meet_the_aims(tables, scene):
     assert not wrong, wrong
 
 
-# --- layered depth images (refraster/golden/layers.py) ------------------------------------------
+# --- layered depth images (refraster/golden/allowances/layers.py) ---------------------------------
 
 LDI = "ldi_nested_shells"
 #: Conformant variants of refraster's own peeling the LDI golden must accept (specificity).
@@ -215,7 +215,7 @@ def test_corrupt_ldi_arrays_are_refused(gold, tmp_path):
         compare(g, root, mode="tolerant", scenes=[LDI])
 
 
-# --- edge maps (refraster/golden/edge_bounds.py) -------------------------------------------------
+# --- edge maps (refraster/golden/allowances/edges.py) ---------------------------------------------
 
 EDGES = "edges_building"
 
@@ -333,7 +333,7 @@ def test_one_edge_pixel_moved_fails_naming_the_pixel(gold, tmp_path, scene_name)
 def _sample_gbuffer(arrays, buffers, near, far, rng):
     """A random G-buffer inside the golden's allowances: per pixel one of its options (a normal
     turned by up to the option's half-angle, a depth anywhere in the pixel's interval, often at
-    an end), or the background — what :func:`refraster.golden.edge_bounds` assumes."""
+    an end), or the background — what :func:`refraster.golden.allowances.edges` assumes."""
     from refraster.edges import EdgeGBuffer
     from refraster.golden.allowances.edges import _options
     off, nrm, ang, bg, zl, zh, free, _, _ = _options(arrays, buffers, near, far)
@@ -440,7 +440,7 @@ def test_npr_bounds_hold_random_gbuffers(gold):
     assert swapped_out > 100, swapped_out
 
 
-# --- cutaways (refraster/golden/cutaway_bounds.py) -----------------------------------------------
+# --- cutaways (refraster/golden/allowances/cutaway.py) --------------------------------------------
 
 CUT = "cutaway_shells"
 #: rear-hull raster variants × every flooding variant the scene accepts
@@ -558,7 +558,7 @@ def _cutaway_floor_depth(scene, raster, variant, floor=True):
 
 
 def test_cutaway_floor_bounds_both_directions(gold, tmp_path):
-    """The floor constraint's D bounds (golden/cutaway_bounds.py floods with the scene's floor):
+    """The floor constraint's D bounds (golden/allowances/cutaway.py floods with the scene's floor):
     every accepted variant over every rear hull of CUT_RASTER passes (refraster's own is
     bit-identical to the stored D); the same floods without the floor fail naming D."""
     from refraster.golden.compare.run import compare
@@ -581,7 +581,7 @@ def test_cutaway_floor_bounds_both_directions(gold, tmp_path):
         assert any(x.startswith(f"{FLOOR}/cutaway_depth: bounds") for x in fails), variant
 
 
-# --- clip surfaces (refraster/golden/clip_allowance.py) ------------------------------------------
+# --- clip surfaces (refraster/golden/allowances/clip.py) ------------------------------------------
 
 CLIPS = ["clipsurface_building", "clipsurface_textured_caps"]
 CLIP_KEYS = ["cap_mask", "depth", "eye_depth", "front_facing", "object_id", "prim_id",

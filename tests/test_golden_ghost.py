@@ -1,4 +1,5 @@
-"""The cutaway's ghost lines in the golden (issue 20, item 4; refraster/golden/ghost_bounds.py):
+"""The cutaway's ghost lines in the golden (issue 20, item 4;
+refraster/golden/allowances/ghosts.py):
 per-pixel opacity intervals from D's interval, the occluder's and the line's depth range.
 
 Both directions: ghost buffers recomputed over every accepted flooding variant's D (float64 and

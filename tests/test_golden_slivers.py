@@ -1,5 +1,5 @@
 """Bounds of what a face can show at a pixel centre under the allowed snappings
-(`refraster.golden.allowance._snap_barycentrics`, `_sliver_bounds`), against brute force and
+(`refraster.golden.allowances.core._snap_barycentrics`, `_sliver_bounds`), against brute force and
 hand-worked cases ("Goldens with teeth (1)", item 4 on the crank)."""
 
 import math

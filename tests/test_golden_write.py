@@ -1,5 +1,5 @@
 """Golden writes never destroy data (issue 17): every attack of the issue, the data that must
-survive it, races made deterministic with the hooks of :mod:`refraster.golden.write` (no
+survive it, races made deterministic with the hooks of :mod:`refraster.golden.io.write` (no
 sleeps) and crashes made by a hook that kills the process between two steps."""
 
 import ast

@@ -1,4 +1,4 @@
-"""The 4D-halo allowance ("Goldens with teeth (2)", item 5; refraster/golden/halo_allowance.py)
+"""The 4D-halo allowance ("Goldens with teeth (2)", item 5; refraster/golden/allowances/halos.py)
 in both directions.
 
 Specificity: conformant halo renders that the allowance was *not* built from pass the golden

@@ -2,10 +2,10 @@
 backend and write a candidate directory that ``golden compare`` reads.
 
 The backend sees only the scene packages (``<scene>/package/``); this module, on the command's
-side, reads and verifies the golden's manifest (:func:`refraster.golden.read.load_manifest`:
+side, reads and verifies the golden's manifest (:func:`refraster.golden.io.read.load_manifest`:
 schema, paths, sha256 of every file), hands each package to the backend, and writes
 ``OUT/<scene>/buffers.npz`` per rendered scene with the golden write rules
-(:mod:`refraster.golden.write`): under ``OUT``'s lock, into a temporary tree beside it, committed
+(:mod:`refraster.golden.io.write`): under ``OUT``'s lock, into a temporary tree beside it, committed
 by one atomic swap; ``OUT`` must be nothing, an empty directory or a candidate refraster wrote
 (its marker ``.refraster-candidate`` lists every file with its sha256, the scenes rendered, the
 scenes skipped and why, the backend and the renderer); it may not overlap the golden directory.
@@ -53,7 +53,7 @@ def candidate(golden_dir, out, *, backend="gl", scenes=None, faults=(), threads=
 
     Returns ``{"rendered": [names], "skipped": {name: reason}, "renderer": str}``. Raises
     :class:`GoldenError` (the golden, the backend or the output path is unusable) or
-    :class:`refraster.golden.write.RefusedError` (``out`` holds something else).
+    :class:`refraster.golden.io.write.RefusedError` (``out`` holds something else).
     ``faults`` (tests only) plants :data:`refraster.gl.FAULTS`.
     """
     golden_dir = Path(golden_dir)

@@ -3,12 +3,12 @@
 Layout of a golden directory::
 
     manifest.json                       index: scenes, buffers, tolerances, versions, sha256
-    <scene>/package/...                 the scene package (:mod:`refraster.golden.package`)
+    <scene>/package/...                 the scene package (:mod:`refraster.golden.io.package`)
     <scene>/buffers.npz                 the golden buffers (no pickle)
     <scene>/preview/<buffer>.png        pictures for humans
 
 The directory is built in a temporary sibling (``.<name>.tmp-…``) and swapped into place at the
-end by :mod:`refraster.golden.write` (under a lock, after checking that ``out`` still holds what
+end by :mod:`refraster.golden.io.write` (under a lock, after checking that ``out`` still holds what
 the run found, atomically), so a failure or an interruption never leaves a half-written golden;
 an existing golden is replaced only with ``update=True`` (and then scenes that were not
 regenerated are kept).
@@ -51,7 +51,7 @@ def versions():
 
 def swap_directory(tmp, out):
     """Move the finished ``tmp`` to ``out``, replacing what is there (kept for callers of the
-    old name): under ``out``'s lock, atomically (:func:`refraster.golden.write.commit_tree`);
+    old name): under ``out``'s lock, atomically (:func:`refraster.golden.io.write.commit_tree`);
     of the tree replaced only the files its manifest or report marker lists are deleted."""
     out = write.resolve_target(out)
     with write.locked(out, command="refraster"):
@@ -457,7 +457,7 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
         that fails twice makes the whole run fail (:class:`GenerationError`).
     wait : bool
         Another run writing ``out`` holds its lock: wait for it (default), or raise
-        :class:`refraster.golden.write.LockedError` naming it.
+        :class:`refraster.golden.io.write.LockedError` naming it.
     on_wait : callable, optional
         ``on_wait(holder)`` before waiting for the lock (``holder`` describes the other run).
     jobs : int
@@ -471,7 +471,7 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
         Counts the kernels the worker processes compile (the command's progress line).
 
     A symbolic link at ``out`` is followed: the golden it points to is updated, the link stays.
-    The run refuses (:class:`refraster.golden.write.RefusedError`, nothing deleted) if at the
+    The run refuses (:class:`refraster.golden.io.write.RefusedError`, nothing deleted) if at the
     end ``out`` no longer holds what it found (nothing, or the same golden).
 
     Returns

@@ -84,17 +84,17 @@ class GoldenScene:
     maps : dict of str → ndarray
         Offset maps, textures… exported as ``.npy`` and PNG in the package.
     kinds : dict of str → str
-        Buffer kind overrides (see :data:`refraster.golden.buffers.KINDS`).
+        Buffer kind overrides (see :data:`refraster.golden.io.buffers.KINDS`).
     tolerances : dict
         ``{buffer: {profile: {key: value}}}`` overrides of the default tolerances.
     geometry : bool
         True when the G-buffer channels among ``buffers`` are what
         :func:`refraster.render` makes of ``draws`` (then the geometric allowances of
-        :func:`refraster.tolerance.tolerance` apply); False for techniques that change
+        :func:`refraster.conformance.tolerance` apply); False for techniques that change
         visibility (a clip surface), whose allowances are dilated instead
-        (:mod:`refraster.golden.allowance`).
+        (:mod:`refraster.golden.allowances.core`).
     may : (H, W) bool, optional
-        The technique's own "may" pixels, e.g. :func:`refraster.tolerance.decision_may` of its
+        The technique's own "may" pixels, e.g. :func:`refraster.conformance.decision_may` of its
         per-fragment decision.
     may_radius : int
         Pixels the "may" region grows by for technique buffers: their filters' footprint.

@@ -8,7 +8,7 @@ volumetric parity test of its solid's sprite says inside (MATH.md §2.2) and no 
 clips it. A conformant GPU may differ in
 
 * **which faces cover the centre and their depth** — plain rendering's ε and float32 slack
-  (:func:`refraster.golden.layers.covering_entries`, hidden faces included);
+  (:func:`refraster.golden.allowances.layers.covering_entries`, hidden faces included);
 * **the clip decision** — only where ``|g|`` is within
   (a) Eq. 1 in float32: ``δ_a = 16·2⁻²⁴·(|P| + |O| + |Sz|)`` (P interpolated in float32, the dot
   product and the sum rounded),
@@ -176,7 +176,7 @@ def _eye_interval(lo, hi, proj, budget):
     """Eye depth (−z_eye) over a window-depth interval: the projection's map is monotone
     (perspective ``P₂₃/(z_ndc + P₂₂)``, orthographic ``(P₂₃ − z_ndc)/P₂₂``), so its bounds are its
     values at the bounds, widened by plain rendering's float32 eye-depth budget ``(abs, rel)``
-    (:data:`refraster.golden.allowance.EYE_DEPTH_ABS`, ``EYE_DEPTH_REL``)."""
+    (:data:`refraster.golden.allowances.core.EYE_DEPTH_ABS`, ``EYE_DEPTH_REL``)."""
     from ...camera import is_perspective
     eye_abs, eye_rel = budget
     proj = np.asarray(proj, np.float64)
@@ -229,7 +229,7 @@ def _winners(prep, pix, faces, sure, fragile, lo, hi, state, flag, h, w, eye_bud
 def cutaway_allowances(scene, raster, eps, d_lo, d_hi, eye_budget):
     """The ``cs_*`` arrays of a cutaway scene: a secondary fragment is cut iff its window depth
     is in front of D (front faces) or of the 3×3 minimum of D (back faces, with dilation);
-    with D in ``[d_lo, d_hi]`` (:mod:`refraster.golden.cutaway_bounds`, window depth) and the
+    with D in ``[d_lo, d_hi]`` (:mod:`refraster.golden.allowances.cutaway`, window depth) and the
     minimum filter monotone, it is surely kept where its least depth is ≥ the largest cut
     depth, surely cut where its largest depth is < the least, else either. Objects of
     interest are always kept. The flag is "a back face of a secondary object" (``cut_mask``)."""

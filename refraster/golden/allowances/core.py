@@ -1,7 +1,7 @@
 """Tolerant goldens: per-pixel allowances stored beside a scene's buffers, and the tolerant check.
 
 At ``golden generate`` every scene gets ``<scene>/tolerance.npz`` (listed in the manifest with
-its sha256) holding what a conformant GPU may do differently (:mod:`refraster.tolerance`):
+its sha256) holding what a conformant GPU may do differently (:mod:`refraster.conformance`):
 
 ==================  ===========  ================================================================
 array               dtype        meaning
@@ -10,7 +10,7 @@ array               dtype        meaning
 ``id_may``          bool         the visible primitive may differ (ids, facing and values free)
 ``may``             bool         the technique's own "may" region (decision boundaries, filter
                                  footprints); technique buffers are free there
-``depth_lo/_hi``    float32      window-depth interval (:func:`refraster.tolerance.tolerance`)
+``depth_lo/_hi``    float32      window-depth interval (:func:`refraster.conformance.tolerance`)
 ``<buf>_lo/_hi``    float32      value interval of ``eye_depth``, ``barycentric``, ``color``
 ``normal_angle``    float32      largest angle (radians) between reference and candidate normal
 ``set_offsets``     int32        face sets (plain renders): the faces that may win at pixel k are
@@ -33,7 +33,7 @@ without an interval of their own) and ``face`` (where the id may differ: the can
 How the arrays are derived
 --------------------------
 *Plain G-buffers* (``GoldenScene.geometry`` true: the buffers are what
-:func:`refraster.render` makes of the draws): :func:`refraster.tolerance.tolerance` gives the
+:func:`refraster.render` makes of the draws): :func:`refraster.conformance.tolerance` gives the
 coverage, id and depth allowances. Interpolated values (eye depth, barycentrics, normals,
 colour) may change by what a shift of the sample point by the edge ε does:
 ``base + 1.5 · ε · step`` where ``step`` is the largest change to a 4-neighbour showing the same
@@ -42,9 +42,9 @@ float32 budget: eye depth ``1e−5 + 4e−6·z``, barycentrics ``1e−3``, norma
 ``NORMAL_TOL`` (2e−3 rad), colour ``COLOR_TOL`` (2/255).
 
 *Technique scenes* whose G-buffer is not a plain render (a clip surface shows back faces):
-:func:`refraster.tolerance.edge_may` marks every edge of every drawn triangle (hidden ones
+:func:`refraster.conformance.edge_may` marks every edge of every drawn triangle (hidden ones
 included), the scene adds its decision boundary (``GoldenScene.may``, from
-:func:`refraster.tolerance.decision_may`), the union is dilated by one pixel for ids and coverage
+:func:`refraster.conformance.decision_may`), the union is dilated by one pixel for ids and coverage
 (coverage itself comes from the reference's ids) and values fall back to ``masked``.
 
 *Technique buffers* (anything that is not a G-buffer channel, e.g. an edge map): ``may`` is the
@@ -271,7 +271,7 @@ def scene_allowances(scene, raster):
             if key in _GBUFFER and "masked" not in spec["checks"]:
                 spec["checks"] = spec["checks"] + ["face"]
     if scene.technique == "edges" and "edge_map" in buffers and sets:
-        # edge maps: intervals propagated through the operator (golden/edge_bounds.py)
+        # edge maps: intervals propagated through the operator (golden/allowances/edges.py)
         from ...edges import fit_near_far
         from .edges import edge_map_bounds, npr_color_bounds, npr_supported, supported
         params = scene.parameters or {}
@@ -284,7 +284,7 @@ def scene_allowances(scene, raster):
             checks["edge_map"] = {"checks": ["bounds"], "lo": "edge_map_lo",
                                   "hi": "edge_map_hi"}
             if "npr_color" in buffers and npr_supported(params):
-                # the NPR composite over Gooch shading (golden/edge_bounds.py)
+                # the NPR composite over Gooch shading (golden/allowances/edges.py)
                 arrays["npr_color_lo"], arrays["npr_color_hi"] = npr_color_bounds(
                     arrays, buffers, params, near, far, arrays["edge_map_lo"],
                     arrays["edge_map_hi"])
@@ -292,7 +292,7 @@ def scene_allowances(scene, raster):
                                        "hi": "npr_color_hi"}
     if scene.technique == "cutaway" and "cutaway_depth" in buffers \
             and (scene.parameters or {}).get("accepted_variants"):
-        # cutaways: D_variant − slack ≤ D ≤ D_exact + slack (golden/cutaway_bounds.py)
+        # cutaways: D_variant − slack ≤ D ≤ D_exact + slack (golden/allowances/cutaway.py)
         from .cutaway import cutaway_bounds
         arrays["cutaway_depth_lo"], arrays["cutaway_depth_hi"], slack = cutaway_bounds(
             scene, tol.eps)
@@ -316,7 +316,7 @@ def scene_allowances(scene, raster):
                     checks["ghost"] = {"checks": ["bounds"], "lo": "ghost_lo", "hi": "ghost_hi"}
     if scene.technique == "clipsurface" and "cap_mask" in buffers \
             and raster["depth_func"] == "less" and scene.maps is not None:
-        # clip surfaces: the clip decision and cap parity bounded (golden/clip_allowance.py)
+        # clip surfaces: the clip decision and cap parity bounded (golden/allowances/clip.py)
         from .clip import CLIP_BUFFERS, clip_allowances
         arrays.update(clip_allowances(scene, raster, tol.eps, (EYE_DEPTH_ABS, EYE_DEPTH_REL)))
         for key in CLIP_BUFFERS:
@@ -335,7 +335,8 @@ def scene_allowances(scene, raster):
         # golden's face; free only where another face may win and the candidate names it
         _clip_value_checks(scene, raster, arrays, checks, buffers, tol.eps)
     if scene.technique == "ldi" and "layer_depth" in buffers:
-        # layered depth images: per-layer face sets and depth intervals (golden/layers.py)
+        # layered depth images: per-layer face sets and depth intervals
+        # (golden/allowances/layers.py)
         from .layers import LAYER_BUFFERS, ldi_allowances
         arrays.update(ldi_allowances(scene, raster, tol.eps, buffers["layer_depth"].shape[2],
                                      raster["clear_depth"]))
@@ -345,7 +346,7 @@ def scene_allowances(scene, raster):
     if scene.technique == "halos4d" and scene.maps is not None \
             and "surface_vertices4d" in scene.maps:
         # 4D halos: class range and alpha / colour intervals from the classification margins
-        # (golden/halo_allowance.py)
+        # (golden/allowances/halos.py)
         from .halos import HALO_CHECKS, halo_allowances
         arrays.update(halo_allowances(scene))
         for key, (lo, hi) in HALO_CHECKS.items():
@@ -452,7 +453,7 @@ def _golden_named(arrays, others):
 def _clip_value_entries(scene, raster, arrays, eps, keys):
     """Per entry of the clip sets (``cs_*``), what its face may show at its pixel, for the
     value buffers ``keys`` (of :data:`CLIP_VALUES`): the face sets' own derivation
-    (:func:`refraster.golden.allowance.entry_values`: the ε-square's corners, the allowed
+    (:func:`refraster.golden.allowances.core.entry_values`: the ε-square's corners, the allowed
     snappings' barycentrics, a sliver's bounds from its snapped vertices). Entries whose value
     is not the face's own shading are free (±inf, angle π): cap faces of a clip-surface scene
     (their normal and colour come from the cap shading and textures, their faces are not
@@ -546,10 +547,10 @@ from .homogeneous import corner_samples  # noqa: E402
 def face_sets(scene, raster, id_may, eps):
     """The face-set arrays of a plain-rendering scene (``GoldenScene.geometry``): for every
     pixel where the visible primitive may differ (``id_may``), the faces that may win there
-    (:func:`refraster.tolerance.may_faces`) and, per (pixel, face), what that face shows at the
+    (:func:`refraster.conformance.may_faces`) and, per (pixel, face), what that face shows at the
     pixel centre moved by up to ``eps`` — intervals of window depth, eye depth, barycentrics
     and colour, a normal with its angle, and the facing (−1 for a sliver,
-    :func:`refraster.tolerance.fragile_faces`, that an allowed snapping can flip while covering
+    :func:`refraster.conformance.fragile_faces`, that an allowed snapping can flip while covering
     the centre) — so a candidate is checked against the face its own ``prim_id`` names instead
     of being free there. Barycentrics of faces in front of the eye come from the allowed
     snappings (:func:`_snap_barycentrics`), all of a sliver's values from its vertices
@@ -1097,7 +1098,7 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
 
     Returns
     -------
-    (metrics, checks, images) as :func:`refraster.golden.metrics.buffer_metrics`, plus
+    (metrics, checks, images) as :func:`refraster.golden.compare.metrics.buffer_metrics`, plus
     ``metrics["outside"]`` (pixels outside the allowance per check) and ``images["may"]``.
     """
     from ..compare.metrics import _elementwise_error, buffer_metrics

@@ -11,8 +11,8 @@ of seeds.
 What a conformant GPU may change in the seeds is plain rendering's: which faces cover a pixel
 centre (the edge ε) and each face's depth there (the ε-square and the float32 slack). The
 golden takes the per-pixel faces whose ε-dilated footprint covers the centre with their depth
-intervals (:func:`refraster.golden.layers.covering_entries`, hidden faces included) and forms
-two seed images at the cutaway resolution:
+intervals (:func:`refraster.golden.allowances.layers.covering_entries`, hidden faces included)
+and forms two seed images at the cutaway resolution:
 
 * **largest**: every pixel some face may cover, at the largest depth any of them may show;
 * **smallest**: only pixels some face surely covers (ε to spare, not a sliver), at the least

@@ -10,7 +10,8 @@ its four diagonal neighbours A, C, F, H (clamp-to-edge) and X's own coverage::
 
 with ``n`` the decoded normal (0 on the background) and ``z`` the linear depth
 ``clamp((eye − near) / (far − near), 0, 1)`` (1 on the background). Per G-buffer pixel the
-golden's allowances say what a conformant GPU may show there (:mod:`refraster.golden.allowance`):
+golden's allowances say what a conformant GPU may show there
+(:mod:`refraster.golden.allowances.core`):
 where the visible face must agree, the reference normal within ``normal_angle`` and the eye depth
 in ``[eye_depth_lo, eye_depth_hi]``; where it may differ, any entry of the pixel's face set
 (its normal cone and eye-depth interval) or, where coverage may differ, the background. Each is

@@ -1,6 +1,7 @@
 """Perspective-correct barycentrics of faces at window points: a leaf module shared by the
-allowances of plain scenes (:mod:`refraster.golden.allowance`) and of the techniques
-(:mod:`refraster.golden.layers` and the modules built on it), so that none imports another."""
+allowances of plain scenes (:mod:`refraster.golden.allowances.core`) and of the techniques
+(:mod:`refraster.golden.allowances.layers` and the modules built on it), so that none imports
+another."""
 
 from __future__ import annotations
 

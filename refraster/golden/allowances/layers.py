@@ -5,7 +5,7 @@ fragments of every face the pixel's centre lies in, sorted by window depth, one 
 distinct depth (a fragment at exactly the depth of the previous layer merges into it: classic
 depth peeling with ``GL_LESS``), up to ``K`` layers. Another conformant rasterizer may differ
 only where the edge rules may (a face whose footprint passes within ``ε`` of the centre,
-:func:`refraster.tolerance.edge_epsilon`) and by the float32 depth of each fragment.
+:func:`refraster.conformance.edge_epsilon`) and by the float32 depth of each fragment.
 
 Stored per pixel (``tolerance.npz``, CSR like the face sets of plain scenes):
 
@@ -51,7 +51,7 @@ LAYER_BUFFERS = {"layer_depth": "depth", "layer_prim_id": "prim_id",
 
 def _covering_faces(prep, eps):
     """Per pixel, every face (hidden ones included) whose footprint dilated by ``eps`` covers
-    the centre: :func:`refraster.tolerance.may_faces` without its visibility test."""
+    the centre: :func:`refraster.conformance.may_faces` without its visibility test."""
     from ...conformance import DEPTH_EPS, _depth_slacks, _set_pass, fragile_faces
     w, h = prep.width, prep.height
     p = prep.triangles

@@ -68,7 +68,7 @@ def domain_checks(key, kind, reference, candidate, *, step=0.0, raw=None, covera
     Parameters
     ----------
     key, kind : str
-        Buffer name and kind (:mod:`refraster.golden.buffers`).
+        Buffer name and kind (:mod:`refraster.golden.io.buffers`).
     reference, candidate : arrays of the same shape
     step : float
         Quantisation step of the candidate's encoding (0 for exact files).
@@ -86,8 +86,8 @@ def domain_checks(key, kind, reference, candidate, *, step=0.0, raw=None, covera
     Returns
     -------
     list of dict
-        Check records as :func:`refraster.golden.compare.buffer_metrics` makes them, each with
-        ``ok = False``, the first offending ``pixel`` and a ``detail`` sentence.
+        Check records as :func:`refraster.golden.compare.metrics.buffer_metrics` makes them,
+        each with ``ok = False``, the first offending ``pixel`` and a ``detail`` sentence.
     """
     out = []
     c = np.asarray(candidate)

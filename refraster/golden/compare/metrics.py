@@ -1,8 +1,9 @@
 """Per-buffer metrics of a comparison: per-pixel error, local variation, the position-deviation
 compare, FLIP and the pass/fail checks of one buffer against a tolerance.
 
-Used by :mod:`refraster.golden.compare` (profile compare) and :mod:`refraster.golden.allowance`
-(the tolerant compare's fallback); it imports neither, so neither imports the other.
+Used by :mod:`refraster.golden.compare.run` (profile compare) and
+:mod:`refraster.golden.allowances.core` (the tolerant compare's fallback); it imports neither, so
+neither imports the other.
 """
 
 from __future__ import annotations
@@ -110,9 +111,9 @@ def buffer_metrics(reference, candidate, kind, tolerance, *, step=0.0, forgive=N
     ----------
     reference, candidate : (H, W) or (H, W, C) arrays of the same shape
     kind : str
-        Buffer kind (:mod:`refraster.golden.buffers`).
+        Buffer kind (:mod:`refraster.golden.io.buffers`).
     tolerance : dict
-        See :mod:`refraster.golden.tolerance`.
+        See :mod:`refraster.golden.compare.profiles`.
     step : float
         Quantisation step of the candidate's encoding; the threshold is raised to it.
     forgive : (H, W) bool, optional

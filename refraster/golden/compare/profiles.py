@@ -5,11 +5,11 @@ A tolerance is a dict::
     threshold         a pixel is "over" when its error (max over channels of |ref − cand|)
                       exceeds ``threshold + slope · local_variation(ref)``
     slope             in pixels: forgives the change a shift of ``slope`` pixels makes
-                      (:func:`refraster.golden.compare.local_variation`); 0 disables
+                      (:func:`refraster.golden.compare.metrics.local_variation`); 0 disables
     max_fraction      the largest allowed fraction of failing pixels
     deviation_radius  N ≥ 0: an "over" pixel is forgiven when a matching pixel lies within N
                       pixels (Chebyshev distance) in both directions — see
-                      :func:`refraster.golden.compare.position_deviation`; 0 disables
+                      :func:`refraster.golden.compare.metrics.position_deviation`; 0 disables
     max_abs           optional limit on the largest error of all pixels
     min_psnr          optional lower limit on PSNR (dB)
     max_flip_mean     optional limit on the mean FLIP error (colour buffers)

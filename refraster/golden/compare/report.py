@@ -18,7 +18,7 @@ compare mode and the golden's schema version. Every text taken from the comparis
 or a path is escaped (``html.escape``; JSON with ``<``, ``>`` and ``&`` as ``\\u`` escapes).
 
 The page and its PNGs (``img/``) are built in a temporary sibling directory and committed by
-:mod:`refraster.golden.write` (locked, atomic, replacing only a report refraster wrote), like a
+:mod:`refraster.golden.io.write` (locked, atomic, replacing only a report refraster wrote), like a
 golden.
 """
 
@@ -314,7 +314,7 @@ def mask_image(reference_preview, over, forgiven, may=None):
 def check_report_dir(report, golden_dir, candidate_dir):
     """Refuse a report directory that would write into (or replace) the golden or candidate
     directory, or that holds anything but a report refraster wrote
-    (:func:`refraster.golden.write.check_report_dir`)."""
+    (:func:`refraster.golden.io.write.check_report_dir`)."""
     return write.check_report_dir(report, golden_dir, candidate_dir)
 
 
@@ -705,7 +705,7 @@ def _page(root, comparison, manifest):
 def write_report(report_dir, comparison, manifest, *, outputs=None, wait=True):
     """Write ``index.html``, ``report.json`` and ``img/*.png`` into ``report_dir``; return it.
 
-    ``outputs`` (:class:`refraster.golden.write.Outputs`): stage the report there, to be
+    ``outputs`` (:class:`refraster.golden.io.write.Outputs`): stage the report there, to be
     committed with the command's other outputs; ``wait``: wait for another writer's lock."""
     out = Path(report_dir)
     tmp = write.make_tree(write.resolve_target(out, "report directory"))

@@ -3,10 +3,10 @@
 A candidate directory holds, per scene, either ``<scene>/buffers.npz`` (keys = buffer names,
 the golden's own layout, so a golden compares against itself) or one file per buffer:
 ``<scene>/<buffer>.npy`` or ``<scene>/<buffer>.png`` (PNG encodings in
-:mod:`refraster.golden.buffers`). Per scene and buffer the compare reports the largest error,
+:mod:`refraster.golden.io.buffers`). Per scene and buffer the compare reports the largest error,
 RMSE, PSNR, the fraction of pixels over the threshold, the fraction left after the
 position-deviation compare, and mean FLIP for colour; it checks them against the buffer's
-tolerance (:mod:`refraster.golden.tolerance`).
+tolerance (:mod:`refraster.golden.compare.profiles`).
 
 Nothing in the golden or candidate directory is ever written, moved or deleted.
 """
@@ -37,7 +37,7 @@ __all__ = ["GoldenError", "CandidateError", "BufferResult", "SceneResult", "Comp
            "buffer_metrics", "EXIT_PASS", "EXIT_FAIL", "EXIT_UNUSABLE", "MODES", "has_allowances",
            "buffer_allowance"]
 
-# The golden and the candidate are read by :mod:`refraster.golden.read` (no links followed,
+# The golden and the candidate are read by :mod:`refraster.golden.io.read` (no links followed,
 # headers first, scene packages validated); the old names stay importable from here.
 
 def _reference(root, name, entry, manifest=None):
@@ -53,7 +53,7 @@ def _allowance_arrays(root, name, entry, manifest=None):
                             name)
 
 
-# --- metrics: in refraster.golden.metrics (imported above under their old names) --------------
+# --- metrics: in refraster.golden.compare.metrics (imported above under their old names) ----------
 
 
 # --- the comparison ------------------------------------------------------------------------------
@@ -226,9 +226,9 @@ def buffer_allowance(spec, arrays, *, step=0.0, clear_depth=1.0):
     spec : dict
         The buffer's ``"tolerant"`` manifest entry.
     arrays : dict
-        The scene's ``tolerance.npz`` (:mod:`refraster.golden.allowance`).
+        The scene's ``tolerance.npz`` (:mod:`refraster.golden.allowances.core`).
     step, clear_depth : float
-        As passed to :func:`refraster.golden.allowance.tolerant_metrics`.
+        As passed to :func:`refraster.golden.allowances.core.tolerant_metrics`.
 
     Returns
     -------
@@ -261,7 +261,7 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
     ----------
     golden_dir, candidate_dir : path
     report : path, optional
-        Write an HTML report there (:func:`refraster.golden.report.write_report`).
+        Write an HTML report there (:func:`refraster.golden.compare.report.write_report`).
     profile : str, optional
         Tolerance profile stored in the manifest: ``"exact"`` or ``"conformant"`` (the
         per-buffer metric thresholds). Given alone, it selects that profile's compare.
@@ -272,14 +272,14 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
         Compare only these scenes (default: all of the manifest).
     mode : {"tolerant", "exact"}, optional
         ``"tolerant"``: the stored coverage masks and value intervals
-        (:mod:`refraster.golden.allowance`); buffers without an interval use the
+        (:mod:`refraster.golden.allowances.core`); buffers without an interval use the
         ``conformant`` profile with the "may" pixels forgiven. ``"exact"``: bit-exact. Default
         (neither ``mode`` nor ``profile``): ``"exact"``, so that code written for the
         profiles keeps its meaning; the command line defaults to tolerant
         (:mod:`refraster.golden.cli`).
     buffers : sequence of str, optional
         Compare only these buffers (default: all of each scene).
-    outputs : refraster.golden.write.Outputs, optional
+    outputs : refraster.golden.io.write.Outputs, optional
         Stage the report there instead of committing it now (the command line commits it
         together with ``--json``).
 

@@ -10,7 +10,7 @@ trusts"). In short:
   the manifest or a scene package names is listed; kept scenes are copied from that list only
   (:func:`copy_listed_scene`), unlisted files are skipped and named.
 * **Scene packages are validated on every read** (:func:`check_package`): ``scene.json``
-  against :data:`~refraster.golden.schema.SCENE_SCHEMA` (finite numbers, plain relative paths,
+  against :data:`~refraster.golden.io.schema.SCENE_SCHEMA` (finite numbers, plain relative paths,
   sizes ≥ 1), its name, technique and viewport against the manifest, and every mesh and map
   it names against the manifest's file list.
 * **Headers first.** ``.npy`` headers (also inside ``.npz`` members) and PNG ``IHDR`` chunks
@@ -202,7 +202,7 @@ def _check_shape_size(shape, where):
 def _check_table_size(shape, where):
     """A face-set table of ``tolerance.npz`` (``set_*``, ``draw_offsets``): (N,) or (N, C),
     C ≤ MAX_CHANNELS, N·C ≤ MAX_ELEMENTS; its consistency with the frame is checked when read
-    (:func:`refraster.golden.allowance.check_face_sets`)."""
+    (:func:`refraster.golden.allowances.core.check_face_sets`)."""
     if len(shape) not in (1, 2) or (len(shape) == 2 and not 1 <= shape[1] <= MAX_CHANNELS):
         raise GoldenError(f"{where}: shape {shape} is not (N,) or (N, C ≤ {MAX_CHANNELS})")
     if shape[0] * (shape[1] if len(shape) == 2 else 1) > MAX_ELEMENTS:
@@ -260,7 +260,7 @@ def load_manifest(golden_dir, *, verify=True):
 def check_package(golden_dir, manifest, scene, *, verify=True):
     """Validate the scene package of ``scene`` and return ``scene.json`` (parsed).
 
-    ``scene.json`` must follow :data:`~refraster.golden.schema.SCENE_SCHEMA` (a version this
+    ``scene.json`` must follow :data:`~refraster.golden.io.schema.SCENE_SCHEMA` (a version this
     refraster reads), carry the scene's name and technique, have the viewport of the golden's
     buffers, and every mesh and map it names must be listed in the manifest's ``files``
     (whose sha256 ``verify`` checks again). Raises :class:`GoldenError`.
