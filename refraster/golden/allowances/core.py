@@ -308,7 +308,7 @@ def scene_allowances(scene, raster):
                 if key in checks:
                     checks[key] = {"checks": ["clip"]}
             if "ghost" in buffers:
-                # ghost lines: α intervals from D's, the occluder's and the line's (ghost_bounds.py)
+                # ghost lines: α intervals from D's, the occluder's and the line's (ghosts.py)
                 from .ghosts import ghost_bounds
                 gb = ghost_bounds(scene, arrays, tol.eps)
                 if gb is not None:

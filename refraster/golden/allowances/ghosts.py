@@ -18,8 +18,8 @@ Per pixel the golden stores ``ghost_lo ≤ ghost ≤ ghost_hi``:
   the chords of the supercover (a superset of the diamond-exit fragments) and, for a line that
   passes within ``1.5·ε`` of the pixel's square (vertices moved by the edge ε), its chord in the
   neighbouring pixel — over the chord's depth range widened by the line depth allowance, D in
-  ``[D_lo, D_hi]`` (:mod:`.cutaway_bounds`) and the occluder in the range the cut frame's face
-  sets allow (``cs_*`` of :func:`.clip_allowance.cutaway_allowances`);
+  ``[D_lo, D_hi]`` (:mod:`.cutaway`) and the occluder in the range the cut frame's face
+  sets allow (``cs_*`` of :func:`.clip.cutaway_allowances`);
 * **lo**: the largest, over the segments that *surely* produce a fragment there, of the
   infimum of α over the segment's chord in the pixel (it holds the foot of the centre, GL's
   interpolation point, and the point on the column's centre line, where llvmpipe's line depth
