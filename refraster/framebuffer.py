@@ -255,8 +255,11 @@ def _normals_per_mesh(meshes, normals):
     if normals is None or (isinstance(normals, str) and normals.lower() == "flat"):
         return None
     if isinstance(normals, str):
-        return [m.vertex_normals if m.vertex_normals is not None else smooth_normals(m)
-                for m in meshes]
+        # a Mesh built directly (not through as_mesh) carries its normals unchecked
+        return [smooth_normals(m) if m.vertex_normals is None else
+                as_float_array(m.vertex_normals, f"meshes[{k}].vertex_normals",
+                               shape=(m.n_vertices, 3))
+                for k, m in enumerate(meshes)]
     if len(meshes) == 1 and not isinstance(normals, (list, tuple)):
         normals = [normals]
     if not isinstance(normals, (list, tuple)) or len(normals) != len(meshes):

@@ -280,11 +280,12 @@ def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False, reusable=
     for near in (0.5, 1.9) if clip else (0.5,):   # 1.9 cuts the cube: clipped pieces
         proj = perspective(40.0, 4 / 3, near, 10.0)
         for mode in normals:
-            fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12, normals=mode)
+            state = refraster.RasterState(normals=mode)
+            fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12, raster=state)
             np.asarray(fb.color)
             if stream:
                 fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12,
-                                      normals=mode,
+                                      raster=state,
                                       fragment_stage=lambda f: f.world_position()[:, 0] <= 0.0)
                 np.asarray(fb.color)
     if reusable:
@@ -360,7 +361,8 @@ def warm_only(kernels, normals="flat"):
     view = look_at((0.3, 0.4, 2.0), (0.0, 0.0, 0.0))
     proj = perspective(40.0, 4 / 3, 0.5, 10.0)
     with _stubbed(others):
-        fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12, normals=normals)
+        fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12,
+                              raster=refraster.RasterState(normals=normals))
         np.asarray(fb.color)
 
 

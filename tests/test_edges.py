@@ -175,7 +175,7 @@ def test_edge_map_is_the_filters_fused():
 def _torus_fb(width=96, height=72):
     mesh = trimesh.creation.torus(1.0, 0.35, major_sections=48, minor_sections=16)
     cam = rf.camera.frame_bounds(mesh.bounds, width=width, height=height)
-    return rf.render(mesh, **cam.kwargs, normals="smooth")
+    return rf.render(mesh, **cam.kwargs, raster=rf.RasterState(normals="smooth"))
 
 
 def _test_images():

@@ -132,7 +132,7 @@ def test_background_written_by_finalize_over_a_stale_frame(monkeypatch, fill_in_
         ref = _bytes(rf.render(small, **kw_far))
         for f in FB_FIELDS:
             assert got[f] == ref[f], f
-        rf.render(big, **kw, normals="smooth", out=out)
+        rf.render(big, **kw, raster=rf.RasterState(normals="smooth"), out=out)
     assert out.prim_id.size >= fill_in_kernel or fill_in_kernel > 1 << 30
 
 
@@ -152,8 +152,9 @@ def test_one_specialisation_per_kernel():
     kw = camera_kw(w=32, h=24)
     for m in (box, ro):
         rf.render(m, **kw).color
-        rf.render(m, **kw, normals="smooth").color
-        rf.render(m, **kw, normals=normals).color
+        rf.render(m, **kw, raster=rf.RasterState(normals="smooth")).color
+        rf.render((m.vertices, m.faces, normals), **kw,
+                  raster=rf.RasterState(normals="smooth")).color
         rf.render([m, box], **kw).color
         rf.render(m, **kw, fragment_stage=lambda fr: np.ones(len(fr), bool)).color
         out = rf.render(m, **kw)

@@ -235,7 +235,7 @@ def test_surface_strokes_move_with_the_surface():
     frames = []
     for deg in (0.0, 5.0):
         cam = _orbit(deg, w, h)
-        fb = rf.render(mesh, **cam, normals="smooth")
+        fb = rf.render(mesh, **cam, raster=rf.RasterState(normals="smooth"))
         frames.append((fb, cam, npr.surface_strokes(fb, spacing=0.25), npr.object_space(fb)[0]))
     (fb1, _, t1, p1), (fb2, cam2, t2, p2) = frames
     ys, xs = np.nonzero(fb1.mask)
@@ -324,7 +324,7 @@ def test_mirrored_pass_is_the_view_from_the_mirrored_camera():
     t2 = (refl @ np.append(target, 1))[:3]
     oracle = rf.render(torus, view=rf.look_at(e2, t2, up=(0, -1, 0)), proj=cam["proj"],
                        width=cam["width"], height=cam["height"], model=model,
-                       normals="smooth")
+                       raster=rf.RasterState(normals="smooth"))
     mask = oracle.mask[:, ::-1]
     agree = mask == r.mirrored.mask
     assert mask.sum() > 500 and agree.mean() > 0.998
