@@ -48,7 +48,7 @@ def _scenes():
             ("three draws, empty middle", [ico, Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64)),
                                           box],
              dict(kw, model=[_model(0.2, (0.4, 0, 0)), np.eye(4), _model(1.1, (-0.6, 0, 0))])),
-            ("culled", box, dict(kw, cull="back"))]
+            ("culled", box, dict(kw, raster=rf.RasterState(cull="back")))]
 
 
 @pytest.mark.parametrize("name", [s[0] for s in _scenes()])

@@ -27,7 +27,7 @@ import pytest
 
 import faults
 import faults_techniques
-from refraster import golden
+from refraster import RasterState, golden
 
 TECH = [n for n, e in golden.available_scenes().items() if e.technique != "render"]
 #: Buffers whose aim is the filtered one (≤ 30 % admitted).
@@ -102,7 +102,7 @@ def _ldi_candidate(scene, variant):
     from refraster.ldi import peel
     cam = scene.camera
     lay = peel([d.mesh for d in scene.draws], **cam.kwargs, model=[d.model for d in scene.draws],
-               cull="none", mode="peel", **variant)
+               mode="peel", raster=RasterState(**variant))
     k = scene.buffers["layer_depth"].shape[2]
 
     def stack(a, fill):
@@ -458,7 +458,7 @@ def _cutaway_depth(scene, raster, variant):
     cam = scene.camera
     draws = [d for d in scene.draws if d.name in p["interest"]]
     rear = render([d.mesh for d in draws], **cam.kwargs, model=[d.model for d in draws],
-                  depth_func="greater", clear_depth=0.0, **raster)
+                  raster=RasterState(depth_func="greater", clear_depth=0.0, **raster))
     d = cutaway_surface(rear.depth, rear.object_id, proj=cam.proj, view=cam.view,
                         angle=p["angle"], variant=variant,
                         perspective_compensation=p["perspective_compensation"],
@@ -497,7 +497,8 @@ def test_cutaway_float32_floods_pass(gold, tmp_path, raster):
     p, cam = scene.parameters, scene.camera
     draws = [d for d in scene.draws if d.name in p["interest"]]
     rear = render([d.mesh for d in draws], **cam.kwargs, model=[d.model for d in draws],
-                  depth_func="greater", clear_depth=0.0, **CUT_RASTER[raster])
+                  raster=RasterState(depth_func="greater", clear_depth=0.0,
+                                     **CUT_RASTER[raster]))
     for variant in p["accepted_variants"]:
         d_ndc = flood_f32(rear.depth, rear.object_id >= 0, scene, variant)
         d = (np.float32(0.5) * d_ndc + np.float32(0.5)).astype(np.float32)
@@ -548,7 +549,7 @@ def _cutaway_floor_depth(scene, raster, variant, floor=True):
     cam = scene.camera
     draws = [d for d in scene.draws if d.name in p["interest"]]
     rear = render([d.mesh for d in draws], **cam.kwargs, model=[d.model for d in draws],
-                  depth_func="greater", clear_depth=0.0, **raster)
+                  raster=RasterState(depth_func="greater", clear_depth=0.0, **raster))
     extra = dict(floor_normal=p["floor_normal"], floor_margin=p["floor_margin"]) if floor else {}
     d = cutaway_surface(rear.depth, rear.object_id, proj=cam.proj, view=cam.view,
                         angle=p["angle"], variant=variant,

@@ -167,8 +167,9 @@ def test_pool_unit():
 def test_threads_rendering_at_once(monkeypatch):
     """Several Python threads rendering at once (a threaded Dask scheduler): each frame has
     the bytes of the same scene rendered alone."""
-    scenes = [(mesh_of(cube()), {}), (mesh_of(icosphere(3)), {"normals": "smooth"}),
-              (mesh_of(torus()), {"cull": "back"})]
+    scenes = [(mesh_of(cube()), {}),
+              (mesh_of(icosphere(3)), {"raster": rf.RasterState(normals="smooth")}),
+              (mesh_of(torus()), {"raster": rf.RasterState(cull="back")})]
     want = [_fresh(monkeypatch, m, **KW, **o) for m, o in scenes]
     bad = []
 

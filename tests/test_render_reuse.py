@@ -145,7 +145,8 @@ def test_out_never_overwrites_an_input():
     assert inside.vertices.tobytes() == before.tobytes()
     # given normals that are a view of out.normal
     with pytest.raises(ValueError, match="out.normal shares memory with an input"):
-        rf.render((box.vertices, box.faces, out.normal.reshape(-1, 3)[:8]), **kw,
+        rf.render((box.vertices, box.faces, out.normal.reshape(-1).view(np.float64)[:24]
+                   .reshape(8, 3)), **kw,
                   raster=rf.RasterState(normals="smooth"), out=out)
 
 

@@ -111,7 +111,7 @@ def render(out_dir, *, quick=False):
         raw = _scene(name, quick)
         mesh = as_mesh(raw).with_smooth_normals(crease_angle=CREASE_ANGLE)
         cam = frame_bounds(raw.bounds, width=width, height=height)
-        fb = refraster.render(mesh, **cam.kwargs, normals="smooth")
+        fb = refraster.render(mesh, **cam.kwargs, raster=refraster.RasterState(normals="smooth"))
         gb = edges.edge_gbuffer(fb)
         em = edges.edge_map(gb)                       # the paper's operator
         crop = _crop_box(fb.mask, MARGIN)
