@@ -93,7 +93,8 @@ def _technique_packages(root, quick):
     from refraster.golden.package import export_package
     from refraster.golden.scenes import (DEFAULT_RASTER, Draw, GoldenScene, _framed,
                                          prepare_draws, render_draws)
-    from refraster.golden.technique_scenes import _clip_backend_export, _name_derived_maps
+    from refraster.golden.technique_scenes import (_clip_backend_export, _name_derived_maps,
+                                                   clip_caps)
     import refraster.halos4d as h4
     from refraster.scenes import crank, icosphere, solid
 
@@ -136,8 +137,9 @@ def _technique_packages(root, quick):
     sprite = VolumetricDepthSprite.from_mesh(raw, resolution=caps["vds_resolution"])
 
     def ours_clip(meshes=[raw], clip=clip, camera=camera, caps=caps, sprite=sprite):
-        fb = render_clipped(meshes, clip, **camera.kwargs, vds=[sprite], **caps,
-                            cull=state["cull"], precision=state["precision"])
+        fb = render_clipped(meshes, clip, **camera.kwargs, vds=[sprite], caps=clip_caps(caps),
+                            space=caps["space"], cull=state["cull"],
+                            precision=state["precision"])
         return fb.color
     cases.append((f"clip + cap, crank {len(mesh.faces)} faces, {w}×{h}", ours_clip,
                   root / "clip"))

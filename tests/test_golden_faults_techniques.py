@@ -661,6 +661,7 @@ def _clip_candidate(scene, raster, lookup8, monkeypatch):
     from refraster.clipsurface import render_clipped
     from refraster.golden.clip_allowance import _surfaces
     from refraster.golden.scenes import raster_state
+    from refraster.golden.technique_scenes import clip_caps
     bits = {k: v for k, v in raster.items() if k in ("subpixel_bits", "fill_rule")}
     if bits:   # forced over whatever the caller passes
         for mod in (rr, framebuffer):
@@ -677,11 +678,9 @@ def _clip_candidate(scene, raster, lookup8, monkeypatch):
         monkeypatch.setattr(cr, "_USE_FUSED", False)
         monkeypatch.setattr(cr, "clip_mask", clip_mask)
     p = scene.parameters
-    caps = {k: p[k] for k in ("caps", "cap_style", "cap_mode", "cap_color", "subdivision",
-                              "vds_resolution", "space")}
     fb = render_clipped([d.mesh for d in scene.draws], _textured_surfaces(scene, _surfaces),
-                        **scene.camera.kwargs,
-                        **caps, cull=raster_state({})["cull"],
+                        **scene.camera.kwargs, caps=clip_caps(p), space=p["space"],
+                        cull=raster_state({})["cull"],
                         precision=raster.get("precision", "float32"))
     return {**fb.arrays(), "cap_mask": fb.cap_mask}
 

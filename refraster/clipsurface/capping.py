@@ -111,7 +111,7 @@ def check_watertight(mesh, name="mesh"):
     if bad:
         raise ValueError(
             f"{name} is not watertight: {bad} edge(s) are not shared by exactly two faces; "
-            "caps need a closed solid (render with caps=False, or repair the mesh)")
+            "caps need a closed solid (render with caps=None, or repair the mesh)")
     if len(_WATERTIGHT) >= _WATERTIGHT_SIZE:
         _WATERTIGHT.pop(0)
     _WATERTIGHT.append((np.array(v), np.array(f)))

@@ -108,6 +108,24 @@ def _edges_npr_gooch():
                        parameters=params, may_radius=2)
 
 
+def clip_caps(parameters):
+    """The cap options a clip-surface scene stores, as
+    :func:`refraster.clipsurface.render_clipped` takes them: a
+    :class:`refraster.clipsurface.Caps`, or ``None`` for ``"caps": false``.
+
+    A scene package keeps them as flat keys of ``scene.json`` (``caps``, ``cap_style``,
+    ``cap_mode``, ``cap_color``, ``subdivision``, ``vds_resolution`` and the backend export's
+    ``occlusion_radius``; docs/golden-schema.md); a missing key takes the default of
+    :class:`~refraster.clipsurface.Caps`. The clip test's ``space`` is stored beside them."""
+    from ..clipsurface import Caps
+    if not parameters.get("caps", True):
+        return None
+    return Caps(**{name: parameters[key] for key, name in (
+        ("cap_style", "style"), ("cap_mode", "mode"), ("cap_color", "color"),
+        ("subdivision", "subdivision"), ("vds_resolution", "vds_resolution"),
+        ("occlusion_radius", "occlusion_radius")) if key in parameters})
+
+
 @register_scene("clipsurface_building", technique="clipsurface",
                 description="Building cut by a 2.5D clip surface with a Perlin offset map "
                             "(N = −z: the front half is removed), diffuse caps (Trapp & "
@@ -126,8 +144,9 @@ def _clipsurface_building():
                 subdivision=1, vds_resolution=512, space="world")
     clip = ClipSurface(surface["origin"], surface["u"], surface["v"], surface["scale"],
                        offset_map, wrap=surface["wrap"])
-    fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs, **caps,
-                        cull=state["cull"], precision=state["precision"])
+    fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs,
+                        caps=clip_caps(caps), space=caps["space"], cull=state["cull"],
+                        precision=state["precision"])
     backend_params, backend_maps = _clip_backend_export(draws, [clip], caps)
     surfaces = [{**surface, "offset_map": "offset_map"}]
     _name_derived_maps(surfaces, backend_maps)
@@ -378,8 +397,9 @@ def _clipsurface_textured_caps():
                 subdivision=1, vds_resolution=256, space="world")
     clip = ClipSurface(surface["origin"], surface["u"], surface["v"], surface["scale"],
                        offset_map, wrap=surface["wrap"], textures=textures)
-    fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs, **caps,
-                        cull=state["cull"], precision=state["precision"])
+    fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs,
+                        caps=clip_caps(caps), space=caps["space"], cull=state["cull"],
+                        precision=state["precision"])
     # one map per channel (the package's maps are single-channel images); texel order, row 0
     # at t = 0, values in [0, 1] (the normal map encoded as 2n − 1 = c)
     maps = {"offset_map": offset_map, "cap_light": textures.light[..., 0]}
@@ -517,8 +537,9 @@ def _clip_scene(draws, camera, surfaces, clips, maps, caps, extra=None):
     needs exported (:func:`_clip_backend_export`)."""
     from ..clipsurface import render_clipped
     state = raster_state({})
-    fb = render_clipped([d.mesh for d in draws], clips, **camera.kwargs, **caps,
-                        cull=state["cull"], precision=state["precision"])
+    fb = render_clipped([d.mesh for d in draws], clips, **camera.kwargs,
+                        caps=clip_caps(caps), space=caps["space"], cull=state["cull"],
+                        precision=state["precision"])
     backend_params, backend_maps = _clip_backend_export(draws, clips, caps)
     _name_derived_maps(surfaces, backend_maps)
     return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
