@@ -10,8 +10,9 @@ them again, which takes minutes for the gallery. This module
 * compiles ahead (:func:`warm_core` for ``render``; ``refraster warmup`` for everything, e.g.
   in a CI image or a Docker layer).
 
-It sits beside the command and the gallery (it imports techniques); the core and the
-techniques never import it.
+It stands on the tools floor (docs/architecture.md, "Floors"), with :mod:`refraster._workers`:
+above the techniques (it imports them to compile their kernels), below the goldens, the gallery
+and the command, which use it; the core and the techniques never import it.
 """
 
 from __future__ import annotations

@@ -1,85 +1,10 @@
-"""The clip-surface package: no import circle among its modules, and every name importable
-from where it was before the package existed (refraster.clipsurface, .capping, .offsetmaps)."""
+"""The clip-surface package: every name importable from where it was before the package
+existed (refraster.clipsurface, .capping, .offsetmaps). Its imports (no circle, the core never
+imports it) are checked with every other module's in tests/test_architecture.py."""
 
-import ast
 import importlib
-import pathlib
 
 import pytest
-
-PKG = pathlib.Path(__file__).resolve().parents[1] / "refraster" / "clipsurface"
-
-
-def _package_imports(path):
-    """Sibling modules of the package that ``path`` imports (at any depth: lazy imports in
-    functions count too)."""
-    tree = ast.parse(path.read_text())
-    names = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom) and node.level == 1:
-            if node.module:
-                names.add(node.module.split(".")[0])
-            else:
-                names.update(a.name for a in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module \
-                and node.module.startswith("refraster.clipsurface."):
-            names.add(node.module.split(".")[2])
-    return names
-
-
-def _graph():
-    mods = {p.stem for p in PKG.glob("*.py") if p.stem != "__init__"}
-    return {m: sorted(_package_imports(PKG / f"{m}.py") & mods) for m in mods}
-
-
-def _cycle(graph):
-    """A cycle of the directed graph as a list of nodes, or None (depth-first search)."""
-    state, stack = {}, []
-
-    def visit(n):
-        state[n] = 1
-        stack.append(n)
-        for m in graph[n]:
-            if state.get(m) == 1:
-                return stack[stack.index(m):] + [m]
-            if m not in state:
-                found = visit(m)
-                if found:
-                    return found
-        stack.pop()
-        state[n] = 2
-        return None
-
-    for n in sorted(graph):
-        if n not in state:
-            found = visit(n)
-            if found:
-                return found
-    return None
-
-
-def test_no_import_circle_inside_the_package():
-    graph = _graph()
-    assert {"offsetmaps", "surfaces", "capping", "fused", "render"} <= set(graph)
-    assert _cycle(graph) is None, f"import circle: {' -> '.join(_cycle(graph))}"
-
-
-def test_the_circle_finder_finds_a_planted_circle():
-    graph = _graph()
-    assert "surfaces" in graph["capping"]
-    graph["surfaces"] = graph["surfaces"] + ["capping"]      # the old clipsurface <-> capping
-    assert _cycle(graph) is not None
-
-
-def test_the_core_never_imports_the_package():
-    root = PKG.parent
-    for sub in ("raster", "camera.py", "mesh.py", "framebuffer.py", "ldi.py"):
-        paths = [root / sub] if sub.endswith(".py") else sorted((root / sub).glob("*.py"))
-        for p in paths:
-            text = p.read_text()
-            assert "clipsurface" not in text and "capping" not in text \
-                and "offsetmaps" not in text, p
-
 
 OLD_NAMES = {
     "refraster.clipsurface": ["ClipSurface", "ReliefClipPlane", "ClippedFramebuffer",

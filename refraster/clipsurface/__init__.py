@@ -1,7 +1,7 @@
 """2.5D clip surfaces and relief clip planes with cap surfaces (Trapp & Döllner). See
 ``docs/clipsurface.md`` and MATH.md §1–§2.
 
-Modules, each importing only those above it (no circle; tests/test_clipsurface_package.py):
+Modules, each importing only those above it (no circle; tests/test_architecture.py):
 
 * :mod:`.offsetmaps` — offset maps: loading, the ``texture2D`` sampler, generators, blends,
   derived normal and occlusion maps.
