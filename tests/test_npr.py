@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from refraster import npr
+from refraster.edges import npr
 from determinism import outputs_by_thread_count
 
 
@@ -166,7 +166,7 @@ def test_bad_inputs(call, exc, words):
 _SCRIPT = r"""
 import hashlib
 import numpy as np
-from refraster import npr
+from refraster.edges import npr
 rng = np.random.default_rng(5)
 img = rng.random((53, 71, 3))
 mask = rng.random((53, 71)) < 0.7
@@ -400,7 +400,7 @@ _MIRROR_SCRIPT = r"""
 import hashlib
 import numpy as np, trimesh
 import refraster as rf
-from refraster import npr
+from refraster.edges import npr
 torus = rf.mesh.as_mesh(trimesh.creation.torus(0.6, 0.22, major_sections=32,
                                                minor_sections=12)).with_smooth_normals(40)
 model = np.eye(4)

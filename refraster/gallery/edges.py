@@ -93,7 +93,8 @@ def _edge_rich_box(e, size):
 def render(out_dir, *, quick=False):
     """Render the section into ``out_dir``; return its :class:`~refraster.gallery.Item` list."""
     import refraster
-    from .. import edges, npr
+    from .. import edges
+    from ..edges import npr
     from ..camera import frame_bounds
     from ..io import write_png
     from ..mesh import as_mesh

@@ -94,7 +94,7 @@ def _edges_c1_paper():
                             "(Nienhaus & Döllner Sec. 5.1: inner edges towards white, profile "
                             "edges towards black, on the objects only), as npr_color.")
 def _edges_npr_gooch():
-    from .. import npr as _npr
+    from ..edges import npr as _npr
     draws, camera, fb, params, edges = _building_edges("diagonal", "diagonal")
     style = dict(light=list(_npr.DEFAULT_LIGHT), base=[0.75, 0.75, 0.75], cool=[0.0, 0.0, 0.55],
                  warm=[0.3, 0.3, 0.0], alpha=0.25, beta=0.5, background=[1.0, 1.0, 1.0])

@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ._config import PJIT
-from ._validate import as_float_array, as_real, check_shape
+from .._config import PJIT
+from .._validate import as_float_array, as_real, check_shape
 
 __all__ = [
     "DEFAULT_LIGHT", "DEFAULT_TOON_TEXTURE", "gooch", "toon", "cartoon_map", "stroke_texture",
@@ -262,7 +262,7 @@ def stroke_texture(height, width, *, spacing=6.0, angle=45.0, cross_angle=-45.0,
     al.) is an image; this procedural one is a guess with the same property: the inked set
     grows monotonically as the tone darkens.
     """
-    from ._validate import as_image_size
+    from .._validate import as_image_size
     width, height = as_image_size(width, height)
     s = as_real(spacing, "spacing", lo=0.0, lo_open=True)
     a1 = np.radians(as_real(angle, "angle"))
@@ -606,9 +606,9 @@ def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, s
     appear in it, the job of a user clip plane on a GPU). Its G-buffer fits its own near/far.
     Reflection flips the winding; faces are not culled.
     """
-    from . import edges as _edges
-    from .framebuffer import render
-    from .mesh import as_mesh, as_meshes, face_normals
+    from . import operators as _edges
+    from ..framebuffer import render
+    from ..mesh import as_mesh, as_meshes, face_normals
 
     objs = as_meshes(meshes)
     mir = as_mesh(mirror, "mirror")
