@@ -10,9 +10,6 @@ Modules, each importing only those above it (no circle; tests/test_clipsurface_p
 * :mod:`.capping` — cap meshes, exact caps, cap lighting and shading.
 * :mod:`.fused` — the fused clip-and-cap tile pass.
 * :mod:`.render` — :func:`render_clipped` and :class:`ClippedFramebuffer`.
-
-``refraster.offsetmaps`` and ``refraster.capping`` remain as re-exports of
-:mod:`.offsetmaps` and :mod:`.capping`.
 """
 
 from .render import ClippedFramebuffer, render_clipped

@@ -109,12 +109,12 @@ _CAP_CACHE_SIZE = 8
 
 
 def _cached_cap(surface, bounds, subdivision, sprite=None):
-    """``(mesh, sure)``: :func:`refraster.capping.cap_mesh`, made once per surface, bounds and
-    subdivision (a surface is immutable; the cached mesh's arrays are read-only). With a
-    volumetric depth sprite, only the faces that can pass its parity test
-    (:func:`refraster.capping.cull_cap`) and their "surely inside" flags
-    (:func:`refraster.capping.surely_inside`), made once per sprite too; ``sure`` is ``None``
-    without a sprite."""
+    """``(mesh, sure)``: :func:`refraster.clipsurface.capping.cap_mesh`, made once per surface,
+    bounds and subdivision (a surface is immutable; the cached mesh's arrays are read-only). With
+    a volumetric depth sprite, only the faces that can pass its parity test
+    (:func:`refraster.clipsurface.capping.cull_cap`) and their "surely inside" flags
+    (:func:`refraster.clipsurface.capping.surely_inside`), made once per sprite too; ``sure`` is
+    ``None`` without a sprite."""
     import weakref
 
     cache = surface._derived
@@ -165,7 +165,8 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
     caps : bool
         Draw cap surfaces (Trapp & Döllner, Sec. 5).
     cap_style : {"diffuse", "hatch", "marble", "wood", "noise", "solid"}
-        Cap shading over the normal and occlusion maps (:func:`refraster.capping.shade_caps`).
+        Cap shading over the normal and occlusion maps
+        (:func:`refraster.clipsurface.capping.shade_caps`).
         ``"diffuse"`` takes a surface's diffuse map (``ClipSurface(textures=CapTextures(...))``)
         as its base colour where it has one; ``"solid"`` takes ``solid_texture``. A surface's
         user normal and light maps replace the derived ones in every style
@@ -173,7 +174,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
     cap_mode : {"mesh", "exact"}
         ``"mesh"``: the paper's tessellated, displaced grid (``subdivision`` vertices per texel
         and axis) whose fragments pass the volumetric parity test; ``"exact"``: per-pixel ray –
-        height-field intersection (:func:`refraster.capping.exact_caps`).
+        height-field intersection (:func:`refraster.clipsurface.capping.exact_caps`).
     cap_color : (3,) float
         Base (diffuse), ink (hatch) or dark texture colour of the caps.
     hatch_spacing : float, optional
@@ -192,7 +193,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
         Pre-built volumetric depth sprites (world space), one per solid; built with
         ``VolumetricDepthSprite.from_mesh(solid, resolution=vds_resolution)`` otherwise.
     occlusion_radius : float, optional
-        Radius of the occlusion maps (:func:`refraster.offsetmaps.occlusion_map`).
+        Radius of the occlusion maps (:func:`refraster.clipsurface.offsetmaps.occlusion_map`).
     background : (3,) float
     solid_texture : SolidTexture or (D, H, W[, C]) array, optional
         The 3D texture of ``cap_style="solid"`` (Fig. 11), sampled trilinearly at each cap

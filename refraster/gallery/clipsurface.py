@@ -82,7 +82,7 @@ def strata_volume(n=48):
 
 def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
     """Render the section's pictures into ``out_dir``; returns their items."""
-    from .. import offsetmaps as om
+    from ..clipsurface import offsetmaps as om
     from .. import scenes
     from ..camera import frame_bounds
     from ..clipsurface import render_clipped
