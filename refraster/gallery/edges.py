@@ -207,7 +207,8 @@ def render(out_dir, *, quick=False):
                             strokes=npr.surface_strokes(fb, spacing=spacing), mask=fb.mask)
 
     r = npr.render_mirrored(mesh, floor, **cam.kwargs, models=[lift], style=style,
-                            inner_color=(0.35, 0.35, 0.35), reflectance=0.8)
+                            mirror_style=npr.MirrorStyle(reflectance=0.8,
+                                                         inner_color=(0.35, 0.35, 0.35)))
     save("mirror_hatching", r.image,
          "crank above a mirror: edge-enhanced hatching; the mirrored crank is rendered with its "
          "own G-buffer and edge map (the objects reflected through the mirror plane, clipped at "
