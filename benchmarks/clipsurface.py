@@ -16,7 +16,7 @@ from benchmarks._timing import interleaved_medians
 
 def main(repeats=15):
     import refraster
-    from refraster import offsetmaps as om
+    from refraster.clipsurface import offsetmaps as om
     from refraster.camera import frame_bounds
     from refraster.clipsurface import Caps, ClipSurface, render_clipped
     from refraster.ldi import VolumetricDepthSprite

@@ -86,7 +86,7 @@ def _technique_packages(root, quick):
     export helpers of :mod:`refraster.golden.technique_scenes`), only larger. Returns
     [(name, refraster callable, package dir)]; each callable is the technique's public entry
     point with the package's parameters (what the golden generator times)."""
-    from refraster import offsetmaps as om
+    from refraster.clipsurface import offsetmaps as om
     from refraster.clipsurface import ClipSurface, render_clipped
     from refraster.cutaway import render_cutaway
     from refraster.edges import edge_map

@@ -66,7 +66,8 @@ KERNEL_MODULES = CORE_MODULES + (
     "refraster.raster.fragments", "refraster.raster.resolve", "refraster.ldi",
     "refraster.clipsurface.offsetmaps", "refraster.clipsurface.capping",
     "refraster.clipsurface.surfaces", "refraster.clipsurface.textures",
-    "refraster.clipsurface.fused", "refraster.edges", "refraster.npr", "refraster.cutaway.flood",
+    "refraster.clipsurface.fused", "refraster.edges.operators", "refraster.edges.npr",
+    "refraster.cutaway.flood",
     "refraster.halos4d.slicing", "refraster.halos4d.render", "refraster.tolerance",
     "refraster.golden.layers", "refraster.golden.edge_bounds")
 
@@ -89,8 +90,8 @@ GALLERY_SKIPS = (
     "refraster.golden.layers._count_bounds",
     "refraster.clipsurface.capping._hatch_kernel",
     "refraster.clipsurface.surfaces._g_kernel",
-    "refraster.edges._id_kernel",
-    "refraster.edges._sobel_kernel",
+    "refraster.edges.operators._id_kernel",
+    "refraster.edges.operators._sobel_kernel",
     "refraster.halos4d.slicing._edge",
     "refraster.halos4d.slicing._face",
     "refraster.halos4d.slicing._sorted3",

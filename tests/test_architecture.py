@@ -54,11 +54,8 @@ FLOORS = {
     # the techniques: one package per paper
     "refraster.clipsurface": "techniques",
     "refraster.edges": "techniques",
-    "refraster.npr": "techniques",           # becoming refraster.edges.npr
     "refraster.cutaway": "techniques",
     "refraster.halos4d": "techniques",
-    "refraster.capping": "techniques",       # re-export of clipsurface.capping, being removed
-    "refraster.offsetmaps": "techniques",    # re-export of clipsurface.offsetmaps, being removed
     # the tools: compiling ahead, worker processes
     "refraster.warmup": "tools",
     "refraster._workers": "tools",
@@ -79,10 +76,6 @@ TECHNIQUE_USES = {
     # ghost lines classify the mesh's edges (classify_edges); the cutaway's outlines are an
     # edge map (edge_map)
     "refraster.cutaway": {"refraster.edges"},
-    # the NPR styles composite edge maps (one technique: refraster.edges.npr once moved)
-    "refraster.npr": {"refraster.edges"},
-    "refraster.capping": {"refraster.clipsurface"},
-    "refraster.offsetmaps": {"refraster.clipsurface"},
 }
 
 

@@ -13,7 +13,7 @@ import trimesh
 import refraster
 from refraster.clipsurface import capping, fused
 from refraster.clipsurface import render as cs_render
-from refraster import offsetmaps as om
+from refraster.clipsurface import offsetmaps as om
 from refraster.camera import frame_bounds, look_at, perspective
 from refraster.clipsurface import Caps, ClipSurface, render_clipped
 from refraster.ldi import VolumetricDepthSprite

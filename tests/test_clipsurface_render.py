@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import refraster
-from refraster import offsetmaps as om
+from refraster.clipsurface import offsetmaps as om
 from refraster import scenes
 from refraster.camera import frame_bounds, look_at, perspective
-from refraster.capping import cap_mesh
+from refraster.clipsurface.capping import cap_mesh
 from refraster.clipsurface import Caps, ClipSurface, render_clipped
 
 
@@ -103,7 +103,7 @@ def test_planar_cut_matches_manifold3d(oracle, name):
 
 def heightfield_solid(surface, bounds, heights_at, subdivision):
     """A closed solid between the displaced surface and a flat floor beyond the box on −N,
-    with the same lattice (and diagonal) as refraster.capping.cap_mesh."""
+    with the same lattice (and diagonal) as refraster.clipsurface.capping.cap_mesh."""
     import trimesh
     cap = cap_mesh(surface, bounds, subdivision=subdivision)
     top = cap.vertices.copy()
@@ -323,7 +323,7 @@ def test_caps_defaults_normal_forms_and_immutability():
 
 _DETERMINISM = """
 import sys, numpy as np, trimesh
-from refraster import offsetmaps as om
+from refraster.clipsurface import offsetmaps as om
 from refraster.camera import look_at, perspective
 from refraster.clipsurface import Caps, ClipSurface, render_clipped
 box = trimesh.creation.box((1.0, 1.0, 1.0))

@@ -240,8 +240,8 @@ EDGE_OPS = ("preset", "normal_filter", "depth_filter", "ids", "inner_threshold",
 def _edge_candidate(scene, raster, rgba8):
     """The scene's buffers as refraster makes them with a conformant raster variant, and with
     the G-buffer, edge map (and NPR colour) rounded to RGBA8."""
-    from refraster import npr as _npr
     from refraster.edges import EdgeGBuffer, edge_gbuffer, edge_map
+    from refraster.edges import npr as _npr
     from refraster.golden.scenes import raster_state, render_draws
     p = scene.parameters
     ops = {k: p[k] for k in EDGE_OPS}
@@ -403,12 +403,12 @@ def test_edge_bounds_hold_random_gbuffers_with_width_and_thresholds(gold, op):
 
 
 def test_npr_bounds_hold_random_gbuffers(gold):
-    """Soundness of ``npr_color_lo/_hi`` by brute force: ``refraster.npr``'s Gooch shading of
+    """Soundness of ``npr_color_lo/_hi`` by brute force: ``refraster.edges.npr``'s Gooch shading of
     random in-allowance normals composited with the paper's edge map of the same G-buffer
     (RGBA8, as the scene states) lies inside the stored bounds; the other direction: the same
     composite with inner and profile colours swapped leaves them."""
-    from refraster import npr as _npr
     from refraster.edges import EdgeGBuffer, edge_map, fit_near_far
+    from refraster.edges import npr as _npr
     name = "edges_npr_gooch"
     scene = golden.available_scenes()[name].build()
     p = scene.parameters

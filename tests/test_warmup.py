@@ -184,7 +184,7 @@ def test_pipeline_and_cap_helpers_compile_one_specialisation():
     from numba.core.registry import CPUDispatcher
 
     import refraster
-    from refraster import offsetmaps as om
+    from refraster.clipsurface import offsetmaps as om
     from refraster._config import PJIT
     from refraster.camera import look_at, perspective
     from refraster.clipsurface import ClipSurface, capping

@@ -11,9 +11,6 @@ Modules, each importing only those above it (no circle; tests/test_architecture.
 * :mod:`.fused` — the fused clip-and-cap tile pass.
 * :mod:`.render` — :func:`render_clipped`, its cap options :class:`Caps` and
   :class:`ClippedFramebuffer`.
-
-``refraster.offsetmaps`` and ``refraster.capping`` remain as re-exports of
-:mod:`.offsetmaps` and :mod:`.capping`.
 """
 
 from .render import Caps, ClippedFramebuffer, render_clipped

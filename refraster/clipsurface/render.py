@@ -29,10 +29,11 @@ class Caps:
     Parameters
     ----------
     style : {"diffuse", "hatch", "marble", "wood", "noise", "solid"}
-        Cap shading over the normal and occlusion maps (:func:`refraster.capping.shade_caps`).
-        Default ``"diffuse"``: the paper's cap shading through the normal and occlusion maps
-        (Sec. 5.1); ``"hatch"`` and the solid textures ``"marble"``, ``"wood"``, ``"noise"``
-        draw its Sec. 6.1 styles (Fig. 10, Fig. 11) procedurally. ``"diffuse"`` takes a surface's diffuse map
+        Cap shading over the normal and occlusion maps
+        (:func:`refraster.clipsurface.capping.shade_caps`). Default ``"diffuse"``: the paper's
+        cap shading through the normal and occlusion maps (Sec. 5.1); ``"hatch"`` and the solid
+        textures ``"marble"``, ``"wood"``, ``"noise"`` draw its Sec. 6.1 styles (Fig. 10,
+        Fig. 11) procedurally. ``"diffuse"`` takes a surface's diffuse map
         (``ClipSurface(textures=CapTextures(...))``) as its base colour where it has one;
         ``"solid"`` takes ``solid_texture``. A surface's user normal and light maps replace
         the derived ones in every style (:func:`refraster.clipsurface.capping.texture_caps`).
@@ -40,7 +41,8 @@ class Caps:
         Default ``"mesh"``, the paper's (Sec. 5.1): the tessellated, displaced grid
         (``subdivision`` vertices per texel and axis) whose fragments pass the volumetric parity
         test. ``"exact"`` (not in the paper; it removes the Sec. 6.3 tessellation gaps):
-        per-pixel ray – height-field intersection (:func:`refraster.capping.exact_caps`).
+        per-pixel ray – height-field intersection
+        (:func:`refraster.clipsurface.capping.exact_caps`).
     color : (3,) float
         Base (diffuse), ink (hatch) or dark texture colour of the caps. Default
         ``(0.80, 0.30, 0.25)``, a brick red.
@@ -232,12 +234,12 @@ _CAP_CACHE_SIZE = 8
 
 
 def _cached_cap(surface, bounds, subdivision, sprite=None):
-    """``(mesh, sure)``: :func:`refraster.capping.cap_mesh`, made once per surface, bounds and
-    subdivision (a surface is immutable; the cached mesh's arrays are read-only). With a
-    volumetric depth sprite, only the faces that can pass its parity test
-    (:func:`refraster.capping.cull_cap`) and their "surely inside" flags
-    (:func:`refraster.capping.surely_inside`), made once per sprite too; ``sure`` is ``None``
-    without a sprite."""
+    """``(mesh, sure)``: :func:`refraster.clipsurface.capping.cap_mesh`, made once per surface,
+    bounds and subdivision (a surface is immutable; the cached mesh's arrays are read-only). With
+    a volumetric depth sprite, only the faces that can pass its parity test
+    (:func:`refraster.clipsurface.capping.cull_cap`) and their "surely inside" flags
+    (:func:`refraster.clipsurface.capping.surely_inside`), made once per sprite too; ``sure`` is
+    ``None`` without a sprite."""
     import weakref
 
     cache = surface._derived

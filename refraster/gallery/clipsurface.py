@@ -40,9 +40,9 @@ def _surface(center, normal, extent, sz, offset_map, **kw):
 def _edges(fb, color):
     """Image-based edge enhancement composited with the paper's polarity (Fig. 10 (a)–(c),
     Nienhaus & Döllner [22]): white inner edges (normal discontinuities), black profile edges
-    (depth discontinuities), :func:`refraster.npr.composite`."""
+    (depth discontinuities), :func:`refraster.edges.npr.composite`."""
     from ..edges import edge_map
-    from ..npr import composite
+    from ..edges.npr import composite
     return composite(color, edge_map(fb, preset="clean"), inner_color=(1.0, 1.0, 1.0),
                      profile_color=(0.0, 0.0, 0.0))
 
@@ -82,7 +82,7 @@ def strata_volume(n=48):
 
 def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
     """Render the section's pictures into ``out_dir``; returns their items."""
-    from .. import offsetmaps as om
+    from ..clipsurface import offsetmaps as om
     from .. import scenes
     from ..camera import frame_bounds
     from ..clipsurface import Caps, render_clipped
@@ -138,7 +138,7 @@ def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
     # Fig. 10(a): the cap's diffuse map is a user's hatch texture image, read from its file
     # (CapTextures: mapped with the surface's (s, t), scale and wrap mode, GL_LINEAR).
     from ..clipsurface.textures import CapTextures
-    from ..npr import gooch
+    from ..edges.npr import gooch
     hatch_png = out_dir / "clipsurface_hatch_texture.png"
     write_png(hatch_png, hatch_texture(256 if quick else 1024, spacing=16, width=6))
     items.append(Item(SECTION, hatch_png.name, "The user's hatch texture image used as the "

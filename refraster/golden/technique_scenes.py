@@ -94,7 +94,7 @@ def _edges_c1_paper():
                             "(Nienhaus & Döllner Sec. 5.1: inner edges towards white, profile "
                             "edges towards black, on the objects only), as npr_color.")
 def _edges_npr_gooch():
-    from .. import npr as _npr
+    from ..edges import npr as _npr
     draws, camera, fb, params, edges = _building_edges("diagonal", "diagonal")
     style = dict(light=list(_npr.DEFAULT_LIGHT), base=[0.75, 0.75, 0.75], cool=[0.0, 0.0, 0.55],
                  warm=[0.3, 0.3, 0.0], alpha=0.25, beta=0.5, background=[1.0, 1.0, 1.0])
@@ -132,7 +132,7 @@ def clip_caps(parameters):
                             "Döllner).")
 def _clipsurface_building():
     from ..clipsurface import ClipSurface, render_clipped
-    from ..offsetmaps import perlin_noise
+    from ..clipsurface.offsetmaps import perlin_noise
     from ..scenes import solid
     state = raster_state({})
     draws = prepare_draws([Draw("building", solid("building"))])
@@ -165,7 +165,7 @@ def _clip_backend_export(draws, surfaces, caps, occlusion_radius=None):
     ``render_clipped`` draws it (the displaced grid culled by the sprite: its face numbering
     *is* the caps' ``prim_id``), and per surface the derived normal and occlusion maps the caps
     are shaded with. Returns ``(parameters, maps)`` to add to the scene's."""
-    from ..capping import cap_mesh
+    from ..clipsurface.capping import cap_mesh
     from ..clipsurface.capping import cull_cap
     from ..ldi import VolumetricDepthSprite
     from ..mesh import Mesh, as_mesh, bounds
@@ -221,7 +221,7 @@ def _clip_ids(draws, surfaces, subdivision):
     solid pixels carry their solid's face (prim_id < F) and draw (object_id < M); the cap of
     solid m and surface k carries object_id M + m·K + k and the face of its cap mesh (at most
     the faces of the cap mesh over the solid's box)."""
-    from ..capping import cap_mesh
+    from ..clipsurface.capping import cap_mesh
     from ..mesh import as_mesh, bounds
     meshes = [as_mesh(d.mesh) for d in draws]
     m, k = len(meshes), len(surfaces)
@@ -367,7 +367,7 @@ def _halos4d_patches(projection):
 def _clipsurface_textured_caps():
     from ..clipsurface import ClipSurface, render_clipped
     from ..clipsurface.textures import CapTextures
-    from ..offsetmaps import perlin_noise
+    from ..clipsurface.offsetmaps import perlin_noise
     from ..scenes import solid
     state = raster_state({})
     draws = prepare_draws([Draw("cube", solid("cube"))])
@@ -559,7 +559,7 @@ def _clip_scene(draws, camera, surfaces, clips, maps, caps, extra=None):
                             "clipped by the other surface.")
 def _clipsurface_two_surfaces():
     from ..clipsurface import ClipSurface
-    from ..offsetmaps import perlin_noise, sinusoid
+    from ..clipsurface.offsetmaps import perlin_noise, sinusoid
     from ..scenes import solid
     draws = prepare_draws([Draw("building", solid("building"))])
     camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
@@ -587,7 +587,7 @@ def _clipsurface_two_surfaces():
                             "parameters; offset map wrapped with clamp (to edge).")
 def _clipsurface_relief_plane():
     from ..clipsurface import ReliefClipPlane
-    from ..offsetmaps import perlin_noise
+    from ..clipsurface.offsetmaps import perlin_noise
     from ..scenes import solid
     draws = prepare_draws([Draw("cube", solid("cube"))])
     camera = _framed([d.mesh for d in draws], 160, 120, (0.9, 1.1, 1.5))
