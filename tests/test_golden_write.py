@@ -2,7 +2,6 @@
 survive it, races made deterministic with the hooks of :mod:`refraster.golden.io.write` (no
 sleeps) and crashes made by a hook that kills the process between two steps."""
 
-import ast
 import hashlib
 import json
 import os
@@ -539,85 +538,6 @@ def test_directories_follow_the_umask(tmp_path, umask):
         assert d.stat().st_mode & 0o777 == 0o777 & ~umask, d
     for f in (out / "manifest.json", out / CUBE / "buffers.npz", rep / "index.html"):
         assert f.stat().st_mode & 0o777 == 0o666 & ~umask, f
-
-
-# --- one owner per concern: no import circle in refraster.golden ---------------------------------
-
-def _golden_imports():
-    """{module: set of refraster.golden modules it imports} (function-level imports too), the
-    modules named by their dotted path below ``refraster/golden`` (``compare.run``, ``io.write``,
-    ``generate``; a subpackage by its own name)."""
-    pkg = REPO / "refraster" / "golden"
-    paths = {}
-    for path in pkg.rglob("*.py"):
-        parts = path.relative_to(pkg).with_suffix("").parts
-        if parts[-1] == "__init__":
-            parts = parts[:-1]
-        if parts:
-            paths[".".join(parts)] = path
-    mods = set(paths)
-
-    def imported(target, names):
-        found = {f"{target}.{n}" for n in names if f"{target}.{n}" in mods}
-        return found or ({target} if target in mods else set())
-
-    graph = {}
-    for m, path in paths.items():
-        package = m.split(".") if path.name == "__init__.py" else m.split(".")[:-1]
-        deps = set()
-        for node in ast.walk(ast.parse(path.read_text())):
-            if not isinstance(node, ast.ImportFrom):
-                continue
-            names = [a.name for a in node.names]
-            if node.level:
-                if node.level - 1 > len(package):
-                    continue                      # above refraster.golden
-                base = package[:len(package) - node.level + 1]
-                target = ".".join(base + ([node.module] if node.module else []))
-                deps |= imported(target, names) if target else {n for n in names if n in mods}
-            elif (node.module or "").startswith("refraster.golden."):
-                deps |= imported(node.module[len("refraster.golden."):], names)
-        graph[m] = deps - {m}
-    return graph
-
-
-def _cycle(graph):
-    state = {}
-
-    def visit(n, path):
-        state[n] = 1
-        for d in sorted(graph.get(n, ())):
-            if state.get(d) == 1:
-                return path + [n, d]
-            if d not in state:
-                found = visit(d, path + [n])
-                if found:
-                    return found
-        state[n] = 2
-        return None
-    for n in sorted(graph):
-        if n not in state:
-            found = visit(n, [])
-            if found:
-                return found
-    return None
-
-
-def test_no_import_circle_in_golden():
-    graph = _golden_imports()
-    assert {"io.write", "io.errors", "compare.metrics", "allowances.core"} <= set(graph)
-    assert _cycle(graph) is None, _cycle(graph)
-    assert "compare.report" not in graph["compare.run"] or \
-        "compare.run" not in graph["compare.report"]
-    assert not {"compare.run", "generate"} & graph["compare.report"]
-    assert "compare.run" not in graph["allowances.core"]
-    # the scan sees relative imports across subpackages and module names imported from a package
-    assert {"io.read", "compare.metrics", "allowances.core", "compare.profiles"} <= \
-        graph["compare.run"]
-    assert {"io.write", "io.package", "allowances.core"} <= graph["generate"]
-    assert "io.write" in graph["compare.report"]
-    # the detector finds a planted circle
-    assert _cycle(dict(graph, **{"io.write": graph["io.write"] | {"compare.report"}})) is not None
 
 
 def test_discarding_a_tree_deletes_only_what_its_listing_names(tmp_path):
