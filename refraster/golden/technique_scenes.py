@@ -300,6 +300,28 @@ def _halos4d_figure1():
     return _halos4d_patches("orthographic")
 
 
+def halo_options(parameters):
+    """The options of :func:`refraster.halos4d.render_halos` that a halos4d scene's stored
+    parameters (``scene.json``'s ``"parameters"``, flat: ``rotation``, ``projection``, ``rho``,
+    ``delta_d``, ``halos``, ``opacity``, …) name, as keyword arguments: ``view``, ``halos``,
+    ``style`` values and ``width``, ``height``, ``slices``, ``background``. A field not stored
+    keeps its default; ``screen_bounds`` (an output) is not an option."""
+    from ..halos4d import STEREO_ANGLE, HaloStyle, Halos, View4D
+    p = parameters
+    view = {k: p[k] for k in ("rotation", "projection", "eye", "scale", "margin") if k in p}
+    if p.get("stereo"):
+        view["stereo"] = p.get("stereo_angle", STEREO_ANGLE)
+    halos = {new: p[old] for old, new in (("halos", "enabled"), ("rho", "rho"),
+                                          ("delta_d", "delta_d"), ("delta_t", "delta_t"),
+                                          ("surface_width", "surface_width"),
+                                          ("antialias", "antialias"), ("depth_eps", "depth_eps"))
+             if old in p}
+    style = {k: p[k] for k in ("opacity", "ambient", "halo_color", "halo_opacity",
+                               "boundary_color", "boundary_width") if k in p}
+    frame = {k: p[k] for k in ("width", "height", "slices", "background") if k in p}
+    return dict(view=View4D(**view), halos=Halos(**halos), style=HaloStyle(**style), **frame)
+
+
 def _halos4d_patches(projection):
     """The Fig. 1 patches (``halos4d_figure1``) under the given 4D → 3D projection."""
     from ..camera import orthographic
@@ -309,9 +331,7 @@ def _halos4d_patches(projection):
     params = dict(rotation=rot.tolist(), projection=projection, slices=48, delta_t=0.3,
                   surface_width=0.3, opacity=0.9, halos=True, margin=0.05, width=128,
                   height=128, background=[0.0, 0.0, 0.0])
-    out = render_halos(surface, rotation=rot, projection=projection, width=128, height=128,
-                       slices=48, delta_t=0.3, surface_width=0.3, opacity=0.9, halos=True,
-                       volume=True)
+    out = render_halos(surface, **halo_options(params), volume=True)
     params["rho"] = float(out.stats["rho"])
     # the defaults the reference derived (issue 21), so a backend can use the same values
     params.update(delta_d=float(out.stats["delta_d"]), antialias=0.3, halo_opacity=0.0)
@@ -592,9 +612,38 @@ _VARIANT_ACCEPTS = {"jfa": ["jfa", "jfa+1", "jfa+2", "1+jfa", "exact"],
                     "jfa+2": ["jfa+2", "exact"], "1+jfa": ["1+jfa", "jfa+2", "exact"]}
 
 
+def cutaway_options(parameters):
+    """The options of :func:`refraster.cutaway.render_cutaway` that a cutaway scene's stored
+    parameters (``scene.json``'s ``"parameters"``, flat: ``angle``, ``variant``, ``dilation``,
+    ``ghost``, ``ghost_distance``, …) name, as ``dict(cutaway=, cut_surfaces=, ghosts=)``
+    values. A field not stored keeps its default; ``ghost_distance`` 0 means no ghost lines
+    (``ghosts=None``)."""
+    from ..cutaway import CutSurfaces, Cutaway, GhostLines
+    p = parameters
+    cutaway = {new: p[old] for old, new in (("angle", "angle"), ("variant", "variant"),
+                                            ("perspective_compensation",
+                                             "perspective_compensation"),
+                                            ("edge_compression", "edge_compression"),
+                                            ("floor_normal", "floor_normal"),
+                                            ("floor_margin", "floor_margin"),
+                                            ("cutaway_size", "buffer_size")) if old in p}
+    if cutaway.get("buffer_size") is not None:
+        cutaway["buffer_size"] = tuple(cutaway["buffer_size"])
+    cut = {new: p[old] for old, new in (("cut_surfaces", "shade"), ("cut_color", "color"),
+                                        ("dilation", "dilation"), ("outlines", "outlines"))
+           if old in p}
+    ghosts = {new: p[old] for old, new in (("ghost", "source"), ("ghost_distance", "distance"),
+                                           ("ghost_fade", "fade"),
+                                           ("crease_angle", "crease_angle")) if old in p}
+    off = ghosts.get("distance") == 0
+    return dict(cutaway=Cutaway(**cutaway), cut_surfaces=CutSurfaces(**cut),
+                ghosts=None if off else GhostLines(**ghosts))
+
+
 def _cutaway_variant_scene(variant, extra=None):
     """``cutaway_shells`` with another jump-flooding schedule (the same camera and options);
-    ``extra``: further options of :func:`refraster.cutaway.render_cutaway` (the floor)."""
+    ``extra``: further stored options of :func:`refraster.cutaway.render_cutaway` (the floor:
+    :func:`cutaway_options` names)."""
     from ..cutaway import render_cutaway
     from ..scenes import icosphere, solid
     outer = solid("nested_shells", quick=True)
@@ -608,11 +657,7 @@ def _cutaway_variant_scene(variant, extra=None):
                   accepted_variants=list(_VARIANT_ACCEPTS[variant]))
     params.update(extra or {})
     fb = render_cutaway([draws[1].mesh], [draws[0].mesh], **camera.kwargs,
-                        **{k: params[k] for k in ("angle", "variant", "perspective_compensation",
-                                                  "edge_compression", "dilation", "outlines",
-                                                  "ghost", "ghost_distance", "ghost_fade",
-                                                  "crease_angle")},
-                        **(extra or {}))
+                        **cutaway_options(params))
     buffers = {**fb.arrays(), "cutaway_depth": fb.cutaway_depth, "cut_mask": fb.cut_mask,
                "ghost": fb.ghost}
     # the cut decision z < D(x) is free within a pixel of where the cut region changes
