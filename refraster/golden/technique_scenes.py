@@ -300,26 +300,41 @@ def _halos4d_figure1():
     return _halos4d_patches("orthographic")
 
 
+#: A halos4d scene's stored parameter → (option of :func:`refraster.halos4d.render_halos`,
+#: field of its value or None for a plain keyword). ``stereo``/``stereo_angle`` are one field.
+HALO_FIELDS = {
+    "rotation": ("view", "rotation"), "projection": ("view", "projection"),
+    "eye": ("view", "eye"), "scale": ("view", "scale"), "margin": ("view", "margin"),
+    "halos": ("halos", "enabled"), "rho": ("halos", "rho"), "delta_d": ("halos", "delta_d"),
+    "delta_t": ("halos", "delta_t"), "surface_width": ("halos", "surface_width"),
+    "antialias": ("halos", "antialias"), "depth_eps": ("halos", "depth_eps"),
+    "opacity": ("style", "opacity"), "ambient": ("style", "ambient"),
+    "halo_color": ("style", "halo_color"), "halo_opacity": ("style", "halo_opacity"),
+    "boundary_color": ("style", "boundary_color"),
+    "boundary_width": ("style", "boundary_width"),
+    "width": ("width", None), "height": ("height", None), "slices": ("slices", None),
+    "background": ("background", None)}
+
+
 def halo_options(parameters):
     """The options of :func:`refraster.halos4d.render_halos` that a halos4d scene's stored
-    parameters (``scene.json``'s ``"parameters"``, flat: ``rotation``, ``projection``, ``rho``,
-    ``delta_d``, ``halos``, ``opacity``, …) name, as keyword arguments: ``view``, ``halos``,
-    ``style`` values and ``width``, ``height``, ``slices``, ``background``. A field not stored
-    keeps its default; ``screen_bounds`` (an output) is not an option."""
+    parameters name (``scene.json``'s ``"parameters"``, flat: :data:`HALO_FIELDS`), as keyword
+    arguments: the ``view``, ``halos`` and ``style`` values and ``width``, ``height``,
+    ``slices``, ``background``. A field not stored keeps its default; other parameters
+    (``screen_bounds``, an output) are not options."""
     from ..halos4d import STEREO_ANGLE, HaloStyle, Halos, View4D
-    p = parameters
-    view = {k: p[k] for k in ("rotation", "projection", "eye", "scale", "margin") if k in p}
-    if p.get("stereo"):
-        view["stereo"] = p.get("stereo_angle", STEREO_ANGLE)
-    halos = {new: p[old] for old, new in (("halos", "enabled"), ("rho", "rho"),
-                                          ("delta_d", "delta_d"), ("delta_t", "delta_t"),
-                                          ("surface_width", "surface_width"),
-                                          ("antialias", "antialias"), ("depth_eps", "depth_eps"))
-             if old in p}
-    style = {k: p[k] for k in ("opacity", "ambient", "halo_color", "halo_opacity",
-                               "boundary_color", "boundary_width") if k in p}
-    frame = {k: p[k] for k in ("width", "height", "slices", "background") if k in p}
-    return dict(view=View4D(**view), halos=Halos(**halos), style=HaloStyle(**style), **frame)
+    fields = {"view": {}, "halos": {}, "style": {}}
+    plain = {}
+    for key, (option, name) in HALO_FIELDS.items():
+        if key in parameters:
+            if name is None:
+                plain[option] = parameters[key]
+            else:
+                fields[option][name] = parameters[key]
+    if parameters.get("stereo"):
+        fields["view"]["stereo"] = parameters.get("stereo_angle", STEREO_ANGLE)
+    return dict(view=View4D(**fields["view"]), halos=Halos(**fields["halos"]),
+                style=HaloStyle(**fields["style"]), **plain)
 
 
 def _halos4d_patches(projection):
@@ -612,32 +627,38 @@ _VARIANT_ACCEPTS = {"jfa": ["jfa", "jfa+1", "jfa+2", "1+jfa", "exact"],
                     "jfa+2": ["jfa+2", "exact"], "1+jfa": ["1+jfa", "jfa+2", "exact"]}
 
 
+#: A cutaway scene's stored parameter → (option of :func:`refraster.cutaway.render_cutaway`,
+#: field of its value).
+CUTAWAY_FIELDS = {
+    "angle": ("cutaway", "angle"), "variant": ("cutaway", "variant"),
+    "perspective_compensation": ("cutaway", "perspective_compensation"),
+    "edge_compression": ("cutaway", "edge_compression"),
+    "floor_normal": ("cutaway", "floor_normal"), "floor_margin": ("cutaway", "floor_margin"),
+    "cutaway_size": ("cutaway", "buffer_size"),
+    "cut_surfaces": ("cut_surfaces", "shade"), "cut_color": ("cut_surfaces", "color"),
+    "dilation": ("cut_surfaces", "dilation"), "outlines": ("cut_surfaces", "outlines"),
+    "ghost": ("ghosts", "source"), "ghost_distance": ("ghosts", "distance"),
+    "ghost_fade": ("ghosts", "fade"), "crease_angle": ("ghosts", "crease_angle")}
+
+
 def cutaway_options(parameters):
     """The options of :func:`refraster.cutaway.render_cutaway` that a cutaway scene's stored
-    parameters (``scene.json``'s ``"parameters"``, flat: ``angle``, ``variant``, ``dilation``,
-    ``ghost``, ``ghost_distance``, …) name, as ``dict(cutaway=, cut_surfaces=, ghosts=)``
-    values. A field not stored keeps its default; ``ghost_distance`` 0 means no ghost lines
-    (``ghosts=None``)."""
+    parameters name (``scene.json``'s ``"parameters"``, flat: :data:`CUTAWAY_FIELDS`), as
+    ``dict(cutaway=, cut_surfaces=, ghosts=)`` values. A field not stored keeps its default; a
+    stored ``ghost_distance`` of 0 means no ghost lines (``ghosts=None``); other parameters
+    (``interest``, ``accepted_variants``, …) are not options."""
     from ..cutaway import CutSurfaces, Cutaway, GhostLines
-    p = parameters
-    cutaway = {new: p[old] for old, new in (("angle", "angle"), ("variant", "variant"),
-                                            ("perspective_compensation",
-                                             "perspective_compensation"),
-                                            ("edge_compression", "edge_compression"),
-                                            ("floor_normal", "floor_normal"),
-                                            ("floor_margin", "floor_margin"),
-                                            ("cutaway_size", "buffer_size")) if old in p}
-    if cutaway.get("buffer_size") is not None:
-        cutaway["buffer_size"] = tuple(cutaway["buffer_size"])
-    cut = {new: p[old] for old, new in (("cut_surfaces", "shade"), ("cut_color", "color"),
-                                        ("dilation", "dilation"), ("outlines", "outlines"))
-           if old in p}
-    ghosts = {new: p[old] for old, new in (("ghost", "source"), ("ghost_distance", "distance"),
-                                           ("ghost_fade", "fade"),
-                                           ("crease_angle", "crease_angle")) if old in p}
-    off = ghosts.get("distance") == 0
-    return dict(cutaway=Cutaway(**cutaway), cut_surfaces=CutSurfaces(**cut),
-                ghosts=None if off else GhostLines(**ghosts))
+    fields = {"cutaway": {}, "cut_surfaces": {}, "ghosts": {}}
+    for key, (option, name) in CUTAWAY_FIELDS.items():
+        if key in parameters:
+            fields[option][name] = parameters[key]
+    size = fields["cutaway"].get("buffer_size")
+    if size is not None:
+        fields["cutaway"]["buffer_size"] = tuple(size)    # JSON stores the pair as a list
+    ghosts = fields["ghosts"]
+    return dict(cutaway=Cutaway(**fields["cutaway"]),
+                cut_surfaces=CutSurfaces(**fields["cut_surfaces"]),
+                ghosts=None if ghosts.get("distance") == 0 else GhostLines(**ghosts))
 
 
 def _cutaway_variant_scene(variant, extra=None):

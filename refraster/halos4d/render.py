@@ -15,7 +15,7 @@ Pipeline (one frame)::
 
 Voxel classes (the ``(N, H, W)`` volume, int8): 0 empty, 1 visible surface, 2 surface carved by a
 halo, 3 halo only, 4 halo boundary (a carved surface voxel on the rim of its hole, drawn in
-``boundary_color``; only with that option).
+``HaloStyle.boundary_color``; only with that option).
 
 Opacity independent of N: a surface crossed face-on has a core of thickness ``2·w_s·ρ`` along
 z, which about ``2·w_s·ρ/Δz`` slices sample. Each visible surface voxel therefore gets
