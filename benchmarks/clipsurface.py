@@ -16,9 +16,9 @@ from benchmarks._timing import interleaved_medians
 
 def main(repeats=15):
     import refraster
-    from refraster import offsetmaps as om
+    from refraster.clipsurface import offsetmaps as om
     from refraster.camera import frame_bounds
-    from refraster.clipsurface import ClipSurface, render_clipped
+    from refraster.clipsurface import Caps, ClipSurface, render_clipped
     from refraster.ldi import VolumetricDepthSprite
     from refraster.scenes import crank
 
@@ -44,12 +44,12 @@ def main(repeats=15):
         return fb
 
     def clipped(mode="mesh", caps=True):
-        fb = render_clipped(mesh, cs, **cam.kwargs, vds=[vds], cap_style="hatch",
-                            cap_mode=mode, caps=caps)
+        fb = render_clipped(mesh, cs, **cam.kwargs, vds=[vds],
+                            caps=Caps(style="hatch", mode=mode) if caps else None)
         fb.color
         return fb
 
-    cases = [("plain render", plain), ("clip only (caps=False)", lambda: clipped(caps=False)),
+    cases = [("plain render", plain), ("clip only (caps=None)", lambda: clipped(caps=False)),
              ("clip + tessellated cap", clipped), ("clip + exact cap", lambda: clipped("exact"))]
     print(f"crank: {len(mesh.faces)} faces, 1024x768, offset map 256x256, "
           f"VDS 1024^2 (d = {vds.d}) built in {build_ms:.0f} ms")

@@ -38,31 +38,35 @@ def _cases():
     tri_crank = (np.asarray(crank.vertices, np.float64), np.asarray(crank.faces, np.int64))
     view = rf.look_at([1.6, 1.2, 2.4], [0, 0, 0])
     view_far = rf.look_at([2.5, 1.8, 3.6], [0, 0, 0])
+    RS = rf.RasterState
+    smooth = RS(normals="smooth")
     out = []
     for w, h in ((160, 120), (512, 384), (1024, 768), (97, 61)):
         proj = rf.perspective(45, w / h, 0.5, 10)
         out += [
             (f"cube {w}x{h}", [tri_cube], dict(view=view, proj=proj, width=w, height=h)),
             (f"ico smooth {w}x{h}", [tri_ico], dict(view=view, proj=proj, width=w, height=h,
-                                                   normals="smooth")),
+                                                   raster=smooth)),
         ]
     proj = rf.perspective(45, 4 / 3, 0.5, 10)
     kw = dict(view=view_far, proj=proj, width=512, height=384)
     m2 = np.eye(4)
     m2[:3, 3] = (0.4, 0.1, -0.3)
     out += [
-        ("torus flat back-cull", [tri_torus], dict(kw, cull="back")),
-        ("torus smooth lequal", [tri_torus], dict(kw, normals="smooth", depth_func="lequal")),
-        ("torus given normals", [tri_torus], dict(kw, normals=tri_torus[0] / np.linalg.norm(
-            tri_torus[0], axis=1, keepdims=True))),
-        ("crank smooth", [tri_crank], dict(kw, normals="smooth")),
-        ("crank greater clear0", [tri_crank], dict(kw, depth_func="greater", clear_depth=0.0)),
+        ("torus flat back-cull", [tri_torus], dict(kw, raster=RS(cull="back"))),
+        ("torus smooth lequal", [tri_torus], dict(kw, raster=RS(normals="smooth",
+                                                               depth_func="lequal"))),
+        ("torus given normals", [tri_torus + (tri_torus[0] / np.linalg.norm(
+            tri_torus[0], axis=1, keepdims=True),)], dict(kw, raster=smooth)),
+        ("crank smooth", [tri_crank], dict(kw, raster=smooth)),
+        ("crank greater clear0", [tri_crank], dict(kw, raster=RS(depth_func="greater",
+                                                                clear_depth=0.0))),
         ("two draws models", [[tri_cube, tri_ico]], dict(kw, model=[np.eye(4), m2],
-                                                        normals="smooth")),
-        ("ico float64 4bit top-left", [tri_ico], dict(kw, precision="float64", subpixel_bits=4,
-                                                     fill_rule="top-left", cull="front")),
+                                                        raster=smooth)),
+        ("ico float64 4bit top-left", [tri_ico], dict(kw, raster=RS(
+            precision="float64", subpixel_bits=4, fill_rule="top-left", cull="front"))),
         ("near clip", [tri_torus], dict(kw, view=rf.look_at([0.3, 0.2, 0.9], [0, 0, 0]))),
-        ("fragment stage", [tri_ico], dict(kw, normals="smooth",
+        ("fragment stage", [tri_ico], dict(kw, raster=smooth,
                                           fragment_stage=lambda fr: fr.depth < 0.995)),
     ]
     return out

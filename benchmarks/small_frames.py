@@ -76,7 +76,8 @@ def _scenes():
                                                width=w, height=h))
     out["ico 81,920 1024x768"] = (mk(ico), dict(view=cam.view, proj=cam.proj, width=W, height=H))
     out["ico 81,920 smooth"] = (out["ico 81,920 1024x768"][0],
-                                dict(out["ico 81,920 1024x768"][1], normals="smooth"))
+                                dict(out["ico 81,920 1024x768"][1],
+                                     raster=rf.RasterState(normals="smooth")))
     return out
 
 

@@ -86,7 +86,7 @@ def _technique_packages(root, quick):
     export helpers of :mod:`refraster.golden.technique_scenes`), only larger. Returns
     [(name, refraster callable, package dir)]; each callable is the technique's public entry
     point with the package's parameters (what the golden generator times)."""
-    from refraster import offsetmaps as om
+    from refraster.clipsurface import offsetmaps as om
     from refraster.clipsurface import ClipSurface, render_clipped
     from refraster.cutaway import render_cutaway
     from refraster.edges import edge_map
@@ -94,7 +94,7 @@ def _technique_packages(root, quick):
     from refraster.golden.scenes import (DEFAULT_RASTER, Draw, GoldenScene, _framed,
                                          prepare_draws, render_draws)
     from refraster.golden.technique_scenes import (_clip_backend_export, _name_derived_maps,
-                                                   cutaway_options, halo_options)
+                                                   clip_caps, cutaway_options, halo_options)
     import refraster.halos4d as h4
     from refraster.scenes import crank, icosphere, solid
 
@@ -137,8 +137,9 @@ def _technique_packages(root, quick):
     sprite = VolumetricDepthSprite.from_mesh(raw, resolution=caps["vds_resolution"])
 
     def ours_clip(meshes=[raw], clip=clip, camera=camera, caps=caps, sprite=sprite):
-        fb = render_clipped(meshes, clip, **camera.kwargs, vds=[sprite], **caps,
-                            cull=state["cull"], precision=state["precision"])
+        fb = render_clipped(meshes, clip, **camera.kwargs, vds=[sprite], caps=clip_caps(caps),
+                            space=caps["space"], cull=state["cull"],
+                            precision=state["precision"])
         return fb.color
     cases.append((f"clip + cap, crank {len(mesh.faces)} faces, {w}×{h}", ours_clip,
                   root / "clip"))

@@ -7,6 +7,7 @@ from .camera import Camera, look_at, orthographic, perspective, frustum
 from .framebuffer import Framebuffer, normalized_linear_depth, render
 from .mesh import Mesh, as_mesh
 from .raster import Fragments, Resolved, concat, draw, rasterize, resolve
+from .raster.state import RasterState
 
 try:
     __version__ = _version("refraster")
@@ -14,7 +15,7 @@ except PackageNotFoundError:  # running from a source tree that was not installe
     __version__ = "0.1.0"
 
 __all__ = [
-    "render", "draw", "rasterize", "resolve", "concat", "Framebuffer", "Fragments", "Resolved",
+    "render", "draw", "rasterize", "resolve", "concat", "RasterState", "Framebuffer", "Fragments", "Resolved",
     "normalized_linear_depth", "Mesh", "as_mesh", "Camera", "camera", "look_at", "perspective",
     "frustum", "orthographic", "__version__",
 ]

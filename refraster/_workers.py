@@ -19,7 +19,9 @@ groups, which load the pipeline's kernels from the cache instead of each compili
 group that needs a warm task's kernels waits for that worker: ``after_warm``).
 
 Nothing here writes a file: the workers' results come back to the parent, which decides what to
-write. Used by the command and the goldens; the core and the techniques never import it.
+write. It stands on the tools floor with :mod:`refraster.warmup` (docs/architecture.md,
+"Floors"): the gallery, the goldens and the command use it; the core and the techniques never
+import it.
 """
 
 from __future__ import annotations

@@ -233,7 +233,8 @@ def _cmd_render(args):
         t0 = time.perf_counter()
         try:
             fb = refraster.render(mesh, view=view, proj=proj, width=args.width,
-                                  height=args.height, cull=args.cull, normals=args.normals)
+                                  height=args.height, raster=refraster.RasterState(
+                                      cull=args.cull, normals=args.normals))
         except ValueError as exc:   # e.g. clip coordinates that overflow float32
             raise CLIError(f"mesh file '{args.mesh}': {_one_line(exc)}") from exc
         seconds = time.perf_counter() - t0

@@ -9,9 +9,10 @@ import numpy as np
 
 from ._scratch import OUTPUTS, SCRATCH_FACES, frame_scratch
 from ._threads import frame_work, threads_for
-from ._validate import as_choice, as_float_array, as_image_size, as_real
+from ._validate import as_float_array, as_image_size, as_real
 from .mesh import as_meshes, smooth_normals
-from .raster import DEPTH_FUNCS, Fragments, prepare, resolve
+from .raster import DEPTH_FUNCS, Fragments, facing, prepare, resolve
+from .raster.state import as_raster_state
 from .raster.fragments import _interpolate
 from .raster.gbuffer import clear_spans, finalize, per_face_normals, readonly, shade
 from .raster.rasterizer import fused
@@ -120,8 +121,10 @@ class Framebuffer:
                     color=self.color)
 
     @classmethod
-    def from_fragments(cls, frags: Fragments, resolved, *, normals=None, background=(1, 1, 1)):
-        """Build the G-buffer from a resolved fragment stream (``frags`` from :func:`draw`)."""
+    def from_fragments(cls, frags: Fragments, resolved, *, raster=None, background=(1, 1, 1)):
+        """Build the G-buffer from a resolved fragment stream (``frags`` from :func:`draw`),
+        with the normals of ``raster.normals`` (:class:`refraster.RasterState`; None: flat)."""
+        normals = as_raster_state(raster).normals
         if frags.meshes is None:
             raise ValueError("frags must come from refraster.draw (it carries the meshes)")
         win = resolved.winner
@@ -252,9 +255,11 @@ def _normals_per_mesh(meshes, normals):
     if normals is None or (isinstance(normals, str) and normals.lower() == "flat"):
         return None
     if isinstance(normals, str):
-        as_choice(normals, "normals", {"flat": 0, "smooth": 1})
-        return [m.vertex_normals if m.vertex_normals is not None else smooth_normals(m)
-                for m in meshes]
+        # a Mesh built directly (not through as_mesh) carries its normals unchecked
+        return [smooth_normals(m) if m.vertex_normals is None else
+                as_float_array(m.vertex_normals, f"meshes[{k}].vertex_normals",
+                               shape=(m.n_vertices, 3))
+                for k, m in enumerate(meshes)]
     if len(meshes) == 1 and not isinstance(normals, (list, tuple)):
         normals = [normals]
     if not isinstance(normals, (list, tuple)) or len(normals) != len(meshes):
@@ -474,9 +479,8 @@ def _check_out(out, h, w, inputs, owners=None):
     return [a for _, a in arrays[:len(_OUT_ARRAYS)]]
 
 
-def render(meshes, *, view, proj, width, height, normals=None, cull="none", depth_func="less",
-           model=None, precision="float32", subpixel_bits=8, fill_rule="llvmpipe",
-           fragment_stage=None, clear_depth=1.0, background=(1.0, 1.0, 1.0), out=None):
+def render(meshes, *, view, proj, width, height, raster=None, model=None, fragment_stage=None,
+           background=(1.0, 1.0, 1.0), out=None):
     """Render meshes to a :class:`Framebuffer` (G-buffer plus a simple shaded colour).
 
     Parameters
@@ -487,18 +491,17 @@ def render(meshes, *, view, proj, width, height, normals=None, cull="none", dept
     view, proj : (4, 4) float
         World → eye and eye → clip matrices (:mod:`refraster.camera`).
     width, height : int
-    normals : None, "flat", "smooth", (V, 3) array or list of them
-        Flat face normals (default), smooth area-weighted vertex normals, or given per-vertex
-        normals, interpolated perspective-correctly and renormalized.
-    cull : {"none", "back", "front"}
-    depth_func : {"less", "lequal", "greater", "gequal", "equal", "notequal", "always", "never"}
+    raster : RasterState, optional
+        The fixed-function state (:class:`refraster.RasterState`): depth function, depth
+        writes, clear depth, culling, front face, sub-pixel bits, fill rule, vertex-stage
+        precision, and ``normals``: flat face normals (default) or smooth per-vertex normals
+        (a mesh's own, given as ``Mesh.vertex_normals`` or a ``(vertices, faces, normals)``
+        triple, else area-weighted ones), interpolated perspective-correctly and
+        renormalized. None: OpenGL's defaults.
     model : (4, 4) or list of (4, 4), optional
-    precision, subpixel_bits, fill_rule
-        See :func:`refraster.draw`.
     fragment_stage : callable, optional
         ``fragment_stage(frags) -> keep (N,) bool``, applied before the depth test (fragments
         with False are discarded, as GLSL ``discard``).
-    clear_depth : float
     background : (3,) float
         Colour of uncovered pixels in ``color``.
     out : Framebuffer, optional
@@ -527,8 +530,7 @@ def render(meshes, *, view, proj, width, height, normals=None, cull="none", dept
     nobody holds any more (no framebuffer, view or memoryview of it), recycled and written
     whole (:class:`refraster._scratch.OutputPool`; ``REFRASTER_POOL_MB=0`` turns it off).
     """
-    as_choice(depth_func, "depth_func", DEPTH_FUNCS)
-    clear = as_real(clear_depth, "clear_depth", lo=0.0, hi=1.0)
+    state = as_raster_state(raster)
     bg = as_float_array(background, "background", shape=(3,))
     if fragment_stage is not None and not callable(fragment_stage):
         raise TypeError("fragment_stage must be callable: frags -> keep mask")
@@ -537,23 +539,26 @@ def render(meshes, *, view, proj, width, height, normals=None, cull="none", dept
     meshes = as_meshes(meshes)
     w, h = as_image_size(width, height)
     with threads_for(frame_work(sum(m.n_faces for m in meshes), w, h)):
-        return _render(meshes, view, proj, w, h, normals, cull, depth_func, model, precision,
-                       subpixel_bits, fill_rule, fragment_stage, clear, bg, out)
+        return _render(meshes, view, proj, w, h, state, model, fragment_stage, bg, out)
 
 
-def _render(meshes, view, proj, width, height, normals, cull, depth_func, model, precision,
-            subpixel_bits, fill_rule, fragment_stage, clear, bg, out):
+def _render(meshes, view, proj, width, height, state, model, fragment_stage, bg, out):
     # the fused path's intermediates come from this thread's reused buffers (none of them is
     # returned or kept by the framebuffer); the fragment-stream path hands its stream to user
     # code, so it allocates
     # (from SCRATCH_FACES faces up: smaller frames' arrays are below malloc's mmap threshold,
     # reused by malloc anyway, and np.zeros is cheaper for them than the scratch's bookkeeping)
-    scratch = (frame_scratch() if fragment_stage is None
+    # without depth writes the depth test is not a minimum over the fragments: only the
+    # fragment stream's resolve has it (the fused tile pass assumes writes)
+    fused_path = fragment_stage is None and state.depth_write
+    scratch = (frame_scratch() if fused_path
                and sum(m.n_faces for m in meshes) >= SCRATCH_FACES else None)
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
-                   cull=cull, precision=precision, subpixel_bits=subpixel_bits,
-                   fill_rule=fill_rule, scratch=scratch)
-    if fragment_stage is None:
+                   raster=state, scratch=scratch)
+    normals = state.normals
+    clear = state.clear_depth
+    depth_func = state.depth_func
+    if fused_path:
         h, w = height, width
         buffers = None
         if out is not None:
@@ -569,21 +574,24 @@ def _render(meshes, view, proj, width, height, normals, cull, depth_func, model,
                                         depth_func, clear, bg, scratch)
             buffers = (out.depth, faces, out.front_facing, out.barycentric.reshape(h * w, 3))
         depth, prim_global, front, bary = fused(
-            prep.triangles, fill_rule=prep.fill_rule, depth_func=DEPTH_FUNCS[depth_func.lower()],
+            prep.triangles, fill_rule=prep.fill_rule, depth_func=DEPTH_FUNCS[depth_func],
             clear_depth=clear, buffers=buffers, scratch=scratch)
+        facing(state, front, prim_global >= 0)
         return _build(prep.meshes, prep.models, prep.view, prep.proj, depth, prim_global,
                       prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg, out=out)
     from .raster import _fragments_from
     from .raster.rasterizer import stream
     pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
     frags = _fragments_from(prep, pixel, depth, prim, front, bary)
-    keep = fragment_stage(frags)
-    keep = np.asarray(keep)
-    if keep.dtype != np.bool_ or keep.shape != (len(frags),):
-        raise ValueError(f"fragment_stage must return a bool array of shape ({len(frags)},), "
-                         f"got {keep.dtype} {keep.shape}")
-    res = resolve(frags, depth_func=depth_func, keep=keep, clear_depth=clear)
-    return Framebuffer.from_fragments(frags, res, normals=normals, background=bg)
+    if fragment_stage is None:
+        keep = None
+    else:
+        keep = np.asarray(fragment_stage(frags))
+        if keep.dtype != np.bool_ or keep.shape != (len(frags),):
+            raise ValueError(f"fragment_stage must return a bool array of shape "
+                             f"({len(frags)},), got {keep.dtype} {keep.shape}")
+    res = resolve(frags, raster=state, keep=keep)
+    return Framebuffer.from_fragments(frags, res, raster=state, background=bg)
 
 
 def _render_reusable(prep, out, owners, trusted, arrays, faces, normals, depth_func, clear,
@@ -615,9 +623,10 @@ def _render_reusable(prep, out, owners, trusted, arrays, faces, normals, depth_f
             clear_spans(clears[0], False, *clears[1:])
             old_spans, spans = spans, np.empty((h, 2), np.int64)
         fused(prep.triangles, fill_rule=prep.fill_rule,
-              depth_func=DEPTH_FUNCS[depth_func.lower()], clear_depth=clear,
+              depth_func=DEPTH_FUNCS[depth_func], clear_depth=clear,
               buffers=(depth, faces, front, bary.reshape(h * w, 3)), scratch=scratch,
               cleared=True)
+        facing(prep.state, front, faces >= 0)
         _build(prep.meshes, prep.models, prep.view, prep.proj, depth, faces,
                prep.face_offsets, front, bary, normals, bg, out=out,
                targets=(eye_depth, normal, prim, obj), spans=spans)

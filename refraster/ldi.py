@@ -280,7 +280,7 @@ def peel_fragments(frags, *, max_layers=None, mode="peel"):
 
 
 def peel(meshes, *, view, proj, width, height, max_layers=None, mode="peel", model=None,
-         cull="none", precision="float32", subpixel_bits=8, fill_rule="llvmpipe"):
+         raster=None):
     """Layered depth image of meshes: depth peeling from one pass over the fragment stream.
 
     Parameters
@@ -293,8 +293,9 @@ def peel(meshes, *, view, proj, width, height, max_layers=None, mode="peel", mod
         Cap on the number of layers (``overflow`` marks pixels that had more).
     mode : {"peel", "all"}
         See :func:`peel_fragments`.
-    model, cull, precision, subpixel_bits, fill_rule
-        Passed to :func:`refraster.draw`.
+    model, raster
+        Passed to :func:`refraster.draw` (the state's cull mode, front face, precision,
+        sub-pixel bits and fill rule; a :class:`refraster.RasterState`, None for the default).
 
     Returns
     -------
@@ -309,8 +310,7 @@ def peel(meshes, *, view, proj, width, height, max_layers=None, mode="peel", mod
     as_choice(mode, "mode", MODES)
     _as_max_layers(max_layers)
     frags = draw(meshes, view=view, proj=proj, width=width, height=height, model=model,
-                 cull=cull, precision=precision, subpixel_bits=subpixel_bits,
-                 fill_rule=fill_rule)
+                 raster=raster)
     return peel_fragments(frags, max_layers=max_layers, mode=mode)
 
 
@@ -427,7 +427,7 @@ class VolumetricDepthSprite:
 
     @classmethod
     def from_mesh(cls, mesh, resolution=256, axis="z", *, margin=2, strict=False,
-                  precision="float32"):
+                  raster=None):
         """Build the sprite of a closed mesh.
 
         Parameters
@@ -443,8 +443,10 @@ class VolumetricDepthSprite:
             interval is left in depth (MATH.md §2.1: no face may lie on a clip plane).
         strict : bool
             Raise instead of warning when a texel has an odd layer count.
-        precision : {"float32", "float64"}
-            Vertex-stage arithmetic of the rasterization.
+        raster : RasterState, optional
+            The rasterization's state (:class:`refraster.RasterState`: its precision,
+            sub-pixel bits and fill rule; culling must stay off, and the sprite's own camera
+            decides the facing). None: the default state.
 
         Returns
         -------
@@ -458,6 +460,13 @@ class VolumetricDepthSprite:
         counts only layers that exist (MATH.md §2.2, "Loop bound").
         """
         from .raster import draw
+        from .raster.state import as_raster_state
+        state = as_raster_state(raster)
+        if state.cull != "none" or state.front_face != "ccw":
+            raise ValueError(f"raster.cull must be 'none' and raster.front_face 'ccw' for a "
+                             f"volumetric depth sprite (every layer counts, and the sign of a "
+                             f"layer is its facing), got cull={state.cull!r}, "
+                             f"front_face={state.front_face!r}")
         m = as_mesh(mesh)
         if m.n_faces == 0:
             raise ValueError("mesh has no faces: a volumetric depth sprite needs a closed solid")
@@ -481,7 +490,7 @@ class VolumetricDepthSprite:
             basis = AXES[name]
             matrix = _sprite_matrix(center, scale, basis)
             frags = draw(m, view=matrix, proj=_texture_to_ndc(), width=res, height=res,
-                         precision=precision)
+                         raster=state)
             ldi = peel_fragments(frags, mode="all")
             depth = np.where(ldi.index >= 0, ldi.depth, np.float32(np.inf)).astype(np.float32)
             sign = np.where(ldi.index >= 0, np.where(ldi.front_facing, 1, -1), 0).astype(np.int8)

@@ -56,6 +56,7 @@ from numba import njit
 from ._config import JIT
 from ._validate import as_real
 from .raster import prepare, resolve
+from .raster.state import RasterState
 from .raster.primitive import CLIPPED, SIMPLE
 from .raster.rasterizer import stream
 
@@ -234,7 +235,7 @@ def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps
     Tolerance
     """
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
-                   cull=cull)
+                   raster=RasterState(cull=cull))
     w, h = prep.width, prep.height
     eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
     depth_eps = as_real(depth_eps, "depth_eps", lo=0.0)
@@ -409,7 +410,7 @@ def may_faces(meshes, *, view, proj, width, height, model=None, cull="none", mas
         without repeats.
     """
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
-                   cull=cull)
+                   raster=RasterState(cull=cull))
     w, h = prep.width, prep.height
     eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
     mask = np.ones((h, w), np.bool_) if mask is None else np.ascontiguousarray(mask, np.bool_)
@@ -606,7 +607,7 @@ def edge_may(meshes, *, view, proj, width, height, model=None, cull="none", eps=
     (``coverage_may`` only near border, fold and silhouette edges, as in :func:`tolerance`).
     """
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
-                   cull=cull)
+                   raster=RasterState(cull=cull))
     w, h = prep.width, prep.height
     eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
     p = prep.triangles

@@ -10,8 +10,9 @@ them again, which takes minutes for the gallery. This module
 * compiles ahead (:func:`warm_core` for ``render``; ``refraster warmup`` for everything, e.g.
   in a CI image or a Docker layer).
 
-It sits beside the command and the gallery (it imports techniques); the core and the
-techniques never import it.
+It stands on the tools floor (docs/architecture.md, "Floors"), with :mod:`refraster._workers`:
+above the techniques (it imports them to compile their kernels), below the goldens, the gallery
+and the command, which use it; the core and the techniques never import it.
 """
 
 from __future__ import annotations
@@ -65,7 +66,8 @@ KERNEL_MODULES = CORE_MODULES + (
     "refraster.raster.fragments", "refraster.raster.resolve", "refraster.ldi",
     "refraster.clipsurface.offsetmaps", "refraster.clipsurface.capping",
     "refraster.clipsurface.surfaces", "refraster.clipsurface.textures",
-    "refraster.clipsurface.fused", "refraster.edges", "refraster.npr", "refraster.cutaway.flood",
+    "refraster.clipsurface.fused", "refraster.edges.operators", "refraster.edges.npr",
+    "refraster.cutaway.flood",
     "refraster.halos4d.slicing", "refraster.halos4d.render", "refraster.tolerance",
     "refraster.golden.layers", "refraster.golden.edge_bounds")
 
@@ -88,8 +90,8 @@ GALLERY_SKIPS = (
     "refraster.golden.layers._count_bounds",
     "refraster.clipsurface.capping._hatch_kernel",
     "refraster.clipsurface.surfaces._g_kernel",
-    "refraster.edges._id_kernel",
-    "refraster.edges._sobel_kernel",
+    "refraster.edges.operators._id_kernel",
+    "refraster.edges.operators._sobel_kernel",
     "refraster.halos4d.slicing._edge",
     "refraster.halos4d.slicing._face",
     "refraster.halos4d.slicing._sorted3",
@@ -280,11 +282,12 @@ def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False, reusable=
     for near in (0.5, 1.9) if clip else (0.5,):   # 1.9 cuts the cube: clipped pieces
         proj = perspective(40.0, 4 / 3, near, 10.0)
         for mode in normals:
-            fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12, normals=mode)
+            state = refraster.RasterState(normals=mode)
+            fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12, raster=state)
             np.asarray(fb.color)
             if stream:
                 fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12,
-                                      normals=mode,
+                                      raster=state,
                                       fragment_stage=lambda f: f.world_position()[:, 0] <= 0.0)
                 np.asarray(fb.color)
     if reusable:
@@ -360,7 +363,8 @@ def warm_only(kernels, normals="flat"):
     view = look_at((0.3, 0.4, 2.0), (0.0, 0.0, 0.0))
     proj = perspective(40.0, 4 / 3, 0.5, 10.0)
     with _stubbed(others):
-        fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12, normals=normals)
+        fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12,
+                              raster=refraster.RasterState(normals=normals))
         np.asarray(fb.color)
 
 

@@ -83,7 +83,7 @@ def test_render_explicit_camera(crank_files, tmp_path):
                      "--eye", "2", "-3", "9", "--target", "2", "0", "0", "--fov", "40",
                      "--near", "1", "--far", "30", "--cull", "back", "-q"]) == 0
     fb = refraster.render(mesh, view=look_at((2, -3, 9), (2, 0, 0)),
-                          proj=perspective(40, 80 / 60, 1, 30), width=80, height=60, cull="back")
+                          proj=perspective(40, 80 / 60, 1, 30), width=80, height=60, raster=refraster.RasterState(cull="back"))
     with np.load(buf, allow_pickle=False) as z:
         np.testing.assert_array_equal(z["prim_id"], fb.prim_id)
         assert np.all(z["front_facing"][z["prim_id"] >= 0])

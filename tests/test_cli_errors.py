@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from refraster import cli
+from refraster import RasterState, cli
 
 PY = [sys.executable]
 
@@ -119,7 +119,7 @@ def test_overflowing_clip_coordinates_and_singular_projection_are_errors():
         refraster.render((v * 1e300, f), **kw)
     with pytest.raises(ValueError, match=r"meshes\[1\]: clip coordinates overflow"):
         refraster.render([(v, f), (v * 1e300, f)], **kw)
-    refraster.render((v * 1e300, f), precision="float64", **kw)   # fits float64
+    refraster.render((v * 1e300, f), raster=RasterState(precision="float64"), **kw)   # fits float64
     with pytest.raises(ValueError, match="proj is singular"):
         refraster.render((v, f), view=view, proj=np.zeros((4, 4)), width=32, height=24)
     flat = proj.copy()
@@ -148,5 +148,5 @@ def test_oracle_scenes_at_1e30_still_render():
         assert sc.name.endswith("huge_1e30")
         for precision in ("float32", "float64"):
             fb = refraster.render(sc.meshes, view=sc.view, proj=sc.proj, width=sc.width,
-                                  height=sc.height, precision=precision)
+                                  height=sc.height, raster=RasterState(precision=precision))
             assert (fb.prim_id >= 0).sum() > 0

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from refraster import offsetmaps as om
+from refraster.clipsurface import offsetmaps as om
 from refraster.camera import look_at
 from refraster.clipsurface import ClipSurface, ReliefClipPlane, clip_function, clip_mask
 from determinism import outputs_by_thread_count
@@ -162,7 +162,7 @@ def test_bad_call_inputs():
 
 _DETERMINISM = """
 import numpy as np, sys
-from refraster import offsetmaps as om
+from refraster.clipsurface import offsetmaps as om
 from refraster.clipsurface import ClipSurface, clip_mask, clip_function
 cs = [ClipSurface([0, 0, 0], [1, 0, 0], [0, 1, 0], (3, 2, 0.4), om.perlin_noise(32, seed=k))
       for k in range(3)]

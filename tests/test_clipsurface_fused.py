@@ -13,9 +13,9 @@ import trimesh
 import refraster
 from refraster.clipsurface import capping, fused
 from refraster.clipsurface import render as cs_render
-from refraster import offsetmaps as om
+from refraster.clipsurface import offsetmaps as om
 from refraster.camera import frame_bounds, look_at, perspective
-from refraster.clipsurface import ClipSurface, render_clipped
+from refraster.clipsurface import Caps, ClipSurface, render_clipped
 from refraster.ldi import VolumetricDepthSprite
 from refraster.mesh import Mesh, bounds
 from refraster.scenes import crank
@@ -76,7 +76,7 @@ def crank_scene():
 def test_fused_equals_stream_on_the_crank(crank_scene, monkeypatch, space, two):
     mesh, ragged, second, cam, sprite = crank_scene
     surfaces = [ragged, second] if two else ragged
-    kw = dict(**cam.kwargs, vds=[sprite], cap_style="hatch", space=space)
+    kw = dict(**cam.kwargs, vds=[sprite], caps=Caps(style="hatch"), space=space)
     fused = render_clipped(mesh, surfaces, **kw)
     ref = staged(monkeypatch, mesh, surfaces, **kw)
     assert fused.cap_mask.sum() > 200
@@ -85,7 +85,7 @@ def test_fused_equals_stream_on_the_crank(crank_scene, monkeypatch, space, two):
 
 def test_fused_equals_stream_without_caps(crank_scene, monkeypatch):
     mesh, ragged, second, cam, _ = crank_scene
-    kw = dict(**cam.kwargs, caps=False)
+    kw = dict(**cam.kwargs, caps=None)
     fused = render_clipped(mesh, [ragged, second.replace(enabled=False)], **kw)
     ref = staged(monkeypatch, mesh, [ragged, second.replace(enabled=False)], **kw)
     assert_same(fused, ref)
@@ -107,8 +107,8 @@ def test_fused_equals_stream_for_two_solids_with_models_and_three_axes(monkeypat
     sprites = [VolumetricDepthSprite.from_mesh(world[0], resolution=64, axis="xyz"),
                VolumetricDepthSprite.from_mesh(world[1], resolution=64)]
     kw = dict(view=look_at([2.0, 1.5, 3.0], [0.6, 0, 0]), proj=perspective(40, 4 / 3, 0.5, 10),
-              width=160, height=120, model=[m0, m1], vds=sprites, cap_style="diffuse",
-              normals="smooth")
+              width=160, height=120, model=[m0, m1], vds=sprites,
+              caps=Caps(style="diffuse"), normals="smooth")
     fused = render_clipped([box, ball], cs, **kw)
     ref = staged(monkeypatch, [box, ball], cs, **kw)
     assert set(np.unique(fused.object_id[fused.cap_mask])) == {2, 3}
@@ -119,7 +119,7 @@ def test_cap_culling_changes_no_pixel(crank_scene):
     """Culled caps (sprite given) against the whole cap grid (duck-typed test, no culling):
     every buffer equal except the caps' face indices, which count the kept faces."""
     mesh, ragged, _, cam, sprite = crank_scene
-    kw = dict(**cam.kwargs, cap_style="marble")
+    kw = dict(**cam.kwargs, caps=Caps(style="marble"))
     culled = render_clipped(mesh, ragged, vds=[sprite], **kw)
     whole = render_clipped(mesh, ragged, vds=[Wrapped(sprite)], **kw)
     assert_same(culled, whole, [f for f in FIELDS if f != "prim_id"])
@@ -210,7 +210,7 @@ def test_fused_equals_stream_with_near_plane_clipping(monkeypatch, cull):
     sprite = VolumetricDepthSprite.from_mesh(box, resolution=128)
     kw = dict(view=look_at([1.6, 0.4, 1.3], [0.0, 0.0, -0.5]),
               proj=perspective(70, 4 / 3, 0.9, 10), width=160, height=120, vds=[sprite],
-              cull=cull, cap_style="wood")
+              cull=cull, caps=Caps(style="wood"))
     prep = refraster.raster.prepare(box, view=kw["view"], proj=kw["proj"], width=160,
                                     height=120)
     assert len(prep.triangles.clipped) > 0          # the near plane does cut faces
@@ -302,7 +302,7 @@ def test_fragments_stay_near_bounds_the_extrapolation():
 def test_surely_inside_flags_change_no_pixel(crank_scene, monkeypatch):
     """The fused pass with the flags against the fused pass with every flag cleared."""
     mesh, ragged, second, cam, sprite = crank_scene
-    kw = dict(**cam.kwargs, vds=[sprite], cap_style="hatch")
+    kw = dict(**cam.kwargs, vds=[sprite], caps=Caps(style="hatch"))
     for surfaces in (ragged, [ragged, second]):
         flagged = render_clipped(mesh, surfaces, **kw)
         orig = cs_render._cached_cap

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 import refraster
-from refraster import offsetmaps as om
+from refraster.clipsurface import offsetmaps as om
 from refraster import scenes
 from refraster.camera import frame_bounds, look_at, perspective
-from refraster.capping import cap_mesh
-from refraster.clipsurface import ClipSurface, render_clipped
+from refraster.clipsurface.capping import cap_mesh
+from refraster.clipsurface import Caps, ClipSurface, render_clipped
 
 
 def parity_tests(*meshes):
@@ -103,7 +103,7 @@ def test_planar_cut_matches_manifold3d(oracle, name):
 
 def heightfield_solid(surface, bounds, heights_at, subdivision):
     """A closed solid between the displaced surface and a flat floor beyond the box on −N,
-    with the same lattice (and diagonal) as refraster.capping.cap_mesh."""
+    with the same lattice (and diagonal) as refraster.clipsurface.capping.cap_mesh."""
     import trimesh
     cap = cap_mesh(surface, bounds, subdivision=subdivision)
     top = cap.vertices.copy()
@@ -162,7 +162,7 @@ def test_relief_cut_matches_manifold3d_and_exact_is_closer(oracle):
     same = oracle_depth(1)
     fine = oracle_depth(6)
     tess = render_clipped(mesh, cs, **cam.kwargs, vds=tests)
-    exact = render_clipped(mesh, cs, **cam.kwargs, vds=tests, cap_mode="exact")
+    exact = render_clipped(mesh, cs, **cam.kwargs, vds=tests, caps=Caps(mode="exact"))
     covered = tess.mask | same.mask
     ok = np.abs(tess.depth.astype(np.float64) - same.depth) <= 1e-4
     frac = np.count_nonzero(ok & covered) / np.count_nonzero(covered)
@@ -182,7 +182,7 @@ def test_exact_and_mesh_caps_agree_on_a_plane():
     kw = dict(view=look_at([1.5, 1.2, 2.2], [0, 0, 0]), proj=perspective(35, 4 / 3, 0.5, 10),
               width=160, height=120, vds=parity_tests(box))
     a = render_clipped(box, cs, **kw)
-    b = render_clipped(box, cs, **kw, cap_mode="exact")
+    b = render_clipped(box, cs, **kw, caps=Caps(mode="exact"))
     both = a.cap_mask & b.cap_mask
     assert both.sum() > 0.97 * max(a.cap_mask.sum(), b.cap_mask.sum())
     np.testing.assert_allclose(a.depth[both], b.depth[both], atol=2e-6)
@@ -201,7 +201,7 @@ def test_eye_space_render_equals_world_space():
     box = trimesh.creation.box((1.0, 1.0, 1.0))
     cs = ClipSurface([0, 0, 0.1], [0, 1.5, 0], [1.5, 0, 0], (1, 1, 0.3), om.perlin_noise(16))
     kw = dict(view=look_at([1.5, 1.2, 2.2], [0, 0, 0]), proj=perspective(35, 4 / 3, 0.5, 10),
-              width=120, height=90, caps=False)
+              width=120, height=90, caps=None)
     a = render_clipped(box, cs, **kw)
     b = render_clipped(box, cs, **kw, space="eye")
     assert np.count_nonzero(a.depth != b.depth) <= 0.001 * a.depth.size
@@ -214,10 +214,10 @@ def test_cap_styles_and_disabled_surface(style):
     cs = ClipSurface([0, 0, 0.1], [0, 1.5, 0], [1.5, 0, 0], (1, 1, 0.3), om.perlin_noise(16))
     kw = dict(view=look_at([1.5, 1.2, 2.2], [0, 0, 0]), proj=perspective(35, 4 / 3, 0.5, 10),
               width=64, height=48, vds=parity_tests(box))
-    fb = render_clipped(box, cs, **kw, cap_style=style)
+    fb = render_clipped(box, cs, **kw, caps=Caps(style=style))
     assert fb.cap_mask.any()
     assert np.all((fb.color >= 0) & (fb.color <= 1))
-    off = render_clipped(box, cs.replace(enabled=False), **kw, cap_style=style)
+    off = render_clipped(box, cs.replace(enabled=False), **kw, caps=Caps(style=style))
     plain = refraster.render(box, **{k: kw[k] for k in ("view", "proj", "width", "height")})
     np.testing.assert_array_equal(off.depth, plain.depth)
     assert not off.cap_mask.any()
@@ -232,11 +232,9 @@ def test_bad_inputs():
     open_box = (box.vertices, box.faces[:-1])
     with pytest.raises(ValueError, match="watertight"):
         render_clipped(open_box, cs, **kw)
-    render_clipped(open_box, cs, **kw, caps=False)  # clipping alone needs no closed solid
-    with pytest.raises(ValueError, match="cap_style"):
-        render_clipped(box, cs, **kw, cap_style="stipple", vds=parity_tests(box))
-    with pytest.raises(ValueError, match="cap_mode"):
-        render_clipped(box, cs, **kw, cap_mode="parallax", vds=parity_tests(box))
+    render_clipped(open_box, cs, **kw, caps=None)  # clipping alone needs no closed solid
+    with pytest.raises(TypeError, match="caps must be a Caps or None, got bool"):
+        render_clipped(box, cs, **kw, caps=True)
     with pytest.raises(ValueError, match="vds"):
         render_clipped(box, cs, **kw, vds=[object(), object()])
     with pytest.raises(TypeError, match="contains"):
@@ -244,28 +242,104 @@ def test_bad_inputs():
     with pytest.raises(TypeError, match="surfaces"):
         render_clipped(box, [cs, None], **kw)
     with pytest.raises(ValueError, match="normals"):
-        render_clipped(box, cs, **kw, normals=np.zeros((8, 3)), caps=False)
+        render_clipped(box, cs, **kw, normals=np.zeros((8, 3)), caps=None)
 
+
+
+# ------------------------------------------------------------------------- the Caps value
+
+_VOLUME = np.zeros((2, 2, 2))
+
+
+@pytest.mark.parametrize("field, value, exc, message", [
+    ("style", "stipple", ValueError, "caps.style must be one of ['diffuse', 'hatch', 'marble', "
+                                     "'noise', 'solid', 'wood'], got 'stipple'"),
+    ("style", 3, TypeError, "caps.style must be a str"),
+    ("mode", "parallax", ValueError, "caps.mode must be one of ['exact', 'mesh']"),
+    ("color", (1.0, 0.0), ValueError, "caps.color must have shape (3), got (2,)"),
+    ("color", (np.nan, 0.0, 0.0), ValueError, "caps.color contains 1 non-finite value"),
+    ("color", "red", TypeError, "caps.color must be a numeric array"),
+    ("hatch_spacing", 0.0, ValueError, "caps.hatch_spacing must be > 0.0, got 0.0"),
+    ("hatch_spacing", "1", TypeError, "caps.hatch_spacing must be a real number"),
+    ("texture_frequency", -1.0, ValueError, "caps.texture_frequency must be > 0.0"),
+    ("texture_frequency", None, TypeError, "caps.texture_frequency must be a real number"),
+    ("subdivision", 0, ValueError, "caps.subdivision must be an int in [1, 64], got 0"),
+    ("subdivision", 65, ValueError, "caps.subdivision must be an int in [1, 64], got 65"),
+    ("subdivision", 1.0, TypeError, "caps.subdivision must be an int, got float"),
+    ("subdivision", True, TypeError, "caps.subdivision must be an int, got bool"),
+    ("occlusion_radius", 0.0, ValueError, "caps.occlusion_radius must be > 0.0"),
+    ("occlusion_radius", np.inf, ValueError, "caps.occlusion_radius must be finite"),
+    ("solid_texture", _VOLUME, ValueError, "caps.solid_texture is used by caps.style='solid' "
+                                           "only, not 'diffuse'"),
+    ("vds_resolution", 4, ValueError, "caps.vds_resolution must be at least 8, got 4"),
+    ("vds_resolution", 5000, ValueError, "caps.vds_resolution = 5000 exceeds"),
+    ("vds_resolution", 64.0, TypeError, "caps.vds_resolution must be an int, got float"),
+])
+def test_caps_refuses_a_bad_field_in_one_line_naming_it(field, value, exc, message):
+    with pytest.raises(exc) as info:
+        Caps(**{field: value})
+    text = str(info.value)
+    assert text.startswith(message) and "\n" not in text, text
+
+
+@pytest.mark.parametrize("fields, message", [
+    (dict(style="solid"), "caps.solid_texture is needed by caps.style='solid'"),
+    (dict(style="solid", solid_texture=np.zeros((2, 2))),
+     "caps.solid_texture: volume must be (D, H, W) or (D, H, W, C), got shape (2, 2)"),
+])
+def test_caps_solid_style_and_its_texture(fields, message):
+    with pytest.raises(ValueError) as info:
+        Caps(**fields)
+    assert str(info.value).startswith(message) and "\n" not in str(info.value)
+
+
+def test_caps_defaults_normal_forms_and_immutability():
+    import dataclasses
+    import inspect
+
+    from refraster.clipsurface.textures import SolidTexture
+    c = Caps()
+    assert (c.style, c.mode, c.color, c.hatch_spacing, c.texture_frequency, c.subdivision,
+            c.occlusion_radius, c.solid_texture, c.vds_resolution) == \
+        ("diffuse", "mesh", (0.80, 0.30, 0.25), None, 4.0, 1, None, None, 1024)
+    assert inspect.signature(render_clipped).parameters["caps"].default == c
+    assert len(inspect.signature(render_clipped).parameters) <= 15
+    d = Caps(style="HATCH", mode="Exact", color=np.array([1, 0, 0]), subdivision=np.int64(2),
+             hatch_spacing=1, occlusion_radius=2)
+    assert (d.style, d.mode, d.color, d.subdivision, d.hatch_spacing, d.occlusion_radius) == \
+        ("hatch", "exact", (1.0, 0.0, 0.0), 2, 1.0, 2.0)
+    assert type(d.subdivision) is int and all(type(x) is float for x in d.color)
+    assert d == Caps(style="hatch", mode="exact", color=(1.0, 0.0, 0.0), subdivision=2,
+                     hatch_spacing=1.0, occlusion_radius=2.0)
+    assert hash(d) == hash(dataclasses.replace(d))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        d.style = "diffuse"
+    with pytest.raises(ValueError, match="caps.subdivision"):
+        dataclasses.replace(d, subdivision=0)           # a variant is validated again
+    solid = Caps(style="solid", solid_texture=np.zeros((2, 2, 2)))
+    assert isinstance(solid.solid_texture, SolidTexture)
+    assert Caps(style="solid", solid_texture=solid.solid_texture).solid_texture \
+        is solid.solid_texture
 
 _DETERMINISM = """
 import sys, numpy as np, trimesh
-from refraster import offsetmaps as om
+from refraster.clipsurface import offsetmaps as om
 from refraster.camera import look_at, perspective
-from refraster.clipsurface import ClipSurface, render_clipped
+from refraster.clipsurface import Caps, ClipSurface, render_clipped
 box = trimesh.creation.box((1.0, 1.0, 1.0))
 class C:
     def contains(self, p):
         return np.all(np.abs(p) <= 0.5, axis=1)
 cs = ClipSurface([0, 0, 0.1], [0, 1.5, 0], [1.5, 0, 0], (1, 1, 0.3), om.perlin_noise(16))
 kw = dict(view=look_at([1.5, 1.2, 2.2], [0, 0, 0]), proj=perspective(35, 4 / 3, 0.5, 10),
-          width=96, height=72, vds=[C()], cap_style="hatch")
+          width=96, height=72, vds=[C()])
 for mode in ("mesh", "exact"):
-    fb = render_clipped(box, cs, cap_mode=mode, **kw)
+    fb = render_clipped(box, cs, caps=Caps(style="hatch", mode=mode), **kw)
     sys.stdout.write(fb.depth.tobytes().hex() + fb.color.tobytes().hex())
 # the fused tile pass (a volumetric depth sprite as the parity test)
 from refraster.ldi import VolumetricDepthSprite
 kw["vds"] = [VolumetricDepthSprite.from_mesh(box, resolution=64)]
-fb = render_clipped(box, cs, **kw)
+fb = render_clipped(box, cs, caps=Caps(style="hatch"), **kw)
 assert fb.cap_mask.any()
 sys.stdout.write(fb.depth.tobytes().hex() + fb.color.tobytes().hex() + fb.prim_id.tobytes().hex())
 """

@@ -13,7 +13,7 @@ import pytest
 from scipy import ndimage
 
 from refraster.camera import look_at, perspective
-from refraster.clipsurface import ClipSurface, render_clipped
+from refraster.clipsurface import Caps, ClipSurface, render_clipped
 from refraster.clipsurface import capping
 from refraster.clipsurface import offsetmaps as om
 from refraster.clipsurface.textures import (CapTextures, SolidTexture, as_texture,
@@ -100,8 +100,8 @@ def test_pixel_centres_on_texel_centres_show_whole_texels(mode):
     # the set-up really puts the centres on texel centres
     assert np.abs(st[inside] * TEX - 0.5 - np.round(st[inside] * TEX - 0.5)).max() < 1e-12
     tex = coded_texture()
-    fb = render_clipped(box(), plane(CapTextures(diffuse=tex)), **cam, cap_mode=mode,
-                        vds_resolution=64, cap_color=(0.0, 0.0, 0.0))
+    fb = render_clipped(box(), plane(CapTextures(diffuse=tex)), **cam,
+                        caps=Caps(mode=mode, vds_resolution=64, color=(0.0, 0.0, 0.0)))
     assert texel_check(fb, cam, tex) < 2e-4
 
 
@@ -119,7 +119,7 @@ def test_planted_faults_in_the_texture_lookup_fail(monkeypatch):
         with monkeypatch.context() as m:
             m.setattr(capping, "sample_texture", fault)
             fb = render_clipped(box(), plane(CapTextures(diffuse=tex)), **cam,
-                                vds_resolution=64)
+                                caps=Caps(vds_resolution=64))
         assert texel_check(fb, cam, tex) > 5e-3, name
 
 
@@ -132,8 +132,8 @@ def test_wrap_modes_against_scipy(wrap, mode):
     cam = camera()
     tex = np.random.default_rng(3).random((4, 5, 3))
     scale = (2.5, 2.5, 0.0)
-    fb = render_clipped(box(), centred_surface(scale, wrap, tex), **cam, cap_mode="exact",
-                        vds_resolution=64)
+    fb = render_clipped(box(), centred_surface(scale, wrap, tex), **cam,
+                        caps=Caps(mode="exact", vds_resolution=64))
     m = fb.cap_mask
     assert m.sum() > 0.6 * TEX * TEX
     hits = analytic_hits(cam)[m]
@@ -147,7 +147,7 @@ def test_wrap_modes_against_scipy(wrap, mode):
     for other in ("repeat", "clamp_to_edge", "mirrored_repeat"):
         if other != wrap:
             f2 = render_clipped(box(), centred_surface(scale, other, tex), **cam,
-                                cap_mode="exact", vds_resolution=64)
+                                caps=Caps(mode="exact", vds_resolution=64))
             assert np.abs(f2.color[m] - expected).max() > 0.05
 
 
@@ -194,7 +194,7 @@ def test_user_normal_and_light_maps_replace_the_derived_ones():
     normal = np.broadcast_to(enc, (3, 3, 3)).copy()
     light = np.full((2, 2), 0.5)
     fb = render_clipped(box(), plane(CapTextures(normal=normal, light=light)), **cam,
-                        cap_color=(1.0, 1.0, 1.0), cap_mode="exact", vds_resolution=64)
+                        caps=Caps(color=(1.0, 1.0, 1.0), mode="exact", vds_resolution=64))
     m = fb.cap_mask
     # (sin θ, 0, cos θ) along (Û, V̂, −N) = (x, y, −z): world (sin θ, 0, −cos θ)
     n_eye = cam["view"][:3, :3] @ np.array([np.sin(theta), 0.0, -np.cos(theta)])
@@ -256,8 +256,8 @@ def test_solid_texture_in_object_space_and_continuous_across_two_caps():
     inv = np.linalg.inv(shift)
     solid = box()
     surfaces = wedge_surfaces()
-    fb = render_clipped(solid, surfaces, **cam, model=shift, cap_style="solid",
-                        solid_texture=vol, vds_resolution=96)
+    fb = render_clipped(solid, surfaces, **cam, model=shift,
+                        caps=Caps(style="solid", solid_texture=vol, vds_resolution=96))
     m = fb.cap_mask
     k = (fb.object_id[m] - 1) % 2
     assert (k == 0).sum() > 200 and (k == 1).sum() > 200
@@ -280,7 +280,7 @@ def test_solid_texture_in_object_space_and_continuous_across_two_caps():
     # per-surface 2D texturing (one texture on both caps, each by its own (s, t)) jumps there
     checker = (np.indices((4, 4)).sum(0) % 2).astype(float)
     fb2 = render_clipped(solid, wedge_surfaces(CapTextures(diffuse=checker)), **cam,
-                         model=shift, vds_resolution=96)
+                         model=shift, caps=Caps(vds_resolution=96))
     base2 = np.zeros(m.shape + (3,))
     base2[fb2.cap_mask] = fb2.color[fb2.cap_mask] / wedge_shade(fb2, cam)[:, None]
     assert seam_jump(fb2, base2) > bound
@@ -311,8 +311,8 @@ def test_one_d_offset_maps_equal_the_same_map_as_one_row():
     assert not np.allclose(clip_function(p, a), clip_function(p, col))   # a column map differs
     assert np.array_equal(a.normal_map(), b.normal_map())
     cam = camera()
-    fa = render_clipped(box(), a, **cam, vds_resolution=64, cap_style="hatch")
-    fb = render_clipped(box(), b, **cam, vds_resolution=64, cap_style="hatch")
+    fa = render_clipped(box(), a, **cam, caps=Caps(vds_resolution=64, style="hatch"))
+    fb = render_clipped(box(), b, **cam, caps=Caps(vds_resolution=64, style="hatch"))
     for name in ("depth", "color", "normal", "object_id", "prim_id", "cap_mask"):
         assert np.array_equal(getattr(fa, name), getattr(fb, name)), name
     # a 1D map is texture1D(s): constant along t (to rounding: GL_LINEAR's t weights still
@@ -354,14 +354,16 @@ def test_bad_solid_textures_and_styles():
     with pytest.raises(ValueError, match="origin and size"):
         SolidTexture(np.zeros((2, 2, 2)), origin=(0, 0, 0))
     cam = camera()
-    with pytest.raises(ValueError, match="solid_texture"):
-        render_clipped(box(), plane(), **cam, cap_style="solid", vds_resolution=32)
-    with pytest.raises(ValueError, match="solid_texture"):
-        render_clipped(box(), plane(), **cam, solid_texture=np.zeros((2, 2, 2)),
-                       vds_resolution=32)
-    with pytest.raises(ValueError, match="diffuse"):
+    with pytest.raises(ValueError, match="caps.solid_texture is needed by caps.style='solid'"):
+        Caps(style="solid", vds_resolution=32)
+    with pytest.raises(ValueError, match="caps.solid_texture is used by caps.style='solid' only"):
+        Caps(solid_texture=np.zeros((2, 2, 2)), vds_resolution=32)
+    with pytest.raises(ValueError, match=r"caps.style='hatch' draws its own pattern; a surface's "
+                                         r"diffuse map"):
         render_clipped(box(), plane(CapTextures(diffuse=np.zeros((2, 2)))), **cam,
-                       cap_style="hatch", vds_resolution=32)
+                       caps=Caps(style="hatch", vds_resolution=32))
+    # without caps the procedural style is not drawn, so nothing to refuse
+    render_clipped(box(), plane(CapTextures(diffuse=np.zeros((2, 2)))), **cam, caps=None)
 
 
 _DETERMINISM = """
@@ -369,17 +371,17 @@ import hashlib, sys
 import numpy as np
 sys.path.insert(0, {tests!r})
 import test_clipsurface_textures as T
-from refraster.clipsurface import render_clipped
+from refraster.clipsurface import Caps, render_clipped
 from refraster.clipsurface.textures import CapTextures
 cam = T.camera()
 tex = CapTextures(diffuse=T.coded_texture(), light=np.linspace(0.2, 1.0, 12).reshape(3, 4))
 h = hashlib.sha256()
-for kw in (dict(), dict(cap_mode="exact")):
+for mode in ("mesh", "exact"):
     fb = render_clipped(T.box(), T.plane(tex, offset_map=T.om.perlin_noise(16, seed=2),
-                        scale=(1.0, 1.0, 0.2)), **cam, vds_resolution=64, **kw)
+                        scale=(1.0, 1.0, 0.2)), **cam, caps=Caps(mode=mode, vds_resolution=64))
     h.update(fb.color.tobytes() + fb.normal.tobytes() + fb.cap_points.tobytes())
-fb = render_clipped(T.box(), T.wedge_surfaces(), **T.wedge_camera(64), cap_style="solid",
-                    solid_texture=T.smooth_volume(), vds_resolution=64)
+fb = render_clipped(T.box(), T.wedge_surfaces(), **T.wedge_camera(64),
+                    caps=Caps(style="solid", solid_texture=T.smooth_volume(), vds_resolution=64))
 h.update(fb.color.tobytes() + fb.normal.tobytes())
 print(h.hexdigest())
 """

@@ -175,7 +175,7 @@ def test_edge_map_is_the_filters_fused():
 def _torus_fb(width=96, height=72):
     mesh = trimesh.creation.torus(1.0, 0.35, major_sections=48, minor_sections=16)
     cam = rf.camera.frame_bounds(mesh.bounds, width=width, height=height)
-    return rf.render(mesh, **cam.kwargs, normals="smooth")
+    return rf.render(mesh, **cam.kwargs, raster=rf.RasterState(normals="smooth"))
 
 
 def _test_images():
@@ -772,6 +772,7 @@ def test_edge_helpers_compile_one_specialisation_per_array_type():
     a uint64 row index (the parallel loop body's) or a literal order / channel besides the
     int64 one (docs/performance.md, "The first run"). The cutaway's exact search likewise."""
     from refraster.cutaway import exact, flood
+    from refraster.edges import operators
     rng = np.random.default_rng(5)
     n = rng.random((9, 11, 3)).astype(np.float32)
     z = rng.random((9, 11)).astype(np.float32)
@@ -791,12 +792,12 @@ def test_edge_helpers_compile_one_specialisation_per_array_type():
     from refraster._config import PJIT
     fresh = dict(PJIT, cache=False)
     out = np.zeros((9, 11, 4), np.float32)
-    numba.njit(**fresh)(edges._edge_map_kernel.py_func)(
+    numba.njit(**fresh)(operators._edge_map_kernel.py_func)(
         n, z, ids, True, 0, 4, False, 1.0, 1.0, np.float32(0.0), np.float32(0.0), out)
     zs, params, sy, sx = flood._prepare(seed, 0.3, 1.0, None, None)
     records, directional = flood._records(params, zs.shape[1])
     numba.njit(**fresh)(flood._exact.py_func)(
         np.flatnonzero(zs > -np.inf).astype(np.int32), np.full(zs.shape, -1, np.int32),
         np.full(zs.shape, -np.inf), records, sy, sx, directional)
-    assert _twin_signatures(edges) == []
+    assert _twin_signatures(operators) == []
     assert _twin_signatures(flood) == []

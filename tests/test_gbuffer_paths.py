@@ -48,7 +48,7 @@ def _scenes():
             ("three draws, empty middle", [ico, Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64)),
                                           box],
              dict(kw, model=[_model(0.2, (0.4, 0, 0)), np.eye(4), _model(1.1, (-0.6, 0, 0))])),
-            ("culled", box, dict(kw, cull="back"))]
+            ("culled", box, dict(kw, raster=rf.RasterState(cull="back")))]
 
 
 @pytest.mark.parametrize("name", [s[0] for s in _scenes()])
@@ -132,7 +132,7 @@ def test_background_written_by_finalize_over_a_stale_frame(monkeypatch, fill_in_
         ref = _bytes(rf.render(small, **kw_far))
         for f in FB_FIELDS:
             assert got[f] == ref[f], f
-        rf.render(big, **kw, normals="smooth", out=out)
+        rf.render(big, **kw, raster=rf.RasterState(normals="smooth"), out=out)
     assert out.prim_id.size >= fill_in_kernel or fill_in_kernel > 1 << 30
 
 
@@ -152,8 +152,9 @@ def test_one_specialisation_per_kernel():
     kw = camera_kw(w=32, h=24)
     for m in (box, ro):
         rf.render(m, **kw).color
-        rf.render(m, **kw, normals="smooth").color
-        rf.render(m, **kw, normals=normals).color
+        rf.render(m, **kw, raster=rf.RasterState(normals="smooth")).color
+        rf.render((m.vertices, m.faces, normals), **kw,
+                  raster=rf.RasterState(normals="smooth")).color
         rf.render([m, box], **kw).color
         rf.render(m, **kw, fragment_stage=lambda fr: np.ones(len(fr), bool)).color
         out = rf.render(m, **kw)

@@ -85,23 +85,6 @@ def test_gl_imports_only_numpy_moderngl_and_stdlib():
     assert _foreign_imports("import scipy.ndimage\n") == ["scipy.ndimage"]
 
 
-def test_only_golden_candidate_imports_gl():
-    users = []
-    for path in sorted((ROOT / "refraster").rglob("*.py")):
-        if GL_DIR in path.parents:
-            continue
-        for node in ast.walk(ast.parse(path.read_text())):
-            names = []
-            if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom):
-                names = [("." * node.level) + (node.module or "")]
-            if any(n.startswith(("refraster.gl", "..gl", ".gl")) for n in names) \
-                    or any(n == "moderngl" for n in names):
-                users.append(path.relative_to(ROOT).as_posix())
-    assert sorted(set(users)) == ["refraster/golden/candidate.py"]
-
-
 def test_shaders_are_plain_glsl_files_of_at_most_4_3():
     shaders = sorted((GL_DIR / "shaders").glob("*.*"))
     assert {p.suffix for p in shaders} <= {".vert", ".geom", ".frag"} and shaders

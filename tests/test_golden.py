@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from refraster import golden
+from refraster import RasterState, golden
 from refraster.golden import cli
 from refraster.golden.compare import (GoldenError, buffer_metrics, compare, load_manifest,
                                       local_variation, pixel_error, position_deviation)
@@ -156,8 +156,11 @@ def test_package_reloads_exactly_what_was_rendered(gold):
                 normals.append(np.asarray(ply.vertex_normals, np.float64))
         cam = Camera(doc["camera"]["view"], doc["camera"]["projection"],
                      doc["viewport"]["width"], doc["viewport"]["height"])
+        if normals:
+            meshes = [(v, f, n) for (v, f), n in zip(meshes, normals)]
         fb = render(meshes, **cam.kwargs, model=[d["model"] for d in doc["draws"]],
-                    normals=normals or "flat", cull=doc["raster"]["cull"])
+                    raster=RasterState(normals="smooth" if normals else "flat",
+                                       cull=doc["raster"]["cull"]))
         with np.load(gold / name / "buffers.npz") as z:
             for key in ("depth", "prim_id", "object_id", "normal", "color"):
                 assert np.array_equal(getattr(fb, key), z[key]), (name, key)

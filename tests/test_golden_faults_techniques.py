@@ -27,7 +27,7 @@ import pytest
 
 import faults
 import faults_techniques
-from refraster import golden
+from refraster import RasterState, golden
 
 TECH = [n for n, e in golden.available_scenes().items() if e.technique != "render"]
 #: Buffers whose aim is the filtered one (≤ 30 % admitted).
@@ -102,7 +102,7 @@ def _ldi_candidate(scene, variant):
     from refraster.ldi import peel
     cam = scene.camera
     lay = peel([d.mesh for d in scene.draws], **cam.kwargs, model=[d.model for d in scene.draws],
-               cull="none", mode="peel", **variant)
+               mode="peel", raster=RasterState(**variant))
     k = scene.buffers["layer_depth"].shape[2]
 
     def stack(a, fill):
@@ -240,8 +240,8 @@ EDGE_OPS = ("preset", "normal_filter", "depth_filter", "ids", "inner_threshold",
 def _edge_candidate(scene, raster, rgba8):
     """The scene's buffers as refraster makes them with a conformant raster variant, and with
     the G-buffer, edge map (and NPR colour) rounded to RGBA8."""
-    from refraster import npr as _npr
     from refraster.edges import EdgeGBuffer, edge_gbuffer, edge_map
+    from refraster.edges import npr as _npr
     from refraster.golden.scenes import raster_state, render_draws
     p = scene.parameters
     ops = {k: p[k] for k in EDGE_OPS}
@@ -403,12 +403,12 @@ def test_edge_bounds_hold_random_gbuffers_with_width_and_thresholds(gold, op):
 
 
 def test_npr_bounds_hold_random_gbuffers(gold):
-    """Soundness of ``npr_color_lo/_hi`` by brute force: ``refraster.npr``'s Gooch shading of
+    """Soundness of ``npr_color_lo/_hi`` by brute force: ``refraster.edges.npr``'s Gooch shading of
     random in-allowance normals composited with the paper's edge map of the same G-buffer
     (RGBA8, as the scene states) lies inside the stored bounds; the other direction: the same
     composite with inner and profile colours swapped leaves them."""
-    from refraster import npr as _npr
     from refraster.edges import EdgeGBuffer, edge_map, fit_near_far
+    from refraster.edges import npr as _npr
     name = "edges_npr_gooch"
     scene = golden.available_scenes()[name].build()
     p = scene.parameters
@@ -458,7 +458,7 @@ def _cutaway_depth(scene, raster, variant):
     cam = scene.camera
     draws = [d for d in scene.draws if d.name in p["interest"]]
     rear = render([d.mesh for d in draws], **cam.kwargs, model=[d.model for d in draws],
-                  depth_func="greater", clear_depth=0.0, **raster)
+                  raster=RasterState(depth_func="greater", clear_depth=0.0, **raster))
     d = cutaway_surface(rear.depth, rear.object_id, proj=cam.proj, view=cam.view,
                         angle=p["angle"], variant=variant,
                         perspective_compensation=p["perspective_compensation"],
@@ -497,7 +497,8 @@ def test_cutaway_float32_floods_pass(gold, tmp_path, raster):
     p, cam = scene.parameters, scene.camera
     draws = [d for d in scene.draws if d.name in p["interest"]]
     rear = render([d.mesh for d in draws], **cam.kwargs, model=[d.model for d in draws],
-                  depth_func="greater", clear_depth=0.0, **CUT_RASTER[raster])
+                  raster=RasterState(depth_func="greater", clear_depth=0.0,
+                                     **CUT_RASTER[raster]))
     for variant in p["accepted_variants"]:
         d_ndc = flood_f32(rear.depth, rear.object_id >= 0, scene, variant)
         d = (np.float32(0.5) * d_ndc + np.float32(0.5)).astype(np.float32)
@@ -548,7 +549,7 @@ def _cutaway_floor_depth(scene, raster, variant, floor=True):
     cam = scene.camera
     draws = [d for d in scene.draws if d.name in p["interest"]]
     rear = render([d.mesh for d in draws], **cam.kwargs, model=[d.model for d in draws],
-                  depth_func="greater", clear_depth=0.0, **raster)
+                  raster=RasterState(depth_func="greater", clear_depth=0.0, **raster))
     extra = dict(floor_normal=p["floor_normal"], floor_margin=p["floor_margin"]) if floor else {}
     d = cutaway_surface(rear.depth, rear.object_id, proj=cam.proj, view=cam.view,
                         angle=p["angle"], variant=variant,
@@ -660,6 +661,7 @@ def _clip_candidate(scene, raster, lookup8, monkeypatch):
     from refraster.clipsurface import render_clipped
     from refraster.golden.clip_allowance import _surfaces
     from refraster.golden.scenes import raster_state
+    from refraster.golden.technique_scenes import clip_caps
     bits = {k: v for k, v in raster.items() if k in ("subpixel_bits", "fill_rule")}
     if bits:   # forced over whatever the caller passes
         for mod in (rr, framebuffer):
@@ -676,11 +678,9 @@ def _clip_candidate(scene, raster, lookup8, monkeypatch):
         monkeypatch.setattr(cr, "_USE_FUSED", False)
         monkeypatch.setattr(cr, "clip_mask", clip_mask)
     p = scene.parameters
-    caps = {k: p[k] for k in ("caps", "cap_style", "cap_mode", "cap_color", "subdivision",
-                              "vds_resolution", "space")}
     fb = render_clipped([d.mesh for d in scene.draws], _textured_surfaces(scene, _surfaces),
-                        **scene.camera.kwargs,
-                        **caps, cull=raster_state({})["cull"],
+                        **scene.camera.kwargs, caps=clip_caps(p), space=p["space"],
+                        cull=raster_state({})["cull"],
                         precision=raster.get("precision", "float32"))
     return {**fb.arrays(), "cap_mask": fb.cap_mask}
 

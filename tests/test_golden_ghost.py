@@ -14,7 +14,7 @@ import sys
 import numpy as np
 import pytest
 
-from refraster import golden
+from refraster import RasterState, golden
 
 CUT = "cutaway_shells"
 
@@ -87,7 +87,7 @@ def test_ghosts_over_every_accepted_flood_pass(gold, tmp_path, arithmetic):
     b = _buffers(gold)
     draws = [d for d in scene.draws if d.name in p["interest"]]
     rear = render([d.mesh for d in draws], **cam.kwargs, model=[d.model for d in draws],
-                  depth_func="greater", clear_depth=0.0)
+                  raster=RasterState(depth_func="greater", clear_depth=0.0))
     differs = 0
     for variant in p["accepted_variants"]:
         if arithmetic == "float32":

@@ -143,11 +143,11 @@ def test_a_failing_worker_fails_the_api_call_and_the_other_workers_stop(fault_wo
 
 def test_worker_compiles_reach_the_progress_line(fault_worker, tmp_path):
     from refraster.warmup import COMPILING, CompileProgress
-    fault_worker.setenv(FAULT, "compiled:refraster.edges._edge_map_kernel")
+    fault_worker.setenv(FAULT, "compiled:refraster.edges.operators._edge_map_kernel")
     stream = StringIO()
     with CompileProgress(stream=stream) as progress:
         golden.generate(tmp_path / "g", SCENES[:2], jobs=2, compile_progress=progress)
-    assert "refraster.edges._edge_map_kernel" in progress.done
+    assert "refraster.edges.operators._edge_map_kernel" in progress.done
     assert f"{COMPILING}:" in stream.getvalue()
 
 

@@ -2,7 +2,6 @@
 survive it, races made deterministic with the hooks of :mod:`refraster.golden.write` (no
 sleeps) and crashes made by a hook that kills the process between two steps."""
 
-import ast
 import hashlib
 import json
 import os
@@ -538,62 +537,6 @@ def test_directories_follow_the_umask(tmp_path, umask):
         assert d.stat().st_mode & 0o777 == 0o777 & ~umask, d
     for f in (out / "manifest.json", out / CUBE / "buffers.npz", rep / "index.html"):
         assert f.stat().st_mode & 0o777 == 0o666 & ~umask, f
-
-
-# --- one owner per concern: no import circle in refraster.golden ---------------------------------
-
-def _golden_imports():
-    """{module: set of refraster.golden modules it imports} (function-level imports too)."""
-    pkg = REPO / "refraster" / "golden"
-    mods = {p.stem for p in pkg.glob("*.py")} - {"__init__"}
-    graph = {}
-    for m in mods:
-        tree = ast.parse((pkg / f"{m}.py").read_text())
-        deps = set()
-        for node in ast.walk(tree):
-            if isinstance(node, ast.ImportFrom) and node.level == 1:
-                if node.module:
-                    deps.add(node.module.split(".")[0])
-                else:
-                    deps.update(a.name for a in node.names)
-            elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith(
-                    "refraster.golden."):
-                deps.add(node.module.split(".")[2])
-        graph[m] = deps & mods
-    return graph
-
-
-def _cycle(graph):
-    state = {}
-
-    def visit(n, path):
-        state[n] = 1
-        for d in sorted(graph.get(n, ())):
-            if state.get(d) == 1:
-                return path + [n, d]
-            if d not in state:
-                found = visit(d, path + [n])
-                if found:
-                    return found
-        state[n] = 2
-        return None
-    for n in sorted(graph):
-        if n not in state:
-            found = visit(n, [])
-            if found:
-                return found
-    return None
-
-
-def test_no_import_circle_in_golden():
-    graph = _golden_imports()
-    assert {"write", "common", "metrics"} <= set(graph)
-    assert _cycle(graph) is None, _cycle(graph)
-    assert "report" not in graph["compare"] or "compare" not in graph["report"]
-    assert not {"compare", "generate"} & graph["report"]
-    assert "compare" not in graph["allowance"]
-    # the detector finds a planted circle
-    assert _cycle(dict(graph, write=graph["write"] | {"report"})) is not None
 
 
 def test_discarding_a_tree_deletes_only_what_its_listing_names(tmp_path):

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import refraster as rr
-from refraster import offsetmaps
-from refraster.capping import light_caps
+from refraster.clipsurface import offsetmaps
+from refraster.clipsurface.capping import light_caps
 from refraster.clipsurface import ClipSurface
 from refraster.cutaway.flood import exact, jump_flood, step_schedule
 

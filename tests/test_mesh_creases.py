@@ -97,7 +97,7 @@ def test_mesh_option_and_render():
     assert isinstance(m, Mesh) and m.vertex_normals is not None
     assert m.n_faces == len(c.faces)
     cam = rf.camera.frame_bounds(c.bounds, width=64, height=48)
-    fb = rf.render(m, **cam.kwargs, normals="smooth")
+    fb = rf.render(m, **cam.kwargs, raster=rf.RasterState(normals="smooth"))
     flat = rf.render(c, **cam.kwargs)
     assert np.array_equal(fb.prim_id, flat.prim_id)           # same faces, same coverage
     # side pixels: the interpolated normal has no z component in object space, and it varies

@@ -1,11 +1,13 @@
 """NPR styles and the edge-map compositing (Nienhaus & Döllner Sec. 5)."""
 
 
+import inspect
+
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from refraster import npr
+from refraster.edges import npr
 from determinism import outputs_by_thread_count
 
 
@@ -166,7 +168,7 @@ def test_bad_inputs(call, exc, words):
 _SCRIPT = r"""
 import hashlib
 import numpy as np
-from refraster import npr
+from refraster.edges import npr
 rng = np.random.default_rng(5)
 img = rng.random((53, 71, 3))
 mask = rng.random((53, 71)) < 0.7
@@ -235,7 +237,7 @@ def test_surface_strokes_move_with_the_surface():
     frames = []
     for deg in (0.0, 5.0):
         cam = _orbit(deg, w, h)
-        fb = rf.render(mesh, **cam, normals="smooth")
+        fb = rf.render(mesh, **cam, raster=rf.RasterState(normals="smooth"))
         frames.append((fb, cam, npr.surface_strokes(fb, spacing=0.25), npr.object_space(fb)[0]))
     (fb1, _, t1, p1), (fb2, cam2, t2, p2) = frames
     ys, xs = np.nonzero(fb1.mask)
@@ -324,7 +326,7 @@ def test_mirrored_pass_is_the_view_from_the_mirrored_camera():
     t2 = (refl @ np.append(target, 1))[:3]
     oracle = rf.render(torus, view=rf.look_at(e2, t2, up=(0, -1, 0)), proj=cam["proj"],
                        width=cam["width"], height=cam["height"], model=model,
-                       normals="smooth")
+                       raster=rf.RasterState(normals="smooth"))
     mask = oracle.mask[:, ::-1]
     agree = mask == r.mirrored.mask
     assert mask.sum() > 500 and agree.mean() > 0.998
@@ -381,7 +383,7 @@ def test_mirror_lighting_follows_the_reflected_light():
 
 
 @pytest.mark.parametrize("kwargs, exc, words", [
-    (dict(reflectance=2.0), ValueError, "reflectance"),
+    (dict(mirror_style=dict(reflectance=0.5)), TypeError, "mirror_style must be a MirrorStyle"),
     (dict(style="gooch"), TypeError, "style"),
     (dict(models=[np.eye(4), np.eye(4)]), ValueError, "models"),
 ])
@@ -396,11 +398,60 @@ def test_mirror_bad_inputs(kwargs, exc, words):
         npr.reflection([0, 0, 0], [0, 0, 0])
 
 
+def test_mirror_style_is_a_checked_value_with_the_former_defaults():
+    """The appearance options of render_mirrored as one frozen value: its defaults are the
+    keywords' former defaults, colours are kept as tuples of floats, bad fields fail when the
+    style is made, naming the field."""
+    import dataclasses
+    ms = npr.MirrorStyle()
+    assert (ms.reflectance, ms.mirror_color, ms.inner_color, ms.profile_color) == (
+        0.85, (0.85, 0.88, 0.92), (1.0, 1.0, 1.0), (0.0, 0.0, 0.0))
+    assert inspect.signature(npr.render_mirrored).parameters["mirror_style"].default == ms
+    given = npr.MirrorStyle(reflectance=1, mirror_color=np.array([0.25, 0.5, 1.0], np.float32),
+                            inner_color=[1, 1, 1], profile_color=(0.0, 0.0, 0.5))
+    assert given.reflectance == 1.0 and type(given.reflectance) is float
+    assert given.mirror_color == (0.25, 0.5, 1.0) and given.inner_color == (1.0, 1.0, 1.0)
+    assert all(type(c) is float for c in given.mirror_color + given.inner_color)
+    assert given == npr.MirrorStyle(1.0, (0.25, 0.5, 1.0), (1.0, 1.0, 1.0), (0.0, 0.0, 0.5))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        ms.reflectance = 0.5
+    for kwargs, exc, words in ((dict(reflectance=2.0), ValueError, "reflectance"),
+                               (dict(reflectance=True), TypeError, "reflectance"),
+                               (dict(mirror_color=(2.0, 0.0, 0.0)), ValueError, "mirror_color"),
+                               (dict(inner_color=(1.0, 1.0)), ValueError, "inner_color"),
+                               (dict(profile_color=(0.0, np.nan, 0.0)), ValueError,
+                                "profile_color")):
+        with pytest.raises(exc, match=words):
+            npr.MirrorStyle(**kwargs)
+
+
+def test_surface_strokes_options_are_triplanar_strokes_own():
+    """surface_strokes names triplanar_strokes' options (no **kwargs) with the same defaults,
+    and passes them on: each option away from its default changes the strokes as it does
+    triplanar_strokes'."""
+    own = inspect.signature(npr.surface_strokes).parameters
+    tri = inspect.signature(npr.triplanar_strokes).parameters
+    assert not any(p.kind == p.VAR_KEYWORD for p in own.values())
+    names = ("angle", "cross_angle", "first", "cross", "sharpness")
+    assert set(own) == {"fb", "spacing", *names}
+    assert all(own[k].default == tri[k].default for k in names)
+    torus, model, floor, eye, target, cam = _mirror_scene(48, 36)
+    import refraster as rf
+    fb = rf.render(torus, **cam, model=model, normals="smooth")
+    position, normal = npr.object_space(fb)
+    for key, value in (("angle", 30.0), ("cross_angle", -60.0), ("first", 0.8), ("cross", 0.4),
+                       ("sharpness", 2.0)):
+        got = npr.surface_strokes(fb, spacing=0.1, **{key: value})
+        np.testing.assert_array_equal(got, npr.triplanar_strokes(
+            position, normal, spacing=0.1, mask=fb.mask, **{key: value}))
+        assert not np.array_equal(got, npr.surface_strokes(fb, spacing=0.1)), key
+
+
 _MIRROR_SCRIPT = r"""
 import hashlib
 import numpy as np, trimesh
 import refraster as rf
-from refraster import npr
+from refraster.edges import npr
 torus = rf.mesh.as_mesh(trimesh.creation.torus(0.6, 0.22, major_sections=32,
                                                minor_sections=12)).with_smooth_normals(40)
 model = np.eye(4)

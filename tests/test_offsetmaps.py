@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from refraster import offsetmaps as om
+from refraster.clipsurface import offsetmaps as om
 from refraster.io import write_png
 
 WRAPS = ["repeat", "clamp_to_edge", "mirrored_repeat"]

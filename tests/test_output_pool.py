@@ -46,20 +46,20 @@ pytestmark = pytest.mark.usefixtures("empty_output_pool")
 
 def test_a_dropped_frame_is_recycled_and_gives_the_bytes_of_a_new_one(monkeypatch):
     ico, box = mesh_of(icosphere(3)), mesh_of(cube())
-    want = _fresh(monkeypatch, box, **KW, cull="back")
-    a = rf.render(ico, **KW, normals="smooth")   # another scene in every buffer
+    want = _fresh(monkeypatch, box, **KW, raster=rf.RasterState(cull="back"))
+    a = rf.render(ico, **KW, raster=rf.RasterState(normals="smooth"))   # another scene in every buffer
     a.color
     old = _addresses(a)
     del a
-    b = rf.render(box, **KW, cull="back")
+    b = rf.render(box, **KW, raster=rf.RasterState(cull="back"))
     assert len(old & _addresses(b)) >= 6   # recycled (all but the small facing mask)
     assert _bytes(b) == want
     del b
     # and again with the colour left pending, then other options
     c = rf.render(ico, **KW)
     del c
-    want = _fresh(monkeypatch, box, **KW, depth_func="greater", clear_depth=0.0)
-    assert _bytes(rf.render(box, **KW, depth_func="greater", clear_depth=0.0)) == want
+    want = _fresh(monkeypatch, box, **KW, raster=rf.RasterState(depth_func="greater", clear_depth=0.0))
+    assert _bytes(rf.render(box, **KW, raster=rf.RasterState(depth_func="greater", clear_depth=0.0))) == want
 
 
 def test_a_frame_the_user_holds_is_never_reused():
@@ -67,7 +67,7 @@ def test_a_frame_the_user_holds_is_never_reused():
     a = rf.render(box, **KW)
     a.color
     keep = _bytes(a)
-    frames = [rf.render(ico, **KW, cull=c) for c in ("none", "back", "front")]
+    frames = [rf.render(ico, **KW, raster=rf.RasterState(cull=c)) for c in ("none", "back", "front")]
     for b in frames:
         for f in FB_FIELDS:
             for g in FB_FIELDS:
@@ -98,7 +98,7 @@ def test_whatever_still_reaches_a_dropped_frame_keeps_it(hold):
     del a
     gc.collect()
     for _ in range(3):
-        b = rf.render(ico, **KW, normals="smooth")
+        b = rf.render(ico, **KW, raster=rf.RasterState(normals="smooth"))
         b.color
         now = bytes(src) if isinstance(src, memoryview) else (
             reach(src).tobytes() if isinstance(src, list) else src.tobytes())
@@ -116,7 +116,7 @@ def test_a_pending_colour_keeps_its_inputs():
     box, ico, tor = mesh_of(cube()), mesh_of(icosphere(3)), mesh_of(torus())
     a = rf.render(box, **KW)   # colour not read
     for m in (ico, tor, ico):
-        b = rf.render(m, **KW, normals="smooth")
+        b = rf.render(m, **KW, raster=rf.RasterState(normals="smooth"))
         b.color
         del b
     assert a.color.tobytes() == rf.render(box, **KW).color.tobytes()
@@ -167,8 +167,9 @@ def test_pool_unit():
 def test_threads_rendering_at_once(monkeypatch):
     """Several Python threads rendering at once (a threaded Dask scheduler): each frame has
     the bytes of the same scene rendered alone."""
-    scenes = [(mesh_of(cube()), {}), (mesh_of(icosphere(3)), {"normals": "smooth"}),
-              (mesh_of(torus()), {"cull": "back"})]
+    scenes = [(mesh_of(cube()), {}),
+              (mesh_of(icosphere(3)), {"raster": rf.RasterState(normals="smooth")}),
+              (mesh_of(torus()), {"raster": rf.RasterState(cull="back")})]
     want = [_fresh(monkeypatch, m, **KW, **o) for m, o in scenes]
     bad = []
 

@@ -26,6 +26,7 @@ import pytest
 from conftest import FB_FIELDS, camera_kw, mesh_of
 import refraster as rf
 from refraster._scratch import OUTPUTS, OutputPool
+from refraster.mesh import Mesh
 from refraster.scenes import cube, icosphere, torus
 
 KW = camera_kw(256, 192)
@@ -57,8 +58,7 @@ def _churn(scenes, n=3):
     checks (kept alive by the caller only as long as it needs them)."""
     last = None
     for k in range(n):
-        fb = rf.render(scenes["ico" if k % 2 else "torus"], **KW, normals="smooth",
-                       cull=("none", "back", "front")[k % 3])
+        fb = rf.render(scenes["ico" if k % 2 else "torus"], **KW, raster=rf.RasterState(normals="smooth", cull=("none", "back", "front")[k % 3]))
         if k % 2 == 0:
             fb.color
         last = fb
@@ -324,7 +324,10 @@ def test_a_frame_kept_by_python_is_never_recycled(monkeypatch, scenes, keep):
 # Renders that fail midway
 
 def _bad_normals(scenes):
-    rf.render(scenes["cube"], **KW, normals=np.zeros((3, 3)))
+    # a Mesh built directly is not validated until the G-buffer needs its normals
+    cube = scenes["cube"]
+    rf.render(Mesh(cube.vertices, cube.faces, np.zeros((3, 3))), **KW,
+              raster=rf.RasterState(normals="smooth"))
 
 
 def _raising_stage(scenes):
@@ -353,9 +356,9 @@ def _singular_model(scenes):
 def test_a_render_that_fails_midway(monkeypatch, scenes, fail):
     """The failed frame's arrays stay the traceback's while it lives (reachable through its
     frames' locals), then are recycled whole; frames around it have the bytes of new ones."""
-    want_ico = _fresh(monkeypatch, scenes["ico"], **KW, normals="smooth")
-    want_box = _fresh(monkeypatch, scenes["cube"], **KW, cull="back")
-    held = rf.render(scenes["ico"], **KW, normals="smooth")
+    want_ico = _fresh(monkeypatch, scenes["ico"], **KW, raster=rf.RasterState(normals="smooth"))
+    want_box = _fresh(monkeypatch, scenes["cube"], **KW, raster=rf.RasterState(cull="back"))
+    held = rf.render(scenes["ico"], **KW, raster=rf.RasterState(normals="smooth"))
     err = None
     try:
         fail(scenes)
@@ -377,7 +380,7 @@ def test_a_render_that_fails_midway(monkeypatch, scenes, fail):
         del arrays
     assert _bytes(held) == want_ico
     del err, tb, locals_arrays
-    assert _bytes(rf.render(scenes["cube"], **KW, cull="back")) == want_box
+    assert _bytes(rf.render(scenes["cube"], **KW, raster=rf.RasterState(cull="back"))) == want_box
     assert _bytes(held) == want_ico
 
 
@@ -422,8 +425,8 @@ def test_an_interrupt_at_any_line_of_the_pool(monkeypatch, scenes):
     """Whatever line of the pool an interrupt hits, held frames keep their bytes and the
     next frames have the bytes of new ones (only the pool's bookkeeping may be lost)."""
     want_box = _fresh(monkeypatch, scenes["cube"], **KW)
-    want_ico = _fresh(monkeypatch, scenes["ico"], **KW, normals="smooth")
-    held = rf.render(scenes["ico"], **KW, normals="smooth")
+    want_ico = _fresh(monkeypatch, scenes["ico"], **KW, raster=rf.RasterState(normals="smooth"))
+    held = rf.render(scenes["ico"], **KW, raster=rf.RasterState(normals="smooth"))
     held.color
     fired = 0
     for code, line in _pool_lines():
@@ -602,7 +605,7 @@ def test_the_pool_locals_looked_at_once(monkeypatch, scenes):
     """Wherever the look happens in the pool's first scans of a frame, a held frame keeps its
     bytes and the frame has the bytes of a new one."""
     want = _fresh(monkeypatch, scenes["cube"], **KW)
-    want_tor = _fresh(monkeypatch, scenes["torus"], **KW, cull="back")
+    want_tor = _fresh(monkeypatch, scenes["torus"], **KW, raster=rf.RasterState(cull="back"))
     held = rf.render(scenes["cube"], **KW)
     held.color
     depth = held.depth   # one more holder of depth (the framebuffer and this)
@@ -612,7 +615,7 @@ def test_the_pool_locals_looked_at_once(monkeypatch, scenes):
         old = sys.gettrace()
         sys.settrace(trace)
         try:
-            other = rf.render(scenes["torus"], **KW, cull="back")
+            other = rf.render(scenes["torus"], **KW, raster=rf.RasterState(cull="back"))
         finally:
             sys.settrace(old)
         looks += bool(looked)

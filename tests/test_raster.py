@@ -33,7 +33,7 @@ def test_stream_matches_naive_twin(seed, rule):
     w, h = 24, 20
     mvp = PROJ @ VIEW
     clip = transform_vertices(v, mvp)
-    frags = rf.rasterize(clip, f, w, h, fill_rule=rule)
+    frags = rf.rasterize(clip, f, w, h, raster=rf.RasterState(fill_rule=rule))
     ref = naive.raster_unclipped(clip, f, w, h, rule=rule)
     got = sorted(zip(frags.prim_id.tolist(), frags.row.tolist(), frags.col.tolist(),
                      frags.depth.tolist(), map(tuple, frags.bary.tolist()),
@@ -85,7 +85,7 @@ def _assert_fused_equals_resolve(prep, func, clear):
                                      clear_depth=clear)
     pixel, fd, fprim, ffront, fbary, _ = stream(prep.triangles)
     frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, w, h)
-    res = rf.resolve(frags, depth_func=func, clear_depth=clear)
+    res = rf.resolve(frags, raster=rf.RasterState(depth_func=func, clear_depth=clear))
     assert res.depth.tobytes() == depth.tobytes()
     assert np.array_equal(np.where(res.winner >= 0, fprim[res.winner], -1), prim)
     assert np.array_equal(np.where(res.winner >= 0, ffront[res.winner], False), front)
@@ -190,7 +190,7 @@ def test_fused_background_keeps_the_clear_values():
     assert not bary[bg.ravel()].any()
     pixel, fd, fprim, ffront, fbary, _ = stream(prep.triangles)
     frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, 300, 200)
-    res = rf.resolve(frags, depth_func="always", clear_depth=0.625)
+    res = rf.resolve(frags, raster=rf.RasterState(depth_func="always", clear_depth=0.625))
     assert res.depth.tobytes() == depth.tobytes()
 
 
@@ -230,17 +230,17 @@ def test_draw_order_ties():
             np.array([[0, 1, 2], [0, 2, 3]]))
     view = rf.look_at([0, 0, 2], [0, 0, 0])
     kw = dict(view=view, proj=PROJ, width=16, height=12)
-    a = rf.render([quad, quad], depth_func="less", **kw)
+    a = rf.render([quad, quad], raster=rf.RasterState(depth_func="less"), **kw)
     assert set(np.unique(a.object_id)) == {0}
-    b = rf.render([quad, quad], depth_func="lequal", **kw)
+    b = rf.render([quad, quad], raster=rf.RasterState(depth_func="lequal"), **kw)
     assert set(np.unique(b.object_id)) == {1}
     fr = rf.draw([quad, quad], **kw)
-    r = rf.resolve(fr, depth_func="less", keep=fr.object_id == 1)
+    r = rf.resolve(fr, raster=rf.RasterState(depth_func="less"), keep=fr.object_id == 1)
     assert set(fr.object_id[r.winner[r.winner >= 0]]) == {1}
-    r = rf.resolve(fr, depth_func="always", depth_write=False)
+    r = rf.resolve(fr, raster=rf.RasterState(depth_func="always", depth_write=False))
     assert set(fr.object_id[r.winner[r.winner >= 0]]) == {1}
     assert np.all(r.depth == 1.0)
-    r = rf.resolve(fr, depth_func="never")
+    r = rf.resolve(fr, raster=rf.RasterState(depth_func="never"))
     assert np.all(r.winner == -1)
 
 
@@ -347,9 +347,9 @@ def test_behind_camera_and_degenerate_give_nothing():
 def test_culling():
     m = trimesh.creation.icosphere(2)
     kw = dict(view=rf.look_at([0, 0, 3], [0, 0, 0]), proj=PROJ, width=32, height=24)
-    fb = rf.draw(m, cull="back", **kw)
+    fb = rf.draw(m, raster=rf.RasterState(cull="back"), **kw)
     assert fb.front_facing.all() and len(fb) > 0
-    fb = rf.draw(m, cull="front", **kw)
+    fb = rf.draw(m, raster=rf.RasterState(cull="front"), **kw)
     assert not fb.front_facing.any() and len(fb) > 0
 
 
@@ -359,7 +359,7 @@ def test_gbuffer_sphere_analytic():
     r = 1.0
     m = trimesh.creation.icosphere(5, radius=r)
     view = rf.look_at([0, 0, 4], [0, 0, 0])
-    fb = rf.render(m, view=view, proj=PROJ, width=64, height=48, normals="smooth")
+    fb = rf.render(m, view=view, proj=PROJ, width=64, height=48, raster=rf.RasterState(normals="smooth"))
     pos = fb.eye_position()[fb.mask]
     centre = np.array([0, 0, -4.0])
     d = np.linalg.norm(pos - centre, axis=1)
@@ -396,7 +396,8 @@ rng = np.random.default_rng(3)
 v = rng.uniform(-2, 2, (3000, 3)); f = np.arange(3000).reshape(1000, 3)
 view = rf.look_at([0.5, 1.0, 4.0], [0, 0, 0]); proj = rf.perspective(50, 1.5, 0.3, 20)
 h = hashlib.sha256()
-fb = rf.render([m, (v, f)], view=view, proj=proj, width=333, height=222, normals="smooth")
+fb = rf.render([m, (v, f)], view=view, proj=proj, width=333, height=222,
+               raster=rf.RasterState(normals="smooth"))
 for a in fb.arrays().values():
     h.update(a.tobytes())
 fr = rf.draw([m, (v, f)], view=view, proj=proj, width=333, height=222)
@@ -424,10 +425,8 @@ TRI = (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float), np.array([[0, 1, 2]])
     (dict(height=-3), ValueError, "height"),
     (dict(width=10**9), ValueError, "width"),
     (dict(width=2.5), TypeError, "width"),
-    (dict(cull="sideways"), ValueError, "cull"),
-    (dict(depth_func="lesser"), ValueError, "depth_func"),
     (dict(model=np.full((4, 4), np.inf)), ValueError, "model"),
-    (dict(subpixel_bits=7), ValueError, "subpixel_bits"),
+    (dict(raster=dict(cull="back")), TypeError, "raster must be a refraster.RasterState"),
 ])
 def test_bad_render_arguments(kwargs, exc, word):
     with pytest.raises(exc, match=word):
@@ -461,7 +460,7 @@ def test_bad_rasterize_and_resolve_arguments():
     with pytest.raises(TypeError, match="keep"):
         rf.resolve(fr, keep=np.ones(len(fr)))
     with pytest.raises(ValueError, match="clear_depth"):
-        rf.resolve(fr, clear_depth=2.0)
+        rf.resolve(fr, raster=rf.RasterState(clear_depth=2.0))
     with pytest.raises(ValueError, match="fragment_stage"):
         rf.render(TRI, fragment_stage=lambda f: np.ones(3), **GOOD)
 

@@ -87,9 +87,9 @@ def test_frames_covering_fewer_more_and_other_pixels(scene):
         _check(fb, box, **kw, model=_moved(-0.9, 0.7, s=0.5))       # elsewhere, partly outside
         _check(fb, [ico, box], **kw, model=[_moved(0.5, 0.0, s=0.6), _moved(-0.6, 0, s=0.5)])
         _check(fb, box, **kw, model=_moved(0, 0, 30.0))             # nothing visible
-        _check(fb, tor, **kw, cull="back")                          # a hole in the middle
-        _check(fb, tor, **kw, cull="back")                          # the same again
-        _check(fb, ico, **kw, normals="smooth")                     # more again
+        _check(fb, tor, **kw, raster=rf.RasterState(cull="back"))                          # a hole in the middle
+        _check(fb, tor, **kw, raster=rf.RasterState(cull="back"))                          # the same again
+        _check(fb, ico, **kw, raster=rf.RasterState(normals="smooth"))                     # more again
         _check(fb, box, **kw)
 
 
@@ -110,10 +110,10 @@ def test_clear_depth_and_depth_func_change_between_frames(scene):
     kw = camera_kw()
     fb = rf.Framebuffer.reusable(kw["width"], kw["height"])
     _check(fb, ico, **kw)
-    _check(fb, box, **kw, depth_func="greater", clear_depth=0.0)
-    _check(fb, box, **kw, model=_moved(0.4, 0.3, s=0.5), depth_func="greater", clear_depth=0.0)
-    _check(fb, box, **kw, clear_depth=0.5)
-    _check(fb, ico, **kw, clear_depth=0.5, model=_moved(0, 0, s=0.3))
+    _check(fb, box, **kw, raster=rf.RasterState(depth_func="greater", clear_depth=0.0))
+    _check(fb, box, **kw, model=_moved(0.4, 0.3, s=0.5), raster=rf.RasterState(depth_func="greater", clear_depth=0.0))
+    _check(fb, box, **kw, raster=rf.RasterState(clear_depth=0.5))
+    _check(fb, ico, **kw, raster=rf.RasterState(clear_depth=0.5), model=_moved(0, 0, s=0.3))
     _check(fb, box, **kw)
 
 

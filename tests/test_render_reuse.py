@@ -24,7 +24,7 @@ def _same(a, b):
 def test_out_gives_the_bytes_of_a_fresh_render_over_a_stale_frame():
     ico, box = mesh_of(icosphere(3)), mesh_of(cube())
     kw = camera_kw()
-    out = rf.render(ico, **kw, normals="smooth")   # another scene's data in every buffer
+    out = rf.render(ico, **kw, raster=rf.RasterState(normals="smooth"))   # another scene's data in every buffer
     out.color                                         # … colour included
     ids = {f: id(getattr(out, f)) for f in FB_FIELDS if f != "color"}
     got = rf.render(box, **camera_kw(eye=(2.0, -1.0, 2.5)), out=out)
@@ -32,9 +32,9 @@ def test_out_gives_the_bytes_of_a_fresh_render_over_a_stale_frame():
     assert all(id(getattr(out, f)) == ids[f] for f in ids)   # written in place
     _same(got, rf.render(box, **camera_kw(eye=(2.0, -1.0, 2.5))))
     # twice more, alternating scenes and options, colour pending or read
-    _same(rf.render(ico, **kw, cull="back", out=out), rf.render(ico, **kw, cull="back"))
-    _same(rf.render(box, **kw, depth_func="greater", clear_depth=0.0, out=out),
-          rf.render(box, **kw, depth_func="greater", clear_depth=0.0))
+    _same(rf.render(ico, **kw, raster=rf.RasterState(cull="back"), out=out), rf.render(ico, **kw, raster=rf.RasterState(cull="back")))
+    _same(rf.render(box, **kw, raster=rf.RasterState(depth_func="greater", clear_depth=0.0), out=out),
+          rf.render(box, **kw, raster=rf.RasterState(depth_func="greater", clear_depth=0.0)))
 
 
 def test_out_colour_read_before_and_after_reuse():
@@ -145,7 +145,9 @@ def test_out_never_overwrites_an_input():
     assert inside.vertices.tobytes() == before.tobytes()
     # given normals that are a view of out.normal
     with pytest.raises(ValueError, match="out.normal shares memory with an input"):
-        rf.render(box, **kw, normals=out.normal.reshape(-1, 3)[:8], out=out)
+        rf.render((box.vertices, box.faces, out.normal.reshape(-1).view(np.float64)[:24]
+                   .reshape(8, 3)), **kw,
+                  raster=rf.RasterState(normals="smooth"), out=out)
 
 
 def test_smooth_normals_cache_follows_the_content():
@@ -155,14 +157,15 @@ def test_smooth_normals_cache_follows_the_content():
     assert smooth_normals(t) is n1                             # cached
     assert smooth_normals(Mesh(t.vertices.copy(), t.faces.copy())) is n1   # same content
     assert n1.tobytes() == vertex_normals(t.vertices, t.faces).tobytes()
-    first = rf.render(t, **kw, normals="smooth")
+    first = rf.render(t, **kw, raster=rf.RasterState(normals="smooth"))
     # change the mesh in place: the next frame must not reuse the old normals
     t.vertices[:, 1] *= 1.7
     t.vertices[::3] += 0.05
-    again = rf.render(t, **kw, normals="smooth")
-    fresh = rf.render(Mesh(t.vertices.copy(), t.faces.copy()), **kw, normals="smooth")
-    fresh_uncached = rf.render(Mesh(t.vertices.copy(), t.faces.copy()), **kw,
-                               normals=vertex_normals(t.vertices, t.faces))
+    again = rf.render(t, **kw, raster=rf.RasterState(normals="smooth"))
+    fresh = rf.render(Mesh(t.vertices.copy(), t.faces.copy()), **kw, raster=rf.RasterState(normals="smooth"))
+    fresh_uncached = rf.render(Mesh(t.vertices.copy(), t.faces.copy(),
+                                    vertex_normals(t.vertices, t.faces)), **kw,
+                               raster=rf.RasterState(normals="smooth"))
     _same(again, fresh)
     _same(again, fresh_uncached)
     assert again.normal.tobytes() != first.normal.tobytes()
@@ -246,7 +249,7 @@ def test_thread_choice_restores_numba_and_keeps_the_bytes(monkeypatch):
     frames = []
     for n in ("1", str(numba.config.NUMBA_NUM_THREADS), "auto"):
         monkeypatch.setenv("REFRASTER_THREADS", n)
-        fb = rf.render(ico, **kw, normals="smooth")
+        fb = rf.render(ico, **kw, raster=rf.RasterState(normals="smooth"))
         fb.color
         frames.append(fb)
         assert numba.get_num_threads() == before
@@ -254,7 +257,7 @@ def test_thread_choice_restores_numba_and_keeps_the_bytes(monkeypatch):
     _same(frames[0], frames[2])
     monkeypatch.setenv("REFRASTER_THREADS", "1")
     with pytest.raises(ValueError):
-        rf.render(ico, **kw, cull="sideways")
+        rf.render(ico, **kw, raster=rf.RasterState(cull="sideways"))
     assert numba.get_num_threads() == before
 
 
@@ -267,17 +270,17 @@ def test_reused_scratch_never_reaches_a_frame(monkeypatch):
     frame_scratch().clear()
     ico, t = mesh_of(icosphere(3)), mesh_of(torus(major_segments=24, minor_segments=10))
     kw = camera_kw()
-    a = rf.render(ico, **kw, normals="smooth")        # colour left pending
+    a = rf.render(ico, **kw, raster=rf.RasterState(normals="smooth"))        # colour left pending
     held = {f: getattr(a, f).copy() for f in FB_FIELDS if f != "color"}
     pending = a.__dict__["_color"].args
-    rf.render(t, **camera_kw(eye=(0.5, 2.2, 2.0)), cull="back")   # reuses every scratch buffer
+    rf.render(t, **camera_kw(eye=(0.5, 2.2, 2.0)), raster=rf.RasterState(cull="back"))   # reuses every scratch buffer
     bufs = list(frame_scratch()._bufs.values())
     assert bufs
     for x in [getattr(a, f) for f in held] + [p for p in pending if isinstance(p, np.ndarray)]:
         assert not any(np.may_share_memory(x, b) for b in bufs)
     for f in held:
         assert getattr(a, f).tobytes() == held[f].tobytes(), f
-    _same(a, rf.render(ico, **kw, normals="smooth"))
+    _same(a, rf.render(ico, **kw, raster=rf.RasterState(normals="smooth")))
 
 
 def test_public_prepare_never_uses_the_scratch():

@@ -28,12 +28,12 @@ def test_epsilon_derivation():
 def test_four_bit_candidate_passes_tolerant_fails_exact(mesh):
     ref = rf.render(mesh, **KW)
     tol = tolerance(mesh, **KW)
-    cand = rf.render(mesh, subpixel_bits=4, **KW)
+    cand = rf.render(mesh, raster=rf.RasterState(subpixel_bits=4), **KW)
     assert _failures(tol, cand, ref) == {"coverage": 0, "prim_id": 0, "depth": 0}
     # the exact compare fails: depth differs (and, for curved meshes, ids too)
     assert (cand.depth != ref.depth).sum() > 0
     for rule in ("top-left",):
-        other = rf.render(mesh, fill_rule=rule, **KW)
+        other = rf.render(mesh, raster=rf.RasterState(fill_rule=rule), **KW)
         assert _failures(tol, other, ref) == {"coverage": 0, "prim_id": 0, "depth": 0}
 
 

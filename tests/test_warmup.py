@@ -184,7 +184,7 @@ def test_pipeline_and_cap_helpers_compile_one_specialisation():
     from numba.core.registry import CPUDispatcher
 
     import refraster
-    from refraster import offsetmaps as om
+    from refraster.clipsurface import offsetmaps as om
     from refraster._config import PJIT
     from refraster.camera import look_at, perspective
     from refraster.clipsurface import ClipSurface, capping
@@ -368,7 +368,7 @@ for mesh, (w, h) in ((trimesh.creation.box(), (640, 480)), (trimesh.creation.ico
     for normals in ("flat", "smooth"):
         cam = frame_bounds(mesh.bounds, width=w, height=h, margin=1.0)
         fb = rf.render((mesh.vertices, mesh.faces), view=cam.view, proj=cam.proj, width=w,
-                       height=h, normals=normals)
+                       height=h, raster=rf.RasterState(normals=normals))
         fb.color
 out.append(sigs())
 print(json.dumps(out))

@@ -111,7 +111,7 @@ def check_watertight(mesh, name="mesh"):
     if bad:
         raise ValueError(
             f"{name} is not watertight: {bad} edge(s) are not shared by exactly two faces; "
-            "caps need a closed solid (render with caps=False, or repair the mesh)")
+            "caps need a closed solid (render with caps=None, or repair the mesh)")
     if len(_WATERTIGHT) >= _WATERTIGHT_SIZE:
         _WATERTIGHT.pop(0)
     _WATERTIGHT.append((np.array(v), np.array(f)))
@@ -684,7 +684,8 @@ def solid_texture(points, kind, *, frequency=4.0, color=(0.8, 0.3, 0.25), seed=0
 
 @njit(**IJIT)
 def _bilinear_column(maps, taps, c):
-    """:func:`refraster.offsetmaps.bilinear` of column ``c`` of interleaved maps ``(n, 4)``."""
+    """:func:`refraster.clipsurface.offsetmaps.bilinear` of column ``c`` of interleaved maps
+    ``(n, 4)``."""
     a, b, cc, d, wa, wb, wc, wd = taps
     return wa * maps[a, c] + wb * maps[b, c] + wc * maps[cc, c] + wd * maps[d, c]
 
@@ -886,7 +887,7 @@ def shade_caps(points, surface_index, surfaces, *, view, style, color, hatch_spa
     color : (3,) base colour; hatch_spacing : world distance of hatch lines; frequency : solid
         texture frequency
     occlusion_radius : float, optional
-        Radius of the occlusion maps (:func:`refraster.offsetmaps.occlusion_map`).
+        Radius of the occlusion maps (:func:`refraster.clipsurface.offsetmaps.occlusion_map`).
 
     Returns
     -------

@@ -289,7 +289,7 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests,
                 sure_flags=()):
     """Rasterize, clip, parity-test and depth-resolve the prepared draw calls in one pass.
     ``sure_flags`` holds, per cap draw call after the solids, the "surely inside" flags of its
-    faces (:func:`refraster.capping.surely_inside`) or ``None``.
+    faces (:func:`refraster.clipsurface.capping.surely_inside`) or ``None``.
 
     Returns ``(depth, prim_global, front, bary)`` as :func:`refraster.raster.rasterizer.fused`.
     """

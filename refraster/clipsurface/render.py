@@ -1,19 +1,144 @@
 """``render_clipped``: solids clipped by 2.5D clip surfaces, with cap surfaces closing the
-cuts (Trapp & Döllner, Sec. 3 pipeline), and its :class:`ClippedFramebuffer`."""
+cuts (Trapp & Döllner, Sec. 3 pipeline), its cap options :class:`Caps` and its
+:class:`ClippedFramebuffer`."""
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validate import as_choice, as_float_array, as_matrix, as_real
+from .._validate import as_choice, as_float_array, as_matrix, as_real, as_size
 from ..framebuffer import Framebuffer
+from ..ldi import MAX_RESOLUTION
 from . import capping
 from .fused import _fused_clip
 from .surfaces import as_surfaces, clip_mask, _surfaces_in_space
+from .textures import SolidTexture
 
-__all__ = ["ClippedFramebuffer", "render_clipped"]
+__all__ = ["Caps", "ClippedFramebuffer", "render_clipped"]
+
+
+@dataclass(frozen=True)
+class Caps:
+    """How :func:`render_clipped` draws the cap surfaces that close the cuts (Trapp & Döllner,
+    Sec. 5–6): one immutable value, built once and passed as ``caps=``; ``caps=None`` draws
+    no caps (the solids are still clipped).
+
+    Parameters
+    ----------
+    style : {"diffuse", "hatch", "marble", "wood", "noise", "solid"}
+        Cap shading over the normal and occlusion maps
+        (:func:`refraster.clipsurface.capping.shade_caps`). Default ``"diffuse"``: the paper's
+        cap shading through the normal and occlusion maps (Sec. 5.1); ``"hatch"`` and the solid
+        textures ``"marble"``, ``"wood"``, ``"noise"`` draw its Sec. 6.1 styles (Fig. 10,
+        Fig. 11) procedurally. ``"diffuse"`` takes a surface's diffuse map
+        (``ClipSurface(textures=CapTextures(...))``) as its base colour where it has one;
+        ``"solid"`` takes ``solid_texture``. A surface's user normal and light maps replace
+        the derived ones in every style (:func:`refraster.clipsurface.capping.texture_caps`).
+    mode : {"mesh", "exact"}
+        Default ``"mesh"``, the paper's (Sec. 5.1): the tessellated, displaced grid
+        (``subdivision`` vertices per texel and axis) whose fragments pass the volumetric parity
+        test. ``"exact"`` (not in the paper; it removes the Sec. 6.3 tessellation gaps):
+        per-pixel ray – height-field intersection
+        (:func:`refraster.clipsurface.capping.exact_caps`).
+    color : (3,) float
+        Base (diffuse), ink (hatch) or dark texture colour of the caps. Default
+        ``(0.80, 0.30, 0.25)``, a brick red.
+    hatch_spacing : float > 0, optional
+        World distance between hatch lines. Default ``None``: 1.5 % of the solids' bounding
+        diagonal.
+    texture_frequency : float > 0
+        Procedural solid-texture features per world unit. Default 4.0.
+    subdivision : int in [1, 64]
+        Cap-mesh vertices per offset-map texel and axis (``mode="mesh"``). Default 1: one
+        vertex per texel centre, the paper's refined quad (Sec. 5.1) at the offset map's
+        resolution.
+    occlusion_radius : float > 0, optional
+        Radius of the derived occlusion maps (:func:`refraster.offsetmaps.occlusion_map`).
+        Default ``None``: 8 texels along the shorter texel side.
+    solid_texture : SolidTexture or (D, H, W[, C]) array, optional
+        The 3D texture of ``style="solid"`` (Fig. 11), required by it and used by no other
+        style; sampled trilinearly at each cap point in its solid's object space (``model``
+        inverted). An array becomes a :class:`refraster.clipsurface.textures.SolidTexture`
+        spanning each solid's object-space bounding box once.
+    vds_resolution : int in [8, 4096]
+        Texels per side of the volumetric depth sprites built for the parity test
+        (``VolumetricDepthSprite.from_mesh(solid, resolution=vds_resolution)``, Sec. 5.2) when
+        :func:`render_clipped` is given none. Default 1024.
+
+    Notes
+    -----
+    Pre-built sprites (``render_clipped(vds=...)``) are not a field: they are data about the
+    solids (one per mesh, in world space, as the meshes and ``model`` place them), not a way of
+    drawing caps, so one ``Caps`` value serves any scene; a cap option is a small value that
+    compares and hashes by its fields (``solid_texture`` by identity) and that a scene package
+    can store.
+
+    Bad input raises one ``TypeError``/``ValueError`` naming the field (``caps.style ...``).
+    ``dataclasses.replace(caps, style="hatch")`` makes a variant (validated again).
+    """
+
+    style: str = "diffuse"
+    mode: str = "mesh"
+    color: tuple = (0.80, 0.30, 0.25)
+    hatch_spacing: float | None = None
+    texture_frequency: float = 4.0
+    subdivision: int = 1
+    occlusion_radius: float | None = None
+    solid_texture: SolidTexture | None = None
+    vds_resolution: int = 1024
+
+    def __post_init__(self):
+        def put(name, value):
+            object.__setattr__(self, name, value)
+
+        style = as_choice(self.style, "caps.style", {s: s for s in capping.CAP_STYLES})
+        put("style", style)
+        put("mode", as_choice(self.mode, "caps.mode", {"mesh": "mesh", "exact": "exact"}))
+        put("color", tuple(float(c) for c in as_float_array(self.color, "caps.color",
+                                                              shape=(3,))))
+        if self.hatch_spacing is not None:
+            put("hatch_spacing", as_real(self.hatch_spacing, "caps.hatch_spacing", lo=0.0,
+                                         lo_open=True))
+        put("texture_frequency", as_real(self.texture_frequency, "caps.texture_frequency",
+                                         lo=0.0, lo_open=True))
+        sub = self.subdivision
+        if isinstance(sub, bool) or not isinstance(sub, numbers.Integral):
+            raise TypeError(f"caps.subdivision must be an int, got {type(sub).__name__}")
+        if not 1 <= sub <= 64:
+            raise ValueError(f"caps.subdivision must be an int in [1, 64], got {sub!r}")
+        put("subdivision", int(sub))
+        if self.occlusion_radius is not None:
+            put("occlusion_radius", as_real(self.occlusion_radius, "caps.occlusion_radius",
+                                            lo=0.0, lo_open=True))
+        put("solid_texture", _as_solid_texture(self.solid_texture, style))
+        res = as_size(self.vds_resolution, "caps.vds_resolution", maximum=MAX_RESOLUTION)
+        if res < 8:
+            raise ValueError(f"caps.vds_resolution must be at least 8, got {res}")
+        put("vds_resolution", res)
+
+
+def _as_solid_texture(solid_texture, style):
+    if solid_texture is None:
+        if style == "solid":
+            raise ValueError("caps.solid_texture is needed by caps.style='solid' (a "
+                             "SolidTexture or a (D, H, W[, C]) volume)")
+        return None
+    if style != "solid":
+        raise ValueError(f"caps.solid_texture is used by caps.style='solid' only, "
+                         f"not {style!r}")
+    if isinstance(solid_texture, SolidTexture):
+        return solid_texture
+    try:
+        return SolidTexture(solid_texture)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"caps.solid_texture: {exc}") from None
+
+
+#: ``render_clipped``'s default caps (read for nothing but defaults when ``caps=None``).
+_DEFAULT_CAPS = Caps()
 
 
 @dataclass(eq=False)
@@ -109,12 +234,12 @@ _CAP_CACHE_SIZE = 8
 
 
 def _cached_cap(surface, bounds, subdivision, sprite=None):
-    """``(mesh, sure)``: :func:`refraster.capping.cap_mesh`, made once per surface, bounds and
-    subdivision (a surface is immutable; the cached mesh's arrays are read-only). With a
-    volumetric depth sprite, only the faces that can pass its parity test
-    (:func:`refraster.capping.cull_cap`) and their "surely inside" flags
-    (:func:`refraster.capping.surely_inside`), made once per sprite too; ``sure`` is ``None``
-    without a sprite."""
+    """``(mesh, sure)``: :func:`refraster.clipsurface.capping.cap_mesh`, made once per surface,
+    bounds and subdivision (a surface is immutable; the cached mesh's arrays are read-only). With
+    a volumetric depth sprite, only the faces that can pass its parity test
+    (:func:`refraster.clipsurface.capping.cull_cap`) and their "surely inside" flags
+    (:func:`refraster.clipsurface.capping.surely_inside`), made once per sprite too; ``sure`` is
+    ``None`` without a sprite."""
     import weakref
 
     cache = surface._derived
@@ -147,41 +272,27 @@ def _cached_cap(surface, bounds, subdivision, sprite=None):
     return entry[1], entry[2]
 
 
-def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
-                   cap_style="diffuse", cap_mode="mesh", cap_color=(0.80, 0.30, 0.25),
-                   hatch_spacing=None, texture_frequency=4.0, space="world", model=None,
-                   normals=None, cull="none", precision="float32", subdivision=1, vds=None,
-                   vds_resolution=1024, occlusion_radius=None, background=(1.0, 1.0, 1.0),
-                   solid_texture=None):
+def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT_CAPS,
+                   space="world", model=None, normals=None, cull="none", precision="float32",
+                   vds=None, background=(1.0, 1.0, 1.0)):
     """Render solids clipped by 2.5D clip surfaces, with cap surfaces closing the cuts.
 
     Parameters
     ----------
     meshes : mesh or sequence of meshes
-        The solids (draw calls 0 … M−1). With ``caps=True`` each must be watertight.
+        The solids (draw calls 0 … M−1). With caps each must be watertight.
     surfaces : ClipSurface, ReliefClipPlane or a list of them (K surfaces, world space)
     view, proj, width, height
         The camera (:mod:`refraster.camera`).
-    caps : bool
-        Draw cap surfaces (Trapp & Döllner, Sec. 5).
-    cap_style : {"diffuse", "hatch", "marble", "wood", "noise", "solid"}
-        Cap shading over the normal and occlusion maps (:func:`refraster.capping.shade_caps`).
-        ``"diffuse"`` takes a surface's diffuse map (``ClipSurface(textures=CapTextures(...))``)
-        as its base colour where it has one; ``"solid"`` takes ``solid_texture``. A surface's
-        user normal and light maps replace the derived ones in every style
-        (:func:`refraster.clipsurface.capping.texture_caps`).
-    cap_mode : {"mesh", "exact"}
-        ``"mesh"``: the paper's tessellated, displaced grid (``subdivision`` vertices per texel
-        and axis) whose fragments pass the volumetric parity test; ``"exact"``: per-pixel ray –
-        height-field intersection (:func:`refraster.capping.exact_caps`).
-    cap_color : (3,) float
-        Base (diffuse), ink (hatch) or dark texture colour of the caps.
-    hatch_spacing : float, optional
-        World distance between hatch lines (default 1.5 % of the solids' bounding diagonal).
-    texture_frequency : float
-        Solid-texture features per world unit.
+    caps : Caps or None
+        How the cap surfaces are drawn (Trapp & Döllner, Sec. 5): style, mode, colour,
+        hatch spacing, texture frequency, subdivision, occlusion radius, solid texture and
+        sprite resolution (:class:`Caps`; default ``Caps()``). ``None``: no caps, the solids
+        are only clipped.
     space : {"world", "eye"}
-        Where the clip test is evaluated (D6; equal for a rigid view).
+        Where the clip test is evaluated (D6; equal for a rigid view). A keyword of its own,
+        not a :class:`Caps` field: it decides which fragments the clip surfaces discard, with
+        or without caps.
     model : (4, 4) or list of them, optional
         Object → world matrix per solid; surfaces are always given in world space.
     normals : None, "flat" or "smooth"
@@ -190,14 +301,10 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
         As :func:`refraster.render`.
     vds : sequence of objects with ``contains(points)``, optional
         Pre-built volumetric depth sprites (world space), one per solid; built with
-        ``VolumetricDepthSprite.from_mesh(solid, resolution=vds_resolution)`` otherwise.
-    occlusion_radius : float, optional
-        Radius of the occlusion maps (:func:`refraster.offsetmaps.occlusion_map`).
+        ``VolumetricDepthSprite.from_mesh(solid, resolution=caps.vds_resolution)`` otherwise.
+        Data about the solids rather than a cap option (see :class:`Caps`); unused without
+        caps.
     background : (3,) float
-    solid_texture : SolidTexture or (D, H, W[, C]) array, optional
-        The 3D texture of ``cap_style="solid"`` (Fig. 11), sampled trilinearly at each cap
-        point in its solid's object space (``model`` inverted); an array spans each solid's
-        object-space bounding box once (:class:`refraster.clipsurface.textures.SolidTexture`).
 
     Returns
     -------
@@ -225,20 +332,21 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
     surfaces = as_surfaces(surfaces)
     view = as_matrix(view, "view")
     proj = as_matrix(proj, "proj")
-    if not isinstance(caps, (bool, np.bool_)):
-        raise TypeError(f"caps must be a bool, got {type(caps).__name__}")
-    style = as_choice(cap_style, "cap_style", {s: s for s in capping.CAP_STYLES})
-    mode = as_choice(cap_mode, "cap_mode", {"mesh": "mesh", "exact": "exact"})
+    if caps is not None and not isinstance(caps, Caps):
+        raise TypeError(f"caps must be a Caps or None, got {type(caps).__name__}")
     space = as_choice(space, "space", {"world": "world", "eye": "eye"})
-    color = as_float_array(cap_color, "cap_color", shape=(3,))
-    freq = as_real(texture_frequency, "texture_frequency", lo=0.0, lo_open=True)
-    solid_tex = _as_solid_texture(solid_texture, style)
+    options = _DEFAULT_CAPS if caps is None else caps
+    style, mode = options.style, options.mode
+    color = np.array(options.color, np.float64)
+    freq = options.texture_frequency
+    solid_tex = options.solid_texture
+    occlusion_radius = options.occlusion_radius
     textured = [s.textures is not None for s in surfaces]
-    if style in capping._PROCEDURAL and any(
+    if caps is not None and style in capping._PROCEDURAL and any(
             s.enabled and s.textures is not None and s.textures.diffuse is not None
             for s in surfaces):
-        raise ValueError(f"cap_style={style!r} draws its own pattern; a surface's diffuse map "
-                         "is used by cap_style='diffuse'")
+        raise ValueError(f"caps.style={style!r} draws its own pattern; a surface's diffuse map "
+                         "is used by caps.style='diffuse'")
     # the base pass colours "solid" caps as "diffuse"; texture_caps recolours them
     base_style = "diffuse" if style == "solid" else style
     if normals is not None and not (isinstance(normals, str)
@@ -248,19 +356,19 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
     world = [Mesh(v, s.faces) if v is not s.vertices else s
              for s, v in zip(solids, vertices_in(solids, models, None, "world"))]
     n_solids, n_surf = len(solids), len(surfaces)
-    do_caps = caps and any(s.enabled for s in surfaces)
+    do_caps = caps is not None and any(s.enabled for s in surfaces)
     tests = None
     if do_caps:
         for i, w in enumerate(world):
             capping.check_watertight(w, f"meshes[{i}]")
-        tests = _solid_tests(world, vds, vds_resolution)
+        tests = _solid_tests(world, vds, options.vds_resolution)
     boxes = [bounds(w.vertices) if w.n_vertices else None for w in world]
     lo = np.min([b[0] for b in boxes if b is not None], axis=0) \
         if any(w.n_vertices for w in world) else np.zeros(3)
     hi = np.max([b[1] for b in boxes if b is not None], axis=0) \
         if any(w.n_vertices for w in world) else np.ones(3)
-    spacing = (0.015 * float(np.linalg.norm(hi - lo)) or 0.01) if hatch_spacing is None \
-        else as_real(hatch_spacing, "hatch_spacing", lo=0.0, lo_open=True)
+    spacing = (0.015 * float(np.linalg.norm(hi - lo)) or 0.01) \
+        if options.hatch_spacing is None else options.hatch_spacing
 
     fused = _USE_FUSED and (not do_caps or mode != "mesh" or all(
         isinstance(t, VolumetricDepthSprite) for t in tests))
@@ -271,7 +379,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
         for m, box in enumerate(boxes):
             sprite = tests[m] if isinstance(tests[m], VolumetricDepthSprite) else None
             for s in surfaces:
-                cap, sure = _cached_cap(s, box, subdivision, sprite) \
+                cap, sure = _cached_cap(s, box, options.subdivision, sprite) \
                     if s.enabled and box is not None else (None, None)
                 draw_list.append(empty if cap is None else cap)
                 sure_flags.append(sure)
@@ -365,20 +473,6 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=True,
     _texture_pass(out, surfaces, textured, style, color, solid_tex, solids, models, view,
                   occlusion_radius)
     return out
-
-
-def _as_solid_texture(solid_texture, style):
-    from .textures import SolidTexture
-    if solid_texture is None:
-        if style == "solid":
-            raise ValueError("cap_style='solid' needs solid_texture=(a SolidTexture or a "
-                             "(D, H, W[, C]) volume)")
-        return None
-    if style != "solid":
-        raise ValueError("solid_texture is used by cap_style='solid' only")
-    if isinstance(solid_texture, SolidTexture):
-        return solid_texture
-    return SolidTexture(solid_texture)
 
 
 def _texture_pass(out, surfaces, textured, style, color, solid_tex, solids, models, view,

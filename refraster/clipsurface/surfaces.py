@@ -14,7 +14,7 @@ same test with the opposite normal (D8): :class:`ReliefClipPlane` maps onto :cla
 
 Any number of surfaces is evaluated in one pass (:func:`clip_mask`): a point is discarded when
 any enabled surface clips it (Sec. 4.5). :func:`render_clipped` draws solids clipped this way
-and closes the cuts with cap surfaces (:mod:`refraster.capping`).
+and closes the cuts with cap surfaces (:mod:`refraster.clipsurface.capping`).
 """
 
 from __future__ import annotations
@@ -64,8 +64,8 @@ class ClipSurface:
         ``S = (Sx, Sy, Sz)``: texture repeats along U and V (positive) and the height scale
         Sz in world units (any sign; 0 gives a plane).
     offset_map : (H, W) or (W,) array
-        OM, heights in [0, 1] in texel order (:mod:`refraster.offsetmaps`): uint8, uint16 or
-        float. A 1D map (W,) is a ``texture1D`` along s (Sec. 4.3: "1D, 2D, or 3D
+        OM, heights in [0, 1] in texel order (:mod:`refraster.clipsurface.offsetmaps`): uint8,
+        uint16 or float. A 1D map (W,) is a ``texture1D`` along s (Sec. 4.3: "1D, 2D, or 3D
         representations"), stored as the 1×W map it equals.
     wrap : {"repeat", "clamp_to_edge", "mirrored_repeat"}
         The offset map's wrap mode (MATH.md §1.1 takes repeat as the default [guess]).

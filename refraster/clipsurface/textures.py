@@ -101,7 +101,7 @@ class CapTextures:
     Parameters
     ----------
     diffuse : (H, W), (H, W, 3|4) array or image path, optional
-        The cap's base colour, replacing ``cap_color`` (style ``"diffuse"``).
+        The cap's base colour, replacing ``Caps.color`` (style ``"diffuse"``).
     normal : (H, W, 3) array or image path, optional
         Encoded tangent-space normals (:func:`decode_normals`), replacing the normal map
         derived from the offset map.

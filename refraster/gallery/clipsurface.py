@@ -40,9 +40,9 @@ def _surface(center, normal, extent, sz, offset_map, **kw):
 def _edges(fb, color):
     """Image-based edge enhancement composited with the paper's polarity (Fig. 10 (a)–(c),
     Nienhaus & Döllner [22]): white inner edges (normal discontinuities), black profile edges
-    (depth discontinuities), :func:`refraster.npr.composite`."""
+    (depth discontinuities), :func:`refraster.edges.npr.composite`."""
     from ..edges import edge_map
-    from ..npr import composite
+    from ..edges.npr import composite
     return composite(color, edge_map(fb, preset="clean"), inner_color=(1.0, 1.0, 1.0),
                      profile_color=(0.0, 0.0, 0.0))
 
@@ -82,10 +82,10 @@ def strata_volume(n=48):
 
 def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
     """Render the section's pictures into ``out_dir``; returns their items."""
-    from .. import offsetmaps as om
+    from ..clipsurface import offsetmaps as om
     from .. import scenes
     from ..camera import frame_bounds
-    from ..clipsurface import render_clipped
+    from ..clipsurface import Caps, render_clipped
     from ..io import write_png
 
     out_dir = Path(out_dir)
@@ -127,8 +127,8 @@ def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
                       weight=0.25)
     cs = _surface(c + [0, 0, 0.1], n, float(np.linalg.norm(hi - lo)), 0.9, ragged)
     cam = frame_bounds(crank.bounds, width=w, height=h, direction=(0.3, 0.7, 1.0))
-    fb = render_clipped(crank, cs, **cam.kwargs, cap_style="hatch",
-                        cap_color=(0.55, 0.12, 0.1), vds_resolution=res)
+    fb = render_clipped(crank, cs, **cam.kwargs,
+                        caps=Caps(style="hatch", color=(0.55, 0.12, 0.1), vds_resolution=res))
     box = _object_box(fb.mask)
     save("crank_hatched", _edges(fb, fb.color)[box],
          "Crank cut by a ragged 2.5D clip surface; procedural hatched cap with normal and "
@@ -138,15 +138,15 @@ def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
     # Fig. 10(a): the cap's diffuse map is a user's hatch texture image, read from its file
     # (CapTextures: mapped with the surface's (s, t), scale and wrap mode, GL_LINEAR).
     from ..clipsurface.textures import CapTextures
-    from ..npr import gooch
+    from ..edges.npr import gooch
     hatch_png = out_dir / "clipsurface_hatch_texture.png"
     write_png(hatch_png, hatch_texture(256 if quick else 1024, spacing=16, width=6))
     items.append(Item(SECTION, hatch_png.name, "The user's hatch texture image used as the "
                       "caps' diffuse map below (the Fig. 10 insets)."))
     textured = _surface(c + [0, 0, 0.1], n, float(np.linalg.norm(hi - lo)), 0.9, ragged,
                         textures=CapTextures(diffuse=hatch_png))
-    fb = render_clipped(crank, textured, **cam.kwargs, cap_style="diffuse",
-                        vds_resolution=res)
+    fb = render_clipped(crank, textured, **cam.kwargs,
+                        caps=Caps(style="diffuse", vds_resolution=res))
     save("fig10a_texture", _edges(fb, fb.color)[box],
          "After Fig. 10(a): the crank's cap textured with the user's hatch image (file above) "
          "as its diffuse map, light through the derived occlusion map, white inner "
@@ -168,8 +168,9 @@ def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
                   om.perlin_noise(128, cells=4, octaves=5, seed=8))
     cam = frame_bounds([lo, [hi[0], c[1] + 0.4, hi[2]]], width=w, height=h,
                        direction=(-0.05, 1.2, 0.35))
-    fb = render_clipped(col, cs, **cam.kwargs, cap_style="marble",
-                        cap_color=(0.45, 0.42, 0.4), texture_frequency=3.0, vds_resolution=res)
+    fb = render_clipped(col, cs, **cam.kwargs,
+                        caps=Caps(style="marble", color=(0.45, 0.42, 0.4), texture_frequency=3.0,
+                                  vds_resolution=res))
     save("column", fb.color, "Fluted column with a 2.5D clip surface and a marble cap "
          "(after Fig. 2).")
 
@@ -179,15 +180,16 @@ def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
     cs = _surface((lo + hi) / 2 + 0.1, [-0.4, -0.3, -1.0], 1.5 * float(hi[0] - lo[0]), 0.25,
                   om.perlin_noise(64, cells=4, seed=11))
     cam = frame_bounds(cube.bounds, width=w, height=h, direction=(0.8, 0.9, 1.4))
-    fb = render_clipped(cube, cs, **cam.kwargs, cap_style="wood",
-                        cap_color=(0.45, 0.25, 0.1), texture_frequency=2.0, vds_resolution=res)
+    fb = render_clipped(cube, cs, **cam.kwargs,
+                        caps=Caps(style="wood", color=(0.45, 0.25, 0.1), texture_frequency=2.0,
+                                  vds_resolution=res))
     save("cube_wood", fb.color, "Cube with a solid-textured (wood) cap lit through its "
          "occlusion map (after Fig. 11).")
 
     # Fig. 11 with the user's own 3D texture: a volume sampled in the cube's object space.
     vol = strata_volume(16 if quick else 48)
-    fb = render_clipped(cube, cs, **cam.kwargs, cap_style="solid", solid_texture=vol,
-                        vds_resolution=res)
+    fb = render_clipped(cube, cs, **cam.kwargs,
+                        caps=Caps(style="solid", solid_texture=vol, vds_resolution=res))
     save("cube_solid", fb.color, "Cube with a user 3D texture (a 48³ volume of bent strata, "
          "trilinear, spanning the cube's object-space box) on its cap, lit through the "
          "occlusion map (after Fig. 11).")
@@ -199,8 +201,8 @@ def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
     roof = _surface([5.0, 4.6, 3.5], [0.0, -1.0, 0.15], 4.0, 0.3,
                     om.ragged_cut(128, seed=7, axis="t"))
     cam = frame_bounds(bld.bounds, width=w, height=h, direction=(0.6, 1.0, 1.4))
-    fb = render_clipped(bld, [front, roof], **cam.kwargs, cap_style="diffuse",
-                        cap_color=(0.85, 0.45, 0.3), vds_resolution=res)
+    fb = render_clipped(bld, [front, roof], **cam.kwargs,
+                        caps=Caps(style="diffuse", color=(0.85, 0.45, 0.3), vds_resolution=res))
     save("building", _edges(fb, fb.color), "Building cut by two 2.5D clip surfaces in one pass, "
          "revealing rooms and doorways (after Fig. 6).")
 
@@ -210,8 +212,8 @@ def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
     cs = _surface((lo + hi) / 2, [-0.2, -0.1, -1.0], 1.2 * float(hi[0] - lo[0]), 0.3,
                   om.perlin_noise(12, cells=3, seed=3))
     cam = frame_bounds(box.bounds, width=w, height=h, direction=(0.5, 0.6, 1.5))
-    mesh_fb = render_clipped(box, cs, **cam.kwargs, vds_resolution=res)
-    exact_fb = render_clipped(box, cs, **cam.kwargs, vds_resolution=res, cap_mode="exact")
+    mesh_fb = render_clipped(box, cs, **cam.kwargs, caps=Caps(vds_resolution=res))
+    exact_fb = render_clipped(box, cs, **cam.kwargs, caps=Caps(mode="exact", vds_resolution=res))
     both = mesh_fb.cap_mask & exact_fb.cap_mask
     diff = np.zeros(both.shape)
     diff[both] = np.abs(mesh_fb.eye_depth[both] - exact_fb.eye_depth[both])

@@ -15,10 +15,15 @@ from ..cutaway import (CutSurfaces, Cutaway, GhostLines, chamfer, cutaway_surfac
                        jump_flood, render_cutaway)
 from ..cutaway.surface import ndc_to_eye_depth, pixel_ndc, seed_slopes, tangent_sampling, unproject
 from ..framebuffer import render as _render
+from ..raster.state import RasterState
 from ..camera import orthographic
 from ..io import write_png
 from ..scenes import building, cube, icosphere, nested_shells
 from . import Item
+
+#: The rear hull of the objects of interest: their farthest surface (Burns & Finkelstein
+#: Sec. 4.1), depth test greater over a buffer cleared to 0.
+REAR_HULL = RasterState(depth_func="greater", clear_depth=0.0)
 
 SECTION = "Adaptive cutaways"
 
@@ -294,7 +299,7 @@ def _fig3(out, s):
     panels = []
     grey, green, blue = (0.6, 0.6, 0.6), (0.2, 0.6, 0.25), (0.15, 0.3, 0.8)
     for name, cam in cams.items():
-        rear = _render(ooi, depth_func="greater", clear_depth=0.0, **cam)
+        rear = _render(ooi, raster=REAR_HULL, **cam)
         wall = _render(slab, **cam)
         z_i = np.where(rear.object_id >= 0, 2.0 * rear.depth.astype(np.float64) - 1.0, -1.0)
         d = cutaway_surface(rear.depth, rear.object_id, proj=cam["proj"], angle=theta,
@@ -339,7 +344,7 @@ def _surface(out, s):
     """The image-space core: seeds, D by jump flooding, and its error against brute force."""
     core = [icosphere(2, radius=0.3), _box((0.2, -0.1, 0.2), (0.5, 0.2, 0.5))]
     cam = _camera((2.6, 1.6, 3.0), (0, 0, 0), s, s)
-    rear = _render(core, depth_func="greater", clear_depth=0.0, **cam)
+    rear = _render(core, raster=REAR_HULL, **cam)
     seeds = np.where(rear.object_id >= 0, 2.0 * rear.depth.astype(np.float64) - 1.0, -np.inf)
     slope, _ = seed_slopes(np.where(np.isfinite(seeds), seeds, -1.0), np.full(seeds.shape, 0.5),
                         proj=cam["proj"], edge_compression=None)

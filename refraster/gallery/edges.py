@@ -93,7 +93,8 @@ def _edge_rich_box(e, size):
 def render(out_dir, *, quick=False):
     """Render the section into ``out_dir``; return its :class:`~refraster.gallery.Item` list."""
     import refraster
-    from .. import edges, npr
+    from .. import edges
+    from ..edges import npr
     from ..camera import frame_bounds
     from ..io import write_png
     from ..mesh import as_mesh
@@ -111,7 +112,7 @@ def render(out_dir, *, quick=False):
         raw = _scene(name, quick)
         mesh = as_mesh(raw).with_smooth_normals(crease_angle=CREASE_ANGLE)
         cam = frame_bounds(raw.bounds, width=width, height=height)
-        fb = refraster.render(mesh, **cam.kwargs, normals="smooth")
+        fb = refraster.render(mesh, **cam.kwargs, raster=refraster.RasterState(normals="smooth"))
         gb = edges.edge_gbuffer(fb)
         em = edges.edge_map(gb)                       # the paper's operator
         crop = _crop_box(fb.mask, MARGIN)
@@ -206,7 +207,8 @@ def render(out_dir, *, quick=False):
                             strokes=npr.surface_strokes(fb, spacing=spacing), mask=fb.mask)
 
     r = npr.render_mirrored(mesh, floor, **cam.kwargs, models=[lift], style=style,
-                            inner_color=(0.35, 0.35, 0.35), reflectance=0.8)
+                            mirror_style=npr.MirrorStyle(reflectance=0.8,
+                                                         inner_color=(0.35, 0.35, 0.35)))
     save("mirror_hatching", r.image,
          "crank above a mirror: edge-enhanced hatching; the mirrored crank is rendered with its "
          "own G-buffer and edge map (the objects reflected through the mirror plane, clipped at "

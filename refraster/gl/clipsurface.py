@@ -15,6 +15,7 @@ import ctypes.util
 
 import numpy as np
 
+from .common import programs
 from .package import PackageError, matrix, read_map
 
 __all__ = ["supports", "load", "draw", "release", "MAX_SURFACES"]
@@ -78,7 +79,7 @@ def _texture(backend, arrays, wrap):
     return tex
 
 
-#: The program (vertex, geometry, fragment shader), compiled by refraster.gl.driver.programs.
+#: The program (vertex, geometry, fragment shader), compiled by refraster.gl.common.programs.
 SHADERS = {"clip": ("clip.vert", "clip.geom", "clip.frag")}
 
 
@@ -169,7 +170,6 @@ def release(loaded):
 
 def draw(backend, scene, loaded):
     """The clip-surface G-buffer → ``{buffer: array}`` as the golden stores it."""
-    from .driver import programs
     ctx, mgl = backend.ctx, backend.mgl
     prog = programs(backend, SHADERS)["clip"]
     p = scene["parameters"]

@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from .common import Unsupported, fullscreen, programs
 from .package import PackageError, matrix, read_ply
 
 __all__ = ["supports", "step_schedule", "render_cutaway", "feature_segments"]
@@ -184,7 +185,7 @@ def feature_segments(vertices, faces, view, model, ortho, crease_angle):
     return (hom @ model.T)[..., :3]
 
 
-#: The programs (vertex, geometry, fragment shader), compiled by refraster.gl.driver.programs.
+#: The programs (vertex, geometry, fragment shader), compiled by refraster.gl.common.programs.
 SHADERS = {
     "hull": ("gbuffer.vert", None, "cutaway_hull.frag"),
     "seed": ("fullscreen.vert", None, "cutaway_seed.frag"),
@@ -196,8 +197,6 @@ SHADERS = {
 
 
 def render_cutaway(gl, loaded, package_dir):
-    from .driver import Unsupported, programs
-    from .edges import _fullscreen
     scene, draws = loaded["scene"], loaded["draws"]
     opt, reason = options(scene)
     if reason is not None:
@@ -264,7 +263,7 @@ def render_cutaway(gl, loaded, package_dir):
             gl._set(prog, "u_floor_n", tuple(float(c) for c in n / np.linalg.norm(n)))
             gl._set(prog, "u_floor_margin", opt["floor_margin"])
             gl._write(prog, "u_inv_proj", np.linalg.inv(proj))
-        _fullscreen(gl, prog)
+        fullscreen(gl, prog)
         # 3. jump flooding
         steps = step_schedule(h, w, opt["variant"])
         if "schedule_truncated" in gl.faults:   # planted fault: the last passes left out
@@ -284,7 +283,7 @@ def render_cutaway(gl, loaded, package_dir):
             flr[cur].use(1)
             gl._set(prog, "u_k", int(k))
             gl._set(prog, "u_final", last)
-            _fullscreen(gl, prog)
+            fullscreen(gl, prog)
             cur = 1 - cur
         # 4. D_dil and the cut normals
         prog = progs["dilate"]
@@ -296,14 +295,14 @@ def render_cutaway(gl, loaded, package_dir):
             fbo([ddil]).use()
             dtex.use(0)
             gl._set(prog, "u_normals", False)
-            _fullscreen(gl, prog)
+            fullscreen(gl, prog)
         else:
             ddil = dtex
         cutn = tex(4, "f4")
         fbo([cutn]).use()
         ddil.use(0)
         gl._set(prog, "u_normals", True)
-        _fullscreen(gl, prog)
+        fullscreen(gl, prog)
         # 5. the clipped G-buffer
         targets = [tex(1, "f4"), tex(1, "f4"), tex(4, "f4"), tex(4, "f4"), tex(4, "f4"),
                    tex(4, "i4"), tex(1, "i4")]

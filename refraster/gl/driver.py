@@ -30,11 +30,17 @@ from pathlib import Path
 import numpy as np
 
 from . import FAULTS, SUPPORTED_TECHNIQUES
+from . import clipsurface
+from .common import GLUnavailable, Unsupported, programs, shader_source
+from .cutaway import render_cutaway
+from .cutaway import supports as cutaway_supports
+from .edges import render_edges
+from .edges import supports as edges_supports
+from .halos import render_halos
+from .halos import supports as halos_supports
 from .package import PackageError, matrix, read_map, read_ply, read_scene
 
 __all__ = ["Backend", "GLUnavailable", "Unsupported", "programs", "shader_source"]
-
-SHADER_DIR = Path(__file__).with_name("shaders")
 
 _GL_TEXTURE_2D = 0x0DE1
 _GL_DEPTH_COMPONENT = 0x1902
@@ -47,41 +53,6 @@ _DEPTH_FUNCS = {"less": "<", "lequal": "<=", "greater": ">", "gequal": ">=", "eq
 #: Peel passes at most (a pixel's ray crosses each face at most once, so the face count
 #: also bounds it).
 MAX_PEEL_PASSES = 256
-
-
-class GLUnavailable(RuntimeError):
-    """No OpenGL 3.3 core context could be created (moderngl or EGL missing)."""
-
-
-class Unsupported(Exception):
-    """The scene's technique (or a setting of it) is not implemented by this backend."""
-
-
-def shader_source(name, defines=()):
-    """The text of ``shaders/<name>`` with ``#define`` lines inserted after ``#version``."""
-    text = (SHADER_DIR / name).read_text(encoding="utf-8")
-    if not defines:
-        return text
-    lines = text.splitlines(keepends=True)
-    at = next(i for i, line in enumerate(lines) if line.startswith("#version")) + 1
-    return "".join(lines[:at] + [f"#define {d}\n" for d in defines] + lines[at:])
-
-
-def programs(gl, shaders):
-    """A technique module's programs: ``shaders`` maps a name to the shader files
-    ``(vertex, geometry or None, fragment)`` under ``shaders/``; they are compiled once per
-    backend (its context, with its planted faults) and cached on it, keyed by ``shaders``.
-    → ``{name: program}``."""
-    key = tuple(shaders.items())
-    if key not in gl._programs:
-        defines = [FAULTS[f][0] for f in gl.faults]
-        gl._programs[key] = {
-            name: gl.ctx.program(
-                vertex_shader=shader_source(vert, defines),
-                geometry_shader=None if geom is None else shader_source(geom, defines),
-                fragment_shader=shader_source(frag, defines))
-            for name, (vert, geom, frag) in shaders.items()}
-    return gl._programs[key]
 
 
 def _gl_functions():
@@ -177,21 +148,17 @@ class Backend:
         if technique == "ldi" and p.get("mode", "peel") != "peel":
             return f"ldi mode {p.get('mode')!r}: only classic peeling ('peel') is implemented"
         if technique == "edges":          # issue 26: refraster/gl/edges.py
-            from .edges import supports
-            return supports(scene)
+            return edges_supports(scene)
         if technique == "cutaway":        # issue 26: refraster/gl/cutaway.py
-            from .cutaway import supports
-            return supports(scene)
+            return cutaway_supports(scene)
         if technique == "halos4d":        # issue 26: refraster/gl/halos.py
-            from .halos import supports
-            return supports(scene)
+            return halos_supports(scene)
         if technique == "vds" and (p.get("test") != "parity" or p.get("axis") not in ("z",)
                                    or p.get("rule", "parity") != "parity"):
             return ("vds: only the parity test over one sprite (test 'parity', one axis) is "
                     "implemented")
         if technique == "clipsurface":
-            from .clipsurface import supports
-            return supports(scene)
+            return clipsurface.supports(scene)
         return None
 
     def render(self, package_dir, *, layers=None):
@@ -217,7 +184,6 @@ class Backend:
         if reason is not None:
             raise Unsupported(reason)
         if scene["technique"] == "clipsurface":            # issue 26 item 1
-            from . import clipsurface
             return {"scene": scene, "clip": clipsurface.load(self, package_dir, scene),
                     "draws": [], "textures": []}
         loaded = {"scene": scene, "draws": self._upload(package_dir, scene), "textures": [],
@@ -246,16 +212,12 @@ class Backend:
     def draw(self, loaded, *, layers=None):
         """Render a :meth:`load`-ed scene → ``{buffer name: array}`` (see :meth:`render`)."""
         if "clip" in loaded:
-            from . import clipsurface
             return clipsurface.draw(self, loaded["scene"], loaded["clip"])
         if loaded["scene"]["technique"] == "edges":    # issue 26: refraster/gl/edges.py
-            from .edges import render_edges
             return render_edges(self, loaded, loaded.get("package_dir"))
         if loaded["scene"]["technique"] == "cutaway":  # issue 26: refraster/gl/cutaway.py
-            from .cutaway import render_cutaway
             return render_cutaway(self, loaded, loaded.get("package_dir"))
         if loaded["scene"]["technique"] == "halos4d":  # issue 26: refraster/gl/halos.py
-            from .halos import render_halos
             return render_halos(self, loaded, loaded.get("package_dir"))
         if loaded["scene"]["technique"] in ("render", "vds"):
             return self._gbuffer(loaded["scene"], loaded["draws"], loaded["textures"])
@@ -263,7 +225,6 @@ class Backend:
 
     def unload(self, loaded):
         if "clip" in loaded:
-            from . import clipsurface
             clipsurface.release(loaded.pop("clip"))
         for tex in loaded.get("textures", ()):
             tex.release()

@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 
+from .common import fullscreen, programs
 from .package import PackageError, matrix, read_ply
 
 __all__ = ["supports", "near_far", "render_edges", "NORMAL_FILTERS", "DEPTH_FILTERS"]
@@ -147,7 +148,7 @@ def near_far(scene, package_dir=None):
     return near, far
 
 
-#: The programs (vertex, geometry, fragment shader), compiled by refraster.gl.driver.programs.
+#: The programs (vertex, geometry, fragment shader), compiled by refraster.gl.common.programs.
 SHADERS = {
     "gbuffer": ("gbuffer.vert", "gbuffer.geom", "edge_gbuffer.frag"),
     "edge": ("fullscreen.vert", None, "edge_map.frag"),
@@ -156,21 +157,12 @@ SHADERS = {
 }
 
 
-def _fullscreen(gl, prog):
-    vao = gl.ctx.vertex_array(prog, [])
-    try:
-        vao.render(gl.mgl.TRIANGLES, vertices=3)
-    finally:
-        vao.release()
-
-
 def render_edges(gl, loaded, package_dir=None):
     """The scene's G-buffer buffers and ``edge_map (H, W, 4) float32`` (row 0 at the top)."""
     scene, draws = loaded["scene"], loaded["draws"]
     out = gl._gbuffer(scene, draws)
     opt = options(scene.get("parameters", {}))
     near, far = near_far(scene, package_dir)
-    from .driver import programs
     progs = programs(gl, SHADERS)
     mgl, ctx = gl.mgl, gl.ctx
     size = (scene["viewport"]["width"], scene["viewport"]["height"])
@@ -217,7 +209,7 @@ def render_edges(gl, loaded, package_dir=None):
             gl._set(prog, f"u_{key}", float(opt[key]))
         gl._set(prog, "u_t_inner", float(opt["inner_threshold"]))
         gl._set(prog, "u_t_profile", float(opt["profile_threshold"]))
-        _fullscreen(gl, prog)
+        fullscreen(gl, prog)
         result = edge[0]
         if opt["width"] > 1:
             prog = progs["dilate"]
@@ -225,7 +217,7 @@ def render_edges(gl, loaded, package_dir=None):
             edge[0].use(location=0)
             gl._set(prog, "u_edge", 0)
             gl._set(prog, "u_radius", opt["width"] - 1)
-            _fullscreen(gl, prog)
+            fullscreen(gl, prog)
             result = edge[1]
         npr = None
         if "npr" in opt:

@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from .common import Unsupported, fullscreen, programs
 from .package import PackageError, read_map
 
 __all__ = ["supports", "prepare", "render_halos"]
@@ -189,7 +190,7 @@ def _screen_bounds(points, width, height, margin):
                      [centre[0] + half[0], centre[1] + half[1], zhi]])
 
 
-#: The programs (vertex, geometry, fragment shader), compiled by refraster.gl.driver.programs.
+#: The programs (vertex, geometry, fragment shader), compiled by refraster.gl.common.programs.
 SHADERS = {
     "depth": ("halo_slice.vert", "halo_slice.geom", "halo_depth.frag"),
     "surface": ("halo_slice.vert", "halo_slice.geom", "halo_surface.frag"),
@@ -198,8 +199,6 @@ SHADERS = {
 
 
 def render_halos(gl, loaded, package_dir):
-    from .driver import Unsupported, programs
-    from .edges import _fullscreen
     scene = loaded["scene"]
     opt, reason = options(scene)
     if reason is not None:
@@ -330,12 +329,12 @@ def render_halos(gl, loaded, package_dir):
             ctx.blend_func = (mgl.SRC_ALPHA, mgl.ONE_MINUS_SRC_ALPHA, mgl.ONE,
                               mgl.ONE_MINUS_SRC_ALPHA)
             gl._set(pr, "u_class_pass", False)
-            _fullscreen(gl, pr)
+            fullscreen(gl, pr)
             fk.use()
             ctx.blend_equation = mgl.MAX
             ctx.blend_func = mgl.ONE, mgl.ONE
             gl._set(pr, "u_class_pass", True)
-            _fullscreen(gl, pr)
+            fullscreen(gl, pr)
         ctx.blend_equation = mgl.FUNC_ADD
         ctx.blend_func = mgl.SRC_ALPHA, mgl.ONE_MINUS_SRC_ALPHA
         ctx.disable(mgl.BLEND)

@@ -60,6 +60,7 @@ import numpy as np
 
 from ..tolerance import (COLOR_TOL, DEPTH_EPS, MAY, MUST, MUST_NOT, NORMAL_TOL, edge_may,
                          facing_may, tolerance)
+from refraster.raster.state import RasterState
 
 __all__ = ["scene_allowances", "tolerant_metrics", "dilate", "surface_step", "TOLERANT_CHECKS"]
 
@@ -464,7 +465,7 @@ def _clip_value_entries(scene, raster, arrays, eps, keys):
     cam = scene.camera
     meshes = [d.mesh for d in scene.draws]
     models = [d.model for d in scene.draws]
-    prep = prepare(meshes, **cam.kwargs, model=models, cull=raster["cull"])
+    prep = prepare(meshes, **cam.kwargs, model=models, raster=RasterState(cull=raster["cull"]))
     off = arrays["cs_offsets"].astype(np.int64)
     face = arrays["cs_face"].astype(np.int64)
     n = len(face)
@@ -562,7 +563,7 @@ def face_sets(scene, raster, id_may, eps):
     h, w = cam.height, cam.width
     offsets, faces = may_faces(meshes, **cam.kwargs, model=models, cull=raster["cull"],
                                mask=id_may, eps=eps)
-    prep = prepare(meshes, **cam.kwargs, model=models, cull=raster["cull"])
+    prep = prepare(meshes, **cam.kwargs, model=models, raster=RasterState(cull=raster["cull"]))
     pix = np.repeat(np.arange(h * w), np.diff(offsets))
     out = entry_values(scene, raster, prep, pix, faces, eps)
     out["set_offsets"] = offsets.astype(np.int32)

@@ -299,10 +299,10 @@ def cutaway_bounds(scene, eps):
     else:
         # measured, not proven (local angles per object: not followed by interval_flood): the
         # floods of the smallest, the largest and refraster's own rear hull
-        from .. import render
+        from refraster import RasterState, render
         draws = [d for d in scene.draws if d.name in set(p["interest"])]
         rear = render([d.mesh for d in draws], **cam.kwargs, model=[d.model for d in draws],
-                      depth_func="greater", clear_depth=0.0)
+                      raster=RasterState(depth_func="greater", clear_depth=0.0))
         own = np.asarray(rear.depth, np.float64), np.asarray(rear.object_id) >= 0
         for v in p["accepted_variants"]:
             for seeds in ((small, small_seed), (big, big_seed), own):

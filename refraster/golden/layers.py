@@ -39,6 +39,7 @@ import numpy as np
 from numba import njit
 
 from .._config import JIT
+from refraster.raster.state import RasterState
 
 __all__ = ["ldi_allowances", "layers_outside", "layers_allowed", "LAYER_ARRAYS"]
 
@@ -160,7 +161,7 @@ def covering_entries(meshes, models, camera, cull, eps, with_beta=False):
     from ..raster import prepare
     from .homogeneous import corner_samples
     h, w = camera.height, camera.width
-    prep = prepare(meshes, **camera.kwargs, model=models, cull=cull)
+    prep = prepare(meshes, **camera.kwargs, model=models, raster=RasterState(cull=cull))
     pix, faces, sure, fragile, fslack = _covering_faces(prep, eps)
     beta, depth, _, _ = corner_samples(prep.clip[prep.triangles.faces[faces]], pix, w, h, eps)
     slack = fslack[faces]
@@ -181,7 +182,7 @@ def ldi_allowances(scene, raster, eps, k_max, clear=1.0):
     meshes = [d.mesh for d in scene.draws]
     models = [d.model for d in scene.draws]
     h, w = cam.height, cam.width
-    prep = prepare(meshes, **cam.kwargs, model=models, cull=raster["cull"])
+    prep = prepare(meshes, **cam.kwargs, model=models, raster=RasterState(cull=raster["cull"]))
     pix, faces, sure, fragile, fslack = _covering_faces(prep, eps)
     # the centre and the corners of the square of half-side ε (⊇ the ε-disc): window depth is
     # a ratio of affine functions of the point, so its extremes over the square are corners

@@ -35,6 +35,7 @@ import numpy as np
 from .._validate import as_choice, as_float_array, as_matrix
 from ..camera import Camera, frame_bounds, look_at, orthographic, perspective
 from ..mesh import Mesh, as_mesh, load_mesh_file, vertex_normals
+from ..raster.state import RasterState
 
 __all__ = [
     "Draw", "GoldenScene", "SceneEntry", "SCENES", "SCENE_MODULES", "TECHNIQUES",
@@ -231,15 +232,28 @@ def raster_state(overrides):
     return {**DEFAULT_RASTER, **overrides}
 
 
+def as_state(raster):
+    """The :class:`refraster.RasterState` of a scene's stored raster fields (``scene.json``'s
+    ``"raster"``: every field of :data:`DEFAULT_RASTER`; the package spells the fill rule
+    ``"top_left"``, the state ``"top-left"``)."""
+    fields = {k: raster[k] for k in DEFAULT_RASTER}
+    fields["fill_rule"] = fields["fill_rule"].replace("_", "-")
+    return RasterState(**fields)
+
+
+def draw_meshes(draws, raster):
+    """The meshes of prepared draws, carrying their stored vertex normals under
+    ``normals="smooth"`` (the normals of the package, not recomputed)."""
+    if raster["normals"] != "smooth":
+        return [d.mesh for d in draws]
+    return [Mesh(d.mesh.vertices, d.mesh.faces, d.normals) for d in draws]
+
+
 def render_draws(draws, camera, raster):
     """Render prepared draws with ``raster`` state; returns a :class:`refraster.Framebuffer`."""
     from .. import render
-    smooth = raster["normals"] == "smooth"
-    return render([d.mesh for d in draws], **camera.kwargs, model=[d.model for d in draws],
-                  normals=[d.normals for d in draws] if smooth else "flat",
-                  cull=raster["cull"], depth_func=raster["depth_func"],
-                  precision=raster["precision"], subpixel_bits=raster["subpixel_bits"],
-                  fill_rule=raster["fill_rule"], clear_depth=raster["clear_depth"])
+    return render(draw_meshes(draws, raster), **camera.kwargs, model=[d.model for d in draws],
+                  raster=as_state(raster))
 
 
 @register_technique("render")

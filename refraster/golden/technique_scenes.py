@@ -94,7 +94,7 @@ def _edges_c1_paper():
                             "(Nienhaus & Döllner Sec. 5.1: inner edges towards white, profile "
                             "edges towards black, on the objects only), as npr_color.")
 def _edges_npr_gooch():
-    from .. import npr as _npr
+    from ..edges import npr as _npr
     draws, camera, fb, params, edges = _building_edges("diagonal", "diagonal")
     style = dict(light=list(_npr.DEFAULT_LIGHT), base=[0.75, 0.75, 0.75], cool=[0.0, 0.0, 0.55],
                  warm=[0.3, 0.3, 0.0], alpha=0.25, beta=0.5, background=[1.0, 1.0, 1.0])
@@ -108,13 +108,31 @@ def _edges_npr_gooch():
                        parameters=params, may_radius=2)
 
 
+def clip_caps(parameters):
+    """The cap options a clip-surface scene stores, as
+    :func:`refraster.clipsurface.render_clipped` takes them: a
+    :class:`refraster.clipsurface.Caps`, or ``None`` for ``"caps": false``.
+
+    A scene package keeps them as flat keys of ``scene.json`` (``caps``, ``cap_style``,
+    ``cap_mode``, ``cap_color``, ``subdivision``, ``vds_resolution`` and the backend export's
+    ``occlusion_radius``; docs/golden-schema.md); a missing key takes the default of
+    :class:`~refraster.clipsurface.Caps`. The clip test's ``space`` is stored beside them."""
+    from ..clipsurface import Caps
+    if not parameters.get("caps", True):
+        return None
+    return Caps(**{name: parameters[key] for key, name in (
+        ("cap_style", "style"), ("cap_mode", "mode"), ("cap_color", "color"),
+        ("subdivision", "subdivision"), ("vds_resolution", "vds_resolution"),
+        ("occlusion_radius", "occlusion_radius")) if key in parameters})
+
+
 @register_scene("clipsurface_building", technique="clipsurface",
                 description="Building cut by a 2.5D clip surface with a Perlin offset map "
                             "(N = −z: the front half is removed), diffuse caps (Trapp & "
                             "Döllner).")
 def _clipsurface_building():
     from ..clipsurface import ClipSurface, render_clipped
-    from ..offsetmaps import perlin_noise
+    from ..clipsurface.offsetmaps import perlin_noise
     from ..scenes import solid
     state = raster_state({})
     draws = prepare_draws([Draw("building", solid("building"))])
@@ -126,8 +144,9 @@ def _clipsurface_building():
                 subdivision=1, vds_resolution=512, space="world")
     clip = ClipSurface(surface["origin"], surface["u"], surface["v"], surface["scale"],
                        offset_map, wrap=surface["wrap"])
-    fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs, **caps,
-                        cull=state["cull"], precision=state["precision"])
+    fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs,
+                        caps=clip_caps(caps), space=caps["space"], cull=state["cull"],
+                        precision=state["precision"])
     backend_params, backend_maps = _clip_backend_export(draws, [clip], caps)
     surfaces = [{**surface, "offset_map": "offset_map"}]
     _name_derived_maps(surfaces, backend_maps)
@@ -146,7 +165,7 @@ def _clip_backend_export(draws, surfaces, caps, occlusion_radius=None):
     ``render_clipped`` draws it (the displaced grid culled by the sprite: its face numbering
     *is* the caps' ``prim_id``), and per surface the derived normal and occlusion maps the caps
     are shaded with. Returns ``(parameters, maps)`` to add to the scene's."""
-    from ..capping import cap_mesh
+    from ..clipsurface.capping import cap_mesh
     from ..clipsurface.capping import cull_cap
     from ..ldi import VolumetricDepthSprite
     from ..mesh import Mesh, as_mesh, bounds
@@ -202,7 +221,7 @@ def _clip_ids(draws, surfaces, subdivision):
     solid pixels carry their solid's face (prim_id < F) and draw (object_id < M); the cap of
     solid m and surface k carries object_id M + m·K + k and the face of its cap mesh (at most
     the faces of the cap mesh over the solid's box)."""
-    from ..capping import cap_mesh
+    from ..clipsurface.capping import cap_mesh
     from ..mesh import as_mesh, bounds
     meshes = [as_mesh(d.mesh) for d in draws]
     m, k = len(meshes), len(surfaces)
@@ -383,7 +402,7 @@ def _halos4d_patches(projection):
 def _clipsurface_textured_caps():
     from ..clipsurface import ClipSurface, render_clipped
     from ..clipsurface.textures import CapTextures
-    from ..offsetmaps import perlin_noise
+    from ..clipsurface.offsetmaps import perlin_noise
     from ..scenes import solid
     state = raster_state({})
     draws = prepare_draws([Draw("cube", solid("cube"))])
@@ -413,8 +432,9 @@ def _clipsurface_textured_caps():
                 subdivision=1, vds_resolution=256, space="world")
     clip = ClipSurface(surface["origin"], surface["u"], surface["v"], surface["scale"],
                        offset_map, wrap=surface["wrap"], textures=textures)
-    fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs, **caps,
-                        cull=state["cull"], precision=state["precision"])
+    fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs,
+                        caps=clip_caps(caps), space=caps["space"], cull=state["cull"],
+                        precision=state["precision"])
     # one map per channel (the package's maps are single-channel images); texel order, row 0
     # at t = 0, values in [0, 1] (the normal map encoded as 2n − 1 = c)
     maps = {"offset_map": offset_map, "cap_light": textures.light[..., 0]}
@@ -552,8 +572,9 @@ def _clip_scene(draws, camera, surfaces, clips, maps, caps, extra=None):
     needs exported (:func:`_clip_backend_export`)."""
     from ..clipsurface import render_clipped
     state = raster_state({})
-    fb = render_clipped([d.mesh for d in draws], clips, **camera.kwargs, **caps,
-                        cull=state["cull"], precision=state["precision"])
+    fb = render_clipped([d.mesh for d in draws], clips, **camera.kwargs,
+                        caps=clip_caps(caps), space=caps["space"], cull=state["cull"],
+                        precision=state["precision"])
     backend_params, backend_maps = _clip_backend_export(draws, clips, caps)
     _name_derived_maps(surfaces, backend_maps)
     return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
@@ -573,7 +594,7 @@ def _clip_scene(draws, camera, surfaces, clips, maps, caps, extra=None):
                             "clipped by the other surface.")
 def _clipsurface_two_surfaces():
     from ..clipsurface import ClipSurface
-    from ..offsetmaps import perlin_noise, sinusoid
+    from ..clipsurface.offsetmaps import perlin_noise, sinusoid
     from ..scenes import solid
     draws = prepare_draws([Draw("building", solid("building"))])
     camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
@@ -601,7 +622,7 @@ def _clipsurface_two_surfaces():
                             "parameters; offset map wrapped with clamp (to edge).")
 def _clipsurface_relief_plane():
     from ..clipsurface import ReliefClipPlane
-    from ..offsetmaps import perlin_noise
+    from ..clipsurface.offsetmaps import perlin_noise
     from ..scenes import solid
     draws = prepare_draws([Draw("cube", solid("cube"))])
     camera = _framed([d.mesh for d in draws], 160, 120, (0.9, 1.1, 1.5))

@@ -9,25 +9,38 @@ from __future__ import annotations
 import numpy as np
 
 from .._threads import frame_work, threads_for
-from .._validate import as_choice, as_float_array, as_image_size, as_index_array, as_matrix
+from .._validate import as_float_array, as_image_size, as_index_array, as_matrix
 from ..mesh import as_meshes
 from .fragments import Fragments, concat
 from .primitive import CULL, FILL_RULES, setup_triangles, transform_vertices
 from .rasterizer import DEPTH_FUNCS, stream
 from .resolve import Resolved, resolve
+from .state import RasterState, as_raster_state
 
 __all__ = ["draw", "rasterize", "resolve", "Fragments", "Resolved", "concat", "DEPTH_FUNCS",
-           "prepare"]
-
-PRECISIONS = {"float32": "float32", "float64": "float64"}
+           "prepare", "RasterState"]
 
 
-def _subpixel_bits(bits):
-    if isinstance(bits, bool) or not isinstance(bits, (int, np.integer)):
-        raise TypeError(f"subpixel_bits must be an int, got {type(bits).__name__}")
-    if int(bits) not in (4, 8):
-        raise ValueError(f"subpixel_bits must be 4 or 8, got {bits}")
-    return int(bits)
+def cull_code(state):
+    """The primitive stage's cull code for a state: the stage tells front from back by GL's
+    counter-clockwise rule, so under ``front_face="cw"`` culling the back culls what it calls
+    front (and :func:`facing` turns the facing it reports)."""
+    cull = state.cull
+    if state.front_face == "cw" and cull != "none":
+        cull = "front" if cull == "back" else "back"
+    return CULL[cull]
+
+
+def facing(state, front, covered=None):
+    """Turn the rasterizer's counter-clockwise facing into the state's, in place: under
+    ``front_face="cw"`` a fragment is front-facing where the rasterizer found it back-facing
+    (only covered pixels change; the background stays False)."""
+    if state.front_face == "cw":
+        if covered is None:
+            np.logical_not(front, out=front)
+        else:
+            np.not_equal(front, covered, out=front)
+    return front
 
 
 def _models(model, n):
@@ -46,7 +59,7 @@ class Prepared:
     """Validated draw calls after the vertex and primitive stages."""
 
     __slots__ = ("meshes", "models", "view", "proj", "width", "height", "triangles",
-                 "face_offsets", "fill_rule", "clip")
+                 "face_offsets", "fill_rule", "clip", "state")
 
     def split(self, prim_global):
         """(object_id, prim_id) of global primitive indices (draw-call order)."""
@@ -91,9 +104,10 @@ def _check_clip(clip, meshes, prec):
                      f"{np.abs(v).max():.3g}); scale the mesh down or use precision='float64'")
 
 
-def prepare(meshes, *, view, proj, width, height, model=None, cull="none", precision="float32",
-            subpixel_bits=8, fill_rule="llvmpipe", scratch=None):
-    """Validate draw calls and run the vertex and primitive stages (shared by draw and render).
+def prepare(meshes, *, view, proj, width, height, model=None, raster=None, scratch=None):
+    """Validate draw calls and run the vertex and primitive stages (shared by draw and render)
+    with the :class:`RasterState` ``raster`` (its cull, front face, precision, sub-pixel bits
+    and fill rule; None: the default state).
     ``scratch`` (internal, ``render``): a :class:`refraster._scratch.Scratch` for the clip
     coordinates and the primitive stage's arrays — the result is then valid only until that
     scratch is used again.
@@ -101,23 +115,20 @@ def prepare(meshes, *, view, proj, width, height, model=None, cull="none", preci
     Called on its own, its kernels run on the threads :mod:`refraster._threads` chooses for the
     frame (one for small frames and on busy cores), as ``render`` and ``draw`` do; inside them
     it keeps their choice."""
+    state = as_raster_state(raster)
     meshes = as_meshes(meshes)
     w, h = as_image_size(width, height)
     with threads_for(frame_work(sum(m.n_faces for m in meshes), w, h)):
-        return _prepare(meshes, view=view, proj=proj, width=w, height=h, model=model, cull=cull,
-                        precision=precision, subpixel_bits=subpixel_bits, fill_rule=fill_rule,
-                        scratch=scratch)
+        return _prepare(meshes, view=view, proj=proj, width=w, height=h, model=model,
+                        state=state, scratch=scratch)
 
 
-def _prepare(meshes, *, view, proj, width, height, model, cull, precision, subpixel_bits,
-             fill_rule, scratch):
+def _prepare(meshes, *, view, proj, width, height, model, state, scratch):
     view = as_matrix(view, "view")
     proj = as_matrix(proj, "proj")
     width, height = as_image_size(width, height)
-    cull_code = as_choice(cull, "cull", CULL)
-    prec = as_choice(precision, "precision", PRECISIONS)
-    bits = _subpixel_bits(subpixel_bits)
-    rule = as_choice(fill_rule, "fill_rule", FILL_RULES)
+    prec = state.precision
+    rule = FILL_RULES[state.fill_rule]
     models = _models(model, len(meshes))
     mvps = []
     for mm in models:
@@ -155,19 +166,20 @@ def _prepare(meshes, *, view, proj, width, height, model, cull, precision, subpi
     p.width, p.height, p.fill_rule = width, height, rule
     p.face_offsets = np.asarray(offsets, np.int64)
     p.clip = clip
-    p.triangles = setup_triangles(clip, face, width, height, cull=cull_code, subpixel_bits=bits,
-                                  scratch=scratch)
+    p.state = state
+    p.triangles = setup_triangles(clip, face, width, height, cull=cull_code(state),
+                                  subpixel_bits=state.subpixel_bits, scratch=scratch)
     return p
 
 
 def _fragments_from(prep, pixel, depth, prim_global, front, bary):
     obj, prim = prep.split(prim_global)
+    facing(prep.state, front)
     return Fragments(pixel, depth, prim, obj, bary, front, prep.width, prep.height,
                      meshes=prep.meshes, models=prep.models, view=prep.view, proj=prep.proj)
 
 
-def draw(meshes, *, view, proj, width, height, model=None, cull="none", precision="float32",
-         subpixel_bits=8, fill_rule="llvmpipe"):
+def draw(meshes, *, view, proj, width, height, model=None, raster=None):
     """Draw meshes (one or a sequence of draw calls, in order) into a fragment stream.
 
     Parameters
@@ -180,14 +192,10 @@ def draw(meshes, *, view, proj, width, height, model=None, cull="none", precisio
         Viewport size in pixels.
     model : (4, 4) float or list of them, optional
         Object → world matrix, one for all meshes or one per mesh.
-    cull : {"none", "back", "front"}
-        Face culling; front faces are counter-clockwise as the picture is seen.
-    precision : {"float32", "float64"}
-        Vertex-stage arithmetic (float32 as a GPU's vertex shader by default).
-    subpixel_bits : {8, 4}
-        Fixed-point snapping of window positions.
-    fill_rule : {"llvmpipe", "bottom-left", "top-left"}
-        Which triangle owns a pixel centre exactly on a shared edge.
+    raster : RasterState, optional
+        The fixed-function state (:class:`refraster.RasterState`); its cull mode, front face,
+        vertex-stage precision, sub-pixel bits and fill rule apply here (the depth test is
+        :func:`resolve`'s). None: OpenGL's defaults.
 
     Returns
     -------
@@ -199,14 +207,12 @@ def draw(meshes, *, view, proj, width, height, model=None, cull="none", precisio
     w, h = as_image_size(width, height)
     with threads_for(frame_work(sum(m.n_faces for m in meshes), w, h)):
         prep = prepare(meshes, view=view, proj=proj, width=w, height=h, model=model,
-                       cull=cull, precision=precision, subpixel_bits=subpixel_bits,
-                       fill_rule=fill_rule)
+                       raster=raster)
         pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
     return _fragments_from(prep, pixel, depth, prim, front, bary)
 
 
-def rasterize(clip_positions, faces, width, height, *, cull="none", subpixel_bits=8,
-              fill_rule="llvmpipe"):
+def rasterize(clip_positions, faces, width, height, *, raster=None):
     """Rasterize triangles given in clip space into a fragment stream.
 
     Parameters
@@ -216,8 +222,8 @@ def rasterize(clip_positions, faces, width, height, *, cull="none", subpixel_bit
     faces : (F, 3) int
         Vertex indices; the primitive id of a fragment is its face's row.
     width, height : int
-    cull, subpixel_bits, fill_rule
-        As in :func:`draw`.
+    raster : RasterState, optional
+        Its cull mode, front face, sub-pixel bits and fill rule, as in :func:`draw`.
 
     Returns
     -------
@@ -230,11 +236,11 @@ def rasterize(clip_positions, faces, width, height, *, cull="none", subpixel_bit
         f = np.zeros((0, 3), np.int64)
     f = as_index_array(f, "faces", shape=(None, 3), upper=len(c))
     width, height = as_image_size(width, height)
-    cull_code = as_choice(cull, "cull", CULL)
-    bits = _subpixel_bits(subpixel_bits)
-    rule = as_choice(fill_rule, "fill_rule", FILL_RULES)
-    st = setup_triangles(c, f, width, height, cull=cull_code, subpixel_bits=bits)
-    pixel, depth, prim, front, bary, _ = stream(st, fill_rule=rule)
+    state = as_raster_state(raster)
+    st = setup_triangles(c, f, width, height, cull=cull_code(state),
+                         subpixel_bits=state.subpixel_bits)
+    pixel, depth, prim, front, bary, _ = stream(st, fill_rule=FILL_RULES[state.fill_rule])
+    facing(state, front)
     return Fragments(pixel, depth, prim.astype(np.int32), np.zeros(len(prim), np.int32), bary,
                      front,
                      width, height)

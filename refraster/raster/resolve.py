@@ -15,8 +15,8 @@ import numpy as np
 from numba import njit
 
 from .._config import JIT
-from .._validate import as_choice, as_real
 from .rasterizer import DEPTH_FUNCS, depth_test
+from .state import as_raster_state
 
 __all__ = ["Resolved", "resolve"]
 
@@ -42,28 +42,28 @@ def _resolve(pixel, depth, keep, func, write, zbuf, win):
                 zbuf[p] = depth[i]
 
 
-def resolve(frags, *, depth_func="less", depth_write=True, keep=None, clear_depth=1.0):
+def resolve(frags, *, raster=None, keep=None):
     """Depth-test a fragment stream in draw order.
 
     Parameters
     ----------
     frags : Fragments
         The stream (see :class:`refraster.raster.fragments.Fragments`).
-    depth_func : {"never", "less", "equal", "lequal", "greater", "notequal", "gequal", "always"}
-        OpenGL's depth function, comparing the incoming fragment against the stored depth.
-    depth_write : bool
-        Whether passing fragments update the depth buffer (``glDepthMask``).
+    raster : RasterState, optional
+        Its ``depth_func`` (OpenGL's depth function, comparing the incoming fragment against
+        the stored depth), ``depth_write`` (whether passing fragments update the depth buffer,
+        ``glDepthMask``) and ``clear_depth`` (the depth buffer's initial value) apply here.
+        None: ``less``, writes on, cleared to 1.
     keep : (N,) bool, optional
         False for fragments discarded by a fragment stage (applied before the depth test).
-    clear_depth : float
-        Initial depth buffer value, in [0, 1].
 
     Returns
     -------
     Resolved
     """
-    func = as_choice(depth_func, "depth_func", DEPTH_FUNCS)
-    clear = as_real(clear_depth, "clear_depth", lo=0.0, hi=1.0)
+    state = as_raster_state(raster)
+    func = DEPTH_FUNCS[state.depth_func]
+    clear = state.clear_depth
     n = len(frags)
     if keep is None:
         keep = np.ones(n, np.bool_)
@@ -77,5 +77,5 @@ def resolve(frags, *, depth_func="less", depth_write=True, keep=None, clear_dept
     h, w = frags.height, frags.width
     zbuf = np.full(h * w, np.float32(clear), np.float32)
     win = np.full(h * w, -1, np.int64)
-    _resolve(frags.pixel, frags.depth, keep, func, bool(depth_write), zbuf, win)
+    _resolve(frags.pixel, frags.depth, keep, func, state.depth_write, zbuf, win)
     return Resolved(win.reshape(h, w), zbuf.reshape(h, w))

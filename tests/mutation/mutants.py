@@ -31,7 +31,7 @@ GOLD = ["tests/test_golden.py", "tests/test_golden_tolerant.py"] + HAND
 PRIM = "refraster/raster/primitive.py"
 RAST = "refraster/raster/rasterizer.py"
 NAIVE = "tests/naive.py"
-EDGE = "refraster/edges.py"
+EDGE = "refraster/edges/operators.py"
 TEDGE = "tests/test_edges.py"
 FLOOD = "refraster/cutaway/flood.py"
 SURF = "refraster/cutaway/surface.py"
@@ -142,7 +142,7 @@ MUTANTS = [
            "    x = s * width\n    y = t * height", OFFSET + CLIP, fast=True,
            ci=["tests/test_hand_worked.py::test_texel_centres_return_the_texel_under_each_wrap_mode"]),
     Mutant("npr_composite_inverted", "npr", "compositing reads the edge strength as the "
-           "intensity (E and 1 − E swapped, MATH.md §3.1)", "refraster/npr.py",
+           "intensity (E and 1 − E swapped, MATH.md §3.1)", "refraster/edges/npr.py",
            "inner = (1.0 - e_n) * s + e_n * ci", "inner = e_n * s + (1.0 - e_n) * ci", NPR,
            fast=True,
            ci=["tests/test_npr.py::test_composite_hand_values"]),

@@ -18,16 +18,18 @@ Colours are RGB in [0, 1]; outputs are ``(H, W, 3)`` float32.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numba import njit, prange
 
-from ._config import PJIT
-from ._validate import as_float_array, as_real, check_shape
+from .._config import PJIT
+from .._validate import as_float_array, as_real, check_shape
 
 __all__ = [
     "DEFAULT_LIGHT", "DEFAULT_TOON_TEXTURE", "gooch", "toon", "cartoon_map", "stroke_texture",
     "triplanar_strokes", "surface_strokes", "object_space", "smooth_threshold", "hatching",
-    "composite", "reflection", "render_mirrored", "MirrorRender",
+    "composite", "reflection", "render_mirrored", "MirrorStyle", "MirrorRender",
 ]
 
 #: Towards the light, in eye space: above, left and in front of the viewer.
@@ -262,7 +264,7 @@ def stroke_texture(height, width, *, spacing=6.0, angle=45.0, cross_angle=-45.0,
     al.) is an image; this procedural one is a guess with the same property: the inked set
     grows monotonically as the tone darkens.
     """
-    from ._validate import as_image_size
+    from .._validate import as_image_size
     width, height = as_image_size(width, height)
     s = as_real(spacing, "spacing", lo=0.0, lo_open=True)
     a1 = np.radians(as_real(angle, "angle"))
@@ -372,18 +374,33 @@ def object_space(fb):
     return position, normal
 
 
-def surface_strokes(fb, *, spacing=None, **options):
+def surface_strokes(fb, *, spacing=None, angle=45.0, cross_angle=-45.0, first=0.9, cross=0.5,
+                    sharpness=8.0):
     """:func:`triplanar_strokes` of a framebuffer's visible surface (:func:`object_space`).
 
-    ``spacing`` defaults to 1/60 of the largest object-space bounding-box diagonal of the
-    framebuffer's meshes; other options go to :func:`triplanar_strokes`.
+    Parameters
+    ----------
+    fb : refraster.Framebuffer
+        A render that carries its meshes; its covered pixels (``fb.mask``) are textured.
+    spacing : float > 0, optional
+        Distance between strokes of one family, in object units; default 1/60 of the largest
+        object-space bounding-box diagonal of the framebuffer's meshes.
+    angle, cross_angle, first, cross, sharpness : float
+        As :func:`triplanar_strokes` (the same defaults).
+
+    Returns
+    -------
+    (H, W) float32
+        The stroke priority; 1 (paper) outside ``fb.mask``.
     """
     position, normal = object_space(fb)
     if spacing is None:
         diag = max((float(np.linalg.norm(np.ptp(mm.vertices, axis=0))) for mm in fb.meshes
                     if mm.n_vertices), default=1.0)
         spacing = (diag if diag > 0 else 1.0) / 60.0
-    return triplanar_strokes(position, normal, spacing=spacing, mask=fb.mask, **options)
+    return triplanar_strokes(position, normal, spacing=spacing, angle=angle,
+                             cross_angle=cross_angle, first=first, cross=cross,
+                             sharpness=sharpness, mask=fb.mask)
 
 
 def smooth_threshold(tone, threshold, *, softness=0.1):
@@ -526,6 +543,38 @@ def reflection(point, normal):
     return m
 
 
+@dataclass(frozen=True)
+class MirrorStyle:
+    """How :func:`render_mirrored` draws the mirror and the edges of both passes (a value).
+
+    Attributes
+    ----------
+    reflectance : float in [0, 1]
+        Mirror pixels are ``reflectance·mirrored + (1 − reflectance)·mirror_color``.
+    mirror_color : (3,) float in [0, 1]
+        Also the colour where the mirror reflects nothing.
+    inner_color, profile_color : (3,) float in [0, 1]
+        The edge colours of both passes (:func:`composite`); the mirror's own outline is drawn
+        over the reflection in ``profile_color``.
+
+    The values are checked when the style is made (``ValueError``/``TypeError`` naming the
+    field) and kept as a float and tuples of floats.
+    """
+
+    reflectance: float = 0.85
+    mirror_color: tuple = (0.85, 0.88, 0.92)
+    inner_color: tuple = (1.0, 1.0, 1.0)
+    profile_color: tuple = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        object.__setattr__(self, "reflectance",
+                           as_real(self.reflectance, "reflectance", lo=0.0, hi=1.0))
+        for name in ("mirror_color", "inner_color", "profile_color"):
+            object.__setattr__(self, name,
+                               tuple(float(c) for c in _color(getattr(self, name), name)))
+
+
+@dataclass(frozen=True, eq=False)
 class MirrorRender:
     """What :func:`render_mirrored` returns.
 
@@ -545,8 +594,13 @@ class MirrorRender:
     plane : (point, normal)
     """
 
-    def __init__(self, **kw):
-        self.__dict__.update(kw)
+    image: np.ndarray
+    scene: object
+    mirrored: object
+    scene_edges: np.ndarray
+    mirrored_edges: np.ndarray
+    mirror_mask: np.ndarray
+    plane: tuple
 
 
 def _default_style(fb, light):
@@ -554,10 +608,8 @@ def _default_style(fb, light):
 
 
 def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, style=None,
-                    light=DEFAULT_LIGHT, normals="smooth", reflectance=0.85,
-                    mirror_color=(0.85, 0.88, 0.92), edge_options=None,
-                    inner_color=(1.0, 1.0, 1.0), profile_color=(0.0, 0.0, 0.0),
-                    background=(1.0, 1.0, 1.0)):
+                    light=DEFAULT_LIGHT, normals="smooth", mirror_style=MirrorStyle(),
+                    edge_options=None, background=(1.0, 1.0, 1.0)):
     """An edge-enhanced scene with a planar mirror (Nienhaus & Döllner Sec. 5.3, Fig. 8).
 
     Parameters
@@ -582,14 +634,13 @@ def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, s
         surface it mirrors.
     normals : "smooth", "flat" or per-vertex arrays
         Passed to :func:`refraster.render` (the paper needs per-vertex normals).
-    reflectance : float in [0, 1]
-        Mirror pixels are ``reflectance·mirrored + (1 − reflectance)·mirror_color``.
-    mirror_color : (3,) float
-        Also the colour where the mirror reflects nothing.
+    mirror_style : MirrorStyle
+        The mirror's reflectance and colour and the edge colours (default: ``MirrorStyle()``,
+        reflectance 0.85, a light grey-blue mirror, white inner and black profile edges).
     edge_options : dict, optional
         Keyword arguments of :func:`refraster.edges.edge_map` for both passes (default: the
         paper's operator).
-    inner_color, profile_color, background : (3,) float
+    background : (3,) float
 
     Returns
     -------
@@ -606,9 +657,9 @@ def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, s
     appear in it, the job of a user clip plane on a GPU). Its G-buffer fits its own near/far.
     Reflection flips the winding; faces are not culled.
     """
-    from . import edges as _edges
-    from .framebuffer import render
-    from .mesh import as_mesh, as_meshes, face_normals
+    from . import operators as _edges
+    from ..framebuffer import render
+    from ..mesh import as_mesh, as_meshes, face_normals
 
     objs = as_meshes(meshes)
     mir = as_mesh(mirror, "mirror")
@@ -629,8 +680,11 @@ def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, s
     if np.abs((mir.vertices - point) @ normal).max() > 1e-9 * max(size, 1.0):
         raise ValueError("mirror must be planar")
     refl = reflection(point, normal)
-    rho = as_real(reflectance, "reflectance", lo=0.0, hi=1.0)
-    mcol = _color(mirror_color, "mirror_color")
+    if not isinstance(mirror_style, MirrorStyle):
+        raise TypeError(f"mirror_style must be a MirrorStyle, got {type(mirror_style).__name__}")
+    rho = mirror_style.reflectance
+    mcol = _color(mirror_style.mirror_color, "mirror_color")
+    inner_color, profile_color = mirror_style.inner_color, mirror_style.profile_color
     bg = _color(background, "background")
     lt = _light(light)
     style = _default_style if style is None else style

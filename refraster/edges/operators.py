@@ -1,14 +1,9 @@
-"""Edge enhancement (Nienhaus & Döllner, WSCG 2003): the edge G-buffer, discontinuity filters,
-the edge map, and object-space edge classification.
+"""The discontinuity operators of edge enhancement (Nienhaus & Döllner, WSCG 2003, Sec. 4.1.2):
+pass 2 of the edge pipeline, on the G-buffer of :mod:`refraster.edges.gbuffer`.
 
-Pipeline (the paper's Sec. 4.4 "Rendering Passes"):
-
-1. :func:`edge_gbuffer` — pass 1: eye-space normals encoded ``0.5·n + 0.5`` (RGB), linear depth
-   normalized to near/far planes fitted to the enhanced objects (A), and object ids.
-2. The discontinuity filters below — pass 2: :func:`diagonal_normal`, :func:`diagonal_depth`,
-   :func:`c1_depth`, :func:`sobel`, :func:`sobel_depth`, :func:`sobel_normal`,
-   :func:`object_id_edges`; :func:`edge_map` runs the chosen ones in one fused pass.
-3. Compositing with an NPR style: :mod:`refraster.npr`.
+:func:`diagonal_normal`, :func:`diagonal_depth`, :func:`c1_depth`, :func:`sobel`,
+:func:`sobel_depth`, :func:`sobel_normal`, :func:`object_id_edges`; :func:`edge_map` runs the
+chosen ones in one fused pass (inner-edge strength in RGB, profile-edge strength in A).
 
 Every filter returns an edge *strength* ``E ∈ [0, 1]`` with 0 = no edge (MATH.md §3.2); the
 paper's printed operators have the opposite polarity for the diagonal variants (MATH.md §3.1).
@@ -26,20 +21,17 @@ row writes only its own output, so the result does not depend on the number of t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numba import njit, prange
 
-from ._config import JIT, PJIT
-from ._validate import as_choice, as_float_array, as_real, check_shape
-from .camera import is_perspective
+from .._config import JIT, PJIT
+from .._validate import as_choice, as_float_array, as_real, check_shape
+from .gbuffer import EdgeGBuffer, edge_gbuffer
 
 __all__ = [
-    "EdgeGBuffer", "edge_gbuffer", "fit_near_far", "diagonal_normal", "diagonal_depth",
-    "c1_depth", "sobel", "sobel_depth", "sobel_normal", "object_id_edges", "edge_map",
-    "EdgeSet", "classify_edges", "EDGE_PRESETS", "DEFAULT_INNER_THRESHOLD",
-    "DEFAULT_PROFILE_THRESHOLD", "DEFAULT_CREASE_ANGLE",
+    "diagonal_normal", "diagonal_depth", "c1_depth", "sobel", "sobel_depth", "sobel_normal",
+    "object_id_edges", "edge_map", "EDGE_PRESETS", "DEFAULT_INNER_THRESHOLD",
+    "DEFAULT_PROFILE_THRESHOLD",
 ]
 
 #: Inner-edge strengths below this are set to 0 by :func:`edge_map` with ``preset="clean"``.
@@ -62,138 +54,10 @@ EDGE_PRESETS = {
                   inner_threshold=DEFAULT_INNER_THRESHOLD,
                   profile_threshold=DEFAULT_PROFILE_THRESHOLD),
 }
-#: Dihedral angle (degrees between face normals) above which :func:`classify_edges` calls an
-#: edge a crease.
-DEFAULT_CREASE_ANGLE = 30.0
 
 _DEPTH_FILTERS = {"diagonal": 0, "c1": 1, "c1-paper": 2, "sobel": 3, "diagonal2": 4}
 _NORMAL_FILTERS = {"diagonal": 0, "sobel": 1, "angle": 2}
 _C1_SCALES = {"normalized": 12.0, "paper": 8.0}
-
-
-# ------------------------------------------------------------------------------------------
-# The edge G-buffer (pass 1)
-
-
-@dataclass(frozen=True, eq=False)
-class EdgeGBuffer:
-    """The paper's texture ``T_G`` (Sec. 4.1.1) plus the id buffer, kept as floats.
-
-    Attributes
-    ----------
-    normal : (H, W, 3) float32
-        Encoded eye-space normals ``0.5·n + 0.5``; 0.5 in the background (``n = 0``).
-    depth : (H, W) float32
-        Linear depth ``(−z_eye − near) / (far − near)`` clipped to [0, 1]; 1 in the background.
-    object_id : (H, W) int32
-        Draw-call index; −1 in the background.
-    near, far : float
-        The planes the depth was normalized to.
-    """
-
-    normal: np.ndarray
-    depth: np.ndarray
-    object_id: np.ndarray
-    near: float
-    far: float
-
-    @property
-    def rgba(self):
-        """``T_G`` as one ``(H, W, 4)`` float32 image: encoded normal in RGB, depth in A."""
-        return np.concatenate([self.normal, self.depth[..., None]], axis=2)
-
-
-def fit_near_far(view, *, bounds=None, meshes=None, models=None):
-    """Near and far planes that exactly enclose the enhanced objects (Sec. 4.1.1).
-
-    Parameters
-    ----------
-    view : (4, 4) float
-        World → eye matrix.
-    bounds : (2, 3) float, optional
-        World-space axis-aligned box ``[[xmin, ymin, zmin], [xmax, ymax, zmax]]``; its eight
-        corners are transformed to eye space.
-    meshes, models : optional
-        Used when ``bounds`` is None: the eye-space depth range of all vertices (the tightest
-        bounding volume along the view axis). ``models`` has one 4×4 matrix per mesh.
-
-    Returns
-    -------
-    near, far : float
-        Smallest and largest ``−z_eye``; ``far > near`` (a flat range is widened by a relative
-        1e-6 so that the normalization stays finite).
-    """
-    view = as_float_array(view, "view", shape=(4, 4))
-    if bounds is not None:
-        b = as_float_array(bounds, "bounds", shape=(2, 3))
-        if np.any(b[1] < b[0]):
-            raise ValueError(f"bounds must be [min, max] corners, got {b.tolist()}")
-        corners = np.array([[b[i, 0], b[j, 1], b[k, 2]]
-                            for i in (0, 1) for j in (0, 1) for k in (0, 1)])
-        z = -(corners @ view[2, :3] + view[2, 3])
-    elif meshes:
-        models = models if models is not None else [np.eye(4)] * len(meshes)
-        z = np.concatenate([-(m.vertices @ (view @ mm)[2, :3] + (view @ mm)[2, 3])
-                            for m, mm in zip(meshes, models)])
-        if z.size == 0:
-            raise ValueError("meshes have no vertices: cannot fit near and far")
-    else:
-        raise ValueError("give bounds, or meshes to fit near and far to")
-    near, far = float(z.min()), float(z.max())
-    if not far > near:
-        far = near + max(abs(near), 1.0) * 1e-6
-    return near, far
-
-
-def edge_gbuffer(fb, *, bounds=None, near=None, far=None):
-    """Pass 1 of the paper: the G-buffer the edge filters read.
-
-    Parameters
-    ----------
-    fb : refraster.Framebuffer
-        A render of the objects to enhance.
-    bounds : (2, 3) float, optional
-        World-space bounding box of the enhanced objects; near and far are fitted to it.
-    near, far : float, optional
-        Explicit planes (both or neither; exclusive with ``bounds``). When neither these nor
-        ``bounds`` are given, near and far are fitted to the eye-space depth range of the
-        framebuffer's meshes (:func:`fit_near_far`).
-
-    Returns
-    -------
-    EdgeGBuffer
-
-    Notes
-    -----
-    Nienhaus & Döllner, Sec. 4.1.1; MATH.md §3 (encoding ``c = (n + 1)/2``, background normal 0 →
-    0.5, background depth 1 [guess]). The paper stores depth in an 8-bit alpha texture and fits
-    near/far to fight its low precision; here depth stays float32, and the fit sets the scale
-    that the depth thresholds refer to.
-    """
-    for attr in ("normal", "eye_depth", "object_id", "view"):
-        if not hasattr(fb, attr):
-            raise TypeError(f"fb must be a refraster.Framebuffer, got {type(fb).__name__}")
-    if (near is None) != (far is None):
-        raise ValueError("give both near and far, or neither")
-    if near is not None:
-        if bounds is not None:
-            raise ValueError("give bounds or near/far, not both")
-        near = as_real(near, "near")
-        far = as_real(far, "far")
-        if not far > near:
-            raise ValueError(f"far must be greater than near, got near={near}, far={far}")
-    else:
-        near, far = fit_near_far(fb.view, bounds=bounds, meshes=fb.meshes, models=fb.models)
-    normal = np.asarray(fb.normal, np.float32)
-    covered = np.asarray(fb.object_id) >= 0
-    half = np.float32(0.5)
-    encoded = np.where(covered[..., None], half * normal + half, half).astype(np.float32)
-    eye = np.where(covered, np.asarray(fb.eye_depth, np.float64), far)
-    depth = np.where(covered, np.clip((eye - near) / (far - near), 0.0, 1.0), 1.0)
-    depth = depth.astype(np.float32)
-    return EdgeGBuffer(normal=encoded, depth=depth,
-                       object_id=np.ascontiguousarray(fb.object_id, np.int32),
-                       near=float(near), far=float(far))
 
 
 # ------------------------------------------------------------------------------------------
@@ -749,134 +613,3 @@ def edge_map(fb, *, preset="paper", bounds=None, near=None, far=None, normal_fil
         out[..., 2] = inner
         out[..., 3] = dilation(out[..., 3], foot)
     return out
-
-
-# ------------------------------------------------------------------------------------------
-# Object-space edge classification (Sec. 3)
-
-
-@dataclass(frozen=True, eq=False)
-class EdgeSet:
-    """The unique edges of a mesh, classified for one view (Nienhaus & Döllner Sec. 3).
-
-    Attributes
-    ----------
-    edges : (E, 2) int64
-        Vertex index pairs, ``edges[:, 0] < edges[:, 1]``, sorted lexicographically.
-    faces : (E, 2) int64
-        The first two adjacent faces (ascending); −1 for the missing one of a border edge.
-    n_faces : (E,) int64
-        Number of adjacent faces (1 border, 2 manifold, more non-manifold).
-    dihedral : (E,) float64
-        Largest angle in degrees between the normals of two adjacent faces (0 where flat,
-        NaN on border edges).
-    silhouette, border, crease : (E,) bool
-        The classes: an edge between a front- and a back-facing face; an edge of exactly one
-        face; an edge whose faces all face the same way with ``dihedral > crease_angle``.
-        They are mutually exclusive.
-    """
-
-    edges: np.ndarray
-    faces: np.ndarray
-    n_faces: np.ndarray
-    dihedral: np.ndarray
-    silhouette: np.ndarray
-    border: np.ndarray
-    crease: np.ndarray
-
-    def __len__(self):
-        return int(self.edges.shape[0])
-
-    @property
-    def profile(self):
-        """Silhouette or border edges: the outline of the object (the edge map's A)."""
-        return self.silhouette | self.border
-
-
-def _angle(n1, n2):
-    """Angles in degrees between rows of unit vectors; atan2 stays accurate near 0 and 180°."""
-    return np.degrees(np.arctan2(np.linalg.norm(np.cross(n1, n2), axis=1),
-                                 np.einsum("ij,ij->i", n1, n2)))
-
-
-def classify_edges(mesh, *, view, proj=None, model=None, crease_angle=DEFAULT_CREASE_ANGLE):
-    """Classify a mesh's edges into silhouette, border and crease edges for one view.
-
-    Parameters
-    ----------
-    mesh : mesh
-        ``(vertices, faces)``, :class:`refraster.Mesh` or ``trimesh.Trimesh``. Edges are
-        vertex index pairs, so coincident but distinct vertices make border edges (merge them
-        first, e.g. ``trimesh.Trimesh.merge_vertices``).
-    view : (4, 4) float
-        World → eye matrix.
-    proj : (4, 4) float, optional
-        Only its kind matters: with an orthographic projection faces are classified against the
-        viewing direction, otherwise (and when omitted) against the eye position.
-    model : (4, 4) float, optional
-        Object → world matrix (identity when omitted).
-    crease_angle : float in [0, 180]
-        Dihedral threshold in degrees.
-
-    Returns
-    -------
-    EdgeSet
-
-    Notes
-    -----
-    Nienhaus & Döllner Sec. 3. A face is front-facing when its counter-clockwise normal points
-    towards the eye (``n·(eye − v0) > 0``), the test OpenGL's facing makes in window space.
-    Visibility is not considered: hidden silhouettes are silhouettes too.
-    """
-    from .mesh import as_mesh, face_normals
-    m = as_mesh(mesh)
-    view = as_float_array(view, "view", shape=(4, 4))
-    model = np.eye(4) if model is None else as_float_array(model, "model", shape=(4, 4))
-    ortho = proj is not None and not is_perspective(as_float_array(proj, "proj", shape=(4, 4)))
-    angle = as_real(crease_angle, "crease_angle", lo=0.0, hi=180.0)
-    mv = view @ model
-    if abs(np.linalg.det(mv[:3, :3])) < 1e-300:
-        raise ValueError("view @ model is singular")
-    inv = np.linalg.inv(mv)
-    v, f = m.vertices, m.faces
-    fn = face_normals(v, f)
-    if ortho:
-        towards_eye = np.broadcast_to(inv[:3, :3] @ np.array([0.0, 0.0, 1.0]), fn.shape)
-    else:
-        towards_eye = inv[:3, 3] - v[f[:, 0]]
-    front = np.einsum("ij,ij->i", fn, towards_eye) > 0.0
-    if np.linalg.det(mv[:3, :3]) < 0:
-        front = ~front  # a mirroring transform swaps the winding seen on screen
-
-    nf = len(f)
-    pairs = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    face_of = np.tile(np.arange(nf, dtype=np.int64), 3)
-    if nf == 0:
-        edges = np.zeros((0, 2), np.int64)
-        inverse = np.zeros(0, np.int64)
-    else:
-        edges, inverse = np.unique(pairs, axis=0, return_inverse=True)
-        inverse = inverse.reshape(-1)
-    ne = len(edges)
-    count = np.bincount(inverse, minlength=ne).astype(np.int64)
-    n_front = np.bincount(inverse, weights=front[face_of], minlength=ne)
-    order = np.lexsort((face_of, inverse))
-    start = np.cumsum(count) - count
-    sorted_faces = face_of[order]
-    faces = np.full((ne, 2), -1, np.int64)
-    faces[:, 0] = sorted_faces[start]
-    two = count >= 2
-    faces[two, 1] = sorted_faces[start[two] + 1]
-
-    dihedral = np.full(ne, np.nan)
-    dihedral[two] = _angle(fn[faces[two, 0]], fn[faces[two, 1]])
-    for e in np.flatnonzero(count > 2):
-        adj = fn[sorted_faces[start[e]:start[e] + count[e]]]
-        i, j = np.triu_indices(len(adj), 1)
-        dihedral[e] = _angle(adj[i], adj[j]).max()
-
-    border = count == 1
-    silhouette = two & (n_front > 0) & (n_front < count)
-    crease = two & ~silhouette & (dihedral > angle)
-    return EdgeSet(edges=np.ascontiguousarray(edges, np.int64), faces=faces, n_faces=count,
-                   dihedral=dihedral, silhouette=silhouette, border=border, crease=crease)

@@ -1,0 +1,65 @@
+"""What the driver and the technique modules of refraster.gl share: the shader files, the
+errors, the programs compiled once per backend and the full-screen pass.
+
+The driver (:mod:`refraster.gl.driver`) imports the technique modules (``clipsurface``,
+``edges``, ``cutaway``, ``halos``) and this module; the technique modules import this module
+and :mod:`refraster.gl.package`, never the driver (``tests/test_architecture.py``). The
+``gl`` argument of the functions here is the driver's ``Backend`` (its context ``ctx``, its
+moderngl module ``mgl``, its planted ``faults`` and its program cache).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from . import FAULTS
+
+__all__ = ["SHADER_DIR", "GLUnavailable", "Unsupported", "shader_source", "programs",
+           "fullscreen"]
+
+SHADER_DIR = Path(__file__).with_name("shaders")
+
+
+class GLUnavailable(RuntimeError):
+    """No OpenGL 3.3 core context could be created (moderngl or EGL missing)."""
+
+
+class Unsupported(Exception):
+    """The scene's technique (or a setting of it) is not implemented by this backend."""
+
+
+def shader_source(name, defines=()):
+    """The text of ``shaders/<name>`` with ``#define`` lines inserted after ``#version``."""
+    text = (SHADER_DIR / name).read_text(encoding="utf-8")
+    if not defines:
+        return text
+    lines = text.splitlines(keepends=True)
+    at = next(i for i, line in enumerate(lines) if line.startswith("#version")) + 1
+    return "".join(lines[:at] + [f"#define {d}\n" for d in defines] + lines[at:])
+
+
+def programs(gl, shaders):
+    """A technique module's programs: ``shaders`` maps a name to the shader files
+    ``(vertex, geometry or None, fragment)`` under ``shaders/``; they are compiled once per
+    backend (its context, with its planted faults) and cached on it, keyed by ``shaders``.
+    → ``{name: program}``."""
+    key = tuple(shaders.items())
+    if key not in gl._programs:
+        defines = [FAULTS[f][0] for f in gl.faults]
+        gl._programs[key] = {
+            name: gl.ctx.program(
+                vertex_shader=shader_source(vert, defines),
+                geometry_shader=None if geom is None else shader_source(geom, defines),
+                fragment_shader=shader_source(frag, defines))
+            for name, (vert, geom, frag) in shaders.items()}
+    return gl._programs[key]
+
+
+def fullscreen(gl, prog):
+    """One full-screen triangle drawn with ``prog`` (its vertex shader ``fullscreen.vert``
+    makes the positions from ``gl_VertexID``)."""
+    vao = gl.ctx.vertex_array(prog, [])
+    try:
+        vao.render(gl.mgl.TRIANGLES, vertices=3)
+    finally:
+        vao.release()

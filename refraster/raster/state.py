@@ -1,0 +1,162 @@
+"""The raster state: the fixed-function settings of a GPU pipeline, as one immutable value.
+
+A WebGPU render pipeline is built from one descriptor whose groups are plain records
+(``primitive``: cull mode, front face; ``depthStencil``: depth compare, depth write); a draw
+call does not repeat them. refraster does the same: :func:`refraster.render`,
+:func:`refraster.draw`, :func:`refraster.rasterize`, :func:`refraster.resolve`, the depth
+peeler and every technique take one :class:`RasterState` (``raster=``), and the golden scene
+packages store its fields (``scene.json``'s ``"raster"``). A new convention (depth range,
+window origin, sample count, ...) is a new field here, not a new keyword of every function.
+
+The defaults are OpenGL's (and llvmpipe's): ``less`` with the depth buffer cleared to 1,
+depth writes on, no culling, counter-clockwise front faces, 8 sub-pixel bits, llvmpipe's fill
+rule, a float32 vertex stage and flat normals.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["RasterState", "as_raster_state", "DEPTH_FUNC_NAMES", "CULL_MODES", "FRONT_FACES",
+           "FILL_RULE_NAMES", "PRECISIONS", "NORMALS_MODES", "SUBPIXEL_BITS"]
+
+#: OpenGL's eight depth functions (``glDepthFunc``), comparing the incoming fragment's depth
+#: against the stored one.
+DEPTH_FUNC_NAMES = ("never", "less", "equal", "lequal", "greater", "notequal", "gequal",
+                    "always")
+CULL_MODES = ("none", "back", "front")
+FRONT_FACES = ("ccw", "cw")
+FILL_RULE_NAMES = ("llvmpipe", "bottom-left", "top-left")
+PRECISIONS = ("float32", "float64")
+NORMALS_MODES = ("flat", "smooth")
+SUBPIXEL_BITS = (4, 8)
+
+
+def _choice(value, field, choices):
+    if not isinstance(value, str):
+        raise TypeError(f"raster.{field} must be a string, one of {', '.join(choices)}; "
+                        f"got {type(value).__name__}")
+    key = value.lower()
+    if key not in choices:
+        raise ValueError(f"raster.{field} must be one of {', '.join(choices)}; got {value!r}")
+    return key
+
+
+@dataclass(frozen=True)
+class RasterState:
+    """The fixed-function state a frame is rasterized with (immutable; compare with ``==``).
+
+    Parameters
+    ----------
+    depth_func : {"less", "lequal", "greater", "gequal", "equal", "notequal", "always", "never"}
+        The depth test (``glDepthFunc``), incoming fragment against the stored depth; ties go
+        to the first fragment drawn, as in OpenGL.
+    depth_write : bool
+        Whether a fragment that passes writes its depth (``glDepthMask``). False is supported
+        by :func:`refraster.resolve` and by ``render`` (which then resolves the fragment
+        stream instead of running the fused tile pass).
+    clear_depth : float in [0, 1]
+        The depth buffer's clear value (``glClearDepth``).
+    cull : {"none", "back", "front"}
+        Face culling (``glCullFace``), by the facing :attr:`front_face` defines.
+    front_face : {"ccw", "cw"}
+        Which winding, as the picture is seen (window y up), is the front (``glFrontFace``).
+        ``"cw"`` renders exactly what ``"ccw"`` renders of the same mesh with every face's
+        winding reversed, except for the facing-dependent order of the barycentrics' vertices
+        (a face's barycentrics always refer to its own vertices 0, 1, 2).
+    subpixel_bits : {8, 4}
+        Fixed-point snapping of window positions (8: llvmpipe and current desktop GPUs; 4:
+        OpenGL's minimum).
+    fill_rule : {"llvmpipe", "bottom-left", "top-left"}
+        Which triangle owns a pixel centre exactly on a shared edge (``"llvmpipe"`` and
+        ``"bottom-left"`` are the same rule, in GL's lower-left window coordinates).
+    precision : {"float32", "float64"}
+        Vertex-stage arithmetic (float32 as a GPU's vertex shader).
+    normals : {"flat", "smooth"}
+        G-buffer normals: the face normal, or per-vertex normals interpolated perspective-
+        correctly and renormalized — a mesh's own (``Mesh.vertex_normals``, or the third
+        element of a ``(vertices, faces, normals)`` triple) where it has them, else
+        area-weighted ones (:func:`refraster.mesh.smooth_normals`).
+
+    Examples
+    --------
+    >>> from refraster import RasterState
+    >>> reversed_z = RasterState(depth_func="greater", clear_depth=0.0)
+    >>> reversed_z.replace(cull="back").cull
+    'back'
+    """
+
+    depth_func: str = "less"
+    depth_write: bool = True
+    clear_depth: float = 1.0
+    cull: str = "none"
+    front_face: str = "ccw"
+    subpixel_bits: int = 8
+    fill_rule: str = "llvmpipe"
+    precision: str = "float32"
+    normals: str = "flat"
+
+    def __post_init__(self):
+        put = object.__setattr__.__get__(self)
+        put("depth_func", _choice(self.depth_func, "depth_func", DEPTH_FUNC_NAMES))
+        if not isinstance(self.depth_write, (bool, np.bool_)):
+            raise TypeError(f"raster.depth_write must be a bool, got "
+                            f"{type(self.depth_write).__name__}")
+        put("depth_write", bool(self.depth_write))
+        cd = self.clear_depth
+        if isinstance(cd, bool) or not isinstance(cd, numbers.Real):
+            raise TypeError(f"raster.clear_depth must be a number, got {type(cd).__name__}")
+        cd = float(cd)
+        if not 0.0 <= cd <= 1.0:   # also refuses NaN
+            raise ValueError(f"raster.clear_depth must lie in [0, 1], got {cd!r}")
+        put("clear_depth", cd)
+        put("cull", _choice(self.cull, "cull", CULL_MODES))
+        put("front_face", _choice(self.front_face, "front_face", FRONT_FACES))
+        bits = self.subpixel_bits
+        if isinstance(bits, bool) or not isinstance(bits, numbers.Integral):
+            raise TypeError(f"raster.subpixel_bits must be an int, got {type(bits).__name__}")
+        if int(bits) not in SUBPIXEL_BITS:
+            raise ValueError(f"raster.subpixel_bits must be 4 or 8, got {bits}")
+        put("subpixel_bits", int(bits))
+        put("fill_rule", _choice(self.fill_rule, "fill_rule", FILL_RULE_NAMES))
+        put("precision", _choice(self.precision, "precision", PRECISIONS))
+        put("normals", _choice(self.normals, "normals", NORMALS_MODES))
+
+    def replace(self, **changes):
+        """A copy with some fields changed (validated like a new value)."""
+        return dataclasses.replace(self, **changes)
+
+    def as_dict(self):
+        """The fields as a plain dict (JSON types), in declaration order."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+    @classmethod
+    def from_dict(cls, fields, *, name="raster"):
+        """A state from a mapping of field names (unknown names refused with one line)."""
+        if not isinstance(fields, dict):
+            raise TypeError(f"{name} must be a mapping of raster state fields, got "
+                            f"{type(fields).__name__}")
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(fields) - known)
+        if unknown:
+            raise ValueError(f"{name} has unknown field(s) {', '.join(map(repr, unknown))}; "
+                             f"known: {', '.join(sorted(known))}")
+        return cls(**fields)
+
+
+#: The default state (OpenGL's), shared so that the common call builds nothing.
+DEFAULT = RasterState()
+
+
+def as_raster_state(raster, name="raster"):
+    """``None`` → the default state; a :class:`RasterState` as it is; anything else refused."""
+    if raster is None:
+        return DEFAULT
+    if isinstance(raster, RasterState):
+        return raster
+    raise TypeError(f"{name} must be a refraster.RasterState (or None for the default), got "
+                    f"{type(raster).__name__}; e.g. raster=RasterState(depth_func='lequal')")

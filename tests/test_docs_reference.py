@@ -1,0 +1,126 @@
+"""The documents under ``docs/`` are references of now, not diaries (issue 38, item 5).
+
+* ``docs/performance.md`` stays under 400 lines: one current table per benchmark and the
+  reasoning that still applies; how the figures got there belongs in ``docs/changelog.md``.
+* No document but the changelog narrates passes or sessions ("the fifth pass", "third
+  session").
+* Every table of ``docs/performance.md`` is dated: a date (YYYY-MM-DD) in the heading of its
+  section, in the prose between that heading (or the previous table) and the table, in the
+  table's header row, or in every one of its rows.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+DOCS = Path(__file__).resolve().parent.parent / "docs"
+PERFORMANCE = DOCS / "performance.md"
+CHANGELOG = DOCS / "changelog.md"
+MAX_PERFORMANCE_LINES = 400
+
+DIARY = re.compile(
+    r"\b(first|second|third|fourth|fifth|sixth|seventh|eighth|ninth|tenth)"
+    r" (pass|passes|session|sessions)\b",
+    re.IGNORECASE,
+)
+DATE = re.compile(r"\b\d{4}-\d{2}-\d{2}\b")
+
+
+def _reference_docs():
+    return sorted(p for p in DOCS.rglob("*.md") if p.resolve() != CHANGELOG.resolve())
+
+
+def diary_phrases(text):
+    """``[(line number, phrase)]`` of every diary phrase in ``text``."""
+    return [(n, m.group(0)) for n, line in enumerate(text.splitlines(), 1)
+            for m in DIARY.finditer(line)]
+
+
+def _tables(lines):
+    """``[(start, end)]`` line index ranges of the Markdown tables outside code fences."""
+    tables, fenced, i = [], False, 0
+    while i < len(lines):
+        if lines[i].lstrip().startswith("```"):
+            fenced = not fenced
+        elif not fenced and lines[i].lstrip().startswith("|"):
+            start = i
+            while i < len(lines) and lines[i].lstrip().startswith("|"):
+                i += 1
+            tables.append((start, i))
+            continue
+        i += 1
+    return tables
+
+
+def undated_tables(text):
+    """Line numbers (1-based) of the tables of ``text`` that no date covers.
+
+    A table is dated by a date in the heading of its section, in the lines between that heading
+    (or the end of the previous table of the section, whichever is nearer) and the table, in its
+    header row, or in every one of its body rows (a date column)."""
+    lines = text.splitlines()
+    undated, previous_end = [], 0
+    for start, end in _tables(lines):
+        heading = next((lines[j] for j in range(start - 1, -1, -1)
+                        if lines[j].startswith("#")), "")
+        heading_at = next((j for j in range(start - 1, -1, -1) if lines[j].startswith("#")), -1)
+        prose = lines[max(previous_end, heading_at + 1):start]
+        body = lines[start + 2:end]
+        dated = (DATE.search(heading) or any(DATE.search(line) for line in prose)
+                 or DATE.search(lines[start])
+                 or (body and all(DATE.search(row) for row in body)))
+        if not dated:
+            undated.append(start + 1)
+        previous_end = end
+    return undated
+
+
+def test_performance_md_is_under_400_lines():
+    n = len(PERFORMANCE.read_text(encoding="utf-8").splitlines())
+    assert n < MAX_PERFORMANCE_LINES, (
+        f"docs/performance.md has {n} lines (at most {MAX_PERFORMANCE_LINES - 1}): keep one "
+        f"current table per benchmark and move history to docs/changelog.md")
+
+
+@pytest.mark.parametrize("doc", _reference_docs(), ids=lambda p: str(p.relative_to(DOCS)))
+def test_no_diary_phrases_outside_the_changelog(doc):
+    found = diary_phrases(doc.read_text(encoding="utf-8"))
+    assert not found, (
+        f"docs/{doc.relative_to(DOCS)} narrates passes or sessions (history goes to "
+        f"docs/changelog.md): " + "; ".join(f"line {n}: {p!r}" for n, p in found))
+
+
+def test_every_performance_table_is_dated():
+    undated = undated_tables(PERFORMANCE.read_text(encoding="utf-8"))
+    assert not undated, (
+        f"docs/performance.md: tables without a date (YYYY-MM-DD) in their heading, the prose "
+        f"above them, their header or every row, at lines {undated}")
+
+
+def test_the_checks_see_what_they_look_for():
+    """Both directions of the helpers on small texts, so a check that finds nothing is seen to
+    be able to find something."""
+    assert diary_phrases("In the Fifth pass we tried\nthird sessions") == [
+        (1, "Fifth pass"), (2, "third sessions")]
+    assert diary_phrases("a fourth render pass; the first three passes; a first run") == []
+    doc = "\n".join([
+        "# Title",
+        "## Dated section (2026-12-02)",
+        "| a | b |", "|---|---|", "| 1 | 2 |",
+        "Prose without a date.",
+        "| a | b |", "|---|---|", "| 3 | 4 |",
+        "## Undated section",
+        "Run of 2026-12-01:",
+        "| a | b |", "|---|---|", "| 5 | 6 |",
+        "More prose.",
+        "| a | b |", "|---|---|", "| 7 | 8 |",
+        "",
+        "| when | b |", "|---|---|", "| 9 | 10 |",
+        "",
+        "| a | when |", "|---|---|", "| 11 | 2026-11-22 |", "| 12 | 2026-12-01 |",
+        "```", "| not | a table |", "```",
+    ])
+    assert undated_tables(doc) == [16, 20]
