@@ -1041,11 +1041,12 @@ def case_clip_relief_plane():
 
 
 # ============================================================================== render_cutaway
-# defaults: angle=π/6, stand_ins=(), cutaway_size=None, variant="jfa+1",
+# defaults: stand_ins=(), cutaway=Cutaway() (angle=π/6, variant="jfa+1",
 # perspective_compensation=True, edge_compression=0.1, floor_normal=None,
-# floor_margin=FLOOR_MARGIN, dilation=True, outlines=True, ghost_distance=None, cut_color=None,
-# normals=None, background=(1, 1, 1), ghost="lines", ghost_fade=True,
-# crease_angle=GHOST_CREASE_ANGLE, cut_surfaces=True
+# floor_margin=FLOOR_MARGIN, buffer_size=None), cut_surfaces=CutSurfaces() (shade=True,
+# color=None, dilation=True, outlines=True), ghosts=GhostLines() (source="lines", distance=None,
+# fade=True, crease_angle=GHOST_CREASE_ANGLE; ghosts=None: no ghost lines), normals=None,
+# background=(1, 1, 1)
 
 
 @functools.cache
@@ -1089,15 +1090,15 @@ def case_cut_defaults():
 
 
 def case_cut_angle():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam(), angle=0.5))
+    return _of(render_cutaway(core, shells, **_kcam(), cutaway=Cutaway(angle=0.5)))
 
 
 def case_cut_angle_list():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam(), angle=[0.4, 0.8]))
+    return _of(render_cutaway(core, shells, **_kcam(), cutaway=Cutaway(angle=[0.4, 0.8])))
 
 
 def case_cut_stand_ins():
@@ -1108,18 +1109,19 @@ def case_cut_stand_ins():
 
 
 def case_cut_stand_ins_with_interest_angles():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     from refraster.scenes import icosphere
     shells, core = _cut_scene()
     m = icosphere(1, radius=0.2)
     stand = (np.asarray(m.vertices) + [-0.4, 0.3, 0.2], np.asarray(m.faces))
-    return _of(render_cutaway(core[:1], shells, **_kcam(), stand_ins=[stand], angle=[0.5, 0.3]))
+    return _of(render_cutaway(core[:1], shells, **_kcam(), stand_ins=[stand],
+                              cutaway=Cutaway(angle=[0.5, 0.3])))
 
 
 def case_cut_cutaway_size():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam(), cutaway_size=(48, 40)))
+    return _of(render_cutaway(core, shells, **_kcam(), cutaway=Cutaway(buffer_size=(48, 40))))
 
 
 def case_cut_view2():
@@ -1130,33 +1132,34 @@ def case_cut_view2():
 
 
 def case_cut_variant_jfa():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam2(), variant="jfa"))
+    return _of(render_cutaway(core, shells, **_kcam2(), cutaway=Cutaway(variant="jfa")))
 
 
 def case_cut_variant_jfa2():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam2(), variant="jfa+2"))
+    return _of(render_cutaway(core, shells, **_kcam2(), cutaway=Cutaway(variant="jfa+2")))
 
 
 def case_cut_variant_1jfa():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam2(), variant="1+jfa"))
+    return _of(render_cutaway(core, shells, **_kcam2(), cutaway=Cutaway(variant="1+jfa")))
 
 
 def case_cut_variant_exact():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam2(), variant="exact"))
+    return _of(render_cutaway(core, shells, **_kcam2(), cutaway=Cutaway(variant="exact")))
 
 
 def case_cut_perspective_compensation_false():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam(), perspective_compensation=False))
+    return _of(render_cutaway(core, shells, **_kcam(),
+                              cutaway=Cutaway(perspective_compensation=False)))
 
 
 def case_cut_edge_stand_in():
@@ -1167,81 +1170,84 @@ def case_cut_edge_stand_in():
 
 
 def case_cut_edge_compression_none():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
     return _of(render_cutaway(core, shells, **_kcam2(), stand_ins=[_edge_stand_in()],
-                              edge_compression=None))
+                              cutaway=Cutaway(edge_compression=None)))
 
 
 def case_cut_edge_compression_zero():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
     return _of(render_cutaway(core, shells, **_kcam2(), stand_ins=[_edge_stand_in()],
-                              edge_compression=0.0))
+                              cutaway=Cutaway(edge_compression=0.0)))
 
 
 def case_cut_edge_compression_value():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
     return _of(render_cutaway(core, shells, **_kcam2(), stand_ins=[_edge_stand_in()],
-                              edge_compression=0.35))
+                              cutaway=Cutaway(edge_compression=0.35)))
 
 
 def case_cut_floor_normal():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam(), floor_normal=(0, 1, 0)))
+    return _of(render_cutaway(core, shells, **_kcam(), cutaway=Cutaway(floor_normal=(0, 1, 0))))
 
 
 def case_cut_floor_margin():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam(), floor_normal=(0.1, 1, 0),
-                              floor_margin=0.2))
+    return _of(render_cutaway(core, shells, **_kcam(),
+                              cutaway=Cutaway(floor_normal=(0.1, 1, 0), floor_margin=0.2)))
 
 
 def case_cut_floor_view2():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam2(), floor_normal=(0, 1, 0)))
+    return _of(render_cutaway(core, shells, **_kcam2(), cutaway=Cutaway(floor_normal=(0, 1, 0))))
 
 
 def case_cut_floor_exact():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam2(), floor_normal=(0, 1, 0), variant="exact"))
+    return _of(render_cutaway(core, shells, **_kcam2(),
+                              cutaway=Cutaway(floor_normal=(0, 1, 0), variant="exact")))
 
 
 def case_cut_dilation_false():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import CutSurfaces, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam(), dilation=False))
+    return _of(render_cutaway(core, shells, **_kcam(), cut_surfaces=CutSurfaces(dilation=False)))
 
 
 def case_cut_outlines_false():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import CutSurfaces, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam(), outlines=False))
+    return _of(render_cutaway(core, shells, **_kcam(), cut_surfaces=CutSurfaces(outlines=False)))
 
 
 def case_cut_ghost_distance_zero():
-    from refraster.cutaway import render_cutaway
+    """No ghost lines (the former ``ghost_distance=0``)."""
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)), angle=0.6,
-                              ghost_distance=0.0))
+    return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)),
+                              cutaway=Cutaway(angle=0.6), ghosts=None))
 
 
 def case_cut_ghost_distance_value():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, GhostLines, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)), angle=0.6,
-                              ghost_distance=2.0))
+    return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)),
+                              cutaway=Cutaway(angle=0.6), ghosts=GhostLines(distance=2.0)))
 
 
 def case_cut_cut_color():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import CutSurfaces, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam(), cut_color=(0.9, 0.2, 0.1)))
+    return _of(render_cutaway(core, shells, **_kcam(),
+                              cut_surfaces=CutSurfaces(color=(0.9, 0.2, 0.1))))
 
 
 def case_cut_normals_smooth():
@@ -1257,45 +1263,50 @@ def case_cut_background():
 
 
 def case_cut_ghost_visible():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, GhostLines, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)), angle=0.6,
-                              ghost_distance=2.0, ghost="visible"))
+    return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)),
+                              cutaway=Cutaway(angle=0.6),
+                              ghosts=GhostLines(distance=2.0, source="visible")))
 
 
 def case_cut_ghost_visible_no_fade():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, GhostLines, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)), angle=0.6,
-                              ghost_distance=2.0, ghost="visible", ghost_fade=False,
+    return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)),
+                              cutaway=Cutaway(angle=0.6),
+                              ghosts=GhostLines(distance=2.0, source="visible", fade=False),
                               normals="smooth"))
 
 
 def case_cut_ghost_fade_false():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, GhostLines, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)), angle=0.6,
-                              ghost_distance=2.0, ghost_fade=False))
+    return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)),
+                              cutaway=Cutaway(angle=0.6),
+                              ghosts=GhostLines(distance=2.0, fade=False)))
 
 
 def case_cut_crease_angle():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import GhostLines, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam(), crease_angle=5.0, ghost_distance=1.0))
+    return _of(render_cutaway(core, shells, **_kcam(),
+                              ghosts=GhostLines(crease_angle=5.0, distance=1.0)))
 
 
 def case_cut_cut_surfaces_false():
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import CutSurfaces, render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam(), cut_surfaces=False))
+    return _of(render_cutaway(core, shells, **_kcam(), cut_surfaces=CutSurfaces(shade=False)))
 
 
 def case_cut_orthographic():
     import refraster as rf
-    from refraster.cutaway import render_cutaway
+    from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
     cam = dict(_kcam(), proj=rf.orthographic(-1.6, 1.6, -1.33, 1.33, 1.0, 12.0))
-    return _of(render_cutaway(core, shells, **cam, angle=0.7, floor_normal=(0, 1, 0)))
+    return _of(render_cutaway(core, shells, **cam,
+                              cutaway=Cutaway(angle=0.7, floor_normal=(0, 1, 0))))
 
 
 def case_cut_no_interest():
@@ -1305,11 +1316,11 @@ def case_cut_no_interest():
 
 
 # ============================================================================== render_halos
-# defaults: rotation=None, projection="orthographic", width=512, height=512, slices=256,
-# rho=None, delta_d=None, delta_t=0.3, surface_width=0.3, opacity=0.9, halos=True, eye=None,
-# scale=1.0, background=(0, 0, 0), depth_eps=None, margin=0.05, stereo=False,
-# stereo_angle=6.0, volume=False, engine="fused", halo_color=(0.5, 0.5, 0.5),
-# halo_opacity=0.0, boundary_color=None, boundary_width=0.15, antialias=None, ambient=0.3
+# defaults: view=View4D() (rotation=None, projection="orthographic", eye=None, scale=1.0,
+# margin=0.05, stereo=None), width=512, height=512, slices=256, halos=Halos() (enabled=True,
+# rho=None, delta_d=None, delta_t=0.3, surface_width=0.3, antialias=None, depth_eps=None),
+# style=HaloStyle() (opacity=0.9, ambient=0.3, halo_color=(0.5, 0.5, 0.5), halo_opacity=0.0,
+# boundary_color=None, boundary_width=0.15), background=(0, 0, 0), volume=False, engine="fused"
 
 
 @functools.cache
@@ -1328,6 +1339,12 @@ def _hrot():
     return h.compose(("zx", 0.5), ("yz", -0.6))
 
 
+def _hview(**fields):
+    """The cases' view: :func:`_hrot` and ``fields``."""
+    from refraster.halos4d import View4D
+    return View4D(rotation=_hrot(), **fields)
+
+
 def case_halo_small():
     from refraster.halos4d import render_halos
     return _of(render_halos(_fig1(), **_hkw()))
@@ -1335,180 +1352,184 @@ def case_halo_small():
 
 def case_halo_rotation():
     from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot()))
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview()))
 
 
 def case_halo_perspective():
     from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), projection="perspective"))
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(projection="perspective")))
 
 
 def case_halo_perspective_eye_scale():
     from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), projection="perspective",
-                            eye=6.0, scale=1.5))
+    return _of(render_halos(_fig1(), **_hkw(),
+                            view=_hview(projection="perspective", eye=6.0, scale=1.5)))
 
 
 def case_halo_orthographic_scale():
     from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), scale=0.7))
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(scale=0.7)))
 
 
 def case_halo_slices():
     from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), width=48, height=40, slices=5, rotation=_hrot()))
+    return _of(render_halos(_fig1(), width=48, height=40, slices=5, view=_hview()))
 
 
 def case_halo_size():
     from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), width=64, height=30, slices=12, rotation=_hrot()))
+    return _of(render_halos(_fig1(), width=64, height=30, slices=12, view=_hview()))
 
 
 def case_halo_rho():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), rho=0.08))
+    from refraster.halos4d import Halos, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(rho=0.08)))
 
 
 def case_halo_delta_d():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), delta_d=0.6))
+    from refraster.halos4d import Halos, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(delta_d=0.6)))
 
 
 def case_halo_delta_t():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), delta_t=0.15))
+    from refraster.halos4d import Halos, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(delta_t=0.15)))
 
 
 def case_halo_surface_width():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), surface_width=0.5))
+    from refraster.halos4d import Halos, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(surface_width=0.5)))
 
 
 def case_halo_opacity():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), opacity=0.6))
+    from refraster.halos4d import HaloStyle, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), style=HaloStyle(opacity=0.6)))
 
 
 def case_halo_opacity_one():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), opacity=1.0))
+    from refraster.halos4d import HaloStyle, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), style=HaloStyle(opacity=1.0)))
 
 
 def case_halo_halos_false():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), halos=False))
+    from refraster.halos4d import Halos, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(enabled=False)))
 
 
 def case_halo_background():
     from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), background=(1.0, 0.9, 0.8)))
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), background=(1.0, 0.9, 0.8)))
 
 
 def case_halo_depth_eps():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), depth_eps=0.05))
+    from refraster.halos4d import Halos, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(depth_eps=0.05)))
 
 
 def case_halo_margin():
     from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), margin=0.3))
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(margin=0.3)))
 
 
 def case_halo_stereo():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), stereo=True))
+    from refraster.halos4d import STEREO_ANGLE, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(stereo=STEREO_ANGLE)))
 
 
 def case_halo_stereo_angle():
     from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), stereo=True, stereo_angle=15.0))
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(stereo=15.0)))
 
 
 def case_halo_volume():
     from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), volume=True))
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), volume=True))
 
 
 def case_halo_engine_reference():
     from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), engine="reference"))
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), engine="reference"))
 
 
 def case_halo_engine_reference_volume_options():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), engine="reference",
-                            volume=True, halo_opacity=0.3, boundary_color=(0, 1, 0),
-                            antialias=0.15))
+    from refraster.halos4d import HaloStyle, Halos, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), engine="reference",
+                            volume=True, halos=Halos(antialias=0.15),
+                            style=HaloStyle(halo_opacity=0.3, boundary_color=(0, 1, 0))))
 
 
 def case_halo_engine_fused_explicit():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), engine="fused", volume=True,
-                            halo_opacity=0.3, boundary_color=(0, 1, 0), antialias=0.15))
+    from refraster.halos4d import HaloStyle, Halos, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), engine="fused", volume=True,
+                            halos=Halos(antialias=0.15),
+                            style=HaloStyle(halo_opacity=0.3, boundary_color=(0, 1, 0))))
 
 
 def case_halo_halo_color():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), halo_color=(0.9, 0.1, 0.1),
-                            halo_opacity=0.4))
+    from refraster.halos4d import HaloStyle, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(),
+                            style=HaloStyle(halo_color=(0.9, 0.1, 0.1), halo_opacity=0.4)))
 
 
 def case_halo_halo_opacity():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), halo_opacity=0.5))
+    from refraster.halos4d import HaloStyle, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(),
+                            style=HaloStyle(halo_opacity=0.5)))
 
 
 def case_halo_boundary_color():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), boundary_color=(0, 1, 0)))
+    from refraster.halos4d import HaloStyle, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(),
+                            style=HaloStyle(boundary_color=(0, 1, 0))))
 
 
 def case_halo_boundary_width():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), boundary_color=(0, 1, 0),
-                            boundary_width=0.4))
+    from refraster.halos4d import HaloStyle, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(),
+                            style=HaloStyle(boundary_color=(0, 1, 0), boundary_width=0.4)))
 
 
 def case_halo_antialias_zero():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), antialias=0.0))
+    from refraster.halos4d import Halos, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(antialias=0.0)))
 
 
 def case_halo_antialias_value():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), antialias=0.1))
+    from refraster.halos4d import Halos, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(antialias=0.1)))
 
 
 def case_halo_ambient():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), rotation=_hrot(), ambient=0.7))
+    from refraster.halos4d import HaloStyle, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), style=HaloStyle(ambient=0.7)))
 
 
 def case_halo_pair():
     from refraster.halos4d import render_halos_pair
-    on, off = render_halos_pair(_fig1(), **_hkw(), rotation=_hrot())
+    on, off = render_halos_pair(_fig1(), **_hkw(), view=_hview())
     return {"on": _of(on), "off": _of(off)}
 
 
 def case_halo_pair_options():
-    from refraster.halos4d import render_halos_pair
-    on, off = render_halos_pair(_fig1(), **_hkw(), rotation=_hrot(), halo_opacity=0.3,
-                                boundary_color=(0, 1, 0), antialias=0.0, delta_d=0.5,
+    from refraster.halos4d import HaloStyle, Halos, render_halos_pair
+    on, off = render_halos_pair(_fig1(), **_hkw(), view=_hview(),
+                                halos=Halos(antialias=0.0, delta_d=0.5),
+                                style=HaloStyle(halo_opacity=0.3, boundary_color=(0, 1, 0)),
                                 background=(1, 1, 1))
     return {"on": _of(on), "off": _of(off)}
 
 
 def case_halo_pair_volume_reference():
-    from refraster.halos4d import render_halos_pair
-    on, off = render_halos_pair(_fig1(), **_hkw(), rotation=_hrot(), volume=True,
-                                engine="reference", halo_opacity=0.3)
+    from refraster.halos4d import HaloStyle, render_halos_pair
+    on, off = render_halos_pair(_fig1(), **_hkw(), view=_hview(), volume=True,
+                                engine="reference", style=HaloStyle(halo_opacity=0.3))
     return {"on": _of(on), "off": _of(off)}
 
 
 def case_halo_pair_stereo():
-    from refraster.halos4d import render_halos_pair
-    on, off = render_halos_pair(_fig1(), **_hkw(), rotation=_hrot(), stereo=True,
-                                stereo_angle=10.0, boundary_color=(0, 1, 0))
+    from refraster.halos4d import HaloStyle, render_halos_pair
+    on, off = render_halos_pair(_fig1(), **_hkw(), view=_hview(stereo=10.0),
+                                style=HaloStyle(boundary_color=(0, 1, 0)))
     return {"on": _of(on), "off": _of(off)}
 
 

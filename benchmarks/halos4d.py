@@ -25,8 +25,9 @@ PAPER_FPS = {64: 69.16, 128: 55.31, 256: 42.67, 512: 24.30}
 
 def frame(surface, size, slices, engine="fused"):
     import refraster.halos4d as h
-    return h.render_halos(surface, rotation=h.compose(("zw", 0.6), ("zx", 0.3), ("yz", 0.4)),
-                          width=size, height=size, slices=slices, engine=engine)
+    view = h.View4D(rotation=h.compose(("zw", 0.6), ("zx", 0.3), ("yz", 0.4)))
+    return h.render_halos(surface, view=view, width=size, height=size, slices=slices,
+                          engine=engine)
 
 
 def timed(fn, repeats):

@@ -94,7 +94,7 @@ def _technique_packages(root, quick):
     from refraster.golden.scenes import (DEFAULT_RASTER, Draw, GoldenScene, _framed,
                                          prepare_draws, render_draws)
     from refraster.golden.technique_scenes import (_clip_backend_export, _name_derived_maps,
-                                                   clip_caps)
+                                                   clip_caps, cutaway_options, halo_options)
     import refraster.halos4d as h4
     from refraster.scenes import crank, icosphere, solid
 
@@ -174,7 +174,8 @@ def _technique_packages(root, quick):
     faces_c = sum(len(d.mesh.faces) for d in cdraws)
 
     def ours_cutaway(ccam=ccam, copts=copts):
-        return render_cutaway([cdraws[1].mesh], [cdraws[0].mesh], **ccam.kwargs, **copts)
+        return render_cutaway([cdraws[1].mesh], [cdraws[0].mesh], **ccam.kwargs,
+                              **cutaway_options(copts))
     cases.append((f"cutaway (jump flooding jfa+1), nested shells {faces_c} faces, {size}²",
                   ours_cutaway, root / "cutaway"))
 
@@ -187,7 +188,7 @@ def _technique_packages(root, quick):
                  background=[0.0, 0.0, 0.0])
 
     def ours_halos(trefoil=trefoil, rot=rot, hopts=hopts):
-        return h4.render_halos(trefoil, rotation=rot, **hopts)
+        return h4.render_halos(trefoil, **halo_options({**hopts, "rotation": rot}))
     out = ours_halos()
     from refraster.camera import Camera, orthographic
     hp = dict(hopts, rotation=rot.tolist(), delta_d=float(out.stats["delta_d"]),

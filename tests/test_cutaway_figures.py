@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from conftest import require
 
-from refraster.cutaway import render_cutaway
+from refraster.cutaway import Cutaway, GhostLines, render_cutaway
 from refraster.gallery.cutaway import RADIATOR_ANGLES, _box, _camera, radiator_house
 
 SIZE = 180
@@ -51,8 +51,11 @@ def fig6():
     parts, radiators, view = radiator_house()
     cam = _camera(view["eye"], view["target"], SIZE, SIZE)
     global_angle, local_angles = RADIATOR_ANGLES
-    wide = render_cutaway(radiators, parts, **cam, angle=global_angle, ghost_distance=1.0)
-    local = render_cutaway(radiators, parts, **cam, angle=local_angles, ghost_distance=1.0)
+    ghosts = GhostLines(distance=1.0)
+    wide = render_cutaway(radiators, parts, **cam, cutaway=Cutaway(angle=global_angle),
+                          ghosts=ghosts)
+    local = render_cutaway(radiators, parts, **cam, cutaway=Cutaway(angle=local_angles),
+                           ghosts=ghosts)
     return parts, radiators, cam, wide, local
 
 
@@ -65,8 +68,8 @@ def test_fig6_global_angle_leaves_a_floating_radiator(fig6):
     _, _, floating_local = voxel_components(local, cam, parts, radiators)
     assert floating_local == []
     # planted fault: the local panel rendered with the global angle floats again
-    fault = render_cutaway(radiators, parts, **cam, angle=RADIATOR_ANGLES[0],
-                           ghost_distance=1.0)
+    fault = render_cutaway(radiators, parts, **cam, cutaway=Cutaway(angle=RADIATOR_ANGLES[0]),
+                           ghosts=GhostLines(distance=1.0))
     assert voxel_components(fault, cam, parts, radiators)[2]
 
 
@@ -105,8 +108,9 @@ def test_fig10_two_objects_shape_one_surface():
     holes = []
     for x in (-3.8, -1.4):
         car = _box((x - 0.3, 0, -1.9), (x + 0.3, 0.35, -1.4))
-        both = render_cutaway([counter, car], room, **cam, angle=0.28, floor_normal=(0, 1, 0))
-        alone = [render_cutaway([o], room, **cam, angle=0.28, floor_normal=(0, 1, 0))
+        cut = Cutaway(angle=0.28, floor_normal=(0, 1, 0))
+        both = render_cutaway([counter, car], room, **cam, cutaway=cut)
+        alone = [render_cutaway([o], room, **cam, cutaway=cut)
                  for o in (counter, car)]
         # D is the maximum of the two objects' own surfaces (one joint surface, Sec. 3.2)
         np.testing.assert_array_equal(

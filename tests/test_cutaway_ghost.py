@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import refraster as rr
-from refraster.cutaway import render_cutaway
+from refraster.cutaway import Cutaway, GhostLines, render_cutaway
 from refraster.scenes import cube, icosphere
 
 G_MAX = 1.0
@@ -151,7 +151,8 @@ def silhouettes(cam):
 def rendered(request):
     name, angle = request.param
     cam = CAMERAS[name]
-    fb = render_cutaway(OOI, SHELLS, **cam, angle=angle, ghost_distance=G_MAX)
+    fb = render_cutaway(OOI, SHELLS, **cam, cutaway=Cutaway(angle=angle),
+                        ghosts=GhostLines(distance=G_MAX))
     exp = expected_lines(fb, cam)
     exp["angle"] = angle
     exp["silhouette"] = silhouettes(cam)
@@ -184,15 +185,16 @@ def test_every_removed_crease_and_silhouette_shows_with_the_fade(rendered):
 def test_planted_faults_fail(rendered, monkeypatch):
     cam, fb, exp = rendered
     # (1) the first visible surface only (the former implementation) misses hidden lines
-    first = render_cutaway(OOI, SHELLS, **cam, angle=exp["angle"], ghost_distance=G_MAX,
-                           ghost="visible")
+    cut = Cutaway(angle=exp["angle"])
+    first = render_cutaway(OOI, SHELLS, **cam, cutaway=cut,
+                           ghosts=GhostLines(source="visible", distance=G_MAX))
     assert check(first.ghost, exp)[0] < 0.95
     # (2) the fade with the wrong sign: α = (D − z)/g_max
     flipped = np.where(fb.ghost > 0, 1.0 - fb.ghost, 0.0)
     assert check(flipped, exp)[0] < 0.95
     # (3) no distance limit: lines beyond g_max show
-    far = render_cutaway(OOI, SHELLS, **cam, angle=exp["angle"], ghost_distance=3 * G_MAX,
-                         ghost_fade=False)
+    far = render_cutaway(OOI, SHELLS, **cam, cutaway=cut,
+                         ghosts=GhostLines(distance=3 * G_MAX, fade=False))
     assert check(far.ghost, exp)[2] > 0
     # (5) the right lines, but only where they lie on the first layer (the removed surfaces
     # hiding each other, as one z-buffered pass over the uncut scene would)
@@ -205,20 +207,21 @@ def test_planted_faults_fail(rendered, monkeypatch):
                         **kw)
 
     monkeypatch.setattr(render_mod, "ghost_alpha", first_layer_only)
-    assert check(render_cutaway(OOI, SHELLS, **cam, angle=exp["angle"], ghost_distance=G_MAX).ghost,
-                 exp)[0] < 0.95
+    assert check(render_cutaway(OOI, SHELLS, **cam, cutaway=cut,
+                                ghosts=GhostLines(distance=G_MAX)).ghost, exp)[0] < 0.95
     monkeypatch.undo()
     # (4) the gap measured in NDC depth instead of eye units
     import refraster.cutaway.lines as lines
     monkeypatch.setattr(lines, "ndc_to_eye_depth", lambda z, proj: np.asarray(z, np.float64))
-    ndc_gap = render_cutaway(OOI, SHELLS, **cam, angle=exp["angle"], ghost_distance=G_MAX)
+    ndc_gap = render_cutaway(OOI, SHELLS, **cam, cutaway=cut,
+                             ghosts=GhostLines(distance=G_MAX))
     assert check(ndc_gap.ghost, exp)[0] < 0.95
 
 
 def test_unfaded_lines_are_opaque_up_to_g_max(rendered):
     cam, fb, exp = rendered
-    flat = render_cutaway(OOI, SHELLS, **cam, angle=exp["angle"], ghost_distance=G_MAX,
-                          ghost_fade=False)
+    flat = render_cutaway(OOI, SHELLS, **cam, cutaway=Cutaway(angle=exp["angle"]),
+                          ghosts=GhostLines(distance=G_MAX, fade=False))
     np.testing.assert_array_equal(flat.ghost > 0, fb.ghost > 0)
     assert set(np.unique(flat.ghost)) <= {0.0, 1.0}
 

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 import refraster as rr
-from refraster.cutaway import (cut_surface_normals, cutaway_surface, ghost_lines, outline,
-                               render_cutaway, upsample_bilinear)
+from refraster.cutaway import (CutSurfaces, Cutaway, GhostLines, cut_surface_normals,
+                               cutaway_surface, ghost_lines, outline, render_cutaway,
+                               upsample_bilinear)
 from refraster.cutaway.surface import ndc_to_eye_depth, pixel_ndc, unproject
 from refraster.scenes import cube, icosphere, nested_shells
 
@@ -179,11 +180,13 @@ def _camera(eye, size=(96, 80)):
 def test_visibility_of_the_objects_of_interest(eye):
     cam = _camera(eye)
     alone = rr.render(CORE, **cam).mask
-    full = render_cutaway(CORE, SHELLS, **cam, angle=0.5, dilation=False)
+    undilated = CutSurfaces(dilation=False)
+    full = render_cutaway(CORE, SHELLS, **cam, cutaway=Cutaway(angle=0.5),
+                          cut_surfaces=undilated)
     shown = full.object_id >= 1
     assert np.all(shown[alone])
-    half = render_cutaway(CORE, SHELLS, **cam, angle=0.5, dilation=False,
-                          cutaway_size=(cam["width"] // 2, cam["height"] // 2))
+    half = render_cutaway(CORE, SHELLS, **cam, cut_surfaces=undilated, cutaway=Cutaway(
+        angle=0.5, buffer_size=(cam["width"] // 2, cam["height"] // 2)))
     assert np.mean((half.object_id >= 1)[alone]) >= 0.99
     assert full.cut_mask.sum() > 50 and full.outline.sum() > 20
 
@@ -209,8 +212,9 @@ def test_floor_constraint():
     obj = box((-0.5, 0, -0.5), (0.5, 1, 0.5))
     cam = dict(view=rr.look_at((0, 4, 5), (0, 0.3, 0)), proj=rr.perspective(45, 1, 1, 20),
                width=96, height=96)
-    without = render_cutaway(obj, floor, **cam, angle=1.0)
-    with_floor = render_cutaway(obj, floor, **cam, angle=1.0, floor_normal=(0, 1, 0))
+    without = render_cutaway(obj, floor, **cam, cutaway=Cutaway(angle=1.0))
+    with_floor = render_cutaway(obj, floor, **cam,
+                                cutaway=Cutaway(angle=1.0, floor_normal=(0, 1, 0)))
     rows = np.nonzero(rr.render(obj, **cam).mask.any(axis=1))[0]
     front = np.zeros((96, 96), bool)
     front[rows.max() + 1:] = True     # below the box on screen: the floor in front of it
@@ -221,7 +225,8 @@ def test_floor_constraint():
 def test_ghost_lines_appear_in_the_carved_region():
     cam = _camera((2.5, 2.0, 3.0))
     crate = box((-0.8, -0.8, -0.8), (0.8, 0.8, 0.8))  # its front corner's edges get carved
-    r = render_cutaway(CORE, crate, **cam, angle=0.6, ghost_distance=2.0)
+    r = render_cutaway(CORE, crate, **cam, cutaway=Cutaway(angle=0.6),
+                       ghosts=GhostLines(distance=2.0))
     assert r.ghost.max() > 0.2
     # a line's pixel chord may reach in front of D off the pixel centre: within 1 px of carving
     near = r.carved.copy()
@@ -230,14 +235,14 @@ def test_ghost_lines_appear_in_the_carved_region():
     near[:, 1:] |= near[:, :-1].copy()
     near[:, :-1] |= near[:, 1:].copy()
     assert np.all(r.ghost[~near] == 0)
-    off = render_cutaway(CORE, crate, **cam, angle=0.6, ghost_distance=0.0)
+    off = render_cutaway(CORE, crate, **cam, cutaway=Cutaway(angle=0.6), ghosts=None)
     assert not off.ghost.any()
 
 
 def test_render_is_deterministic():
     cam = _camera((2.5, 1.2, 3.0))
-    a = render_cutaway(CORE, SHELLS, **cam, floor_normal=(0, 1, 0))
-    b = render_cutaway(CORE, SHELLS, **cam, floor_normal=(0, 1, 0))
+    a = render_cutaway(CORE, SHELLS, **cam, cutaway=Cutaway(floor_normal=(0, 1, 0)))
+    b = render_cutaway(CORE, SHELLS, **cam, cutaway=Cutaway(floor_normal=(0, 1, 0)))
     for name in ("image", "cutaway_depth", "cut_mask", "ghost", "normal", "depth"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
 
@@ -247,26 +252,21 @@ def test_render_is_deterministic():
 
 @pytest.mark.parametrize("angle", [-0.1, 0.0, np.pi / 2, np.inf, np.nan, [0.3, -1.0]])
 def test_bad_angles(angle):
-    with pytest.raises(ValueError, match="angle"):
-        render_cutaway(CORE, SHELLS, **_camera((2, 1, 3), (16, 16)), angle=angle)
+    with pytest.raises(ValueError, match=r"^cutaway\.angle must"):
+        Cutaway(angle=angle)
 
 
 def test_bad_render_arguments():
     cam = _camera((2, 1, 3), (16, 16))
-    with pytest.raises(ValueError, match="angle"):
-        render_cutaway(CORE, SHELLS, **cam, angle=[0.3, 0.4, 0.5])
-    with pytest.raises(TypeError, match="cutaway_size"):
-        render_cutaway(CORE, SHELLS, **cam, cutaway_size=8)
-    with pytest.raises(ValueError, match="cutaway_size"):
-        render_cutaway(CORE, SHELLS, **cam, cutaway_size=(0, 8))
-    with pytest.raises(ValueError, match="variant"):
-        render_cutaway(CORE, SHELLS, **cam, variant="fast")
-    with pytest.raises(ValueError, match="ghost_distance"):
-        render_cutaway(CORE, SHELLS, **cam, ghost_distance=-1.0)
-    with pytest.raises(ValueError, match="ghost"):
-        render_cutaway(CORE, SHELLS, **cam, ghost="edges")
-    with pytest.raises(ValueError, match="crease_angle"):
-        render_cutaway(CORE, SHELLS, **cam, crease_angle=200.0)
+    with pytest.raises(ValueError, match=r"^cutaway\.angle has 3 entries"):
+        render_cutaway(CORE, SHELLS, **cam, cutaway=Cutaway(angle=[0.3, 0.4, 0.5]))
+    with pytest.raises(TypeError, match=r"^cutaway must be a refraster\.cutaway\.Cutaway"):
+        render_cutaway(CORE, SHELLS, **cam, cutaway=dict(angle=0.5))
+    with pytest.raises(TypeError, match=r"^cut_surfaces must be"):
+        render_cutaway(CORE, SHELLS, **cam, cut_surfaces=True)
+    with pytest.raises(TypeError, match=r"^ghosts must be a refraster\.cutaway\.GhostLines "
+                                        r"\(or None\)"):
+        render_cutaway(CORE, SHELLS, **cam, ghosts=0.5)
     with pytest.raises(ValueError, match="nothing to draw"):
         render_cutaway([], [], **cam)
     bad = dict(cam, proj=np.eye(4) * 2)

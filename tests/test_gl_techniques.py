@@ -217,19 +217,17 @@ def test_gl_floor_constraint_matches_refraster(gold, tmp_path, floor):
     from refraster.golden import available_scenes
     from refraster.golden.io.package import export_package
     from refraster.golden.scenes import DEFAULT_RASTER
+    from refraster.golden.technique_scenes import cutaway_options
     base = available_scenes()["cutaway_shells"].build()
     p = dict(base.parameters)
     p.update(floor_normal=floor, variant="jfa+1")
     scene = type(base)(technique="cutaway", camera=base.camera, draws=base.draws, buffers={},
                        parameters=p)
     export_package(tmp_path / "floor", "floor", scene, dict(DEFAULT_RASTER))
-    kw = {k: p[k] for k in ("angle", "variant", "perspective_compensation", "edge_compression",
-                            "dilation", "outlines", "ghost", "ghost_distance", "ghost_fade",
-                            "crease_angle")}
     ref = render_cutaway([base.draws[1].mesh], [base.draws[0].mesh], **base.camera.kwargs,
-                         floor_normal=np.array(floor), **kw)
+                         **cutaway_options(p))
     plain = render_cutaway([base.draws[1].mesh], [base.draws[0].mesh], **base.camera.kwargs,
-                           **kw)
+                           **cutaway_options({**p, "floor_normal": None}))
     with _backend_or_skip() as gl:
         got = gl.render(tmp_path / "floor")["cutaway_depth"]
     want = np.asarray(ref.cutaway_depth, np.float64)

@@ -771,6 +771,7 @@ def test_cutaway_frames_of_conformant_variants_pass(gold, tmp_path, monkeypatch,
     variant, pass the cutaway checks (D, cut mask, ids, depth, facing)."""
     from refraster.cutaway import render_cutaway
     from refraster.golden.compare.run import compare
+    from refraster.golden.technique_scenes import cutaway_options
     scene = golden.available_scenes()[CUT].build()
     p = scene.parameters
     ras = dict(CUT_RASTER[raster])
@@ -782,13 +783,12 @@ def test_cutaway_frames_of_conformant_variants_pass(gold, tmp_path, monkeypatch,
         for mod in (rr, framebuffer):
             monkeypatch.setattr(mod, "prepare", functools.partial(
                 lambda orig, *a, **k: orig(*a, **{**k, "precision": "float64"}), mod.prepare))
-    opts = {k: p[k] for k in ("angle", "perspective_compensation", "edge_compression",
-                              "dilation", "outlines", "ghost", "ghost_distance", "ghost_fade",
-                              "crease_angle")}
+    opts = cutaway_options(p)
     interest = [d.mesh for d in scene.draws if d.name in p["interest"]]
     secondary = [d.mesh for d in scene.draws if d.name in p["secondary"]]
     for variant in p["accepted_variants"]:
-        fb = render_cutaway(interest, secondary, **scene.camera.kwargs, variant=variant, **opts)
+        fb = render_cutaway(interest, secondary, **scene.camera.kwargs,
+                            **{**opts, "cutaway": opts["cutaway"].replace(variant=variant)})
         cand = {**fb.arrays(), "cutaway_depth": fb.cutaway_depth, "cut_mask": fb.cut_mask}
         root = _write(tmp_path / variant, CUT, cand)
         result = compare(gold, root, mode="tolerant", scenes=[CUT], buffers=CUT_KEYS)

@@ -16,12 +16,12 @@ from refraster.halos4d import render as hr
 
 ht = sys.modules["refraster.halos4d.thicken"]
 
-FIG1_VIEW = h.compose(("zx", 0.5), ("yz", -1.0))
-FIG1_KW = dict(width=96, height=96, slices=48, rotation=FIG1_VIEW, volume=True)
+FIG1_VIEW = h.View4D(rotation=h.compose(("zx", 0.5), ("yz", -1.0)))
+FIG1_KW = dict(width=96, height=96, slices=48, view=FIG1_VIEW, volume=True)
 
 
 def fig1_defaults():
-    r = h.render_halos(h.figure1_scene(10), width=16, height=16, slices=4, rotation=FIG1_VIEW)
+    r = h.render_halos(h.figure1_scene(10), width=16, height=16, slices=4, view=FIG1_VIEW)
     return r.stats["rho"], r.stats["delta_d"]
 
 
@@ -30,7 +30,8 @@ def carved_by_strip(rho, delta_d):
     family), rendered with the given ρ and δd."""
     out = []
     for w in (0.1, 0.2, 0.3, 0.4, 0.5):
-        r = h.render_halos(h.figure1_scene(10, w_values=[w]), rho=rho, delta_d=delta_d, **FIG1_KW)
+        r = h.render_halos(h.figure1_scene(10, w_values=[w]),
+                           halos=h.Halos(rho=rho, delta_d=delta_d), **FIG1_KW)
         out.append(int((r.volume == hr.CARVED).sum()))
     return out
 
@@ -41,7 +42,7 @@ def strictly_increasing(xs):
 
 def test_default_delta_d_meets_the_quantile_rule():
     s = h.figure1_scene(10)
-    geo, rho = hr.prepare(s, rotation=FIG1_VIEW)
+    geo, rho = hr.prepare(s, view=FIG1_VIEW)
     d = geo.attributes[:len(geo.points), 0]
     rho2, dd, n = ht.default_halo_parameters(geo.points, d, geo.spatial, geo.faces, 0.3)
     assert rho2 == rho == pytest.approx(0.02 * np.linalg.norm(np.ptp(geo.points, axis=0)))
@@ -56,7 +57,8 @@ def test_default_delta_d_meets_the_quantile_rule():
     flat = h.figure1_scene(10, w_values=[0.0])
     r = h.render_halos(flat, width=16, height=16, slices=4)
     assert r.stats["crossing_pairs"] == 0 and r.stats["delta_d"] == 1.0
-    r = h.render_halos(s, width=16, height=16, slices=4, rotation=FIG1_VIEW, delta_d=0.2)
+    r = h.render_halos(s, width=16, height=16, slices=4, view=FIG1_VIEW,
+                       halos=h.Halos(delta_d=0.2))
     assert r.stats["crossing_pairs"] is None and r.stats["delta_d"] == 0.2
 
 
@@ -121,7 +123,8 @@ def test_gap_half_width_next_to_a_crossing_follows_eq3(delta_d):
     s = perpendicular_strips(deltas, xs)
     # hard surface threshold: the strips are seen edge-on, and an anti-aliasing fringe would
     # widen their own footprint (not the gap)
-    r = h.render_halos(s, width=320, height=320, slices=48, delta_d=delta_d, antialias=0.0)
+    r = h.render_halos(s, width=320, height=320, slices=48,
+                       halos=h.Halos(delta_d=delta_d, antialias=0.0))
     rho, dd, dt = r.stats["rho"], r.stats["delta_d"], 0.3
     H = r.image.shape[0]
     rows = range(H // 2 - 20, H // 2 + 20, 4)          # |v| well inside the strips

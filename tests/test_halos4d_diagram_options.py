@@ -1,6 +1,6 @@
 """Options of the Fig. 5(d) knot-diagram picture (`fig5d_diagram`): a band of the spun sphere
 around one meridian (`spun_trefoil(band=)`), colours by 4D depth (`colored_by_depth`) and the
-headlight's ambient part (`render_halos(ambient=)`). Analytic expectations."""
+headlight's ambient part (`render_halos(style=HaloStyle(ambient=))`). Analytic expectations."""
 
 import colorsys
 
@@ -64,15 +64,16 @@ def test_ambient_scales_a_tilted_sheet_by_the_headlight_formula():
     a + (1 − a)·0.5 times its colour with a = 1 (unlit), pixel for pixel; the default is 0.3."""
     sq = h.uv_surface(lambda u, v: np.stack([u, v, np.sqrt(3.0) * u, 0 * u], axis=-1),
                       (-1, 1), (-1, 1), 4, 4)
-    kw = dict(width=40, height=40, slices=32, rho=0.05)
-    flat = h.render_halos(sq, ambient=1.0, **kw)
+    kw = dict(width=40, height=40, slices=32, halos=h.Halos(rho=0.05))
+    flat = h.render_halos(sq, style=h.HaloStyle(ambient=1.0), **kw)
     inside = flat.alpha > 0.5
     assert inside.sum() > 200
     for a in (0.0, 0.3, 0.7):
-        img = h.render_halos(sq, ambient=a, **kw).image
+        img = h.render_halos(sq, style=h.HaloStyle(ambient=a), **kw).image
         np.testing.assert_allclose(img[inside], (a + (1 - a) * 0.5) * flat.image[inside],
                                    rtol=1e-4, atol=1e-6)
     default = h.render_halos(sq, **kw).image
-    assert default.tobytes() == h.render_halos(sq, ambient=0.3, **kw).image.tobytes()
-    with pytest.raises(ValueError, match="ambient"):
-        h.render_halos(sq, ambient=1.5, **kw)
+    assert default.tobytes() == h.render_halos(sq, style=h.HaloStyle(ambient=0.3),
+                                               **kw).image.tobytes()
+    with pytest.raises(ValueError, match=r"^style\.ambient must be <= 1\.0"):
+        h.HaloStyle(ambient=1.5)

@@ -65,8 +65,8 @@ def test_hand_predictions():
 
 @pytest.mark.parametrize("engine", ["fused", "reference"])
 def test_engines_carve_the_gap_eq3_predicts(engine):
-    r = h.render_halos(scene(), width=W, height=W, slices=40, rho=RHO, delta_d=DELTA_D,
-                       delta_t=DELTA_T, antialias=0.0, engine=engine)
+    r = h.render_halos(scene(), width=W, height=W, slices=40, engine=engine,
+                       halos=h.Halos(rho=RHO, delta_d=DELTA_D, delta_t=DELTA_T, antialias=0.0))
     # the image spans the square plus the 5 % margins, as the prediction assumes
     np.testing.assert_allclose(r.bounds[:, :2], [[-1.1, -1.1], [1.1, 1.1]], atol=1e-12)
     white = r.image.min(axis=2) > 0.6

@@ -76,13 +76,13 @@ def test_arc_crossings_of_the_plain_spun_view_are_the_diagram():
     np.testing.assert_allclose(np.abs(c[:, 4] - c[:, 5]), 2.0, atol=0.05)
 
 
-def crossings_shown(rotation, surface, halos=True, n_phi=24, **kw):
+def crossings_shown(view, surface, halos, n_phi=24):
     """For each of the three crossings: the φ (of n_phi) at which it is visible and the halos
     change a pixel within 1.5ρ of it. None when no meridian maps to a three-crossing diagram."""
-    rho = kw.pop("rho")
-    common = dict(rotation=rotation, width=SIZE, height=SIZE, slices=SLICES, rho=rho)
-    on = h.render_halos(surface, halos=halos, **common, **kw)
-    off = h.render_halos(surface, halos=False, volume=True, **common)
+    rotation, rho = view.rotation, halos.rho
+    common = dict(view=view, width=SIZE, height=SIZE, slices=SLICES)
+    on = h.render_halos(surface, halos=halos, **common)
+    off = h.render_halos(surface, halos=halos.replace(enabled=False), volume=True, **common)
     covered = (on.alpha > g.COVER_THRESHOLD) | (off.alpha > g.COVER_THRESHOLD)
     changed = (np.abs(on.image - off.image).max(axis=2) > g.CHANGE_THRESHOLD) & covered
     b = off.bounds
@@ -107,15 +107,15 @@ def crossings_shown(rotation, surface, halos=True, n_phi=24, **kw):
     return shown if diagrams else None
 
 
-def fig5ad():
-    (entry,) = [f for f in g.figures(quick=True) if f[0] == "fig5ad"]
-    return entry[1], entry[3]
+def figure(name):
+    """The gallery's figure ``name`` (quick meshes)."""
+    (entry,) = [f for f in g.figures(quick=True) if f.name == name]
+    return entry
 
 
 def test_fig5d_view_shows_two_crossings_carved_and_hides_the_third():
-    surface, kw = fig5ad()
-    kw = {k: v for k, v in kw.items() if k not in ("boundary_color", "boundary_width")}
-    shown = crossings_shown(kw.pop("rotation"), surface, **kw)
+    fig = figure("fig5ad")       # the pure halos: its dark gaps (boundaries) not drawn
+    shown = crossings_shown(fig.view, fig.surface, fig.halos)
     assert shown is not None
     n = [len(s) for s in shown]
     assert n[0] >= 6 and n[1] >= 4 and n[2] == 0, n
@@ -125,15 +125,13 @@ def test_fig5d_view_shows_two_crossings_carved_and_hides_the_third():
 def test_planted_views_fail_the_crossing_check(fault):
     """Both directions: without halos nothing changes near a crossing; projected along w
     (identity rotation) the meridians are not a three-crossing diagram."""
-    surface, kw = fig5ad()
-    kw = {k: v for k, v in kw.items() if k not in ("boundary_color", "boundary_width")}
-    rotation = kw.pop("rotation")
-    halos = True
+    fig = figure("fig5ad")
+    view, halos = fig.view, fig.halos
     if fault == "halos_off":
-        halos = False
+        halos = halos.replace(enabled=False)
     else:
-        rotation = np.eye(4)
-    shown = crossings_shown(rotation, surface, halos=halos, **kw)
+        view = view.replace(rotation=np.eye(4))
+    shown = crossings_shown(view, fig.surface, halos)
     assert shown is None or not any(len(s) > 0 for s in shown), shown
 
 
@@ -143,18 +141,17 @@ def test_planted_views_fail_the_crossing_check(fault):
 SEEN_CHANGE = 0.05
 
 
-def crossings_seen_translucent(rotation, surface, halos=True, n_phi=24, **kw):
+def crossings_seen_translucent(view, surface, halos, style, n_phi=24):
     """For each of the three crossings: the φ (of n_phi) at which it is *shown* through
     whatever lies in front: the halos carve a surface voxel within 1.5ρ (3D) of the crossing
     point and, in a pixel whose column holds such a voxel, within 1.5ρ of the crossing's image,
     change the composited colour by ≥ SEEN_CHANGE in some channel. None when no meridian maps to
     a three-crossing diagram."""
-    rho = kw.pop("rho")
-    common = dict(rotation=rotation, width=SIZE, height=SIZE, slices=SLICES, rho=rho)
-    on = h.render_halos(surface, halos=halos, volume=True, **common, **kw)
-    kw.pop("boundary_color", None)
-    kw.pop("boundary_width", None)
-    off = h.render_halos(surface, halos=False, **common, **kw)
+    rotation, rho = view.rotation, halos.rho
+    common = dict(view=view, width=SIZE, height=SIZE, slices=SLICES)
+    on = h.render_halos(surface, halos=halos, style=style, volume=True, **common)
+    off = h.render_halos(surface, halos=halos.replace(enabled=False),
+                         style=style.replace(boundary_color=None), **common)
     changed = np.abs(on.image - off.image).max(axis=2) >= SEEN_CHANGE
     carved = (on.volume == 2) | (on.volume == 4)
     b = off.bounds
@@ -187,22 +184,16 @@ def crossings_seen_translucent(rotation, surface, halos=True, n_phi=24, **kw):
     return shown if diagrams else None
 
 
-def fig5d_translucent():
-    (entry,) = [f for f in g.figures(quick=True) if f[0] == "fig5d_translucent"]
-    return entry[1], dict(entry[3])
-
-
 def test_fig5d_translucent_shows_all_three_crossings_carved():
     """Translucent (opacity 0.45, the paper's Fig. 5(b)/Fig. 8 option), the gallery's view from
     above: every crossing circle is seen through the nearer sheets, and at ≥ 18 of the 24
     meridians each of the three crossings has its under-sheet cut and the cut changes the
     picture (measured: 24, 24, 24 with the dark gaps; 24, 20, 24 with the pure halos)."""
-    surface, kw = fig5d_translucent()
-    assert kw["opacity"] == 0.45 and kw["boundary_color"] == g.GAP_DARK
-    rotation = kw.pop("rotation")
-    pure = {k: v for k, v in kw.items() if k not in ("boundary_color", "boundary_width")}
-    for opts in (kw, pure):
-        shown = crossings_seen_translucent(rotation, surface, **opts)
+    fig = figure("fig5d_translucent")
+    assert fig.style.opacity == 0.45 and fig.style.boundary_color == g.GAP_DARK
+    pure = fig.style.replace(boundary_color=None)
+    for style in (fig.style, pure):
+        shown = crossings_seen_translucent(fig.view, fig.surface, fig.halos, style)
         assert shown is not None
         n = [len(s) for s in shown]
         assert min(n) >= 18, n
@@ -213,14 +204,13 @@ def test_planted_faults_fail_the_translucent_crossing_check(fault):
     """Both directions: without halos no crossing is shown; with the default opacity 0.9 the
     ring below the inner disc is behind the opaque surface (measured: crossing 2 at 3 of 24
     meridians, crossing 1 at 17) and the check fails."""
-    surface, kw = fig5d_translucent()
-    rotation = kw.pop("rotation")
-    halos = True
+    fig = figure("fig5d_translucent")
+    halos, style = fig.halos, fig.style
     if fault == "halos_off":
-        halos = False
+        halos = halos.replace(enabled=False)
     else:
-        kw["opacity"] = 0.9
-    shown = crossings_seen_translucent(rotation, surface, halos=halos, **kw)
+        style = style.replace(opacity=0.9)
+    shown = crossings_seen_translucent(fig.view, fig.surface, halos, style)
     n = [len(s) for s in shown]
     assert min(n) < 18, n
     if fault == "halos_off":
@@ -297,18 +287,12 @@ def gap_contrasts(image, bounds, crossings, rho, swap=False):
     return np.array(res)
 
 
-def fig5d_diagram():
-    (entry,) = [f for f in g.figures(quick=True) if f[0] == "fig5d_diagram"]
-    return entry[1], dict(entry[3])
-
-
-def diagram_contrasts(surface, kw, halos=True, swap=False):
-    rotation = kw["rotation"]
-    common = dict(width=SIZE, height=SIZE, slices=SLICES)
-    r = h.render_halos(surface, halos=halos, **common, **kw)
-    crossings = strand_crossings(rotation, 0.0)
+def diagram_contrasts(surface, fig, halos=True, swap=False):
+    r = h.render_halos(surface, view=fig.view, halos=fig.halos.replace(enabled=halos),
+                       style=fig.style, width=SIZE, height=SIZE, slices=SLICES)
+    crossings = strand_crossings(fig.view.rotation, 0.0)
     assert len(crossings) == 3
-    return gap_contrasts(r.image, r.bounds, crossings, kw["rho"], swap=swap)
+    return gap_contrasts(r.image, r.bounds, crossings, fig.halos.rho, swap=swap)
 
 
 def test_strand_crossings_are_the_trefoil_diagram_with_alternating_depths():
@@ -329,11 +313,11 @@ def test_fig5d_diagram_shows_every_crossing_broken():
     (measured: 156–188; at the gallery's 512², 256 slices 151–188; docs/halos4d.md "Fig. 5(d)
     as a knot diagram"), and in the halos-off twin the same pixels are not darker than the
     strand around them (|contrast| < 30; measured ≤ 18): the gap is carved, not background."""
-    surface, kw = fig5d_diagram()
-    assert kw["rotation"] is not None and kw["rho"] == g.KNOT_RHO
-    c = diagram_contrasts(surface, kw)
+    fig = figure("fig5d_diagram")
+    assert fig.view.rotation is not None and fig.halos.rho == g.KNOT_RHO
+    c = diagram_contrasts(fig.surface, fig)
     assert c.shape == (3, 2) and c.min() >= GAP_CONTRAST, c
-    off = diagram_contrasts(surface, kw, halos=False)
+    off = diagram_contrasts(fig.surface, fig, halos=False)
     assert np.abs(off).max() < 30, off
 
 
@@ -342,13 +326,13 @@ def test_planted_faults_fail_the_diagram_gap_check(fault):
     """Both directions: without halos no strand is broken (measured ≤ 18); the over-strand
     (nearer in 4D) is not broken (≤ 2); the closed sphere in the same view hides the
     meridian's crossings behind the sheets nearer in 3D, so no gap is seen there (≤ 15)."""
-    surface, kw = fig5d_diagram()
-    halos, swap = True, False
+    fig = figure("fig5d_diagram")
+    surface, halos, swap = fig.surface, True, False
     if fault == "halos_off":
         halos = False
     elif fault == "over_strand":
         swap = True
     else:
-        surface = h.colored_by_depth(h.spun_trefoil(96, 25), kw["rotation"])
-    c = diagram_contrasts(surface, kw, halos=halos, swap=swap)
+        surface = h.colored_by_depth(h.spun_trefoil(96, 25), np.array(fig.view.rotation))
+    c = diagram_contrasts(surface, fig, halos=halos, swap=swap)
     assert c.min() < GAP_CONTRAST, c

@@ -47,20 +47,18 @@ def test_fig5d_gaps_are_drawn_dark_and_pure_halos_show_none():
     change are near-black (the knot diagram's breaks); with the pure halos (the planted
     "wrong" picture, as before) the same gaps only shift the shade and none is dark."""
     import refraster.halos4d as h
-    (entry,) = [f for f in g.figures(quick=True) if f[0] == "fig5ad"]
-    _, surface, _, on_kw, _, _ = entry
-    assert on_kw["boundary_color"] == g.GAP_DARK and on_kw["rho"] == g.KNOT_RHO
-    kw = dict(width=128, height=128, slices=48)
-    off = h.render_halos(surface, halos=False, rotation=on_kw["rotation"], rho=on_kw["rho"], **kw)
+    (fig,) = [f for f in g.figures(quick=True) if f.name == "fig5ad"]
+    assert fig.style.boundary_color == g.GAP_DARK and fig.halos.rho == g.KNOT_RHO
+    kw = dict(width=128, height=128, slices=48, view=fig.view)
+    off = h.render_halos(fig.surface, halos=fig.halos.replace(enabled=False), **kw)
 
-    def dark_share(**opts):
-        on = h.render_halos(surface, **opts, **kw)
+    def dark_share(style):
+        on = h.render_halos(fig.surface, halos=fig.halos, style=style, **kw)
         covered = (on.alpha > g.COVER_THRESHOLD) | (off.alpha > g.COVER_THRESHOLD)
         changed = (np.abs(on.image - off.image).max(axis=2) > g.CHANGE_THRESHOLD) & covered
         return float((on.image.mean(axis=2)[changed] < 0.1).mean()), int(changed.sum())
 
-    dark, n = dark_share(**on_kw)
+    dark, n = dark_share(fig.style)
     assert n > 500 and dark > 0.2, (dark, n)
-    pure = {k: v for k, v in on_kw.items() if k not in ("boundary_color", "boundary_width")}
-    dark, n = dark_share(**pure)
+    dark, n = dark_share(fig.style.replace(boundary_color=None, boundary_width=0.15))
     assert n > 300 and dark == 0.0, (dark, n)

@@ -76,12 +76,10 @@ def test_a_conformant_variant_differs_from_the_golden(gold, scene, tmp_path):
 
 
 def test_reference_engine_passes(gold, scene, tmp_path):
+    from refraster.golden.technique_scenes import halo_options
     from refraster.halos4d import render_halos
-    p = scene.parameters
-    out = render_halos(H._surface(scene.maps), rotation=np.asarray(p["rotation"]),
-                       projection=p["projection"], width=p["width"], height=p["height"],
-                       slices=p["slices"], delta_t=p["delta_t"], surface_width=p["surface_width"],
-                       opacity=p["opacity"], halos=p["halos"], volume=True, engine="reference")
+    out = render_halos(H._surface(scene.maps), **halo_options(scene.parameters), volume=True,
+                       engine="reference")
     cand = {"color": out.image, "alpha": out.alpha, "halo_class": H.column_class(out.volume)}
     result = compare(gold, _write(tmp_path, cand), mode="tolerant", scenes=[SCENE])
     assert result.exit_code == 0, "\n".join(result.failures()[:10])

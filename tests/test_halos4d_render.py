@@ -242,15 +242,17 @@ def fig1(w_values=None):
     return h.figure1_scene(10) if w_values is None else h.figure1_scene(10, w_values=w_values)
 
 
-KW = dict(width=48, height=40, slices=20, rho=0.08, delta_d=1.0, delta_t=0.2,
-          rotation=h.compose(("zx", 0.5), ("yz", -0.6)))
+HALOS = h.Halos(rho=0.08, delta_d=1.0, delta_t=0.2)
+VIEW = h.View4D(rotation=h.compose(("zx", 0.5), ("yz", -0.6)))
+KW = dict(width=48, height=40, slices=20, halos=HALOS, view=VIEW)
 
 
 def test_engines_bit_identical():
     s = fig1()
-    for halos in (True, False):
-        a = h.render_halos(s, volume=True, halos=halos, **KW)
-        b = h.render_halos(s, volume=True, halos=halos, engine="reference", **KW)
+    for enabled in (True, False):
+        kw = {**KW, "halos": HALOS.replace(enabled=enabled)}
+        a = h.render_halos(s, volume=True, **kw)
+        b = h.render_halos(s, volume=True, engine="reference", **kw)
         assert a.image.tobytes() == b.image.tobytes()
         np.testing.assert_array_equal(a.volume, b.volume)
 
@@ -258,8 +260,8 @@ def test_engines_bit_identical():
 def test_halo_grows_with_4d_depth_difference():
     """Fig. 1: the carved part of the white patch grows monotonically with Δw."""
     # carved where the white core meets the strip's halo at w_s <= u < δt + Δw/δd
-    kw = {**KW, "width": 64, "height": 56, "slices": 32, "rho": 0.1, "surface_width": 0.2,
-          "delta_t": 0.3}
+    kw = {**KW, "width": 64, "height": 56, "slices": 32,
+          "halos": HALOS.replace(rho=0.1, surface_width=0.2, delta_t=0.3)}
     carved = []
     for w in (0.0, 0.1, 0.2, 0.3, 0.4, 0.5):
         r = h.render_halos(fig1([w]), volume=True, **kw)
@@ -270,10 +272,11 @@ def test_halo_grows_with_4d_depth_difference():
 
 
 def test_halo_carves_only_the_farther_surface():
-    kw = {**KW, "width": 96, "height": 80, "slices": 32, "rho": 0.1}
+    kw = {**KW, "width": 96, "height": 80, "slices": 32}
 
-    def counts(w, halos):
-        img = h.render_halos(fig1([w]), halos=halos, **kw).image
+    def counts(w, enabled):
+        kw["halos"] = HALOS.replace(rho=0.1, enabled=enabled)
+        img = h.render_halos(fig1([w]), **kw).image
         red = (img[..., 0] > 0.2) & (img[..., 1] < 0.5 * img[..., 0])
         white = (img.min(axis=2) > 0.2) & (img.max(axis=2) - img.min(axis=2) < 0.05)
         return int(red.sum()), int(white.sum())
@@ -293,14 +296,15 @@ def test_opacity_independent_of_slice_count():
     sq = h.uv_surface(lambda u, v: np.stack([u, v, 0 * u, 0 * u], axis=-1), (-1, 1), (-1, 1), 4, 4)
     alphas = []
     for n in (8, 16, 64):
-        r = h.render_halos(sq, width=24, height=24, slices=n, rho=0.2, surface_width=0.5,
-                           opacity=0.8, margin=0.2)
+        r = h.render_halos(sq, width=24, height=24, slices=n, view=h.View4D(margin=0.2),
+                           halos=h.Halos(rho=0.2, surface_width=0.5),
+                           style=h.HaloStyle(opacity=0.8))
         alphas.append(float(r.alpha[12, 12]))
     np.testing.assert_allclose(alphas, 0.8, atol=0.08)
 
 
 def test_render_stereo_and_volume_shapes():
-    r = h.render_halos(fig1(), stereo=True, **KW)
+    r = h.render_halos(fig1(), **{**KW, "view": VIEW.replace(stereo=h.STEREO_ANGLE)})
     gap = max(2, 48 // 32)
     assert r.image.shape == (40, 2 * 48 + gap, 3)
     assert not np.array_equal(r.image[:, :48], r.image[:, 48 + gap:])
@@ -308,7 +312,7 @@ def test_render_stereo_and_volume_shapes():
     assert v.volume.shape == (20, 40, 48) and v.volume.dtype == np.int8
     assert np.all(np.isin(v.volume, [0, 1, 2, 3]))
     # perspective works too
-    p = h.render_halos(fig1(), projection="perspective", **KW)
+    p = h.render_halos(fig1(), **{**KW, "view": VIEW.replace(projection="perspective")})
     assert p.alpha.max() > 0
 
 
@@ -319,15 +323,20 @@ def test_render_bad_inputs():
             h.render_halos(s, width=8, height=8, slices=bad)
     with pytest.raises(TypeError, match="slices"):
         h.render_halos(s, width=8, height=8, slices=2.5)
-    for name in ("rho", "delta_d", "delta_t", "opacity", "surface_width"):
-        with pytest.raises(ValueError, match=name):
-            h.render_halos(s, width=8, height=8, slices=4, **{name: float("nan")})
+    for name in ("rho", "delta_d", "delta_t", "surface_width"):
+        with pytest.raises(ValueError, match=rf"^halos\.{name} must be finite"):
+            h.Halos(**{name: float("nan")})
+    with pytest.raises(ValueError, match=r"^style\.opacity must be finite"):
+        h.HaloStyle(opacity=float("nan"))
     with pytest.raises(TypeError, match="surface"):
         h.render_halos(np.zeros((3, 4)), width=8, height=8)
     with pytest.raises(ValueError, match="engine"):
         h.render_halos(s, width=8, height=8, engine="gpu")
     with pytest.raises(ValueError, match="volume"):
-        h.render_halos(s, width=8, height=8, stereo=True, volume=True)
+        h.render_halos(s, width=8, height=8, view=h.View4D(stereo=6.0), volume=True)
+    for name, value in (("view", None), ("halos", True), ("style", {"opacity": 0.5})):
+        with pytest.raises(TypeError, match=rf"^{name} must be a refraster\.halos4d\."):
+            h.render_halos(s, width=8, height=8, **{name: value})
     with pytest.raises(ValueError, match="width"):
         h.render_halos(s, width=0, height=8)
 
@@ -346,8 +355,8 @@ def test_render_deterministic_across_runs_and_threads(tmp_path):
         import sys, numpy as np
         import refraster.halos4d as h
         s = h.spun_trefoil(40, 16)
-        r = h.render_halos(s, rotation=h.compose(("zw", 0.6), ("yz", 0.4)), width=64,
-                           height=64, slices=32, volume=True)
+        r = h.render_halos(s, view=h.View4D(rotation=h.compose(("zw", 0.6), ("yz", 0.4))),
+                           width=64, height=64, slices=32, volume=True)
         np.save(sys.argv[1], np.concatenate([r.image.ravel(), r.volume.ravel()]))
     """)
     outs = []

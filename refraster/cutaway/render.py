@@ -9,18 +9,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import framebuffer as _fb
-from .._validate import as_choice, as_float_array, as_image_size, as_matrix, as_real
+from .._validate import as_image_size, as_matrix
 from ..mesh import as_meshes
-from .flood import VARIANTS
-from .lines import GHOST_CREASE_ANGLE, feature_segments, ghost_alpha
-from .surface import (FLOOR_MARGIN, as_angles, cutaway_surface, min_filter_3x3, ndc_to_eye_depth, pixel_ndc,
+from .lines import feature_segments, ghost_alpha
+from .options import GHOST_DISTANCE_FRACTION, Cutaway, CutSurfaces, GhostLines, as_option
+from .surface import (as_angles, cutaway_surface, min_filter_3x3, ndc_to_eye_depth, pixel_ndc,
                       unproject, upsample_bilinear)
 
 #: Grey level of the ghost lines composited into ``image``.
 GHOST_GREY = 0.12
 
 __all__ = ["CutawayFramebuffer", "render_cutaway", "cut_surface_normals", "outline",
-           "ghost_lines"]
+           "ghost_lines", "DEFAULT_CUTAWAY", "DEFAULT_CUT_SURFACES", "DEFAULT_GHOSTS"]
 
 
 @dataclass(eq=False)
@@ -118,17 +118,6 @@ def ghost_lines(edges, line_depth, cutaway_ndc, visible_depth, proj, g_max):
     return (np.asarray(edges, np.float64) * alpha).astype(np.float32)
 
 
-def _as_size_pair(size, width, height):
-    if size is None:
-        return width, height
-    if not isinstance(size, (tuple, list)) or len(size) != 2:
-        raise TypeError(f"cutaway_size must be None or a (width, height) pair, got {size!r}")
-    try:
-        return as_image_size(size[0], size[1])
-    except (TypeError, ValueError) as exc:
-        raise type(exc)(f"cutaway_size: {exc}") from None
-
-
 def _shade_cut(normal, pos, base):
     """The framebuffer's headlight shading applied to the cut-surface normal."""
     v = -pos / np.linalg.norm(pos, axis=-1, keepdims=True)
@@ -136,12 +125,15 @@ def _shade_cut(normal, pos, base):
     return np.clip(base * (0.18 + 0.72 * diff) + 0.22 * diff ** 48, 0.0, 1.0)
 
 
-def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.pi / 6,
-                   stand_ins=(), cutaway_size=None, variant="jfa+1",
-                   perspective_compensation=True, edge_compression=0.1, floor_normal=None,
-                   floor_margin=FLOOR_MARGIN, dilation=True, outlines=True, ghost_distance=None, cut_color=None,
-                   normals=None, background=(1.0, 1.0, 1.0), ghost="lines", ghost_fade=True,
-                   crease_angle=GHOST_CREASE_ANGLE, cut_surfaces=True):
+#: The defaults of :func:`render_cutaway`'s option values (the paper's choices).
+DEFAULT_CUTAWAY = Cutaway()
+DEFAULT_CUT_SURFACES = CutSurfaces()
+DEFAULT_GHOSTS = GhostLines()
+
+
+def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=(),
+                   cutaway=DEFAULT_CUTAWAY, cut_surfaces=DEFAULT_CUT_SURFACES,
+                   ghosts=DEFAULT_GHOSTS, normals=None, background=(1.0, 1.0, 1.0)):
     """Render a cutaway: secondary objects carved away in front of the objects of interest.
 
     Parameters
@@ -155,48 +147,22 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
         Camera (perspective or orthographic OpenGL matrices).
     width, height : int
         Frame size.
-    angle : float or sequence of float
-        Cutaway half-angle θ to the view vector in radians, in (0, π/2): one value, or one per
-        cutaway object (the ``interest`` meshes followed by the ``stand_ins``; Sec. 5.3).
     stand_ins : sequence of meshes
         Invisible objects that shape the cutaway but are not drawn (Fig. 9).
-    cutaway_size : (int, int), optional
-        (width, height) of the cutaway buffer; default the frame size. Pixels may be non-square:
-        distances are measured in view-plane tangent units. Upsampled bilinearly (Sec. 6).
-    variant : {"jfa", "jfa+1", "jfa+2", "1+jfa", "exact"}
-        How D is computed (:func:`refraster.cutaway.jump_flood`).
-    perspective_compensation : bool
-        Eq. 3 as corrected (MATH.md D-C4).
-    edge_compression : float or None
-        r of Sec. 5.4 (D-C6); None or 0 turns it off.
-    floor_normal : (3,) float, optional
-        World-space floor normal: turns on the directional constraint (Sec. 5.5, D-C7).
-    floor_margin : float
-        Safety angle δ of the floor constraint (:func:`refraster.cutaway.seed_slopes`).
-    dilation : bool
-        Clip back faces against the 3×3 minimum of D (Sec. 4.2, D-C8).
-    outlines : bool
-        Mark the cut surfaces' boundaries (D-C10).
-    ghost_distance : float or None
-        g_max of the ghost lines in eye-space units (D-C11); None: 10 % of the diagonal of the
-        secondary objects' bounding box [guess]; 0: no ghost lines.
-    cut_color : (3,) float, optional
-        Base colour of cut surfaces; default the cut object's own palette colour.
+    cutaway : Cutaway
+        The cutaway surface: angle(s) θ — one, or one per cutaway object (the ``interest``
+        meshes followed by the ``stand_ins``) —, flooding variant, perspective compensation,
+        edge compression, floor constraint, buffer size (:class:`refraster.cutaway.Cutaway`;
+        default ``Cutaway()``, the paper's choices).
+    cut_surfaces : CutSurfaces
+        Shading, colour, dilation and outlines of the cut (:class:`refraster.cutaway.CutSurfaces`;
+        default ``CutSurfaces()``: shaded, dilated, outlined).
+    ghosts : GhostLines or None
+        The ghost lines (:class:`refraster.cutaway.GhostLines`; default ``GhostLines()``: the
+        secondary meshes' feature lines, faded out over 10 % of their bounding box's diagonal);
+        None: no ghost lines.
     normals, background
         As in :func:`refraster.render`.
-    ghost : {"lines", "visible"}
-        Source of the ghost lines. ``"lines"`` (default, the paper's): the creases, silhouettes
-        and borders of the secondary meshes as line segments (:mod:`.lines`), drawn where they
-        lie in the removed region in front of D — every removed layer, not only the first.
-        ``"visible"``: the former image-space variant, the edge map of the first visible
-        surface of the uncut scene only (kept for comparison; misses hidden structure).
-    ghost_fade : bool
-        Fade α = 1 − gap/g_max (Fig. 4e, default) or draw at full opacity up to g_max (4d).
-    crease_angle : float
-        Dihedral angle in degrees above which an edge is a crease (``ghost="lines"``).
-    cut_surfaces : bool
-        Shade the exposed back faces with the cutaway's normals (Sec. 4.1, Fig. 4b); False
-        leaves them as drawn, the hollow look of Fig. 4(a).
 
     Returns
     -------
@@ -208,11 +174,21 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
     depth test ``greater`` (clear 0 = near); (2) :func:`cutaway_surface` in NDC depth; (3) D
     upsampled to the frame and converted to window depth; (4) one draw of the secondary objects
     then the OOI with a fragment stage that discards a secondary fragment iff z < D (front
-    faces) or z < D_dil (back faces, with ``dilation``); OOI fragments are always kept, so the
-    OOI are unclipped (Sec. 4.1); (5) cut surfaces shaded with normals from the surface that
-    clipped them; (6) outlines and ghost lines: the secondary meshes' feature lines drawn
-    where they lie in front of D, within g_max, faded (:func:`.lines.ghost_alpha`).
+    faces) or z < D_dil (back faces, with ``cut_surfaces.dilation``); OOI fragments are always
+    kept, so the OOI are unclipped (Sec. 4.1); (5) cut surfaces shaded with normals from the
+    surface that clipped them; (6) outlines and ghost lines: the secondary meshes' feature lines
+    drawn where they lie in front of D, within g_max, faded (:func:`.lines.ghost_alpha`).
+
+    Examples
+    --------
+    >>> from refraster.cutaway import Cutaway, GhostLines, render_cutaway
+    >>> fb = render_cutaway(core, shells, view=view, proj=proj, width=320, height=240,
+    ...                     cutaway=Cutaway(angle=0.5, floor_normal=(0, 1, 0)),
+    ...                     ghosts=GhostLines(distance=1.0, fade=False))  # doctest: +SKIP
     """
+    cutaway = as_option(cutaway, Cutaway, "cutaway")
+    cut_surfaces = as_option(cut_surfaces, CutSurfaces, "cut_surfaces")
+    ghosts = as_option(ghosts, GhostLines, "ghosts", optional=True)
     interest = as_meshes(interest, "interest") if _nonempty(interest) else []
     secondary = as_meshes(secondary, "secondary") if _nonempty(secondary) else []
     stand_ins = as_meshes(stand_ins, "stand_ins") if _nonempty(stand_ins) else []
@@ -221,20 +197,20 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
     view = as_matrix(view, "view")
     proj = as_matrix(proj, "proj")
     width, height = as_image_size(width, height)
-    cw, ch = _as_size_pair(cutaway_size, width, height)
-    thetas = as_angles(angle)
+    cw, ch = cutaway.buffer_size or (width, height)
+    thetas = as_angles(cutaway.angle, "cutaway.angle")
     hull = interest + stand_ins
     if len(thetas) > 1 and len(thetas) != len(hull):
-        raise ValueError(f"angle has {len(thetas)} entries but there are {len(hull)} cutaway "
-                         "objects (interest + stand_ins)")
-    as_choice(variant, "variant", VARIANTS + ("exact",))
-    ghost_source = as_choice(ghost, "ghost", {"lines": "lines", "visible": "visible"})
-    crease_angle = as_real(crease_angle, "crease_angle", lo=0.0, hi=180.0)
-    if ghost_distance is None:
-        ghost_distance = 0.1 * _diagonal(secondary)
-    ghost_distance = as_real(ghost_distance, "ghost_distance", lo=0.0)
+        raise ValueError(f"cutaway.angle has {len(thetas)} entries but there are {len(hull)} "
+                         "cutaway objects (interest + stand_ins)")
+    ghost_distance = 0.0
+    if ghosts is not None:
+        ghost_distance = ghosts.distance
+        if ghost_distance is None:
+            ghost_distance = GHOST_DISTANCE_FRACTION * _diagonal(secondary)
+    cut_color = cut_surfaces.color
     if cut_color is not None:
-        cut_color = as_float_array(cut_color, "cut_color", shape=(3,))
+        cut_color = np.array(cut_color, np.float64)
     camera = dict(view=view, proj=proj)
 
     # (1)–(2) the cutaway surface at its own resolution
@@ -242,15 +218,16 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
         rear = _fb.render(hull, width=cw, height=ch, depth_func="greater", clear_depth=0.0,
                           **camera)
         buffer = cutaway_surface(rear.depth, rear.object_id, proj=proj, view=view,
-                                 angle=thetas, variant=variant,
-                                 perspective_compensation=perspective_compensation,
-                                 edge_compression=edge_compression, floor_normal=floor_normal,
-                                 floor_margin=floor_margin)
+                                 angle=thetas, variant=cutaway.variant,
+                                 perspective_compensation=cutaway.perspective_compensation,
+                                 edge_compression=cutaway.edge_compression,
+                                 floor_normal=cutaway.floor_normal,
+                                 floor_margin=cutaway.floor_margin)
     else:
         buffer = np.full((ch, cw), -1.0)
     # (3) at frame resolution
     d_ndc = upsample_bilinear(buffer, height, width)
-    d_back = min_filter_3x3(d_ndc) if dilation else d_ndc
+    d_back = min_filter_3x3(d_ndc) if cut_surfaces.dilation else d_ndc
     n_sec = len(secondary)
 
     # (4) clip secondary fragments, keep every OOI fragment
@@ -271,7 +248,7 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
     cut_mask = fb.mask & ~fb.front_facing & (fb.object_id < n_sec)
     normal = fb.normal.copy()
     color = fb.color.copy()
-    if cut_surfaces and cut_mask.any():
+    if cut_surfaces.shade and cut_mask.any():
         n_cut = cut_surface_normals(d_back, proj)[cut_mask]
         x, y = pixel_ndc(height, width)
         pos = unproject(x[cut_mask], y[cut_mask], 2.0 * fb.depth[cut_mask].astype(np.float64) - 1.0,
@@ -282,16 +259,16 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
         color[cut_mask] = _shade_cut(n_cut, pos, base)
 
     # (6) lines
-    edge = outline(cut_mask) if outlines else np.zeros((height, width), bool)
+    edge = outline(cut_mask) if cut_surfaces.outlines else np.zeros((height, width), bool)
     ghost = np.zeros((height, width), np.float32)
     if ghost_distance > 0 and secondary and carved_px.any():
-        if ghost_source == "lines":
+        if ghosts.source == "lines":
             segments = feature_segments(secondary, view=view, proj=proj,
-                                        crease_angle=crease_angle)
+                                        crease_angle=ghosts.crease_angle)
             ooi = fb.mask & (fb.object_id >= n_sec)
             occluder = np.where(ooi, 2.0 * fb.depth.astype(np.float64) - 1.0, np.inf)
             ghost = ghost_alpha(segments, view=view, proj=proj, width=width, height=height,
-                                cutaway_ndc=d_ndc, g_max=ghost_distance, fade=ghost_fade,
+                                cutaway_ndc=d_ndc, g_max=ghost_distance, fade=ghosts.fade,
                                 occluder_depth=occluder)
         else:
             from ..edges import edge_map
@@ -299,7 +276,7 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, angle=np.p
             em = edge_map(plain, preset="clean")
             strength = np.maximum(em[..., 0], em[..., 3])
             ghost = ghost_lines(strength, plain.depth, d_ndc, fb.depth, proj, ghost_distance)
-            if not ghost_fade:
+            if not ghosts.fade:
                 ghost = np.where(ghost > 0, strength, 0.0).astype(np.float32)
     image = color.astype(np.float64) * (1.0 - ghost[..., None]) + GHOST_GREY * ghost[..., None]
     image[edge] = 0.0

@@ -151,19 +151,20 @@ def seed_slopes(z_ndc, theta, *, proj, view=None, perspective_compensation=True,
             (np.where(seeded, slope_f, 0.0), np.where(seeded[..., None], n_proj, 0.0)))
 
 
-def as_angles(angle):
-    """θ as a float64 array: one value (a scalar) or one per cutaway object; each in (0, π/2)."""
+def as_angles(angle, name="angle"):
+    """θ as a float64 array: one value (a scalar) or one per cutaway object; each in (0, π/2).
+    ``name`` is the argument's name in the error messages."""
     if isinstance(angle, bool):
-        raise TypeError("angle must be a real number or a sequence of them, got bool")
-    values = as_float_array(angle, "angle", finite=False)
+        raise TypeError(f"{name} must be a real number or a sequence of them, got bool")
+    values = as_float_array(angle, name, finite=False)
     if values.ndim > 1 or values.size == 0:
-        raise ValueError(f"angle must be a scalar or a non-empty 1-D sequence, got shape "
+        raise ValueError(f"{name} must be a scalar or a non-empty 1-D sequence, got shape "
                          f"{values.shape}")
     values = values.reshape(-1)
     if not np.all(np.isfinite(values)):
-        raise ValueError(f"angle must be finite, got {values.tolist()}")
+        raise ValueError(f"{name} must be finite, got {values.tolist()}")
     if np.any(values <= 0.0) or np.any(values >= np.pi / 2):
-        raise ValueError(f"angle must lie in (0, π/2) radians, got {values.tolist()}")
+        raise ValueError(f"{name} must lie in (0, π/2) radians, got {values.tolist()}")
     return values
 
 

@@ -11,7 +11,8 @@ import pathlib
 import numpy as np
 
 from .. import look_at, perspective
-from ..cutaway import chamfer, cutaway_surface, exact, jump_flood, render_cutaway
+from ..cutaway import (CutSurfaces, Cutaway, GhostLines, chamfer, cutaway_surface, exact,
+                       jump_flood, render_cutaway)
 from ..cutaway.surface import ndc_to_eye_depth, pixel_ndc, seed_slopes, tangent_sampling, unproject
 from ..framebuffer import render as _render
 from ..raster.state import RasterState
@@ -64,7 +65,8 @@ def _shells(out, s):
     shells = nested_shells((1.2, 1.05, 0.8, 0.68), subdivisions=3)
     core = [icosphere(3, radius=0.3), _box((0.2, -0.1, 0.2), (0.5, 0.2, 0.5))]
     cam = _camera((2.6, 1.6, 3.0), (0, 0, 0), s, s)
-    imgs = [render_cutaway(core, shells, **cam, angle=a, ghost_distance=0.6).image
+    imgs = [render_cutaway(core, shells, **cam, cutaway=Cutaway(angle=a),
+                           ghosts=GhostLines(distance=0.6)).image
             for a in (0.35, 0.7)]
     write_png(out / "cutaway_shells.png", _panels(imgs))
     return Item(SECTION, "cutaway_shells.png",
@@ -96,14 +98,16 @@ def _fig4(out, s):
     shells = [box_shell(1.2, 1.05), box_shell(0.8, 0.68)]
     core = [icosphere(3, radius=0.3)]
     cam = _camera((2.8, 2.2, 3.4), (0, 0, 0), s, s)
-    common = dict(angle=0.5, ghost_distance=1.0)
+    cut = Cutaway(angle=0.5)
     panels = [
-        render_cutaway(core, shells, **cam, angle=0.5, ghost_distance=0.0, cut_surfaces=False,
-                       outlines=False),
-        render_cutaway(core, shells, **cam, angle=0.5, ghost_distance=0.0, outlines=False),
-        render_cutaway(core, shells, **cam, angle=0.5, ghost_distance=0.0),
-        render_cutaway(core, shells, **cam, angle=0.5, ghost_distance=100.0, ghost_fade=False),
-        render_cutaway(core, shells, **cam, **common),
+        render_cutaway(core, shells, **cam, cutaway=cut, ghosts=None,
+                       cut_surfaces=CutSurfaces(shade=False, outlines=False)),
+        render_cutaway(core, shells, **cam, cutaway=cut, ghosts=None,
+                       cut_surfaces=CutSurfaces(outlines=False)),
+        render_cutaway(core, shells, **cam, cutaway=cut, ghosts=None),
+        render_cutaway(core, shells, **cam, cutaway=cut,
+                       ghosts=GhostLines(distance=100.0, fade=False)),
+        render_cutaway(core, shells, **cam, cutaway=cut, ghosts=GhostLines(distance=1.0)),
     ]
     write_png(out / "cutaway_fig4.png", _panels([p.image for p in panels]))
     return Item(SECTION, "cutaway_fig4.png",
@@ -129,9 +133,8 @@ def _fig5(out, s):
         frames = []
         for fov in FIG5_FOVS:
             cam = _camera((3.3, 2.7, 4.2), (0, 0, 0), s, s, fovy=fov, near=0.3, far=40.0)
-            frames.append(render_cutaway(core, shell, **cam, angle=theta,
-                                         perspective_compensation=comp, ghost_distance=0.0,
-                                         edge_compression=None).image)
+            frames.append(render_cutaway(core, shell, **cam, ghosts=None, cutaway=Cutaway(
+                angle=theta, perspective_compensation=comp, edge_compression=None)).image)
         rows.append(_panels(frames))
     sep = np.ones((4, rows[0].shape[1], 3), np.float32)
     write_png(out / "cutaway_fig5.png", np.concatenate([rows[0], sep, rows[1]], axis=0))
@@ -165,7 +168,8 @@ RADIATOR_ANGLES = (0.7, [0.25, 0.5, 0.25])
 def _radiators(out, s):
     parts, radiators, view = radiator_house()
     cam = _camera(view["eye"], view["target"], s, s)
-    wide, local = (render_cutaway(radiators, parts, **cam, angle=a, ghost_distance=1.0).image
+    wide, local = (render_cutaway(radiators, parts, **cam, cutaway=Cutaway(angle=a),
+                                  ghosts=GhostLines(distance=1.0)).image
                    for a in RADIATOR_ANGLES)
     write_png(out / "cutaway_radiators.png", _panels([wide, local]))
     items = [Item(SECTION, "cutaway_radiators.png",
@@ -175,8 +179,9 @@ def _radiators(out, s):
                   "0.25 / 0.5 / 0.25 rad per radiator (Sec. 5.3) keeps the partition around it.")]
     parts, radiators = _house()
     cam = _camera((0.0, 3.2, 9.0), (0, 0.4, -2.0), s, s)
-    plain = render_cutaway(radiators, parts, **cam, angle=0.9).image
-    floor = render_cutaway(radiators, parts, **cam, angle=0.9, floor_normal=(0, 1, 0)).image
+    plain = render_cutaway(radiators, parts, **cam, cutaway=Cutaway(angle=0.9)).image
+    floor = render_cutaway(radiators, parts, **cam,
+                           cutaway=Cutaway(angle=0.9, floor_normal=(0, 1, 0))).image
     write_png(out / "cutaway_floor.png", _panels([plain, floor]))
     items.append(Item(SECTION, "cutaway_floor.png",
                       "Directional constraint (Fig. 8): without it the floor in front of the "
@@ -193,8 +198,8 @@ def _galleon(out, s, quick):
     frames = []
     for eye in ((3.0, 2.0, 6.0), (-2.0, 1.2, 6.0), (0.5, 0.6, 3.5)):
         cam = _camera(eye, (0, 0, 0), s, (3 * s) // 4)
-        frames.append(render_cutaway(cannons, hull, **cam, angle=0.45,
-                                     ghost_distance=0.5).image)
+        frames.append(render_cutaway(cannons, hull, **cam, cutaway=Cutaway(angle=0.45),
+                                     ghosts=GhostLines(distance=0.5)).image)
     write_png(out / "cutaway_galleon.png", _panels(frames))
     return Item(SECTION, "cutaway_galleon.png",
                 "A hull cut away to reveal rows of cannons (Fig. 1), from three cameras; the "
@@ -207,10 +212,10 @@ def _office(out, s):
     furniture = [_box((1.5, 0.25, 2.0), (3.5, 1.0, 3.2)),
                  _box((4.0, 0.25, 4.5), (4.8, 1.6, 5.2))]
     cam = _camera((16.0, 11.0, 17.0), (5.0, 2.0, 3.5), s, s)
-    a = render_cutaway(furniture, house, **cam, stand_ins=[room], angle=[0.3, 0.3, 0.3],
-                       ghost_distance=1.5)
-    b = render_cutaway(furniture, house, **cam, stand_ins=[room], angle=0.6,
-                       ghost_distance=1.5)
+    a = render_cutaway(furniture, house, **cam, stand_ins=[room],
+                       cutaway=Cutaway(angle=[0.3, 0.3, 0.3]), ghosts=GhostLines(distance=1.5))
+    b = render_cutaway(furniture, house, **cam, stand_ins=[room], cutaway=Cutaway(angle=0.6),
+                       ghosts=GhostLines(distance=1.5))
     write_png(out / "cutaway_office.png", _panels([a.image, b.image]))
     return Item(SECTION, "cutaway_office.png",
                 "An office block with an invisible stand-in box for a room (Fig. 9): the box "
@@ -227,8 +232,8 @@ def _pan(out, s):
         frames = []
         for x in (-1.5, -3.3, -4.3):       # the camera pans left; the box exits on the right
             cam = _camera((x, 2.5, 6.0), (x, 1.0, 0.0), w, h)
-            frames.append(render_cutaway(target, wall, **cam, angle=0.6,
-                                         edge_compression=compression).image)
+            frames.append(render_cutaway(target, wall, **cam, cutaway=Cutaway(
+                angle=0.6, edge_compression=compression)).image)
         rows.append(_panels(frames))
     sep = np.ones((4, rows[0].shape[1], 3), np.float32)
     write_png(out / "cutaway_pan.png", np.concatenate([rows[0], sep, rows[1]], axis=0))
@@ -248,8 +253,8 @@ def _fig10(out, s):
     frames = []
     for x in (-3.8, -2.4, -1.4):        # the car drives toward the counter
         car = _box((x - 0.3, 0, -1.9), (x + 0.3, 0.35, -1.4))
-        frames.append(render_cutaway([counter, car], room, **cam, angle=0.28,
-                                     ghost_distance=0.8, floor_normal=(0, 1, 0)).image)
+        frames.append(render_cutaway([counter, car], room, **cam, cutaway=Cutaway(
+            angle=0.28, floor_normal=(0, 1, 0)), ghosts=GhostLines(distance=0.8)).image)
     write_png(out / "cutaway_fig10.png", _panels(frames))
     return Item(SECTION, "cutaway_fig10.png",
                 "Several objects of interest (Fig. 10): a kitchen counter and a small car behind "
@@ -376,7 +381,7 @@ def _buffer(out, s):
     shells = nested_shells((1.2, 1.05, 0.8, 0.68), subdivisions=3)
     core = [icosphere(3, radius=0.3), _box((0.2, -0.1, 0.2), (0.5, 0.2, 0.5))]
     cam = _camera((2.6, 1.6, 3.0), (0, 0, 0), s, (3 * s) // 4)
-    imgs = [render_cutaway(core, shells, **cam, angle=0.5, cutaway_size=size).image
+    imgs = [render_cutaway(core, shells, **cam, cutaway=Cutaway(angle=0.5, buffer_size=size)).image
             for size in (None, (s // 4, s // 4))]
     write_png(out / "cutaway_buffer.png", _panels(imgs))
     return Item(SECTION, "cutaway_buffer.png",

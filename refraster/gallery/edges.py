@@ -118,8 +118,8 @@ def render(out_dir, *, quick=False):
         crop = _crop_box(fb.mask, MARGIN)
         m = fb.mask
 
-        def comp(shade, edge_map=em, **kw):
-            return npr.composite(shade, edge_map, mask=m, **kw)
+        def comp(shade, inner_color=(1.0, 1.0, 1.0)):
+            return npr.composite(shade, em, inner_color=inner_color, mask=m)
 
         toon = npr.toon(fb.normal, mask=m)
         diag = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))

@@ -10,6 +10,7 @@ pixel changes by more than 5/255 in some channel, dark grey where the surface co
 from __future__ import annotations
 
 import pathlib
+from typing import NamedTuple
 
 import numpy as np
 
@@ -94,10 +95,25 @@ def triptych(on, off, stacked=False):
     return np.concatenate([a, pad, b, pad, diff], axis=axis)
 
 
+class Figure(NamedTuple):
+    """One gallery figure: its name, surface, panel caption, the options of its halos-on
+    picture (its halos-off twin: ``halos.replace(enabled=False)``, the rest the same) and
+    whether its triptych is stacked (the stereo pairs)."""
+
+    name: str
+    surface: object
+    caption: str
+    view: object
+    halos: object
+    style: object
+    stacked: bool
+
+
 def figures(quick=False):
-    """``(name, surface, panel caption, halos-on kwargs, halos-off kwargs, stacked)`` per
-    figure; all rendering parameters not listed are ``render_halos``' defaults."""
+    """One :class:`Figure` per figure; the options not set are ``View4D``'s, ``Halos``' and
+    ``HaloStyle``'s defaults."""
     import refraster.halos4d as h
+    from refraster.halos4d import HaloStyle, Halos, View4D
     res = 0.4 if quick else 1.0
     v = views()
     fig1 = h.figure1_scene(int(24 * res) + 4)
@@ -111,53 +127,55 @@ def figures(quick=False):
     cy = h.calabi_yau_quartic(int(18 * res) + 4, int(18 * res) + 4, adaptive=True)
     prod = h.product_polynomial(int(24 * res) + 4, int(48 * res) + 4)
     green = (0.1, 0.95, 0.2)
+    plain, knot = Halos(), Halos(rho=KNOT_RHO)
+    gaps = dict(boundary_color=GAP_DARK, boundary_width=GAP_WIDTH)
     return [
-        ("fig1a", fig1, "Fig. 1(a): the five strips at w = 0.1 … 0.5 seen along (1, 0, 0, 1), "
-         "where they are apart", dict(rotation=v["fig1_oblique"]), {}, False),
-        ("fig1bc", fig1, "Fig. 1(b) projected along w, plain 4D depth test | Fig. 1(c) with "
-         "depth-dependent halos: the gap widens from red (Δw = 0.1) to blue (0.5)",
-         dict(rotation=v["fig1"]), {}, False),
-        ("fig3e", figure3_scene(int(12 * res) + 4), "Fig. 3(e): two patches apart in 4D, the "
-         "halo volumes drawn grey (halo_opacity = 0.35)",
-         dict(rotation=v["fig3"], halo_opacity=0.35), {}, False),
-        ("fig5ad", spun, f"Fig. 5(a) the spun trefoil ({spun.n_faces} triangles), traditional "
-         "rendering | Fig. 5(d) with volumetric halos (ρ = 0.6), the carved gaps drawn dark "
-         "(the halo-boundary option of Fig. 8, b = 0.95): the sheet farther in 4D breaks where "
-         "it crosses the nearer one, as in a knot diagram",
-         dict(rotation=v["knot"], rho=KNOT_RHO, boundary_color=GAP_DARK,
-              boundary_width=GAP_WIDTH), {}, False),
-        ("fig5d_open", spun_open, "Fig. 5(d), the sphere cut open (φ ∈ [0, π], not in the "
-         "paper; ρ = 0.6): inside, the halos cut the sheet that is farther in 4D where two "
-         "sheets cross, and the cut edge is the knotted arc",
-         dict(rotation=v["knot_open"], rho=0.6), {}, False),
-        ("fig5d_translucent", spun, "Fig. 5(d) translucent (opacity 0.45, the option of "
-         "Fig. 5(b) and Fig. 8, not the default 0.9), ρ = 0.6, the carved gaps drawn dark: "
-         "through the nearer sheets all three crossing circles of the knot's diagram show "
-         "their under-sheet cut, the ring below the inner disc too",
-         dict(rotation=v["knot"], opacity=0.45, rho=KNOT_RHO, boundary_color=GAP_DARK,
-              boundary_width=GAP_WIDTH), {}, False),
-        ("fig5d_diagram", spun_band, "Fig. 5(d) as a knot diagram (not in the paper: the "
-         f"band |φ| ≤ {DIAGRAM_BAND} of the spun sphere, coloured by 4D depth from red, near, "
-         "to blue, far; ambient 0.7, anti-aliasing a = 0.05; ρ = 0.6): seen along the spin "
-         "direction the band is the knotted arc, and the halos break the strand farther in 4D "
-         "at each of the diagram's three crossings",
-         dict(rotation=v["knot_band"], rho=KNOT_RHO, ambient=DIAGRAM_AMBIENT,
-              antialias=DIAGRAM_ANTIALIAS), {}, False),
-        ("fig5b", spun, "Fig. 5(b): the spun trefoil translucent (opacity 0.45), halos off | on "
-         "(ρ = 0.6)", dict(rotation=v["knot"], opacity=0.45, rho=KNOT_RHO), {}, False),
-        ("fig6a", fermat, "Fig. 6(a): quadratic Fermat surface z1² + z2² = 1, Hanson's view, "
-         "curvature-adaptive u, v lists",
-         dict(rotation=v["fermat"]), {}, False),
-        ("fig6b", cy, "Fig. 6(b): Calabi–Yau quartic cross-section z1⁴ + z2⁴ = 1 (16 patches), "
-         "curvature-adaptive u, v lists",
-         dict(rotation=v["fermat"]), {}, False),
-        ("fig7", prod, "Fig. 7: product polynomial z1² z2² = 1, cross-eyed stereo (top: halos "
-         "off, middle: on)", dict(rotation=v["product"], stereo=True), {}, True),
-        ("fig8", twist, "Fig. 8: 2-twist-spun trefoil, cross-eyed stereo, translucent "
-         "(opacity 0.6) with the halo boundaries in green (top: halos off, middle: on)",
-         dict(rotation=v["twist"], stereo=True, opacity=0.6, boundary_color=green,
-              boundary_width=0.3),
-         {}, True),
+        Figure("fig1a", fig1, "Fig. 1(a): the five strips at w = 0.1 … 0.5 seen along "
+               "(1, 0, 0, 1), where they are apart", View4D(rotation=v["fig1_oblique"]), plain,
+               HaloStyle(), False),
+        Figure("fig1bc", fig1, "Fig. 1(b) projected along w, plain 4D depth test | Fig. 1(c) "
+               "with depth-dependent halos: the gap widens from red (Δw = 0.1) to blue (0.5)",
+               View4D(rotation=v["fig1"]), plain, HaloStyle(), False),
+        Figure("fig3e", figure3_scene(int(12 * res) + 4), "Fig. 3(e): two patches apart in 4D, "
+               "the halo volumes drawn grey (halo_opacity = 0.35)", View4D(rotation=v["fig3"]),
+               plain, HaloStyle(halo_opacity=0.35), False),
+        Figure("fig5ad", spun, f"Fig. 5(a) the spun trefoil ({spun.n_faces} triangles), "
+               "traditional rendering | Fig. 5(d) with volumetric halos (ρ = 0.6), the carved "
+               "gaps drawn dark (the halo-boundary option of Fig. 8, b = 0.95): the sheet "
+               "farther in 4D breaks where it crosses the nearer one, as in a knot diagram",
+               View4D(rotation=v["knot"]), knot, HaloStyle(**gaps), False),
+        Figure("fig5d_open", spun_open, "Fig. 5(d), the sphere cut open (φ ∈ [0, π], not in "
+               "the paper; ρ = 0.6): inside, the halos cut the sheet that is farther in 4D where "
+               "two sheets cross, and the cut edge is the knotted arc",
+               View4D(rotation=v["knot_open"]), Halos(rho=0.6), HaloStyle(), False),
+        Figure("fig5d_translucent", spun, "Fig. 5(d) translucent (opacity 0.45, the option of "
+               "Fig. 5(b) and Fig. 8, not the default 0.9), ρ = 0.6, the carved gaps drawn "
+               "dark: through the nearer sheets all three crossing circles of the knot's "
+               "diagram show their under-sheet cut, the ring below the inner disc too",
+               View4D(rotation=v["knot"]), knot, HaloStyle(opacity=0.45, **gaps), False),
+        Figure("fig5d_diagram", spun_band, "Fig. 5(d) as a knot diagram (not in the paper: the "
+               f"band |φ| ≤ {DIAGRAM_BAND} of the spun sphere, coloured by 4D depth from red, "
+               "near, to blue, far; ambient 0.7, anti-aliasing a = 0.05; ρ = 0.6): seen along "
+               "the spin direction the band is the knotted arc, and the halos break the strand "
+               "farther in 4D at each of the diagram's three crossings",
+               View4D(rotation=v["knot_band"]), Halos(rho=KNOT_RHO, antialias=DIAGRAM_ANTIALIAS),
+               HaloStyle(ambient=DIAGRAM_AMBIENT), False),
+        Figure("fig5b", spun, "Fig. 5(b): the spun trefoil translucent (opacity 0.45), halos "
+               "off | on (ρ = 0.6)", View4D(rotation=v["knot"]), knot,
+               HaloStyle(opacity=0.45), False),
+        Figure("fig6a", fermat, "Fig. 6(a): quadratic Fermat surface z1² + z2² = 1, Hanson's "
+               "view, curvature-adaptive u, v lists", View4D(rotation=v["fermat"]), plain,
+               HaloStyle(), False),
+        Figure("fig6b", cy, "Fig. 6(b): Calabi–Yau quartic cross-section z1⁴ + z2⁴ = 1 (16 "
+               "patches), curvature-adaptive u, v lists", View4D(rotation=v["fermat"]), plain,
+               HaloStyle(), False),
+        Figure("fig7", prod, "Fig. 7: product polynomial z1² z2² = 1, cross-eyed stereo (top: "
+               "halos off, middle: on)", View4D(rotation=v["product"], stereo=h.STEREO_ANGLE),
+               plain, HaloStyle(), True),
+        Figure("fig8", twist, "Fig. 8: 2-twist-spun trefoil, cross-eyed stereo, translucent "
+               "(opacity 0.6) with the halo boundaries in green (top: halos off, middle: on)",
+               View4D(rotation=v["twist"], stereo=h.STEREO_ANGLE), plain,
+               HaloStyle(opacity=0.6, boundary_color=green, boundary_width=0.3), True),
     ]
 
 
@@ -167,19 +185,6 @@ def figures(quick=False):
 SPLIT_AFTER = "fig5d_diagram"
 
 
-def _on_off(surface, kw, off_kw):
-    """The figure with halos (``kw``) and its halos-off twin (``kw`` updated by ``off_kw``,
-    without halos and boundaries). With nothing else changed for the twin, both come from one
-    slicing (:func:`refraster.halos4d.render.render_halos_pair`: the same bits as two
-    :func:`~refraster.halos4d.render_halos` calls, ~1/6 less time, issue 27)."""
-    from refraster.halos4d.render import render_halos, render_halos_pair
-    if not off_kw:
-        return render_halos_pair(surface, **kw)
-    off_kw = {**kw, **off_kw, "halos": False}
-    off_kw.pop("boundary_color", None)
-    return render_halos(surface, **kw), render_halos(surface, **off_kw)
-
-
 def render(out_dir: pathlib.Path, *, quick: bool = False, measurements=None,
            only=None, part=None) -> list[Item]:
     """Render the halo figures into ``out_dir``; ``quick`` uses small images and meshes.
@@ -187,6 +192,7 @@ def render(out_dir: pathlib.Path, *, quick: bool = False, measurements=None,
     collection of names, renders just those figures; ``part`` 0 or 1 just those up to and
     including :data:`SPLIT_AFTER`, or the others."""
     out_dir = pathlib.Path(out_dir)
+    from refraster.halos4d import render_halos_pair
     size = 128 if quick else 512
     slices = 48 if quick else 256
     items = []
@@ -196,11 +202,13 @@ def render(out_dir: pathlib.Path, *, quick: bool = False, measurements=None,
             raise ValueError(f"part must be 0 or 1, got {part!r}")
         k = [f[0] for f in figs].index(SPLIT_AFTER) + 1
         figs = figs[:k] if part == 0 else figs[k:]
-    for name, surface, caption, on_kw, off_kw, stacked in figs:
+    for name, surface, caption, view, halos, style, stacked in figs:
         if only is not None and name not in only:
             continue
-        kw = dict(width=size, height=size, slices=slices, **on_kw)
-        on, off = _on_off(surface, kw, off_kw)
+        # the figure and its halos-off twin from one slicing (render_halos_pair: the same bits
+        # as two render_halos calls, ~1/6 less time, issue 27)
+        on, off = render_halos_pair(surface, view=view, width=size, height=size, slices=slices,
+                                    halos=halos, style=style)
         changed, covered = change_share(on, off)
         share = changed / max(covered, 1)
         if measurements is not None:

@@ -263,14 +263,20 @@ def _render_technique(draws, camera, raster, parameters):
     return render_draws(draws, camera, raster).arrays(), {}
 
 
-def render_scene(draws, camera, *, description="", **raster):
+def render_scene(draws, camera, *, raster=None, description=""):
     """A plain-rendering :class:`GoldenScene`: prepare ``draws``, render every G-buffer
-    channel (:meth:`refraster.Framebuffer.arrays`)."""
+    channel (:meth:`refraster.Framebuffer.arrays`). ``raster``: a mapping of the raster fields
+    that differ from :data:`DEFAULT_RASTER` (``scene.json``'s ``"raster"``; None: none)."""
+    if raster is None:
+        raster = {}
+    if not isinstance(raster, dict):
+        raise TypeError("raster must be a dict of the raster fields that differ from "
+                        f"DEFAULT_RASTER (or None), got {type(raster).__name__}")
     state = raster_state(raster)
     prepared = prepare_draws(draws, normals=state["normals"])
     buffers, params = _render_technique(prepared, camera, state, {})
     return GoldenScene(technique="render", camera=camera, draws=prepared, buffers=buffers,
-                       parameters=params, raster=raster, description=description)
+                       parameters=params, raster=dict(raster), description=description)
 
 
 # --- the plain-rendering scenes: canonical solids, fixed cameras --------------------------------
@@ -299,7 +305,7 @@ def _solid_scene(solid_name, *, width=160, height=120, direction=(1.0, 0.8, 1.4)
     from ..scenes import solid
     mesh = solid(solid_name)
     return render_scene([Draw(solid_name, mesh)], _framed([mesh], width, height, direction),
-                        **raster)
+                        raster=raster)
 
 
 @register_scene("render_cube", technique="render",
@@ -322,7 +328,7 @@ def _render_torus_ortho(width=160, height=120, **raster):
     view = look_at((0.0, 2.2, 2.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
     half = 1.2 * width / height
     camera = Camera(view, orthographic(-half, half, -1.2, 1.2, 0.5, 6.0), width, height)
-    return render_scene([Draw("torus", mesh)], camera, **raster)
+    return render_scene([Draw("torus", mesh)], camera, raster=raster)
 
 
 @register_scene("render_fluted_column", technique="render",
@@ -362,7 +368,7 @@ def _render_multi_draw(width=160, height=120, **raster):
              Draw("icosphere", solid("icosphere", quick=True), _translate(1.5, 0.3, -0.4))]
     view = look_at((1.0, 2.5, 5.0), (0.4, 0.0, 0.0))
     camera = Camera(view, perspective(35.0, width / height, 2.0, 9.0), width, height)
-    return render_scene(draws, camera, **raster)
+    return render_scene(draws, camera, raster=raster)
 
 
 # --- TOML scenes ---------------------------------------------------------------------------------

@@ -319,6 +319,43 @@ def _halos4d_figure1():
     return _halos4d_patches("orthographic")
 
 
+#: A halos4d scene's stored parameter → (option of :func:`refraster.halos4d.render_halos`,
+#: field of its value or None for a plain keyword). ``stereo``/``stereo_angle`` are one field.
+HALO_FIELDS = {
+    "rotation": ("view", "rotation"), "projection": ("view", "projection"),
+    "eye": ("view", "eye"), "scale": ("view", "scale"), "margin": ("view", "margin"),
+    "halos": ("halos", "enabled"), "rho": ("halos", "rho"), "delta_d": ("halos", "delta_d"),
+    "delta_t": ("halos", "delta_t"), "surface_width": ("halos", "surface_width"),
+    "antialias": ("halos", "antialias"), "depth_eps": ("halos", "depth_eps"),
+    "opacity": ("style", "opacity"), "ambient": ("style", "ambient"),
+    "halo_color": ("style", "halo_color"), "halo_opacity": ("style", "halo_opacity"),
+    "boundary_color": ("style", "boundary_color"),
+    "boundary_width": ("style", "boundary_width"),
+    "width": ("width", None), "height": ("height", None), "slices": ("slices", None),
+    "background": ("background", None)}
+
+
+def halo_options(parameters):
+    """The options of :func:`refraster.halos4d.render_halos` that a halos4d scene's stored
+    parameters name (``scene.json``'s ``"parameters"``, flat: :data:`HALO_FIELDS`), as keyword
+    arguments: the ``view``, ``halos`` and ``style`` values and ``width``, ``height``,
+    ``slices``, ``background``. A field not stored keeps its default; other parameters
+    (``screen_bounds``, an output) are not options."""
+    from ..halos4d import STEREO_ANGLE, HaloStyle, Halos, View4D
+    fields = {"view": {}, "halos": {}, "style": {}}
+    plain = {}
+    for key, (option, name) in HALO_FIELDS.items():
+        if key in parameters:
+            if name is None:
+                plain[option] = parameters[key]
+            else:
+                fields[option][name] = parameters[key]
+    if parameters.get("stereo"):
+        fields["view"]["stereo"] = parameters.get("stereo_angle", STEREO_ANGLE)
+    return dict(view=View4D(**fields["view"]), halos=Halos(**fields["halos"]),
+                style=HaloStyle(**fields["style"]), **plain)
+
+
 def _halos4d_patches(projection):
     """The Fig. 1 patches (``halos4d_figure1``) under the given 4D → 3D projection."""
     from ..camera import orthographic
@@ -328,9 +365,7 @@ def _halos4d_patches(projection):
     params = dict(rotation=rot.tolist(), projection=projection, slices=48, delta_t=0.3,
                   surface_width=0.3, opacity=0.9, halos=True, margin=0.05, width=128,
                   height=128, background=[0.0, 0.0, 0.0])
-    out = render_halos(surface, rotation=rot, projection=projection, width=128, height=128,
-                       slices=48, delta_t=0.3, surface_width=0.3, opacity=0.9, halos=True,
-                       volume=True)
+    out = render_halos(surface, **halo_options(params), volume=True)
     params["rho"] = float(out.stats["rho"])
     # the defaults the reference derived (issue 21), so a backend can use the same values
     params.update(delta_d=float(out.stats["delta_d"]), antialias=0.3, halo_opacity=0.0)
@@ -613,9 +648,44 @@ _VARIANT_ACCEPTS = {"jfa": ["jfa", "jfa+1", "jfa+2", "1+jfa", "exact"],
                     "jfa+2": ["jfa+2", "exact"], "1+jfa": ["1+jfa", "jfa+2", "exact"]}
 
 
+#: A cutaway scene's stored parameter → (option of :func:`refraster.cutaway.render_cutaway`,
+#: field of its value).
+CUTAWAY_FIELDS = {
+    "angle": ("cutaway", "angle"), "variant": ("cutaway", "variant"),
+    "perspective_compensation": ("cutaway", "perspective_compensation"),
+    "edge_compression": ("cutaway", "edge_compression"),
+    "floor_normal": ("cutaway", "floor_normal"), "floor_margin": ("cutaway", "floor_margin"),
+    "cutaway_size": ("cutaway", "buffer_size"),
+    "cut_surfaces": ("cut_surfaces", "shade"), "cut_color": ("cut_surfaces", "color"),
+    "dilation": ("cut_surfaces", "dilation"), "outlines": ("cut_surfaces", "outlines"),
+    "ghost": ("ghosts", "source"), "ghost_distance": ("ghosts", "distance"),
+    "ghost_fade": ("ghosts", "fade"), "crease_angle": ("ghosts", "crease_angle")}
+
+
+def cutaway_options(parameters):
+    """The options of :func:`refraster.cutaway.render_cutaway` that a cutaway scene's stored
+    parameters name (``scene.json``'s ``"parameters"``, flat: :data:`CUTAWAY_FIELDS`), as
+    ``dict(cutaway=, cut_surfaces=, ghosts=)`` values. A field not stored keeps its default; a
+    stored ``ghost_distance`` of 0 means no ghost lines (``ghosts=None``); other parameters
+    (``interest``, ``accepted_variants``, …) are not options."""
+    from ..cutaway import CutSurfaces, Cutaway, GhostLines
+    fields = {"cutaway": {}, "cut_surfaces": {}, "ghosts": {}}
+    for key, (option, name) in CUTAWAY_FIELDS.items():
+        if key in parameters:
+            fields[option][name] = parameters[key]
+    size = fields["cutaway"].get("buffer_size")
+    if size is not None:
+        fields["cutaway"]["buffer_size"] = tuple(size)    # JSON stores the pair as a list
+    ghosts = fields["ghosts"]
+    return dict(cutaway=Cutaway(**fields["cutaway"]),
+                cut_surfaces=CutSurfaces(**fields["cut_surfaces"]),
+                ghosts=None if ghosts.get("distance") == 0 else GhostLines(**ghosts))
+
+
 def _cutaway_variant_scene(variant, extra=None):
     """``cutaway_shells`` with another jump-flooding schedule (the same camera and options);
-    ``extra``: further options of :func:`refraster.cutaway.render_cutaway` (the floor)."""
+    ``extra``: further stored options of :func:`refraster.cutaway.render_cutaway` (the floor:
+    :func:`cutaway_options` names)."""
     from ..cutaway import render_cutaway
     from ..scenes import icosphere, solid
     outer = solid("nested_shells", quick=True)
@@ -629,11 +699,7 @@ def _cutaway_variant_scene(variant, extra=None):
                   accepted_variants=list(_VARIANT_ACCEPTS[variant]))
     params.update(extra or {})
     fb = render_cutaway([draws[1].mesh], [draws[0].mesh], **camera.kwargs,
-                        **{k: params[k] for k in ("angle", "variant", "perspective_compensation",
-                                                  "edge_compression", "dilation", "outlines",
-                                                  "ghost", "ghost_distance", "ghost_fade",
-                                                  "crease_angle")},
-                        **(extra or {}))
+                        **cutaway_options(params))
     buffers = {**fb.arrays(), "cutaway_depth": fb.cutaway_depth, "cut_mask": fb.cut_mask,
                "ghost": fb.ghost}
     # the cut decision z < D(x) is free within a pixel of where the cut region changes

@@ -15,7 +15,7 @@ Pipeline (one frame)::
 
 Voxel classes (the ``(N, H, W)`` volume, int8): 0 empty, 1 visible surface, 2 surface carved by a
 halo, 3 halo only, 4 halo boundary (a carved surface voxel on the rim of its hole, drawn in
-``boundary_color``; only with that option).
+``HaloStyle.boundary_color``; only with that option).
 
 Opacity independent of N: a surface crossed face-on has a core of thickness ``2·w_s·ρ`` along
 z, which about ``2·w_s·ρ/Δz`` slices sample. Each visible surface voxel therefore gets
@@ -40,23 +40,23 @@ import numpy as np
 from numba import njit, prange
 
 from .._config import JIT, PJIT
-from .._validate import as_choice, as_float_array, as_image_size, as_matrix, as_real
+from .._validate import as_choice, as_float_array, as_image_size, as_real
 from ..raster.rasterizer import _inv_float_area, lambdas, row_span
 from .slicing import MAX_SLICES, SUBPIXEL_BITS, _slice, ortho_ndc, setup_window
 from .surfaces import Surface4D
 from .thicken import (RHO_FRACTION, default_halo_parameters, prism_tetrahedra, thicken,
                       thickening_normals)
+from .options import AMBIENT, Halos, HaloStyle, View4D, as_option
 from .transforms import project, rotate_3d
 
-__all__ = ["render_halos", "HaloRender", "prepare", "HaloGeometry", "slice_alpha",
-           "EMPTY", "SURFACE", "CARVED", "HALO", "BOUNDARY"]
+__all__ = ["render_halos", "render_halos_pair", "HaloRender", "prepare", "HaloGeometry", "slice_alpha",
+           "EMPTY", "SURFACE", "CARVED", "HALO", "BOUNDARY", "DEFAULT_VIEW", "DEFAULT_HALOS",
+           "DEFAULT_STYLE"]
 
 EMPTY, SURFACE, CARVED, HALO, BOUNDARY = 0, 1, 2, 3, 4
 ENGINES = ("fused", "reference")
 #: Rows per band of the fused kernel (each band is one unit of parallel work).
 BAND_ROWS = 8
-#: Ambient part of the headlight shading ``ambient + (1 − ambient)·|n̂_z|``.
-AMBIENT = 0.3
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,11 +108,13 @@ def slice_alpha(opacity, spacing, rho, surface_width):
     return float(1.0 - (1.0 - opacity) ** (spacing / (2.0 * surface_width * rho)))
 
 
-def prepare(surface, *, rotation=None, projection="orthographic", eye=None, scale=1.0,
-            rho=None, ambient=AMBIENT):
+def prepare(surface, *, view=None, rho=None, ambient=AMBIENT):
     """Project, thicken and tetrahedralize ``surface`` (Sec. 4.2–4.4). Returns
-    ``(HaloGeometry, rho)``; ``rho=None`` picks RHO_FRACTION (2 %) of the projected
-    bounding-box diagonal; ``ambient`` is the ambient part of the headlight shading."""
+    ``(HaloGeometry, rho)``; ``view`` a :class:`View4D` (its rotation, projection, eye and scale;
+    None: ``View4D()``); ``rho=None`` picks RHO_FRACTION (2 %) of the projected bounding-box
+    diagonal; ``ambient`` is the ambient part of the headlight shading."""
+    view = DEFAULT_VIEW if view is None else as_option(view, View4D, "view")
+    rotation = None if view.rotation is None else np.array(view.rotation, np.float64)
     if not isinstance(surface, Surface4D):
         raise TypeError(f"surface must be a Surface4D, got {type(surface).__name__}")
     f = surface.faces
@@ -120,8 +122,8 @@ def prepare(surface, *, rotation=None, projection="orthographic", eye=None, scal
     f = f[~degenerate]
     if len(f) == 0:
         raise ValueError("surface has no non-degenerate faces")
-    pr = project(surface.vertices, surface.tangents, rotation, projection=projection, eye=eye,
-                 scale=scale)
+    pr = project(surface.vertices, surface.tangents, rotation, projection=view.projection,
+                 eye=view.eye, scale=view.scale)
     normals, n_fb = thickening_normals(pr.points, pr.tangents, f)
     if rho is None:
         diag = float(np.linalg.norm(pr.points.max(axis=0) - pr.points.min(axis=0)))
@@ -518,74 +520,41 @@ def _slices(value):
     return int(value)
 
 
-def render_halos(surface, *, rotation=None, projection="orthographic", width=512, height=512,
-                 slices=256, rho=None, delta_d=None, delta_t=0.3, surface_width=0.3,
-                 opacity=0.9, halos=True, eye=None, scale=1.0, background=(0.0, 0.0, 0.0),
-                 depth_eps=None, margin=0.05, stereo=False, stereo_angle=6.0, volume=False,
-                 engine="fused", halo_color=(0.5, 0.5, 0.5), halo_opacity=0.0,
-                 boundary_color=None, boundary_width=0.15, antialias=None, ambient=AMBIENT):
+#: The defaults of :func:`render_halos`' option values.
+DEFAULT_VIEW = View4D()
+DEFAULT_HALOS = Halos()
+DEFAULT_STYLE = HaloStyle()
+
+
+def render_halos(surface, *, view=DEFAULT_VIEW, width=512, height=512, slices=256,
+                 halos=DEFAULT_HALOS, style=DEFAULT_STYLE, background=(0.0, 0.0, 0.0),
+                 volume=False, engine="fused"):
     """Render a surface in 4D with depth-dependent volumetric halos (Wang et al. 2013).
 
     Parameters
     ----------
     surface : Surface4D
-    rotation : (4, 4) float, optional
-        4D rotation applied before projection (see :mod:`.transforms`; 3D rotations are the
-        xy, yz, zx planes).
-    projection : {"orthographic", "perspective"}
-        4D → 3D projection (MATH.md §5.2); ``eye``, ``scale`` as in :func:`.transforms.project`.
+    view : View4D
+        4D rotation, 4D → 3D projection (eye, scale), framing margin and stereo pair
+        (:class:`refraster.halos4d.View4D`; default ``View4D()``: no rotation, orthographic,
+        one view).
     width, height : int
         Image size; the image is the orthographic view of the projected xy bounds (square
-        pixels, ``margin`` of the extent added on each side).
+        pixels, ``view.margin`` of the extent added on each side).
     slices : int
         N slicing planes (1 … 4096) at the centres of N equal intervals of the projected z range.
-    rho : float, optional
-        Halo radius ρ (Eq. 2) in screen units; default 2 % of the projected bounding-box
-        diagonal (``thicken.RHO_FRACTION``).
-    delta_d : float, optional
-        δd of Eq. 3 (4D-depth increase across the half-thickness); default
-        :func:`.thicken.default_halo_parameters`: ``(1 − δt)·δd`` = the 95th percentile of the
-        4D-depth differences of sheets that overlap in projection, so that Eq. 3 stays
-        depth-dependent (``stats["crossing_pairs"]`` says how many differences were used).
-    delta_t : float
-        δt of Eq. 3 (the core |2t − 1| < δt keeps the surface's own 4D depth).
-    surface_width : float
-        w_s: a fragment is a surface fragment when |2t − 1| < w_s (the paper's "proximity of t
-        to 0.5"), otherwise halo.
-    opacity : float in (0, 1]
-        Accumulated opacity of a face-on surface, independent of ``slices`` (module docstring).
-    halos : bool
-        False: no halo carving (only surface fragments take part in the 4D depth test) —
-        Fig. 1(b).
+    halos : Halos
+        ρ, δd, δt, w_s, anti-aliasing, ε, and whether the halos carve at all
+        (:class:`refraster.halos4d.Halos`; default ``Halos()``).
+    style : HaloStyle
+        Surface opacity and ambient, halo colour and opacity, halo boundaries
+        (:class:`refraster.halos4d.HaloStyle`; default ``HaloStyle()``: opacity 0.9, the halos
+        not drawn, no boundaries).
     background : (3,) float
-    depth_eps : float, optional
-        ε of the occlusion rule δ ≤ minD + ε; default 1e-6·max|δ| (above the rounding of
-        float32 barycentrics, which do not sum to exactly 1).
-    stereo : bool
-        Cross-eyed pair: the thickened geometry turned by ∓``stereo_angle``/2 degrees about the
-        screen y axis through the bounds' centre (right eye's view on the left).
     volume : bool
-        Also return the ``(N, H, W)`` int8 voxel classes (not with ``stereo``).
+        Also return the ``(N, H, W)`` int8 voxel classes (not with ``view.stereo``).
     engine : {"fused", "reference"}
         Same output bits; ``"reference"`` calls :func:`refraster.rasterize` once per slice.
-    halo_color, halo_opacity : (3,) float, float in [0, 1)
-        The halo volume itself (halo-only and carved voxels, Fig. 3(e)'s grey) composited with
-        this colour; ``halo_opacity`` is the accumulated opacity of a face-on halo shell (both
-        sides, thickness 2·(1 − w_s − a)·ρ), independent of ``slices``. Default 0: the halos carve
-        holes and are not drawn, as in the paper's Figs. 1, 5–8.
-    boundary_color, boundary_width : (3,) float or None, float in (0, 1)
-        Halo boundaries (Fig. 8's green): a carved surface voxel that the halos would no longer
-        carve if every halo fragment were ``boundary_width``·ρ farther out (|2t − 1| + b in
-        Eq. 3, fragments past the halo's edge dropped) is drawn in ``boundary_color``: the rim,
-        b·ρ wide, just inside each hole. None (default): off.
-    antialias : float in [0, w_s], optional
-        a (default w_s): the surface anti-aliased from t (Sec. 4.6): a surface fragment covers
-        c = ``clamp((w_s + a − |2t − 1|)/(2a), 0, 1)`` of its voxel's thickness, so its opacity is
-        ``1 − (1 − α)^c`` instead of the hard threshold ``|2t − 1| < w_s``; the mean thickness,
-        and so the accumulated opacity, is unchanged. 0: the hard threshold (before issue 21).
-    ambient : float in [0, 1]
-        Ambient part of the headlight shading ``ambient + (1 − ambient)·|n̂_z|`` (default 0.3);
-        a sheet seen edge-on (n̂_z = 0) is drawn at ``ambient`` × its colour.
 
     Returns
     -------
@@ -596,62 +565,84 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
     Eq. 1 is normalized and guarded (MATH.md §5.3 [fix]); Eq. 3 is evaluated per fragment
     (§5.4); the occlusion rule "surface voxel drawn iff δ ≤ minD + ε" is MATH.md §5.4 [guess];
     prisms are split by the global-index rule (§5.5); slicing follows §5.6.
+
+    Examples
+    --------
+    >>> import refraster.halos4d as h
+    >>> out = h.render_halos(h.figure1_scene(n=8),
+    ...                      view=h.View4D(rotation=h.compose(("zx", 0.5), ("yz", -1.0))),
+    ...                      width=64, height=64, slices=16,
+    ...                      style=h.HaloStyle(opacity=0.6))  # doctest: +SKIP
     """
+    return _render(surface, view, width, height, slices, halos, style, background, volume,
+                   engine, pair=False)
+
+
+def render_halos_pair(surface, *, view=DEFAULT_VIEW, width=512, height=512, slices=256,
+                      halos=DEFAULT_HALOS, style=DEFAULT_STYLE, background=(0.0, 0.0, 0.0),
+                      volume=False, engine="fused"):
+    """``(render_halos(surface, …), render_halos(surface, …, halos=halos.replace(enabled=False)))``
+    — the same two results, bit for bit, from one projection, thickening, tetrahedralization,
+    slicing and window set-up: only the fill pass runs twice (the slicing does not depend on
+    the halos). The parameters are :func:`render_halos`'; ``halos.enabled`` must be True, and
+    ``style.boundary_color`` and ``style.halo_opacity`` act on the first picture only, as they
+    do without halos."""
+    return _render(surface, view, width, height, slices, halos, style, background, volume,
+                   engine, pair=True)
+
+
+def _render(surface, view, width, height, slices, halos, style, background, volume, engine,
+            pair):
+    """:func:`render_halos` (``pair`` False) or :func:`render_halos_pair` (True)."""
+    view = as_option(view, View4D, "view")
+    halos = as_option(halos, Halos, "halos")
+    style = as_option(style, HaloStyle, "style")
+    if pair and not halos.enabled:
+        raise ValueError("render_halos_pair renders with and without halos: halos.enabled "
+                         "must be True")
     width, height = as_image_size(width, height)
     n = _slices(slices)
     engine = as_choice(engine, "engine", ENGINES)
-    delta_t = as_real(delta_t, "delta_t", lo=0.0, hi=1.0)
-    surface_width = as_real(surface_width, "surface_width", lo=0.0, hi=1.0, lo_open=True)
-    opacity = as_real(opacity, "opacity", lo=0.0, hi=1.0, lo_open=True)
-    margin = as_real(margin, "margin", lo=0.0, hi=10.0)
-    stereo_angle = as_real(stereo_angle, "stereo_angle", lo=0.0, hi=90.0)
     bg = as_float_array(background, "background", shape=(3,))
-    halo_rgb = as_float_array(halo_color, "halo_color", shape=(3,)).copy()
-    halo_opacity = as_real(halo_opacity, "halo_opacity", lo=0.0, hi=1.0, hi_open=True)
-    boundary = boundary_color is not None
-    boundary_rgb = (np.zeros(3) if not boundary
-                    else as_float_array(boundary_color, "boundary_color", shape=(3,)).copy())
-    boundary_width = as_real(boundary_width, "boundary_width", lo=0.0, hi=1.0, lo_open=True,
-                             hi_open=True)
-    antialias = (surface_width if antialias is None
-                 else as_real(antialias, "antialias", lo=0.0, hi=surface_width))
-    if rotation is not None:
-        rotation = as_matrix(rotation, "rotation")
-    pair = halos is _PAIR
-    for name, flag in (("halos", True if pair else halos), ("stereo", stereo), ("volume", volume)):
-        if not isinstance(flag, (bool, np.bool_)):
-            raise TypeError(f"{name} must be a bool, got {type(flag).__name__}")
+    if not isinstance(volume, (bool, np.bool_)):
+        raise TypeError(f"volume must be a bool, got {type(volume).__name__}")
+    stereo = view.stereo is not None
     if stereo and volume:
-        raise ValueError("volume is not available for a stereo pair")
+        raise ValueError("volume is not available for a stereo pair (view.stereo)")
     if n * width * height > (1 << 31) and volume:
         raise ValueError(f"volume of {n}×{height}×{width} voxels is too large")
-    ambient = as_real(ambient, "ambient", lo=0.0, hi=1.0)
-    geo, rho = prepare(surface, rotation=rotation, projection=projection, eye=eye, scale=scale,
-                       rho=rho, ambient=ambient)
+    delta_t, surface_width = halos.delta_t, halos.surface_width
+    antialias = surface_width if halos.antialias is None else halos.antialias
+    halo_rgb = np.array(style.halo_color, np.float64)
+    boundary = style.boundary_color is not None
+    boundary_rgb = np.zeros(3) if not boundary else np.array(style.boundary_color, np.float64)
+    geo, rho = prepare(surface, view=view, rho=halos.rho, ambient=style.ambient)
     depth = geo.attributes[:, 0]
     n_pairs = None
+    delta_d = halos.delta_d
     if delta_d is None:
         _, delta_d, n_pairs = default_halo_parameters(
             geo.points, depth[:len(geo.points)], geo.spatial, geo.faces, delta_t, rho)
     delta_d = as_real(delta_d, "delta_d", lo=0.0)
     # float32 barycentrics do not sum to exactly 1: a constant δ interpolates to δ·(1 ± 2e-7)
-    eps = (1e-6 * float(np.abs(depth).max()) if depth_eps is None
-           else as_real(depth_eps, "depth_eps", lo=0.0))
+    eps = (1e-6 * float(np.abs(depth).max()) if halos.depth_eps is None else halos.depth_eps)
     views = [geo.vertices]
     if stereo:
         c = 0.5 * (geo.vertices.min(axis=0) + geo.vertices.max(axis=0))
-        half = np.deg2rad(stereo_angle) / 2
+        half = np.deg2rad(view.stereo) / 2
         views = [rotate_3d(geo.vertices - c, "y", -half) + c,    # right eye
                  rotate_3d(geo.vertices - c, "y", half) + c]     # left eye
-    bounds = _screen_bounds(views, width, height, margin)
+    bounds = _screen_bounds(views, width, height, view.margin)
     dz = (bounds[1, 2] - bounds[0, 2]) / n
     centres = bounds[0, 2] + (np.arange(n) + 0.5) * dz
-    alpha = slice_alpha(opacity, dz, rho, surface_width)
+    alpha = slice_alpha(style.opacity, dz, rho, surface_width)
+    on = halos.enabled
     # the halo shell lies outside the surface's core and its anti-aliasing fringe
-    halo_alpha = (slice_alpha(halo_opacity, dz, rho, max(1.0 - surface_width - antialias, 1e-6))
-                  if halos and halo_opacity > 0.0 else 0.0)
-    params = (delta_t, delta_d, surface_width, eps, alpha, bool(halos), antialias, halo_alpha,
-              halo_rgb, bool(boundary and halos), boundary_width, boundary_rgb)
+    halo_alpha = (slice_alpha(style.halo_opacity, dz, rho,
+                              max(1.0 - surface_width - antialias, 1e-6))
+                  if on and style.halo_opacity > 0.0 else 0.0)
+    params = (delta_t, delta_d, surface_width, eps, alpha, on, antialias, halo_alpha,
+              halo_rgb, bool(boundary and on), style.boundary_width, boundary_rgb)
     stats = {"tetrahedra": int(len(geo.tets)), "normal_fallbacks": geo.n_fallback,
              "degenerate_faces": geo.n_degenerate, "rho": rho, "delta_d": delta_d,
              "slice_alpha": alpha, "crossing_pairs": n_pairs, "halo_slice_alpha": halo_alpha}
@@ -659,25 +650,10 @@ def render_halos(surface, *, rotation=None, projection="orthographic", width=512
         return _draw(geo, views, bounds, centres, width, height, [params], engine, volume, bg,
                      stats)[0]
     # halos off: the same geometry, slices and window set-up; no carving, no halo colour
-    # (halo_alpha 0), no boundaries — what render_halos(halos=False) passes
+    # (halo_alpha 0), no boundaries — what render_halos with halos.enabled False passes
     off = params[:5] + (False, antialias, 0.0, halo_rgb, False) + params[10:]
     return tuple(_draw(geo, views, bounds, centres, width, height, [params, off], engine, volume,
                        bg, stats))
-
-
-#: ``render_halos(halos=_PAIR)``: both pictures of :func:`render_halos_pair`
-_PAIR = object()
-
-
-def render_halos_pair(surface, **kwargs):
-    """``(render_halos(surface, **kwargs), render_halos(surface, **kwargs, halos=False))`` —
-    the same two results, bit for bit, from one projection, thickening, tetrahedralization,
-    slicing and window set-up: only the fill pass runs twice (the slicing does not depend on
-    the halos). ``kwargs`` as :func:`render_halos` without ``halos``; ``boundary_color`` and
-    ``halo_opacity`` act on the first picture only, as they do with ``halos=False``."""
-    if "halos" in kwargs:
-        raise TypeError("render_halos_pair renders with and without halos: do not pass halos")
-    return render_halos(surface, halos=_PAIR, **kwargs)
 
 
 def _draw(geo, views, bounds, centres, width, height, variants, engine, volume, bg, stats):

@@ -74,12 +74,13 @@ def render_variant(surface, p, *, dsw=0.0, ddt=0.0, eps_scale=1.0, dz=0.0, dxy=(
     """One halo render of the scene's parameters ``p`` with a threshold or sample shift.
     Returns (color (H, W, 3), alpha (H, W), volume (N, H, W)) float64 / int8, and with
     ``voxels`` each drawn voxel's (r, g, b, α) (N, H, W, 4) (zero where not drawn)."""
+    from ...halos4d import View4D
     from ...halos4d.render import (_render_bands, _screen_bounds, _bin_bands, BAND_ROWS,
                                   prepare, slice_alpha)
     from ...halos4d.slicing import SUBPIXEL_BITS, _slice, ortho_ndc, setup_window
     w, h, n = int(p["width"]), int(p["height"]), int(p["slices"])
-    geo, rho = prepare(surface, rotation=np.asarray(p["rotation"], np.float64),
-                       projection=p["projection"], rho=p.get("rho"))
+    geo, rho = prepare(surface, view=View4D(rotation=np.asarray(p["rotation"], np.float64),
+                                            projection=p["projection"]), rho=p.get("rho"))
     verts, attr = geo.vertices, geo.attributes
     if f32:
         verts = verts.astype(np.float32).astype(np.float64)
