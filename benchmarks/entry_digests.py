@@ -1,16 +1,34 @@
 """SHA-256 digests of what every technique's entry point returns, each option away from its
 default at least once.
 
-    python -m benchmarks.entry_digests --write FILE     # record
-    python -m benchmarks.entry_digests --check FILE     # compare (exit 1, naming each case)
-    python -m benchmarks.entry_digests --list [-v]      # the cases (-v: run each, with times)
-    ... -k SUBSTRING                                    # only the cases whose name contains it
+    python -m benchmarks.entry_digests --check FILE         # compare (exit 1, naming each case)
+    python -m benchmarks.entry_digests --add FILE NAME ...  # record new cases into FILE
+    python -m benchmarks.entry_digests --write FILE         # record every case (a new FILE)
+    python -m benchmarks.entry_digests --list [-v]          # the cases (-v: run each, timed)
+    ... -k SUBSTRING                                        # --check, --list: only the cases
+                                                            # whose name contains it
 
-The guard of a refactor of the public signatures (issue 38: the raster state and the
-techniques' option groups as values): recorded with the old code (a469114), the cases
-translated to the new API where they stand, every digest unchanged.
-``--check`` names every case whose outputs differ (and which ones), every case the file has
-and the module not (MISSING) and the reverse (NEW).
+FILE is ``benchmarks/entry_digests.json``, the baseline.
+
+The guard of the public signatures: a change of the API (issue 38: the raster state and the
+techniques' option groups as values) translates the cases where they stand and must leave
+every digest as it was. ``--check`` names every case whose outputs differ (and which
+outputs), every case that raised, every case the file has and the module not (MISSING) and
+the reverse (NEW). Run it under ``NUMBA_NUM_THREADS`` (and ``REFRASTER_THREADS``) ``=1`` and
+``=2``: the outputs are the same for any thread count.
+
+The baseline ``benchmarks/entry_digests.json`` was recorded at a469114, with the keywords of
+that API (``render(normals=array, cull=..., depth_func=...)``, ``render_clipped(cap_style=...)``,
+``render_cutaway(angle=..., ghost_distance=...)``, ``render_halos(rotation=..., opacity=...)``,
+``npr.render_mirrored(reflectance=...)``); the cases now pass ``raster=RasterState(...)``,
+``caps=Caps(...)``, ``Cutaway``/``CutSurfaces``/``GhostLines``, ``View4D``/``Halos``/
+``HaloStyle`` and ``MirrorStyle``, a given normal array as a ``(vertices, faces, normals)``
+triple or ``Mesh`` rendered with ``normals="smooth"``, with the same digests. **The file is
+rewritten (``--write``) only when an issue says that outputs change**, and the commit names
+the cases that changed and why; a refactor never rewrites it, and a new case is recorded with
+``--add FILE NAME ...``, which refuses a name the file already has. Recorded with ``--add``
+(the old API had no such option): ``render_front_face_cw``,
+``render_front_face_cw_cull_back``, ``render_depth_write_false``.
 
 Each case is one small function ``case_NAME()`` whose calls are written out, so an API change
 translates each case where it stands; it returns its outputs as ``{name: value}``, result
@@ -30,12 +48,11 @@ a neighbour it differs from (``*_defaults`` or a named base: ``render_twice``,
 depth, edges through pixel centres, seeds near the border, a non-rigid view for
 ``space="eye"``). Equal by design: ``fill_rule="bottom-left"`` and the default
 (``"llvmpipe"``); ``RasterState(normals="flat")`` and the default state;
-``Cutaway(edge_compression=None)`` and ``0``;
-the two halo engines; a duck-typed ``vds`` and a sprite; ``out=`` and a fresh framebuffer.
+``Cutaway(edge_compression=None)`` and ``0``; the two halo engines; a duck-typed ``vds`` and
+a sprite; ``out=`` and a fresh framebuffer.
 
 Frames are at most 128×96 (halos 48×40, 12 slices); a warm run takes well under a minute on
-one core. The outputs are the same for any thread count: check under ``NUMBA_NUM_THREADS``
-(and ``REFRASTER_THREADS``) ``=1`` and ``=2``.
+one core.
 """
 
 from __future__ import annotations
@@ -404,6 +421,32 @@ def case_render_many_options():
                                                fill_rule="bottom-left"),
                          model=[_turn(0.3, [0, 1, 0]), _shift(0.2, -0.1, 0.1)],
                          background=(0.0, 0.0, 0.0)))
+
+
+# RasterState fields the old keywords did not have: recorded on the new API (--add), not at
+# a469114
+
+
+def case_render_front_face_cw():
+    """Clockwise front faces, nothing culled: :func:`case_render_open_torus` with
+    ``front_facing`` turned over (the only output that differs)."""
+    import refraster as rf
+    return _of(rf.render(_open_torus(), **_cam(), raster=rf.RasterState(front_face="cw")))
+
+
+def case_render_front_face_cw_cull_back():
+    """Clockwise front faces, the back culled: :func:`case_render_cull_front`'s pixels, seen
+    as front faces (``front_facing`` is the only output that differs)."""
+    import refraster as rf
+    return _of(rf.render(_open_torus(), **_cam(),
+                         raster=rf.RasterState(front_face="cw", cull="back")))
+
+
+def case_render_depth_write_false():
+    """No depth writes on the open torus drawn twice: each fragment is tested against the
+    cleared depth, so the last one drawn wins (the fragment stream's resolve)."""
+    import refraster as rf
+    return _of(rf.render(_twice(), **_cam(), raster=rf.RasterState(depth_write=False)))
 
 
 # ============================================================================== draw, resolve,
@@ -1922,15 +1965,47 @@ def run(selected, verbose=False, catch=False):
     return res, times, errors
 
 
+def _add(ap, path, names, k):
+    """``--add FILE NAME…``: run the named cases and add their digests to FILE; refuses a name
+    FILE already has (an existing digest is never rewritten) and a name that is no case."""
+    if k is not None:
+        ap.error("--add takes case names, not -k")
+    if not names:
+        ap.error("--add FILE needs the NAMEs of the new cases")
+    known = cases()
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        ap.error(f"no such case: {', '.join(unknown)}")
+    with open(path) as fh:
+        ref = json.load(fh)
+    present = [n for n in names if n in ref]
+    if present:
+        ap.error(f"{path} already has {', '.join(present)}: --add never rewrites a digest")
+    res, _, _ = run({n: known[n] for n in dict.fromkeys(names)})
+    ref.update(res)
+    with open(path, "w") as fh:
+        json.dump(ref, fh, indent=1, sort_keys=True)
+        fh.write("\n")
+    print(f"{len(res)} cases added to {path} ({len(ref)} cases)")
+    return 0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     g = ap.add_mutually_exclusive_group(required=True)
-    g.add_argument("--write", metavar="FILE")
-    g.add_argument("--check", metavar="FILE")
-    g.add_argument("--list", action="store_true")
+    g.add_argument("--write", metavar="FILE", help="record every case (a new file)")
+    g.add_argument("--check", metavar="FILE", help="compare with FILE (exit 1 on a difference)")
+    g.add_argument("--add", metavar="FILE",
+                   help="record only the NAMEd cases into FILE, which must not have them yet")
+    g.add_argument("--list", action="store_true", help="the cases' names")
+    ap.add_argument("names", nargs="*", metavar="NAME", help="with --add: the new cases")
     ap.add_argument("-k", metavar="SUBSTRING", help="only the cases whose name contains it")
     ap.add_argument("-v", "--verbose", action="store_true", help="per-case times")
     a = ap.parse_args(argv)
+    if a.add is not None:
+        return _add(ap, a.add, a.names, a.k)
+    if a.names:
+        ap.error("case names are only taken by --add")
     selected = {k: v for k, v in cases().items() if a.k is None or a.k in k}
     if a.list and not a.verbose:
         for name in selected:
