@@ -1,15 +1,34 @@
 """SHA-256 digests of what every technique's entry point returns, each option away from its
 default at least once.
 
-    python -m benchmarks.entry_digests --write FILE     # record
-    python -m benchmarks.entry_digests --check FILE     # compare (exit 1, naming each case)
-    python -m benchmarks.entry_digests --list [-v]      # the cases (-v: run each, with times)
-    ... -k SUBSTRING                                    # only the cases whose name contains it
+    python -m benchmarks.entry_digests --check FILE         # compare (exit 1, naming each case)
+    python -m benchmarks.entry_digests --add FILE NAME ...  # record new cases into FILE
+    python -m benchmarks.entry_digests --write FILE         # record every case (a new FILE)
+    python -m benchmarks.entry_digests --list [-v]          # the cases (-v: run each, timed)
+    ... -k SUBSTRING                                        # --check, --list: only the cases
+                                                            # whose name contains it
 
-The guard of a refactor of the public signatures (issue 38: the raster state and the
-techniques' option groups as values): record with the old code, check with the new.
-``--check`` names every case whose outputs differ (and which ones), every case the file has
-and the module not (MISSING) and the reverse (NEW).
+FILE is ``benchmarks/entry_digests.json``, the baseline.
+
+The guard of the public signatures: a change of the API (issue 38: the raster state and the
+techniques' option groups as values) translates the cases where they stand and must leave
+every digest as it was. ``--check`` names every case whose outputs differ (and which
+outputs), every case that raised, every case the file has and the module not (MISSING) and
+the reverse (NEW). Run it under ``NUMBA_NUM_THREADS`` (and ``REFRASTER_THREADS``) ``=1`` and
+``=2``: the outputs are the same for any thread count.
+
+The baseline ``benchmarks/entry_digests.json`` was recorded at a469114, with the keywords of
+that API (``render(normals=array, cull=..., depth_func=...)``, ``render_clipped(cap_style=...)``,
+``render_cutaway(angle=..., ghost_distance=...)``, ``render_halos(rotation=..., opacity=...)``,
+``npr.render_mirrored(reflectance=...)``); the cases now pass ``raster=RasterState(...)``,
+``caps=Caps(...)``, ``Cutaway``/``CutSurfaces``/``GhostLines``, ``View4D``/``Halos``/
+``HaloStyle`` and ``MirrorStyle``, a given normal array as a ``(vertices, faces, normals)``
+triple or ``Mesh`` rendered with ``normals="smooth"``, with the same digests. **The file is
+rewritten (``--write``) only when an issue says that outputs change**, and the commit names
+the cases that changed and why; a refactor never rewrites it, and a new case is recorded with
+``--add FILE NAME ...``, which refuses a name the file already has. Recorded with ``--add``
+(the old API had no such option): ``render_front_face_cw``,
+``render_front_face_cw_cull_back``, ``render_depth_write_false``.
 
 Each case is one small function ``case_NAME()`` whose calls are written out, so an API change
 translates each case where it stands; it returns its outputs as ``{name: value}``, result
@@ -21,19 +40,19 @@ Covered: ``refraster.render``, ``draw``, ``resolve``, ``rasterize``,
 ``Framebuffer.from_fragments``; ``refraster.ldi`` (``peel``, ``peel_fragments``, the volumetric
 depth sprite, ``parity_at``); ``refraster.clipsurface.render_clipped``;
 ``refraster.cutaway.render_cutaway``; ``refraster.halos4d.render_halos`` and
-``render_halos_pair``; ``refraster.npr.render_mirrored`` and the NPR styles;
+``render_halos_pair``; ``refraster.edges.npr.render_mirrored`` and the NPR styles;
 ``refraster.edges`` (``edge_gbuffer``, ``edge_map``, ``classify_edges``). Each option case has
 a neighbour it differs from (``*_defaults`` or a named base: ``render_twice``,
 ``render_ties``, ``cut_view2``, ``cut_edge_stand_in``, ``clip_vds_resolution_64``,
 ``mirror_model`` …), with scenes chosen so that the option changes bytes (ties at equal
 depth, edges through pixel centres, seeds near the border, a non-rigid view for
 ``space="eye"``). Equal by design: ``fill_rule="bottom-left"`` and the default
-(``"llvmpipe"``); ``normals="flat"`` and ``None``; ``edge_compression`` ``None`` and ``0``;
-the two halo engines; a duck-typed ``vds`` and a sprite; ``out=`` and a fresh framebuffer.
+(``"llvmpipe"``); ``RasterState(normals="flat")`` and the default state;
+``Cutaway(edge_compression=None)`` and ``0``; the two halo engines; a duck-typed ``vds`` and
+a sprite; ``out=`` and a fresh framebuffer.
 
 Frames are at most 128×96 (halos 48×40, 12 slices); a warm run takes well under a minute on
-one core. The outputs are the same for any thread count: check under ``NUMBA_NUM_THREADS``
-(and ``REFRASTER_THREADS``) ``=1`` and ``=2``.
+one core.
 """
 
 from __future__ import annotations
@@ -203,9 +222,10 @@ def _unit(v):
 
 
 # ============================================================================== refraster.render
-# defaults: normals=None, cull="none", depth_func="less", model=None, precision="float32",
-# subpixel_bits=8, fill_rule="llvmpipe", fragment_stage=None, clear_depth=1.0,
-# background=(1, 1, 1), out=None
+# defaults: raster=None (RasterState(): depth_func="less", depth_write=True, clear_depth=1.0,
+# cull="none", front_face="ccw", subpixel_bits=8, fill_rule="llvmpipe", precision="float32",
+# normals="flat"), model=None, fragment_stage=None, background=(1, 1, 1), out=None; a mesh's
+# own normals: (vertices, faces, normals) or Mesh(v, f, n), used with normals="smooth"
 
 
 def case_render_defaults():
@@ -227,34 +247,38 @@ def _twice():
 
 def case_render_normals_flat():
     import refraster as rf
-    return _of(rf.render(_torus(), **_cam(), normals="flat"))
+    return _of(rf.render(_torus(), **_cam(), raster=rf.RasterState(normals="flat")))
 
 
 def case_render_normals_smooth():
     import refraster as rf
-    return _of(rf.render(_torus(), **_cam(), normals="smooth"))
+    return _of(rf.render(_torus(), **_cam(), raster=rf.RasterState(normals="smooth")))
 
 
 def case_render_normals_array():
+    """Given vertex normals (once ``normals=array``): a ``(vertices, faces, normals)`` triple
+    rendered with ``normals="smooth"``."""
     import refraster as rf
-    return _of(rf.render(_torus(), **_cam(), normals=_unit(_torus()[0])))
+    return _of(rf.render((*_torus(), _unit(_torus()[0])), **_cam(),
+                         raster=rf.RasterState(normals="smooth")))
 
 
 def case_render_normals_list():
+    """Given vertex normals per draw call (once ``normals=[array, ...]``): one triple each."""
     import refraster as rf
-    return _of(rf.render([_torus(), _ico()], **_cam(),
+    return _of(rf.render([(*_torus(), _unit(_torus()[0])), (*_ico(), _unit(_ico()[0]))], **_cam(),
                          model=[np.eye(4), _shift(0.3, 0.2, -0.4)],
-                         normals=[_unit(_torus()[0]), _unit(_ico()[0])]))
+                         raster=rf.RasterState(normals="smooth")))
 
 
 def case_render_cull_back():
     import refraster as rf
-    return _of(rf.render(_open_torus(), **_cam(), cull="back"))
+    return _of(rf.render(_open_torus(), **_cam(), raster=rf.RasterState(cull="back")))
 
 
 def case_render_cull_front():
     import refraster as rf
-    return _of(rf.render(_open_torus(), **_cam(), cull="front"))
+    return _of(rf.render(_open_torus(), **_cam(), raster=rf.RasterState(cull="front")))
 
 
 def case_render_twice():
@@ -265,32 +289,34 @@ def case_render_twice():
 
 def case_render_depth_func_lequal():
     import refraster as rf
-    return _of(rf.render(_twice(), **_cam(), depth_func="lequal"))
+    return _of(rf.render(_twice(), **_cam(), raster=rf.RasterState(depth_func="lequal")))
 
 
 def case_render_depth_func_greater():
     import refraster as rf
-    return _of(rf.render(_twice(), **_cam(), depth_func="greater", clear_depth=0.0))
+    return _of(rf.render(_twice(), **_cam(),
+                         raster=rf.RasterState(depth_func="greater", clear_depth=0.0)))
 
 
 def case_render_depth_func_gequal():
     import refraster as rf
-    return _of(rf.render(_twice(), **_cam(), depth_func="gequal", clear_depth=0.0))
+    return _of(rf.render(_twice(), **_cam(),
+                         raster=rf.RasterState(depth_func="gequal", clear_depth=0.0)))
 
 
 def case_render_depth_func_notequal():
     import refraster as rf
-    return _of(rf.render(_twice(), **_cam(), depth_func="notequal"))
+    return _of(rf.render(_twice(), **_cam(), raster=rf.RasterState(depth_func="notequal")))
 
 
 def case_render_depth_func_always():
     import refraster as rf
-    return _of(rf.render(_twice(), **_cam(), depth_func="always"))
+    return _of(rf.render(_twice(), **_cam(), raster=rf.RasterState(depth_func="always")))
 
 
 def case_render_depth_func_never():
     import refraster as rf
-    return _of(rf.render(_twice(), **_cam(), depth_func="never"))
+    return _of(rf.render(_twice(), **_cam(), raster=rf.RasterState(depth_func="never")))
 
 
 def case_render_depth_func_equal():
@@ -303,12 +329,13 @@ def case_render_depth_func_equal():
     plain = rf.render(quad, **cam)
     z = float(plain.depth[24, 32])
     return {"plain_depth": plain.depth,
-            **_of(rf.render(quad, **cam, depth_func="equal", clear_depth=z))}
+            **_of(rf.render(quad, **cam,
+                            raster=rf.RasterState(depth_func="equal", clear_depth=z)))}
 
 
 def case_render_clear_depth():
     import refraster as rf
-    return _of(rf.render(_torus(), **_cam(), clear_depth=0.62))
+    return _of(rf.render(_torus(), **_cam(), raster=rf.RasterState(clear_depth=0.62)))
 
 
 def case_render_model_one():
@@ -319,17 +346,17 @@ def case_render_model_one():
 def case_render_model_list():
     import refraster as rf
     return _of(rf.render([_cube(), _ico()], **_cam(), model=[np.eye(4), _shift(0.4, 0.1, -0.3)],
-                         normals="smooth"))
+                         raster=rf.RasterState(normals="smooth")))
 
 
 def case_render_precision_float64():
     import refraster as rf
-    return _of(rf.render(_torus(), **_cam(), precision="float64"))
+    return _of(rf.render(_torus(), **_cam(), raster=rf.RasterState(precision="float64")))
 
 
 def case_render_subpixel_bits_4():
     import refraster as rf
-    return _of(rf.render(_torus(), **_cam(), subpixel_bits=4))
+    return _of(rf.render(_torus(), **_cam(), raster=rf.RasterState(subpixel_bits=4)))
 
 
 def case_render_ties():
@@ -340,17 +367,17 @@ def case_render_ties():
 
 def case_render_fill_rule_top_left():
     import refraster as rf
-    return _of(rf.render(_ties(), **_tie_cam(), fill_rule="top-left"))
+    return _of(rf.render(_ties(), **_tie_cam(), raster=rf.RasterState(fill_rule="top-left")))
 
 
 def case_render_fill_rule_bottom_left():
     import refraster as rf
-    return _of(rf.render(_ties(), **_tie_cam(), fill_rule="bottom-left"))
+    return _of(rf.render(_ties(), **_tie_cam(), raster=rf.RasterState(fill_rule="bottom-left")))
 
 
 def case_render_fragment_stage():
     import refraster as rf
-    return _of(rf.render(_torus(), **_cam(), normals="smooth",
+    return _of(rf.render(_torus(), **_cam(), raster=rf.RasterState(normals="smooth"),
                          fragment_stage=lambda fr: fr.depth < 0.9))
 
 
@@ -358,9 +385,11 @@ def case_render_fragment_stage_options():
     """The stream path with the other options: cull, depth function, clear, precision, bits,
     fill rule, models, background."""
     import refraster as rf
-    return _of(rf.render([_torus(), _ico()], **_cam(), cull="back", depth_func="lequal",
-                         clear_depth=0.95, precision="float64", subpixel_bits=4,
-                         fill_rule="top-left", model=[np.eye(4), _shift(0.3, 0, 0.2)],
+    return _of(rf.render([_torus(), _ico()], **_cam(),
+                         raster=rf.RasterState(cull="back", depth_func="lequal",
+                                               clear_depth=0.95, precision="float64",
+                                               subpixel_bits=4, fill_rule="top-left"),
+                         model=[np.eye(4), _shift(0.3, 0, 0.2)],
                          background=(0.1, 0.2, 0.3),
                          fragment_stage=lambda fr: fr.prim_id % 3 != 0))
 
@@ -373,30 +402,59 @@ def case_render_background():
 def case_render_out():
     import refraster as rf
     out = rf.render(_ico(), **_cam())             # an earlier frame of another scene
-    return _of(rf.render(_torus(), **_cam(), normals="smooth", out=out))
+    return _of(rf.render(_torus(), **_cam(), raster=rf.RasterState(normals="smooth"), out=out))
 
 
 def case_render_out_reusable():
     import refraster as rf
     out = rf.Framebuffer.reusable(96, 72)
     rf.render(_ico(), **_cam(), out=out)          # the frame before: clears its spans
-    return _of(rf.render(_open_torus(), **_cam(), cull="back", out=out))
+    return _of(rf.render(_open_torus(), **_cam(), raster=rf.RasterState(cull="back"), out=out))
 
 
 def case_render_many_options():
     import refraster as rf
-    return _of(rf.render([_torus(), _cube()], **_cam(128, 96), normals="smooth", cull="front",
-                         depth_func="gequal", clear_depth=0.0, precision="float64",
-                         subpixel_bits=4, fill_rule="bottom-left",
+    return _of(rf.render([_torus(), _cube()], **_cam(128, 96),
+                         raster=rf.RasterState(normals="smooth", cull="front",
+                                               depth_func="gequal", clear_depth=0.0,
+                                               precision="float64", subpixel_bits=4,
+                                               fill_rule="bottom-left"),
                          model=[_turn(0.3, [0, 1, 0]), _shift(0.2, -0.1, 0.1)],
                          background=(0.0, 0.0, 0.0)))
 
 
+# RasterState fields the old keywords did not have: recorded on the new API (--add), not at
+# a469114
+
+
+def case_render_front_face_cw():
+    """Clockwise front faces, nothing culled: :func:`case_render_open_torus` with
+    ``front_facing`` turned over (the only output that differs)."""
+    import refraster as rf
+    return _of(rf.render(_open_torus(), **_cam(), raster=rf.RasterState(front_face="cw")))
+
+
+def case_render_front_face_cw_cull_back():
+    """Clockwise front faces, the back culled: :func:`case_render_cull_front`'s pixels, seen
+    as front faces (``front_facing`` is the only output that differs)."""
+    import refraster as rf
+    return _of(rf.render(_open_torus(), **_cam(),
+                         raster=rf.RasterState(front_face="cw", cull="back")))
+
+
+def case_render_depth_write_false():
+    """No depth writes on the open torus drawn twice: each fragment is tested against the
+    cleared depth, so the last one drawn wins (the fragment stream's resolve)."""
+    import refraster as rf
+    return _of(rf.render(_twice(), **_cam(), raster=rf.RasterState(depth_write=False)))
+
+
 # ============================================================================== draw, resolve,
 # rasterize, Framebuffer.from_fragments
-# draw defaults: model=None, cull="none", precision="float32", subpixel_bits=8,
-# fill_rule="llvmpipe"; resolve: depth_func="less", depth_write=True, keep=None,
-# clear_depth=1.0; rasterize: cull="none", subpixel_bits=8, fill_rule="llvmpipe"
+# draw defaults: model=None, raster=None (its cull, front_face, precision, subpixel_bits,
+# fill_rule); resolve: raster=None (its depth_func, depth_write, clear_depth), keep=None;
+# rasterize: raster=None (its cull, front_face, subpixel_bits, fill_rule);
+# Framebuffer.from_fragments: raster=None (its normals), background=(1, 1, 1)
 
 
 def _two_draws():
@@ -428,22 +486,22 @@ def case_draw_model_one():
 
 def case_draw_cull_back():
     import refraster as rf
-    return _frags(rf.draw(_open_torus(), **_cam(), cull="back"))
+    return _frags(rf.draw(_open_torus(), **_cam(), raster=rf.RasterState(cull="back")))
 
 
 def case_draw_cull_front():
     import refraster as rf
-    return _frags(rf.draw(_open_torus(), **_cam(), cull="front"))
+    return _frags(rf.draw(_open_torus(), **_cam(), raster=rf.RasterState(cull="front")))
 
 
 def case_draw_precision_float64():
     import refraster as rf
-    return _frags(rf.draw(_torus(), **_cam(), precision="float64"))
+    return _frags(rf.draw(_torus(), **_cam(), raster=rf.RasterState(precision="float64")))
 
 
 def case_draw_subpixel_bits_4():
     import refraster as rf
-    return _frags(rf.draw(_torus(), **_cam(), subpixel_bits=4))
+    return _frags(rf.draw(_torus(), **_cam(), raster=rf.RasterState(subpixel_bits=4)))
 
 
 def case_draw_ties():
@@ -453,12 +511,12 @@ def case_draw_ties():
 
 def case_draw_fill_rule_top_left():
     import refraster as rf
-    return _frags(rf.draw(_ties(), **_tie_cam(), fill_rule="top-left"))
+    return _frags(rf.draw(_ties(), **_tie_cam(), raster=rf.RasterState(fill_rule="top-left")))
 
 
 def case_draw_fill_rule_bottom_left():
     import refraster as rf
-    return _frags(rf.draw(_ties(), **_tie_cam(), fill_rule="bottom-left"))
+    return _frags(rf.draw(_ties(), **_tie_cam(), raster=rf.RasterState(fill_rule="bottom-left")))
 
 
 def case_draw_interpolate():
@@ -474,43 +532,46 @@ def case_resolve_defaults():
 
 def case_resolve_depth_func_lequal():
     import refraster as rf
-    return _of(rf.resolve(_dup_draws(), depth_func="lequal"))
+    return _of(rf.resolve(_dup_draws(), raster=rf.RasterState(depth_func="lequal")))
 
 
 def case_resolve_depth_func_greater():
     import refraster as rf
-    return _of(rf.resolve(_dup_draws(), depth_func="greater", clear_depth=0.0))
+    return _of(rf.resolve(_dup_draws(),
+                          raster=rf.RasterState(depth_func="greater", clear_depth=0.0)))
 
 
 def case_resolve_depth_func_gequal():
     import refraster as rf
-    return _of(rf.resolve(_dup_draws(), depth_func="gequal", clear_depth=0.0))
+    return _of(rf.resolve(_dup_draws(),
+                          raster=rf.RasterState(depth_func="gequal", clear_depth=0.0)))
 
 
 def case_resolve_depth_func_equal():
     import refraster as rf
     fr = _two_draws()
-    return _of(rf.resolve(fr, depth_func="equal", clear_depth=float(fr.depth[len(fr) // 2])))
+    return _of(rf.resolve(fr, raster=rf.RasterState(depth_func="equal",
+                                                    clear_depth=float(fr.depth[len(fr) // 2]))))
 
 
 def case_resolve_depth_func_notequal():
     import refraster as rf
-    return _of(rf.resolve(_dup_draws(), depth_func="notequal"))
+    return _of(rf.resolve(_dup_draws(), raster=rf.RasterState(depth_func="notequal")))
 
 
 def case_resolve_depth_func_always():
     import refraster as rf
-    return _of(rf.resolve(_dup_draws(), depth_func="always"))
+    return _of(rf.resolve(_dup_draws(), raster=rf.RasterState(depth_func="always")))
 
 
 def case_resolve_depth_func_never():
     import refraster as rf
-    return _of(rf.resolve(_dup_draws(), depth_func="never"))
+    return _of(rf.resolve(_dup_draws(), raster=rf.RasterState(depth_func="never")))
 
 
 def case_resolve_depth_write_false():
     import refraster as rf
-    return _of(rf.resolve(_dup_draws(), depth_write=False))
+    return _of(rf.resolve(_dup_draws(), raster=rf.RasterState(depth_write=False)))
 
 
 def case_resolve_keep():
@@ -521,14 +582,15 @@ def case_resolve_keep():
 
 def case_resolve_clear_depth():
     import refraster as rf
-    return _of(rf.resolve(_two_draws(), clear_depth=0.7))
+    return _of(rf.resolve(_two_draws(), raster=rf.RasterState(clear_depth=0.7)))
 
 
 def case_resolve_all_options():
     import refraster as rf
     fr = _two_draws()
-    return _of(rf.resolve(fr, depth_func="greater", depth_write=False, keep=fr.depth > 0.3,
-                          clear_depth=0.5))
+    return _of(rf.resolve(fr, raster=rf.RasterState(depth_func="greater", depth_write=False,
+                                                    clear_depth=0.5),
+                          keep=fr.depth > 0.3))
 
 
 def case_from_fragments_defaults():
@@ -540,8 +602,9 @@ def case_from_fragments_defaults():
 def case_from_fragments_options():
     import refraster as rf
     fr = _two_draws()
-    return _of(rf.Framebuffer.from_fragments(fr, rf.resolve(fr, depth_func="lequal"),
-                                             normals="smooth", background=(0.3, 0.3, 0.1)))
+    return _of(rf.Framebuffer.from_fragments(
+        fr, rf.resolve(fr, raster=rf.RasterState(depth_func="lequal")),
+        raster=rf.RasterState(normals="smooth"), background=(0.3, 0.3, 0.1)))
 
 
 def _clip_of_torus(mesh=None, w=96, h=72):
@@ -564,17 +627,19 @@ def case_rasterize_float32_clip():
 
 def case_rasterize_cull_back():
     import refraster as rf
-    return _frags(rf.rasterize(*_clip_of_torus(_open_torus()), 96, 72, cull="back"))
+    return _frags(rf.rasterize(*_clip_of_torus(_open_torus()), 96, 72,
+                               raster=rf.RasterState(cull="back")))
 
 
 def case_rasterize_cull_front():
     import refraster as rf
-    return _frags(rf.rasterize(*_clip_of_torus(_open_torus()), 96, 72, cull="front"))
+    return _frags(rf.rasterize(*_clip_of_torus(_open_torus()), 96, 72,
+                               raster=rf.RasterState(cull="front")))
 
 
 def case_rasterize_subpixel_bits_4():
     import refraster as rf
-    return _frags(rf.rasterize(*_clip_of_torus(), 96, 72, subpixel_bits=4))
+    return _frags(rf.rasterize(*_clip_of_torus(), 96, 72, raster=rf.RasterState(subpixel_bits=4)))
 
 
 def _clip_of_ties():
@@ -590,19 +655,21 @@ def case_rasterize_ties():
 
 def case_rasterize_fill_rule_top_left():
     import refraster as rf
-    return _frags(rf.rasterize(*_clip_of_ties(), 64, 48, fill_rule="top-left"))
+    return _frags(rf.rasterize(*_clip_of_ties(), 64, 48,
+                               raster=rf.RasterState(fill_rule="top-left")))
 
 
 def case_rasterize_fill_rule_bottom_left():
     import refraster as rf
-    return _frags(rf.rasterize(*_clip_of_ties(), 64, 48, fill_rule="bottom-left"))
+    return _frags(rf.rasterize(*_clip_of_ties(), 64, 48,
+                               raster=rf.RasterState(fill_rule="bottom-left")))
 
 
 # ============================================================================== refraster.ldi
-# peel defaults: max_layers=None, mode="peel", model=None, cull="none", precision="float32",
-# subpixel_bits=8, fill_rule="llvmpipe"; peel_fragments: max_layers=None, mode="peel";
-# VolumetricDepthSprite.from_mesh: resolution=256, axis="z", margin=2, strict=False,
-# precision="float32"; contains / fragment_stage: rule="parity"
+# peel defaults: max_layers=None, mode="peel", model=None, raster=None (its cull,
+# front_face, precision, subpixel_bits, fill_rule); peel_fragments: max_layers=None,
+# mode="peel"; VolumetricDepthSprite.from_mesh: resolution=256, axis="z", margin=2,
+# strict=False, raster=None (its precision); contains / fragment_stage: rule="parity"
 
 
 def _peel_scene():
@@ -634,33 +701,34 @@ def case_ldi_peel_model_one():
 
 
 def case_ldi_peel_cull_back():
-    from refraster import ldi
-    return _of(ldi.peel(_open_torus(), **_cam(), cull="back"))
+    from refraster import RasterState, ldi
+    return _of(ldi.peel(_open_torus(), **_cam(), raster=RasterState(cull="back")))
 
 
 def case_ldi_peel_cull_front():
-    from refraster import ldi
-    return _of(ldi.peel(_open_torus(), **_cam(), cull="front"))
+    from refraster import RasterState, ldi
+    return _of(ldi.peel(_open_torus(), **_cam(), raster=RasterState(cull="front")))
 
 
 def case_ldi_peel_precision_float64():
-    from refraster import ldi
-    return _of(ldi.peel(_torus(), **_cam(), precision="float64"))
+    from refraster import RasterState, ldi
+    return _of(ldi.peel(_torus(), **_cam(), raster=RasterState(precision="float64")))
 
 
 def case_ldi_peel_subpixel_bits_4():
-    from refraster import ldi
-    return _of(ldi.peel(_torus(), **_cam(), subpixel_bits=4))
+    from refraster import RasterState, ldi
+    return _of(ldi.peel(_torus(), **_cam(), raster=RasterState(subpixel_bits=4)))
 
 
 def case_ldi_peel_fill_rule_top_left():
-    from refraster import ldi
-    return _of(ldi.peel(_ties(), **_tie_cam(), fill_rule="top-left"))
+    from refraster import RasterState, ldi
+    return _of(ldi.peel(_ties(), **_tie_cam(), raster=RasterState(fill_rule="top-left")))
 
 
 def case_ldi_peel_fill_rule_bottom_left():
-    from refraster import ldi
-    return _of(ldi.peel([_ties(), _ties()], **_tie_cam(), fill_rule="bottom-left", mode="all"))
+    from refraster import RasterState, ldi
+    return _of(ldi.peel([_ties(), _ties()], **_tie_cam(),
+                        raster=RasterState(fill_rule="bottom-left"), mode="all"))
 
 
 def case_ldi_peel_fragments_defaults():
@@ -733,9 +801,10 @@ def case_ldi_vds_strict():
 
 
 def case_ldi_vds_precision_float64():
+    from refraster import RasterState
     from refraster.ldi import VolumetricDepthSprite
     return _sprite(VolumetricDepthSprite.from_mesh(_shells(), resolution=40,
-                                                   precision="float64"))
+                                                   raster=RasterState(precision="float64")))
 
 
 def case_ldi_vds_not_watertight():
@@ -776,10 +845,10 @@ def case_ldi_parity_at():
 
 
 # ============================================================================== render_clipped
-# defaults: caps=True, cap_style="diffuse", cap_mode="mesh", cap_color=(0.80, 0.30, 0.25),
-# hatch_spacing=None, texture_frequency=4.0, space="world", model=None, normals=None,
-# cull="none", precision="float32", subdivision=1, vds=None, vds_resolution=1024,
-# occlusion_radius=None, background=(1, 1, 1), solid_texture=None
+# defaults: caps=Caps() (style="diffuse", mode="mesh", color=(0.80, 0.30, 0.25),
+# hatch_spacing=None, texture_frequency=4.0, subdivision=1, occlusion_radius=None,
+# solid_texture=None, vds_resolution=1024; caps=None: no caps), space="world", model=None,
+# normals=None, cull="none", precision="float32", vds=None, background=(1, 1, 1)
 
 
 def _surface(**kw):
@@ -822,37 +891,38 @@ def case_clip_defaults():
 def case_clip_vds_resolution_64():
     """The sprite's resolution the other box cases use (64): what their options differ
     from."""
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(), caps=Caps(vds_resolution=64)))
 
 
 def case_clip_caps_false():
+    """No caps (once ``caps=False``): ``caps=None``."""
     from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), caps=False))
+    return _of(render_clipped(_box(), _surface(), **_ccam(), caps=None))
 
 
 def case_clip_cap_style_hatch():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
-                              cap_style="hatch"))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(style="hatch", vds_resolution=64)))
 
 
 def case_clip_cap_style_marble():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
-                              cap_style="marble"))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(style="marble", vds_resolution=64)))
 
 
 def case_clip_cap_style_wood():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
-                              cap_style="wood"))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(style="wood", vds_resolution=64)))
 
 
 def case_clip_cap_style_noise():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
-                              cap_style="noise"))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(style="noise", vds_resolution=64)))
 
 
 def _volume():
@@ -861,48 +931,51 @@ def _volume():
 
 
 def case_clip_cap_style_solid_array():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
-                              cap_style="solid", solid_texture=_volume()))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(style="solid", solid_texture=_volume(),
+                                        vds_resolution=64)))
 
 
 def case_clip_cap_style_solid_texture():
-    from refraster.clipsurface import render_clipped
+    from refraster.clipsurface import Caps, render_clipped
     from refraster.clipsurface.textures import SolidTexture
     tex = SolidTexture(_volume()[..., 0], origin=(-0.5, -0.5, -0.5), size=(0.7, 0.6, 0.5),
                        wrap="mirrored_repeat")
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
-                              cap_style="solid", solid_texture=tex, model=_shift(0.1, 0, 0)))
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(style="solid", solid_texture=tex, vds_resolution=64),
+                              model=_shift(0.1, 0, 0)))
 
 
 def case_clip_cap_mode_exact():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
-                              cap_mode="exact"))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(mode="exact", vds_resolution=64)))
 
 
 def case_clip_cap_mode_exact_hatch_duck():
-    from refraster.clipsurface import render_clipped
+    from refraster.clipsurface import Caps, render_clipped
     return _of(render_clipped(_box(), _surface(), **_ccam(), vds=[_BoxContains()],
-                              cap_mode="exact", cap_style="hatch", hatch_spacing=0.05))
+                              caps=Caps(style="hatch", mode="exact", hatch_spacing=0.05)))
 
 
 def case_clip_cap_color():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
-                              cap_color=(0.1, 0.6, 0.9)))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(color=(0.1, 0.6, 0.9), vds_resolution=64)))
 
 
 def case_clip_hatch_spacing():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
-                              cap_style="hatch", hatch_spacing=0.04, cap_color=(0.0, 0.2, 0.0)))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(style="hatch", color=(0.0, 0.2, 0.0),
+                                        hatch_spacing=0.04, vds_resolution=64)))
 
 
 def case_clip_texture_frequency():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
-                              cap_style="marble", texture_frequency=9.0))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(style="marble", texture_frequency=9.0, vds_resolution=64)))
 
 
 def _scaled_view():
@@ -912,59 +985,62 @@ def _scaled_view():
 
 
 def case_clip_scaled_view():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_scaled_view(), vds_resolution=64))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_scaled_view(), caps=Caps(vds_resolution=64)))
 
 
 def case_clip_space_eye():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_scaled_view(), vds_resolution=64,
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_scaled_view(), caps=Caps(vds_resolution=64),
                               space="eye"))
 
 
 def case_clip_model():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(), caps=Caps(vds_resolution=64),
                               model=_turn(0.4, [0, 1, 0]) @ _shift(0.05, 0.0, 0.0)))
 
 
 def case_clip_model_list_two_solids():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped([_box(), _box()], _surface(), **_ccam(), vds_resolution=64,
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped([_box(), _box()], _surface(), **_ccam(), caps=Caps(vds_resolution=64),
                               model=[_shift(-0.3, 0, 0), _shift(0.4, 0.2, -0.3)]))
 
 
 def case_clip_normals_flat():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_ico(), _surface(), **_ccam(), vds_resolution=64,
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_ico(), _surface(), **_ccam(), caps=Caps(vds_resolution=64),
                               normals="flat"))
 
 
 def case_clip_normals_smooth():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_ico(), _surface(), **_ccam(), vds_resolution=64,
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_ico(), _surface(), **_ccam(), caps=Caps(vds_resolution=64),
                               normals="smooth"))
 
 
 def case_clip_cull_back():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64, cull="back"))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(vds_resolution=64), cull="back"))
 
 
 def case_clip_cull_front():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64, cull="front"))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(vds_resolution=64), cull="front"))
 
 
 def case_clip_precision_float64():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(), caps=Caps(vds_resolution=64),
                               precision="float64"))
 
 
 def case_clip_subdivision_2():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64, subdivision=2))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(subdivision=2, vds_resolution=64)))
 
 
 def case_clip_ico_defaults():
@@ -979,74 +1055,75 @@ def case_clip_vds_sprite():
 
 
 def case_clip_vds_duck():
-    from refraster.clipsurface import render_clipped
+    from refraster.clipsurface import Caps, render_clipped
     return _of(render_clipped(_box(), _surface(), **_ccam(), vds=[_BoxContains()],
-                              cap_style="wood"))
+                              caps=Caps(style="wood")))
 
 
 def case_clip_vds_resolution():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_ico(), _surface(), **_ccam(), vds_resolution=16))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_ico(), _surface(), **_ccam(), caps=Caps(vds_resolution=16)))
 
 
 def case_clip_occlusion_radius():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
-                              occlusion_radius=0.08))
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(),
+                              caps=Caps(occlusion_radius=0.08, vds_resolution=64)))
 
 
 def case_clip_background():
-    from refraster.clipsurface import render_clipped
-    return _of(render_clipped(_box(), _surface(), **_ccam(), vds_resolution=64,
+    from refraster.clipsurface import Caps, render_clipped
+    return _of(render_clipped(_box(), _surface(), **_ccam(), caps=Caps(vds_resolution=64),
                               background=(0.2, 0.3, 0.4)))
 
 
 def case_clip_exact_options():
     """Exact caps with the options their path reads: eye space, model, colour, occlusion,
     normals, cull, precision, background, a solid texture."""
-    from refraster.clipsurface import render_clipped
+    from refraster.clipsurface import Caps, render_clipped
     return _of(render_clipped(_box(), _surface(), **_ccam(), vds=[_box_sprite()],
-                              cap_mode="exact", space="eye", cap_color=(0.3, 0.3, 0.9),
-                              occlusion_radius=0.1, normals="smooth", cull="back",
-                              precision="float64", background=(0, 0, 0), cap_style="solid",
-                              solid_texture=_volume()))
+                              caps=Caps(style="solid", mode="exact", color=(0.3, 0.3, 0.9),
+                                        occlusion_radius=0.1, solid_texture=_volume()),
+                              space="eye", normals="smooth", cull="back", precision="float64",
+                              background=(0, 0, 0)))
 
 
 def case_clip_cap_textures():
     """A surface with its own diffuse, normal and light maps (CapTextures)."""
-    from refraster.clipsurface import render_clipped
+    from refraster.clipsurface import Caps, render_clipped
     from refraster.clipsurface.textures import CapTextures
     y, x = np.mgrid[0:8, 0:8] / 7.0
     diffuse = np.stack([x, y, 0.5 * (x + y)], -1)
     normal = np.stack([0.5 + 0.2 * x, 0.5 + 0.1 * y, np.ones_like(x)], -1)
     tex = CapTextures(diffuse=diffuse, normal=normal, light=0.5 + 0.5 * x)
-    return _of(render_clipped(_box(), _surface(textures=tex), **_ccam(), vds_resolution=64))
+    return _of(render_clipped(_box(), _surface(textures=tex), **_ccam(),
+                              caps=Caps(vds_resolution=64)))
 
 
 def case_clip_two_surfaces_one_disabled():
-    from refraster.clipsurface import ClipSurface, render_clipped
+    from refraster.clipsurface import Caps, ClipSurface, render_clipped
     from refraster.clipsurface import offsetmaps as om
     other = ClipSurface([0.1, 0, 0], [0, 0, 1.5], [0, 1.5, 0], (2, 2, 0.2), om.sinusoid(16),
                         wrap="clamp_to_edge")
     off = _surface(enabled=False)
-    return _of(render_clipped(_box(), [_surface(), other, off], **_ccam(), vds_resolution=64,
-                              cap_style="hatch"))
+    return _of(render_clipped(_box(), [_surface(), other, off], **_ccam(),
+                              caps=Caps(style="hatch", vds_resolution=64)))
 
 
 def case_clip_relief_plane():
-    from refraster.clipsurface import ReliefClipPlane, render_clipped
+    from refraster.clipsurface import Caps, ReliefClipPlane, render_clipped
     from refraster.clipsurface import offsetmaps as om
     rcp = ReliefClipPlane([0.3, 0.2, 1.0], [0, 0, 0.05], om.value_noise(16), 0.1)
-    return _of(render_clipped(_box(), rcp, **_ccam(), vds_resolution=64))
+    return _of(render_clipped(_box(), rcp, **_ccam(), caps=Caps(vds_resolution=64)))
 
 
 # ============================================================================== render_cutaway
 # defaults: stand_ins=(), cutaway=Cutaway() (angle=π/6, variant="jfa+1",
 # perspective_compensation=True, edge_compression=0.1, floor_normal=None,
 # floor_margin=FLOOR_MARGIN, buffer_size=None), cut_surfaces=CutSurfaces() (shade=True,
-# color=None, dilation=True, outlines=True), ghosts=GhostLines() (source="lines", distance=None,
-# fade=True, crease_angle=GHOST_CREASE_ANGLE; ghosts=None: no ghost lines), normals=None,
-# background=(1, 1, 1)
+# color=None, dilation=True, outlines=True), ghosts=GhostLines() (source="lines",
+# distance=None, fade=True, crease_angle=GHOST_CREASE_ANGLE; ghosts=None: no ghost lines),
+# normals=None, background=(1, 1, 1)
 
 
 @functools.cache
@@ -1119,6 +1196,7 @@ def case_cut_stand_ins_with_interest_angles():
 
 
 def case_cut_cutaway_size():
+    """The cutaway buffer's size (once ``cutaway_size=``): ``Cutaway(buffer_size=...)``."""
     from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
     return _of(render_cutaway(core, shells, **_kcam(), cutaway=Cutaway(buffer_size=(48, 40))))
@@ -1213,7 +1291,7 @@ def case_cut_floor_exact():
     from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
     return _of(render_cutaway(core, shells, **_kcam2(),
-                              cutaway=Cutaway(floor_normal=(0, 1, 0), variant="exact")))
+                              cutaway=Cutaway(variant="exact", floor_normal=(0, 1, 0))))
 
 
 def case_cut_dilation_false():
@@ -1229,7 +1307,7 @@ def case_cut_outlines_false():
 
 
 def case_cut_ghost_distance_zero():
-    """No ghost lines (the former ``ghost_distance=0``)."""
+    """No ghost lines (once ``ghost_distance=0``): ``ghosts=None``."""
     from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
     return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)),
@@ -1267,7 +1345,7 @@ def case_cut_ghost_visible():
     shells, core = _cut_scene()
     return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)),
                               cutaway=Cutaway(angle=0.6),
-                              ghosts=GhostLines(distance=2.0, source="visible")))
+                              ghosts=GhostLines(source="visible", distance=2.0)))
 
 
 def case_cut_ghost_visible_no_fade():
@@ -1275,7 +1353,7 @@ def case_cut_ghost_visible_no_fade():
     shells, core = _cut_scene()
     return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)),
                               cutaway=Cutaway(angle=0.6),
-                              ghosts=GhostLines(distance=2.0, source="visible", fade=False),
+                              ghosts=GhostLines(source="visible", distance=2.0, fade=False),
                               normals="smooth"))
 
 
@@ -1291,10 +1369,11 @@ def case_cut_crease_angle():
     from refraster.cutaway import GhostLines, render_cutaway
     shells, core = _cut_scene()
     return _of(render_cutaway(core, shells, **_kcam(),
-                              ghosts=GhostLines(crease_angle=5.0, distance=1.0)))
+                              ghosts=GhostLines(distance=1.0, crease_angle=5.0)))
 
 
 def case_cut_cut_surfaces_false():
+    """Cut surfaces left as drawn (once ``cut_surfaces=False``): ``CutSurfaces(shade=False)``."""
     from refraster.cutaway import CutSurfaces, render_cutaway
     shells, core = _cut_scene()
     return _of(render_cutaway(core, shells, **_kcam(), cut_surfaces=CutSurfaces(shade=False)))
@@ -1320,7 +1399,8 @@ def case_cut_no_interest():
 # margin=0.05, stereo=None), width=512, height=512, slices=256, halos=Halos() (enabled=True,
 # rho=None, delta_d=None, delta_t=0.3, surface_width=0.3, antialias=None, depth_eps=None),
 # style=HaloStyle() (opacity=0.9, ambient=0.3, halo_color=(0.5, 0.5, 0.5), halo_opacity=0.0,
-# boundary_color=None, boundary_width=0.15), background=(0, 0, 0), volume=False, engine="fused"
+# boundary_color=None, boundary_width=0.15), background=(0, 0, 0), volume=False,
+# engine="fused"
 
 
 @functools.cache
@@ -1339,204 +1419,216 @@ def _hrot():
     return h.compose(("zx", 0.5), ("yz", -0.6))
 
 
-def _hview(**fields):
-    """The cases' view: :func:`_hrot` and ``fields``."""
-    from refraster.halos4d import View4D
-    return View4D(rotation=_hrot(), **fields)
-
-
 def case_halo_small():
     from refraster.halos4d import render_halos
     return _of(render_halos(_fig1(), **_hkw()))
 
 
 def case_halo_rotation():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview()))
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot())))
 
 
 def case_halo_perspective():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(projection="perspective")))
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(),
+                            view=View4D(rotation=_hrot(), projection="perspective")))
 
 
 def case_halo_perspective_eye_scale():
-    from refraster.halos4d import render_halos
+    from refraster.halos4d import View4D, render_halos
     return _of(render_halos(_fig1(), **_hkw(),
-                            view=_hview(projection="perspective", eye=6.0, scale=1.5)))
+                            view=View4D(rotation=_hrot(), projection="perspective", eye=6.0,
+                                        scale=1.5)))
 
 
 def case_halo_orthographic_scale():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(scale=0.7)))
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot(), scale=0.7)))
 
 
 def case_halo_slices():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), width=48, height=40, slices=5, view=_hview()))
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), width=48, height=40, slices=5,
+                            view=View4D(rotation=_hrot())))
 
 
 def case_halo_size():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), width=64, height=30, slices=12, view=_hview()))
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), width=64, height=30, slices=12,
+                            view=View4D(rotation=_hrot())))
 
 
 def case_halo_rho():
-    from refraster.halos4d import Halos, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(rho=0.08)))
+    from refraster.halos4d import Halos, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                            halos=Halos(rho=0.08)))
 
 
 def case_halo_delta_d():
-    from refraster.halos4d import Halos, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(delta_d=0.6)))
+    from refraster.halos4d import Halos, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                            halos=Halos(delta_d=0.6)))
 
 
 def case_halo_delta_t():
-    from refraster.halos4d import Halos, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(delta_t=0.15)))
+    from refraster.halos4d import Halos, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                            halos=Halos(delta_t=0.15)))
 
 
 def case_halo_surface_width():
-    from refraster.halos4d import Halos, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(surface_width=0.5)))
+    from refraster.halos4d import Halos, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                            halos=Halos(surface_width=0.5)))
 
 
 def case_halo_opacity():
-    from refraster.halos4d import HaloStyle, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), style=HaloStyle(opacity=0.6)))
+    from refraster.halos4d import HaloStyle, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                            style=HaloStyle(opacity=0.6)))
 
 
 def case_halo_opacity_one():
-    from refraster.halos4d import HaloStyle, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), style=HaloStyle(opacity=1.0)))
+    from refraster.halos4d import HaloStyle, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                            style=HaloStyle(opacity=1.0)))
 
 
 def case_halo_halos_false():
-    from refraster.halos4d import Halos, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(enabled=False)))
+    """Without halos (once ``halos=False``): ``Halos(enabled=False)``."""
+    from refraster.halos4d import Halos, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                            halos=Halos(enabled=False)))
 
 
 def case_halo_background():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), background=(1.0, 0.9, 0.8)))
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                            background=(1.0, 0.9, 0.8)))
 
 
 def case_halo_depth_eps():
-    from refraster.halos4d import Halos, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(depth_eps=0.05)))
+    from refraster.halos4d import Halos, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                            halos=Halos(depth_eps=0.05)))
 
 
 def case_halo_margin():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(margin=0.3)))
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot(), margin=0.3)))
 
 
 def case_halo_stereo():
-    from refraster.halos4d import STEREO_ANGLE, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(stereo=STEREO_ANGLE)))
+    """The stereo pair at the default angle (once ``stereo=True``): ``View4D(stereo=6.0)``."""
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot(), stereo=6.0)))
 
 
 def case_halo_stereo_angle():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(stereo=15.0)))
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot(), stereo=15.0)))
 
 
 def case_halo_volume():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), volume=True))
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()), volume=True))
 
 
 def case_halo_engine_reference():
-    from refraster.halos4d import render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), engine="reference"))
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()), engine="reference"))
 
 
 def case_halo_engine_reference_volume_options():
-    from refraster.halos4d import HaloStyle, Halos, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), engine="reference",
+    from refraster.halos4d import HaloStyle, Halos, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()), engine="reference",
                             volume=True, halos=Halos(antialias=0.15),
                             style=HaloStyle(halo_opacity=0.3, boundary_color=(0, 1, 0))))
 
 
 def case_halo_engine_fused_explicit():
-    from refraster.halos4d import HaloStyle, Halos, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), engine="fused", volume=True,
-                            halos=Halos(antialias=0.15),
+    from refraster.halos4d import HaloStyle, Halos, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()), engine="fused",
+                            volume=True, halos=Halos(antialias=0.15),
                             style=HaloStyle(halo_opacity=0.3, boundary_color=(0, 1, 0))))
 
 
 def case_halo_halo_color():
-    from refraster.halos4d import HaloStyle, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(),
+    from refraster.halos4d import HaloStyle, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
                             style=HaloStyle(halo_color=(0.9, 0.1, 0.1), halo_opacity=0.4)))
 
 
 def case_halo_halo_opacity():
-    from refraster.halos4d import HaloStyle, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(),
+    from refraster.halos4d import HaloStyle, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
                             style=HaloStyle(halo_opacity=0.5)))
 
 
 def case_halo_boundary_color():
-    from refraster.halos4d import HaloStyle, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(),
+    from refraster.halos4d import HaloStyle, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
                             style=HaloStyle(boundary_color=(0, 1, 0))))
 
 
 def case_halo_boundary_width():
-    from refraster.halos4d import HaloStyle, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(),
+    from refraster.halos4d import HaloStyle, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
                             style=HaloStyle(boundary_color=(0, 1, 0), boundary_width=0.4)))
 
 
 def case_halo_antialias_zero():
-    from refraster.halos4d import Halos, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(antialias=0.0)))
+    from refraster.halos4d import Halos, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                            halos=Halos(antialias=0.0)))
 
 
 def case_halo_antialias_value():
-    from refraster.halos4d import Halos, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), halos=Halos(antialias=0.1)))
+    from refraster.halos4d import Halos, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                            halos=Halos(antialias=0.1)))
 
 
 def case_halo_ambient():
-    from refraster.halos4d import HaloStyle, render_halos
-    return _of(render_halos(_fig1(), **_hkw(), view=_hview(), style=HaloStyle(ambient=0.7)))
+    from refraster.halos4d import HaloStyle, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                            style=HaloStyle(ambient=0.7)))
 
 
 def case_halo_pair():
-    from refraster.halos4d import render_halos_pair
-    on, off = render_halos_pair(_fig1(), **_hkw(), view=_hview())
+    from refraster.halos4d import View4D, render_halos_pair
+    on, off = render_halos_pair(_fig1(), **_hkw(), view=View4D(rotation=_hrot()))
     return {"on": _of(on), "off": _of(off)}
 
 
 def case_halo_pair_options():
-    from refraster.halos4d import HaloStyle, Halos, render_halos_pair
-    on, off = render_halos_pair(_fig1(), **_hkw(), view=_hview(),
-                                halos=Halos(antialias=0.0, delta_d=0.5),
+    from refraster.halos4d import HaloStyle, Halos, View4D, render_halos_pair
+    on, off = render_halos_pair(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                                halos=Halos(delta_d=0.5, antialias=0.0),
                                 style=HaloStyle(halo_opacity=0.3, boundary_color=(0, 1, 0)),
                                 background=(1, 1, 1))
     return {"on": _of(on), "off": _of(off)}
 
 
 def case_halo_pair_volume_reference():
-    from refraster.halos4d import HaloStyle, render_halos_pair
-    on, off = render_halos_pair(_fig1(), **_hkw(), view=_hview(), volume=True,
+    from refraster.halos4d import HaloStyle, View4D, render_halos_pair
+    on, off = render_halos_pair(_fig1(), **_hkw(), view=View4D(rotation=_hrot()), volume=True,
                                 engine="reference", style=HaloStyle(halo_opacity=0.3))
     return {"on": _of(on), "off": _of(off)}
 
 
 def case_halo_pair_stereo():
-    from refraster.halos4d import HaloStyle, render_halos_pair
-    on, off = render_halos_pair(_fig1(), **_hkw(), view=_hview(stereo=10.0),
+    from refraster.halos4d import HaloStyle, View4D, render_halos_pair
+    on, off = render_halos_pair(_fig1(), **_hkw(), view=View4D(rotation=_hrot(), stereo=10.0),
                                 style=HaloStyle(boundary_color=(0, 1, 0)))
     return {"on": _of(on), "off": _of(off)}
 
 
 # ============================================================================== render_mirrored
-# defaults: models=None, style=None, light=DEFAULT_LIGHT, normals="smooth", reflectance=0.85,
-# mirror_color=(0.85, 0.88, 0.92), edge_options=None, inner_color=(1, 1, 1),
-# profile_color=(0, 0, 0), background=(1, 1, 1)
+# defaults: models=None, style=None, light=DEFAULT_LIGHT, normals="smooth",
+# mirror_style=MirrorStyle() (reflectance=0.85, mirror_color=(0.85, 0.88, 0.92),
+# inner_color=(1, 1, 1), profile_color=(0, 0, 0)), edge_options=None, background=(1, 1, 1)
 
 
 @functools.cache
@@ -1556,27 +1648,27 @@ def _mirror_scene():
 
 
 def case_mirror_defaults():
-    from refraster import npr
+    from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
     return _of(npr.render_mirrored(torus, floor, **cam))
 
 
 def case_mirror_model():
     """The torus turned and lifted (one model matrix): what the other cases differ from."""
-    from refraster import npr
+    from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
     return _of(npr.render_mirrored(torus, floor, **cam, models=[model]))
 
 
 def case_mirror_models():
-    from refraster import npr
+    from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
     return _of(npr.render_mirrored([torus, _box()], floor, **cam,
                                    models=[model, _shift(-0.9, 0.6, 0.4)]))
 
 
 def case_mirror_style():
-    from refraster import npr
+    from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
 
     def style(fb, light):
@@ -1587,7 +1679,7 @@ def case_mirror_style():
 
 
 def case_mirror_style_toon():
-    from refraster import npr
+    from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
     return _of(npr.render_mirrored(torus, floor, **cam, models=[model],
                                    style=lambda fb, l: npr.toon(fb.normal, light=l,
@@ -1595,60 +1687,64 @@ def case_mirror_style_toon():
 
 
 def case_mirror_light():
-    from refraster import npr
+    from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
     return _of(npr.render_mirrored(torus, floor, **cam, models=[model], light=(0.5, 1.0, 0.2)))
 
 
 def case_mirror_normals_flat():
-    from refraster import npr
+    from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
     return _of(npr.render_mirrored(torus, floor, **cam, models=[model], normals="flat"))
 
 
 def case_mirror_normals_arrays():
-    from refraster import npr
+    """Given vertex normals (once ``normals=[array]``): a ``Mesh`` with them, rendered
+    ``normals="smooth"`` (the default)."""
+    from refraster.edges import npr
+    from refraster.mesh import Mesh
     torus, model, floor, cam = _mirror_scene()
-    return _of(npr.render_mirrored(torus, floor, **cam, models=[model],
-                                   normals=[_unit(torus.vertices)]))
+    return _of(npr.render_mirrored(Mesh(torus.vertices, torus.faces, _unit(torus.vertices)),
+                                   floor, **cam, models=[model]))
 
 
 def case_mirror_reflectance():
-    from refraster import npr
+    from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
-    return _of(npr.render_mirrored(torus, floor, **cam, models=[model], reflectance=0.4))
+    return _of(npr.render_mirrored(torus, floor, **cam, models=[model],
+                                   mirror_style=npr.MirrorStyle(reflectance=0.4)))
 
 
 def case_mirror_mirror_color():
-    from refraster import npr
+    from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
     return _of(npr.render_mirrored(torus, floor, **cam, models=[model],
-                                   mirror_color=(0.2, 0.5, 0.3)))
+                                   mirror_style=npr.MirrorStyle(mirror_color=(0.2, 0.5, 0.3))))
 
 
 def case_mirror_edge_options():
-    from refraster import npr
+    from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
     return _of(npr.render_mirrored(torus, floor, **cam, models=[model],
                                    edge_options={"preset": "clean", "width": 2}))
 
 
 def case_mirror_inner_color():
-    from refraster import npr
+    from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
     return _of(npr.render_mirrored(torus, floor, **cam, models=[model],
-                                   inner_color=(0.2, 0.2, 0.9)))
+                                   mirror_style=npr.MirrorStyle(inner_color=(0.2, 0.2, 0.9))))
 
 
 def case_mirror_profile_color():
-    from refraster import npr
+    from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
     return _of(npr.render_mirrored(torus, floor, **cam, models=[model],
-                                   profile_color=(0.8, 0.1, 0.1)))
+                                   mirror_style=npr.MirrorStyle(profile_color=(0.8, 0.1, 0.1))))
 
 
 def case_mirror_background():
-    from refraster import npr
+    from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
     return _of(npr.render_mirrored(torus, floor, **cam, models=[model],
                                    background=(0.0, 0.1, 0.2)))
@@ -1664,7 +1760,7 @@ def case_mirror_background():
 @functools.cache
 def _efb():
     import refraster as rf
-    return rf.render([_torus(), _cube()], **_cam(), normals="smooth",
+    return rf.render([_torus(), _cube()], **_cam(), raster=rf.RasterState(normals="smooth"),
                      model=[np.eye(4), _shift(0.5, -0.2, 0.3) @ np.diag([0.5, 0.5, 0.5, 1.0])])
 
 
@@ -1797,7 +1893,7 @@ def case_edge_classify_perspective_proj():
 
 
 def case_npr_gooch():
-    from refraster import npr
+    from refraster.edges import npr
     fb = _efb()
     return {"default": npr.gooch(fb.normal),
             "options": npr.gooch(fb.normal, light=(0.3, 0.2, 1.0), base=(0.5, 0.6, 0.7),
@@ -1806,7 +1902,7 @@ def case_npr_gooch():
 
 
 def case_npr_toon_cartoon():
-    from refraster import npr
+    from refraster.edges import npr
     fb = _efb()
     t = npr.toon(fb.normal, light=(0.1, 0.5, 1.0), texture=(0.3, 0.6, 0.8, 1.0),
                  color=(0.2, 0.5, 0.9), mask=fb.mask, background=(0, 0, 0))
@@ -1815,7 +1911,7 @@ def case_npr_toon_cartoon():
 
 
 def case_npr_hatching():
-    from refraster import npr
+    from refraster.edges import npr
     fb = _efb()
     s = npr.stroke_texture(72, 96, spacing=4.0, angle=30.0, cross_angle=-60.0, first=0.8,
                            cross=0.4)
@@ -1828,7 +1924,8 @@ def case_npr_hatching():
 
 
 def case_npr_composite():
-    from refraster import edges, npr
+    from refraster import edges
+    from refraster.edges import npr
     fb = _efb()
     e = edges.edge_map(fb, preset="clean")
     shade = npr.gooch(fb.normal, mask=fb.mask)
@@ -1868,15 +1965,47 @@ def run(selected, verbose=False, catch=False):
     return res, times, errors
 
 
+def _add(ap, path, names, k):
+    """``--add FILE NAME…``: run the named cases and add their digests to FILE; refuses a name
+    FILE already has (an existing digest is never rewritten) and a name that is no case."""
+    if k is not None:
+        ap.error("--add takes case names, not -k")
+    if not names:
+        ap.error("--add FILE needs the NAMEs of the new cases")
+    known = cases()
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        ap.error(f"no such case: {', '.join(unknown)}")
+    with open(path) as fh:
+        ref = json.load(fh)
+    present = [n for n in names if n in ref]
+    if present:
+        ap.error(f"{path} already has {', '.join(present)}: --add never rewrites a digest")
+    res, _, _ = run({n: known[n] for n in dict.fromkeys(names)})
+    ref.update(res)
+    with open(path, "w") as fh:
+        json.dump(ref, fh, indent=1, sort_keys=True)
+        fh.write("\n")
+    print(f"{len(res)} cases added to {path} ({len(ref)} cases)")
+    return 0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     g = ap.add_mutually_exclusive_group(required=True)
-    g.add_argument("--write", metavar="FILE")
-    g.add_argument("--check", metavar="FILE")
-    g.add_argument("--list", action="store_true")
+    g.add_argument("--write", metavar="FILE", help="record every case (a new file)")
+    g.add_argument("--check", metavar="FILE", help="compare with FILE (exit 1 on a difference)")
+    g.add_argument("--add", metavar="FILE",
+                   help="record only the NAMEd cases into FILE, which must not have them yet")
+    g.add_argument("--list", action="store_true", help="the cases' names")
+    ap.add_argument("names", nargs="*", metavar="NAME", help="with --add: the new cases")
     ap.add_argument("-k", metavar="SUBSTRING", help="only the cases whose name contains it")
     ap.add_argument("-v", "--verbose", action="store_true", help="per-case times")
     a = ap.parse_args(argv)
+    if a.add is not None:
+        return _add(ap, a.add, a.names, a.k)
+    if a.names:
+        ap.error("case names are only taken by --add")
     selected = {k: v for k, v in cases().items() if a.k is None or a.k in k}
     if a.list and not a.verbose:
         for name in selected:
