@@ -70,6 +70,8 @@ import warnings
 
 import numpy as np
 
+from refraster.raster.state import RasterState
+
 # ============================================================================== digests
 
 
@@ -1010,31 +1012,31 @@ def case_clip_model_list_two_solids():
 def case_clip_normals_flat():
     from refraster.clipsurface import Caps, render_clipped
     return _of(render_clipped(_ico(), _surface(), **_ccam(), caps=Caps(vds_resolution=64),
-                              normals="flat"))
+                              raster=RasterState(normals="flat")))
 
 
 def case_clip_normals_smooth():
     from refraster.clipsurface import Caps, render_clipped
     return _of(render_clipped(_ico(), _surface(), **_ccam(), caps=Caps(vds_resolution=64),
-                              normals="smooth"))
+                              raster=RasterState(normals="smooth")))
 
 
 def case_clip_cull_back():
     from refraster.clipsurface import Caps, render_clipped
     return _of(render_clipped(_box(), _surface(), **_ccam(),
-                              caps=Caps(vds_resolution=64), cull="back"))
+                              caps=Caps(vds_resolution=64), raster=RasterState(cull="back")))
 
 
 def case_clip_cull_front():
     from refraster.clipsurface import Caps, render_clipped
     return _of(render_clipped(_box(), _surface(), **_ccam(),
-                              caps=Caps(vds_resolution=64), cull="front"))
+                              caps=Caps(vds_resolution=64), raster=RasterState(cull="front")))
 
 
 def case_clip_precision_float64():
     from refraster.clipsurface import Caps, render_clipped
     return _of(render_clipped(_box(), _surface(), **_ccam(), caps=Caps(vds_resolution=64),
-                              precision="float64"))
+                              raster=RasterState(precision="float64")))
 
 
 def case_clip_subdivision_2():
@@ -1084,7 +1086,7 @@ def case_clip_exact_options():
     return _of(render_clipped(_box(), _surface(), **_ccam(), vds=[_box_sprite()],
                               caps=Caps(style="solid", mode="exact", color=(0.3, 0.3, 0.9),
                                         occlusion_radius=0.1, solid_texture=_volume()),
-                              space="eye", normals="smooth", cull="back", precision="float64",
+                              space="eye", raster=RasterState(normals="smooth", cull="back", precision="float64"),
                               background=(0, 0, 0)))
 
 
@@ -1331,7 +1333,7 @@ def case_cut_cut_color():
 def case_cut_normals_smooth():
     from refraster.cutaway import render_cutaway
     shells, core = _cut_scene()
-    return _of(render_cutaway(core, shells, **_kcam(), normals="smooth"))
+    return _of(render_cutaway(core, shells, **_kcam(), raster=RasterState(normals="smooth")))
 
 
 def case_cut_background():
@@ -1354,7 +1356,7 @@ def case_cut_ghost_visible_no_fade():
     return _of(render_cutaway(core, _crate(), **_kcam(eye=(2.5, 2.0, 3.0)),
                               cutaway=Cutaway(angle=0.6),
                               ghosts=GhostLines(source="visible", distance=2.0, fade=False),
-                              normals="smooth"))
+                              raster=RasterState(normals="smooth")))
 
 
 def case_cut_ghost_fade_false():
@@ -1695,7 +1697,7 @@ def case_mirror_light():
 def case_mirror_normals_flat():
     from refraster.edges import npr
     torus, model, floor, cam = _mirror_scene()
-    return _of(npr.render_mirrored(torus, floor, **cam, models=[model], normals="flat"))
+    return _of(npr.render_mirrored(torus, floor, **cam, models=[model], raster=RasterState(normals="flat")))
 
 
 def case_mirror_normals_arrays():

@@ -133,13 +133,14 @@ def _technique_packages(root, quick):
     # crank as built (float64): rounded to float32 some of its distinct vertices coincide and
     # the caps' watertightness check refuses it (the package's float32 crank, on the gl side,
     # is not checked)
+    from refraster import RasterState
     from refraster.ldi import VolumetricDepthSprite
     sprite = VolumetricDepthSprite.from_mesh(raw, resolution=caps["vds_resolution"])
 
     def ours_clip(meshes=[raw], clip=clip, camera=camera, caps=caps, sprite=sprite):
         fb = render_clipped(meshes, clip, **camera.kwargs, vds=[sprite], caps=clip_caps(caps),
-                            space=caps["space"], cull=state["cull"],
-                            precision=state["precision"])
+                            space=caps["space"],
+                        raster=RasterState(cull=state["cull"], precision=state["precision"]))
         return fb.color
     cases.append((f"clip + cap, crank {len(mesh.faces)} faces, {w}×{h}", ours_clip,
                   root / "clip"))

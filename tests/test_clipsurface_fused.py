@@ -15,6 +15,7 @@ from refraster.clipsurface import capping, fused
 from refraster.clipsurface import render as cs_render
 from refraster.clipsurface import offsetmaps as om
 from refraster.camera import frame_bounds, look_at, perspective
+from refraster import RasterState
 from refraster.clipsurface import Caps, ClipSurface, render_clipped
 from refraster.ldi import VolumetricDepthSprite
 from refraster.mesh import Mesh, bounds
@@ -108,7 +109,8 @@ def test_fused_equals_stream_for_two_solids_with_models_and_three_axes(monkeypat
                VolumetricDepthSprite.from_mesh(world[1], resolution=64)]
     kw = dict(view=look_at([2.0, 1.5, 3.0], [0.6, 0, 0]), proj=perspective(40, 4 / 3, 0.5, 10),
               width=160, height=120, model=[m0, m1], vds=sprites,
-              caps=Caps(style="diffuse"), normals="smooth")
+              caps=Caps(style="diffuse"),
+              raster=RasterState(normals="smooth"))
     fused = render_clipped([box, ball], cs, **kw)
     ref = staged(monkeypatch, [box, ball], cs, **kw)
     assert set(np.unique(fused.object_id[fused.cap_mask])) == {2, 3}
@@ -210,7 +212,7 @@ def test_fused_equals_stream_with_near_plane_clipping(monkeypatch, cull):
     sprite = VolumetricDepthSprite.from_mesh(box, resolution=128)
     kw = dict(view=look_at([1.6, 0.4, 1.3], [0.0, 0.0, -0.5]),
               proj=perspective(70, 4 / 3, 0.9, 10), width=160, height=120, vds=[sprite],
-              cull=cull, caps=Caps(style="wood"))
+              raster=RasterState(cull=cull), caps=Caps(style="wood"))
     prep = refraster.raster.prepare(box, view=kw["view"], proj=kw["proj"], width=160,
                                     height=120)
     assert len(prep.triangles.clipped) > 0          # the near plane does cut faces

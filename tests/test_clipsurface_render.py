@@ -241,8 +241,10 @@ def test_bad_inputs():
         render_clipped(box, cs, **kw, vds=[object()])
     with pytest.raises(TypeError, match="surfaces"):
         render_clipped(box, [cs, None], **kw)
-    with pytest.raises(ValueError, match="normals"):
-        render_clipped(box, cs, **kw, normals=np.zeros((8, 3)), caps=None)
+    with pytest.raises(TypeError, match="raster must be a refraster.RasterState"):
+        render_clipped(box, cs, **kw, raster={"normals": "smooth"}, caps=None)
+    with pytest.raises(ValueError, match=r"raster.depth_func must be 'less' for render_clipped"):
+        render_clipped(box, cs, **kw, raster=refraster.RasterState(depth_func="greater"))
 
 
 

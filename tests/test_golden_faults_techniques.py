@@ -680,8 +680,7 @@ def _clip_candidate(scene, raster, lookup8, monkeypatch):
     p = scene.parameters
     fb = render_clipped([d.mesh for d in scene.draws], _textured_surfaces(scene, _surfaces),
                         **scene.camera.kwargs, caps=clip_caps(p), space=p["space"],
-                        cull=raster_state({})["cull"],
-                        precision=raster.get("precision", "float32"))
+                        raster=RasterState(cull=raster_state({})["cull"], precision=raster.get("precision", "float32")))
     return {**fb.arrays(), "cap_mask": fb.cap_mask}
 
 

@@ -437,7 +437,7 @@ def test_surface_strokes_options_are_triplanar_strokes_own():
     assert all(own[k].default == tri[k].default for k in names)
     torus, model, floor, eye, target, cam = _mirror_scene(48, 36)
     import refraster as rf
-    fb = rf.render(torus, **cam, model=model, normals="smooth")
+    fb = rf.render(torus, **cam, model=model, raster=rf.RasterState(normals="smooth"))
     position, normal = npr.object_space(fb)
     for key, value in (("angle", 30.0), ("cross_angle", -60.0), ("first", 0.8), ("cross", 0.4),
                        ("sharpness", 2.0)):

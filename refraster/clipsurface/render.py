@@ -12,6 +12,7 @@ import numpy as np
 from .._validate import as_choice, as_float_array, as_matrix, as_real, as_size
 from ..framebuffer import Framebuffer
 from ..ldi import MAX_RESOLUTION
+from ..raster.state import as_raster_state, require_default
 from . import capping
 from .fused import _fused_clip
 from .surfaces import as_surfaces, clip_mask, _surfaces_in_space
@@ -272,9 +273,13 @@ def _cached_cap(surface, bounds, subdivision, sprite=None):
     return entry[1], entry[2]
 
 
+#: The depth test and facing of the paper's passes (the parity test reads the facing).
+_FIXED_STATE = ("depth_func", "depth_write", "clear_depth", "front_face")
+
+
 def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT_CAPS,
-                   space="world", model=None, normals=None, cull="none", precision="float32",
-                   vds=None, background=(1.0, 1.0, 1.0)):
+                   space="world", model=None, raster=None, vds=None,
+                   background=(1.0, 1.0, 1.0)):
     """Render solids clipped by 2.5D clip surfaces, with cap surfaces closing the cuts.
 
     Parameters
@@ -295,10 +300,11 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
         or without caps.
     model : (4, 4) or list of them, optional
         Object → world matrix per solid; surfaces are always given in world space.
-    normals : None, "flat" or "smooth"
-        Shading normals of the solids.
-    cull, precision
-        As :func:`refraster.render`.
+    raster : RasterState, optional
+        The fixed-function state (:class:`refraster.RasterState`): its cull mode, precision,
+        sub-pixel bits, fill rule and normals (the solids' shading normals) apply; the depth
+        test is the paper's (``less``, cleared to 1, writes on, counter-clockwise front
+        faces), and a state that changes it is refused with one line. None: the default.
     vds : sequence of objects with ``contains(points)``, optional
         Pre-built volumetric depth sprites (world space), one per solid; built with
         ``VolumetricDepthSprite.from_mesh(solid, resolution=caps.vds_resolution)`` otherwise.
@@ -349,9 +355,8 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
                          "is used by caps.style='diffuse'")
     # the base pass colours "solid" caps as "diffuse"; texture_caps recolours them
     base_style = "diffuse" if style == "solid" else style
-    if normals is not None and not (isinstance(normals, str)
-                                    and normals.lower() in ("flat", "smooth")):
-        raise ValueError("normals must be None, 'flat' or 'smooth' for render_clipped")
+    state = require_default(as_raster_state(raster), _FIXED_STATE, "render_clipped")
+    normals = state.normals
     models = _models(model, len(solids))
     world = [Mesh(v, s.faces) if v is not s.vertices else s
              for s, v in zip(solids, vertices_in(solids, models, None, "world"))]
@@ -391,12 +396,12 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
     if not fused:
         # duck-typed parity tests: the fragment stream with a Python stage
         fb = render(draw_list, view=view, proj=proj, width=width, height=height,
-                    normals=normals, cull=cull, model=draw_models, precision=precision,
+                    raster=state, model=draw_models,
                     fragment_stage=_stage(n_solids, surfaces, cap_tests, space, view),
                     background=bg)
     else:
-        prep = prepare(draw_list, view=view, proj=proj, width=width, height=height, cull=cull,
-                       model=draw_models, precision=precision)
+        prep = prepare(draw_list, view=view, proj=proj, width=width, height=height,
+                       raster=state, model=draw_models)
         tv = _concat_vertices(vertices_in(prep.meshes, prep.models, view, space))
         wv = tv if space == "world" else _concat_vertices(
             vertices_in(prep.meshes, prep.models, view, "world"))

@@ -10,6 +10,7 @@ import numpy as np
 
 from .. import framebuffer as _fb
 from .._validate import as_image_size, as_matrix
+from ..raster.state import as_raster_state, require_default
 from ..mesh import as_meshes
 from .lines import feature_segments, ghost_alpha
 from .options import GHOST_DISTANCE_FRACTION, Cutaway, CutSurfaces, GhostLines, as_option
@@ -133,7 +134,7 @@ DEFAULT_GHOSTS = GhostLines()
 
 def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=(),
                    cutaway=DEFAULT_CUTAWAY, cut_surfaces=DEFAULT_CUT_SURFACES,
-                   ghosts=DEFAULT_GHOSTS, normals=None, background=(1.0, 1.0, 1.0)):
+                   ghosts=DEFAULT_GHOSTS, raster=None, background=(1.0, 1.0, 1.0)):
     """Render a cutaway: secondary objects carved away in front of the objects of interest.
 
     Parameters
@@ -161,7 +162,13 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
         The ghost lines (:class:`refraster.cutaway.GhostLines`; default ``GhostLines()``: the
         secondary meshes' feature lines, faded out over 10 % of their bounding box's diagonal);
         None: no ghost lines.
-    normals, background
+    raster : RasterState, optional
+        The fixed-function state (:class:`refraster.RasterState`) of the frame: its cull mode,
+        precision, sub-pixel bits, fill rule and normals apply. The depth test is the paper's
+        (``less`` cleared to 1 for the frame; ``greater`` cleared to 0, no culling, for the rear
+        hull), and the cut surfaces are the back faces of counter-clockwise solids: a state that
+        changes the depth test or the front face is refused with one line. None: the default.
+    background
         As in :func:`refraster.render`.
 
     Returns
@@ -197,6 +204,8 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
     view = as_matrix(view, "view")
     proj = as_matrix(proj, "proj")
     width, height = as_image_size(width, height)
+    state = require_default(as_raster_state(raster), ("depth_func", "depth_write", "clear_depth",
+                                                      "front_face"), "render_cutaway")
     cw, ch = cutaway.buffer_size or (width, height)
     thetas = as_angles(cutaway.angle, "cutaway.angle")
     hull = interest + stand_ins
@@ -215,8 +224,8 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
 
     # (1)–(2) the cutaway surface at its own resolution
     if hull:
-        rear = _fb.render(hull, width=cw, height=ch, depth_func="greater", clear_depth=0.0,
-                          **camera)
+        rear = _fb.render(hull, width=cw, height=ch, raster=state.replace(
+            depth_func="greater", clear_depth=0.0, cull="none", normals="flat"), **camera)
         buffer = cutaway_surface(rear.depth, rear.object_id, proj=proj, view=view,
                                  angle=thetas, variant=cutaway.variant,
                                  perspective_compensation=cutaway.perspective_compensation,
@@ -241,7 +250,7 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
         carved_px[frags.pixel[cut]] = True
         return ~cut
 
-    fb = _fb.render(secondary + interest, width=width, height=height, normals=normals,
+    fb = _fb.render(secondary + interest, width=width, height=height, raster=state,
                     fragment_stage=fragment_stage, background=background, **camera)
 
     # (5) cut surfaces
@@ -272,7 +281,7 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
                                 occluder_depth=occluder)
         else:
             from ..edges import edge_map
-            plain = _fb.render(secondary, width=width, height=height, normals=normals, **camera)
+            plain = _fb.render(secondary, width=width, height=height, raster=state, **camera)
             em = edge_map(plain, preset="clean")
             strength = np.maximum(em[..., 0], em[..., 3])
             ghost = ghost_lines(strength, plain.depth, d_ndc, fb.depth, proj, ghost_distance)

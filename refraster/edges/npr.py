@@ -608,7 +608,7 @@ def _default_style(fb, light):
 
 
 def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, style=None,
-                    light=DEFAULT_LIGHT, normals="smooth", mirror_style=MirrorStyle(),
+                    light=DEFAULT_LIGHT, raster=None, mirror_style=MirrorStyle(),
                     edge_options=None, background=(1.0, 1.0, 1.0)):
     """An edge-enhanced scene with a planar mirror (Nienhaus & Döllner Sec. 5.3, Fig. 8).
 
@@ -632,8 +632,12 @@ def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, s
         Towards the light, in the scene pass's eye space. The mirrored pass uses the same
         world-space light reflected through the plane, so a mirrored surface is lit as the
         surface it mirrors.
-    normals : "smooth", "flat" or per-vertex arrays
-        Passed to :func:`refraster.render` (the paper needs per-vertex normals).
+    raster : RasterState, optional
+        The fixed-function state of both passes (:class:`refraster.RasterState`); None: the
+        default state with ``normals="smooth"`` (the paper needs per-vertex normals: a mesh's
+        own, given as ``(vertices, faces, normals)``, or area-weighted ones). The mirror pass
+        tests depth with ``less``; a state that changes the depth test or the front face is
+        refused with one line.
     mirror_style : MirrorStyle
         The mirror's reflectance and colour and the edge colours (default: ``MirrorStyle()``,
         reflectance 0.85, a light grey-blue mirror, white inner and black profile edges).
@@ -660,7 +664,14 @@ def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, s
     from . import operators as _edges
     from ..framebuffer import render
     from ..mesh import as_mesh, as_meshes, face_normals
+    from ..raster.state import RasterState, require_default
 
+    state = RasterState(normals="smooth") if raster is None else raster
+    if not isinstance(state, RasterState):
+        raise TypeError(f"raster must be a refraster.RasterState (or None), got "
+                        f"{type(state).__name__}")
+    require_default(state, ("depth_func", "depth_write", "clear_depth", "front_face"),
+                    "render_mirrored")
     objs = as_meshes(meshes)
     mir = as_mesh(mirror, "mirror")
     if mir.n_faces == 0:
@@ -694,9 +705,7 @@ def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, s
     cam = dict(view=view, proj=proj, width=width, height=height)
 
     # pass 1: the scene with the mirror (last draw call); the mirror's pixels are the stencil
-    scene = render(objs + [mir], **cam, model=models + [np.eye(4)], normals=(
-        normals if isinstance(normals, str) or normals is None
-        else list(normals) + [np.tile(normal, (mir.n_vertices, 1))]), background=bg)
+    scene = render(objs + [mir], **cam, model=models + [np.eye(4)], raster=state, background=bg)
     mirror_mask = scene.object_id == len(objs)
     scene_edges = _edges.edge_map(scene, **opts)
     shade = np.asarray(style(scene, lt), np.float64)
@@ -713,7 +722,7 @@ def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, s
         pos = frags.world_position()
         return pos @ plane[:3] + plane[3] <= 0.0
 
-    mirrored = render(objs, **cam, model=[refl @ m for m in models], normals=normals,
+    mirrored = render(objs, **cam, model=[refl @ m for m in models], raster=state,
                       fragment_stage=behind_mirror, background=bg)
     mirrored_edges = _edges.edge_map(mirrored, **opts) if mirrored.mask.any() else \
         np.zeros((height, width, 4), np.float32)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..camera import Camera
+from ..raster.state import RasterState
 from .allowances.core import changes
 from .scenes import Draw, GoldenScene, _framed, prepare_draws, raster_state, register_scene, \
     render_draws
@@ -145,8 +146,8 @@ def _clipsurface_building():
     clip = ClipSurface(surface["origin"], surface["u"], surface["v"], surface["scale"],
                        offset_map, wrap=surface["wrap"])
     fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs,
-                        caps=clip_caps(caps), space=caps["space"], cull=state["cull"],
-                        precision=state["precision"])
+                        caps=clip_caps(caps), space=caps["space"],
+                        raster=RasterState(cull=state["cull"], precision=state["precision"]))
     backend_params, backend_maps = _clip_backend_export(draws, [clip], caps)
     surfaces = [{**surface, "offset_map": "offset_map"}]
     _name_derived_maps(surfaces, backend_maps)
@@ -278,7 +279,7 @@ def _ldi_nested_shells():
     camera = _framed([d.mesh for d in draws], 256, 192, (1.2, 0.9, 1.6))
     params = dict(mode="peel", max_layers=None)
     layers = peel([d.mesh for d in draws], **camera.kwargs, model=[d.model for d in draws],
-                  cull=state["cull"], **params)
+                  raster=RasterState(cull=state["cull"]), **params)
     buffers = {
         "layer_depth": np.ascontiguousarray(np.moveaxis(layers.depth, 0, -1)),
         "layer_prim_id": np.ascontiguousarray(np.moveaxis(layers.prim_id, 0, -1)),
@@ -433,8 +434,8 @@ def _clipsurface_textured_caps():
     clip = ClipSurface(surface["origin"], surface["u"], surface["v"], surface["scale"],
                        offset_map, wrap=surface["wrap"], textures=textures)
     fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs,
-                        caps=clip_caps(caps), space=caps["space"], cull=state["cull"],
-                        precision=state["precision"])
+                        caps=clip_caps(caps), space=caps["space"],
+                        raster=RasterState(cull=state["cull"], precision=state["precision"]))
     # one map per channel (the package's maps are single-channel images); texel order, row 0
     # at t = 0, values in [0, 1] (the normal map encoded as 2n − 1 = c)
     maps = {"offset_map": offset_map, "cap_light": textures.light[..., 0]}
@@ -573,8 +574,8 @@ def _clip_scene(draws, camera, surfaces, clips, maps, caps, extra=None):
     from ..clipsurface import render_clipped
     state = raster_state({})
     fb = render_clipped([d.mesh for d in draws], clips, **camera.kwargs,
-                        caps=clip_caps(caps), space=caps["space"], cull=state["cull"],
-                        precision=state["precision"])
+                        caps=clip_caps(caps), space=caps["space"],
+                        raster=RasterState(cull=state["cull"], precision=state["precision"]))
     backend_params, backend_maps = _clip_backend_export(draws, clips, caps)
     _name_derived_maps(surfaces, backend_maps)
     return GoldenScene(technique="clipsurface", camera=camera, draws=draws,

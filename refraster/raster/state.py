@@ -160,3 +160,13 @@ def as_raster_state(raster, name="raster"):
         return raster
     raise TypeError(f"{name} must be a refraster.RasterState (or None for the default), got "
                     f"{type(raster).__name__}; e.g. raster=RasterState(depth_func='lequal')")
+
+
+def require_default(state, fields, where):
+    """Refuse, with one line, a state whose ``fields`` differ from the default: for a technique
+    that does not honour them (yet), a silent default would be a wrong picture."""
+    for f in fields:
+        if getattr(state, f) != getattr(DEFAULT, f):
+            raise ValueError(f"raster.{f} must be {getattr(DEFAULT, f)!r} for {where} (it "
+                             f"follows OpenGL's default there), got {getattr(state, f)!r}")
+    return state
