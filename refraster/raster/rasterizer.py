@@ -480,6 +480,28 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                     r1 += sy1
                     r2 += sy2
                 continue
+            if func == 4 and inv_af > 0.0:
+                # "greater" (reversed-Z): the loop above with the comparison turned, so the
+                # reversed-Z convention costs what the default costs (same bits as the
+                # general loop below: the depth in fragment_depth's order, ties to the first)
+                zd0 = np.float64(z0)
+                for y in range(by0, by1 + 1):
+                    a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
+                    zy = dzdy * ((np.float64(y) + 0.5) - fy0)
+                    ly = y - ty0
+                    for x in range(bx0 + a, bx0 + b + 1):
+                        z = (zd0 + dzdx * ((np.float64(x) + 0.5) - fx0)) + zy
+                        z = 0.0 if z < 0.0 else (1.0 if z > 1.0 else z)
+                        zf = np.float32(z)
+                        lx = np.uint64(x - tx0)
+                        ref = zbuf[ly, lx]
+                        more = zf > ref
+                        zbuf[ly, lx] = zf if more else ref
+                        win[ly, lx] = item if more else win[ly, lx]
+                    r0 += sy0
+                    r1 += sy1
+                    r2 += sy2
+                continue
             for y in range(by0, by1 + 1):
                 a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
                 e0 = r0 + sx0 * a
