@@ -80,7 +80,8 @@ class RasterState:
     cull : {"none", "back", "front"}
         Face culling (``glCullFace``), by the facing :attr:`front_face` defines.
     front_face : {"ccw", "cw"}
-        Which winding, as the picture is seen (window y up), is the front (``glFrontFace``).
+        Which winding, as the picture is seen (row 0 at the top, whatever the origin and NDC
+        y), is the front (``glFrontFace``, ``VkFrontFace``, D3D's ``FrontCounterClockwise``).
         ``"cw"`` renders exactly what ``"ccw"`` renders of the same mesh with every face's
         winding reversed, except for the facing-dependent order of the barycentrics' vertices
         (a face's barycentrics always refer to its own vertices 0, 1, 2).
@@ -88,8 +89,13 @@ class RasterState:
         Fixed-point snapping of window positions (8: llvmpipe and current desktop GPUs; 4:
         OpenGL's minimum).
     fill_rule : {"llvmpipe", "bottom-left", "top-left"}
-        Which triangle owns a pixel centre exactly on a shared edge (``"llvmpipe"`` and
-        ``"bottom-left"`` are the same rule, in GL's lower-left window coordinates).
+        Which triangle owns a pixel centre exactly on a shared edge, as the picture is seen:
+        ``"llvmpipe"`` (alias ``"bottom-left"``) owns left edges and horizontal edges at the
+        bottom of the triangle (llvmpipe under OpenGL's lower-left origin: the edges of
+        smallest window y); ``"top-left"`` owns left edges and horizontal edges at the top —
+        Direct3D's rule exactly as it defines it in its upper-left render-target coordinates
+        (a top edge is horizontal and above the other edges: smallest y there, largest y in
+        GL's lower-left coordinates). The rule does not change meaning with ``origin``.
     precision : {"float32", "float64"}
         Vertex-stage arithmetic (float32 as a GPU's vertex shader).
     normals : {"flat", "smooth"}
