@@ -6,10 +6,12 @@ Coverage
     last two vertices) and gets three integer edge functions
     ``E_k(p) = (X_b − X_a)(p_y − Y_a) − (Y_b − Y_a)(p_x − X_a)`` for the edge a→b opposite
     vertex k. A pixel centre is covered when every ``E_k > 0``, or ``E_k = 0`` on an edge the fill
-    rule owns. With ``fill_rule="llvmpipe"`` (alias ``"bottom-left"``) a centre on an edge belongs
-    to the triangle for which it is a **left** edge (``dy < 0`` walking counter-clockwise in GL's
-    y-up window space) or a **bottom** edge (``dy = 0, dx > 0``), as the picture is seen;
-    ``"top-left"`` (Direct3D's rule as the picture is seen) owns left and top edges. The tie
+    rule owns. The coordinates are the picture's, y up (the primitive stage turns an upper-left
+    window and Vulkan's NDC y into them), so the rules hold as the picture is seen whatever the
+    API's conventions. With ``fill_rule="llvmpipe"`` (alias ``"bottom-left"``) a centre on an
+    edge belongs to the triangle for which it is a **left** edge (``dy < 0`` walking
+    counter-clockwise) or a **bottom** edge (``dy = 0, dx > 0``); ``"top-left"`` (Direct3D's
+    rule, in its upper-left coordinates) owns left and top edges. The tie
     rule is a bias of 0 or 1 subtracted from ``E_k`` so the test is ``E_k − bias ≥ 0`` in exact
     int64 arithmetic. Each row's exact span (where all three are ≥ 0) is solved for first, so
     the scan skips the bounding box's empty corners (long slivers cost their area, not their
