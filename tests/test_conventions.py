@@ -338,3 +338,16 @@ def test_bad_camera_input_one_line(call, exc, msg):
     with pytest.raises(exc, match=msg) as info:
         call()
     assert "\n" not in str(info.value)
+
+
+def test_volumetric_depth_sprite_refuses_other_conventions():
+    """A sprite's own orthographic camera maps texture depth into GL's clip space: a state
+    with another depth range, origin, NDC y or depth clamp is refused with one line."""
+    from refraster.ldi import VolumetricDepthSprite
+    from refraster.scenes import cube
+    m = cube()
+    for field, value in (("depth_range", "zero_to_one"), ("ndc_y", "down"),
+                         ("origin", "upper_left"), ("depth_clamp", True)):
+        with pytest.raises(ValueError, match="^raster.depth_range, origin, ndc_y") as info:
+            VolumetricDepthSprite.from_mesh(m, 16, raster=RasterState(**{field: value}))
+        assert "\n" not in str(info.value)
