@@ -13,11 +13,33 @@ Conventions (the same as OpenGL's fixed-function pipeline):
   window centre is ``(c + 0.5, y + 0.5)`` is stored at ``[H − 1 − y, c]``.
 
 :func:`perspective`, :func:`frustum` and :func:`orthographic` build the same matrices as
-``gluPerspective``, ``glFrustum`` and ``glOrtho``.
+``gluPerspective``, ``glFrustum`` and ``glOrtho``. The other APIs' conventions are fields of
+:class:`refraster.RasterState` (``docs/architecture.md``, "Conventions"); the projections take
+two keywords for them:
+
+* ``depth_range="zero_to_one"``: the near plane maps to z_ndc = 0 and the far plane to 1
+  (Vulkan, Direct3D, Metal, WebGPU), for a state with the same ``depth_range``;
+* ``reversed=True``: near and far swap their depths (reversed-Z: near → 1, far → 0 under
+  ``"zero_to_one"``; near → 1, far → −1 under OpenGL's range), drawn with ``depth_func``
+  ``"greater"`` (or ``"gequal"``) and ``clear_depth=0``;
+* ``far=math.inf`` (perspective and frustum): the limit of the matrix as far → ∞.
+
+With ``z_ndc = (A·z_e + B) / (−z_e)`` and the depths ``d_n``, ``d_f`` the near and far planes map
+to (OpenGL ``−1, 1``; reversed ``1, −1``; zero-to-one ``0, 1``; reversed zero-to-one ``1, 0``)::
+
+    A = (d_n·n − d_f·f) / (f − n),   B = (d_n − d_f)·n·f / (f − n)
+    far = ∞:   A = −d_f,   B = (d_n − d_f)·n
+
+so reversed-Z with an infinite far plane in ``"zero_to_one"`` is ``A = 0, B = n``: ``z_ndc =
+n / −z_e``, exactly 1 at ``z_e = −n`` and → 0 as ``z_e → −∞`` (the float32 depth keeps its
+relative precision over the whole range). OpenGL's (default) matrices are computed by the
+formulas of ``gluPerspective``/``glFrustum``/``glOrtho`` as before.
 """
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,14 +85,52 @@ def look_at(eye, target, up=(0.0, 1.0, 0.0)):
     return m
 
 
-def frustum(left, right, bottom, top, near, far):
-    """Perspective projection of ``glFrustum``; ``0 < near < far``."""
-    l, r = as_real(left, "left"), as_real(right, "right")
-    b, t = as_real(bottom, "bottom"), as_real(top, "top")
+#: The clip-space depth ranges a projection can be built for (``RasterState.depth_range``).
+DEPTH_RANGES = ("negative_one_to_one", "zero_to_one")
+
+
+def _depths(depth_range, reversed):
+    """``(d_n, d_f)``: the NDC depths the near and far planes map to."""
+    if not isinstance(reversed, (bool, np.bool_)):
+        raise TypeError(f"reversed must be a bool, got {type(reversed).__name__}")
+    if not isinstance(depth_range, str) or depth_range not in DEPTH_RANGES:
+        raise ValueError(f"depth_range must be one of {', '.join(DEPTH_RANGES)}; got "
+                         f"{depth_range!r}")
+    d_n, d_f = (-1.0, 1.0) if depth_range == "negative_one_to_one" else (0.0, 1.0)
+    return (d_f, d_n) if reversed else (d_n, d_f)
+
+
+def _near_far(near, far, *, infinite):
     n = as_real(near, "near", lo=0.0, lo_open=True)
+    if infinite and isinstance(far, numbers.Real) and not isinstance(far, bool) \
+            and far == math.inf:
+        return n, math.inf
     f = as_real(far, "far")
     if not f > n:
         raise ValueError(f"far must be greater than near, got near={n}, far={f}")
+    return n, f
+
+
+def _perspective_depth(m, n, f, d_n, d_f):
+    """Rows 2 of a perspective matrix for the near and far depths ``d_n``, ``d_f`` (the
+    module's formulas; ``f = inf``: the limit)."""
+    if f == math.inf:
+        m[2, 2] = 0.0 - d_f   # +0.0, not −0.0, when d_f = 0
+        m[2, 3] = (d_n - d_f) * n
+    else:
+        m[2, 2] = (d_n * n - d_f * f) / (f - n)
+        m[2, 3] = (d_n - d_f) * n * f / (f - n)
+
+
+def frustum(left, right, bottom, top, near, far, *, reversed=False,
+            depth_range="negative_one_to_one"):
+    """Perspective projection of ``glFrustum``; ``0 < near < far`` (``far`` may be
+    ``math.inf``). ``depth_range`` and ``reversed``: the near and far planes' depths (module
+    docstring)."""
+    d_n, d_f = _depths(depth_range, reversed)
+    l, r = as_real(left, "left"), as_real(right, "right")
+    b, t = as_real(bottom, "bottom"), as_real(top, "top")
+    n, f = _near_far(near, far, infinite=True)
     if r == l or t == b:
         raise ValueError("left/right and bottom/top must differ")
     m = np.zeros((4, 4))
@@ -78,32 +138,53 @@ def frustum(left, right, bottom, top, near, far):
     m[0, 2] = (r + l) / (r - l)
     m[1, 1] = 2 * n / (t - b)
     m[1, 2] = (t + b) / (t - b)
-    m[2, 2] = -(f + n) / (f - n)
-    m[2, 3] = -2 * f * n / (f - n)
+    if (d_n, d_f) == (-1.0, 1.0) and f != math.inf:   # glFrustum's own formulas
+        m[2, 2] = -(f + n) / (f - n)
+        m[2, 3] = -2 * f * n / (f - n)
+    else:
+        _perspective_depth(m, n, f, d_n, d_f)
     m[3, 2] = -1.0
     return m
 
 
-def perspective(fovy, aspect, near, far):
-    """Perspective projection of ``gluPerspective``; ``fovy`` in **degrees**."""
+def perspective(fovy, aspect, near, far, *, reversed=False, depth_range="negative_one_to_one"):
+    """Perspective projection of ``gluPerspective``; ``fovy`` in **degrees**, ``0 < near <
+    far`` (``far`` may be ``math.inf``). ``depth_range`` and ``reversed``: the near and far
+    planes' depths (module docstring).
+
+    Examples
+    --------
+    Reversed-Z with an infinite far plane, as modern engines render (with
+    ``RasterState(depth_range="zero_to_one", depth_func="greater", clear_depth=0.0)``):
+
+    >>> import math
+    >>> p = perspective(60, 4 / 3, 0.1, math.inf, reversed=True, depth_range="zero_to_one")
+    >>> float(p[2, 2]), float(p[2, 3]), float(p[3, 2])
+    (0.0, 0.1, -1.0)
+    """
+    d_n, d_f = _depths(depth_range, reversed)
     fovy = as_real(fovy, "fovy", lo=0.0, hi=180.0, lo_open=True, hi_open=True)
     aspect = as_real(aspect, "aspect", lo=0.0, lo_open=True)
-    near = as_real(near, "near", lo=0.0, lo_open=True)
-    far = as_real(far, "far")
-    if not far > near:
-        raise ValueError(f"far must be greater than near, got near={near}, far={far}")
+    near, far = _near_far(near, far, infinite=True)
     f = 1.0 / np.tan(np.radians(fovy) / 2.0)
     m = np.zeros((4, 4))
     m[0, 0] = f / aspect
     m[1, 1] = f
-    m[2, 2] = (far + near) / (near - far)
-    m[2, 3] = 2 * far * near / (near - far)
+    if (d_n, d_f) == (-1.0, 1.0) and far != math.inf:   # gluPerspective's own formulas
+        m[2, 2] = (far + near) / (near - far)
+        m[2, 3] = 2 * far * near / (near - far)
+    else:
+        _perspective_depth(m, near, far, d_n, d_f)
     m[3, 2] = -1.0
     return m
 
 
-def orthographic(left, right, bottom, top, near, far):
-    """Orthographic projection of ``glOrtho``."""
+def orthographic(left, right, bottom, top, near, far, *, reversed=False,
+                 depth_range="negative_one_to_one"):
+    """Orthographic projection of ``glOrtho``. ``depth_range`` and ``reversed``: the near and
+    far planes' depths ``d_n``, ``d_f`` (module docstring): ``z_ndc = A·z_e + B`` with
+    ``A = (d_n − d_f) / (f − n)``, ``B = (d_n·f − d_f·n) / (f − n)``."""
+    d_n, d_f = _depths(depth_range, reversed)
     l, r = as_real(left, "left"), as_real(right, "right")
     b, t = as_real(bottom, "bottom"), as_real(top, "top")
     n, f = as_real(near, "near"), as_real(far, "far")
@@ -112,20 +193,29 @@ def orthographic(left, right, bottom, top, near, far):
     m = np.eye(4)
     m[0, 0] = 2 / (r - l)
     m[1, 1] = 2 / (t - b)
-    m[2, 2] = -2 / (f - n)
     m[0, 3] = -(r + l) / (r - l)
     m[1, 3] = -(t + b) / (t - b)
-    m[2, 3] = -(f + n) / (f - n)
+    if (d_n, d_f) == (-1.0, 1.0):   # glOrtho's own formulas
+        m[2, 2] = -2 / (f - n)
+        m[2, 3] = -(f + n) / (f - n)
+    else:
+        m[2, 2] = (d_n - d_f) / (f - n)
+        m[2, 3] = (d_n * f - d_f * n) / (f - n)
     return m
 
 
-def viewport(width, height):
-    """NDC → window matrix (GL window coordinates, y up, depth range [0, 1])."""
+def viewport(width, height, *, depth_range="negative_one_to_one"):
+    """NDC → window matrix (GL window coordinates, y up; window depth ``0.5·z + 0.5``, or
+    ``z`` under ``depth_range="zero_to_one"``)."""
+    _depths(depth_range, False)
     width, height = as_image_size(width, height)
     m = np.eye(4)
     m[0, 0] = m[0, 3] = width / 2.0
     m[1, 1] = m[1, 3] = height / 2.0
-    m[2, 2] = m[2, 3] = 0.5
+    if depth_range == "negative_one_to_one":
+        m[2, 2] = m[2, 3] = 0.5
+    else:
+        m[2, 3] = 0.0
     return m
 
 
@@ -162,13 +252,19 @@ class Camera:
         return near_far(self.proj)
 
 
-def near_far(proj):
-    """The near and far plane distances of a GL perspective or orthographic matrix."""
+def near_far(proj, *, reversed=False, depth_range="negative_one_to_one"):
+    """The near and far plane distances of a perspective or orthographic matrix built for
+    ``depth_range`` and ``reversed`` (GL's by default); far is ``inf`` for an infinite one."""
+    d_n, d_f = _depths(depth_range, reversed)
     p = as_matrix(proj, "proj")
     a, b = p[2, 2], p[2, 3]
-    if is_perspective(p):
-        return b / (a - 1.0), b / (a + 1.0)
-    return (b + 1.0) / a, (b - 1.0) / a
+    if (d_n, d_f) == (-1.0, 1.0):
+        if is_perspective(p):
+            return b / (a - 1.0), (b / (a + 1.0) if a + 1.0 != 0.0 else math.inf)
+        return (b + 1.0) / a, (b - 1.0) / a
+    if is_perspective(p):   # z_ndc = −a − b / z_e: the distance where it equals d is b / (d + a)
+        return tuple(b / (d + a) if d + a != 0.0 else math.inf for d in (d_n, d_f))
+    return (b - d_n) / a, (b - d_f) / a
 
 
 def frame_bounds(bounds, *, width, height, fovy=35.0, direction=(1.0, 0.8, 1.4), up=(0, 1, 0),

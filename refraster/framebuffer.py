@@ -33,7 +33,9 @@ class Framebuffer:
     Attributes
     ----------
     depth : float32
-        Window depth in [0, 1]; the clear value (1.0) where nothing was drawn.
+        Window depth in [0, 1] (``0.5·z/w + 0.5``, or ``z/w`` under
+        ``depth_range="zero_to_one"``); the clear value (``raster.clear_depth``, 1.0 by
+        default) where nothing was drawn.
     eye_depth : float32
         Distance along the view axis, ``−z_eye``; ``+inf`` background.
     normal : float32 (H, W, 3)
@@ -494,7 +496,8 @@ def render(meshes, *, view, proj, width, height, raster=None, model=None, fragme
     raster : RasterState, optional
         The fixed-function state (:class:`refraster.RasterState`): depth function, depth
         writes, clear depth, culling, front face, sub-pixel bits, fill rule, vertex-stage
-        precision, and ``normals``: flat face normals (default) or smooth per-vertex normals
+        precision, the API conventions (depth range, window origin, NDC y, depth clamp;
+        ``docs/architecture.md``, "Conventions"), and ``normals``: flat face normals (default) or smooth per-vertex normals
         (a mesh's own, given as ``Mesh.vertex_normals`` or a ``(vertices, faces, normals)``
         triple, else area-weighted ones), interpolated perspective-correctly and
         renormalized. None: OpenGL's defaults.

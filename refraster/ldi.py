@@ -9,7 +9,9 @@ corrections of MATH.md §2.
   fragment of each run of equal depths — exactly what classic multi-pass depth peeling with
   ``GL_LESS`` and a strict "behind the previous layer" test produces; ``mode="all"`` keeps every
   fragment (an A-buffer), which the parity test needs (MATH.md §2.3: peeling merges coincident
-  fragments and breaks parity).
+  fragments and breaks parity). The peel follows the depth direction of the raster state: under
+  ``greater``/``gequal`` (reversed-Z) the nearest fragment has the **largest** depth, and the
+  layers are sorted from depth 1 downwards (:func:`peel_fragments`).
 * :class:`VolumetricDepthSprite` is the paper's VDS = (G, LDI, d, w, h): the solid scaled
   uniformly into the unit cube (with the margin of MATH.md §2.1), seen by an orthographic camera,
   linear depth, built with ``mode="all"``; ``contains`` is the corrected parity test of
@@ -29,6 +31,8 @@ from numba import njit, prange
 from ._config import IJIT, JIT, PJIT
 from ._validate import as_choice, as_float_array, as_size
 from .mesh import as_mesh
+from .raster.rasterizer import DEPTH_FUNCS, depth_test
+from .raster.state import RasterState, as_raster_state
 
 __all__ = ["LayeredDepthImage", "peel", "peel_fragments", "VolumetricDepthSprite",
            "NonWatertightWarning", "MODES", "RULES", "AXES"]
@@ -76,9 +80,10 @@ def _bucket_by_pixel(pixel, n_pixels):
 
 
 @njit(**PJIT)
-def _sort_pixels_by_depth(order, offsets, depth):
-    """Stable insertion sort of each pixel's slice of ``order`` by depth (ties keep draw order);
-    each pixel is its own output slice."""
+def _sort_pixels_by_depth(order, offsets, depth, descending):
+    """Stable insertion sort of each pixel's slice of ``order`` by depth, ascending or (with
+    ``descending``, reversed-Z) descending (ties keep draw order); each pixel is its own output
+    slice."""
     for p in prange(offsets.shape[0] - 1):
         a = offsets[p]
         b = offsets[p + 1]
@@ -86,19 +91,30 @@ def _sort_pixels_by_depth(order, offsets, depth):
             k = order[i]
             d = depth[k]
             j = i - 1
-            while j >= a and depth[order[j]] > d:
-                order[j + 1] = order[j]
-                j -= 1
+            if descending:
+                while j >= a and depth[order[j]] < d:
+                    order[j + 1] = order[j]
+                    j -= 1
+            else:
+                while j >= a and depth[order[j]] > d:
+                    order[j + 1] = order[j]
+                    j -= 1
             order[j + 1] = k
 
 
 @njit(**PJIT)
-def _select_layers(order, offsets, depth, mode, clear, count):
+def _select_layers(order, offsets, depth, mode, func, clear, count):
     """Compact each pixel's sorted slice to its layers; ``count[p]`` = number of layers.
 
-    mode 0 (peel): the first fragment of each run of equal depths, and only depths < ``clear``
-    (GL_LESS against the cleared depth buffer). mode 1 (all): every fragment.
+    mode 0 (peel), with the depth function ``func`` (:data:`refraster.raster.DEPTH_FUNCS`:
+    ``less``, ``lequal``, ``greater`` or ``gequal``; the slice sorted ascending for the first
+    two, descending for the others): one fragment of each run of equal depths — the first drawn
+    under ``less``/``greater``, the last drawn under ``lequal``/``gequal`` (the fragment the
+    depth test lets win) — and only depths that pass ``func`` against ``clear`` (the cleared
+    depth buffer). mode 1 (all): every fragment.
     """
+    last = func == 3 or func == 6          # lequal, gequal: the last drawn of a tie wins
+    descending = func == 4 or func == 6    # greater, gequal: nearest = largest depth
     for p in prange(offsets.shape[0] - 1):
         a = offsets[p]
         b = offsets[p + 1]
@@ -109,11 +125,13 @@ def _select_layers(order, offsets, depth, mode, clear, count):
         for i in range(a, b):
             k = order[i]
             d = depth[k]
-            if not d < clear:
+            if not depth_test(func, d, clear):
                 break
-            if w == a or d > depth[order[w - 1]]:
+            if w == a or (d < depth[order[w - 1]] if descending else d > depth[order[w - 1]]):
                 order[w] = k
                 w += 1
+            elif last:
+                order[w - 1] = k
         count[p] = w - a
 
 
@@ -178,7 +196,8 @@ class LayeredDepthImage:
     Attributes
     ----------
     depth : (K, H, W) float32
-        Window depth; 1.0 (the clear value) where a pixel has fewer than ``k + 1`` layers.
+        Window depth; the clear value (``raster.clear_depth``, 1.0 by default) where a pixel
+        has fewer than ``k + 1`` layers.
     prim_id, object_id : (K, H, W) int32
         Face index within its mesh and draw-call index; −1 where empty.
     front_facing : (K, H, W) bool
@@ -215,7 +234,20 @@ def _as_max_layers(max_layers):
     return int(max_layers)
 
 
-def peel_fragments(frags, *, max_layers=None, mode="peel"):
+#: The depth functions a peel can follow: front to back by ascending depth (``less``,
+#: ``lequal``) or by descending depth (``greater``, ``gequal``: reversed-Z).
+PEEL_DEPTH_FUNCS = ("less", "lequal", "greater", "gequal")
+
+
+def _peel_state(raster):
+    state = as_raster_state(raster)
+    if state.depth_func not in PEEL_DEPTH_FUNCS:
+        raise ValueError(f"raster.depth_func must be one of {', '.join(PEEL_DEPTH_FUNCS)} for "
+                         f"depth peeling (a front-to-back order), got {state.depth_func!r}")
+    return state
+
+
+def peel_fragments(frags, *, max_layers=None, mode="peel", raster=None):
     """Layered depth image of a fragment stream (one pass, sorted per pixel).
 
     Parameters
@@ -230,7 +262,17 @@ def peel_fragments(frags, *, max_layers=None, mode="peel"):
         ``"peel"``: classic depth peeling — layer k is the nearest fragment strictly behind
         layer k − 1, fragments at equal depth merge and the first drawn survives (``GL_LESS``),
         and depths ≥ 1.0 (the cleared depth) never appear. ``"all"``: every fragment, sorted by
-        depth, ties in draw order.
+        depth front to back, ties in draw order.
+    raster : RasterState, optional
+        Its ``depth_func`` gives the direction and ``clear_depth`` the cleared depth (None:
+        ``less``, 1.0). "Nearest" and "behind" follow the depth function: under ``less`` and
+        ``lequal`` depth grows away from the eye; under ``greater`` and ``gequal``
+        (reversed-Z) it shrinks, so layer 0 holds the largest depth that passes against the
+        clear depth and layer k the largest depth strictly below layer k − 1's. Of fragments
+        at equal depth the first drawn survives under ``less``/``greater`` and the last drawn
+        under ``lequal``/``gequal`` (the one the depth test lets win); only depths passing the
+        depth function against the clear depth appear. Other depth functions define no
+        front-to-back order and are refused.
 
     Returns
     -------
@@ -238,11 +280,16 @@ def peel_fragments(frags, *, max_layers=None, mode="peel"):
 
     Notes
     -----
-    Equal to a literal multi-pass loop (pass k: ``resolve(frags, keep=depth > layer_{k−1})``)
-    bit for bit (``tests/test_ldi.py``). Trapp & Döllner Sec. 5.2; MATH.md §2.3 (why ``"all"``).
+    Equal to a literal multi-pass loop bit for bit (``tests/test_ldi.py``): pass k resolves
+    with ``raster`` and ``keep=depth > layer_{k−1}`` (``depth < layer_{k−1}`` under
+    ``greater``/``gequal``), the first pass keeping everything. Trapp & Döllner Sec. 5.2;
+    MATH.md §2.3 (why ``"all"``).
     """
     mode_code = as_choice(mode, "mode", MODES)
     k_cap = _as_max_layers(max_layers)
+    state = _peel_state(raster)
+    func = DEPTH_FUNCS[state.depth_func]
+    clear = np.float32(state.clear_depth)
     for name in ("pixel", "depth", "prim_id", "object_id", "front_facing"):
         if not hasattr(frags, name):
             raise TypeError(f"frags must be a Fragments stream, got {type(frags).__name__}")
@@ -253,16 +300,16 @@ def peel_fragments(frags, *, max_layers=None, mode="peel"):
     if pixel.size and (pixel.min() < 0 or pixel.max() >= n_pixels):
         raise ValueError("frags.pixel has indices outside the image")
     offsets, order = _bucket_by_pixel(pixel, n_pixels)
-    _sort_pixels_by_depth(order, offsets, depth)
+    _sort_pixels_by_depth(order, offsets, depth, func == 4 or func == 6)
     count = np.zeros(n_pixels, np.int64)
-    _select_layers(order, offsets, depth, mode_code, np.float32(1.0), count)
+    _select_layers(order, offsets, depth, mode_code, func, clear, count)
     k_all = int(count.max()) if n_pixels else 0
     k = k_all if k_cap is None else min(k_all, k_cap)
     if k * n_pixels > MAX_LAYER_TEXELS:
         raise ValueError(f"{k} layers of {w}×{h} exceed {MAX_LAYER_TEXELS} texels; "
                          f"pass a smaller max_layers")
     out_index = np.full((k, n_pixels), -1, np.int64)
-    out_depth = np.full((k, n_pixels), np.float32(1.0), np.float32)
+    out_depth = np.full((k, n_pixels), clear, np.float32)
     out_prim = np.full((k, n_pixels), -1, np.int32)
     out_obj = np.full((k, n_pixels), -1, np.int32)
     out_front = np.zeros((k, n_pixels), np.bool_)
@@ -295,7 +342,9 @@ def peel(meshes, *, view, proj, width, height, max_layers=None, mode="peel", mod
         See :func:`peel_fragments`.
     model, raster
         Passed to :func:`refraster.draw` (the state's cull mode, front face, precision,
-        sub-pixel bits and fill rule; a :class:`refraster.RasterState`, None for the default).
+        sub-pixel bits, fill rule and conventions; a :class:`refraster.RasterState`, None for
+        the default) and ``raster`` to :func:`peel_fragments` (its depth function and clear
+        depth: the peel's direction).
 
     Returns
     -------
@@ -309,9 +358,10 @@ def peel(meshes, *, view, proj, width, height, max_layers=None, mode="peel", mod
     from .raster import draw
     as_choice(mode, "mode", MODES)
     _as_max_layers(max_layers)
+    state = _peel_state(raster)
     frags = draw(meshes, view=view, proj=proj, width=width, height=height, model=model,
-                 raster=raster)
-    return peel_fragments(frags, max_layers=max_layers, mode=mode)
+                 raster=state)
+    return peel_fragments(frags, max_layers=max_layers, mode=mode, raster=state)
 
 
 # ----------------------------------------------------------------------------- the sprite
@@ -460,13 +510,20 @@ class VolumetricDepthSprite:
         counts only layers that exist (MATH.md §2.2, "Loop bound").
         """
         from .raster import draw
-        from .raster.state import as_raster_state
         state = as_raster_state(raster)
         if state.cull != "none" or state.front_face != "ccw":
             raise ValueError(f"raster.cull must be 'none' and raster.front_face 'ccw' for a "
                              f"volumetric depth sprite (every layer counts, and the sign of a "
                              f"layer is its facing), got cull={state.cull!r}, "
                              f"front_face={state.front_face!r}")
+        gl = RasterState()
+        if (state.depth_range, state.origin, state.ndc_y, state.depth_clamp) != (
+                gl.depth_range, gl.origin, gl.ndc_y, gl.depth_clamp):
+            raise ValueError(f"raster.depth_range, origin, ndc_y and depth_clamp must be "
+                             f"OpenGL's for a volumetric depth sprite (its own orthographic "
+                             f"camera maps texture depth to GL's clip space), got "
+                             f"{state.depth_range!r}, {state.origin!r}, {state.ndc_y!r}, "
+                             f"{state.depth_clamp!r}")
         m = as_mesh(mesh)
         if m.n_faces == 0:
             raise ValueError("mesh has no faces: a volumetric depth sprite needs a closed solid")

@@ -96,6 +96,81 @@ def test_peel_equals_multipass_resolve_bit_for_bit():
                                   frags.depth[win[covered]].view(np.uint32))
 
 
+def _multipass_in(frags, state):
+    """Classic depth peeling in the state's depth direction, written out: pass k resolves with
+    ``state`` (its depth function and clear depth), keeping only the fragments strictly behind
+    layer k − 1: a larger depth under less/lequal, a smaller one under greater/gequal
+    (reversed-Z, where the nearest fragment has the largest depth)."""
+    descending = state.depth_func in ("greater", "gequal")
+    done = np.float32(-np.inf if descending else np.inf)
+    prev = np.full(frags.width * frags.height, -done, np.float32)
+    winners = []
+    while True:
+        behind = (frags.depth < prev[frags.pixel] if descending
+                  else frags.depth > prev[frags.pixel])
+        res = refraster.resolve(frags, raster=state, keep=behind)
+        win = res.winner.ravel()
+        if not (win >= 0).any():
+            return winners
+        winners.append(res.winner)
+        prev = np.where(win >= 0, res.depth.ravel(), done)
+
+
+#: z' = w − z of a 0 ≤ z ≤ w projection: reversed-Z (near → 1, far → 0).
+_Z01 = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]])
+
+
+def _reversed(proj):
+    q = _Z01 @ proj
+    q[2] = q[3] - q[2]
+    return q
+
+
+@pytest.mark.parametrize("state, reverse", [
+    (refraster.RasterState(depth_range="zero_to_one", depth_func="greater", clear_depth=0.0),
+     True),
+    (refraster.RasterState(depth_range="zero_to_one", depth_func="gequal", clear_depth=0.05),
+     True),
+    (refraster.RasterState(depth_func="lequal", clear_depth=0.97), False),
+], ids=["greater", "gequal", "lequal"])
+def test_peel_follows_the_depth_direction(state, reverse):
+    """Under reversed-Z (greater/gequal, cleared to 0) the peel goes front to back from depth
+    1 downwards; under lequal/gequal the last drawn of equal depths wins, as the depth test
+    lets it; only depths passing against the clear depth appear: equal, bit for bit, to the
+    literal multi-pass loop in the same state."""
+    for sc in SCENES[:13]:
+        proj = _reversed(sc.proj) if reverse else sc.proj
+        frags = refraster.draw(sc.meshes, view=sc.view, proj=proj, width=sc.width,
+                               height=sc.height, raster=state)
+        lay = peel_fragments(frags, raster=state)
+        winners = _multipass_in(frags, state)
+        assert len(lay) == len(winners), sc.name
+        for k, win in enumerate(winners):
+            assert np.array_equal(lay.index[k], win), (sc.name, k)
+            covered = win >= 0
+            assert np.array_equal(lay.depth[k][covered].view(np.uint32),
+                                  frags.depth[win[covered]].view(np.uint32))
+            assert np.all(lay.depth[k][~covered] == np.float32(state.clear_depth))
+
+
+def test_hand_worked_reversed_layers():
+    """Reversed-Z orthographic camera, zero-to-one: z = 0.5 → depth 0.75 (front), −0.5 → 0.25;
+    ``greater`` keeps the first drawn of the coincident pair, ``gequal`` the last."""
+    cam = dict(ORTHO, proj=refraster.orthographic(-1, 1, -1, 1, -1, 1, reversed=True,
+                                                  depth_range="zero_to_one"))
+    back, front, dup = _quad(-0.5), _quad(0.5), _quad(0.5)
+    base = refraster.RasterState(depth_range="zero_to_one", clear_depth=0.0)
+    for func, first in (("greater", 1), ("gequal", 2)):
+        lay = peel([back, front, dup], raster=base.replace(depth_func=func), **cam)
+        assert lay.depth.shape == (2, 4, 4)
+        assert np.all(lay.depth[0] == np.float32(0.75)) and np.all(lay.depth[1] == 0.25)
+        assert np.all(lay.object_id[0] == first) and np.all(lay.object_id[1] == 0)
+        every = peel([back, front, dup], mode="all", raster=base.replace(depth_func=func), **cam)
+        assert np.all(every.object_id[:, 0, 0] == [1, 2, 0])
+    with pytest.raises(ValueError, match="^raster.depth_func must be one of less"):
+        peel([back], raster=base.replace(depth_func="equal"), **cam)
+
+
 def test_all_mode_keeps_every_fragment_sorted():
     for sc in SCENES[:13]:
         frags = _draw(sc)

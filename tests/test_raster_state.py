@@ -27,6 +27,10 @@ KW = dict(view=VIEW, proj=PROJ, width=64, height=48)
     ("subpixel_bits", 7, ValueError), ("subpixel_bits", 8.0, TypeError),
     ("subpixel_bits", True, TypeError), ("fill_rule", "top_right", ValueError),
     ("precision", "float16", ValueError), ("normals", "given", ValueError),
+    ("depth_range", "zero_to_inf", ValueError), ("depth_range", 0, TypeError),
+    ("origin", "center", ValueError), ("ndc_y", "left", ValueError),
+    ("depth_clamp", "yes", TypeError), ("depth_clamp", 1, TypeError),
+    ("depth_format", "unorm32", ValueError), ("depth_format", None, TypeError),
 ])
 def test_every_field_is_checked_with_one_line_naming_it(field, value, exc):
     with pytest.raises(exc, match=rf"^raster\.{field} ") as info:
@@ -57,7 +61,9 @@ def test_the_defaults_are_opengls():
     s = RasterState()
     assert s.as_dict() == dict(depth_func="less", depth_write=True, clear_depth=1.0,
                                cull="none", front_face="ccw", subpixel_bits=8,
-                               fill_rule="llvmpipe", precision="float32", normals="flat")
+                               fill_rule="llvmpipe", precision="float32", normals="flat",
+                               depth_range="negative_one_to_one", origin="lower_left",
+                               ndc_y="up", depth_clamp=False, depth_format="float32")
 
 
 def _bytes(fb):

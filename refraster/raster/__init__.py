@@ -12,7 +12,7 @@ from .._threads import frame_work, threads_for
 from .._validate import as_float_array, as_image_size, as_index_array, as_matrix
 from ..mesh import as_meshes
 from .fragments import Fragments, concat
-from .primitive import CULL, FILL_RULES, setup_triangles, transform_vertices
+from .primitive import CULL, FILL_RULES, convention_code, setup_triangles, transform_vertices
 from .rasterizer import DEPTH_FUNCS, stream
 from .resolve import Resolved, resolve
 from .state import RasterState, as_raster_state
@@ -29,6 +29,12 @@ def cull_code(state):
     if state.front_face == "cw" and cull != "none":
         cull = "front" if cull == "back" else "back"
     return CULL[cull]
+
+
+def conv_code(state):
+    """The primitive stage's convention bits of a state (depth range, depth clamp, window
+    origin, NDC y; :func:`refraster.raster.primitive.convention_code`)."""
+    return convention_code(state.depth_range, state.depth_clamp, state.origin, state.ndc_y)
 
 
 def facing(state, front, covered=None):
@@ -106,8 +112,8 @@ def _check_clip(clip, meshes, prec):
 
 def prepare(meshes, *, view, proj, width, height, model=None, raster=None, scratch=None):
     """Validate draw calls and run the vertex and primitive stages (shared by draw and render)
-    with the :class:`RasterState` ``raster`` (its cull, front face, precision, sub-pixel bits
-    and fill rule; None: the default state).
+    with the :class:`RasterState` ``raster`` (its cull, front face, precision, sub-pixel bits,
+    fill rule and API conventions; None: the default state).
     ``scratch`` (internal, ``render``): a :class:`refraster._scratch.Scratch` for the clip
     coordinates and the primitive stage's arrays — the result is then valid only until that
     scratch is used again.
@@ -168,7 +174,8 @@ def _prepare(meshes, *, view, proj, width, height, model, state, scratch):
     p.clip = clip
     p.state = state
     p.triangles = setup_triangles(clip, face, width, height, cull=cull_code(state),
-                                  subpixel_bits=state.subpixel_bits, scratch=scratch)
+                                  subpixel_bits=state.subpixel_bits, conv=conv_code(state),
+                                  scratch=scratch)
     return p
 
 
@@ -194,8 +201,9 @@ def draw(meshes, *, view, proj, width, height, model=None, raster=None):
         Object → world matrix, one for all meshes or one per mesh.
     raster : RasterState, optional
         The fixed-function state (:class:`refraster.RasterState`); its cull mode, front face,
-        vertex-stage precision, sub-pixel bits and fill rule apply here (the depth test is
-        :func:`resolve`'s). None: OpenGL's defaults.
+        vertex-stage precision, sub-pixel bits, fill rule and API conventions (depth range,
+        depth clamp, window origin, NDC y) apply here (the depth test is :func:`resolve`'s).
+        None: OpenGL's defaults.
 
     Returns
     -------
@@ -223,7 +231,8 @@ def rasterize(clip_positions, faces, width, height, *, raster=None):
         Vertex indices; the primitive id of a fragment is its face's row.
     width, height : int
     raster : RasterState, optional
-        Its cull mode, front face, sub-pixel bits and fill rule, as in :func:`draw`.
+        Its cull mode, front face, sub-pixel bits, fill rule and API conventions, as in
+        :func:`draw`.
 
     Returns
     -------
@@ -238,7 +247,7 @@ def rasterize(clip_positions, faces, width, height, *, raster=None):
     width, height = as_image_size(width, height)
     state = as_raster_state(raster)
     st = setup_triangles(c, f, width, height, cull=cull_code(state),
-                         subpixel_bits=state.subpixel_bits)
+                         subpixel_bits=state.subpixel_bits, conv=conv_code(state))
     pixel, depth, prim, front, bary, _ = stream(st, fill_rule=FILL_RULES[state.fill_rule])
     facing(state, front)
     return Fragments(pixel, depth, prim.astype(np.int32), np.zeros(len(prim), np.int32), bary,

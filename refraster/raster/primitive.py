@@ -7,8 +7,9 @@ positions with a fixed multiply–add order. ``precision="float64"`` keeps every
 The primitive stage turns each face into zero or more *screen triangles*:
 
 1. trivial reject when all three vertices are outside one clip plane;
-2. homogeneous clipping (Sutherland–Hodgman, float64) against the near plane ``z ≥ −w``, the far
-   plane ``z ≤ w``, ``w ≥ W_EPS`` and a guard band ``|x|, |y| ≤ g·w`` that keeps window
+2. homogeneous clipping (Sutherland–Hodgman, float64) against the near plane ``z ≥ −w`` (``z ≥ 0``
+   under ``depth_range="zero_to_one"``), the far plane ``z ≤ w`` (neither under ``depth_clamp``),
+   ``w ≥ W_EPS`` and a guard band ``|x|, |y| ≤ g·w`` that keeps window
    coordinates within ``GUARD_PIXELS`` of the viewport centre, so that fixed-point edge functions
    cannot overflow int64 however far away a vertex is (1e30 included). An intersection point is
    computed from the edge's endpoint nearer the plane (a property of the edge, so the two
@@ -20,7 +21,10 @@ The primitive stage turns each face into zero or more *screen triangles*:
    coordinates **in the original triangle**, so pieces keep the original primitive id and
    barycentrics;
 3. perspective divide and viewport transform in float32 (``x·(1/w)·W/2 + W/2``, as Mesa's draw
-   module), window depth ``0.5·z_ndc + 0.5``;
+   module), window depth ``0.5·z_ndc + 0.5`` (``z_ndc`` under ``"zero_to_one"``); window y is
+   ``(±y)·(1/w)·H/2 + H/2`` in the API's window coordinates (the sign: see :data:`NEGATE_Y`),
+   and an upper-left window is snapped there and then turned into the picture-up coordinates
+   the rasterizer works in (:data:`UPPER_LEFT`);
 4. snapping to ``1/2^subpixel_bits`` pixel (round half to even) after shifting by the half-pixel
    offset, so pixel centres sit on integer multiples of ``2^subpixel_bits``;
 5. facing from the sign of the snapped polygon's area (CCW in GL window space — as the picture is
@@ -43,6 +47,31 @@ W_EPS = 1e-30
 
 CULL = {"none": 0, "back": 1, "front": 2}
 FILL_RULES = {"llvmpipe": 0, "bottom-left": 0, "top-left": 1}
+
+# The API conventions of a RasterState, as bits of one integer ``conv`` the kernels branch on;
+# 0 is OpenGL's (lower-left origin, NDC y up, −w ≤ z ≤ w, no clamp), whose arithmetic is the
+# same operations in the same order as before the conventions existed.
+#: Clip volume 0 ≤ z ≤ w (near plane z ≥ 0) and window depth ``z·(1/w)``.
+ZERO_TO_ONE = 1
+#: No clipping against the near and far planes (fragment depth is clamped to [0, 1] anyway).
+DEPTH_CLAMP = 2
+#: Window y from −y: NDC +y and the window's +y point opposite ways in the picture (Direct3D,
+#: Metal, WebGPU and ``GL_UPPER_LEFT``: NDC up, window y down; NDC down with a lower-left origin).
+NEGATE_Y = 4
+#: Window y counts down from the top of the picture: snapped there (``rint((y_w − ½)·2^b)``, so
+#: ties round in the API's coordinates), then turned exactly into the rasterizer's picture-up
+#: coordinates ``(H − 1)·2^b − Y``; the unsnapped position becomes ``H − y_w`` (float32).
+UPPER_LEFT = 8
+
+
+def convention_code(depth_range="negative_one_to_one", depth_clamp=False, origin="lower_left",
+                    ndc_y="up"):
+    """The kernels' ``conv`` integer of a state's convention fields (validated names)."""
+    upper = origin == "upper_left"
+    return ((ZERO_TO_ONE if depth_range == "zero_to_one" else 0)
+            | (DEPTH_CLAMP if depth_clamp else 0)
+            | (NEGATE_Y if upper != (ndc_y == "down") else 0)
+            | (UPPER_LEFT if upper else 0))
 
 # one scratch polygon holds 3 + 7 clip planes vertices: x y z w b0 b1 b2
 _MAXV = 10
@@ -86,9 +115,11 @@ def transform_vertices(vertices, mvp, precision="float32", out=None):
 
 
 @njit(**IJIT)
-def _plane_dist(k, x, y, z, w, gx, gy):
+def _plane_dist(k, x, y, z, w, gx, gy, conv):
     # signed distance to clip plane k; inside when >= 0
     if k == 0:
+        if conv & ZERO_TO_ONE:
+            return z          # near, 0 ≤ z
         return z + w          # near
     if k == 1:
         return w - z          # far
@@ -104,20 +135,22 @@ def _plane_dist(k, x, y, z, w, gx, gy):
 
 
 @njit(**IJIT)
-def _outcode(x, y, z, w, gx, gy):
+def _outcode(x, y, z, w, gx, gy, conv):
     code = 0
     for k in range(7):
-        if _plane_dist(k, x, y, z, w, gx, gy) < 0.0:
+        if _plane_dist(k, x, y, z, w, gx, gy, conv) < 0.0:
             code |= 1 << k
+    if conv & DEPTH_CLAMP:
+        code &= ~3            # no near (bit 0) or far (bit 1) plane
     return code
 
 
 @njit(**IJIT)
-def _onto_plane(k, p, m, gx, gy):
+def _onto_plane(k, p, m, gx, gy, conv):
     # the new vertex lies on plane k exactly: set the coordinate the plane constrains
     w = p[m, 3]
     if k == 0:
-        p[m, 2] = -w
+        p[m, 2] = 0.0 if conv & ZERO_TO_ONE else -w
     elif k == 1:
         p[m, 2] = w
     elif k == 2:
@@ -133,7 +166,7 @@ def _onto_plane(k, p, m, gx, gy):
 
 
 @njit(**JIT)
-def _clip_polygon(poly, tmp, n, planes, gx, gy):
+def _clip_polygon(poly, tmp, n, planes, gx, gy, conv):
     """Clip the polygon ``poly[:n]`` against every plane whose bit is set in ``planes``."""
     for k in range(7):
         if not (planes >> k) & 1:
@@ -141,8 +174,8 @@ def _clip_polygon(poly, tmp, n, planes, gx, gy):
         m = 0
         for i in range(n):
             j = i + 1 if i + 1 < n else 0
-            di = _plane_dist(k, poly[i, 0], poly[i, 1], poly[i, 2], poly[i, 3], gx, gy)
-            dj = _plane_dist(k, poly[j, 0], poly[j, 1], poly[j, 2], poly[j, 3], gx, gy)
+            di = _plane_dist(k, poly[i, 0], poly[i, 1], poly[i, 2], poly[i, 3], gx, gy, conv)
+            dj = _plane_dist(k, poly[j, 0], poly[j, 1], poly[j, 2], poly[j, 3], gx, gy, conv)
             if di >= 0.0:
                 for c in range(7):
                     tmp[m, c] = poly[i, c]
@@ -160,7 +193,7 @@ def _clip_polygon(poly, tmp, n, planes, gx, gy):
                 t = da / (da - db)
                 for c in range(7):
                     tmp[m, c] = poly[a, c] + t * (poly[b, c] - poly[a, c])
-                _onto_plane(k, tmp, m, gx, gy)
+                _onto_plane(k, tmp, m, gx, gy, conv)
                 m += 1
         n = m
         for i in range(n):
@@ -172,8 +205,10 @@ def _clip_polygon(poly, tmp, n, planes, gx, gy):
 
 
 @njit(**IJIT)
-def _window(x, y, z, w, hw, hh, scale):
-    """Divide, viewport and snap one vertex (float32, as Mesa's draw module)."""
+def _window(x, y, z, w, hw, hh, scale, conv, top):
+    """Divide, viewport and snap one vertex (float32, as Mesa's draw module). ``conv``: the
+    convention bits; ``top``: ``(H − 1)·2^b``, the snapped y of the top row's centre in the
+    rasterizer's picture-up coordinates (used under :data:`UPPER_LEFT`)."""
     half = np.float32(0.5)
     x = np.float32(x)
     y = np.float32(y)
@@ -181,23 +216,37 @@ def _window(x, y, z, w, hw, hh, scale):
     w = np.float32(w)
     rw = np.float32(1.0) / w
     xw = x * rw * hw + hw
+    if conv == 0:   # OpenGL's
+        yw = y * rw * hh + hh
+        zw = z * rw * half + half
+        return (np.int64(np.rint((xw - half) * scale)), np.int64(np.rint((yw - half) * scale)),
+                zw, 1.0 / np.float64(w), xw, yw)
+    if conv & NEGATE_Y:
+        y = -y
     yw = y * rw * hh + hh
-    zw = z * rw * half + half
-    return (np.int64(np.rint((xw - half) * scale)), np.int64(np.rint((yw - half) * scale)),
-            zw, 1.0 / np.float64(w), xw, yw)
+    if conv & ZERO_TO_ONE:
+        zw = z * rw
+    else:
+        zw = z * rw * half + half
+    ys = np.int64(np.rint((yw - half) * scale))
+    if conv & UPPER_LEFT:
+        ys = top - ys
+        yw = np.float32(2.0) * hh - yw
+    return (np.int64(np.rint((xw - half) * scale)), ys, zw, 1.0 / np.float64(w), xw, yw)
 
 
 @njit(**PJIT)
-def _vertex_pass(c, width, height, bits, gx, gy, vX, vY, vZ, vIW, vXf, vYf, vcode):
+def _vertex_pass(c, width, height, bits, gx, gy, conv, vX, vY, vZ, vIW, vXf, vYf, vcode):
     hw = np.float32(width * 0.5)
     hh = np.float32(height * 0.5)
     scale = np.float32(1 << bits)
+    top = np.int64(height - 1) << bits
     for i in prange(c.shape[0]):
-        code = _outcode(c[i, 0], c[i, 1], c[i, 2], c[i, 3], gx, gy)
+        code = _outcode(c[i, 0], c[i, 1], c[i, 2], c[i, 3], gx, gy, conv)
         vcode[i] = code
         if code == 0:
             (vX[i], vY[i], vZ[i], vIW[i], vXf[i],
-             vYf[i]) = _window(c[i, 0], c[i, 1], c[i, 2], c[i, 3], hw, hh, scale)
+             vYf[i]) = _window(c[i, 0], c[i, 1], c[i, 2], c[i, 3], hw, hh, scale, conv, top)
 
 
 @njit(**IJIT)
@@ -238,7 +287,7 @@ def _store(t, X, Y, Z, IW, XF, YF, i, j, k, prim, front, box, area, bslot,
 
 @njit(**JIT)
 def _clipped_face(c, f, i, codes, poly, tmp, X, Y, Z, IW, XF, YF, width, height, bits, gx,
-                  gy):
+                  gy, conv):
     """Clip face ``i`` and project the polygon; returns its vertex count and doubled area."""
     for k in range(3):
         v = f[i, k]
@@ -246,15 +295,16 @@ def _clipped_face(c, f, i, codes, poly, tmp, X, Y, Z, IW, XF, YF, width, height,
             poly[k, j] = c[v, j]
         for j in range(3):
             poly[k, 4 + j] = 1.0 if j == k else 0.0
-    n = _clip_polygon(poly, tmp, np.int64(3), codes, gx, gy)   # int64: one compile
+    n = _clip_polygon(poly, tmp, np.int64(3), codes, gx, gy, conv)   # int64: one compile
     if n < 3:
         return 0, np.int64(0)
     hw = np.float32(width * 0.5)
     hh = np.float32(height * 0.5)
     scale = np.float32(1 << bits)
+    top = np.int64(height - 1) << bits
     for k in range(n):
         X[k], Y[k], Z[k], IW[k], XF[k], YF[k] = _window(poly[k, 0], poly[k, 1], poly[k, 2],
-                                                        poly[k, 3], hw, hh, scale)
+                                                        poly[k, 3], hw, hh, scale, conv, top)
     total = np.int64(0)
     for k in range(1, n - 1):
         total += _area(X, Y, 0, k, k + 1)
@@ -300,7 +350,7 @@ def _classify(f, vX, vY, vcode, width, height, bits, cull, status, fbox):
 
 
 @njit(**PJIT)
-def _clip_pass(c, f, idx, width, height, bits, gx, gy, cull, counts, offsets, write,
+def _clip_pass(c, f, idx, width, height, bits, gx, gy, conv, cull, counts, offsets, write,
                oX, oY, oZ, oIW, oXf, oYf, oprim, ofront, obox, oarea, obidx, oB):
     n_idx = idx.shape[0]
     nchunks = (n_idx + _CHUNK - 1) // _CHUNK
@@ -320,9 +370,9 @@ def _clip_pass(c, f, idx, width, height, bits, gx, gy, cull, counts, offsets, wr
             codes = np.int64(0)   # not the literal 0: _clipped_face compiles once
             for k in range(3):
                 v = f[i, k]
-                codes |= _outcode(c[v, 0], c[v, 1], c[v, 2], c[v, 3], gx, gy)
+                codes |= _outcode(c[v, 0], c[v, 1], c[v, 2], c[v, 3], gx, gy, conv)
             n, total = _clipped_face(c, f, i, codes, poly, tmp, X, Y, Z, IW, XF, YF, width,
-                                     height, bits, gx, gy)
+                                     height, bits, gx, gy, conv)
             if n == 0 or total == 0 or (cull == 1 and total < 0) or (cull == 2 and total > 0):
                 continue
             for k in range(1, n - 1):
@@ -388,10 +438,13 @@ def _zeros(scratch, key, shape, dtype):
     return np.zeros(shape, dtype) if scratch is None else scratch.zeros(key, shape, dtype)
 
 
-def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8, scratch=None):
+def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8, conv=0,
+                    scratch=None):
     """Run the primitive stage on validated arrays; returns :class:`Primitives`.
+    ``conv``: the convention bits (:func:`convention_code`; 0: OpenGL's).
     ``scratch``: a :class:`refraster._scratch.Scratch` for the per-vertex and per-face arrays
     (the result is then valid until that scratch is used again)."""
+    conv = int(conv)
     c = np.ascontiguousarray(clip, dtype=np.float64)
     f = np.ascontiguousarray(faces, dtype=np.int64)
     gx = 2.0 * GUARD_PIXELS / width
@@ -404,7 +457,8 @@ def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8, scra
     vXf = _zeros(scratch, "vXf", nv, np.float32)
     vYf = _zeros(scratch, "vYf", nv, np.float32)
     vcode = _zeros(scratch, "vcode", nv, np.int64)
-    _vertex_pass(c, width, height, subpixel_bits, gx, gy, vX, vY, vZ, vIW, vXf, vYf, vcode)
+    _vertex_pass(c, width, height, subpixel_bits, gx, gy, conv, vX, vY, vZ, vIW, vXf, vYf,
+                 vcode)
     status = _zeros(scratch, "status", len(f), np.int8)
     fbox = _zeros(scratch, "fbox", (len(f), 4), np.int32)
     _classify(f, vX, vY, vcode, width, height, subpixel_bits, cull, status, fbox)
@@ -412,7 +466,7 @@ def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8, scra
     nchunks = max((len(idx) + _CHUNK - 1) // _CHUNK, 1)
     counts = np.zeros(nchunks, np.int64)
     offsets = np.zeros(nchunks, np.int64)
-    args = (c, f, idx, width, height, subpixel_bits, gx, gy, cull, counts, offsets)
+    args = (c, f, idx, width, height, subpixel_bits, gx, gy, conv, cull, counts, offsets)
     if len(idx):
         _clip_pass(*args, False, *_alloc(0))
         offsets[1:] = np.cumsum(counts)[:-1]

@@ -6,10 +6,12 @@ Coverage
     last two vertices) and gets three integer edge functions
     ``E_k(p) = (X_b − X_a)(p_y − Y_a) − (Y_b − Y_a)(p_x − X_a)`` for the edge a→b opposite
     vertex k. A pixel centre is covered when every ``E_k > 0``, or ``E_k = 0`` on an edge the fill
-    rule owns. With ``fill_rule="llvmpipe"`` (alias ``"bottom-left"``) a centre on an edge belongs
-    to the triangle for which it is a **left** edge (``dy < 0`` walking counter-clockwise in GL's
-    y-up window space) or a **bottom** edge (``dy = 0, dx > 0``), as the picture is seen;
-    ``"top-left"`` (Direct3D's rule as the picture is seen) owns left and top edges. The tie
+    rule owns. The coordinates are the picture's, y up (the primitive stage turns an upper-left
+    window and Vulkan's NDC y into them), so the rules hold as the picture is seen whatever the
+    API's conventions. With ``fill_rule="llvmpipe"`` (alias ``"bottom-left"``) a centre on an
+    edge belongs to the triangle for which it is a **left** edge (``dy < 0`` walking
+    counter-clockwise) or a **bottom** edge (``dy = 0, dx > 0``); ``"top-left"`` (Direct3D's
+    rule, in its upper-left coordinates) owns left and top edges. The tie
     rule is a bias of 0 or 1 subtracted from ``E_k`` so the test is ``E_k − bias ≥ 0`` in exact
     int64 arithmetic. Each row's exact span (where all three are ≥ 0) is solved for first, so
     the scan skips the bounding box's empty corners (long slivers cost their area, not their
@@ -476,6 +478,28 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                         less = zf < ref
                         zbuf[ly, lx] = zf if less else ref
                         win[ly, lx] = item if less else win[ly, lx]
+                    r0 += sy0
+                    r1 += sy1
+                    r2 += sy2
+                continue
+            if func == 4 and inv_af > 0.0:
+                # "greater" (reversed-Z): the loop above with the comparison turned, so the
+                # reversed-Z convention costs what the default costs (same bits as the
+                # general loop below: the depth in fragment_depth's order, ties to the first)
+                zd0 = np.float64(z0)
+                for y in range(by0, by1 + 1):
+                    a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
+                    zy = dzdy * ((np.float64(y) + 0.5) - fy0)
+                    ly = y - ty0
+                    for x in range(bx0 + a, bx0 + b + 1):
+                        z = (zd0 + dzdx * ((np.float64(x) + 0.5) - fx0)) + zy
+                        z = 0.0 if z < 0.0 else (1.0 if z > 1.0 else z)
+                        zf = np.float32(z)
+                        lx = np.uint64(x - tx0)
+                        ref = zbuf[ly, lx]
+                        more = zf > ref
+                        zbuf[ly, lx] = zf if more else ref
+                        win[ly, lx] = item if more else win[ly, lx]
                     r0 += sy0
                     r1 += sy1
                     r2 += sy2

@@ -10,7 +10,10 @@ window origin, sample count, ...) is a new field here, not a new keyword of ever
 
 The defaults are OpenGL's (and llvmpipe's): ``less`` with the depth buffer cleared to 1,
 depth writes on, no culling, counter-clockwise front faces, 8 sub-pixel bits, llvmpipe's fill
-rule, a float32 vertex stage and flat normals.
+rule, a float32 vertex stage, flat normals, clip space −w ≤ z ≤ w with window depth
+``0.5·z/w + 0.5``, a lower-left window origin, NDC y up, no depth clamp and a float32 depth
+buffer. The API conventions (``depth_range``, ``origin``, ``ndc_y``, ``depth_clamp``,
+``depth_format``) are written down in ``docs/architecture.md``, "Conventions".
 """
 
 from __future__ import annotations
@@ -22,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["RasterState", "as_raster_state", "DEPTH_FUNC_NAMES", "CULL_MODES", "FRONT_FACES",
-           "FILL_RULE_NAMES", "PRECISIONS", "NORMALS_MODES", "SUBPIXEL_BITS"]
+           "FILL_RULE_NAMES", "PRECISIONS", "NORMALS_MODES", "SUBPIXEL_BITS", "DEPTH_RANGES",
+           "ORIGINS", "NDC_Y", "DEPTH_FORMATS"]
 
 #: OpenGL's eight depth functions (``glDepthFunc``), comparing the incoming fragment's depth
 #: against the stored one.
@@ -34,6 +38,18 @@ FILL_RULE_NAMES = ("llvmpipe", "bottom-left", "top-left")
 PRECISIONS = ("float32", "float64")
 NORMALS_MODES = ("flat", "smooth")
 SUBPIXEL_BITS = (4, 8)
+#: Clip-space depth range (``glClipControl``'s depth mode): −w ≤ z ≤ w with window depth
+#: ``0.5·z/w + 0.5`` (OpenGL), or 0 ≤ z ≤ w with window depth ``z/w`` (Vulkan, Direct3D,
+#: Metal, WebGPU; OpenGL with ``GL_ZERO_TO_ONE``).
+DEPTH_RANGES = ("negative_one_to_one", "zero_to_one")
+#: Where the window's y = 0 row lies: at the bottom of the picture (OpenGL) or at its top
+#: (Vulkan, Direct3D, Metal, WebGPU; OpenGL with ``GL_UPPER_LEFT``).
+ORIGINS = ("lower_left", "upper_left")
+#: Which way NDC +y points in the picture: up (OpenGL, Direct3D, Metal, WebGPU) or down
+#: (Vulkan).
+NDC_Y = ("up", "down")
+#: The depth buffer a candidate renders into (refraster's own output stays float32).
+DEPTH_FORMATS = ("float32", "unorm24", "unorm16")
 
 
 def _choice(value, field, choices):
@@ -64,7 +80,8 @@ class RasterState:
     cull : {"none", "back", "front"}
         Face culling (``glCullFace``), by the facing :attr:`front_face` defines.
     front_face : {"ccw", "cw"}
-        Which winding, as the picture is seen (window y up), is the front (``glFrontFace``).
+        Which winding, as the picture is seen (row 0 at the top, whatever the origin and NDC
+        y), is the front (``glFrontFace``, ``VkFrontFace``, D3D's ``FrontCounterClockwise``).
         ``"cw"`` renders exactly what ``"ccw"`` renders of the same mesh with every face's
         winding reversed, except for the facing-dependent order of the barycentrics' vertices
         (a face's barycentrics always refer to its own vertices 0, 1, 2).
@@ -72,8 +89,13 @@ class RasterState:
         Fixed-point snapping of window positions (8: llvmpipe and current desktop GPUs; 4:
         OpenGL's minimum).
     fill_rule : {"llvmpipe", "bottom-left", "top-left"}
-        Which triangle owns a pixel centre exactly on a shared edge (``"llvmpipe"`` and
-        ``"bottom-left"`` are the same rule, in GL's lower-left window coordinates).
+        Which triangle owns a pixel centre exactly on a shared edge, as the picture is seen:
+        ``"llvmpipe"`` (alias ``"bottom-left"``) owns left edges and horizontal edges at the
+        bottom of the triangle (llvmpipe under OpenGL's lower-left origin: the edges of
+        smallest window y); ``"top-left"`` owns left edges and horizontal edges at the top —
+        Direct3D's rule exactly as it defines it in its upper-left render-target coordinates
+        (a top edge is horizontal and above the other edges: smallest y there, largest y in
+        GL's lower-left coordinates). The rule does not change meaning with ``origin``.
     precision : {"float32", "float64"}
         Vertex-stage arithmetic (float32 as a GPU's vertex shader).
     normals : {"flat", "smooth"}
@@ -81,11 +103,38 @@ class RasterState:
         correctly and renormalized — a mesh's own (``Mesh.vertex_normals``, or the third
         element of a ``(vertices, faces, normals)`` triple) where it has them, else
         area-weighted ones (:func:`refraster.mesh.smooth_normals`).
+    depth_range : {"negative_one_to_one", "zero_to_one"}
+        The clip volume's depth and the window depth: −w ≤ z ≤ w and ``0.5·z/w + 0.5``
+        (OpenGL), or 0 ≤ z ≤ w and ``z/w`` (Vulkan, Direct3D, Metal, WebGPU).
+    origin : {"lower_left", "upper_left"}
+        The window origin (``glClipControl``'s origin): window y counts up from the bottom
+        of the picture (OpenGL) or down from its top (the others). Images are always
+        returned with row 0 at the top of the picture. Window positions are snapped in the
+        API's own window coordinates.
+    ndc_y : {"up", "down"}
+        Which way NDC +y points in the picture (``"down"``: Vulkan). The same clip
+        coordinates under ``"down"`` give the picture mirrored top to bottom, so every
+        face's winding as seen is reversed.
+    depth_clamp : bool
+        No clipping against the near and far planes; each fragment's depth is clamped to
+        [0, 1] (``GL_DEPTH_CLAMP``, Vulkan's ``depthClampEnable`` with depth clipping off,
+        WebGPU's ``unclippedDepth``). Clipping against w > 0 still removes what lies at or
+        behind the eye.
+    depth_format : {"float32", "unorm24", "unorm16"}
+        The candidate's depth buffer (its quantisation is part of the golden allowance; the
+        GL and wgpu backends render into it). refraster's own depth output stays float32.
+
+    Front faces, the fill rule and the window origin are defined as the picture is seen
+    (row 0 at the top): ``front_face="ccw"`` is counter-clockwise on screen for every
+    origin and NDC direction (as OpenGL — which negates the area under ``GL_UPPER_LEFT`` —
+    Vulkan, Direct3D and WebGPU define it), and ``"top-left"`` owns the edges at the top of
+    the picture (Direct3D's rule, in its upper-left window coordinates).
 
     Examples
     --------
     >>> from refraster import RasterState
-    >>> reversed_z = RasterState(depth_func="greater", clear_depth=0.0)
+    >>> reversed_z = RasterState(depth_func="greater", clear_depth=0.0,
+    ...                          depth_range="zero_to_one")
     >>> reversed_z.replace(cull="back").cull
     'back'
     """
@@ -99,6 +148,11 @@ class RasterState:
     fill_rule: str = "llvmpipe"
     precision: str = "float32"
     normals: str = "flat"
+    depth_range: str = "negative_one_to_one"
+    origin: str = "lower_left"
+    ndc_y: str = "up"
+    depth_clamp: bool = False
+    depth_format: str = "float32"
 
     def __post_init__(self):
         put = object.__setattr__.__get__(self)
@@ -125,6 +179,14 @@ class RasterState:
         put("fill_rule", _choice(self.fill_rule, "fill_rule", FILL_RULE_NAMES))
         put("precision", _choice(self.precision, "precision", PRECISIONS))
         put("normals", _choice(self.normals, "normals", NORMALS_MODES))
+        put("depth_range", _choice(self.depth_range, "depth_range", DEPTH_RANGES))
+        put("origin", _choice(self.origin, "origin", ORIGINS))
+        put("ndc_y", _choice(self.ndc_y, "ndc_y", NDC_Y))
+        if not isinstance(self.depth_clamp, (bool, np.bool_)):
+            raise TypeError(f"raster.depth_clamp must be a bool, got "
+                            f"{type(self.depth_clamp).__name__}")
+        put("depth_clamp", bool(self.depth_clamp))
+        put("depth_format", _choice(self.depth_format, "depth_format", DEPTH_FORMATS))
 
     def replace(self, **changes):
         """A copy with some fields changed (validated like a new value)."""

@@ -159,7 +159,7 @@ MUTANTS = [
            RASTER),
     Mutant("ldi_peel_coplanar", "ldi", "depth peeling keeps equal-depth duplicates as separate "
            "layers (`>` → `>=`)", "refraster/ldi.py",
-           "if w == a or d > depth[order[w - 1]]:", "if w == a or d >= depth[order[w - 1]]:", LDI),
+           "else d > depth[order[w - 1]]):", "else d >= depth[order[w - 1]]):", LDI),
     Mutant("ldi_texel_row_flip", "ldi", "parity test's texel row not flipped (t up vs row 0 at "
            "the top)", "refraster/ldi.py", "    row = h - 1 - min(int(tt * h), h - 1)",
            "    row = min(int(tt * h), h - 1)", LDI + ["tests/test_clipsurface_fused.py"]),
