@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._scratch import OUTPUTS, SCRATCH_FACES, frame_scratch
+from ._scratch import OUTPUTS, SCRATCH_FACES, scratch_lease
 from ._threads import frame_work, threads_for
 from ._validate import as_float_array, as_image_size, as_real
 from .mesh import as_meshes, smooth_normals
@@ -551,8 +551,16 @@ def _render(meshes, view, proj, width, height, state, model, fragment_stage, bg,
     # without depth writes the depth test is not a minimum over the fragments: only the
     # fragment stream's resolve has it (the fused tile pass assumes writes)
     fused_path = fragment_stage is None and state.depth_write
-    scratch = (frame_scratch() if fused_path
-               and sum(m.n_faces for m in meshes) >= SCRATCH_FACES else None)
+    # (None when a frame of this thread is in progress: re-entered from a finalizer or a signal
+    # handler, this frame allocates its own)
+    with scratch_lease(fused_path and sum(m.n_faces for m in meshes) >= SCRATCH_FACES) \
+            as scratch:
+        return _render_frame(meshes, view, proj, width, height, state, model, fragment_stage,
+                             bg, out, fused_path, scratch)
+
+
+def _render_frame(meshes, view, proj, width, height, state, model, fragment_stage, bg, out,
+                  fused_path, scratch):
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
                    raster=state, scratch=scratch)
     normals = state.normals
