@@ -122,6 +122,8 @@ POOL_PER_KIND = 6
 
 
 _LIMIT = [None, 0]   # the last REFRASTER_POOL_MB string read and its limit in bytes
+#: Larger ``REFRASTER_POOL_MB`` values mean this many MiB (2**43 bytes, 8 TiB: no bound).
+MAX_POOL_MB = float(1 << 23)
 
 
 def _pool_limit():
@@ -134,7 +136,9 @@ def _pool_limit():
         mb = POOL_MB   # a malformed value: the default (refraster info shows what is in use)
     if not math.isfinite(mb):
         mb = POOL_MB
-    _LIMIT[:] = [raw, max(int(mb * (1 << 20)), 0)]
+    # a finite number of MiB too large for bytes (1e308 · 2**20 is inf) is no bound: at most
+    # the largest size an array can have; negative is off
+    _LIMIT[:] = [raw, int(min(max(mb, 0.0), MAX_POOL_MB) * (1 << 20))]
     return _LIMIT[1]
 
 
@@ -156,7 +160,9 @@ class OutputPool:
     kernel that writes every element), so a recycled array gives the same bytes as a new one. Like memory malloc reuses, a raw
     pointer (``a.ctypes.data``, ``__array_interface__``) kept past the array's life is not a
     reference. ``REFRASTER_POOL_MB`` (default 128) bounds the bytes kept (the oldest arrays are
-    dropped first: one that is still held simply stays the user's); ``0`` turns it off. One
+    dropped first: one that is still held simply stays the user's); ``0`` (or a negative
+    number) turns it off; a value that is not a finite number means the default, and one
+    above :data:`MAX_POOL_MB` (8 TiB) means that much (no bound). One
     difference from a new array remains: a dropped frame's array cannot be resized in place
     (``ndarray.resize``) while the pool keeps it (NumPy's reference check sees the pool's
     reference).

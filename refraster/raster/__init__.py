@@ -12,7 +12,7 @@ from .._threads import frame_work, threads_for
 from .._validate import as_float_array, as_image_size, as_index_array, as_matrix
 from ..mesh import as_meshes
 from .fragments import Fragments, concat
-from .primitive import CULL, FILL_RULES, setup_triangles, transform_vertices
+from .primitive import CULL, FILL_RULES, W_EPS, setup_triangles, transform_vertices
 from .rasterizer import DEPTH_FUNCS, stream
 from .resolve import Resolved, resolve
 from .state import RasterState, as_raster_state
@@ -68,6 +68,9 @@ class Prepared:
 
 
 _F32_MAX = float(np.finfo(np.float32).max)
+#: The smallest normal number of each vertex-stage precision: a w row of ``P·V·M`` whose
+#: largest entry is below it is subnormal there (a GPU's vertex stage flushes it to zero).
+_TINY = {"float32": float(np.finfo(np.float32).tiny), "float64": float(np.finfo(np.float64).tiny)}
 
 
 def _check_projection(proj):
@@ -87,6 +90,40 @@ def _check_projection(proj):
 
 
 _GOOD_PROJ: set = set()
+
+
+def _mvp_name(k, n):
+    return "proj @ view @ model" if n == 1 else f"proj @ view @ model (draw call {k})"
+
+
+def _check_w_row(mvp, k, n, prec):
+    """The w row of ``P·V·M`` must not underflow the vertex stage's precision: every clip w is
+    a product of it (``perspective(...) * 1e-40`` has entries of ~1e-40, subnormal in float32:
+    refused here). Not a determinant test: a uniform scale keeps the matrix invertible."""
+    wrow = float(np.abs(mvp[3]).max())
+    if 0.0 < wrow < _TINY[prec]:
+        raise ValueError(f"{_mvp_name(k, n)} underflows {prec}: its w row's largest entry is "
+                         f"{wrow:.3g}, below the smallest normal {prec} {_TINY[prec]:.3g}; "
+                         "scale the matrices up (a uniform scale does not change the picture)")
+
+
+def _check_w(clip, vfirst, meshes, prec):
+    """Each draw call needs a vertex whose clip w is at least the w plane the primitive stage
+    clips against (``W_EPS``, 1e-30) in magnitude, or w exactly 0 everywhere (a mesh in the
+    eye's plane): when every vertex has ``0 < |w| < W_EPS`` — a matrix scaled so small that
+    the products fall under the w plane (``perspective(...) * 1e-35`` in either precision) —
+    every face is outside that plane and the draw would be silently empty. So it is refused;
+    a draw that renders anything is never refused."""
+    for k, m in enumerate(meshes):
+        if m.n_faces == 0 or m.n_vertices == 0:
+            continue
+        w = clip[vfirst[k]:vfirst[k + 1], 3]
+        wmax = float(np.abs(w).max())
+        if 0.0 < wmax < W_EPS:
+            raise ValueError(f"{_mvp_name(k, len(meshes))} scales clip coordinates below the "
+                             f"w plane: every vertex of meshes[{k}] has |w| < {W_EPS:g} "
+                             f"(largest {wmax:.3g}), so the draw would be empty; scale the "
+                             "matrices up (a uniform scale does not change the picture)")
 
 
 def _check_clip(clip, meshes, prec):
@@ -139,9 +176,11 @@ def _prepare(meshes, *, view, proj, width, height, model, state, scratch):
             raise ValueError(f"proj @ view @ model overflows float32 (largest entry "
                              f"{np.abs(mvp).max():.3g}); scale the scene down or use "
                              "precision='float64'")
+        _check_w_row(mvp, len(mvps), len(models), prec)
         mvps.append(mvp)
     _check_projection(proj)
     offsets = np.cumsum([0] + [m.n_faces for m in meshes])
+    vfirst = np.cumsum([0] + [m.n_vertices for m in meshes])
     if len(meshes) == 1 and scratch is not None:   # the common case, into reused buffers
         nv = meshes[0].n_vertices
         c32 = transform_vertices(meshes[0].vertices, mvps[0], prec,
@@ -154,13 +193,13 @@ def _prepare(meshes, *, view, proj, width, height, model, state, scratch):
         clip = transform_vertices(meshes[0].vertices, mvps[0], prec).astype(np.float64)
         face = meshes[0].faces
     else:   # each draw call written once into the concatenated arrays
-        vfirst = np.cumsum([0] + [m.n_vertices for m in meshes])
         clip = np.empty((int(vfirst[-1]), 4))
         face = np.empty((int(offsets[-1]), 3), np.int64)
         for k, (m, mvp) in enumerate(zip(meshes, mvps)):
             clip[vfirst[k]:vfirst[k + 1]] = transform_vertices(m.vertices, mvp, prec)
             np.add(m.faces, vfirst[k], out=face[offsets[k]:offsets[k + 1]])
     _check_clip(clip, meshes, prec)
+    _check_w(clip, vfirst, meshes, prec)
     p = Prepared()
     p.meshes, p.models, p.view, p.proj = meshes, models, view, proj
     p.width, p.height, p.fill_rule = width, height, rule

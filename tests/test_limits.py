@@ -1,0 +1,120 @@
+"""Hostile numbers (issue 48 items 3 and 6, docs/reliability.md "Limits"): a matrix scaled so
+small that the vertex stage's products fall under the w plane or underflow is refused with one
+line naming it, never rendered as a silently empty frame — and a scaled matrix that still
+renders is not refused and gives the same frame; ``REFRASTER_POOL_MB`` of any value gives the
+documented behaviour (no traceback)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import FB_FIELDS, camera_kw, mesh_of
+import refraster as rf
+from refraster import _scratch
+from refraster.raster.primitive import W_EPS
+from refraster.scenes import cube, icosphere
+
+KW = camera_kw(64, 48)
+
+
+@pytest.fixture(scope="module")
+def box():
+    return mesh_of(cube())
+
+
+def _one_line(exc):
+    text = str(exc.value)
+    assert "\n" not in text and text, text
+    return text
+
+
+@pytest.mark.parametrize("prec", ["float32", "float64"])
+@pytest.mark.parametrize("which, scale", [("proj", 1e-40), ("proj", 1e-35), ("proj", 1e-31), ("proj", 1e-46),
+                                          ("view", 1e-40), ("view", 1e-35)])
+def test_a_uniformly_scaled_matrix_under_the_w_plane_is_refused(box, prec, which, scale):
+    kw = dict(KW)
+    kw[which] = kw[which] * scale
+    with pytest.raises(ValueError) as e:
+        rf.render(box, **kw, raster=rf.RasterState(precision=prec))
+    text = _one_line(e)
+    assert text.startswith("proj @ view @ model ")
+    assert ("underflows " + prec in text) or "below the w plane" in text, text
+    with pytest.raises(ValueError):   # draw (the fragment stream) checks the same
+        rf.draw(box, **kw, raster=rf.RasterState(precision=prec))
+
+
+def test_the_float32_w_row_underflow_is_named(box):
+    kw = dict(KW, proj=KW["proj"] * 1e-40)
+    with pytest.raises(ValueError, match=r"^proj @ view @ model underflows float32: its w row's "
+                                         r"largest entry is 3.12e-40, below the smallest "
+                                         r"normal float32 1.18e-38; scale the matrices up"):
+        rf.render(box, **kw)
+
+
+def test_the_draw_call_whose_model_is_scaled_is_named(box):
+    ico = mesh_of(icosphere(2))
+    models = [np.eye(4), np.eye(4) * 1e-35]
+    with pytest.raises(ValueError, match=r"^proj @ view @ model \(draw call 1\) scales clip "
+                                         r"coordinates below the w plane: every vertex of "
+                                         r"meshes\[1\]"):
+        rf.render([box, ico], **KW, model=models)
+
+
+@pytest.mark.parametrize("prec", ["float32", "float64"])
+@pytest.mark.parametrize("exp", [-66, -96, 60])
+def test_a_scaled_matrix_that_renders_is_not_refused_and_gives_the_same_frame(box, prec, exp):
+    """A power-of-two scale (exact in both precisions while nothing underflows) of the
+    projection moves no window coordinate: the frame has the same bytes. 2**-96 ≈ 1.3e-29
+    keeps the cube's w (about 3) above the 1e-30 w plane."""
+    want = rf.render(box, **KW, raster=rf.RasterState(precision=prec))
+    fb = rf.render(box, **dict(KW, proj=KW["proj"] * 2.0 ** exp),
+                   raster=rf.RasterState(precision=prec))
+    assert fb.mask.any()
+    for f in FB_FIELDS:
+        assert getattr(fb, f).tobytes() == getattr(want, f).tobytes(), f
+
+
+def test_legitimate_edges_of_the_check_are_not_refused():
+    """w exactly 0 at every vertex (a mesh in the eye's plane) is an empty frame, not an error;
+    a mesh with some vertices under the w plane and some above renders what is above."""
+    tri = (np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 1.0, 0.0]]),
+           np.array([[0, 1, 2]]))
+    proj = rf.perspective(60, 1.0, 0.1, 10)
+    fb = rf.render(tri, view=np.eye(4), proj=proj, width=16, height=16)
+    assert not fb.mask.any()
+    # a draw call with one triangle under the w plane (|w| ~ 1e-31 at its three corners) and
+    # one in front of the camera: drawn (the first clipped away, the second covering pixels)
+    mixed = (np.array([[1e-31, 0.0, -1e-31], [0.0, 1e-31, -1e-31], [0.0, 0.0, -2e-31],
+                       [-1.0, -1.0, -3.0], [1.0, -1.0, -3.0], [0.0, 1.0, -3.0]]),
+             np.array([[0, 1, 2], [3, 4, 5]]))
+    fb = rf.render(mixed, view=np.eye(4), proj=proj, width=32, height=32)
+    assert fb.mask.any() and set(np.unique(fb.prim_id)) == {-1, 1}
+    assert W_EPS == 1e-30
+
+
+@pytest.mark.parametrize("raw, want_mb", [
+    ("1e308", _scratch.MAX_POOL_MB), ("-1e308", 0.0), ("1e400", _scratch.POOL_MB),
+    ("nan", _scratch.POOL_MB), ("9" * 400, _scratch.POOL_MB), ("-5", 0.0), ("1e15", 1e15),
+    ("0x10", _scratch.POOL_MB), ("  64  ", 64.0)])
+def test_pool_mb_of_any_value_gives_the_documented_limit(monkeypatch, box, raw, want_mb):
+    monkeypatch.setenv("REFRASTER_POOL_MB", raw)
+    limit = _scratch._pool_limit()
+    assert isinstance(limit, int) and limit == int(min(want_mb, _scratch.MAX_POOL_MB) * 2 ** 20)
+    rf.render(box, **camera_kw(256, 192)).color
+    _scratch.OUTPUTS.clear()
+
+
+def test_pool_mb_1e308_leaves_the_commands_working():
+    env = dict(os.environ, REFRASTER_POOL_MB="1e308")
+    proc = subprocess.run([sys.executable, "-m", "refraster.cli", "info"], env=env,
+                          capture_output=True, text=True, timeout=300,
+                          stdin=subprocess.DEVNULL)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+    rows = dict(line.split(":", 1) for line in proc.stdout.splitlines() if ":" in line)
+    assert rows["output pool"].strip().startswith("up to 8.38861e+06 MiB"), rows["output pool"]
