@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._threads import frame_work, threads_for
+from .._threads import check_fork, frame_work, threads_for
 from .._validate import as_float_array, as_image_size, as_index_array, as_matrix
 from ..mesh import as_meshes
 from .fragments import Fragments, concat
@@ -269,6 +269,7 @@ def rasterize(clip_positions, faces, width, height, *, raster=None):
     Fragments
         ``object_id`` is 0; no meshes are attached.
     """
+    check_fork()
     c = as_float_array(clip_positions, "clip_positions", shape=(None, 4))
     f = np.asarray(faces)
     if f.size == 0:
