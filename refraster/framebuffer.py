@@ -128,6 +128,7 @@ class Framebuffer:
         """Build the G-buffer from a resolved fragment stream (``frags`` from :func:`draw`),
         with the normals of ``raster.normals`` (:class:`refraster.RasterState`; None: flat)."""
         normals = as_raster_state(raster).normals
+        background = as_float_array(background, "background", shape=(3,))
         if frags.meshes is None:
             raise ValueError("frags must come from refraster.draw (it carries the meshes)")
         win = resolved.winner

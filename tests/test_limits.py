@@ -118,3 +118,22 @@ def test_pool_mb_1e308_leaves_the_commands_working():
     assert "Traceback" not in proc.stderr
     rows = dict(line.split(":", 1) for line in proc.stdout.splitlines() if ":" in line)
     assert rows["output pool"].strip().startswith("up to 8.38861e+06 MiB"), rows["output pool"]
+
+
+@pytest.mark.parametrize("normals", ["flat", "smooth"])
+def test_an_empty_mesh_is_an_empty_frame(box, normals):
+    """Found by the fuzz harness: smooth normals of a mesh with no faces raised "memoryview:
+    cannot cast view with zeros in shape or strides" (its cache key)."""
+    for mesh in [(np.zeros((5, 3)), np.zeros((0, 3), np.int64)),
+                 (np.zeros((0, 3)), np.zeros((0, 3), np.int64))]:
+        fb = rf.render(mesh, **KW, raster=rf.RasterState(normals=normals))
+        assert not fb.mask.any()
+        fb = rf.render([box, mesh], **KW, raster=rf.RasterState(normals=normals))
+        assert fb.mask.any()
+
+
+def test_from_fragments_checks_its_background(box):
+    """Found by the fuzz harness: render refused a NaN background, from_fragments used it."""
+    frags = rf.draw(box, **KW)
+    with pytest.raises(ValueError, match=r"^background contains 1 non-finite value"):
+        rf.Framebuffer.from_fragments(frags, rf.resolve(frags), background=(np.nan, 0, 0))

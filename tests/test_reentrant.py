@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import gc
 import signal
+import threading
 import weakref
 
 import numpy as np
@@ -185,3 +186,41 @@ def test_an_interval_timer_rendering_from_its_handler_during_many_frames(meshes)
     assert kept, "the timer never fired"
     assert bad == []
     assert all(_diff(_bytes(k), want_nested) == [] for k in kept)
+
+
+def test_a_finalizer_rendering_smooth_normals_inside_the_normals_cache(monkeypatch, meshes):
+    """The smooth-normals cache is entered again by a finalizer run by a collection inside
+    it (an insertion can trigger one): the nested frame computes its normals without the
+    cache instead of waiting for a lock its own thread holds (a deadlock: run in a thread
+    with a timeout, so that a regression fails instead of hanging)."""
+    from collections import OrderedDict
+
+    from refraster import mesh as mesh_module
+    outer, nested = meshes
+    smooth = rf.RasterState(normals="smooth")
+    want_outer = _bytes(rf.render(outer, **KW, raster=smooth))
+    want_nested = _bytes(rf.render(nested, **NESTED_KW, raster=smooth))
+    kept, fired = [], []
+
+    class Nested(_Renders):
+        def __del__(self):
+            self.kept.append(rf.render(self.mesh, **self.kw, raster=smooth))
+
+    class Collecting(OrderedDict):
+        def __setitem__(self, key, value):
+            if not fired:
+                fired.append(1)
+                Nested(nested, kept, NESTED_KW)
+                gc.collect()
+            super().__setitem__(key, value)
+
+    monkeypatch.setattr(mesh_module, "_NORMALS_CACHE", Collecting())
+    got = []
+    t = threading.Thread(target=lambda: got.append(rf.render(outer, **KW, raster=smooth)),
+                         daemon=True)
+    t.start()
+    t.join(120)
+    assert not t.is_alive(), "deadlock: the nested frame waits for the normals cache's lock"
+    assert fired and len(kept) == 1 and got
+    assert _diff(_bytes(got[0]), want_outer) == []
+    assert _diff(_bytes(kept[0]), want_nested) == []
