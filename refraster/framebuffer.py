@@ -243,8 +243,12 @@ def _normal_matrix(view, model):
     hit = _NMAT_CACHE.get(key)
     if hit is not None:
         return hit
-    det = np.linalg.det(mv)
-    if not np.isfinite(det) or abs(det) < 1e-300:
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):   # refused below
+        det = np.linalg.det(mv)
+    if not np.isfinite(det):
+        raise ValueError(f"view @ model is too large for a normal matrix (its 3×3 part's "
+                         f"determinant overflows; largest entry {np.abs(mv).max():.3g})")
+    if abs(det) < 1e-300:
         raise ValueError("view @ model is singular; normals are undefined")
     nm = np.linalg.inv(mv).T
     nm.flags.writeable = False

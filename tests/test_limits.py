@@ -137,3 +137,46 @@ def test_from_fragments_checks_its_background(box):
     frags = rf.draw(box, **KW)
     with pytest.raises(ValueError, match=r"^background contains 1 non-finite value"):
         rf.Framebuffer.from_fragments(frags, rf.resolve(frags), background=(np.nan, 0, 0))
+
+
+@pytest.mark.parametrize("exp", [127, 128, 140])
+def test_a_float64_stage_beyond_the_float32_divide_is_refused(box, exp):
+    """Found by the fuzz harness: with precision="float64", a view scaled by 2**127 (clip w
+    ~ 1.4e38, x beyond float32's 3.4e38) reached the float32 perspective divide as inf and
+    the frame was silently empty; 2**126 still renders the same frame."""
+    f64 = rf.RasterState(precision="float64")
+    want = rf.render(box, **KW, raster=f64)
+    same = rf.render(box, **dict(KW, view=KW["view"] * 2.0 ** 126), raster=f64)
+    assert same.prim_id.tobytes() == want.prim_id.tobytes() and want.mask.any()
+    with pytest.raises(ValueError, match=r"^meshes\[0\]: clip coordinates exceed float32 where "
+                                         r"the perspective divide"):
+        rf.render(box, **dict(KW, view=KW["view"] * 2.0 ** exp), raster=f64)
+
+
+def test_a_huge_mesh_clipped_away_in_float64_is_not_refused():
+    """Vertices far beyond float32 that every clip plane removes never reach the divide: a
+    box of 1e300 around the camera is an empty frame in float64, not an error."""
+    import trimesh
+    b = trimesh.creation.box()
+    fb = rf.render((np.asarray(b.vertices) * 1e300, np.asarray(b.faces)),
+                   view=rf.look_at((3.0, 2.0, 4.0), (0.0, 0.0, 0.0)),
+                   proj=rf.perspective(40.0, 4 / 3, 1.0, 20.0), width=32, height=24,
+                   raster=rf.RasterState(precision="float64"))
+    assert not fb.mask.any()
+
+
+@pytest.mark.parametrize("prec", ["float32", "float64"])
+@pytest.mark.parametrize("which, scale", [("proj", 1e300), ("view", 1e300), ("proj", 1e-300),
+                                          ("view", 1e155), ("both", 1e300)])
+def test_huge_and_tiny_matrices_give_one_line_and_no_warning(box, prec, which, scale):
+    """Found by the fuzz harness: 1e300 matrices gave NumPy overflow warnings (errors under
+    this suite's filterwarnings) before the refusal, and an invertible projection whose
+    determinant overflows was called singular. The warnings filter is 'error' here, so a
+    warning escaping would fail the test as a RuntimeWarning."""
+    kw = dict(KW)
+    for name in (("proj", "view") if which == "both" else (which,)):
+        kw[name] = kw[name] * scale
+    with pytest.raises(ValueError) as e:
+        rf.render(box, **kw, raster=rf.RasterState(precision=prec))
+    text = _one_line(e)
+    assert "singular" not in text, text

@@ -80,10 +80,14 @@ def _check_projection(proj):
     key = proj.tobytes()
     if key in _GOOD_PROJ:
         return
-    det = float(np.linalg.det(proj))
+    # at unit scale (the largest entry 1): a large or small but invertible projection is not
+    # singular because its determinant overflows or underflows (1e300 entries: inf)
+    top = float(np.abs(proj).max())
+    det = float(np.linalg.det(proj / top)) if top > 0.0 else 0.0
     if not (np.isfinite(det) and det != 0.0):
-        raise ValueError(f"proj is singular (determinant {det:g}): it maps the scene onto a "
-                         "plane; give a perspective or orthographic matrix (refraster.camera)")
+        raise ValueError(f"proj is singular (determinant {det:g} at unit scale): it maps the "
+                         "scene onto a plane; give a perspective or orthographic matrix "
+                         "(refraster.camera)")
     if len(_GOOD_PROJ) >= 16:
         _GOOD_PROJ.clear()
     _GOOD_PROJ.add(key)
@@ -124,6 +128,38 @@ def _check_w(clip, vfirst, meshes, prec):
                              f"w plane: every vertex of meshes[{k}] has |w| < {W_EPS:g} "
                              f"(largest {wmax:.3g}), so the draw would be empty; scale the "
                              "matrices up (a uniform scale does not change the picture)")
+
+
+def _check_divide(prims, clip, vfirst, face_offsets, meshes):
+    """The perspective divide and viewport are float32 in both precisions (as Mesa's draw
+    module): with ``precision="float64"`` a vertex that reaches them with a clip coordinate
+    beyond float32's range (a view scaled by 1e38: w ~ 1.4e38, x ~ 3e39) became inf there and
+    its faces vanished without a word. Clip coordinates of the float32 vertex stage are within
+    range by construction (inf is refused by :func:`_check_clip`), so only a float64 stage
+    whose clip coordinates exceed it is looked at: the vertices inside every clip plane must
+    be within float32's range, and so must the clipped pieces' corners (finite window
+    positions, w below float32's largest: 1/w of a larger w is 0 there). Vertices that are
+    clipped away (a huge mesh around the camera) may be as large as they like."""
+    if clip.size == 0 or float(np.abs(clip).max()) <= _F32_MAX:
+        return
+    used = np.zeros(len(clip), np.bool_)
+    used[prims.faces.ravel()] = True
+    bad = used & (prims.vcode == 0) & (np.abs(clip) > _F32_MAX).any(axis=1)
+    st = prims.clipped
+    # a corner's w beyond float32 gives 1/w = 0 there: finite, and wrong
+    pieces = ~(np.isfinite(st.xf).all(axis=1) & np.isfinite(st.yf).all(axis=1)
+               & np.isfinite(st.z).all(axis=1)) | (st.inv_w < 1.0 / _F32_MAX).any(axis=1)
+    if not (bad.any() or pieces.any()):
+        return
+    if bad.any():
+        k = int(np.searchsorted(vfirst, int(np.argmax(bad)), side="right")) - 1
+    else:
+        g = int(st.prim[int(np.argmax(pieces))])
+        k = int(np.searchsorted(face_offsets, g, side="right")) - 1
+    raise ValueError(f"meshes[{k}]: clip coordinates exceed float32 where the perspective "
+                     f"divide (float32 in both precisions) needs them (largest "
+                     f"{float(np.abs(clip).max()):.3g}, float32 ends at {_F32_MAX:.3g}); "
+                     "scale the matrices or the mesh down")
 
 
 def _check_clip(clip, meshes, prec):
@@ -169,7 +205,8 @@ def _prepare(meshes, *, view, proj, width, height, model, state, scratch):
     models = _models(model, len(meshes))
     mvps = []
     for mm in models:
-        mvp = proj @ view @ mm
+        with np.errstate(over="ignore", invalid="ignore"):   # refused just below, in one line
+            mvp = proj @ view @ mm
         if not np.all(np.isfinite(mvp)):
             raise ValueError("proj @ view @ model overflows to non-finite values")
         if prec == "float32" and np.abs(mvp).max() > _F32_MAX:
@@ -208,6 +245,8 @@ def _prepare(meshes, *, view, proj, width, height, model, state, scratch):
     p.state = state
     p.triangles = setup_triangles(clip, face, width, height, cull=cull_code(state),
                                   subpixel_bits=state.subpixel_bits, scratch=scratch)
+    if prec == "float64":
+        _check_divide(p.triangles, clip, vfirst, offsets, meshes)
     return p
 
 
