@@ -540,6 +540,9 @@ def render(meshes, *, view, proj, width, height, raster=None, model=None, fragme
     ``out``, the arrays are new to the caller: their memory may be that of an earlier frame
     nobody holds any more (no framebuffer, view or memoryview of it), recycled and written
     whole (:class:`refraster._scratch.OutputPool`; ``REFRASTER_POOL_MB=0`` turns it off).
+    Safe to call from several threads at once and from a finalizer or a signal handler while
+    a frame of the same thread is in progress: each call makes its own frame
+    (docs/reliability.md).
     """
     state = as_raster_state(raster)
     bg = as_float_array(background, "background", shape=(3,))
