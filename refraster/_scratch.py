@@ -10,8 +10,11 @@ buffer, the same bytes ``np.zeros`` would give.
 
 Only arrays that die with the frame come from here: never an array ``render`` returns, nor one
 a :class:`~refraster.Framebuffer` (or its pending colour) keeps, nor any array of the public
-``refraster.raster.prepare`` (which does not use a scratch). Two frames in one thread never
-overlap (the fused path calls no user code), and each thread has its own buffers.
+``refraster.raster.prepare`` (which does not use a scratch). Each thread has its own buffers,
+and a frame takes them with :func:`scratch_lease`: a frame started on the same thread while
+another is in progress (the fused path calls no user code, but a garbage-collector finalizer
+or a signal handler may run between any two bytecodes and call ``render``) finds them taken
+and allocates its own arrays (docs/reliability.md, re-entrancy).
 
 The arrays a frame *does* return or keep come from :data:`OUTPUTS`, an :class:`OutputPool`
 shared by all threads: it hands an array out again only once nothing else holds it.
@@ -24,6 +27,7 @@ import os
 import sys
 import threading
 import weakref
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -37,10 +41,15 @@ _local = threading.local()
 
 
 class Scratch:
-    """Named buffers reused from frame to frame (one frame at a time)."""
+    """Named buffers reused from frame to frame (one frame at a time: :func:`scratch_lease`)."""
 
     def __init__(self):
         self._bufs = {}
+        self._holder = None   # a weak reference to the token of the frame holding the buffers
+
+    @property
+    def in_use(self):
+        return self._holder is not None and self._holder() is not None
 
     @property
     def nbytes(self):
@@ -77,6 +86,27 @@ def frame_scratch():
     return s
 
 
+@contextmanager
+def scratch_lease(wanted=True):
+    """This thread's :class:`Scratch` for the body of a ``with`` (one frame), or None: when not
+    ``wanted``, or when a frame of this thread already holds it (a ``render`` re-entered from a
+    finalizer or a signal handler: that frame then allocates its own arrays, the same bytes)."""
+    s = frame_scratch() if wanted else None
+    if s is None or s.in_use:
+        yield None
+        return
+    # held while this generator lives (no flag to reset: an exception that a signal handler
+    # raises between two bytecodes could skip a reset, not the end of the generator)
+    token = _Token()
+    s._holder = weakref.ref(token)
+    yield s
+    del token
+
+
+class _Token:
+    __slots__ = ("__weakref__",)
+
+
 # ---------------------------------------------------------------------------------------------
 # Output arrays recycled once nobody holds them (issue 28 item 3)
 
@@ -92,6 +122,8 @@ POOL_PER_KIND = 6
 
 
 _LIMIT = [None, 0]   # the last REFRASTER_POOL_MB string read and its limit in bytes
+#: Larger ``REFRASTER_POOL_MB`` values mean this many MiB (2**43 bytes, 8 TiB: no bound).
+MAX_POOL_MB = float(1 << 23)
 
 
 def _pool_limit():
@@ -104,7 +136,9 @@ def _pool_limit():
         mb = POOL_MB   # a malformed value: the default (refraster info shows what is in use)
     if not math.isfinite(mb):
         mb = POOL_MB
-    _LIMIT[:] = [raw, max(int(mb * (1 << 20)), 0)]
+    # a finite number of MiB too large for bytes (1e308 · 2**20 is inf) is no bound: at most
+    # the largest size an array can have; negative is off
+    _LIMIT[:] = [raw, int(min(max(mb, 0.0), MAX_POOL_MB) * (1 << 20))]
     return _LIMIT[1]
 
 
@@ -126,7 +160,9 @@ class OutputPool:
     kernel that writes every element), so a recycled array gives the same bytes as a new one. Like memory malloc reuses, a raw
     pointer (``a.ctypes.data``, ``__array_interface__``) kept past the array's life is not a
     reference. ``REFRASTER_POOL_MB`` (default 128) bounds the bytes kept (the oldest arrays are
-    dropped first: one that is still held simply stays the user's); ``0`` turns it off. One
+    dropped first: one that is still held simply stays the user's); ``0`` (or a negative
+    number) turns it off; a value that is not a finite number means the default, and one
+    above :data:`MAX_POOL_MB` (8 TiB) means that much (no bound). One
     difference from a new array remains: a dropped frame's array cannot be resized in place
     (``ndarray.resize``) while the pool keeps it (NumPy's reference check sees the pool's
     reference).
@@ -134,7 +170,11 @@ class OutputPool:
 
     def __init__(self):
         # reentrant: a finalizer run by a garbage collection inside the pool (an allocation
-        # can trigger one) may itself render in this thread
+        # can trigger one), or a signal handler, may itself render in this thread; that
+        # frame finds the lock already this thread's and gets new arrays, so the entries
+        # never change under the scan of the frame it interrupted. (The lock's own record of
+        # its owner, not a flag: a flag set inside ``with`` can be left set by an exception
+        # a signal handler raises between two bytecodes; the ``with`` itself cannot.)
         self._lock = threading.RLock()
         self._entries = [np.empty(0)]   # the sentinel (see _scan), then arrays, oldest first
 
@@ -177,29 +217,34 @@ class OutputPool:
         if nbytes < POOL_MIN_BYTES:
             return np.empty(shape, dtype)
         limit = _pool_limit()
+        if self._lock._is_owned():   # re-entered in this thread: a new array, not kept
+            return np.empty(shape, dtype)
         if limit <= 0:
             if len(self._entries) > 1:
                 self.clear()
             return np.empty(shape, dtype)
         with self._lock:
-            a = self._scan(shape, dtype)
-            if a is not None:
-                return a
-            a = np.empty(shape, dtype)
-            same = [k for k, b in enumerate(self._entries)
-                    if k and b.shape == shape and b.dtype == dtype]
-            drop = set(same[:max(len(same) + 1 - POOL_PER_KIND, 0)])
-            kept = self.nbytes + nbytes - sum(self._entries[k].nbytes for k in drop)
-            for k, b in enumerate(self._entries):   # oldest first, until the new one fits
-                if kept <= limit:
-                    break
-                if k and k not in drop:
-                    drop.add(k)
-                    kept -= b.nbytes
-            if kept <= limit:
-                self._entries = [b for k, b in enumerate(self._entries) if k not in drop]
-                self._entries.append(a)
+            return self._take(shape, dtype, nbytes, limit)
+
+    def _take(self, shape, dtype, nbytes, limit):
+        a = self._scan(shape, dtype)
+        if a is not None:
             return a
+        a = np.empty(shape, dtype)
+        same = [k for k, b in enumerate(self._entries)
+                if k and b.shape == shape and b.dtype == dtype]
+        drop = set(same[:max(len(same) + 1 - POOL_PER_KIND, 0)])
+        kept = self.nbytes + nbytes - sum(self._entries[k].nbytes for k in drop)
+        for k, b in enumerate(self._entries):   # oldest first, until the new one fits
+            if kept <= limit:
+                break
+            if k and k not in drop:
+                drop.add(k)
+                kept -= b.nbytes
+        if kept <= limit:
+            self._entries = [b for k, b in enumerate(self._entries) if k not in drop]
+            self._entries.append(a)
+        return a
 
     def full(self, shape, value, dtype):
         """As ``np.full(shape, value, dtype)`` (every element written)."""
@@ -217,7 +262,10 @@ class OutputPool:
         return len(self._entries) - 1
 
     def clear(self):
-        """Drop every kept array (those users hold stay theirs)."""
+        """Drop every kept array (those users hold stay theirs); not while this thread is
+        inside the pool (a finalizer or signal handler run there: nothing is dropped)."""
+        if self._lock._is_owned():
+            return
         with self._lock:
             del self._entries[1:]
 

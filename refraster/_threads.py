@@ -30,18 +30,25 @@ small or not, busy or not (``REFRASTER_THREADS=2`` gives the plain Numba behavio
 The thread count never changes a byte of output: every parallel kernel writes disjoint slices
 and the outputs are bit-identical for any thread count (tests/test_raster.py).
 
-The threading layer is Numba's default (``tbb`` if installed, else ``omp``, else
-``workqueue``; on the reference machine ``omp``, GNU libgomp); refraster sets neither the
+The threading layer is Numba's default: ``tbb`` first, and refraster depends on the ``tbb``
+package, so an ordinary install runs on TBB, which is safe both for several Python threads
+rendering at once and for a process that forks after rendering (docs/reliability.md). Without
+it Numba takes ``omp`` (GNU libgomp on Linux), then ``workqueue``. refraster sets neither the
 layer nor ``OMP_WAIT_POLICY``/``GOMP_SPINCOUNT``/``KMP_BLOCKTIME``, since both are read once
-per process and belong to the application. With the default (spinning) policy, being serial
+per process and belong to the application. With omp's default (spinning) policy, being serial
 on busy cores is what avoids the collapse; an application that sets ``OMP_WAIT_POLICY=passive``
 before Numba's first parallel kernel keeps both threads on busy cores too. ``workqueue`` is not
-safe for several Python threads rendering at once (Numba aborts), ``omp`` is.
+safe for several Python threads rendering at once (Numba aborts); ``omp`` is, but GNU OpenMP
+cannot run in a process forked after it started: Numba terminates such a child at its first
+parallel kernel, whatever the thread count. :func:`check_fork` turns that into one line
+(``RuntimeError``) at the start of every frame of a forked child under GNU OpenMP, instead of a
+killed worker and a ``multiprocessing.Pool`` that never returns.
 """
 
 from __future__ import annotations
 
 import os
+import sys
 import threading
 from contextlib import contextmanager
 
@@ -131,6 +138,35 @@ def frame_threads(work):
     return max(1, min(cap, _cpus() - others))
 
 
+#: Set in a child forked after this process ran a parallel kernel on GNU OpenMP.
+_FORKED_FROM_GOMP = [False]
+
+
+def _after_fork_in_child():
+    try:
+        layer = numba.threading_layer()
+    except ValueError:   # no parallel kernel ran before the fork: the child launches its own
+        return
+    omp = sys.modules.get("numba.np.ufunc.omppool")
+    if layer == "omp" and getattr(omp, "openmp_vendor", "GNU") == "GNU":
+        _FORKED_FROM_GOMP[0] = True
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
+def check_fork():
+    """Raise one line in a child forked after its parent ran parallel kernels on GNU OpenMP
+    (every parallel kernel there is terminated by Numba): called before a frame's kernels."""
+    if _FORKED_FROM_GOMP[0]:
+        raise RuntimeError(
+            "refraster cannot run in this process: it was forked after its parent ran Numba "
+            "kernels on GNU OpenMP, which Numba terminates in a forked child; install tbb "
+            "(a refraster dependency; Numba then uses it unless NUMBA_THREADING_LAYER says "
+            "otherwise) or start processes with the 'spawn' or 'forkserver' method")
+
+
 def frame_work(n_faces, width, height):
     return int(n_faces) + (int(width) * int(height)) // 4
 
@@ -138,7 +174,9 @@ def frame_work(n_faces, width, height):
 @contextmanager
 def threads_for(work=None, n=None):
     """Run the body with :func:`frame_threads`\\ (``work``) threads (or ``n``), unless an
-    enclosing frame of this thread has already chosen; restores Numba's count afterwards."""
+    enclosing frame of this thread has already chosen; restores Numba's count afterwards.
+    In a forked child that cannot run parallel kernels, raises first (:func:`check_fork`)."""
+    check_fork()
     if getattr(_local, "active", False):
         yield numba.get_num_threads()
         return

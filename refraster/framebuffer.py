@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+import threading
+import weakref
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._scratch import OUTPUTS, SCRATCH_FACES, frame_scratch
+from ._scratch import OUTPUTS, SCRATCH_FACES, scratch_lease
 from ._threads import frame_work, threads_for
 from ._validate import as_float_array, as_image_size, as_real
 from .mesh import as_meshes, smooth_normals
@@ -127,6 +130,7 @@ class Framebuffer:
         """Build the G-buffer from a resolved fragment stream (``frags`` from :func:`draw`),
         with the normals of ``raster.normals`` (:class:`refraster.RasterState`; None: flat)."""
         normals = as_raster_state(raster).normals
+        background = as_float_array(background, "background", shape=(3,))
         if frags.meshes is None:
             raise ValueError("frags must come from refraster.draw (it carries the meshes)")
         win = resolved.winner
@@ -241,8 +245,12 @@ def _normal_matrix(view, model):
     hit = _NMAT_CACHE.get(key)
     if hit is not None:
         return hit
-    det = np.linalg.det(mv)
-    if not np.isfinite(det) or abs(det) < 1e-300:
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):   # refused below
+        det = np.linalg.det(mv)
+    if not np.isfinite(det):
+        raise ValueError(f"view @ model is too large for a normal matrix (its 3×3 part's "
+                         f"determinant overflows; largest entry {np.abs(mv).max():.3g})")
+    if abs(det) < 1e-300:
         raise ValueError("view @ model is singular; normals are undefined")
     nm = np.linalg.inv(mv).T
     nm.flags.writeable = False
@@ -516,7 +524,10 @@ def render(meshes, *, view, proj, width, height, raster=None, model=None, fragme
         or with any input (ValueError otherwise). Not with ``fragment_stage``. Every byte is
         written each frame (the user may have written into the arrays), unless ``out`` is a
         :meth:`Framebuffer.reusable`: its arrays are read-only views, and a frame clears only
-        the pixels the previous one covered.
+        the pixels the previous one covered. A framebuffer (or a copy sharing its memory)
+        that another ``render`` is writing at that moment — in another thread, or in this
+        one when called from a finalizer or a signal handler — is refused (ValueError)
+        before anything is written (docs/reliability.md).
 
     Returns
     -------
@@ -532,6 +543,9 @@ def render(meshes, *, view, proj, width, height, raster=None, model=None, fragme
     ``out``, the arrays are new to the caller: their memory may be that of an earlier frame
     nobody holds any more (no framebuffer, view or memoryview of it), recycled and written
     whole (:class:`refraster._scratch.OutputPool`; ``REFRASTER_POOL_MB=0`` turns it off).
+    Safe to call from several threads at once and from a finalizer or a signal handler while
+    a frame of the same thread is in progress: each call makes its own frame
+    (docs/reliability.md).
     """
     state = as_raster_state(raster)
     bg = as_float_array(background, "background", shape=(3,))
@@ -554,34 +568,34 @@ def _render(meshes, view, proj, width, height, state, model, fragment_stage, bg,
     # without depth writes the depth test is not a minimum over the fragments: only the
     # fragment stream's resolve has it (the fused tile pass assumes writes)
     fused_path = fragment_stage is None and state.depth_write
-    scratch = (frame_scratch() if fused_path
-               and sum(m.n_faces for m in meshes) >= SCRATCH_FACES else None)
+    # (None when a frame of this thread is in progress: re-entered from a finalizer or a signal
+    # handler, this frame allocates its own)
+    with scratch_lease(fused_path and sum(m.n_faces for m in meshes) >= SCRATCH_FACES) \
+            as scratch:
+        return _render_frame(meshes, view, proj, width, height, state, model, fragment_stage,
+                             bg, out, fused_path, scratch)
+
+
+def _render_frame(meshes, view, proj, width, height, state, model, fragment_stage, bg, out,
+                  fused_path, scratch):
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
                    raster=state, scratch=scratch)
     normals = state.normals
     clear = state.clear_depth
     depth_func = state.depth_func
+    if fused_path and out is not None:
+        # the framebuffer's memory is this frame's until it returns: another render into it
+        # meanwhile (another thread, or a finalizer or signal handler of this one) is refused
+        with WRITING.claim(out):
+            return _render_into(prep, out, model, bg, scratch)
     if fused_path:
         h, w = height, width
-        buffers = None
-        if out is not None:
-            owners, trusted = _owned(out)
-            arrays = _check_out(out, h, w, _input_arrays(prep.meshes, normals, prep.view,
-                                                         prep.proj, model, bg), owners)
-            faces = out.__dict__.get("_prim_scratch")
-            if not (isinstance(faces, np.ndarray) and faces.shape == (h, w)):
-                faces = np.empty((h, w), np.int64)   # private: never handed out
-            out.__dict__["_prim_scratch"] = faces
-            if owners:
-                return _render_reusable(prep, out, owners, trusted, arrays, faces, normals,
-                                        depth_func, clear, bg, scratch)
-            buffers = (out.depth, faces, out.front_facing, out.barycentric.reshape(h * w, 3))
         depth, prim_global, front, bary = fused(
             prep.triangles, fill_rule=prep.fill_rule, depth_func=DEPTH_FUNCS[depth_func],
-            clear_depth=clear, buffers=buffers, scratch=scratch)
+            clear_depth=clear, scratch=scratch)
         facing(state, front, prim_global >= 0)
         return _build(prep.meshes, prep.models, prep.view, prep.proj, depth, prim_global,
-                      prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg, out=out)
+                      prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg)
     from .raster import _fragments_from
     from .raster.rasterizer import stream
     pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
@@ -595,6 +609,103 @@ def _render(meshes, view, proj, width, height, state, model, fragment_stage, bg,
                              f"({len(frags)},), got {keep.dtype} {keep.shape}")
     res = resolve(frags, raster=state, keep=keep)
     return Framebuffer.from_fragments(frags, res, raster=state, background=bg)
+
+
+def _render_into(prep, out, model, bg, scratch):
+    """The fused path into ``render(out=…)``'s framebuffer (checked here)."""
+    state = prep.state
+    normals, clear, depth_func = state.normals, state.clear_depth, state.depth_func
+    h, w = prep.height, prep.width
+    owners, trusted = _owned(out)
+    arrays = _check_out(out, h, w, _input_arrays(prep.meshes, normals, prep.view, prep.proj,
+                                                 model, bg), owners)
+    faces = out.__dict__.get("_prim_scratch")
+    if not (isinstance(faces, np.ndarray) and faces.shape == (h, w)):
+        faces = np.empty((h, w), np.int64)   # private: never handed out
+    out.__dict__["_prim_scratch"] = faces
+    if owners:
+        return _render_reusable(prep, out, owners, trusted, arrays, faces, normals,
+                                depth_func, clear, bg, scratch)
+    buffers = (out.depth, faces, out.front_facing, out.barycentric.reshape(h * w, 3))
+    depth, prim_global, front, bary = fused(
+        prep.triangles, fill_rule=prep.fill_rule, depth_func=DEPTH_FUNCS[depth_func],
+        clear_depth=clear, buffers=buffers, scratch=scratch)
+    facing(state, front, prim_global >= 0)
+    return _build(prep.meshes, prep.models, prep.view, prep.proj, depth, prim_global,
+                  prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg, out=out)
+
+
+class _Token:
+    __slots__ = ("__weakref__",)
+
+
+def _memory_of(fb):
+    """``(low, high)`` byte bounds of every array a render into ``fb`` may write: its seven
+    arrays (a :meth:`Framebuffer.reusable`'s private ones are the same memory as its views),
+    its colour array and its private face image."""
+    arrays = [getattr(fb, name, None) for name, _, _ in _OUT_ARRAYS]
+    arrays += [fb.__dict__.get("_prim_scratch"), _reusable_color(fb, *fb.depth.shape[:2])
+               if isinstance(getattr(fb, "depth", None), np.ndarray)
+               and fb.depth.ndim == 2 else None]
+    return [_byte_bounds(a) for a in arrays if isinstance(a, np.ndarray) and a.size]
+
+
+def _byte_bounds(a):
+    """The first and one past the last byte of ``a``'s memory (as NumPy's ``byte_bounds``,
+    which moved between NumPy 1 and 2)."""
+    low = high = a.__array_interface__["data"][0]
+    for n, stride in zip(a.shape, a.strides):
+        if stride < 0:
+            low += stride * (n - 1)
+        else:
+            high += stride * (n - 1)
+    return low, high + a.itemsize
+
+
+class _Writing:
+    """The memory each ``render(out=…)`` in progress is writing (docs/reliability.md,
+    threads): a render into a framebuffer any of whose memory another render is writing —
+    from another thread, or re-entered on this one from a finalizer or a signal handler — is
+    refused with one line, before it writes anything. Two threads writing one framebuffer
+    crashed in ``finalize`` (one thread's face image indexing the other's mesh); refusing,
+    rather than waiting, also tells the program that the frame it would read back is not
+    its own. A claim lasts while the frame's token lives: released when the frame ends,
+    however it ends (a token left in a frame kept by a traceback is cleared on the way out)."""
+
+    def __init__(self):
+        self._lock = threading.RLock()   # a finalizer may claim while this thread holds it
+        self._live = []                  # (weak reference to a frame's token, thread, bounds)
+
+    @contextmanager
+    def claim(self, fb):
+        if type(fb) is not Framebuffer:   # (_check_out says so)
+            yield
+            return
+        bounds = _memory_of(fb)
+        me = threading.get_ident()
+        token = _Token()
+        with self._lock:
+            self._live = [c for c in self._live if c[0]() is not None]
+            for ref, who, theirs in self._live:
+                if any(lo < hi2 and lo2 < hi for lo, hi in bounds for lo2, hi2 in theirs):
+                    if who == me:
+                        raise ValueError(
+                            "out is being written by a render in progress on this thread "
+                            "(render called again from a finalizer or a signal handler): "
+                            "give the nested render its own framebuffer")
+                    raise ValueError(
+                        "out is being written by a render in another thread: give each "
+                        "thread its own framebuffer (render(out=...) into one framebuffer "
+                        "from several threads at once is refused)")
+            self._live.append((weakref.ref(token), me, bounds))
+        try:
+            yield
+        finally:
+            token = None   # noqa: F841 (the claim ends with the token)
+
+
+#: The claims of the renders into framebuffers in progress (one for the process).
+WRITING = _Writing()
 
 
 def _render_reusable(prep, out, owners, trusted, arrays, faces, normals, depth_func, clear,

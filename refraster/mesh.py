@@ -128,7 +128,9 @@ def vertex_normals(vertices, faces):
 _NORMALS_CACHE = OrderedDict()
 _NORMALS_CACHE_ENTRIES = 8
 _NORMALS_CACHE_BYTES = 128 << 20
-_NORMALS_LOCK = threading.Lock()
+#: Reentrant, and held by this thread means re-entered: a garbage collection inside the cache
+#: (an insertion can trigger one) may run a finalizer that renders with smooth normals here.
+_NORMALS_LOCK = threading.RLock()
 
 
 def _mesh_digest(vertices, faces):
@@ -136,7 +138,8 @@ def _mesh_digest(vertices, faces):
     for a in (vertices, faces):
         a = np.ascontiguousarray(a)
         h.update(f"{a.dtype.str}{a.shape};".encode())
-        h.update(memoryview(a).cast("B"))
+        if a.size:   # (a memoryview of an empty array cannot be cast)
+            h.update(memoryview(a).cast("B"))
     return h.digest()
 
 
@@ -149,6 +152,8 @@ def smooth_normals(mesh):
     rendering another mesh, never gets stale normals. The returned array is shared with
     later calls for the same content: read it, never write it (``render`` only reads it).
     """
+    if _NORMALS_LOCK._is_owned():   # re-entered inside the cache: computed, not cached
+        return vertex_normals(mesh.vertices, mesh.faces)
     key = _mesh_digest(mesh.vertices, mesh.faces)
     with _NORMALS_LOCK:
         hit = _NORMALS_CACHE.get(key)

@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._threads import frame_work, threads_for
+from .._threads import check_fork, frame_work, threads_for
 from .._validate import as_float_array, as_image_size, as_index_array, as_matrix
 from ..mesh import as_meshes
 from .fragments import Fragments, concat
-from .primitive import CULL, FILL_RULES, convention_code, setup_triangles, transform_vertices
+from .primitive import CULL, FILL_RULES, W_EPS, convention_code, setup_triangles, \
+    transform_vertices
 from .rasterizer import DEPTH_FUNCS, stream
 from .resolve import Resolved, resolve
 from .state import RasterState, as_raster_state
@@ -74,6 +75,9 @@ class Prepared:
 
 
 _F32_MAX = float(np.finfo(np.float32).max)
+#: The smallest normal number of each vertex-stage precision: a w row of ``P·V·M`` whose
+#: largest entry is below it is subnormal there (a GPU's vertex stage flushes it to zero).
+_TINY = {"float32": float(np.finfo(np.float32).tiny), "float64": float(np.finfo(np.float64).tiny)}
 
 
 def _check_projection(proj):
@@ -83,16 +87,86 @@ def _check_projection(proj):
     key = proj.tobytes()
     if key in _GOOD_PROJ:
         return
-    det = float(np.linalg.det(proj))
+    # at unit scale (the largest entry 1): a large or small but invertible projection is not
+    # singular because its determinant overflows or underflows (1e300 entries: inf)
+    top = float(np.abs(proj).max())
+    det = float(np.linalg.det(proj / top)) if top > 0.0 else 0.0
     if not (np.isfinite(det) and det != 0.0):
-        raise ValueError(f"proj is singular (determinant {det:g}): it maps the scene onto a "
-                         "plane; give a perspective or orthographic matrix (refraster.camera)")
+        raise ValueError(f"proj is singular (determinant {det:g} at unit scale): it maps the "
+                         "scene onto a plane; give a perspective or orthographic matrix "
+                         "(refraster.camera)")
     if len(_GOOD_PROJ) >= 16:
         _GOOD_PROJ.clear()
     _GOOD_PROJ.add(key)
 
 
 _GOOD_PROJ: set = set()
+
+
+def _mvp_name(k, n):
+    return "proj @ view @ model" if n == 1 else f"proj @ view @ model (draw call {k})"
+
+
+def _check_w_row(mvp, k, n, prec):
+    """The w row of ``P·V·M`` must not underflow the vertex stage's precision: every clip w is
+    a product of it (``perspective(...) * 1e-40`` has entries of ~1e-40, subnormal in float32:
+    refused here). Not a determinant test: a uniform scale keeps the matrix invertible."""
+    wrow = float(np.abs(mvp[3]).max())
+    if 0.0 < wrow < _TINY[prec]:
+        raise ValueError(f"{_mvp_name(k, n)} underflows {prec}: its w row's largest entry is "
+                         f"{wrow:.3g}, below the smallest normal {prec} {_TINY[prec]:.3g}; "
+                         "scale the matrices up (a uniform scale does not change the picture)")
+
+
+def _check_w(clip, vfirst, meshes, prec):
+    """Each draw call needs a vertex whose clip w is at least the w plane the primitive stage
+    clips against (``W_EPS``, 1e-30) in magnitude, or w exactly 0 everywhere (a mesh in the
+    eye's plane): when every vertex has ``0 < |w| < W_EPS`` — a matrix scaled so small that
+    the products fall under the w plane (``perspective(...) * 1e-35`` in either precision) —
+    every face is outside that plane and the draw would be silently empty. So it is refused;
+    a draw that renders anything is never refused."""
+    for k, m in enumerate(meshes):
+        if m.n_faces == 0 or m.n_vertices == 0:
+            continue
+        w = clip[vfirst[k]:vfirst[k + 1], 3]
+        wmax = float(np.abs(w).max())
+        if 0.0 < wmax < W_EPS:
+            raise ValueError(f"{_mvp_name(k, len(meshes))} scales clip coordinates below the "
+                             f"w plane: every vertex of meshes[{k}] has |w| < {W_EPS:g} "
+                             f"(largest {wmax:.3g}), so the draw would be empty; scale the "
+                             "matrices up (a uniform scale does not change the picture)")
+
+
+def _check_divide(prims, clip, vfirst, face_offsets, meshes):
+    """The perspective divide and viewport are float32 in both precisions (as Mesa's draw
+    module): with ``precision="float64"`` a vertex that reaches them with a clip coordinate
+    beyond float32's range (a view scaled by 1e38: w ~ 1.4e38, x ~ 3e39) became inf there and
+    its faces vanished without a word. Clip coordinates of the float32 vertex stage are within
+    range by construction (inf is refused by :func:`_check_clip`), so only a float64 stage
+    whose clip coordinates exceed it is looked at: the vertices inside every clip plane must
+    be within float32's range, and so must the clipped pieces' corners (finite window
+    positions, w below float32's largest: 1/w of a larger w is 0 there). Vertices that are
+    clipped away (a huge mesh around the camera) may be as large as they like."""
+    if clip.size == 0 or float(np.abs(clip).max()) <= _F32_MAX:
+        return
+    used = np.zeros(len(clip), np.bool_)
+    used[prims.faces.ravel()] = True
+    bad = used & (prims.vcode == 0) & (np.abs(clip) > _F32_MAX).any(axis=1)
+    st = prims.clipped
+    # a corner's w beyond float32 gives 1/w = 0 there: finite, and wrong
+    pieces = ~(np.isfinite(st.xf).all(axis=1) & np.isfinite(st.yf).all(axis=1)
+               & np.isfinite(st.z).all(axis=1)) | (st.inv_w < 1.0 / _F32_MAX).any(axis=1)
+    if not (bad.any() or pieces.any()):
+        return
+    if bad.any():
+        k = int(np.searchsorted(vfirst, int(np.argmax(bad)), side="right")) - 1
+    else:
+        g = int(st.prim[int(np.argmax(pieces))])
+        k = int(np.searchsorted(face_offsets, g, side="right")) - 1
+    raise ValueError(f"meshes[{k}]: clip coordinates exceed float32 where the perspective "
+                     f"divide (float32 in both precisions) needs them (largest "
+                     f"{float(np.abs(clip).max()):.3g}, float32 ends at {_F32_MAX:.3g}); "
+                     "scale the matrices or the mesh down")
 
 
 def _check_clip(clip, meshes, prec):
@@ -138,16 +212,19 @@ def _prepare(meshes, *, view, proj, width, height, model, state, scratch):
     models = _models(model, len(meshes))
     mvps = []
     for mm in models:
-        mvp = proj @ view @ mm
+        with np.errstate(over="ignore", invalid="ignore"):   # refused just below, in one line
+            mvp = proj @ view @ mm
         if not np.all(np.isfinite(mvp)):
             raise ValueError("proj @ view @ model overflows to non-finite values")
         if prec == "float32" and np.abs(mvp).max() > _F32_MAX:
             raise ValueError(f"proj @ view @ model overflows float32 (largest entry "
                              f"{np.abs(mvp).max():.3g}); scale the scene down or use "
                              "precision='float64'")
+        _check_w_row(mvp, len(mvps), len(models), prec)
         mvps.append(mvp)
     _check_projection(proj)
     offsets = np.cumsum([0] + [m.n_faces for m in meshes])
+    vfirst = np.cumsum([0] + [m.n_vertices for m in meshes])
     if len(meshes) == 1 and scratch is not None:   # the common case, into reused buffers
         nv = meshes[0].n_vertices
         c32 = transform_vertices(meshes[0].vertices, mvps[0], prec,
@@ -160,13 +237,13 @@ def _prepare(meshes, *, view, proj, width, height, model, state, scratch):
         clip = transform_vertices(meshes[0].vertices, mvps[0], prec).astype(np.float64)
         face = meshes[0].faces
     else:   # each draw call written once into the concatenated arrays
-        vfirst = np.cumsum([0] + [m.n_vertices for m in meshes])
         clip = np.empty((int(vfirst[-1]), 4))
         face = np.empty((int(offsets[-1]), 3), np.int64)
         for k, (m, mvp) in enumerate(zip(meshes, mvps)):
             clip[vfirst[k]:vfirst[k + 1]] = transform_vertices(m.vertices, mvp, prec)
             np.add(m.faces, vfirst[k], out=face[offsets[k]:offsets[k + 1]])
     _check_clip(clip, meshes, prec)
+    _check_w(clip, vfirst, meshes, prec)
     p = Prepared()
     p.meshes, p.models, p.view, p.proj = meshes, models, view, proj
     p.width, p.height, p.fill_rule = width, height, rule
@@ -176,6 +253,8 @@ def _prepare(meshes, *, view, proj, width, height, model, state, scratch):
     p.triangles = setup_triangles(clip, face, width, height, cull=cull_code(state),
                                   subpixel_bits=state.subpixel_bits, conv=conv_code(state),
                                   scratch=scratch)
+    if prec == "float64":
+        _check_divide(p.triangles, clip, vfirst, offsets, meshes)
     return p
 
 
@@ -239,6 +318,7 @@ def rasterize(clip_positions, faces, width, height, *, raster=None):
     Fragments
         ``object_id`` is 0; no meshes are attached.
     """
+    check_fork()
     c = as_float_array(clip_positions, "clip_positions", shape=(None, 4))
     f = np.asarray(faces)
     if f.size == 0:

@@ -6,6 +6,7 @@ import numpy as np
 from numba import njit, prange
 
 from .._config import PJIT
+from .._threads import check_fork
 
 __all__ = ["Fragments", "concat"]
 
@@ -162,6 +163,7 @@ def _interpolate(meshes, attr, object_id, prim_id, bary):
         p = prim_id[own]
         if p.min() < 0 or np.any(p >= limit):
             raise ValueError("prim_id out of range for its mesh")
+    check_fork()
     _interpolate_kernel(np.ascontiguousarray(object_id), np.ascontiguousarray(prim_id),
                         np.ascontiguousarray(bary, dtype=np.float64), faces, fbase, values, out)
     return out[:, 0] if scalar else out
