@@ -745,19 +745,6 @@ def test_clip_depth_moved_fails(gold, tmp_path):
     assert f"[[{rr}, {cc}]]" in line, line
 
 
-def _force_raster(monkeypatch, raster):
-    """refraster's prepare with ``raster``'s sub-pixel bits / fill rule forced over whatever
-    its callers pass (the techniques call render without them)."""
-    import functools
-
-    from refraster import framebuffer, raster as rr
-    bits = {k: v for k, v in raster.items() if k in ("subpixel_bits", "fill_rule")}
-    if bits:
-        for mod in (rr, framebuffer):
-            monkeypatch.setattr(mod, "prepare", functools.partial(
-                lambda orig, *a, **k: orig(*a, **{**k, **bits}), mod.prepare))
-
-
 CUT_KEYS = ["cutaway_depth", "cut_mask", "depth", "eye_depth", "front_facing", "object_id",
             "prim_id", "normal", "barycentric", "color"]
 
@@ -765,28 +752,20 @@ CUT_KEYS = ["cutaway_depth", "cut_mask", "depth", "eye_depth", "front_facing", "
 @pytest.mark.parametrize("raster", ["4bit", "4bit_top_left", "float64"])
 def test_cutaway_frames_of_conformant_variants_pass(gold, tmp_path, monkeypatch, raster):
     """Specificity of the cut decision: whole cutaway frames (rear hull and scene rasterized
-    with 4 bits, the top-left rule, a float64 vertex stage — ``precision`` is not a
-    render_cutaway option, so float64 goes through prepare too), flooded with each accepted
+    with 4 bits, the top-left rule, a float64 vertex stage: the raster state of
+    render_cutaway), flooded with each accepted
     variant, pass the cutaway checks (D, cut mask, ids, depth, facing)."""
     from refraster.cutaway import render_cutaway
     from refraster.golden.compare.run import compare
     from refraster.golden.technique_scenes import cutaway_options
     scene = golden.available_scenes()[CUT].build()
     p = scene.parameters
-    ras = dict(CUT_RASTER[raster])
-    _force_raster(monkeypatch, ras)
-    if "precision" in ras:
-        import functools
-
-        from refraster import framebuffer, raster as rr
-        for mod in (rr, framebuffer):
-            monkeypatch.setattr(mod, "prepare", functools.partial(
-                lambda orig, *a, **k: orig(*a, **{**k, "precision": "float64"}), mod.prepare))
+    state = RasterState(**CUT_RASTER[raster])
     opts = cutaway_options(p)
     interest = [d.mesh for d in scene.draws if d.name in p["interest"]]
     secondary = [d.mesh for d in scene.draws if d.name in p["secondary"]]
     for variant in p["accepted_variants"]:
-        fb = render_cutaway(interest, secondary, **scene.camera.kwargs,
+        fb = render_cutaway(interest, secondary, **scene.camera.kwargs, raster=state,
                             **{**opts, "cutaway": opts["cutaway"].replace(variant=variant)})
         cand = {**fb.arrays(), "cutaway_depth": fb.cutaway_depth, "cut_mask": fb.cut_mask}
         root = _write(tmp_path / variant, CUT, cand)
