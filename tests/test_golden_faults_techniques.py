@@ -654,19 +654,11 @@ def _textured_surfaces(scene, plain):
 
 
 def _clip_candidate(scene, raster, lookup8, monkeypatch):
-    import functools
-
-    from refraster import framebuffer, raster as rr
     from refraster.clipsurface import render as cr
     from refraster.clipsurface import render_clipped
     from refraster.golden.allowances.clip import _surfaces
     from refraster.golden.scenes import raster_state
     from refraster.golden.technique_scenes import clip_caps
-    bits = {k: v for k, v in raster.items() if k in ("subpixel_bits", "fill_rule")}
-    if bits:   # forced over whatever the caller passes
-        for mod in (rr, framebuffer):
-            monkeypatch.setattr(mod, "prepare", functools.partial(
-                lambda orig, *a, **k: orig(*a, **{**k, **bits}), mod.prepare))
     if lookup8:
         def clip_mask(points, surfaces, *, space="world", view=None, skip=None):
             out = np.zeros(len(points), np.bool_)
@@ -680,7 +672,7 @@ def _clip_candidate(scene, raster, lookup8, monkeypatch):
     p = scene.parameters
     fb = render_clipped([d.mesh for d in scene.draws], _textured_surfaces(scene, _surfaces),
                         **scene.camera.kwargs, caps=clip_caps(p), space=p["space"],
-                        raster=RasterState(cull=raster_state({})["cull"], precision=raster.get("precision", "float32")))
+                        raster=RasterState(cull=raster_state({})["cull"], **raster))
     return {**fb.arrays(), "cap_mask": fb.cap_mask}
 
 
