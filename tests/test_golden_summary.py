@@ -98,5 +98,48 @@ def test_failing_summary_and_failures_ordered_by_cause(gold, tmp_path):
     values = [ln for ln in lines if ln.split(":")[0].split("/")[1] not in ("prim_id",
                                                                              "object_id")]
     assert values, lines
-    assert all("[follows from the ids" in ln or "failing pixels are where the ids fail]" in ln
-               for ln in values), values
+    # a value buffer failing where the ids fail says so; one failing only where the ids are
+    # admitted (the named face may win there, its values do not fit it) carries no mark
+    for ln in values:
+        buf = ln.split(":")[0].split("/")[1]
+        b = next(x for s in result.scenes for x in s.buffers if x.name == buf)
+        ids = next(x for s in result.scenes for x in s.buffers if x.name == "prim_id")
+        bad = b.images["over"] & ~b.images["forgiven"]
+        id_bad = ids.images["over"] & ~ids.images["forgiven"]
+        k = int((bad & id_bad).sum())
+        assert ("[follows from the ids" in ln) == (k == bad.sum() and k > 0), ln
+        assert ("failing pixels are where the ids fail]" in ln) == (0 < k < bad.sum()), ln
+
+
+def _result(name, kind, bad, n_pixels=16):
+    from refraster.golden.compare.run import BufferResult
+    over = np.asarray(bad, bool)
+    check = {"metric": "face" if kind == "id" else "interval", "value": int(over.sum()),
+             "limit": 0, "op": "<=", "ok": not over.any(), "detail": "…"}
+    metrics = {"max_abs": 1.0, "rmse": 0.1, "psnr": 20.0, "threshold": 0.0,
+               "pixels": n_pixels, "n_over": int(over.sum()), "n_unforgiven": int(over.sum()),
+               "fraction_over": over.mean(), "fraction_unforgiven": over.mean(), "worst": None}
+    return BufferResult(name, kind, "buffers.npz", {}, metrics, [check], None, None,
+                        {"over": over, "forgiven": np.zeros_like(over), "error": over * 1.0})
+
+
+def test_value_failures_marked_by_where_the_ids_fail():
+    from refraster.golden.compare.run import Comparison, SceneResult
+    ids = np.zeros((4, 4), bool)
+    ids[0, :] = True
+    inside = ids.copy()
+    inside[0, 3] = False                       # every failing pixel where the ids fail
+    half = np.zeros((4, 4), bool)
+    half[0, 0] = half[3, 3] = True             # one of two
+    apart = np.zeros((4, 4), bool)
+    apart[2, 2] = True                         # none
+    scene = SceneResult("s", "fail", [_result("depth", "unorm", inside),
+                                      _result("normal", "snorm", half),
+                                      _result("color", "color", apart),
+                                      _result("prim_id", "id", ids)])
+    lines = Comparison(".", ".", "exact", [scene], mode="tolerant").failures()
+    assert [ln.split(":")[0] for ln in lines] == ["s/prim_id", "s/depth", "s/normal", "s/color"]
+    assert "cannot win here" in lines[0]
+    assert "[follows from the ids" in lines[1]
+    assert "[1 of its 2 failing pixels are where the ids fail]" in lines[2]
+    assert "[" not in lines[3].split(")")[-1]

@@ -104,8 +104,15 @@ def _unforgiven(b):
 def _summary_line(b, tolerant):
     """One buffer's summary line (see :meth:`Comparison.summary`)."""
     m = b.metrics
-    head = (f"  {b.name:<14} {'ok  ' if b.passed else 'FAIL'} max_abs={m['max_abs']:.3g}"
-            f" rmse={m['rmse']:.3g} psnr={m['psnr']:.1f}")
+    head = f"  {b.name:<14} {'ok  ' if b.passed else 'FAIL'}"
+    err = b.images.get("error") if b.images else None
+    if math.isfinite(m["max_abs"]) or err is None:
+        head += f" max_abs={m['max_abs']:.3g} rmse={m['rmse']:.3g} psnr={m['psnr']:.1f}"
+    else:   # a pixel covered in one and background (±inf) in the other
+        e = np.asarray(err, np.float64)
+        finite = np.isfinite(e)
+        head += (f" max_abs={float(e[finite].max()) if finite.any() else 0.0:.3g} where both "
+                 f"cover, {int((~finite).sum())} px covered in one only")
     flip = f" flip={m['flip_mean']:.4f}" if m.get("flip_mean") is not None else ""
     n, px, bad = m["n_over"], m["pixels"], m["n_unforgiven"]
     differ = (f" differing={n}/{px}" if tolerant else
@@ -159,7 +166,8 @@ class Comparison:
                     m = _unforgiven(b)
                     if m is not None and m.shape == id_bad.shape and m.any():
                         k, n = int((m & id_bad).sum()), int(m.sum())
-                        follows = (" [follows from the ids: every failing pixel is one where the "
+                        follows = ("" if k == 0 else
+                                   " [follows from the ids: every failing pixel is one where the "
                                    "candidate's ids fail]" if k == n else
                                    f" [{k} of its {n} failing pixels are where the ids fail]")
                 for c in b.checks:
