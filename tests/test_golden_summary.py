@@ -72,6 +72,10 @@ def test_admitted_differences_read_as_admitted(gold, four_bit):
     assert result.exit_code == 0, "\n".join(result.failures())
     assert any("(all admitted by the allowance)" in ln for ln in _buffer_lines(text)), text
     assert passing_alarms(text) == [], text
+    # FLIP is computed in tolerant mode too (the report said "not installed" while it was)
+    color = next(b for s in result.scenes for b in s.buffers if b.name == "color")
+    assert color.metrics["flip_mean"] is not None and color.images["flip"] is not None
+    assert re.search(r"^  color .* flip=0\.\d{4}$", text, re.M), text
 
 
 def test_old_summary_columns_would_be_caught():
