@@ -49,8 +49,9 @@ def covered_pixels(ref_all, clear=1.0):
     return np.ones(next(iter(ref_all.values())).shape[:2], np.bool_)
 
 
-def inject(key, kind, ref, pixels, rng, id_range, ref_all):
-    """A copy of ``ref`` with the fault of ``key`` at every (row, col) of ``pixels``."""
+def inject(key, kind, ref, pixels, rng, id_range, ref_all, size=faults.STANDARD):
+    """A copy of ``ref`` with the fault of ``key`` at every (row, col) of ``pixels`` (faults of
+    ``size``, :data:`faults.STANDARD` or :data:`faults.REALISTIC`)."""
     if key.startswith("layer_") and key != "layer_count":
         out = ref.copy()
         count = ref_all["layer_count"]
@@ -69,7 +70,7 @@ def inject(key, kind, ref, pixels, rng, id_range, ref_all):
             elif kind == "bool":
                 out[r, c, k] = ~v
             else:
-                out[r, c, k] = faults._reflect(float(v))
+                out[r, c, k] = faults._reflect(float(v), size["value"])
         return out
     if key == "layer_count":
         out = ref.copy()
@@ -81,17 +82,18 @@ def inject(key, kind, ref, pixels, rng, id_range, ref_all):
                 d = -d
             out[r, c] = n + d
         return out
-    return faults.inject(key, kind, ref, pixels, rng, id_range)
+    return faults.inject(key, kind, ref, pixels, rng, id_range, size=size)
 
 
-def fault_table(golden_dir, scene, *, buffers=None, seed=SEED, admits=None):
+def fault_table(golden_dir, scene, *, buffers=None, seed=SEED, admits=None, size=faults.STANDARD):
     """As :func:`faults.fault_table`, for any scene (technique buffers included).
 
     ``admits(key, kind, spec, arrays, ref, cand, named, ref_all)`` → (H, W) bool overrides how
     "admitted" is computed for the checks :func:`faults._admits` does not know."""
     admits = globals()["admits"] if admits is None else admits
     return faults.fault_table(golden_dir, scene, buffers=buffers, seed=seed,
-                              covered_of=covered_pixels, inject_at=inject, admits=admits)
+                              covered_of=covered_pixels, inject_at=inject, admits=admits,
+                              size=size)
 
 
 def layers_admits(key, kind, spec, arrays, ref, cand, named, others):
