@@ -270,7 +270,24 @@ REALISTIC_AIM = 0.95
 ENLARGED = {
     # slivers: snapped attribute setup moves their barycentrics (docs/tolerance.md)
     ("render_crank", "barycentric"): 1.5,
+    # thresholds of the halo classification: a rim or threshold voxel's colour
+    ("halos4d_figure1", "color"): 1.5,
+    ("halos4d_perspective", "color"): 1.5,
 }
+_EDGES = ("edges_building", "edges_sobel", "edges_c1", "edges_diagonal2", "edges_c1_paper",
+          "edges_npr_gooch")
+_CUTS = ("cutaway_shells", "cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa",
+         "cutaway_floor", "cutaway_floor_jfa")
+#: Pairs short at the realistic size that no enlarged fault ≤ 2× brings to the aim (open): their
+#: allowance holds jumps — pixels where the value is free over most of [0, 1] because a fragment
+#: or a face may or may not be there (ghost lines: supercover vs diamond exit; edge maps and the
+#: NPR colour: a neighbour that may show another face or the background; halo alpha: a voxel
+#: drawn under some shifts only). A larger fault does not leave those intervals
+#: (docs/tolerance.md, "Teeth at realistic sizes"). Listed exactly: a pair leaves the list when
+#: its allowance is split into may / must (or tightened) and it meets the aim.
+SHORT_OPEN = frozenset({(s, "edge_map") for s in _EDGES} | {("edges_npr_gooch", "npr_color")}
+                       | {(s, "ghost") for s in _CUTS}
+                       | {(s, "alpha") for s in ("halos4d_figure1", "halos4d_perspective")})
 
 
 def float_buffers(golden_dir, scene):
@@ -317,6 +334,21 @@ def measured_line(seconds):
             f"{load:.1f}) in {seconds:.0f} s.")
 
 
+def check_realistic(tables, scene):
+    """The realistic aim of one scene: its short pairs are exactly the listed exceptions
+    (:data:`ENLARGED`) and open pairs (:data:`SHORT_OPEN`), and each exception, enlarged at
+    most 2×, meets the aim at its enlarged fault."""
+    short = {k for s, k in short_pairs({scene: tables[scene]})}
+    listed = {k for s, k in ENLARGED if s == scene} | {k for s, k in SHORT_OPEN if s == scene}
+    rows = {k: (r["caught"], r["admitted"], r["covered"], r["missed"][:5])
+            for k, r in tables[scene].items() if k in short ^ listed}
+    assert short == listed, (scene, "short", sorted(short), "listed", sorted(listed), rows)
+    for k in {k for s, k in ENLARGED if s == scene}:
+        f, e = ENLARGED[(scene, k)], tables[scene][k]["enlarged"]
+        assert 1.0 < f <= 2.0, (scene, k, f)
+        assert share(e) >= REALISTIC_AIM, (scene, k, f, e["caught"], e["covered"])
+
+
 def format_realistic(rows):
     """Markdown table of ``[(scene, buffer, row), ...]`` of :func:`realistic_table`."""
     out = ["| scene | buffer | covered | admits the fault | caught / covered | "
@@ -328,6 +360,8 @@ def format_realistic(rows):
             f, e = r["factor"], r["enlarged"]
             big = (f"×{f:g}: {f * REALISTIC['value']:g} / {f * REALISTIC['normal']:g} rad / "
                    f"×{1 + f * REALISTIC['eye']:g} | {100 * share(e):.1f} %")
+        elif (scene, key) in SHORT_OPEN:
+            big = "open (no enlarged fault ≤ 2× meets the aim) | "
         else:
             big = " | "
         adm = r["admitted"] / r["covered"] if r["covered"] else 0.0
