@@ -369,7 +369,8 @@ def _halos4d_patches(projection):
     out = render_halos(surface, **halo_options(params), volume=True)
     params["rho"] = float(out.stats["rho"])
     # the defaults the reference derived (issue 21), so a backend can use the same values
-    params.update(delta_d=float(out.stats["delta_d"]), antialias=0.3, halo_opacity=0.0)
+    params.update(delta_d=float(out.stats["delta_d"]), antialias=float(out.stats["antialias"]),
+                  halo_opacity=0.0)
     params["screen_bounds"] = np.asarray(out.bounds).tolist()
     # per pixel, the halo class of its column: 2 if a halo carved some surface voxel, else 1 if a
     # surface voxel is drawn, else 3 if only halo voxels, else 0 (empty)

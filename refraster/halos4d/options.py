@@ -124,23 +124,31 @@ class Halos(_Value):
         halo carving, only surface fragments take part in the 4D depth test (Fig. 1(b)); the
         surface is still thickened by ρ and drawn where |2t − 1| < w_s.
     rho : float > 0 or None
-        Halo radius ρ (Eq. 2) in screen units; None (default): 2 % of the projected bounding-box
-        diagonal (``thicken.RHO_FRACTION``) [guess: the paper gives no value].
+        Halo radius ρ (Eq. 2) in screen units; None (default): 3 % of the projected bounding-box
+        diagonal (``thicken.RHO_FRACTION``) [guess: the paper gives no value; docs/halos4d.md,
+        "Defaults"].
     delta_d : float ≥ 0 or None
         δd of Eq. 3 (4D-depth increase across the half-thickness); None (default):
         :func:`refraster.halos4d.default_halo_parameters`: ``(1 − δt)·δd`` = the 95th percentile
         of the 4D-depth differences of sheets that overlap in projection, so that Eq. 3 stays
         depth-dependent (``stats["crossing_pairs"]`` says how many differences were used).
     delta_t : float in [0, 1]
-        δt of Eq. 3 (the core |2t − 1| < δt keeps the surface's own 4D depth); default 0.3.
+        δt of Eq. 3 (the core |2t − 1| < δt keeps the surface's own 4D depth); default 0.3,
+        equal to the default w_s: the constant-depth middle region is the drawn surface, and
+        the halo's depth drops off from where the surface ends.
     surface_width : float in (0, 1]
         w_s: a fragment is a surface fragment when |2t − 1| < w_s (the paper's "proximity of t
         to 0.5"), otherwise halo; default 0.3.
     antialias : float in [0, surface_width] or None
-        a (None, the default: w_s): the surface anti-aliased from t (Sec. 4.6): a surface
-        fragment covers c = ``clamp((w_s + a − |2t − 1|)/(2a), 0, 1)`` of its voxel's thickness,
-        so its opacity is ``1 − (1 − α)^c`` instead of the hard threshold ``|2t − 1| < w_s``; the
-        mean thickness, and so the accumulated opacity, is unchanged. 0: the hard threshold.
+        a: the surface anti-aliased from t (Sec. 4.6): a surface fragment covers
+        c = ``clamp((w_s + a − |2t − 1|)/(2a), 0, 1)`` of its voxel's thickness, so its opacity
+        is ``1 − (1 − α)^c`` instead of the hard threshold ``|2t − 1| < w_s``; the mean
+        thickness, and so the accumulated opacity, is unchanged. 0: the hard threshold.
+        None (default): a ramp one pixel wide across a sheet seen edge-on,
+        ``a = min(w_s, 0.5·pixel/ρ)`` (:func:`refraster.halos4d.render.default_antialias`):
+        the drawn surface reaches at most half a pixel past ``w_s·ρ``, so the ramp never
+        covers a halo gap wider than one pixel (a = w_s, the former default, covered gaps up
+        to 0.3ρ, several pixels).
     depth_eps : float ≥ 0 or None
         ε of the occlusion rule δ ≤ minD + ε (MATH.md §5.4 [guess]); None (default):
         1e-6·max|δ|, above the rounding of float32 barycentrics, which do not sum to exactly 1.

@@ -108,10 +108,21 @@ def slice_alpha(opacity, spacing, rho, surface_width):
     return float(1.0 - (1.0 - opacity) ** (spacing / (2.0 * surface_width * rho)))
 
 
+#: The default anti-aliasing ramp is this many pixels wide (Sec. 4.6: "a slice image with
+#: anti-aliasing"): half a pixel inside the surface's edge |2t − 1| = w_s, half outside.
+ANTIALIAS_PIXELS = 1.0
+
+
+def default_antialias(pixel, rho, surface_width):
+    """The default ramp ``a`` of :class:`Halos`: ``2·a·ρ`` = :data:`ANTIALIAS_PIXELS` pixels
+    of width ``pixel`` (screen units) across a sheet seen edge-on, at most ``w_s``."""
+    return float(min(surface_width, 0.5 * ANTIALIAS_PIXELS * pixel / rho))
+
+
 def prepare(surface, *, view=None, rho=None, ambient=AMBIENT):
     """Project, thicken and tetrahedralize ``surface`` (Sec. 4.2–4.4). Returns
     ``(HaloGeometry, rho)``; ``view`` a :class:`View4D` (its rotation, projection, eye and scale;
-    None: ``View4D()``); ``rho=None`` picks RHO_FRACTION (2 %) of the projected bounding-box
+    None: ``View4D()``); ``rho=None`` picks RHO_FRACTION (3 %) of the projected bounding-box
     diagonal; ``ambient`` is the ambient part of the headlight shading."""
     view = DEFAULT_VIEW if view is None else as_option(view, View4D, "view")
     rotation = None if view.rotation is None else np.array(view.rotation, np.float64)
@@ -612,7 +623,6 @@ def _render(surface, view, width, height, slices, halos, style, background, volu
     if n * width * height > (1 << 31) and volume:
         raise ValueError(f"volume of {n}×{height}×{width} voxels is too large")
     delta_t, surface_width = halos.delta_t, halos.surface_width
-    antialias = surface_width if halos.antialias is None else halos.antialias
     halo_rgb = np.array(style.halo_color, np.float64)
     boundary = style.boundary_color is not None
     boundary_rgb = np.zeros(3) if not boundary else np.array(style.boundary_color, np.float64)
@@ -636,6 +646,8 @@ def _render(surface, view, width, height, slices, halos, style, background, volu
     dz = (bounds[1, 2] - bounds[0, 2]) / n
     centres = bounds[0, 2] + (np.arange(n) + 0.5) * dz
     alpha = slice_alpha(style.opacity, dz, rho, surface_width)
+    antialias = (default_antialias((bounds[1, 0] - bounds[0, 0]) / width, rho, surface_width)
+                 if halos.antialias is None else halos.antialias)
     on = halos.enabled
     # the halo shell lies outside the surface's core and its anti-aliasing fringe
     halo_alpha = (slice_alpha(style.halo_opacity, dz, rho,
@@ -645,7 +657,8 @@ def _render(surface, view, width, height, slices, halos, style, background, volu
               halo_rgb, bool(boundary and on), style.boundary_width, boundary_rgb)
     stats = {"tetrahedra": int(len(geo.tets)), "normal_fallbacks": geo.n_fallback,
              "degenerate_faces": geo.n_degenerate, "rho": rho, "delta_d": delta_d,
-             "slice_alpha": alpha, "crossing_pairs": n_pairs, "halo_slice_alpha": halo_alpha}
+             "slice_alpha": alpha, "crossing_pairs": n_pairs, "halo_slice_alpha": halo_alpha,
+             "antialias": antialias}
     if not pair:
         return _draw(geo, views, bounds, centres, width, height, [params], engine, volume, bg,
                      stats)[0]

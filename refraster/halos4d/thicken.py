@@ -150,8 +150,9 @@ def halo_depth(d_orig, t, delta_t, delta_d):
     return d + np.maximum(0.0, np.abs(2.0 * tt - 1.0) - delta_t) * delta_d
 
 
-#: Default halo radius ρ as a fraction of the projected bounding-box diagonal.
-RHO_FRACTION = 0.02
+#: Default halo radius ρ as a fraction of the projected bounding-box diagonal [guess;
+#: docs/halos4d.md, "Defaults"].
+RHO_FRACTION = 0.03
 #: The default δd keeps Eq. 3 unsaturated for this quantile of the crossing depth differences.
 DEPTH_QUANTILE = 0.95
 #: Two vertices are on different sheets when their 4D separation is mostly along the view:
