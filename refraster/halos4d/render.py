@@ -33,7 +33,11 @@ buffer differs.
 
 from __future__ import annotations
 
+import collections
+import hashlib
 import math
+import sys
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -531,6 +535,40 @@ def _slices(value):
     return int(value)
 
 
+#: How many default δd estimates :func:`_default_delta_d` keeps (most recent first).
+DELTA_D_CACHE_SIZE = 16
+_delta_d_cache = collections.OrderedDict()
+_delta_d_lock = threading.Lock()
+
+
+def _default_delta_d(points, depth, spatial, faces, delta_t, rho):
+    """``(δd, crossing pairs)`` of :func:`default_halo_parameters`, memoized on a digest of
+    its inputs (the projected points, 4D depths, rotated xyz, faces, δt and ρ): a surface seen
+    again under the same rotation and projection does not pay the pair search again, and any
+    change of the inputs (or of the module constants it reads) is a new entry, so the result
+    is the function's, bit for bit."""
+    h = hashlib.blake2b(digest_size=20)
+    for a in (points, depth, spatial, faces):
+        a = np.ascontiguousarray(a)
+        h.update(str((a.dtype.str, a.shape)).encode())
+        h.update(a.data)
+    tk = sys.modules[__package__ + ".thicken"]
+    h.update(np.array([delta_t, rho, tk.DEPTH_QUANTILE, tk.OVERLAP_SLOPE, tk.MAX_PAIRS],
+                      np.float64).tobytes())
+    key = (h.digest(), id(default_halo_parameters))
+    with _delta_d_lock:
+        hit = _delta_d_cache.get(key)
+        if hit is not None:
+            _delta_d_cache.move_to_end(key)
+            return hit
+    _, delta_d, n_pairs = default_halo_parameters(points, depth, spatial, faces, delta_t, rho)
+    with _delta_d_lock:
+        _delta_d_cache[key] = (delta_d, n_pairs)
+        while len(_delta_d_cache) > DELTA_D_CACHE_SIZE:
+            _delta_d_cache.popitem(last=False)
+    return delta_d, n_pairs
+
+
 #: The defaults of :func:`render_halos`' option values.
 DEFAULT_VIEW = View4D()
 DEFAULT_HALOS = Halos()
@@ -631,8 +669,8 @@ def _render(surface, view, width, height, slices, halos, style, background, volu
     n_pairs = None
     delta_d = halos.delta_d
     if delta_d is None:
-        _, delta_d, n_pairs = default_halo_parameters(
-            geo.points, depth[:len(geo.points)], geo.spatial, geo.faces, delta_t, rho)
+        delta_d, n_pairs = _default_delta_d(geo.points, depth[:len(geo.points)], geo.spatial,
+                                            geo.faces, delta_t, rho)
     delta_d = as_real(delta_d, "delta_d", lo=0.0)
     # float32 barycentrics do not sum to exactly 1: a constant δ interpolates to δ·(1 ± 2e-7)
     eps = (1e-6 * float(np.abs(depth).max()) if halos.depth_eps is None else halos.depth_eps)
