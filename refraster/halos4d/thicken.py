@@ -94,7 +94,8 @@ def thicken(points, normals, rho):
 
 
 def prism_tetrahedra(faces, n_vertices):
-    """Split each prism (face × [lower, upper]) into three tetrahedra (MATH.md §5.5).
+    """Split each prism (face × [lower, upper]) into three tetrahedra by the global vertex-index
+    rule (MATH.md §5.5): :func:`split_prisms`' ``split="global_index"``.
 
     Parameters
     ----------
@@ -117,7 +118,8 @@ def prism_tetrahedra(faces, n_vertices):
     the smallest global index" for the numbering i / i + n; it depends only on the quad's own
     vertices, so two prisms sharing a quad split it the same way, and a prism's minimum vertex
     carries two diagonals, so the pattern is never the cyclic one that needs a Steiner point
-    (Wang et al. Fig. 4(c)–(d) are unnecessary). Orientation: when the upper copy lies on the side
+    (no repair of Wang et al. Fig. 4 is needed; the paper's split with its repair is
+    :func:`split_prisms`' default). Orientation: when the upper copy lies on the side
     of the face normal (right-hand rule of the face as given) of an untwisted prism, all three
     tetrahedra have positive signed volume ``det[v1−v0, v2−v0, v3−v0] > 0``.
     """
