@@ -420,3 +420,19 @@ def test_split_option_and_render():
     c = h.render_halos(s, view=rot, width=32, height=24, slices=6, halos=Halos(split="paper"))
     assert np.array_equal(a.image, c.image)
     assert not np.array_equal(a.image, b.image)
+
+
+def test_gl_backend_port_of_the_paper_split_is_the_same():
+    """refraster.gl imports nothing of refraster: its port of the split gives the same
+    tetrahedra and rebuilt prisms as :func:`split_prisms`."""
+    from refraster.gl.halos import _paper_split
+    rng = np.random.default_rng(SEED + 3)
+    rebuilt = 0
+    for _ in range(100):
+        f, n, _ = random_strip(rng, int(rng.integers(2, 12)))
+        tets, cyc = _paper_split(f, n)
+        ps = split_prisms(f, n)
+        np.testing.assert_array_equal(tets, ps.tets)
+        np.testing.assert_array_equal(cyc, ps.steiner)
+        rebuilt += len(cyc)
+    assert rebuilt > 0
