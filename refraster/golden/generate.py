@@ -30,7 +30,8 @@ from .._validate import check_shape
 from .io.buffers import DTYPES, KINDS, infer_kind, preview, preview_range
 from .io.package import export_package, npz_bytes, sha256_file
 from .io.read import copy_listed_scene
-from .scenes import DEFAULT_RASTER, GoldenScene, available_scenes, id_range, raster_state
+from .scenes import (DEFAULT_RASTER, GoldenScene, available_scenes, id_range, manifest_raster,
+                     raster_state)
 from .io.schema import MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION, validate
 from .compare.profiles import default_tolerances
 from .io import write
@@ -116,7 +117,8 @@ def _write_scene(root, name, scene):
                              for k, v in sorted(arrays.items())}}
     return {"technique": scene.technique, "description": scene.description,
             "package": f"{name}/package/scene.json", "buffers_file": f"{name}/buffers.npz",
-            "buffers": buffers, "parameters": {"raster": raster, "technique": scene.parameters},
+            "buffers": buffers,
+            "parameters": {"raster": manifest_raster(raster), "technique": scene.parameters},
             "allowances": allowances}
 
 
