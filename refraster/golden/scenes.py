@@ -54,7 +54,7 @@ DEFAULT_RASTER = dict(subpixel_bits=8, fill_rule="llvmpipe", precision="float32"
 CONVENTION_FIELDS = ("depth_range", "origin", "ndc_y", "depth_clamp", "depth_format")
 
 #: Modules imported by :func:`available_scenes`; each registers its scenes on import.
-SCENE_MODULES = ("refraster.golden.technique_scenes",)
+SCENE_MODULES = ("refraster.golden.technique_scenes", "refraster.golden.convention_scenes")
 
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_]*$")
 
@@ -408,6 +408,7 @@ def _toml_camera(spec, meshes, width, height, where, depth_range="negative_one_t
                            up=num("up", (0.0, 1.0, 0.0)), margin=num("margin", 1.1))
         if depth_range == "negative_one_to_one" and not rev:
             return cam
+        from .conventions import convert_projection
         return Camera(cam.view, convert_projection(cam.proj, depth_range, reversed=rev),
                       width, height)
     view = look_at(num("eye"), num("target"), num("up", (0.0, 1.0, 0.0)))

@@ -378,8 +378,10 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
             if allow is not None:
                 from ..allowances.core import tolerant_metrics
                 clear = entry["parameters"]["raster"].get("clear_depth", 1.0)
+                func = entry["parameters"]["raster"].get("depth_func", "less")
                 metrics, checks, images = tolerant_metrics(
                     key, ref[key], a, spec["kind"], spec["tolerant"], allow, clear_depth=clear,
+                    depth_func=func,
                     fallback=tol, step=step, named=named,
                     others={k: v[0] for k, v in cand.items()})
                 tol = {**tol, "tolerant": spec["tolerant"]}
