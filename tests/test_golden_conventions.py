@@ -221,3 +221,30 @@ def test_wrong_candidates_fail_naming_the_buffer(gold, tmp_path, fault):
     assert result.exit_code == 1, fault
     for key in WRONG[fault]:
         assert f"{scene}/{key}:" in text, (fault, key, text[:2000])
+
+
+# ------------------------------------------------------------------------------ the command
+
+def test_command_emits_a_scene_in_d3d12_conventions(tmp_path):
+    from refraster.golden import cli
+    out = tmp_path / "g"
+    assert cli.main(["-q", "generate", "--out", str(out), "--scene", "render_cube",
+                     "--convention", "d3d12"]) == 0
+    doc = json.loads((out / "render_cube" / "package" / "scene.json").read_text())
+    r = doc["raster"]
+    assert (r["depth_range"], r["origin"], r["ndc_y"], r["fill_rule"], r["front_face"]) == (
+        "zero_to_one", "upper_left", "up", "top_left", "ccw")
+    p = np.array(doc["camera"]["projection"])
+    assert p[3, 2] == -1.0 and doc["description"].endswith("In d3d12's conventions.")
+    assert math.isclose(doc["camera"]["near"], golden.available_scenes()["render_cube"]
+                        .build().camera.near_far[0], rel_tol=1e-9)
+
+
+def test_command_refuses_a_technique_scene_in_one_line(tmp_path, capsys):
+    from refraster.golden import cli
+    assert cli.main(["generate", "--out", str(tmp_path / "g"), "--scene", "ldi_nested_shells",
+                     "--convention", "vulkan"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["golden generate: error: scene 'ldi_nested_shells': technique 'ldi' does not "
+                   "honour vulkan's conventions (--convention applies to render scenes)"]
+    assert not (tmp_path / "g").exists()

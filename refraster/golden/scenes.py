@@ -408,8 +408,9 @@ def _toml_camera(spec, meshes, width, height, where, depth_range="negative_one_t
                            up=num("up", (0.0, 1.0, 0.0)), margin=num("margin", 1.1))
         if depth_range == "negative_one_to_one" and not rev:
             return cam
-        from .conventions import convert_projection
-        return Camera(cam.view, convert_projection(cam.proj, depth_range, reversed=rev),
+        near, far = cam.near_far   # the same frustum, built for the depth range
+        return Camera(cam.view, perspective(num("fovy", 35.0), width / height, near, far,
+                                            reversed=rev, depth_range=depth_range),
                       width, height)
     view = look_at(num("eye"), num("target"), num("up", (0.0, 1.0, 0.0)))
     if kind == "perspective":
