@@ -423,6 +423,8 @@ def may_faces(meshes, *, view, proj, width, height, model=None, cull="none", mas
         As :func:`refraster.render`.
     mask : (H, W) bool, optional
         Only these pixels (default: all).
+    raster : RasterState, optional
+        As :func:`tolerance` (its ``depth_clamp``).
 
     Returns
     -------
@@ -628,6 +630,7 @@ def edge_may(meshes, *, view, proj, width, height, model=None, cull="none", eps=
     depth relevance of :func:`tolerance` does not hold; this is its conservative twin: every
     non-culled triangle's edges count. Returns ``(id_may, coverage_may)``, ``(H, W)`` bool each
     (``coverage_may`` only near border, fold and silhouette edges, as in :func:`tolerance`).
+    ``raster``: as :func:`tolerance` (its ``depth_clamp``).
     """
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
                    raster=_geometry_state(cull, raster))
