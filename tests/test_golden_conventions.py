@@ -223,6 +223,20 @@ def test_wrong_candidates_fail_naming_the_buffer(gold, tmp_path, fault):
         assert f"{scene}/{key}:" in text, (fault, key, text[:2000])
 
 
+def test_report_reads_coverage_in_the_depth_direction(gold, tmp_path):
+    """The HTML report's read-out of a reversed-Z depth buffer says ``value > clear depth``
+    (its crop metadata carries the direction)."""
+    from refraster.golden.compare.report import _crop_data
+    scene, buffers = _wrong("clear_1_under_greater")
+    _candidate(tmp_path, scene, buffers)
+    result = compare(gold, tmp_path, mode="tolerant", scenes=[scene])
+    depth = next(b for b in result.scenes[0].buffers if b.name == "depth")
+    assert depth.allowance["depth_func"] == "greater"
+    bad = np.zeros(np.asarray(depth.reference).shape[:2], np.bool_)
+    meta = _crop_data(depth, (0, 4, 0, 4), bad)
+    assert meta["greater"] is True and meta["clear"] == 0.0
+
+
 # ------------------------------------------------------------------------------ the command
 
 def test_command_emits_a_scene_in_d3d12_conventions(tmp_path):
