@@ -35,8 +35,8 @@ def _register_vulkan(name):
                     description=f"{entry.description} In Vulkan's conventions: clip depth [0, 1], "
                                 "upper-left origin, NDC y down (the picture mirrored top to "
                                 "bottom), front face cw (the same faces front).")
-    def build():
-        return in_convention(entry, "vulkan").build()
+    def build(**params):   # sizes and raster sweeps pass through to the plain scene
+        return in_convention(entry, "vulkan").build(**params)
 
     return build
 
