@@ -305,7 +305,9 @@ def _ldi_nested_shells():
 def _cutaway_shells():
     # θ = 1 rad: wide enough that the cut removes the inner shells' silhouettes, so the ghost
     # buffer is not empty (issue 23); the flooding variants a backend may use: the scene's own,
-    # the exact maximum and the schedules at least as good (docs/tolerance.md, "Cutaways")
+    # the exact maximum and the schedules at least as good (docs/tolerance.md, "Cutaways").
+    # "jfa+1" is stored explicitly (the default until issue 46), so the package is unchanged;
+    # the paper's "jfa", Cutaway's default, is cutaway_shells_jfa
     return _cutaway_variant_scene("jfa+1")
 
 
@@ -736,8 +738,18 @@ def _cutaway_shells_1jfa():
                             "δ = 2°; on the floor side the cut's angle is clamped to φ − δ "
                             "(φ: the view vector's elevation above the floor).")
 def _cutaway_floor():
+    # "jfa+1" stored explicitly, as cutaway_shells; the paper's "jfa" is cutaway_floor_jfa
     return _cutaway_variant_scene("jfa+1", dict(floor_normal=[0.0, 1.0, 0.0],
                                                 floor_margin=float(np.radians(2.0))))
+
+
+@register_scene("cutaway_floor_jfa", technique="cutaway",
+                description="cutaway_floor with the paper's jump flooding, variant 'jfa' "
+                            "(Rong & Tan, log n passes; the default of Cutaway): the directional "
+                            "floor constraint, floor normal +y, δ = 2°.")
+def _cutaway_floor_jfa():
+    return _cutaway_variant_scene("jfa", dict(floor_normal=[0.0, 1.0, 0.0],
+                                              floor_margin=float(np.radians(2.0))))
 
 
 @register_scene("halos4d_perspective", technique="halos4d",
