@@ -288,7 +288,10 @@ _CUTS = ("cutaway_shells", "cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway
 #: its allowance is split into may / must (or tightened) and it meets the aim.
 SHORT_OPEN = frozenset({(s, "edge_map") for s in _EDGES} | {("edges_npr_gooch", "npr_color")}
                        | {(s, "ghost") for s in _CUTS}
-                       | {(s, "alpha") for s in ("halos4d_figure1", "halos4d_perspective")})
+                       | {(s, "alpha") for s in ("halos4d_figure1", "halos4d_perspective")}
+                       # OpenGL's clipped-piece slack, about 0.2 in window depth (an OVER_AIM
+                       # pair of tests/test_golden_conventions.py at the standard size too)
+                       | {("depth_clamp_near_crossing", "depth")})
 
 
 def float_buffers(golden_dir, scene):
