@@ -216,6 +216,8 @@ def bounds_admits(key, kind, spec, arrays, ref, cand, named, others):
         return None
     c = np.asarray(cand, np.float64)
     inside = (c >= arrays[spec["lo"]]) & (c <= arrays[spec["hi"]])
+    if "zero" in spec:
+        inside |= np.asarray(arrays[spec["zero"]], np.bool_) & (c == 0)
     return inside.all(axis=2) if inside.ndim == 3 else inside
 
 

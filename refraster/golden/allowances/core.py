@@ -338,8 +338,9 @@ def gl_allowances(scene, raster):
                 from .ghosts import ghost_bounds
                 gb = ghost_bounds(scene, arrays, tol.eps)
                 if gb is not None:
-                    arrays["ghost_lo"], arrays["ghost_hi"] = gb
-                    checks["ghost"] = {"checks": ["bounds"], "lo": "ghost_lo", "hi": "ghost_hi"}
+                    arrays["ghost_lo"], arrays["ghost_hi"], arrays["ghost_zero"] = gb
+                    checks["ghost"] = {"checks": ["bounds"], "lo": "ghost_lo", "hi": "ghost_hi",
+                                       "zero": "ghost_zero"}
     if scene.technique == "clipsurface" and "cap_mask" in buffers \
             and raster["depth_func"] == "less" and scene.maps is not None:
         # clip surfaces: the clip decision and cap parity bounded (golden/allowances/clip.py)
@@ -1063,7 +1064,8 @@ def _allowed_at(key, spec, arrays, outside, r, c, named, step):
             said.append("face: " + face_allowed(key, arrays, r, c, named, step))
         elif name == "bounds":
             said.append(f"interval [{_fmt(arrays[spec['lo']][r, c] - step)}, "
-                        f"{_fmt(arrays[spec['hi']][r, c] + step)}]")
+                        f"{_fmt(arrays[spec['hi']][r, c] + step)}]"
+                        + (" or 0" if "zero" in spec and arrays[spec["zero"]][r, c] else ""))
         elif name == "clip":
             from .clip import clip_allowed
             said.append(clip_allowed(key, arrays, r, c, step=step))
@@ -1180,6 +1182,8 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
             hi = arrays[spec["hi"]].astype(np.float64) + step
             with np.errstate(invalid="ignore"):
                 bad = ~((cand.astype(np.float64) >= lo) & (cand.astype(np.float64) <= hi))
+            if "zero" in spec:   # or 0 where that is allowed (no fragment is sure)
+                bad &= ~(np.asarray(arrays[spec["zero"]], np.bool_) & (cand == 0))
             outside["bounds"] = bad.any(axis=2) if bad.ndim == 3 else bad
         elif name == "clip":
             from .clip import CLIP_VALUES, clip_outside

@@ -12,7 +12,8 @@ projection crosses (supercover) and takes the largest α over the chord; a GPU d
 diamond the line crosses) and evaluates α at one point of the line, the foot of the pixel
 centre, which lies inside the pixel (a line through the diamond passes within 0.5 of the centre).
 
-Per pixel the golden stores ``ghost_lo ≤ ghost ≤ ghost_hi``:
+Per pixel the golden stores ``ghost_lo ≤ ghost ≤ ghost_hi``, or ``ghost = 0`` where
+``ghost_zero``:
 
 * **hi**: the supremum of α over every fragment a conformant line rasterizer may put there —
   the chords of the supercover (a superset of the diamond-exit fragments) and, for a line that
@@ -30,6 +31,11 @@ Per pixel the golden stores ``ghost_lo ≤ ghost ≤ ghost_hi``:
   moves), ``1.5·ε`` inside the segment's extent along the major axis, and the segment's second
   vertex lies outside the diamond by ``3ε`` in L1 distance (diamond exit: a segment ending
   inside a diamond does not produce it; one starting inside does).
+* **zero**: where no segment surely produces a fragment, α is 0 (none drawn) or, drawn, at
+  least the least α of the fragments that may be drawn there — the largest gap, at ``D_hi``
+  and the chord's nearest depth less ``1.5 px·|dz/ds|`` (a neighbour's chord, or llvmpipe's
+  centre-line point, takes its depth up to 1.5 px along the line from the chord); ``lo`` holds
+  that bound there and ``zero`` says 0 is allowed too.
 
 The line depth allowance: window depth is affine along a projected line (GL interpolates line
 depth linearly in window space; refraster's perspective-correct chord depth is the same
@@ -51,7 +57,7 @@ __all__ = ["ghost_bounds", "GHOST_ARRAYS"]
 F32 = 2.0 ** -24
 #: Margin on the edge ε, as the other intervals' (``SHIFT_MARGIN``).
 MARGIN = 1.5
-GHOST_ARRAYS = ("ghost_lo", "ghost_hi")
+GHOST_ARRAYS = ("ghost_lo", "ghost_hi", "ghost_zero")
 
 
 def _occluder_bounds(arrays, interest_draws, h, w):
@@ -113,6 +119,15 @@ class _Alpha:
         return np.where(zh < np.minimum(d_lo, occ_lo), self._of_gap(gap), 0.0)
 
 
+    def drawn_inf(self, zl, zh, d_lo, d_hi, occ_hi):
+        """Infimum of α over the same box among the fragments that are drawn (α > 0: some z
+        in front of min(D, occ)): the largest gap, at zl and d_hi; +∞ where none may be
+        drawn."""
+        ed, ez = self.e(d_hi), self.e(zl)
+        gap = ed - ez + 32.0 * F32 * (np.abs(ed) + np.abs(ez))
+        return np.where(zl < np.minimum(d_hi, occ_hi), self._of_gap(gap), np.inf)
+
+
 def _sure_fragments(whole, eps, h, w):
     """(segment row, pixel, foot parameter t) of the fragments every accepted line rasterizer
     produces (see the module docstring)."""
@@ -164,8 +179,9 @@ def _sure_fragments(whole, eps, h, w):
 
 
 def ghost_bounds(scene, arrays, eps):
-    """``(lo, hi)`` float32 (H, W) of the ghost opacity, or ``None`` when the scene's ghost is
-    not the line variant. ``arrays`` must hold ``cutaway_depth_lo/_hi`` and the ``cs_*`` sets."""
+    """``(lo, hi, zero)`` of the ghost opacity — float32 (H, W) bounds and a bool (H, W), where
+    α may also be 0 (no fragment is sure there): α ∈ [lo, hi] or (zero and α = 0) — or ``None``
+    when the scene's ghost is not the line variant. ``arrays`` must hold ``cutaway_depth_lo/_hi`` and the ``cs_*`` sets."""
     from ...cutaway.lines import feature_segments, segment_pieces
     p = scene.parameters or {}
     if p.get("ghost", "lines") != "lines":
@@ -187,7 +203,8 @@ def ghost_bounds(scene, arrays, eps):
         v = np.concatenate([m.vertices for m in meshes]) if meshes else np.zeros((0, 3))
         g_max = 0.1 * float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))) if len(v) else 0.0
     if not meshes or g_max <= 0:
-        return lo.reshape(h, w).astype(np.float32), hi.reshape(h, w).astype(np.float32)
+        return (lo.reshape(h, w).astype(np.float32), hi.reshape(h, w).astype(np.float32),
+                np.ones((h, w), np.bool_))
     view, proj = np.asarray(cam.view, np.float64), np.asarray(cam.proj, np.float64)
     segs = feature_segments(meshes, view=view, proj=proj,
                             crease_angle=float(p.get("crease_angle", 30.0)))
@@ -206,9 +223,18 @@ def ghost_bounds(scene, arrays, eps):
     m = MARGIN * eps
     slack_of = dict(zip(widx.tolist(), (2.0 * m * grad + 32.0 * F32).tolist()))
     dz = np.array([slack_of[int(s)] for s in sidx]) if len(sidx) else np.zeros(0)
+    # a fragment drawn at a pixel (its own or a neighbour) may take its depth at a point of
+    # the line up to 1.5 px from the chord (the foot of a neighbour's centre; llvmpipe's
+    # centre-line point): the drawn fragments' depth range is the chord's widened by that
+    grad_of = dict(zip(widx.tolist(), np.where(np.isfinite(grad), grad, 0.0).tolist()))
+    reach_dz = (np.array([1.5 * grad_of[int(s)] for s in sidx]) if len(sidx)
+                else np.zeros(0))
     zl = np.minimum(za, zb) - dz
     zh = np.maximum(za, zb) + dz
-    # hi: every chord at its pixel and at the neighbours its line passes within 1.5ε of
+    # hi: every chord at its pixel and at the neighbours its line passes within 1.5ε of;
+    # present: the least α any of those fragments may have when drawn (the lower bound where
+    # a fragment may be present but none surely is: α is 0 there, or at least that)
+    present = np.full(h * w, np.inf)
     r, c = pix // w, pix % w
     xmin, xmax = np.minimum(x0, x1), np.maximum(x0, x1)
     ymin, ymax = np.minimum(y0, y1), np.maximum(y0, y1)
@@ -225,6 +251,9 @@ def ghost_bounds(scene, arrays, eps):
             q = (rr * w + cc)[reach]
             a = alpha.sup(zl[reach], zh[reach], d_lo[q], d_hi[q], occ_hi[q])
             np.maximum.at(hi, q, a)
+            a = alpha.drawn_inf(zl[reach] - reach_dz[reach], zh[reach], d_lo[q], d_hi[q],
+                                occ_hi[q])
+            np.minimum.at(present, q, a)
     # lo: the fragments every accepted rasterizer produces, at the foot of the centre
     sseg, spix, t = _sure_fragments(whole, eps, h, w)
     if len(sseg):
@@ -240,10 +269,13 @@ def ghost_bounds(scene, arrays, eps):
         e = order[j[hit]]
         a = alpha.inf(zl[e], zh[e], d_lo[spix[hit]], d_hi[spix[hit]], occ_lo[spix[hit]])
         np.maximum.at(lo, spix[hit], a)
+    # where no fragment is sure, α is 0 (none drawn) or at least the least a drawn one has
+    zero = lo <= 0
+    lo = np.where(zero & np.isfinite(present), np.maximum(lo, present), lo)
     pos_lo, pos_hi = lo > 0, hi > 0
     lo = np.where(pos_lo, np.clip(lo - 16.0 * F32, 0.0, 1.0), 0.0)
     hi = np.where(pos_hi, np.clip(np.maximum(hi + 16.0 * F32, lo), 0.0, 1.0), 0.0)
     lo32, hi32 = lo.astype(np.float32), hi.astype(np.float32)
     lo32 = np.where(lo32 > lo, np.nextafter(lo32, np.float32(-1)), lo32)
     hi32 = np.where(hi32 < hi, np.nextafter(hi32, np.float32(2)), hi32)
-    return lo32.reshape(h, w), hi32.reshape(h, w)
+    return lo32.reshape(h, w), hi32.reshape(h, w), zero.reshape(h, w)

@@ -302,7 +302,7 @@ def buffer_allowance(spec, arrays, *, step=0.0, clear_depth=1.0, depth_func="les
     out = {"checks": list(spec["checks"]), "step": float(step),
            "clear_depth": float(clear_depth), "depth_func": str(depth_func),
            "id_may": arrays["id_may"]}
-    for key in ("lo", "hi", "angle"):
+    for key in ("lo", "hi", "angle", "zero"):
         if key in spec:
             out[key] = arrays[spec[key]]
     if "coverage" in spec["checks"]:

@@ -502,7 +502,7 @@ def allowance_arrays(golden_dir, manifest, name):
     arrays = _golden_npz(Path(golden_dir), manifest, spec["file"], spec["arrays"], "array")
     for key, b in entry["buffers"].items():
         t = b.get("tolerant", {})
-        needed = [t[k] for k in ("lo", "hi", "angle", "may") if k in t]
+        needed = [t[k] for k in ("lo", "hi", "angle", "may", "zero") if k in t]
         needed += ["id_may"] + (["coverage"] if "coverage" in t.get("checks", ()) else [])
         if "face" in t.get("checks", ()):
             needed += ["set_offsets", "set_face", "set_facing", "set_normal",

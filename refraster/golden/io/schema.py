@@ -178,6 +178,7 @@ _TOLERANT = {
                                       "face", "layers", "bounds", "clip"]}},
         "layer": {"enum": ["depth", "prim_id", "front_facing", "count"]},
         "lo": _ARRAY_NAME, "hi": _ARRAY_NAME, "angle": _ARRAY_NAME, "may": _ARRAY_NAME,
+        "zero": _ARRAY_NAME,
     },
 }
 
