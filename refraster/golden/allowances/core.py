@@ -931,8 +931,8 @@ def named_entries(arrays, prim_id, object_id=None):
 def _candidate_coverage(key, kind, candidate, clear_depth):
     if kind == "id":
         return np.asarray(candidate) >= 0
-    if key == "depth":
-        return np.asarray(candidate) < clear_depth
+    if key == "depth":   # cleared to 0: reversed-Z (greater), a covered pixel lies above it
+        return np.asarray(candidate) < clear_depth if clear_depth > 0 else np.asarray(candidate) > 0
     raise ValueError(f"buffer {key!r} ({kind}) cannot give coverage")
 
 
