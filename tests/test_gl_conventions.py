@@ -168,10 +168,15 @@ def convention_golden(root):
     from refraster import golden
     from refraster.golden.io.package import sha256_file
     from refraster.camera import near_far
-    _register()
+    from refraster.golden.scenes import SCENES as REGISTRY
     out = root / "golden"
-    with np.errstate(divide="ignore"):   # OpenGL's near/far read of E·P (replaced below)
-        golden.generate(out, SCENES)
+    _register()
+    try:
+        with np.errstate(divide="ignore"):   # OpenGL's near/far read of E·P (replaced below)
+            golden.generate(out, SCENES)
+    finally:   # the registry is the project's (docs/golden.md lists it): leave it as found
+        for name in SCENES:
+            REGISTRY.pop(name, None)
     manifest_path = out / "manifest.json"
     manifest = json.loads(manifest_path.read_text())
     for name, spec in SPECS.items():
