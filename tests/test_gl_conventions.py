@@ -4,18 +4,21 @@ reversed-Z (``greater``, cleared to 0), Vulkan's ``ndc_y="down"`` as a negation 
 the vertex shader. Every convention scene passes the tolerant compare on llvmpipe, and each
 planted convention fault fails it naming the buffer.
 
-The convention goldens are built here (test-only, :func:`convention_golden`), not in
-``refraster/golden/``: the golden generator stores only OpenGL's raster fields and computes its
-allowances in OpenGL's conventions so far. Each scene is therefore generated with the
-**GL-equivalent camera** of its convention — the projection ``E·P`` with ``E`` negating y
-under ``ndc_y="down"`` and mapping ``z → 2z − w`` under ``depth_range="zero_to_one"``, which
-draws the same picture with the same window depth and the same clip volume in OpenGL's
-conventions, so the stored allowances are the convention's — while its buffers are refraster's
-render in the convention itself (``raster=RasterState(...)`` with the convention's projection
-``P``). After generation ``scene.json`` gets the convention's projection and raster fields and
-the manifest the new sha256. The origin is not part of ``E`` (it moves only the snapping,
-which the allowance already covers). Depth clamp is checked against llvmpipe instead
-(``tests/test_llvmpipe_conventions.py``): OpenGL-convention allowances clip at the near plane.
+Two sets of goldens: the project's convention scenes (:data:`GOLDENS`, ``refraster/golden/
+convention_scenes.py``: ``golden generate`` stores the conventions in ``scene.json`` and computes
+the allowances in them), and test-only scenes for combinations the registry does not have
+(:data:`SPECS`: OpenGL's ``glClipControl(GL_UPPER_LEFT, GL_ZERO_TO_ONE)`` with y up, Vulkan with
+back-face culling, Vulkan with reversed-Z, ``unorm16`` under ``zero_to_one``; built by
+:func:`convention_golden`). Those are generated with the **GL-equivalent camera** of their
+convention — the projection ``E·P`` with ``E`` negating y under ``ndc_y="down"`` and mapping
+``z → 2z − w`` under ``depth_range="zero_to_one"``, which draws the same picture with the same
+window depth and the same clip volume in OpenGL's conventions, so the allowances computed for it
+are the convention's — while their buffers are refraster's render in the convention itself
+(``raster=RasterState(...)`` with the convention's projection ``P``); after generation
+``scene.json`` gets ``P`` and the convention's raster fields and the manifest the new sha256. The
+origin is not part of ``E`` (it moves only the snapping, which the allowance covers). The
+reversed-Z test scenes keep a far plane at 1000·near (their near/far are read in OpenGL's terms
+at generation); the infinite far plane is in the project's goldens and the llvmpipe oracle.
 
 Needs a headless EGL context (Mesa llvmpipe through moderngl): skips without one, fails under
 CI=true.
@@ -28,11 +31,40 @@ import json
 import numpy as np
 import pytest
 
-from conftest import check_backends_matrix, fault_matrix, matrix_table
+from conftest import check_backends_matrix, fault_matrix, generate_gold, matrix_table
 from conftest import gl_backend_or_skip as _backend_or_skip
 
 BEGIN = "<!-- gl-conventions-matrix:begin (tests/test_gl_conventions.py) -->"
 END = "<!-- gl-conventions-matrix:end -->"
+GOLD_BEGIN = "<!-- gl-convention-goldens-matrix:begin (tests/test_gl_conventions.py) -->"
+GOLD_END = "<!-- gl-convention-goldens-matrix:end -->"
+
+#: The project's convention goldens (refraster/golden: ``golden generate`` stores the
+#: conventions and computes the allowances in them)
+GOLDENS = ["vulkan_cube", "vulkan_icosphere_smooth", "vulkan_torus_ortho",
+           "vulkan_nested_shells", "vulkan_multi_draw", "reversed_z_multi_draw",
+           "reversed_z_peel", "zero_to_one_near_crossing", "depth_clamp_near_crossing",
+           "d3d12_exact_ties",
+           "unorm24_torus_ortho", "unorm16_planes"]
+_ZERO_TO_ONE_GOLDENS = [g for g in GOLDENS if g != "unorm24_torus_ortho"]
+#: fault → {golden scene: buffer the failure must name}
+GOLDEN_EXPECTED = {
+    "depth_remap_on_zero_to_one": {**{g: "depth" for g in _ZERO_TO_ONE_GOLDENS},
+                                   "reversed_z_peel": "layer_depth"},
+    "reversed_z_less": {"reversed_z_multi_draw": "prim_id", "reversed_z_peel": "layer_prim_id"},
+    "reversed_z_clear_one": {"reversed_z_multi_draw": "prim_id",
+                             "reversed_z_peel": "layer_prim_id"},
+    "winding_not_flipped": {"d3d12_exact_ties": "front_facing",
+                            "vulkan_icosphere_smooth": "prim_id", "vulkan_cube": "front_facing",
+                            "reversed_z_peel": "layer_front_facing",
+                            "depth_clamp_near_crossing": "front_facing"},
+}
+GOLDEN_UNTOUCHED = {
+    "depth_remap_on_zero_to_one": ["unorm24_torus_ortho"],
+    "reversed_z_less": [g for g in GOLDENS if not g.startswith("reversed_z")],
+    "reversed_z_clear_one": [g for g in GOLDENS if not g.startswith("reversed_z")],
+    "winding_not_flipped": ["unorm24_torus_ortho"],
+}
 
 #: The convention fields of scene.json's "raster" (issue 39), OpenGL's values.
 GL_DEFAULTS = {"depth_range": "negative_one_to_one", "origin": "lower_left", "ndc_y": "up",
@@ -49,8 +81,8 @@ SPECS = {
     "glconv_vulkan_cull_back": (
         dict(depth_range="zero_to_one", origin="upper_left", ndc_y="down"), {}, "vulkan",
         "icosphere", "back"),
-    # reversed-Z, float32 (far plane at 1000·near: scene.json cannot store an infinite one
-    # yet; the infinite far plane is checked against llvmpipe)
+    # reversed-Z, float32, far plane at 1000·near (the infinite one: the project's goldens
+    # and the llvmpipe oracle)
     "glconv_reversed_z": (
         dict(depth_range="zero_to_one", origin="upper_left"),
         dict(depth_func="greater", clear_depth=0.0), "reversed", "crank", "none"),
@@ -221,6 +253,23 @@ def gold(tmp_path_factory):
 
 
 # --- tests ---------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def goldens(tmp_path_factory):
+    return generate_gold(tmp_path_factory, "glconv_goldens", GOLDENS)
+
+
+def test_convention_goldens_pass_and_every_convention_fault_fails(goldens):
+    """The project's convention goldens: refraster.gl passes every one, each planted convention
+    fault fails the goldens it can change, naming the buffer, and passes the others."""
+    from refraster.gl import CONVENTION_FAULTS
+    _backend_or_skip().release()
+    assert set(GOLDEN_EXPECTED) == set(CONVENTION_FAULTS) == set(GOLDEN_UNTOUCHED)
+    columns = ["correct", *CONVENTION_FAULTS]
+    results = fault_matrix(goldens, columns, GOLDENS, GOLDEN_EXPECTED, GOLDEN_UNTOUCHED)
+    table = matrix_table(columns, GOLDENS, results)
+    check_backends_matrix(GOLD_BEGIN, GOLD_END, table, "convention goldens matrix")
+
 
 def test_packages_carry_the_conventions(gold):
     from refraster.gl.package import conventions, read_scene
