@@ -500,6 +500,27 @@ def _check_toml(spec, where):
             raise ValueError(f"{where}: [[draw]] {i}: needs exactly one of 'mesh' or 'solid'")
 
 
+_TOML_KEY = re.compile(r"""^\s*([A-Za-z0-9_."'-]+?)\s*=""")
+_TOML_TABLE = re.compile(r"^\s*(\[\[?[^\]]+\]\]?)")
+
+
+def _toml_value_error(text, path, exc):
+    """One line for a ``ValueError`` ``tomllib`` raised outside its own errors: an integer
+    beyond Python's int-string conversion limit, named by line, table and key."""
+    from .io.safe import huge_int_digits
+    limit = huge_int_digits()
+    for m in re.finditer(r"(?<![.\w])[0-9][0-9_]*(?![.\w])", text):
+        digits = len(m.group().replace("_", ""))
+        if limit and digits > limit:
+            lines = text[:m.start()].split("\n")
+            key = next((k.group(1) for k in map(_TOML_KEY.match, reversed(lines)) if k), "?")
+            table = next((t.group(1) + " " for t in map(_TOML_TABLE.match, reversed(lines))
+                          if t), "")
+            return (f"scene file {path} line {len(lines)}: {table}{key} is an integer of "
+                    f"{digits} digits (more than the {limit} this reader converts)")
+    return f"cannot read scene file {path}: {' '.join(str(exc).split())}"
+
+
 def load_scene_file(path):
     """Read a TOML scene description and return its :class:`SceneEntry` (not registered).
 
@@ -513,11 +534,14 @@ def load_scene_file(path):
     if path.stat().st_size > _MAX_TOML_BYTES:
         raise ValueError(f"scene file {path} is larger than {_MAX_TOML_BYTES >> 20} MiB")
     try:
-        spec = tomllib.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
+        spec = tomllib.loads(text)
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ValueError(f"cannot read scene file {path}: {exc}") from exc
     except RecursionError:
         raise ValueError(f"cannot read scene file {path}: nested too deeply") from None
+    except ValueError as exc:   # tomllib lets the int-string conversion limit through
+        raise ValueError(_toml_value_error(text, path, exc)) from None
     where = str(path)
     _check_toml(spec, where)
     name = spec.get("name", path.stem)

@@ -29,6 +29,7 @@ from ..io.read import (_check_candidate, _inside, _manifest_paths, load_candidat
                    load_manifest)
 from ..io.read import allowance_arrays as _read_allowances
 from ..io.read import reference_buffers as _read_reference
+from ..io.read import some_names as _some_names
 from .profiles import PROFILES, apply_overrides, parse_override
 
 __all__ = ["GoldenError", "CandidateError", "BufferResult", "SceneResult", "Comparison",
@@ -138,7 +139,8 @@ class Comparison:
         for s in self.scenes:
             lines.append(f"{s.name}: {s.status.upper()}" + (f" ({s.error})" if s.error else ""))
             if s.skipped:
-                lines.append(f"  skipped (not in the golden, not read): {', '.join(s.skipped)}")
+                lines.append(f"  skipped (not in the golden, not read): "
+                             f"{_some_names(s.skipped)}")
             for b in s.buffers:
                 m = b.metrics
                 flip = (f" flip={m['flip_mean']:.4f}" if m.get("flip_mean") is not None else "")

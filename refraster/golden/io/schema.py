@@ -18,7 +18,8 @@ import re
 
 __all__ = [
     "SCENE_SCHEMA_VERSION", "MANIFEST_SCHEMA_VERSION", "SCENE_SCHEMA", "MANIFEST_SCHEMA",
-    "SchemaError", "validate", "check_version", "is_safe_relpath",
+    "SchemaError", "validate", "check_version", "is_safe_relpath", "CANDIDATE_MARKER_SCHEMA",
+    "REPORT_MARKER_SCHEMA", "LISTING_SCHEMA",
 ]
 
 SCENE_SCHEMA_VERSION = 1
@@ -267,6 +268,41 @@ MANIFEST_SCHEMA = {
         },
     },
 }
+
+_FILES = {
+    "type": "object",
+    "propertyNames": _RELPATH,
+    "additionalProperties": {"type": "string", "pattern": r"^[0-9a-f]{64}$"},
+}
+
+#: ``.refraster-candidate``: the marker of a candidate directory (``golden candidate``), as
+#: far as it is trusted before a candidate is replaced (other fields are kept as written).
+CANDIDATE_MARKER_SCHEMA = {
+    "type": "object",
+    "required": ["written_by", "files"],
+    "properties": {
+        "written_by": {"type": "string"},
+        "files": _FILES,
+        "backend": {"type": "string"},
+        "renderer": {"type": "string"},
+        "golden": {"type": "string"},
+        "faults": {"type": "array", "items": {"type": "string"}},
+        "rendered": {"type": "array", "items": _NAME},
+        "skipped": {"type": "object", "propertyNames": _NAME,
+                    "additionalProperties": {"type": "string"}},
+    },
+}
+
+#: ``.refraster-report``: the marker of a report directory (``golden compare --report``).
+REPORT_MARKER_SCHEMA = {
+    "type": "object",
+    "required": ["written_by", "files"],
+    "properties": {"written_by": {"type": "string"}, "files": _FILES},
+}
+
+#: What a writer trusts of a golden's ``manifest.json`` before it replaces the golden (the
+#: golden reader checks all of it against :data:`MANIFEST_SCHEMA`).
+LISTING_SCHEMA = {"type": "object", "required": ["files"], "properties": {"files": _FILES}}
 
 _TYPES = {
     "object": lambda v: isinstance(v, dict),

@@ -318,30 +318,39 @@ def _sha256(path):
     return h.hexdigest()
 
 
+_LISTINGS = (("report", REPORT_MARKER, "refraster golden compare", "report marker"),
+             ("golden", MANIFEST, None, "golden manifest"),
+             ("candidate", CANDIDATE_MARKER, "refraster golden candidate", "candidate marker"))
+
+
 def _listing(tree):
     """``(kind, digest, files, hashes)`` of a tree refraster wrote: files its report marker or
     golden manifest lists (relative paths, the listing file included) and their sha256;
-    ``None`` if it has neither."""
-    from .schema import is_safe_relpath
+    ``None`` if it has neither. A listing file that is there but cannot be trusted (a link,
+    not a regular file, larger than :data:`~.safe.MAX_SIDE_FILE_BYTES`, not JSON, nested too
+    deeply, an integer beyond the conversion limit, or breaking its schema) is refused with
+    :class:`RefusedError`, one line naming it, before anything it lists is read."""
+    from .safe import read_json_file
+    from .schema import (CANDIDATE_MARKER_SCHEMA, LISTING_SCHEMA, REPORT_MARKER_SCHEMA,
+                         SchemaError, validate)
+    schemas = {"report": REPORT_MARKER_SCHEMA, "golden": LISTING_SCHEMA,
+               "candidate": CANDIDATE_MARKER_SCHEMA}
     tree = Path(tree)
-    for kind, name in (("report", REPORT_MARKER), ("golden", MANIFEST),
-                       ("candidate", CANDIDATE_MARKER)):
+    for kind, name, writer, what in _LISTINGS:
         path = tree / name
-        if path.is_symlink() or not path.is_file():
+        if not os.path.lexists(path):
+            continue
+        doc, raw = read_json_file(path, RefusedError, what)
+        if writer is not None and (not isinstance(doc, dict) or doc.get("written_by") != writer):
             continue
         try:
-            raw = path.read_bytes()
-            doc = json.loads(raw)
-            files = doc["files"]
-            if kind == "report" and doc.get("written_by") != "refraster golden compare":
-                continue
-            if kind == "candidate" and doc.get("written_by") != "refraster golden candidate":
-                continue
-            if not isinstance(files, dict) or not all(isinstance(k, str) and is_safe_relpath(k)
-                                                      for k in files):
-                continue
-        except (OSError, ValueError, KeyError, TypeError):
-            continue
+            validate(doc, schemas[kind])
+        except SchemaError as exc:
+            raise RefusedError(f"{what} {path} {exc}; refusing to trust it") from None
+        except RecursionError:
+            raise RefusedError(f"{what} {path}: JSON nested too deeply; refusing to trust "
+                               "it") from None
+        files = doc["files"]
         return kind, hashlib.sha256(raw).hexdigest(), set(files) | {name}, files
     return None
 
@@ -363,7 +372,9 @@ def snapshot(target):
     """What is at ``target``, to be compared at the final step: ``None`` (nothing),
     ``("empty",)``, ``(kind, digest, foreign)`` for a golden or report refraster wrote
     (``foreign``: files it does not list, then listed files whose sha256 differs),
-    ``("file",)`` or ``("foreign", names)``."""
+    ``("file",)`` or ``("foreign", names)``. Raises :class:`RefusedError` (one line) for a
+    marker or manifest not to trust (:func:`_listing`) or a file it lists that is not a
+    regular file (a FIFO is refused, never opened for reading)."""
     target = Path(target)
     if not os.path.lexists(target):
         return None
@@ -376,9 +387,11 @@ def snapshot(target):
     if listing is None:
         return ("foreign", tuple(sorted(files)[:5]))
     kind, digest, owned, hashes = listing
+    from .safe import sha256_regular
     changed = [rel for rel, h in sorted(hashes.items())
                if rel in files and (os.path.islink(target / rel)
-                                      or _sha256(target / rel) != h)]
+                                      or sha256_regular(target / rel, RefusedError,
+                                                        f"{kind} file") != h)]
     return (kind, digest, tuple(sorted(files - owned)) + tuple(changed))
 
 
@@ -429,7 +442,10 @@ def discard_tree(tree, target_name=None, *, building=False):
     if tree.is_symlink() or not tree.is_dir():
         os.unlink(tree)
         return None
-    listing = _listing(tree)
+    try:
+        listing = _listing(tree)
+    except RefusedError:        # a listing not to trust owns nothing: the tree is kept
+        listing = None
     if listing is None and building:
         shutil.rmtree(tree)
         return None
