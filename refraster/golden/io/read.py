@@ -408,7 +408,7 @@ _EOCD64 = struct.Struct("<4sQ2H2L4Q")       # zip64 end of central directory rec
 def _zip_directory_size(fh, where, error):
     """``(members, central directory bytes)`` from a zip's end records (at most 64 KiB and
     a few bytes read), so that a directory of 200,000 members is refused before ``zipfile``
-    builds it."""
+    builds it; ``None`` without an end record."""
     try:
         end = fh.seek(0, os.SEEK_END)
         tail_len = min(end, _EOCD.size + 0xFFFF + _EOCD64_LOCATOR.size)
@@ -416,8 +416,7 @@ def _zip_directory_size(fh, where, error):
         tail = fh.read(tail_len)
         i = tail.rfind(b"PK\x05\x06")
         if i < 0 or len(tail) - i < _EOCD.size:
-            raise error(f"cannot read {where}: not an .npz archive (no end of central "
-                        "directory)")
+            return None
         _, _, _, _, members, size, _, _ = _EOCD.unpack_from(tail, i)
         j = i - _EOCD64_LOCATOR.size
         if j >= 0 and tail[j:j + 4] == b"PK\x06\x07":     # zip64: the counts are there
@@ -428,7 +427,7 @@ def _zip_directory_size(fh, where, error):
                 fields = _EOCD64.unpack(record)
                 members, size = fields[7], fields[8]
         fh.seek(0)
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, struct.error) as exc:
         raise error(f"cannot read {where}: {type(exc).__name__}: {exc}") from None
     return members, size
 
@@ -444,7 +443,11 @@ def read_npz(fh, where, error, accept):
     (``depth.npy`` twice, or ``depth`` and ``depth.npy``: readers disagree on which one
     counts). Returns ``(arrays, skipped member names)``.
     """
-    members, size = _zip_directory_size(fh, where, error)
+    found = _zip_directory_size(fh, where, error)
+    if found is None:
+        raise error(f"cannot read {where}: not an .npz archive (no end of central directory "
+                    "record: truncated, or not a zip file)")
+    members, size = found
     if members > MAX_NPZ_MEMBERS or size > MAX_NPZ_DIRECTORY:
         raise error(f"cannot read {where}: {members} members in a central directory of "
                     f"{size} bytes (at most {MAX_NPZ_MEMBERS} members and "
