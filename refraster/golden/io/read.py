@@ -5,7 +5,8 @@ trusts"). In short:
 
 * **No link is followed.** Every file the manifest lists is opened only when no component of
   its path below the golden directory is a symbolic link and it is a regular file (a FIFO or a
-  device is refused before it is read); candidate files likewise.
+  device is refused before it is read); candidate files likewise, and a candidate scene
+  directory that is a link is refused.
 * **The manifest's file list is the golden.** Every listed file matches its sha256; every path
   the manifest or a scene package names is listed; kept scenes are copied from that list only
   (:func:`copy_listed_scene`), unlisted files are skipped and named.
@@ -17,6 +18,12 @@ trusts"). In short:
   are read before any data; a shape or dtype the golden does not expect is refused before
   anything is decompressed, and ``.npz`` members the golden does not have are skipped unread.
   So reading costs about the size of the golden's own buffers, whatever the candidate holds.
+* **Archives sized from their end records.** An ``.npz`` of more than
+  :data:`MAX_NPZ_MEMBERS` members, or a member stored twice, is refused before any member is
+  read (:func:`read_npz`).
+* **Files are opened by** :mod:`refraster.golden.io.safe`: ``lstat``, ``O_NOFOLLOW |
+  O_NONBLOCK``, ``fstat``; side files size-capped before they are read; JSON parsed into one
+  error line (nesting, integers past the conversion limit named by JSON path).
 """
 
 from __future__ import annotations
