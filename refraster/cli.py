@@ -180,6 +180,24 @@ def _check_camera_options(args):
         raise CLIError("--up must not be the zero vector")
 
 
+#: Largest coordinate trimesh's ``merge_vertices`` holds: it merges on coordinates rounded to
+#: 1e-8 as int64, which overflows beyond ~9.2e10 (distinct vertices would then merge).
+_MERGE_LIMIT = 1e10
+
+
+def _merge_vertices(mesh):
+    """Share repeated vertices (trimesh's merge; beyond :data:`_MERGE_LIMIT`, or with
+    non-finite coordinates, only exact repeats are shared, which needs no rounding)."""
+    import numpy as np
+    v = np.asarray(mesh.vertices, np.float64)
+    if v.size == 0 or (np.all(np.isfinite(v)) and np.abs(v).max() < _MERGE_LIMIT):
+        mesh.merge_vertices()
+        return
+    unique, inverse = np.unique(v, axis=0, return_inverse=True)
+    faces = inverse.reshape(-1)[np.asarray(mesh.faces)]
+    mesh.vertices, mesh.faces = unique, faces
+
+
 def _camera(args, bounds):
     """View and projection from the options; what is not given frames the mesh's bounds with
     :func:`refraster.camera.frame_bounds` (and is exactly its camera when nothing is given)."""
@@ -245,7 +263,7 @@ def _cmd_render(args):
     if args.normals == "smooth":
         # STL and other per-face formats repeat vertices; sharing them makes normals smooth.
         # Merging renumbers vertices only, so face (primitive) ids keep the file's order.
-        mesh.merge_vertices()
+        _merge_vertices(mesh)
     progress = getattr(args, "compile_progress", None)
     if progress is not None and progress.n:
         # first run, options checked: compile the pipeline's kernels on a tiny frame first

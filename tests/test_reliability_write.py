@@ -513,3 +513,22 @@ def test_render_near_far_beyond_float32_names_them(mesh_file, tmp_path, capsys):
                       "--near", "1e-300", "--far", "1e300", "-q"]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and "--near 1e-300" in err[0] and "float32" in err[0], err
+
+
+# --- found by the fuzz harness (tests/test_fuzz_scenes.py) --------------------------------------
+
+def test_smooth_normals_never_merge_distinct_vertices_beyond_trimesh_rounding(tmp_path,
+                                                                            monkeypatch):
+    """trimesh merges vertices on coordinates rounded to 1e-8 as int64: beyond ~9.2e10 that
+    overflows (a RuntimeWarning) and distinct vertices merge — (1e12, 0, 0) and (2e12, 0, 0)
+    became one, and the triangle vanished from the smooth-shaded frame."""
+    mesh = tmp_path / "far.obj"
+    mesh.write_text("v 0 1e12 0\nv 1e12 0 0\nv 2e12 0 0\nf 1 2 3\n")
+    masks = {}
+    for normals in ("flat", "smooth"):
+        out = tmp_path / f"{normals}.npz"
+        assert rcli.main(["render", str(mesh), "--out", str(tmp_path / f"{normals}.png"),
+                          "--buffers", str(out), "--width", "32", "--height", "24",
+                          "--normals", normals, "-q"]) == 0
+        masks[normals] = np.load(out)["prim_id"] >= 0
+    assert masks["flat"].any() and (masks["flat"] == masks["smooth"]).all()
