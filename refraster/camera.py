@@ -51,6 +51,18 @@ __all__ = [
 ]
 
 
+def _norm(v):
+    """``np.linalg.norm(v)`` (the same bytes), or where its squares overflow or underflow
+    (a coordinate beyond ~1e154 or below ~1e-154) the norm of ``v`` scaled by its largest
+    entry first, without a warning."""
+    with np.errstate(over="ignore", under="ignore"):
+        n = np.linalg.norm(v)
+    if np.isfinite(n) and (n > 0.0 or not np.any(v)):
+        return n
+    m = float(np.abs(v).max())
+    return m * np.linalg.norm(v / m)
+
+
 def look_at(eye, target, up=(0.0, 1.0, 0.0)):
     """View matrix of a camera at ``eye`` looking at ``target`` (``gluLookAt``).
 
@@ -66,14 +78,17 @@ def look_at(eye, target, up=(0.0, 1.0, 0.0)):
     eye = as_float_array(eye, "eye", shape=(3,))
     target = as_float_array(target, "target", shape=(3,))
     up = as_float_array(up, "up", shape=(3,))
-    f = target - eye
-    nf = np.linalg.norm(f)
+    with np.errstate(over="ignore"):
+        f = target - eye
+    if not np.all(np.isfinite(f)):
+        raise ValueError("eye and target are too far apart: target − eye overflows float64")
+    nf = _norm(f)
     if nf == 0.0:
         raise ValueError("eye and target must differ")
     f = f / nf
     s = np.cross(f, up)
-    ns = np.linalg.norm(s)
-    if ns <= 1e-12 * max(1.0, np.linalg.norm(up)):
+    ns = _norm(s)
+    if ns <= 1e-12 * max(1.0, _norm(up)):
         raise ValueError("up must not be parallel to the viewing direction target − eye")
     s = s / ns
     u = np.cross(s, f)

@@ -202,7 +202,7 @@ def _camera(args, bounds):
     """View and projection from the options; what is not given frames the mesh's bounds with
     :func:`refraster.camera.frame_bounds` (and is exactly its camera when nothing is given)."""
     import numpy as np
-    from .camera import frame_bounds, look_at, near_far, perspective
+    from .camera import _norm, frame_bounds, look_at, near_far, perspective
 
     try:
         framed = frame_bounds(bounds, width=args.width, height=args.height, fovy=args.fov,
@@ -222,8 +222,9 @@ def _camera(args, bounds):
             eye = np.linalg.inv(framed.view)[:3, 3] + (target - centre)
         view = look_at(eye, target, args.up)
         # enclose the same bounding sphere as frame_bounds (radius × margin 1.1 × 1.05)
-        radius = 1.155 * max(0.5 * float(np.linalg.norm(bounds[1] - bounds[0])), 1e-9)
-        dist = float(np.linalg.norm(eye - centre))
+        radius = 1.155 * max(0.5 * float(_norm(bounds[1] - bounds[0])), 1e-9)
+        with np.errstate(over="ignore"):
+            dist = float(_norm(eye - centre))
         near = max(dist - radius, 1e-3 * dist, 1e-6)
         far = max(dist + radius, 2.0 * near)
     if args.near is None and args.far is None and view is framed.view:
@@ -235,6 +236,8 @@ def _camera(args, bounds):
     except ValueError as exc:   # a projection beyond float32: name what was given
         given = " ".join(f"{o} {v:g}" for o, v in (("--near", args.near), ("--far", args.far))
                          if v is not None)
+        if args.eye is not None and not given:   # near and far fitted to the eye's distance
+            given = "--eye " + " ".join(f"{v:g}" for v in args.eye)
         if not given:
             raise CLIError(f"mesh file '{args.mesh}': the camera framing it: {exc}") from None
         raise CLIError(f"{given}: {exc}") from None

@@ -532,3 +532,23 @@ def test_smooth_normals_never_merge_distinct_vertices_beyond_trimesh_rounding(tm
                           "--normals", normals, "-q"]) == 0
         masks[normals] = np.load(out)["prim_id"] >= 0
     assert masks["flat"].any() and (masks["flat"] == masks["smooth"]).all()
+
+
+def test_look_at_far_away_or_close_by_has_no_overflow(mesh_file, tmp_path, capsys):
+    """An eye at 1e300 overflowed the norm's squares (a RuntimeWarning, then "up must not be
+    parallel …" from the zero direction it left); an eye 1e-200 from the target underflowed
+    them ("eye and target must differ"). Found by the fuzz harness."""
+    import refraster as rf
+    far = rf.look_at([1e300, 0.0, 0.0], [0.0, 0.0, 0.0])
+    assert np.array_equal(far[2, :3], [1.0, 0.0, 0.0]) and np.isclose(far[2, 3], -1e300)
+    near = rf.look_at([1e-200, 0.0, 0.0], [0.0, 0.0, 0.0])
+    assert np.array_equal(near[2, :3], [1.0, 0.0, 0.0])
+    ordinary = rf.look_at([1.0, 2.0, 3.0], [0.0, 0.5, 0.0])
+    f = np.array([-1.0, -1.5, -3.0])
+    assert np.array_equal(ordinary[2, :3], -(f / np.linalg.norm(f)))   # the same bytes
+    with pytest.raises(ValueError, match="too far apart"):
+        rf.look_at([1.7e308, 0.0, 0.0], [-1.7e308, 0.0, 0.0])
+    assert rcli.main(["render", str(mesh_file), "--out", str(tmp_path / "x.png"), "--eye",
+                      "1e300", "0.5", "0", "-q"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("refraster: error: --eye 1e+300 0.5 0: "), err
