@@ -319,7 +319,10 @@ def frame_bounds(bounds, *, width, height, fovy=35.0, direction=(1.0, 0.8, 1.4),
     centre = bounds.mean(axis=0)
     radius = max(0.5 * float(np.linalg.norm(bounds[1] - bounds[0])), 1e-9) * margin
     d = as_float_array(direction, "direction", shape=(3,))
-    d = d / np.linalg.norm(d)
+    nd = _norm(d)
+    if nd == 0.0:
+        raise ValueError("direction must not be the zero vector")
+    d = d / nd
     aspect = width / height
     half = np.radians(fovy) / 2
     half_h = np.arctan(np.tan(half) * min(aspect, 1.0))

@@ -552,3 +552,15 @@ def test_look_at_far_away_or_close_by_has_no_overflow(mesh_file, tmp_path, capsy
                       "1e300", "0.5", "0", "-q"]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and err[0].startswith("refraster: error: --eye 1e+300 0.5 0: "), err
+
+
+def test_a_toml_frame_camera_with_a_zero_direction_names_it(tmp_path, capsys):
+    """``direction = [0, 0, 0]`` divided by its zero norm: 'RuntimeWarning: invalid value
+    encountered in divide' (found by the fuzz harness)."""
+    path = _toml(tmp_path, TOML_BODY + '[camera]\ndirection = [0.0, 0.0, 0.0]\n'
+                 '[[draw]]\nsolid = "cube"\n')
+    assert cli.main(["generate", "--out", str(tmp_path / "g"), "--scene-file", str(path),
+                     "--jobs", "1", "-q"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err == [f"golden generate: error: {path}: [camera] direction must not be the zero "
+                   "vector"], err
