@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from .._validate import as_choice, as_float_array, as_matrix
-from ..camera import Camera, frame_bounds, look_at, orthographic, perspective
+from ..camera import Camera, frame_bounds, look_at, near_far, orthographic, perspective
 from ..mesh import Mesh, as_mesh, load_mesh_file, vertex_normals
 from ..raster.state import RasterState
 
@@ -419,6 +419,13 @@ def _toml_camera(spec, meshes, width, height, where):
     else:
         raise ValueError(f"{where}: camera.kind must be 'frame', 'perspective' or "
                          f"'orthographic', got {kind!r}")
+    # the golden stores the planes recovered from the matrix (scene.json camera.near/far)
+    n, f = near_far(proj)
+    if not (math.isfinite(n) and math.isfinite(f)):
+        raise ValueError(f"{where}: [camera] near={num('near'):g} and far={num('far'):g} "
+                         f"cannot be told from an infinite far plane in float64 (far/near = "
+                         f"{num('far') / num('near'):.3g}: the depth row rounds to its limit); "
+                         "a golden stores finite planes: keep far/near below 1e15")
     return Camera(view, proj, width, height)
 
 
