@@ -5,7 +5,7 @@
     refraster golden generate --out DIR [--scene NAME ...] [--scene-file SCENE.toml ...]
                               [--update] [--list] [--sweep KEY=V1,V2 ...] [--size WxH ...]
                               [--jobs N | --workers N | --scheduler ADDRESS]
-                              [--no-wait]
+                              [--convention gl|vulkan|d3d12|metal|webgpu] [--no-wait]
     refraster golden compare GOLDEN_DIR CANDIDATE_DIR [--report DIR] [--mode tolerant|exact]
                              [--profile exact|conformant] [--tolerance [SCENE:][BUFFER.]KEY=VALUE ...]
                              [--scene NAME ...] [--json FILE] [--no-wait]
@@ -106,6 +106,24 @@ def _say(args, message):
         print(message, file=sys.stderr)
 
 
+def _in_convention(api, names, scene_files):
+    """The scenes of ``generate --convention API``: the named ones (or, without ``--scene``,
+    every registered scene whose technique honours the conventions) and the TOML scenes, each
+    drawn in ``api``'s conventions (:func:`refraster.golden.conventions.in_convention`)."""
+    from .conventions import TECHNIQUES_IN_CONVENTIONS, in_convention
+    from .scenes import available_scenes, load_scene_file
+    registry = available_scenes()
+    if names is None:
+        names = [] if scene_files else [
+            n for n, e in registry.items()
+            if api == "gl" or e.technique in TECHNIQUES_IN_CONVENTIONS]
+    unknown = [n for n in names if n not in registry]
+    if unknown:
+        raise ValueError(f"unknown golden scene(s) {unknown}; known: {sorted(registry)}")
+    entries = [registry[n] for n in names] + [load_scene_file(p) for p in scene_files]
+    return [in_convention(e, api) for e in entries]
+
+
 @_guarded("golden generate")
 def _cmd_generate(args):
     from .generate import generate
@@ -134,9 +152,15 @@ def _cmd_generate(args):
         retried.append(name)
         _say(args, f"retrying {name} once: {reason}")
 
+    scenes, scene_files = args.scene or None, args.scene_file or ()
+    if args.convention is not None:
+        try:
+            scenes, scene_files = _in_convention(args.convention, scenes, scene_files), ()
+        except ValueError as exc:
+            return _error(args, "golden generate", exc)
     try:
-        manifest = generate(args.out, args.scene or None, update=args.update,
-                            scene_files=args.scene_file or (), sweeps=args.sweep or (),
+        manifest = generate(args.out, scenes, update=args.update,
+                            scene_files=scene_files, sweeps=args.sweep or (),
                             sizes=args.size or (), workers=args.workers or 1,
                             scheduler=args.scheduler, progress_bar=not quiet,
                             on_retry=on_retry, wait=not args.no_wait,
@@ -273,6 +297,10 @@ def register(subparsers):
                    help="render on a Dask LocalCluster of N processes (N > 1; 1 = serial)")
     g.add_argument("--scheduler", metavar="ADDRESS",
                    help="render on an existing Dask cluster (e.g. tcp://host:8786)")
+    g.add_argument("--convention", choices=("gl", "vulkan", "d3d12", "metal", "webgpu"),
+                   help="emit the scenes in that API's conventions (raster fields, the "
+                        "projection converted to its clip depth, the winding flip; "
+                        "docs/backends.md); plain-rendering scenes only (default: those)")
     g.add_argument("--no-wait", action="store_true",
                    help="if another run is writing DIR, exit 2 naming it instead of waiting")
     g.set_defaults(func=_cmd_generate)

@@ -37,6 +37,10 @@ FLOOD = "refraster/cutaway/flood.py"
 SURF = "refraster/cutaway/surface.py"
 HREN = "refraster/halos4d/render.py"
 THICK = "refraster/halos4d/thicken.py"
+ACORE = "refraster/golden/allowances/core.py"
+AEDGE = "refraster/golden/allowances/edges.py"
+ALAYER = "refraster/golden/allowances/layers.py"
+ARITH = ["tests/test_allowance_arithmetic.py"]
 
 
 @dataclass(frozen=True)
@@ -258,4 +262,69 @@ MUTANTS = [
            "surfaces (the same-surface test dropped)", "refraster/golden/allowances/core.py",
            "same = (surface[a] == surface[b]) & (surface[a] >= 0)",
            "same = (surface[a] >= 0) & (surface[b] >= 0)", GOLD),
+    # ------------------------------------------------ the allowance arithmetic (issue 42, item 3)
+    # each killed by tests/test_allowance_arithmetic.py, which derives the numbers by hand
+    Mutant("allow_shift_margin", "allowance", "second-order margin on the value intervals 1.0 "
+           "instead of 1.5", ACORE, "SHIFT_MARGIN = 1.5", "SHIFT_MARGIN = 1.0", ARITH),
+    Mutant("allow_bary_tol", "allowance", "barycentric budget doubled", ACORE,
+           "BARY_TOL = 1e-3", "BARY_TOL = 2e-3", ARITH),
+    Mutant("allow_eye_rel", "allowance", "relative eye-depth budget ten times too wide", ACORE,
+           "EYE_DEPTH_ABS, EYE_DEPTH_REL = 1e-5, 4e-6", "EYE_DEPTH_ABS, EYE_DEPTH_REL = 1e-5, 4e-5",
+           ARITH),
+    Mutant("allow_round_inwards", "allowance", "float32 lower bounds rounded inwards",
+           ACORE, "lo32 = np.where(lo32 > lo, np.nextafter(lo32, np.float32(-np.inf)), lo32)",
+           "lo32 = np.where(lo32 < lo, np.nextafter(lo32, np.float32(-np.inf)), lo32)", ARITH),
+    Mutant("allow_depth_region_may", "allowance", "depth interval applied at \"may\" pixels too",
+           ACORE, 'region &= (arrays["coverage"] == MUST) & depth_covered(cand, clear_depth,',
+           'region &= (arrays["coverage"] >= MAY) & depth_covered(cand, clear_depth,', ARITH),
+    Mutant("allow_interval_step_inwards", "allowance", "the interval's upper end narrowed by "
+           "the quantisation step instead of widened", ACORE,
+           '            hi = arrays[spec["hi"]].astype(np.float64) + step\n'
+           '            c = cand.astype(np.float64)',
+           '            hi = arrays[spec["hi"]].astype(np.float64) - step\n'
+           '            c = cand.astype(np.float64)', ARITH),
+    Mutant("allow_angle_one_step", "allowance", "normal angle widened by one step, not √3 steps",
+           ACORE, 'limit = arrays[spec["angle"]].astype(np.float64) + step * math.sqrt(3.0)',
+           'limit = arrays[spec["angle"]].astype(np.float64) + step', ARITH),
+    Mutant("allow_face_counts_background", "allowance", "the face check counts a background "
+           "candidate pixel as naming a face outside the set", ACORE,
+           "return id_may & has & (c >= 0) & (named < 0)", "return id_may & has & (named < 0)",
+           ARITH),
+    Mutant("allow_coverage_one_way", "allowance", "coverage checks only \"must\" (a covered "
+           "\"must not\" pixel passes)", ACORE,
+           'outside["coverage"] = ((cov == MUST) & ~cc) | ((cov == MUST_NOT) & cc)',
+           'outside["coverage"] = ((cov == MUST) & ~cc)', ARITH, fast=True,
+           ci=["tests/test_allowance_arithmetic.py::test_coverage_check_by_hand"]),
+    Mutant("guard_no_scene", "allowance", "an empty scene selection is compared (a pass on "
+           "nothing)", "refraster/golden/compare/run.py",
+           "    if not names:\n        raise GoldenError(\"nothing to compare: \"",
+           "    if names is None:\n        raise GoldenError(\"nothing to compare: \"", ARITH),
+    Mutant("guard_first_scene_only", "allowance", "the nothing-compared guard looks at the first "
+           "scene only", "refraster/golden/compare/run.py",
+           'empty = [n for n in names if not manifest["scenes"][n]["buffers"]]',
+           'empty = [n for n in names[:1] if not manifest["scenes"][n]["buffers"]]', ARITH),
+    Mutant("edges_absdiff_no_zero", "allowance", "|a − b| of overlapping intervals bounded away "
+           "from 0", AEDGE, "return 0.0, max(-dlo, dhi)", "return min(-dlo, dhi), max(-dlo, dhi)",
+           ARITH),
+    Mutant("edges_sq_no_zero", "allowance", "x² of an interval around 0 bounded away from 0",
+           AEDGE, "return 0.0, max(lo * lo, hi * hi)",
+           "return min(lo * lo, hi * hi), max(lo * lo, hi * hi)", ARITH),
+    Mutant("edges_lin_negative_weight", "allowance", "a negative weight keeps the interval's "
+           "ends in order", AEDGE, "return wlo + q * phi, whi + q * plo",
+           "return wlo + q * plo, whi + q * phi", ARITH),
+    Mutant("edges_dot_unclamped", "allowance", "the largest angle between turned normals not "
+           "clamped at π", AEDGE, "lo = min(lo, math.cos(min(math.pi, t0 + a)) - ddot)",
+           "lo = min(lo, math.cos(t0 + a) - ddot)", ARITH),
+    Mutant("edges_dot_free_no_slack", "allowance", "a free pixel's dot product without the "
+           "arithmetic slack", AEDGE, "return -1.0 - ddot, 1.0 + ddot", "return -1.0, 1.0", ARITH),
+    Mutant("layers_stab_touching", "allowance", "touching depth intervals counted as two "
+           "layers", ALAYER, "if starts[q] > point:", "if starts[q] >= point:", ARITH),
+    Mutant("layers_alone_touching", "allowance", "an entry whose interval touches another's "
+           "must show on its own", ALAYER,
+           "if k != i and lo[k] <= hi[i] and hi[k] >= lo[i]:",
+           "if k != i and lo[k] < hi[i] and hi[k] > lo[i]:", ARITH),
+    Mutant("layers_count_hi_sure_only", "allowance", "the largest layer count omits entries "
+           "that may reach the clear depth", ALAYER,
+           "            if lo[i] < clear:\n                n_may += 1",
+           "            if hi[i] < clear:\n                n_may += 1", ARITH),
 ]

@@ -78,7 +78,9 @@ SCENE_SCHEMA = {
             "additionalProperties": False,
             "properties": {"view": _MAT4, "projection": _MAT4,
                            "kind": {"enum": ["perspective", "orthographic"]},
-                           "near": {"type": "number"}, "far": {"type": "number"}},
+                           "near": {"type": "number"},
+                           # null: an infinite far plane (JSON has no infinity)
+                           "far": {"type": ["number", "null"]}},
         },
         "raster": {
             "type": "object",
@@ -92,9 +94,16 @@ SCENE_SCHEMA = {
                 "cull": {"enum": ["none", "back", "front"]},
                 "depth_func": {"enum": ["less", "lequal", "greater", "gequal", "equal",
                                         "notequal", "always", "never"]},
-                "front_face": {"const": "ccw"},
+                "front_face": {"enum": ["ccw", "cw"]},
                 "clear_depth": {"type": "number", "minimum": 0, "maximum": 1},
                 "normals": {"enum": ["flat", "smooth"]},
+                # the API conventions (RasterState's names and values; optional: a package
+                # without them is in OpenGL's conventions, the defaults)
+                "depth_range": {"enum": ["negative_one_to_one", "zero_to_one"]},
+                "origin": {"enum": ["lower_left", "upper_left"]},
+                "ndc_y": {"enum": ["up", "down"]},
+                "depth_clamp": {"type": "boolean"},
+                "depth_format": {"enum": ["float32", "unorm24", "unorm16"]},
             },
         },
         "draws": {
