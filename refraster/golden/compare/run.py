@@ -358,8 +358,8 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
         The golden directory, the arguments or the report directory are unusable.
     """
     golden_dir, candidate_dir = Path(golden_dir), Path(candidate_dir)
-    from ..io.write import recover
-    recover(golden_dir)  # a swap a killed generate left half-done (journal fallback)
+    from ..io.write import pending_swap
+    pending_swap(golden_dir)  # a swap a killed generate left half-done: only generate acts
     if mode is not None and mode not in MODES:
         raise GoldenError(f"mode must be one of {MODES}, got {mode!r}")
     if profile is not None and profile not in PROFILES:
