@@ -28,7 +28,16 @@ rewritten (``--write``) only when an issue says that outputs change**, and the c
 the cases that changed and why; a refactor never rewrites it, and a new case is recorded with
 ``--add FILE NAME ...``, which refuses a name the file already has. Recorded with ``--add``
 (the old API had no such option): ``render_front_face_cw``,
-``render_front_face_cw_cull_back``, ``render_depth_write_false``.
+``render_front_face_cw_cull_back``, ``render_depth_write_false``. Issue 46 made the paper's jump
+flooding (``"jfa"``) the cutaways' default flooding variant in place of ``"jfa+1"``: the eight
+cases it changed (``cut_view2``, ``cut_perspective_compensation_false``, ``cut_edge_stand_in``,
+``cut_edge_compression_none`` / ``_zero`` / ``_value``, ``cut_floor_margin``,
+``cut_floor_view2``) were re-recorded, and each has a twin with ``Cutaway(variant="jfa+1")``
+(``cut_variant_jfa1``, ``*_jfa1``) that keeps its former digest; ``cut_view2`` and
+``cut_variant_jfa`` are now equal by design. Issue 46 also made the halos' default prism split the paper's repair
+(``Halos(split="paper")``): the 34 ``halo_*`` cases of ``render_halos``/``render_halos_pair``
+were re-recorded (with the new halo defaults of the same issue); the new
+``halo_split_global_index*`` cases keep ``split="global_index"``.
 
 Each case is one small function ``case_NAME()`` whose calls are written out, so an API change
 translates each case where it stands; it returns its outputs as ``{name: value}``, result
@@ -1120,7 +1129,7 @@ def case_clip_relief_plane():
 
 
 # ============================================================================== render_cutaway
-# defaults: stand_ins=(), cutaway=Cutaway() (angle=π/6, variant="jfa+1",
+# defaults: stand_ins=(), cutaway=Cutaway() (angle=π/6, variant="jfa",
 # perspective_compensation=True, edge_compression=0.1, floor_normal=None,
 # floor_margin=FLOOR_MARGIN, buffer_size=None), cut_surfaces=CutSurfaces() (shade=True,
 # color=None, dilation=True, outlines=True), ghosts=GhostLines() (source="lines",
@@ -1205,7 +1214,8 @@ def case_cut_cutaway_size():
 
 
 def case_cut_view2():
-    """The default variant ("jfa+1") in the second view."""
+    """The default variant ("jfa", the paper's) in the second view; until issue 46 the default
+    was "jfa+1" (:func:`case_cut_variant_jfa1` keeps that digest)."""
     from refraster.cutaway import render_cutaway
     shells, core = _cut_scene()
     return _of(render_cutaway(core, shells, **_kcam2()))
@@ -1215,6 +1225,14 @@ def case_cut_variant_jfa():
     from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
     return _of(render_cutaway(core, shells, **_kcam2(), cutaway=Cutaway(variant="jfa")))
+
+
+
+def case_cut_variant_jfa1():
+    """``cut_view2`` with ``"jfa+1"`` (its digest before issue 46)."""
+    from refraster.cutaway import Cutaway, render_cutaway
+    shells, core = _cut_scene()
+    return _of(render_cutaway(core, shells, **_kcam2(), cutaway=Cutaway(variant="jfa+1")))
 
 
 def case_cut_variant_jfa2():
@@ -1242,11 +1260,27 @@ def case_cut_perspective_compensation_false():
                               cutaway=Cutaway(perspective_compensation=False)))
 
 
+def case_cut_perspective_compensation_false_jfa1():
+    """``cut_perspective_compensation_false`` with ``"jfa+1"`` (its digest before issue 46)."""
+    from refraster.cutaway import Cutaway, render_cutaway
+    shells, core = _cut_scene()
+    return _of(render_cutaway(core, shells, **_kcam(),
+                              cutaway=Cutaway(variant="jfa+1", perspective_compensation=False)))
+
+
 def case_cut_edge_stand_in():
     """The default edge compression (0.1) acting on a stand-in near the border."""
     from refraster.cutaway import render_cutaway
     shells, core = _cut_scene()
     return _of(render_cutaway(core, shells, **_kcam2(), stand_ins=[_edge_stand_in()]))
+
+
+def case_cut_edge_stand_in_jfa1():
+    """``cut_edge_stand_in`` with ``"jfa+1"`` (its digest before issue 46)."""
+    from refraster.cutaway import Cutaway, render_cutaway
+    shells, core = _cut_scene()
+    return _of(render_cutaway(core, shells, **_kcam2(), stand_ins=[_edge_stand_in()],
+                              cutaway=Cutaway(variant="jfa+1")))
 
 
 def case_cut_edge_compression_none():
@@ -1256,6 +1290,14 @@ def case_cut_edge_compression_none():
                               cutaway=Cutaway(edge_compression=None)))
 
 
+def case_cut_edge_compression_none_jfa1():
+    """``cut_edge_compression_none`` with ``"jfa+1"`` (its digest before issue 46)."""
+    from refraster.cutaway import Cutaway, render_cutaway
+    shells, core = _cut_scene()
+    return _of(render_cutaway(core, shells, **_kcam2(), stand_ins=[_edge_stand_in()],
+                              cutaway=Cutaway(variant="jfa+1", edge_compression=None)))
+
+
 def case_cut_edge_compression_zero():
     from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
@@ -1263,11 +1305,27 @@ def case_cut_edge_compression_zero():
                               cutaway=Cutaway(edge_compression=0.0)))
 
 
+def case_cut_edge_compression_zero_jfa1():
+    """``cut_edge_compression_zero`` with ``"jfa+1"`` (its digest before issue 46)."""
+    from refraster.cutaway import Cutaway, render_cutaway
+    shells, core = _cut_scene()
+    return _of(render_cutaway(core, shells, **_kcam2(), stand_ins=[_edge_stand_in()],
+                              cutaway=Cutaway(variant="jfa+1", edge_compression=0.0)))
+
+
 def case_cut_edge_compression_value():
     from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
     return _of(render_cutaway(core, shells, **_kcam2(), stand_ins=[_edge_stand_in()],
                               cutaway=Cutaway(edge_compression=0.35)))
+
+
+def case_cut_edge_compression_value_jfa1():
+    """``cut_edge_compression_value`` with ``"jfa+1"`` (its digest before issue 46)."""
+    from refraster.cutaway import Cutaway, render_cutaway
+    shells, core = _cut_scene()
+    return _of(render_cutaway(core, shells, **_kcam2(), stand_ins=[_edge_stand_in()],
+                              cutaway=Cutaway(variant="jfa+1", edge_compression=0.35)))
 
 
 def case_cut_floor_normal():
@@ -1283,10 +1341,27 @@ def case_cut_floor_margin():
                               cutaway=Cutaway(floor_normal=(0.1, 1, 0), floor_margin=0.2)))
 
 
+def case_cut_floor_margin_jfa1():
+    """``cut_floor_margin`` with ``"jfa+1"`` (its digest before issue 46)."""
+    from refraster.cutaway import Cutaway, render_cutaway
+    shells, core = _cut_scene()
+    return _of(render_cutaway(core, shells, **_kcam(),
+                              cutaway=Cutaway(variant="jfa+1", floor_normal=(0.1, 1, 0),
+                                              floor_margin=0.2)))
+
+
 def case_cut_floor_view2():
     from refraster.cutaway import Cutaway, render_cutaway
     shells, core = _cut_scene()
     return _of(render_cutaway(core, shells, **_kcam2(), cutaway=Cutaway(floor_normal=(0, 1, 0))))
+
+
+def case_cut_floor_view2_jfa1():
+    """``cut_floor_view2`` with ``"jfa+1"`` (its digest before issue 46)."""
+    from refraster.cutaway import Cutaway, render_cutaway
+    shells, core = _cut_scene()
+    return _of(render_cutaway(core, shells, **_kcam2(),
+                              cutaway=Cutaway(variant="jfa+1", floor_normal=(0, 1, 0))))
 
 
 def case_cut_floor_exact():
@@ -1624,6 +1699,66 @@ def case_halo_pair_stereo():
     from refraster.halos4d import HaloStyle, View4D, render_halos_pair
     on, off = render_halos_pair(_fig1(), **_hkw(), view=View4D(rotation=_hrot(), stereo=10.0),
                                 style=HaloStyle(boundary_color=(0, 1, 0)))
+    return {"on": _of(on), "off": _of(off)}
+
+
+# halos.split="global_index": the split of the releases before issue 46 (the default became the
+# paper's repair); each case is an older case with that field, and has that case's digests of
+# before the change (benchmarks/entry_digests.json at 47cc54b)
+def _gi(**kw):
+    from refraster.halos4d import Halos
+    return Halos(split="global_index", **kw)
+
+
+def case_halo_split_global_index_small():
+    """``halo_small``'s digests of 47cc54b."""
+    from refraster.halos4d import render_halos
+    return _of(render_halos(_fig1(), **_hkw(), halos=_gi()))
+
+
+def case_halo_split_global_index():
+    """``halo_rotation``'s digests of 47cc54b."""
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()), halos=_gi()))
+
+
+def case_halo_split_global_index_perspective():
+    """``halo_perspective``'s digests of 47cc54b."""
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), halos=_gi(),
+                            view=View4D(rotation=_hrot(), projection="perspective")))
+
+
+def case_halo_split_global_index_stereo():
+    """``halo_stereo``'s digests of 47cc54b."""
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot(), stereo=6.0),
+                            halos=_gi()))
+
+
+def case_halo_split_global_index_fused_volume_options():
+    """``halo_engine_fused_explicit``'s digests of 47cc54b."""
+    from refraster.halos4d import HaloStyle, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()), engine="fused",
+                            volume=True, halos=_gi(antialias=0.15),
+                            style=HaloStyle(halo_opacity=0.3, boundary_color=(0, 1, 0))))
+
+
+def case_halo_split_global_index_reference_volume_options():
+    """``halo_engine_reference_volume_options``' digests of 47cc54b."""
+    from refraster.halos4d import HaloStyle, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()), engine="reference",
+                            volume=True, halos=_gi(antialias=0.15),
+                            style=HaloStyle(halo_opacity=0.3, boundary_color=(0, 1, 0))))
+
+
+def case_halo_split_global_index_pair():
+    """``halo_pair_options``' digests of 47cc54b."""
+    from refraster.halos4d import HaloStyle, View4D, render_halos_pair
+    on, off = render_halos_pair(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                                halos=_gi(delta_d=0.5, antialias=0.0),
+                                style=HaloStyle(halo_opacity=0.3, boundary_color=(0, 1, 0)),
+                                background=(1, 1, 1))
     return {"on": _of(on), "off": _of(off)}
 
 

@@ -1,6 +1,7 @@
 """Benchmark: volumetric halos of the spun trefoil (~20k triangles) at 512² (Wang et al. Table 1).
 
     python -m benchmarks.halos4d [--size 512] [--repeats 5] [--reference-repeats 1]
+                                 [--slices 64,128,256,512] [--stages]
 
 Columns: refraster's fused engine (median wall time of ``repeats`` frames, and the median CPU
 time summed over threads, which a busy machine inflates less), the reference engine
@@ -8,7 +9,9 @@ time summed over threads, which a busy machine inflates less), the reference eng
 and the paper's GPU figure (GeForce GTX 580, 2013, Table 1: 69.16 / 55.31 / 42.67 / 24.30 fps).
 A frame is everything from the 4D surface to the composited image: rotation, projection,
 thickening, tetrahedra, slicing, rasterization and compositing. Compile time (first call minus
-steady state) is printed once.
+steady state) is printed once. ``--stages``: the CPU time of each stage of the 256-slice frame
+(projection and thickening, the default δd, slicing, window set-up, fill), which a shared
+machine inflates less than wall time; ``--reference-repeats 0`` skips the reference engine.
 """
 
 from __future__ import annotations
@@ -41,11 +44,46 @@ def timed(fn, repeats):
     return 1000.0 * float(np.median(wall)), 1000.0 * float(np.median(cpu))
 
 
+def stages(surface, size, slices, repeats):
+    """Median CPU ms per frame of each stage (the render module's functions, wrapped), and of
+    the whole frame; the δd estimate is cached after the first frame, as in an interactive
+    session (render._default_delta_d)."""
+    from refraster.halos4d import render as hr
+    names = ("prepare", "default_halo_parameters", "_slice", "_window", "_fused")
+    spent = {n: 0.0 for n in names}
+    saved = {n: getattr(hr, n) for n in names}
+
+    def wrap(name, fn):
+        def timed_fn(*a, **k):
+            c = time.process_time()
+            try:
+                return fn(*a, **k)
+            finally:
+                spent[name] += time.process_time() - c
+        return timed_fn
+    frame(surface, size, slices)
+    try:
+        for n in names:
+            setattr(hr, n, wrap(n, saved[n]))
+        frame(surface, size, slices)        # the wrapped δd is a new cache entry: paid once
+        for n in names:
+            spent[n] = 0.0
+        total = timed(lambda: frame(surface, size, slices), repeats)
+    finally:
+        for n, fn in saved.items():
+            setattr(hr, n, fn)
+    per = {n: 1000.0 * v / repeats for n, v in spent.items()}
+    per["fill"] = per.pop("_fused") - per["_window"]
+    return total, per
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--reference-repeats", type=int, default=1)
+    ap.add_argument("--slices", default="64,128,256,512")
+    ap.add_argument("--stages", action="store_true")
     args = ap.parse_args(argv)
     import refraster.halos4d as h
 
@@ -61,12 +99,29 @@ def main(argv=None):
     print("| slices | refraster fused ms (CPU ms) | reference engine ms | ratio "
           "| paper GPU ms (fps) | fused / paper |")
     print("|---:|---:|---:|---:|---:|---:|")
-    for n in (64, 128, 256, 512):
+    for n in (int(x) for x in args.slices.split(",")):
         fused, cpu = timed(lambda: frame(surface, args.size, n), args.repeats)
-        ref = timed(lambda: frame(surface, args.size, n, "reference"), args.reference_repeats)[0]
         paper = 1000.0 / PAPER_FPS[n]
-        print(f"| {n} | {fused:.0f} ({cpu:.0f}) | {ref:.0f} | {ref / fused:.1f}× | {paper:.1f} "
+        if args.reference_repeats > 0:
+            ref = timed(lambda: frame(surface, args.size, n, "reference"),
+                        args.reference_repeats)[0]
+            ref_cells = f"{ref:.0f} | {ref / fused:.1f}×"
+        else:
+            ref_cells = "— | —"
+        print(f"| {n} | {fused:.0f} ({cpu:.0f}) | {ref_cells} | {paper:.1f} "
               f"({PAPER_FPS[n]}) | {fused / paper:.0f}× |")
+    if args.stages:
+        (wall, cpu), per = stages(surface, args.size, 256, args.repeats)
+        print()
+        print(f"256 slices, {args.repeats} frames: wall {wall:.0f} ms, CPU {cpu:.0f} ms per frame")
+        print("| stage | CPU ms per frame |")
+        print("|---|---:|")
+        labels = {"prepare": "projection, thickening, tetrahedra (prepare)",
+                  "default_halo_parameters": "default δd (pair search; cached)",
+                  "_slice": "slicing", "_window": "window set-up and band binning",
+                  "fill": "fill and compositing"}
+        for k, label in labels.items():
+            print(f"| {label} | {per[k]:.0f} |")
 
 
 if __name__ == "__main__":

@@ -193,7 +193,8 @@ def _technique_packages(root, quick):
     out = ours_halos()
     from refraster.camera import Camera, orthographic
     hp = dict(hopts, rotation=rot.tolist(), delta_d=float(out.stats["delta_d"]),
-              antialias=0.3, halo_opacity=0.0, screen_bounds=np.asarray(out.bounds).tolist())
+              antialias=float(out.stats["antialias"]), halo_opacity=0.0,
+              screen_bounds=np.asarray(out.bounds).tolist())
     rho = out.stats.get("rho")
     hp["rho"] = float(rho) if isinstance(rho, float) else None
     maps = {"surface_vertices4d": trefoil.vertices, "surface_faces": trefoil.faces,

@@ -108,13 +108,18 @@ def test_fig10_two_objects_shape_one_surface():
     holes = []
     for x in (-3.8, -1.4):
         car = _box((x - 0.3, 0, -1.9), (x + 0.3, 0.35, -1.4))
-        cut = Cutaway(angle=0.28, floor_normal=(0, 1, 0))
-        both = render_cutaway([counter, car], room, **cam, cutaway=cut)
-        alone = [render_cutaway([o], room, **cam, cutaway=cut)
-                 for o in (counter, car)]
-        # D is the maximum of the two objects' own surfaces (one joint surface, Sec. 3.2)
-        np.testing.assert_array_equal(
-            both.cutaway_depth, np.maximum(alone[0].cutaway_depth, alone[1].cutaway_depth))
+        for variant in ("jfa+1", "jfa"):      # the holes below: with the last, the default
+            cut = Cutaway(angle=0.28, floor_normal=(0, 1, 0), variant=variant)
+            both = render_cutaway([counter, car], room, **cam, cutaway=cut)
+            alone = [render_cutaway([o], room, **cam, cutaway=cut)
+                     for o in (counter, car)]
+            # D is the maximum of the two objects' own surfaces (one joint surface, Sec. 3.2):
+            # bit for bit with "jfa+1"; the paper's plain jump flooding may miss the best seed
+            # of a pixel that the joint flood (or a lone one) finds: 1 of 10 800 here
+            joint = np.maximum(alone[0].cutaway_depth, alone[1].cutaway_depth)
+            missed = both.cutaway_depth != joint
+            assert missed.sum() <= (0 if variant == "jfa+1" else 2), (variant, missed.sum())
+            assert np.abs(both.cutaway_depth - joint).max() < 1e-4, variant
         # the holes in that wall: where it showed and no longer shows (not even as a cut face)
         holes.append(ndimage.label(wall & (both.object_id != 1))[1])
     assert holes[0] == 2 and holes[1] == 1      # separate, then merged

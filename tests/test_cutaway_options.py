@@ -66,10 +66,28 @@ def test_a_bad_field_is_refused_with_one_line_naming_it(cls, name, bad, exc, wor
 def test_defaults_are_the_papers_choices():
     c = Cutaway()
     assert (c.angle, c.variant, c.perspective_compensation, c.edge_compression, c.floor_normal,
-            c.floor_margin, c.buffer_size) == (math.pi / 6, "jfa+1", True, 0.1, None,
+            c.floor_margin, c.buffer_size) == (math.pi / 6, "jfa", True, 0.1, None,
                                                FLOOR_MARGIN, None)
     assert CutSurfaces() == CutSurfaces(shade=True, color=None, dilation=True, outlines=True)
     assert GhostLines() == GhostLines(source="lines", distance=None, fade=True, crease_angle=30.0)
+
+
+def test_every_entry_floods_with_the_papers_schedule_by_default():
+    """The paper's jump flooding (Rong & Tan, log n passes: ``"jfa"``) is the default of the
+    option value, of ``cutaway_surface`` and of a golden package that stores no variant (the
+    GL backend); ``"jfa+1"`` is a named option."""
+    import inspect
+
+    from refraster.cutaway import cutaway_surface
+    from refraster.cutaway.render import DEFAULT_CUTAWAY
+    from refraster.gl.cutaway import options
+
+    assert DEFAULT_CUTAWAY.variant == "jfa"
+    assert inspect.signature(cutaway_surface).parameters["variant"].default == "jfa"
+    package = {"draws": [{"name": "a"}, {"name": "b"}],
+               "parameters": {"angle": 0.5, "interest": ["a"], "secondary": ["b"]}}
+    assert options(package)[0]["variant"] == "jfa"
+    assert Cutaway(variant="jfa+1").variant == "jfa+1"
 
 
 def test_values_are_immutable_normalized_and_compare():

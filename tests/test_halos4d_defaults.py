@@ -45,7 +45,7 @@ def test_default_delta_d_meets_the_quantile_rule():
     geo, rho = hr.prepare(s, view=FIG1_VIEW)
     d = geo.attributes[:len(geo.points), 0]
     rho2, dd, n = ht.default_halo_parameters(geo.points, d, geo.spatial, geo.faces, 0.3)
-    assert rho2 == rho == pytest.approx(0.02 * np.linalg.norm(np.ptp(geo.points, axis=0)))
+    assert rho2 == rho == pytest.approx(ht.RHO_FRACTION * np.linalg.norm(np.ptp(geo.points, axis=0)))
     # the crossings of Fig. 1 are the five strips at Δw = 0.1 … 0.5: those are the samples
     diffs = ht.crossing_depth_differences(geo.points, d, geo.spatial, geo.faces,
                                           ht.pair_radius(geo.points, geo.faces, rho))

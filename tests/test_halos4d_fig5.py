@@ -76,22 +76,29 @@ def test_arc_crossings_of_the_plain_spun_view_are_the_diagram():
     np.testing.assert_allclose(np.abs(c[:, 4] - c[:, 5]), 2.0, atol=0.05)
 
 
-def crossings_shown(view, surface, halos, n_phi=24):
+def crossings_shown(view, surface, halos, n_phi=24, threshold=g.CHANGE_THRESHOLD,
+                    visible_too=False):
     """For each of the three crossings: the φ (of n_phi) at which it is visible and the halos
-    change a pixel within 1.5ρ of it. None when no meridian maps to a three-crossing diagram."""
-    rotation, rho = view.rotation, halos.rho
+    change a pixel (by more than ``threshold``) within 1.5ρ of it. None when no meridian maps
+    to a three-crossing diagram. ``visible_too``: also, for each crossing, the share of the
+    pixels within 1.5ρ of its image that change, at each φ at which it is visible."""
+    rotation = view.rotation
     common = dict(view=view, width=SIZE, height=SIZE, slices=SLICES)
     on = h.render_halos(surface, halos=halos, **common)
     off = h.render_halos(surface, halos=halos.replace(enabled=False), volume=True, **common)
+    rho = on.stats["rho"]
     covered = (on.alpha > g.COVER_THRESHOLD) | (off.alpha > g.COVER_THRESHOLD)
-    changed = (np.abs(on.image - off.image).max(axis=2) > g.CHANGE_THRESHOLD) & covered
+    changed = (np.abs(on.image - off.image).max(axis=2) > threshold) & covered
     b = off.bounds
     px = SIZE / (b[1, 0] - b[0, 0])                       # pixels per screen unit
     dz = (b[1, 2] - b[0, 2]) / SLICES
     near = np.where((off.volume == 1).any(axis=0),
                     SLICES - 1 - np.argmax((off.volume == 1)[::-1], axis=0), -1)
     dist = ndimage.distance_transform_edt(~changed)
+    yy, xx = np.mgrid[0:SIZE, 0:SIZE]
     shown = [[], [], []]
+    seen = [[], [], []]
+    share = [[], [], []]
     diagrams = 0
     for phi, c in diagram_meridians(rotation, n_phi):
         diagrams += 1
@@ -102,8 +109,14 @@ def crossings_shown(view, surface, halos, n_phi=24):
             if not (0 <= row[m] < SIZE and 0 <= col[m] < SIZE):
                 continue
             visible = near[row[m], col[m]] <= k[m] + 2 * rho / dz
+            if visible:
+                seen[m].append(round(float(phi), 3))
+                disc = (xx - col[m]) ** 2 + (yy - row[m]) ** 2 <= (1.5 * rho * px) ** 2
+                share[m].append(float(changed[disc].mean()))
             if visible and dist[row[m], col[m]] <= 1.5 * rho * px:
                 shown[m].append(round(float(phi), 3))
+    if visible_too:
+        return (shown, seen, share) if diagrams else (None, None, None)
     return shown if diagrams else None
 
 
@@ -114,11 +127,54 @@ def figure(name):
 
 
 def test_fig5d_view_shows_two_crossings_carved_and_hides_the_third():
-    fig = figure("fig5ad")       # the pure halos: its dark gaps (boundaries) not drawn
+    fig = figure("fig5ad")
     shown = crossings_shown(fig.view, fig.surface, fig.halos)
     assert shown is not None
     n = [len(s) for s in shown]
     assert n[0] >= 6 and n[1] >= 4 and n[2] == 0, n
+
+
+#: a halo gap: the halos change some channel by more than this (the "strongly changed" of
+#: docs/halos4d.md) ...
+GAP_CHANGE = 40.0 / 255.0
+#: ... on at least this share of the pixels within 1.5ρ of a crossing's image (median over
+#: the meridians at which the crossing is visible)
+GAP_SHARE = 0.1
+
+
+def test_fig5d_opaque_defaults_gap_at_every_crossing_not_hidden():
+    """Fig. 5(d) as the paper draws it (issue 46 item 3): the closed spun sphere, opaque, the
+    documented defaults. The crossings come from the geometry (the meridians' diagrams,
+    :func:`diagram_meridians`); at every (crossing, meridian) that no surface hides in 3D
+    (halos-off volume) the halos change pixels within 1.5ρ of its image by > 40/255, and for
+    each crossing the median share of such pixels in that disc is ≥ GAP_SHARE: a gap, not a
+    few pixels where the sheets meet. Measured (128², 48 slices): visible at 13, 8, 0
+    meridians, changed at all of them, median shares 0.26 and 0.22 (the planted δd = 10⁶:
+    0.041 and 0.039)."""
+    fig = figure("fig5ad")
+    assert fig.halos == h.Halos() and fig.style == h.HaloStyle()
+    shown, seen, share = crossings_shown(fig.view, fig.surface, fig.halos,
+                                         threshold=GAP_CHANGE, visible_too=True)
+    assert seen is not None
+    assert sum(len(s) > 0 for s in seen) >= 2 and sum(len(s) for s in seen) >= 12, seen
+    assert shown == seen, (shown, seen)
+    medians = [np.median(s) for s in share if s]
+    assert min(medians) >= GAP_SHARE, medians
+
+
+@pytest.mark.parametrize("fault", ["halos_off", "no_drop_off"])
+def test_planted_faults_fail_the_opaque_gap_check(fault):
+    """Both directions: without halos, or without Eq. 3's drop-off (δd = 10⁶: a sheet is cut
+    only inside the nearer sheet's own drawn core, |2t − 1| < δt = w_s), some crossing that
+    is not hidden shows no gap."""
+    fig = figure("fig5ad")
+    halos = {"halos_off": fig.halos.replace(enabled=False),
+             "no_drop_off": fig.halos.replace(delta_d=1e6)}[fault]
+    shown, seen, share = crossings_shown(fig.view, fig.surface, halos, threshold=GAP_CHANGE,
+                                         visible_too=True)
+    assert sum(len(s) for s in seen) > 0
+    medians = [np.median(s) for s in share if s]
+    assert shown != seen or min(medians) < GAP_SHARE, (shown, seen, medians)
 
 
 @pytest.mark.parametrize("fault", ["halos_off", "no_diagram"])

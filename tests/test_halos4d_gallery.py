@@ -30,7 +30,8 @@ def test_every_figure_is_rendered_with_its_twin(tmp_path):
     m = {}
     items = g.render(tmp_path, quick=True, measurements=m)
     names = [f[0] for f in g.figures(quick=True)]
-    assert names == ["fig1a", "fig1bc", "fig3e", "fig5ad", "fig5d_open", "fig5d_translucent",
+    assert names == ["fig1a", "fig1bc", "fig3e", "fig5ad", "fig5d_dark", "fig5d_open",
+                     "fig5d_translucent",
                      "fig5d_diagram",
                      "fig5b", "fig6a",
                      "fig6b", "fig7", "fig8"]
@@ -43,11 +44,11 @@ def test_every_figure_is_rendered_with_its_twin(tmp_path):
 
 
 def test_fig5d_gaps_are_drawn_dark_and_pure_halos_show_none():
-    """Fig. 5(d) (issue 21): with the gaps drawn dark, a good share of the pixels the halos
+    """Fig. 5(d) with dark gaps (`fig5d_dark`, issue 21): with the gaps drawn dark, a good share of the pixels the halos
     change are near-black (the knot diagram's breaks); with the pure halos (the planted
     "wrong" picture, as before) the same gaps only shift the shade and none is dark."""
     import refraster.halos4d as h
-    (fig,) = [f for f in g.figures(quick=True) if f.name == "fig5ad"]
+    (fig,) = [f for f in g.figures(quick=True) if f.name == "fig5d_dark"]
     assert fig.style.boundary_color == g.GAP_DARK and fig.halos.rho == g.KNOT_RHO
     kw = dict(width=128, height=128, slices=48, view=fig.view)
     off = h.render_halos(fig.surface, halos=fig.halos.replace(enabled=False), **kw)

@@ -65,8 +65,10 @@ class Cutaway(_Value):
         cutaway object (the ``interest`` meshes followed by the ``stand_ins``; local angles,
         Sec. 5.3). Default π/6. Kept as a float or a tuple of floats.
     variant : {"jfa", "jfa+1", "jfa+2", "1+jfa", "exact"}
-        How D is computed (:func:`refraster.cutaway.jump_flood`); default ``"jfa+1"`` (plain
-        jump flooding, the paper's, plus one k = 1 pass: MATH.md D-C5).
+        How D is computed (:func:`refraster.cutaway.jump_flood`); default ``"jfa"``, the
+        paper's: Rong & Tan's jump flooding, log n passes k = n/2, …, 1 (Sec. 5.1).
+        ``"jfa+1"`` (ours) appends one k = 1 pass, which repairs most of the pixels where plain
+        jump flooding loses the best seed (MATH.md D-C5; docs/cutaway.md, "Variants").
     perspective_compensation : bool
         Eq. 3 as corrected (D-C4), the paper's choice (default True); False: the basic surface
         of Sec. 3.2, a cone in NDC.
@@ -91,7 +93,7 @@ class Cutaway(_Value):
     """
 
     angle: float | tuple = math.pi / 6
-    variant: str = "jfa+1"
+    variant: str = "jfa"
     perspective_compensation: bool = True
     edge_compression: float | None = 0.1
     floor_normal: tuple | None = None

@@ -169,7 +169,7 @@ def as_angles(angle, name="angle"):
 
 
 def cutaway_surface(rear_depth, object_id, *, proj, view=None, angle=np.pi / 6,
-                    variant="jfa+1", perspective_compensation=True, edge_compression=0.1,
+                    variant="jfa", perspective_compensation=True, edge_compression=0.1,
                     floor_normal=None, floor_margin=FLOOR_MARGIN, return_seeds=False):
     """The cutaway depth image D (NDC depth) from the rear hulls of the objects of interest.
 
@@ -188,7 +188,8 @@ def cutaway_surface(rear_depth, object_id, *, proj, view=None, angle=np.pi / 6,
         Cutaway half-angle θ to the view vector, radians in (0, π/2); one per object id for
         local angles (Sec. 5.3).
     variant : {"jfa", "jfa+1", "jfa+2", "1+jfa", "exact"}
-        Jump-flood schedule (:func:`refraster.cutaway.jump_flood`) or brute force.
+        Jump-flood schedule (:func:`refraster.cutaway.jump_flood`) or brute force; default
+        ``"jfa"``, the paper's (as :class:`refraster.cutaway.Cutaway`).
     perspective_compensation, edge_compression, floor_normal, floor_margin
         See :func:`seed_slopes`.
     return_seeds : bool

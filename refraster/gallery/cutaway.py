@@ -190,20 +190,32 @@ def _radiators(out, s):
     return items
 
 
-def _galleon(out, s, quick):
+#: The galleon's three cameras (eye positions, looking at the origin).
+GALLEON_EYES = ((3.0, 2.0, 6.0), (-2.0, 1.2, 6.0), (0.5, 0.6, 3.5))
+
+
+def galleon_frames(s, quick, *, deck=True):
+    """The galleon's three cutaway framebuffers (``s`` × 3s/4 each): the cannons as objects of
+    interest; the hull and, with ``deck``, the gun deck as secondary objects."""
     hull = _scaled(nested_shells((1.0, 0.93), subdivisions=2 if quick else 3), (4.0, 1.0, 1.2))
     cannons = [_cylinder((x, y, z), 0.09, 0.7, axis=2)
                for x in np.linspace(-2.4, 2.4, 4 if quick else 6)
                for y, z in ((-0.25, 0.45), (0.3, 0.4))]
-    frames = []
-    for eye in ((3.0, 2.0, 6.0), (-2.0, 1.2, 6.0), (0.5, 0.6, 3.5)):
-        cam = _camera(eye, (0, 0, 0), s, (3 * s) // 4)
-        frames.append(render_cutaway(cannons, hull, **cam, cutaway=Cutaway(angle=0.45),
-                                     ghosts=GhostLines(distance=0.5)).image)
-    write_png(out / "cutaway_galleon.png", _panels(frames))
+    # the gun deck under the upper row, inside the inner hull: its box edges are creases, so
+    # its removed front edge comes back as ghost lines (the smooth hull has none to give)
+    secondary = [hull, _box((-2.65, 0.16, -0.7), (2.65, 0.21, 0.7))] if deck else [hull]
+    return [render_cutaway(cannons, secondary, **_camera(eye, (0, 0, 0), s, (3 * s) // 4),
+                           cutaway=Cutaway(angle=0.45), ghosts=GhostLines(distance=1.0))
+            for eye in GALLEON_EYES]
+
+
+def _galleon(out, s, quick):
+    write_png(out / "cutaway_galleon.png", _panels([fb.image for fb in galleon_frames(s, quick)]))
     return Item(SECTION, "cutaway_galleon.png",
-                "A hull cut away to reveal rows of cannons (Fig. 1), from three cameras; the "
-                "cutaway follows the view.")
+                "A hull and its gun deck cut away to reveal two rows of cannons (Fig. 1), from "
+                "three cameras; the cutaway follows the view. Ghost lines (g_max = 1, faded) "
+                "show the removed front edge of the deck; the hull itself gives none: a smooth "
+                "ellipsoid has no creases, and its silhouettes are not removed.")
 
 
 def _office(out, s):

@@ -140,9 +140,14 @@ def figures(quick=False):
                "the halo volumes drawn grey (halo_opacity = 0.35)", View4D(rotation=v["fig3"]),
                plain, HaloStyle(halo_opacity=0.35), False),
         Figure("fig5ad", spun, f"Fig. 5(a) the spun trefoil ({spun.n_faces} triangles), "
-               "traditional rendering | Fig. 5(d) with volumetric halos (ρ = 0.6), the carved "
-               "gaps drawn dark (the halo-boundary option of Fig. 8, b = 0.95): the sheet "
-               "farther in 4D breaks where it crosses the nearer one, as in a knot diagram",
+               "traditional rendering | Fig. 5(d) with volumetric halos, opaque, the defaults: "
+               "where the sheet farther in 4D passes behind the nearer one it is cut back, at "
+               "the ring around the inner disc and along the equator (the two crossings of the "
+               "knot's diagram that the view from above does not hide), as in a knot diagram",
+               View4D(rotation=v["knot"]), plain, HaloStyle(), False),
+        Figure("fig5d_dark", spun, "Fig. 5(d) with the carved gaps drawn dark (not in the "
+               "paper: the halo-boundary option of Fig. 8, b = 0.95, in near-black; ρ = 0.6): "
+               "the sheet farther in 4D breaks where it crosses the nearer one",
                View4D(rotation=v["knot"]), knot, HaloStyle(**gaps), False),
         Figure("fig5d_open", spun_open, "Fig. 5(d), the sphere cut open (φ ∈ [0, π], not in "
                "the paper; ρ = 0.6): inside, the halos cut the sheet that is farther in 4D where "

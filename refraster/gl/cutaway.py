@@ -66,7 +66,7 @@ def options(scene):
     if not isinstance(p, dict):
         raise PackageError("parameters must be an object")
     opt = {}
-    variant = p.get("variant", "jfa+1")
+    variant = p.get("variant", "jfa")      # Cutaway().variant: the paper's schedule
     if variant not in VARIANTS:
         return None, (f"cutaway variant {variant!r}: only the jump-flooding schedules "
                       f"{list(VARIANTS)} are implemented")

@@ -137,8 +137,11 @@ def read_scene(package_dir):
         for i, d in enumerate(scene["draws"]):
             matrix(d["model"], f"{path}: draws[{i}].model")
             _inside(package_dir, d["mesh"], f"{path}: draws[{i}].mesh")
-            if not isinstance(d["object_id"], int):
-                raise PackageError(f"{path}: draws[{i}].object_id must be an integer")
+            oid = d["object_id"]
+            if not isinstance(oid, int) or isinstance(oid, bool) or not 0 <= oid <= 2 ** 31 - 2:
+                raise PackageError(f"{path}: draws[{i}].object_id must be an integer in "
+                                   f"0..2147483646 (the id buffers are int32), got "
+                                   f"{str(oid)[:40]}")
         sh = scene["shading"]
         for key in ("ambient", "diffuse", "specular", "shininess"):
             if not isinstance(sh[key], (int, float)) or not math.isfinite(sh[key]):

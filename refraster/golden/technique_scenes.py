@@ -305,7 +305,9 @@ def _ldi_nested_shells():
 def _cutaway_shells():
     # θ = 1 rad: wide enough that the cut removes the inner shells' silhouettes, so the ghost
     # buffer is not empty (issue 23); the flooding variants a backend may use: the scene's own,
-    # the exact maximum and the schedules at least as good (docs/tolerance.md, "Cutaways")
+    # the exact maximum and the schedules at least as good (docs/tolerance.md, "Cutaways").
+    # "jfa+1" is stored explicitly (the default until issue 46), so the package is unchanged;
+    # the paper's "jfa", Cutaway's default, is cutaway_shells_jfa
     return _cutaway_variant_scene("jfa+1")
 
 
@@ -328,6 +330,7 @@ HALO_FIELDS = {
     "halos": ("halos", "enabled"), "rho": ("halos", "rho"), "delta_d": ("halos", "delta_d"),
     "delta_t": ("halos", "delta_t"), "surface_width": ("halos", "surface_width"),
     "antialias": ("halos", "antialias"), "depth_eps": ("halos", "depth_eps"),
+    "split": ("halos", "split"),
     "opacity": ("style", "opacity"), "ambient": ("style", "ambient"),
     "halo_color": ("style", "halo_color"), "halo_opacity": ("style", "halo_opacity"),
     "boundary_color": ("style", "boundary_color"),
@@ -365,11 +368,12 @@ def _halos4d_patches(projection):
     rot = compose(("zx", 0.5), ("yz", -1.0))
     params = dict(rotation=rot.tolist(), projection=projection, slices=48, delta_t=0.3,
                   surface_width=0.3, opacity=0.9, halos=True, margin=0.05, width=128,
-                  height=128, background=[0.0, 0.0, 0.0])
+                  height=128, background=[0.0, 0.0, 0.0], split="paper")
     out = render_halos(surface, **halo_options(params), volume=True)
     params["rho"] = float(out.stats["rho"])
     # the defaults the reference derived (issue 21), so a backend can use the same values
-    params.update(delta_d=float(out.stats["delta_d"]), antialias=0.3, halo_opacity=0.0)
+    params.update(delta_d=float(out.stats["delta_d"]), antialias=float(out.stats["antialias"]),
+                  halo_opacity=0.0)
     params["screen_bounds"] = np.asarray(out.bounds).tolist()
     # per pixel, the halo class of its column: 2 if a halo carved some surface voxel, else 1 if a
     # surface voxel is drawn, else 3 if only halo voxels, else 0 (empty)
@@ -736,8 +740,18 @@ def _cutaway_shells_1jfa():
                             "δ = 2°; on the floor side the cut's angle is clamped to φ − δ "
                             "(φ: the view vector's elevation above the floor).")
 def _cutaway_floor():
+    # "jfa+1" stored explicitly, as cutaway_shells; the paper's "jfa" is cutaway_floor_jfa
     return _cutaway_variant_scene("jfa+1", dict(floor_normal=[0.0, 1.0, 0.0],
                                                 floor_margin=float(np.radians(2.0))))
+
+
+@register_scene("cutaway_floor_jfa", technique="cutaway",
+                description="cutaway_floor with the paper's jump flooding, variant 'jfa' "
+                            "(Rong & Tan, log n passes; the default of Cutaway): the directional "
+                            "floor constraint, floor normal +y, δ = 2°.")
+def _cutaway_floor_jfa():
+    return _cutaway_variant_scene("jfa", dict(floor_normal=[0.0, 1.0, 0.0],
+                                              floor_margin=float(np.radians(2.0))))
 
 
 @register_scene("halos4d_perspective", technique="halos4d",

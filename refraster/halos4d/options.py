@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._validate import as_choice, as_float_array, as_matrix, as_real
+from .thicken import SPLITS
 from .transforms import PROJECTIONS
 
 __all__ = ["View4D", "Halos", "HaloStyle", "AMBIENT", "STEREO_ANGLE"]
@@ -124,26 +125,42 @@ class Halos(_Value):
         halo carving, only surface fragments take part in the 4D depth test (Fig. 1(b)); the
         surface is still thickened by ρ and drawn where |2t − 1| < w_s.
     rho : float > 0 or None
-        Halo radius ρ (Eq. 2) in screen units; None (default): 2 % of the projected bounding-box
-        diagonal (``thicken.RHO_FRACTION``) [guess: the paper gives no value].
+        Halo radius ρ (Eq. 2) in screen units; None (default): 3 % of the projected bounding-box
+        diagonal (``thicken.RHO_FRACTION``) [guess: the paper gives no value; docs/halos4d.md,
+        "Defaults"].
     delta_d : float ≥ 0 or None
         δd of Eq. 3 (4D-depth increase across the half-thickness); None (default):
         :func:`refraster.halos4d.default_halo_parameters`: ``(1 − δt)·δd`` = the 95th percentile
         of the 4D-depth differences of sheets that overlap in projection, so that Eq. 3 stays
         depth-dependent (``stats["crossing_pairs"]`` says how many differences were used).
     delta_t : float in [0, 1]
-        δt of Eq. 3 (the core |2t − 1| < δt keeps the surface's own 4D depth); default 0.3.
+        δt of Eq. 3 (the core |2t − 1| < δt keeps the surface's own 4D depth); default 0.3,
+        equal to the default w_s: the constant-depth middle region is the drawn surface, and
+        the halo's depth drops off from where the surface ends.
     surface_width : float in (0, 1]
         w_s: a fragment is a surface fragment when |2t − 1| < w_s (the paper's "proximity of t
         to 0.5"), otherwise halo; default 0.3.
     antialias : float in [0, surface_width] or None
-        a (None, the default: w_s): the surface anti-aliased from t (Sec. 4.6): a surface
-        fragment covers c = ``clamp((w_s + a − |2t − 1|)/(2a), 0, 1)`` of its voxel's thickness,
-        so its opacity is ``1 − (1 − α)^c`` instead of the hard threshold ``|2t − 1| < w_s``; the
-        mean thickness, and so the accumulated opacity, is unchanged. 0: the hard threshold.
+        a: the surface anti-aliased from t (Sec. 4.6): a surface fragment covers
+        c = ``clamp((w_s + a − |2t − 1|)/(2a), 0, 1)`` of its voxel's thickness, so its opacity
+        is ``1 − (1 − α)^c`` instead of the hard threshold ``|2t − 1| < w_s``; the mean
+        thickness, and so the accumulated opacity, is unchanged. 0: the hard threshold.
+        None (default): a ramp one pixel wide across a sheet seen edge-on,
+        ``a = min(w_s, 0.5·pixel/ρ)`` (:func:`refraster.halos4d.render.default_antialias`):
+        the drawn surface reaches at most half a pixel past ``w_s·ρ``, so the ramp never
+        covers a halo gap wider than one pixel (a = w_s, the former default, covered gaps up
+        to 0.3ρ, several pixels).
     depth_eps : float ≥ 0 or None
         ε of the occlusion rule δ ≤ minD + ε (MATH.md §5.4 [guess]); None (default):
         1e-6·max|δ|, above the rounding of float32 barycentrics, which do not sum to exactly 1.
+    split : {"paper", "global_index"}
+        How the prisms become tetrahedra (Sec. 4.4, 5.1; MATH.md §5.5;
+        :func:`refraster.halos4d.thicken.split_prisms`). ``"paper"`` (default): each prism in
+        its face's vertex order, then the paper's repair of mismatched shared faces (a diagonal
+        flip, Fig. 4(b); two inserted vertices and three smaller prisms where a prism's sides
+        end cyclic, Fig. 4(d)). ``"global_index"``: the global vertex-index rule (Dompierre et
+        al.), conforming by construction, no inserted vertex; the output of the releases
+        before issue 46.
     """
 
     enabled: bool = True
@@ -153,6 +170,7 @@ class Halos(_Value):
     surface_width: float = 0.3
     antialias: float | None = None
     depth_eps: float | None = None
+    split: str = "paper"
 
     def __post_init__(self):
         put = object.__setattr__.__get__(self)
@@ -169,6 +187,7 @@ class Halos(_Value):
                                      hi=self.surface_width))
         if self.depth_eps is not None:
             put("depth_eps", as_real(self.depth_eps, "halos.depth_eps", lo=0.0))
+        put("split", as_choice(self.split, "halos.split", SPLITS))
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,8 @@
 Pipeline (one frame)::
 
     4D surface ─rotation─► projection (3D screen space, 4D depth δ, projected tangents)
-      ─► thickening v ± ρ n̂ (t = 0 / 1) ─► prisms → 3 tetrahedra each (global-index rule)
+      ─► thickening v ± ρ n̂ (t = 0 / 1) ─► prisms → tetrahedra (``Halos.split``: the paper's
+         decomposition and mismatch repair, or the global-index rule)
       ─► orthographic camera over the xy bounds ─► N slices z = c_k (back to front)
       ─► per slice: cross-section triangles rasterized (llvmpipe fill rule, 1/256 px snapping);
          per fragment t, δ and colour interpolated, Eq. 3 ``d_new = δ + max(0, |2t−1| − δt)·δd``
@@ -33,7 +34,11 @@ buffer differs.
 
 from __future__ import annotations
 
+import collections
+import hashlib
 import math
+import sys
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,8 +49,8 @@ from .._validate import as_choice, as_float_array, as_image_size, as_real
 from ..raster.rasterizer import _inv_float_area, lambdas, row_span
 from .slicing import MAX_SLICES, SUBPIXEL_BITS, _slice, ortho_ndc, setup_window
 from .surfaces import Surface4D
-from .thicken import (RHO_FRACTION, default_halo_parameters, prism_tetrahedra, thicken,
-                      thickening_normals)
+from .thicken import (RHO_FRACTION, default_halo_parameters, split_prisms, steiner_values,
+                      thicken, thickening_normals)
 from .options import AMBIENT, Halos, HaloStyle, View4D, as_option
 from .transforms import project, rotate_3d
 
@@ -63,7 +68,8 @@ BAND_ROWS = 8
 class HaloGeometry:
     """Thickened, tetrahedralized surface in 3D screen space (one view).
 
-    ``vertices (2V, 3)``, ``tets (3F, 4)``, ``attributes (2V, 5)`` = (4D depth δ, t, r, g, b),
+    ``vertices (2V + 2K, 3)``, ``tets (T, 4)``, ``attributes (2V + 2K, 5)`` = (4D depth δ, t,
+    r, g, b), the K vertices inserted by the paper's split last (:func:`split_prisms`),
     ``n_fallback`` vertices that used the normal fallback, ``n_degenerate`` faces skipped;
     ``points (V, 3)`` the projected surface, ``spatial (V, 3)`` the rotated 4D xyz, ``faces``
     the non-degenerate faces (for the default δd).
@@ -108,11 +114,23 @@ def slice_alpha(opacity, spacing, rho, surface_width):
     return float(1.0 - (1.0 - opacity) ** (spacing / (2.0 * surface_width * rho)))
 
 
-def prepare(surface, *, view=None, rho=None, ambient=AMBIENT):
-    """Project, thicken and tetrahedralize ``surface`` (Sec. 4.2–4.4). Returns
+#: The default anti-aliasing ramp is this many pixels wide (Sec. 4.6: "a slice image with
+#: anti-aliasing"): half a pixel inside the surface's edge |2t − 1| = w_s, half outside.
+ANTIALIAS_PIXELS = 1.0
+
+
+def default_antialias(pixel, rho, surface_width):
+    """The default ramp ``a`` of :class:`Halos`: ``2·a·ρ`` = :data:`ANTIALIAS_PIXELS` pixels
+    of width ``pixel`` (screen units) across a sheet seen edge-on, at most ``w_s``."""
+    return float(min(surface_width, 0.5 * ANTIALIAS_PIXELS * pixel / rho))
+
+
+def prepare(surface, *, view=None, rho=None, ambient=AMBIENT, split="paper"):
+    """Project, thicken and tetrahedralize ``surface`` (Sec. 4.2–4.4, 5.1). Returns
     ``(HaloGeometry, rho)``; ``view`` a :class:`View4D` (its rotation, projection, eye and scale;
-    None: ``View4D()``); ``rho=None`` picks RHO_FRACTION (2 %) of the projected bounding-box
-    diagonal; ``ambient`` is the ambient part of the headlight shading."""
+    None: ``View4D()``); ``rho=None`` picks RHO_FRACTION (3 %) of the projected bounding-box
+    diagonal; ``ambient`` is the ambient part of the headlight shading; ``split`` the prism
+    split (``Halos.split``)."""
     view = DEFAULT_VIEW if view is None else as_option(view, View4D, "view")
     rotation = None if view.rotation is None else np.array(view.rotation, np.float64)
     if not isinstance(surface, Surface4D):
@@ -135,7 +153,10 @@ def prepare(surface, *, view=None, rho=None, ambient=AMBIENT):
     n = surface.n_vertices
     attr = np.column_stack([np.concatenate([pr.depth, pr.depth]), t,
                             np.concatenate([rgb, rgb])])
-    tets = prism_tetrahedra(f, n)
+    ps = split_prisms(f, n, split)
+    verts = steiner_values(verts, ps.steiner, n)
+    attr = steiner_values(attr, ps.steiner, n)
+    tets = ps.tets
     spatial = surface.vertices if rotation is None else surface.vertices @ np.asarray(
         rotation, np.float64).T
     return HaloGeometry(verts, tets, attr, n_fb, int(degenerate.sum()), pr.points,
@@ -520,6 +541,40 @@ def _slices(value):
     return int(value)
 
 
+#: How many default δd estimates :func:`_default_delta_d` keeps (most recent first).
+DELTA_D_CACHE_SIZE = 16
+_delta_d_cache = collections.OrderedDict()
+_delta_d_lock = threading.Lock()
+
+
+def _default_delta_d(points, depth, spatial, faces, delta_t, rho):
+    """``(δd, crossing pairs)`` of :func:`default_halo_parameters`, memoized on a digest of
+    its inputs (the projected points, 4D depths, rotated xyz, faces, δt and ρ): a surface seen
+    again under the same rotation and projection does not pay the pair search again, and any
+    change of the inputs (or of the module constants it reads) is a new entry, so the result
+    is the function's, bit for bit."""
+    h = hashlib.blake2b(digest_size=20)
+    for a in (points, depth, spatial, faces):
+        a = np.ascontiguousarray(a)
+        h.update(str((a.dtype.str, a.shape)).encode())
+        h.update(a.data)
+    tk = sys.modules[__package__ + ".thicken"]
+    h.update(np.array([delta_t, rho, tk.DEPTH_QUANTILE, tk.OVERLAP_SLOPE, tk.MAX_PAIRS],
+                      np.float64).tobytes())
+    key = (h.digest(), id(default_halo_parameters))
+    with _delta_d_lock:
+        hit = _delta_d_cache.get(key)
+        if hit is not None:
+            _delta_d_cache.move_to_end(key)
+            return hit
+    _, delta_d, n_pairs = default_halo_parameters(points, depth, spatial, faces, delta_t, rho)
+    with _delta_d_lock:
+        _delta_d_cache[key] = (delta_d, n_pairs)
+        while len(_delta_d_cache) > DELTA_D_CACHE_SIZE:
+            _delta_d_cache.popitem(last=False)
+    return delta_d, n_pairs
+
+
 #: The defaults of :func:`render_halos`' option values.
 DEFAULT_VIEW = View4D()
 DEFAULT_HALOS = Halos()
@@ -564,7 +619,8 @@ def render_halos(surface, *, view=DEFAULT_VIEW, width=512, height=512, slices=25
     -----
     Eq. 1 is normalized and guarded (MATH.md §5.3 [fix]); Eq. 3 is evaluated per fragment
     (§5.4); the occlusion rule "surface voxel drawn iff δ ≤ minD + ε" is MATH.md §5.4 [guess];
-    prisms are split by the global-index rule (§5.5); slicing follows §5.6.
+    prisms are split as ``halos.split`` says (the paper's repair by default, §5.5); slicing
+    follows §5.6.
 
     Examples
     --------
@@ -612,17 +668,17 @@ def _render(surface, view, width, height, slices, halos, style, background, volu
     if n * width * height > (1 << 31) and volume:
         raise ValueError(f"volume of {n}×{height}×{width} voxels is too large")
     delta_t, surface_width = halos.delta_t, halos.surface_width
-    antialias = surface_width if halos.antialias is None else halos.antialias
     halo_rgb = np.array(style.halo_color, np.float64)
     boundary = style.boundary_color is not None
     boundary_rgb = np.zeros(3) if not boundary else np.array(style.boundary_color, np.float64)
-    geo, rho = prepare(surface, view=view, rho=halos.rho, ambient=style.ambient)
+    geo, rho = prepare(surface, view=view, rho=halos.rho, ambient=style.ambient,
+                       split=halos.split)
     depth = geo.attributes[:, 0]
     n_pairs = None
     delta_d = halos.delta_d
     if delta_d is None:
-        _, delta_d, n_pairs = default_halo_parameters(
-            geo.points, depth[:len(geo.points)], geo.spatial, geo.faces, delta_t, rho)
+        delta_d, n_pairs = _default_delta_d(geo.points, depth[:len(geo.points)], geo.spatial,
+                                            geo.faces, delta_t, rho)
     delta_d = as_real(delta_d, "delta_d", lo=0.0)
     # float32 barycentrics do not sum to exactly 1: a constant δ interpolates to δ·(1 ± 2e-7)
     eps = (1e-6 * float(np.abs(depth).max()) if halos.depth_eps is None else halos.depth_eps)
@@ -636,6 +692,8 @@ def _render(surface, view, width, height, slices, halos, style, background, volu
     dz = (bounds[1, 2] - bounds[0, 2]) / n
     centres = bounds[0, 2] + (np.arange(n) + 0.5) * dz
     alpha = slice_alpha(style.opacity, dz, rho, surface_width)
+    antialias = (default_antialias((bounds[1, 0] - bounds[0, 0]) / width, rho, surface_width)
+                 if halos.antialias is None else halos.antialias)
     on = halos.enabled
     # the halo shell lies outside the surface's core and its anti-aliasing fringe
     halo_alpha = (slice_alpha(style.halo_opacity, dz, rho,
@@ -645,7 +703,8 @@ def _render(surface, view, width, height, slices, halos, style, background, volu
               halo_rgb, bool(boundary and on), style.boundary_width, boundary_rgb)
     stats = {"tetrahedra": int(len(geo.tets)), "normal_fallbacks": geo.n_fallback,
              "degenerate_faces": geo.n_degenerate, "rho": rho, "delta_d": delta_d,
-             "slice_alpha": alpha, "crossing_pairs": n_pairs, "halo_slice_alpha": halo_alpha}
+             "slice_alpha": alpha, "crossing_pairs": n_pairs, "halo_slice_alpha": halo_alpha,
+             "antialias": antialias}
     if not pair:
         return _draw(geo, views, bounds, centres, width, height, [params], engine, volume, bg,
                      stats)[0]

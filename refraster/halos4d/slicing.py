@@ -281,40 +281,42 @@ def window_setup(ndc, width, height, bits, X, Y, XF, YF, order, bbox, valid):
     s = np.float32(1 << bits)
     one = np.int64(1) << bits
     for t in prange(ndc.shape[0]):
-        xs = np.zeros(3, np.int64)
-        ys = np.zeros(3, np.int64)
-        xf = np.zeros(3)
-        yf = np.zeros(3)
-        for v in range(3):
-            x = np.float32(ndc[t, v, 0])
-            y = np.float32(ndc[t, v, 1])
-            rw = np.float32(1.0) / np.float32(1.0)
-            xw = x * rw * hw + hw
-            yw = y * rw * hh + hh
-            xs[v] = np.int64(np.rint((xw - half) * s))
-            ys[v] = np.int64(np.rint((yw - half) * s))
-            xf[v] = xw
-            yf[v] = yw
-        a = (xs[1] - xs[0]) * (ys[2] - ys[0]) - (xs[2] - xs[0]) * (ys[1] - ys[0])
+        # the three vertices in scalars (no per-triangle arrays: issue 46)
+        x0, y0, xf0, yf0 = _window_vertex(ndc[t, 0, 0], ndc[t, 0, 1], hw, hh, half, s)
+        x1, y1, xf1, yf1 = _window_vertex(ndc[t, 1, 0], ndc[t, 1, 1], hw, hh, half, s)
+        x2, y2, xf2, yf2 = _window_vertex(ndc[t, 2, 0], ndc[t, 2, 1], hw, hh, half, s)
+        a = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
         if a == 0:
             valid[t] = False
             continue
-        for v in range(3):
-            src = v if a > 0 or v == 0 else 3 - v
-            X[t, v] = xs[src]
-            Y[t, v] = ys[src]
-            XF[t, v] = xf[src]
-            YF[t, v] = yf[src]
-            order[t, v] = src
-        xmin = min(xs[0], xs[1], xs[2])
-        xmax = max(xs[0], xs[1], xs[2])
-        ymin = min(ys[0], ys[1], ys[2])
-        ymax = max(ys[0], ys[1], ys[2])
+        X[t, 0], Y[t, 0], XF[t, 0], YF[t, 0], order[t, 0] = x0, y0, xf0, yf0, 0
+        if a > 0:
+            X[t, 1], Y[t, 1], XF[t, 1], YF[t, 1], order[t, 1] = x1, y1, xf1, yf1, 1
+            X[t, 2], Y[t, 2], XF[t, 2], YF[t, 2], order[t, 2] = x2, y2, xf2, yf2, 2
+        else:
+            X[t, 1], Y[t, 1], XF[t, 1], YF[t, 1], order[t, 1] = x2, y2, xf2, yf2, 2
+            X[t, 2], Y[t, 2], XF[t, 2], YF[t, 2], order[t, 2] = x1, y1, xf1, yf1, 1
+        xmin = min(x0, x1, x2)
+        xmax = max(x0, x1, x2)
+        ymin = min(y0, y1, y2)
+        ymax = max(y0, y1, y2)
         bbox[t, 0] = max((xmin + one - 1) >> bits, 0)
         bbox[t, 1] = min(xmax >> bits, width - 1)
         bbox[t, 2] = max((ymin + one - 1) >> bits, 0)
         bbox[t, 3] = min(ymax >> bits, height - 1)
         valid[t] = bbox[t, 0] <= bbox[t, 1] and bbox[t, 2] <= bbox[t, 3]
+
+
+@njit(**JIT)
+def _window_vertex(nx, ny, hw, hh, half, s):
+    """One vertex of :func:`window_setup`: snapped ``(X, Y)`` and float32 window ``(xf, yf)``."""
+    x = np.float32(nx)
+    y = np.float32(ny)
+    rw = np.float32(1.0) / np.float32(1.0)
+    xw = x * rw * hw + hw
+    yw = y * rw * hh + hh
+    return (np.int64(np.rint((xw - half) * s)), np.int64(np.rint((yw - half) * s)),
+            np.float64(xw), np.float64(yw))
 
 
 def setup_window(ndc, width, height, bits=SUBPIXEL_BITS):
