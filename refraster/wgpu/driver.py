@@ -28,6 +28,7 @@ Faults (:data:`refraster.wgpu.FAULTS`) are test-only; a normal run sets none.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -106,13 +107,18 @@ class Backend:
         Optional features to ask for (names of
         :data:`refraster.wgpu.device.OPTIONAL_FEATURES`); default: ``depth-clip-control``
         when the adapter offers it (scenes with ``depth_clamp`` are skipped without it).
+    threads : int, optional
+        ``LP_NUM_THREADS`` for Mesa's lavapipe; it must be set before the first device of the
+        process exists, so it is set only when the variable is not set already.
     """
 
-    def __init__(self, faults=(), features=None):
+    def __init__(self, faults=(), features=None, threads=None):
         unknown = [f for f in faults if f not in FAULTS]
         if unknown:
             raise ValueError(f"unknown fault(s) {unknown}; known: {sorted(FAULTS)}")
         self.faults = tuple(faults)
+        if threads is not None:
+            os.environ.setdefault("LP_NUM_THREADS", str(int(threads)))
         self.wgpu, self.adapter = adapter()
         if features is None:
             features = [f for f in ("depth-clip-control",) if f in self.adapter.features]
