@@ -96,6 +96,18 @@ def convention(scene):
     return out
 
 
+def _read_scene(package_dir):
+    """``scene.json`` through the package reader; a clockwise front face, which that reader
+    does not read yet, is :class:`Unsupported` (the scene is skipped with the reason)."""
+    try:
+        return read_scene(package_dir)
+    except PackageError as exc:
+        if "raster.front_face" in str(exc) and "'cw'" in str(exc):
+            raise Unsupported("raster.front_face 'cw': the package reader "
+                              "(refraster.gl.package) reads only 'ccw' scenes") from None
+        raise
+
+
 class Backend:
     """One WebGPU device (default limits) and the compiled pipelines.
 
@@ -130,7 +142,8 @@ class Backend:
         except Exception as exc:
             raise WGPUUnavailable(f"no WebGPU device with the default limits: {exc}") from None
         self.renderer = describe(self.adapter, self.wgpu)
-        self.module = self.device.create_shader_module(code=SHADER.read_text(encoding="utf-8"))
+        self.module_code = SHADER.read_text(encoding="utf-8")
+        self.module = self.device.create_shader_module(code=self.module_code)
         self._pipelines = {}
         self._layouts()
 
@@ -189,7 +202,7 @@ class Backend:
     def load(self, package_dir):
         """Read a scene package and upload its meshes → an opaque handle for :meth:`draw`."""
         package_dir = Path(package_dir)
-        scene = read_scene(package_dir)
+        scene = _read_scene(package_dir)
         reason = self.supports(scene)
         if reason is not None:
             raise Unsupported(reason)
