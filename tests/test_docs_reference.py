@@ -124,3 +124,27 @@ def test_the_checks_see_what_they_look_for():
         "```", "| not | a table |", "```",
     ])
     assert undated_tables(doc) == [16, 20]
+
+
+def _golden_scene_table():
+    import importlib.util
+    path = DOCS / "scripts" / "golden_scene_table.py"
+    spec = importlib.util.spec_from_file_location("golden_scene_table", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_golden_scene_table_is_the_registry():
+    """docs/golden.md lists exactly the registered golden scenes (issue 42: the list went stale)."""
+    mod = _golden_scene_table()
+    text = (DOCS / "golden.md").read_text(encoding="utf-8")
+    assert mod.replaced(text) == text, (
+        "docs/golden.md's scene table is stale: run python docs/scripts/golden_scene_table.py")
+
+
+def test_golden_scene_table_check_catches_a_missing_row():
+    mod = _golden_scene_table()
+    text = (DOCS / "golden.md").read_text(encoding="utf-8")
+    row = next(ln for ln in text.splitlines() if ln.startswith("| `render_cube`"))
+    assert mod.replaced(text.replace(row + "\n", "")) != text.replace(row + "\n", "")

@@ -23,7 +23,7 @@ import numpy as np
 from ..io.buffers import peak, png_decode  # noqa: F401  (old names importable from here)
 from ..io.errors import EXIT_FAIL, EXIT_PASS, EXIT_UNUSABLE, CandidateError, GoldenError
 from .domain import domain_checks
-from .metrics import (_elementwise_error, _offsets, buffer_metrics, local_variation,  # noqa: F401
+from .metrics import (_elementwise_error, _flip, _offsets, buffer_metrics, local_variation,  # noqa: F401
                       pixel_error, position_deviation)
 from ..io.read import (_check_candidate, _inside, _manifest_paths, load_candidate,  # noqa: F401
                    load_manifest)
@@ -93,6 +93,40 @@ class SceneResult:
     skipped: list = field(default_factory=list)
 
 
+def _unforgiven(b):
+    """(H, W) bool: the pixels of a buffer result outside its allowance, or None."""
+    over, forgiven = b.images.get("over"), b.images.get("forgiven")
+    if over is None or forgiven is None:
+        return None
+    return np.asarray(over, np.bool_) & ~np.asarray(forgiven, np.bool_)
+
+
+def _summary_line(b, tolerant):
+    """One buffer's summary line (see :meth:`Comparison.summary`)."""
+    m = b.metrics
+    head = f"  {b.name:<14} {'ok  ' if b.passed else 'FAIL'}"
+    err = b.images.get("error") if b.images else None
+    if math.isfinite(m["max_abs"]) or err is None:
+        head += f" max_abs={m['max_abs']:.3g} rmse={m['rmse']:.3g} psnr={m['psnr']:.1f}"
+    else:   # a pixel covered in one and background (±inf) in the other
+        e = np.asarray(err, np.float64)
+        finite = np.isfinite(e)
+        head += (f" max_abs={float(e[finite].max()) if finite.any() else 0.0:.3g} where both "
+                 f"cover, {int((~finite).sum())} px covered in one only")
+    flip = f" flip={m['flip_mean']:.4f}" if m.get("flip_mean") is not None else ""
+    n, px, bad = m["n_over"], m["pixels"], m["n_unforgiven"]
+    differ = (f" differing={n}/{px}" if tolerant else
+              f" differing_by_more_than_{m['threshold']:.3g}={n}/{px}")
+    if not b.passed:
+        return head + differ + f" outside={bad}" + flip
+    if n == 0:
+        return head + differ + flip
+    if tolerant or bad == 0:
+        return head + differ + " (all admitted by the allowance)" + flip
+    return (head + differ + f" (admitted: {n - bad} by position deviation, {bad} within "
+            f"max_fraction {b.tolerance.get('max_fraction', 0):.3g})" + flip)
+
+
 @dataclass
 class Comparison:
     golden_dir: Path
@@ -110,42 +144,69 @@ class Comparison:
         return EXIT_FAIL if "fail" in statuses else EXIT_PASS
 
     def failures(self):
-        """One line per failing check or unusable scene: ``scene/buffer: metric value op limit``."""
+        """One line per failing check or unusable scene: ``scene/buffer: metric value op limit``.
+
+        Ordered by cause within a scene: the id buffers first (a pixel whose ``prim_id`` names a
+        face that cannot win there makes every value buffer wrong at that pixel too), then the
+        other buffers, each marked with how many of its failing pixels follow from the ids'."""
         lines = []
         for s in self.scenes:
             if s.status == "error":
                 lines.append(f"{s.name}: unusable candidate: {s.error}")
+            id_bad = None
             for b in s.buffers:
+                if b.kind == "id" and not b.passed:
+                    m = _unforgiven(b)
+                    if m is not None:
+                        id_bad = m if id_bad is None else id_bad | m
+            ids_first = sorted(s.buffers, key=lambda b: (b.kind != "id", b.name != "prim_id"))
+            for b in ids_first:
+                follows = ""
+                if b.kind != "id" and id_bad is not None and not b.passed:
+                    m = _unforgiven(b)
+                    if m is not None and m.shape == id_bad.shape and m.any():
+                        k, n = int((m & id_bad).sum()), int(m.sum())
+                        follows = ("" if k == 0 else
+                                   " [follows from the ids: every failing pixel is one where the "
+                                   "candidate's ids fail]" if k == n else
+                                   f" [{k} of its {n} failing pixels are where the ids fail]")
                 for c in b.checks:
-                    if not c["ok"] and c["metric"].startswith("domain:"):
-                        lines.append(f"{s.name}/{b.name}: {c['metric']}: {c['detail']}")
-                    elif not c["ok"] and "detail" in c:
-                        lines.append(f"{s.name}/{b.name}: {c['metric']} = {c['value']} > "
-                                     f"{c['limit']} ({c['detail']}; worst {b.metrics['worst']})")
-                    elif not c["ok"]:
+                    if c["ok"]:
+                        continue
+                    if c["metric"].startswith("domain:"):
+                        line = f"{s.name}/{b.name}: {c['metric']}: {c['detail']}"
+                    elif "detail" in c:
+                        why = (" (the candidate's id names a face that cannot win here)"
+                               if b.kind == "id" and c["metric"] in ("face", "id") else "")
+                        line = (f"{s.name}/{b.name}: {c['metric']} = {c['value']} > "
+                                f"{c['limit']}{why} ({c['detail']}; worst {b.metrics['worst']})")
+                    else:
                         bad = ">" if c["op"] == "<=" else "<"
-                        lines.append(f"{s.name}/{b.name}: {c['metric']} = {c['value']:.6g} "
-                                     f"{bad} {c['limit']:.6g} ({b.metrics['n_over']} of "
-                                     f"{b.metrics['pixels']} pixels over threshold "
-                                     f"{b.metrics['threshold']:.3g}; worst "
-                                     f"{b.metrics['worst']})")
+                        line = (f"{s.name}/{b.name}: {c['metric']} = {c['value']:.6g} "
+                                f"{bad} {c['limit']:.6g} ({b.metrics['n_over']} of "
+                                f"{b.metrics['pixels']} pixels over threshold "
+                                f"{b.metrics['threshold']:.3g}; worst "
+                                f"{b.metrics['worst']})")
+                    lines.append(line + follows)
         return lines
 
     def summary(self):
-        """A plain-text table: one line per scene and buffer."""
-        how = "mode tolerant" if self.mode == "tolerant" else f"profile {self.profile}"
+        """A plain-text table: one line per scene and buffer.
+
+        ``differing`` counts the pixels whose value differs from the golden's (tolerant mode)
+        or differs by more than the profile's threshold (profile mode); ``outside`` counts those
+        the allowance does not admit — a buffer passes when ``outside`` is 0 (tolerant) or
+        within the profile's ``max_fraction``. A passing line says what admitted its
+        differences and shows no count that reads as a failure."""
+        tolerant = self.mode == "tolerant"
+        how = "mode tolerant" if tolerant else f"profile {self.profile}"
         lines = [f"golden {self.golden_dir} vs candidate {self.candidate_dir} ({how})"]
         for s in self.scenes:
             lines.append(f"{s.name}: {s.status.upper()}" + (f" ({s.error})" if s.error else ""))
             if s.skipped:
                 lines.append(f"  skipped (not in the golden, not read): {', '.join(s.skipped)}")
             for b in s.buffers:
-                m = b.metrics
-                flip = (f" flip={m['flip_mean']:.4f}" if m.get("flip_mean") is not None else "")
-                lines.append(
-                    f"  {b.name:<14} {'ok  ' if b.passed else 'FAIL'} max_abs={m['max_abs']:.3g}"
-                    f" rmse={m['rmse']:.3g} psnr={m['psnr']:.1f} over={m['fraction_over']:.2e}"
-                    f" unforgiven={m['fraction_unforgiven']:.2e}{flip}")
+                lines.append(_summary_line(b, tolerant))
         lines.append(f"result: {['PASS', 'FAIL', 'UNUSABLE INPUT'][self.exit_code]}")
         return "\n".join(lines)
 
@@ -382,6 +443,12 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
                     key, ref[key], a, spec["kind"], spec["tolerant"], allow, clear_depth=clear,
                     fallback=tol, step=step, named=named,
                     others={k: v[0] for k, v in cand.items()})
+                if spec["kind"] == "color" and metrics.get("flip_mean") is None:
+                    # information only: in tolerant mode the allowance, not FLIP, decides
+                    try:
+                        metrics["flip_mean"], images["flip"] = _flip(ref[key], a)
+                    except ImportError:
+                        metrics["flip_mean"] = None
                 tol = {**tol, "tolerant": spec["tolerant"]}
                 allowance = buffer_allowance(spec["tolerant"], allow, step=step,
                                              clear_depth=clear)
