@@ -9,7 +9,7 @@
     refraster golden compare GOLDEN_DIR CANDIDATE_DIR [--report DIR] [--mode tolerant|exact]
                              [--profile exact|conformant] [--tolerance [SCENE:][BUFFER.]KEY=VALUE ...]
                              [--scene NAME ...] [--json FILE] [--no-wait]
-    refraster golden candidate GOLDEN_DIR --backend gl --out CANDIDATE_DIR [--scene NAME ...]
+    refraster golden candidate GOLDEN_DIR --backend gl|wgpu --out CANDIDATE_DIR [--scene NAME ...]
                                [--threads N] [--no-wait]
 
 ``-q``/``--quiet`` and ``--debug`` go before or after ``golden``, ``generate`` or ``compare``.
@@ -38,16 +38,28 @@ __all__ = ["register", "main"]
 
 
 def _error(args, prog, exc, *, usage=False):
-    """One line on stderr and exit status 2; ``--debug`` re-raises (not for usage errors)."""
+    """One line on stderr and exit status 2; ``--debug`` prints the traceback above it (not for
+    usage errors) and keeps the status."""
     if getattr(args, "debug", False) and not usage:
-        raise exc
+        import traceback
+        traceback.print_exception(exc, file=sys.stderr)
+    print(f"{prog}: error: {error_text(exc)}", file=sys.stderr)
+    return EXIT_UNUSABLE
+
+
+def error_text(exc):
+    """The one line an exception is reported as: its message on one line, after its class name
+    unless it is a ``ValueError`` or an ``OSError`` (whose messages name the cause); a class
+    named ``error`` (``struct.error``, ``re.error``) by its module, never "error: error:"."""
     text = " ".join(str(exc).split())
     if isinstance(exc, MemoryError):
-        text = f"out of memory ({type(exc).__name__}{': ' + text if text else ''})"
-    elif not isinstance(exc, (ValueError, OSError)):
-        text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
-    print(f"{prog}: error: {text or type(exc).__name__}", file=sys.stderr)
-    return EXIT_UNUSABLE
+        return f"out of memory ({type(exc).__name__}{': ' + text if text else ''})"
+    name = type(exc).__name__
+    if name.lower() == "error":
+        name = f"{type(exc).__module__}.{name}"
+    if not isinstance(exc, (ValueError, OSError)):
+        return f"{name}: {text}" if text else name
+    return text or name
 
 
 def _positive_int(text):
@@ -171,7 +183,8 @@ def _cmd_compare(args):
     from .compare.run import compare
     from .compare.run import has_allowances, load_manifest
     try:
-        write.recover(args.golden_dir)  # before reading the manifest for the default mode
+        # compare only reads the golden: a journal beside it is never acted on
+        write.pending_swap(args.golden_dir)
     except (GoldenError, OSError) as exc:
         return _error(args, "golden compare", exc)
     mode = args.mode
@@ -185,18 +198,25 @@ def _cmd_compare(args):
             mode = "exact"   # compare reports what is wrong with the golden
     # every output is staged, then all are committed together (or none)
     outputs = write.Outputs(wait=not args.no_wait, command="refraster golden compare")
+    to_stdout = args.json == "-"
     try:
-        if args.json is not None:
+        if args.json is not None and not to_stdout:
+            write.check_regular_output(args.json, f"--json {args.json}")
             write.check_output_path(args.json, "--json", {
                 "golden directory": args.golden_dir, "candidate directory": args.candidate_dir,
                 "report directory": args.report})
         result = compare(args.golden_dir, args.candidate_dir, report=args.report,
                          profile=args.profile, mode=mode, tolerances=args.tolerance or (),
                          scenes=args.scene or None, outputs=outputs)
+        text = None
         if args.json is not None:
             text = json.dumps(result.to_json(), indent=2, sort_keys=True) + "\n"
-            outputs.file(args.json, text.encode("utf-8"))
+            if not to_stdout:
+                outputs.file(args.json, text.encode("utf-8"))
         outputs.commit()
+        if to_stdout:     # standard output holds the JSON alone; the summary goes to stderr
+            sys.stdout.write(text)
+            sys.stdout.flush()
     except (GoldenError, ValueError, OSError) as exc:
         outputs.discard()
         return _error(args, "golden compare", exc)
@@ -204,11 +224,12 @@ def _cmd_compare(args):
         outputs.discard()
         raise
     if not getattr(args, "quiet", False):
-        print(result.summary())
+        summary = sys.stderr if to_stdout else sys.stdout
+        print(result.summary(), file=summary)
         for line in result.failures():
             print(f"FAIL {line}", file=sys.stderr)
         if result.report_dir is not None:
-            print(f"report: {result.report_dir / 'index.html'}")
+            print(f"report: {result.report_dir / 'index.html'}", file=summary)
     else:   # -q still names why the input is unusable (exit 2), one line per scene
         for s in result.scenes:
             if s.status == "error":
@@ -220,6 +241,10 @@ def _cmd_compare(args):
 @_guarded("golden candidate")
 def _cmd_candidate(args):
     from .candidate import candidate
+    twice = next((n for i, n in enumerate(args.scene or ()) if n in args.scene[:i]), None)
+    if twice is not None:   # before anything is read or rendered
+        return _error(args, "golden candidate", ValueError(f"--scene {twice} is given twice"),
+                      usage=True)
     result = candidate(args.golden_dir, args.out, backend=args.backend, scenes=args.scene,
                        threads=args.threads, wait=not args.no_wait,
                        on_wait=lambda holder: _say(args, f"waiting for {holder} to finish "
@@ -295,7 +320,9 @@ def register(subparsers):
                    help="override a tolerance (repeatable), e.g. color.max_flip_mean=0.02")
     c.add_argument("--scene", metavar="NAME", action="append",
                    help="compare only this scene (repeatable)")
-    c.add_argument("--json", metavar="FILE", help="write the metrics as JSON")
+    c.add_argument("--json", metavar="FILE",
+                   help="write the metrics as JSON ('-': to standard output, the summary "
+                        "then goes to stderr)")
     c.add_argument("--no-wait", action="store_true",
                    help="if another run is writing the report directory, exit 2 naming it")
     c.set_defaults(func=_cmd_compare)
@@ -304,9 +331,10 @@ def register(subparsers):
                                          "backend into a candidate directory")
     _common(k)
     k.add_argument("golden_dir", metavar="GOLDEN_DIR")
-    k.add_argument("--backend", choices=("gl",), default="gl",
+    k.add_argument("--backend", choices=("gl", "wgpu"), default="gl",
                    help="gl: the GLSL backend refraster.gl (OpenGL 3.3 core on headless EGL; "
-                        "the extra 'gl')")
+                        "the extra 'gl'); wgpu: the WGSL backend refraster.wgpu (WebGPU "
+                        "through wgpu-py, default limits; the extra 'wgpu')")
     k.add_argument("--out", metavar="CANDIDATE_DIR", required=True,
                    help="candidate directory to write (nothing, empty, or a candidate "
                         "refraster wrote; replaced atomically)")
@@ -314,7 +342,7 @@ def register(subparsers):
                    help="render only this scene (repeatable; default: every scene the "
                         "backend supports)")
     k.add_argument("--threads", metavar="N", type=_positive_int,
-                   help="rasterizer threads of Mesa's llvmpipe (LP_NUM_THREADS)")
+                   help="rasterizer threads of Mesa's llvmpipe or lavapipe (LP_NUM_THREADS)")
     k.add_argument("--no-wait", action="store_true",
                    help="if another run is writing CANDIDATE_DIR, exit 2 naming it")
     k.set_defaults(func=_cmd_candidate)

@@ -57,6 +57,30 @@ CONVENTION_FIELDS = ("depth_range", "origin", "ndc_y", "depth_clamp", "depth_for
 SCENE_MODULES = ("refraster.golden.technique_scenes", "refraster.golden.convention_scenes")
 
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_]*$")
+#: Longest scene or draw name: a name becomes a directory (``<scene>/``, with ``__<sweep>``
+#: and ``__<W>x<H>`` suffixes) or a file (``meshes/<draw>.ply``) name, and file systems stop
+#: at 255 bytes.
+NAME_MAX = 128
+
+
+def _control(text):
+    return any(ord(c) < 32 or 127 <= ord(c) <= 159 for c in text)
+
+
+def check_name(name, what):
+    """``name`` if it is a scene or draw name (lower-case ``[a-z0-9_]``, at most
+    :data:`NAME_MAX` characters, no control character: a trailing newline does not pass);
+    else one line naming ``what`` and what is wrong."""
+    if not isinstance(name, str):
+        raise TypeError(f"{what} must be a string, got {type(name).__name__}")
+    if _control(name):
+        raise ValueError(f"{what} must not contain control characters, got {name!r}"[:300])
+    if len(name) > NAME_MAX:
+        raise ValueError(f"{what} must be at most {NAME_MAX} characters (it names "
+                         f"directories), got {len(name)}")
+    if not _NAME.fullmatch(name):
+        raise ValueError(f"{what} must match {_NAME.pattern}, got {name!r}")
+    return name
 
 
 @dataclass(frozen=True)
@@ -173,8 +197,7 @@ def register_scene(name, *, technique, description=""):
     ``name`` is lower-case ``[a-z0-9_]`` (it becomes a directory name). Registering a name twice
     is an error.
     """
-    if not isinstance(name, str) or not _NAME.match(name):
-        raise ValueError(f"scene name must match {_NAME.pattern}, got {name!r}")
+    check_name(name, "scene name")
     if name in SCENES:
         raise ValueError(f"golden scene {name!r} is already registered")
 
@@ -219,8 +242,7 @@ def prepare_draws(draws, *, normals="flat"):
     for i, d in enumerate(draws):
         if not isinstance(d, Draw):
             raise TypeError(f"draws[{i}] must be a Draw, got {type(d).__name__}")
-        if not _NAME.match(d.name):
-            raise ValueError(f"draws[{i}].name must match {_NAME.pattern}, got {d.name!r}")
+        check_name(d.name, f"draws[{i}].name")
         m = as_mesh(d.mesh, f"draws[{i}].mesh")
         v = _float32_exact(m.vertices)
         vn = _float32_exact(vertex_normals(v, m.faces)) if normals == "smooth" else None
@@ -530,6 +552,32 @@ def _check_toml(spec, where):
         check("draw", f"[[draw]] {i}:", d)
         if ("mesh" in d) == ("solid" in d):
             raise ValueError(f"{where}: [[draw]] {i}: needs exactly one of 'mesh' or 'solid'")
+        if "name" in d:
+            check_name(d["name"], f"{where}: [[draw]] {i}: name")
+        if "mesh" in d and _control(d["mesh"]):
+            raise ValueError(f"{where}: [[draw]] {i}: mesh must not contain control "
+                             f"characters, got {d['mesh']!r}"[:300])
+
+
+_TOML_KEY = re.compile(r"""^\s*([A-Za-z0-9_."'-]+?)\s*=""")
+_TOML_TABLE = re.compile(r"^\s*(\[\[?[^\]]+\]\]?)")
+
+
+def _toml_value_error(text, path, exc):
+    """One line for a ``ValueError`` ``tomllib`` raised outside its own errors: an integer
+    beyond Python's int-string conversion limit, named by line, table and key."""
+    from .io.safe import huge_int_digits
+    limit = huge_int_digits()
+    for m in re.finditer(r"(?<![.\w])[0-9][0-9_]*(?![.\w])", text):
+        digits = len(m.group().replace("_", ""))
+        if limit and digits > limit:
+            lines = text[:m.start()].split("\n")
+            key = next((k.group(1) for k in map(_TOML_KEY.match, reversed(lines)) if k), "?")
+            table = next((t.group(1) + " " for t in map(_TOML_TABLE.match, reversed(lines))
+                          if t), "")
+            return (f"scene file {path} line {len(lines)}: {table}{key} is an integer of "
+                    f"{digits} digits (more than the {limit} this reader converts)")
+    return f"cannot read scene file {path}: {' '.join(str(exc).split())}"
 
 
 def load_scene_file(path):
@@ -545,16 +593,17 @@ def load_scene_file(path):
     if path.stat().st_size > _MAX_TOML_BYTES:
         raise ValueError(f"scene file {path} is larger than {_MAX_TOML_BYTES >> 20} MiB")
     try:
-        spec = tomllib.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
+        spec = tomllib.loads(text)
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ValueError(f"cannot read scene file {path}: {exc}") from exc
     except RecursionError:
         raise ValueError(f"cannot read scene file {path}: nested too deeply") from None
+    except ValueError as exc:   # tomllib lets the int-string conversion limit through
+        raise ValueError(_toml_value_error(text, path, exc)) from None
     where = str(path)
     _check_toml(spec, where)
-    name = spec.get("name", path.stem)
-    if not _NAME.match(name):
-        raise ValueError(f"{where}: name must match {_NAME.pattern}, got {name!r}")
+    name = check_name(spec.get("name", path.stem), f"{where}: name")
     technique = spec.get("technique", "render")
     if technique not in TECHNIQUES:
         raise ValueError(f"{where}: unknown technique {technique!r}; "
@@ -584,8 +633,13 @@ def load_scene_file(path):
         width, height = int(viewport.get("width", 320)), int(viewport.get("height", 240))
         state = raster_state(spec.get("raster", {}))
         prepared = prepare_draws(draws, normals=state["normals"])
-        camera = _toml_camera(spec.get("camera", {}), [d.mesh for d in prepared], width,
-                              height, where, state["depth_range"])
+        try:
+            camera = _toml_camera(spec.get("camera", {}), [d.mesh for d in prepared], width,
+                                  height, where, state["depth_range"])
+        except ValueError as exc:   # a projection beyond float32, a degenerate look_at, …
+            if str(exc).startswith(where):
+                raise
+            raise ValueError(f"{where}: [camera] {exc}") from None
         buffers, params = TECHNIQUES[technique](prepared, camera, state,
                                                 spec.get("parameters", {}))
         return GoldenScene(technique=technique, camera=camera, draws=prepared, buffers=buffers,

@@ -29,6 +29,7 @@ from ..io.read import (_check_candidate, _inside, _manifest_paths, load_candidat
                    load_manifest)
 from ..io.read import allowance_arrays as _read_allowances
 from ..io.read import reference_buffers as _read_reference
+from ..io.read import some_names as _some_names
 from .profiles import PROFILES, apply_overrides, parse_override
 
 __all__ = ["GoldenError", "CandidateError", "BufferResult", "SceneResult", "Comparison",
@@ -204,7 +205,8 @@ class Comparison:
         for s in self.scenes:
             lines.append(f"{s.name}: {s.status.upper()}" + (f" ({s.error})" if s.error else ""))
             if s.skipped:
-                lines.append(f"  skipped (not in the golden, not read): {', '.join(s.skipped)}")
+                lines.append(f"  skipped (not in the golden, not read): "
+                             f"{_some_names(s.skipped)}")
             for b in s.buffers:
                 lines.append(_summary_line(b, tolerant))
         lines.append(f"result: {['PASS', 'FAIL', 'UNUSABLE INPUT'][self.exit_code]}")
@@ -358,8 +360,8 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
         The golden directory, the arguments or the report directory are unusable.
     """
     golden_dir, candidate_dir = Path(golden_dir), Path(candidate_dir)
-    from ..io.write import recover
-    recover(golden_dir)  # a swap a killed generate left half-done (journal fallback)
+    from ..io.write import pending_swap
+    pending_swap(golden_dir)  # a swap a killed generate left half-done: only generate acts
     if mode is not None and mode not in MODES:
         raise GoldenError(f"mode must be one of {MODES}, got {mode!r}")
     if profile is not None and profile not in PROFILES:
