@@ -34,7 +34,10 @@ cases it changed (``cut_view2``, ``cut_perspective_compensation_false``, ``cut_e
 ``cut_edge_compression_none`` / ``_zero`` / ``_value``, ``cut_floor_margin``,
 ``cut_floor_view2``) were re-recorded, and each has a twin with ``Cutaway(variant="jfa+1")``
 (``cut_variant_jfa1``, ``*_jfa1``) that keeps its former digest; ``cut_view2`` and
-``cut_variant_jfa`` are now equal by design.
+``cut_variant_jfa`` are now equal by design. Issue 46 also made the halos' default prism split the paper's repair
+(``Halos(split="paper")``): the 34 ``halo_*`` cases of ``render_halos``/``render_halos_pair``
+were re-recorded (with the new halo defaults of the same issue); the new
+``halo_split_global_index*`` cases keep ``split="global_index"``.
 
 Each case is one small function ``case_NAME()`` whose calls are written out, so an API change
 translates each case where it stands; it returns its outputs as ``{name: value}``, result
@@ -1696,6 +1699,66 @@ def case_halo_pair_stereo():
     from refraster.halos4d import HaloStyle, View4D, render_halos_pair
     on, off = render_halos_pair(_fig1(), **_hkw(), view=View4D(rotation=_hrot(), stereo=10.0),
                                 style=HaloStyle(boundary_color=(0, 1, 0)))
+    return {"on": _of(on), "off": _of(off)}
+
+
+# halos.split="global_index": the split of the releases before issue 46 (the default became the
+# paper's repair); each case is an older case with that field, and has that case's digests of
+# before the change (benchmarks/entry_digests.json at 47cc54b)
+def _gi(**kw):
+    from refraster.halos4d import Halos
+    return Halos(split="global_index", **kw)
+
+
+def case_halo_split_global_index_small():
+    """``halo_small``'s digests of 47cc54b."""
+    from refraster.halos4d import render_halos
+    return _of(render_halos(_fig1(), **_hkw(), halos=_gi()))
+
+
+def case_halo_split_global_index():
+    """``halo_rotation``'s digests of 47cc54b."""
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()), halos=_gi()))
+
+
+def case_halo_split_global_index_perspective():
+    """``halo_perspective``'s digests of 47cc54b."""
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), halos=_gi(),
+                            view=View4D(rotation=_hrot(), projection="perspective")))
+
+
+def case_halo_split_global_index_stereo():
+    """``halo_stereo``'s digests of 47cc54b."""
+    from refraster.halos4d import View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot(), stereo=6.0),
+                            halos=_gi()))
+
+
+def case_halo_split_global_index_fused_volume_options():
+    """``halo_engine_fused_explicit``'s digests of 47cc54b."""
+    from refraster.halos4d import HaloStyle, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()), engine="fused",
+                            volume=True, halos=_gi(antialias=0.15),
+                            style=HaloStyle(halo_opacity=0.3, boundary_color=(0, 1, 0))))
+
+
+def case_halo_split_global_index_reference_volume_options():
+    """``halo_engine_reference_volume_options``' digests of 47cc54b."""
+    from refraster.halos4d import HaloStyle, View4D, render_halos
+    return _of(render_halos(_fig1(), **_hkw(), view=View4D(rotation=_hrot()), engine="reference",
+                            volume=True, halos=_gi(antialias=0.15),
+                            style=HaloStyle(halo_opacity=0.3, boundary_color=(0, 1, 0))))
+
+
+def case_halo_split_global_index_pair():
+    """``halo_pair_options``' digests of 47cc54b."""
+    from refraster.halos4d import HaloStyle, View4D, render_halos_pair
+    on, off = render_halos_pair(_fig1(), **_hkw(), view=View4D(rotation=_hrot()),
+                                halos=_gi(delta_d=0.5, antialias=0.0),
+                                style=HaloStyle(halo_opacity=0.3, boundary_color=(0, 1, 0)),
+                                background=(1, 1, 1))
     return {"on": _of(on), "off": _of(off)}
 
 

@@ -51,6 +51,18 @@ __all__ = [
 ]
 
 
+def _norm(v):
+    """``np.linalg.norm(v)`` (the same bytes), or where its squares overflow or underflow
+    (a coordinate beyond ~1e154 or below ~1e-154) the norm of ``v`` scaled by its largest
+    entry first, without a warning."""
+    with np.errstate(over="ignore", under="ignore"):
+        n = np.linalg.norm(v)
+    if np.isfinite(n) and (n > 0.0 or not np.any(v)):
+        return n
+    m = float(np.abs(v).max())
+    return m * np.linalg.norm(v / m)
+
+
 def look_at(eye, target, up=(0.0, 1.0, 0.0)):
     """View matrix of a camera at ``eye`` looking at ``target`` (``gluLookAt``).
 
@@ -66,14 +78,17 @@ def look_at(eye, target, up=(0.0, 1.0, 0.0)):
     eye = as_float_array(eye, "eye", shape=(3,))
     target = as_float_array(target, "target", shape=(3,))
     up = as_float_array(up, "up", shape=(3,))
-    f = target - eye
-    nf = np.linalg.norm(f)
+    with np.errstate(over="ignore"):
+        f = target - eye
+    if not np.all(np.isfinite(f)):
+        raise ValueError("eye and target are too far apart: target − eye overflows float64")
+    nf = _norm(f)
     if nf == 0.0:
         raise ValueError("eye and target must differ")
     f = f / nf
     s = np.cross(f, up)
-    ns = np.linalg.norm(s)
-    if ns <= 1e-12 * max(1.0, np.linalg.norm(up)):
+    ns = _norm(s)
+    if ns <= 1e-12 * max(1.0, _norm(up)):
         raise ValueError("up must not be parallel to the viewing direction target − eye")
     s = s / ns
     u = np.cross(s, f)
@@ -111,6 +126,28 @@ def _near_far(near, far, *, infinite):
     return n, f
 
 
+_F32 = np.finfo(np.float32)
+#: What each entry of a projection is, for the message that names one beyond float32.
+_TERMS = {(0, 0): "x scale", (1, 1): "y scale", (0, 2): "x shift", (1, 2): "y shift",
+          (0, 3): "x offset", (1, 3): "y offset", (2, 2): "depth scale",
+          (2, 3): "depth offset"}
+
+
+def _within_float32(m, what):
+    """Refuse a projection with a non-zero entry outside float32's normal numbers (the vertex
+    stage multiplies in float32: a smaller entry flushes to zero, a larger one overflows, and the
+    frame loses its depth or its extent). ``what``: the call and its arguments."""
+    tiny, big = float(_F32.tiny), float(_F32.max)
+    for (i, j), value in np.ndenumerate(m):
+        if value != 0.0 and not tiny <= abs(value) <= big:
+            raise ValueError(
+                f"{what}: the projection's {_TERMS.get((i, j), 'entry')} [{i}, {j}] = "
+                f"{value:.3g} is outside float32's range ({tiny:.3g} to {big:.3g} in magnitude), "
+                f"the precision the vertex stage multiplies in; it would "
+                f"{'flush to zero' if abs(value) < tiny else 'overflow'} there")
+    return m
+
+
 def _perspective_depth(m, n, f, d_n, d_f):
     """Rows 2 of a perspective matrix for the near and far depths ``d_n``, ``d_f`` (the
     module's formulas; ``f = inf``: the limit)."""
@@ -144,7 +181,8 @@ def frustum(left, right, bottom, top, near, far, *, reversed=False,
     else:
         _perspective_depth(m, n, f, d_n, d_f)
     m[3, 2] = -1.0
-    return m
+    return _within_float32(m, f"frustum(left={l:g}, right={r:g}, bottom={b:g}, top={t:g}, "
+                              f"near={n:g}, far={f:g})")
 
 
 def perspective(fovy, aspect, near, far, *, reversed=False, depth_range="negative_one_to_one"):
@@ -176,7 +214,8 @@ def perspective(fovy, aspect, near, far, *, reversed=False, depth_range="negativ
     else:
         _perspective_depth(m, near, far, d_n, d_f)
     m[3, 2] = -1.0
-    return m
+    return _within_float32(m, f"perspective(fovy={fovy:g}, aspect={aspect:g}, near={near:g}, "
+                              f"far={far:g})")
 
 
 def orthographic(left, right, bottom, top, near, far, *, reversed=False,
@@ -201,7 +240,8 @@ def orthographic(left, right, bottom, top, near, far, *, reversed=False,
     else:
         m[2, 2] = (d_n - d_f) / (f - n)
         m[2, 3] = (d_n * f - d_f * n) / (f - n)
-    return m
+    return _within_float32(m, f"orthographic(left={l:g}, right={r:g}, bottom={b:g}, "
+                              f"top={t:g}, near={n:g}, far={f:g})")
 
 
 def viewport(width, height, *, depth_range="negative_one_to_one"):
@@ -279,7 +319,10 @@ def frame_bounds(bounds, *, width, height, fovy=35.0, direction=(1.0, 0.8, 1.4),
     centre = bounds.mean(axis=0)
     radius = max(0.5 * float(np.linalg.norm(bounds[1] - bounds[0])), 1e-9) * margin
     d = as_float_array(direction, "direction", shape=(3,))
-    d = d / np.linalg.norm(d)
+    nd = _norm(d)
+    if nd == 0.0:
+        raise ValueError("direction must not be the zero vector")
+    d = d / nd
     aspect = width / height
     half = np.radians(fovy) / 2
     half_h = np.arctan(np.tan(half) * min(aspect, 1.0))
@@ -288,4 +331,8 @@ def frame_bounds(bounds, *, width, height, fovy=35.0, direction=(1.0, 0.8, 1.4),
     view = look_at(eye, centre, up)
     near = max(dist - radius * 1.05, dist * 1e-3)
     far = dist + radius * 1.05
+    if not far > near:
+        raise ValueError(f"fovy={fovy:g}: too narrow a field of view to frame these bounds: the "
+                         f"eye would stand {dist:.3g} away from a bounding sphere of radius "
+                         f"{radius:.3g}, where near and far round to the same distance")
     return Camera(view, perspective(fovy, aspect, near, far), width, height)

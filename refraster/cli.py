@@ -10,8 +10,10 @@
     refraster warmup [--jobs N]
     refraster --version
 
-``-q`` silences progress bars and messages; an error is one line on stderr (exit code 2) and
-shows a traceback only with ``--debug``. Bad input is rejected before anything is written.
+``-q`` silences progress bars and messages; an error is one line on stderr (exit code 2, with
+``--debug`` too, which prints the traceback above it). Bad input is rejected before anything is
+written; an output path where a FIFO, socket or device is, is refused; ``--out -`` (or
+``--buffers -``) writes to standard output.
 """
 
 from __future__ import annotations
@@ -138,11 +140,19 @@ def _progress(args, **kw):
 # render
 
 def _check_output(path, suffix, option):
+    """The output path of ``option``: ``-`` (standard output) or a path ending in ``suffix``
+    where nothing, a regular file or a link to one is (a FIFO, a socket, a device or a
+    directory is refused with one line before anything is rendered or written)."""
+    from .golden.io.write import RefusedError, check_regular_output
+    if path == "-":
+        return path
     path = Path(path)
     if path.suffix.lower() != suffix:
         raise CLIError(f"{option} must name a {suffix} file, got '{path}'")
-    if path.is_dir():
-        raise CLIError(f"{option} '{path}' is a directory")
+    try:
+        check_regular_output(path, f"{option} '{path}'")
+    except RefusedError as exc:
+        raise CLIError(str(exc)) from None
     return path
 
 
@@ -170,14 +180,37 @@ def _check_camera_options(args):
         raise CLIError("--up must not be the zero vector")
 
 
+#: Largest coordinate trimesh's ``merge_vertices`` holds: it merges on coordinates rounded to
+#: 1e-8 as int64, which overflows beyond ~9.2e10 (distinct vertices would then merge).
+_MERGE_LIMIT = 1e10
+
+
+def _merge_vertices(mesh):
+    """Share repeated vertices (trimesh's merge; beyond :data:`_MERGE_LIMIT`, or with
+    non-finite coordinates, only exact repeats are shared, which needs no rounding)."""
+    import numpy as np
+    v = np.asarray(mesh.vertices, np.float64)
+    if v.size == 0 or (np.all(np.isfinite(v)) and np.abs(v).max() < _MERGE_LIMIT):
+        mesh.merge_vertices()
+        return
+    unique, inverse = np.unique(v, axis=0, return_inverse=True)
+    faces = inverse.reshape(-1)[np.asarray(mesh.faces)]
+    mesh.vertices, mesh.faces = unique, faces
+
+
 def _camera(args, bounds):
     """View and projection from the options; what is not given frames the mesh's bounds with
     :func:`refraster.camera.frame_bounds` (and is exactly its camera when nothing is given)."""
     import numpy as np
-    from .camera import frame_bounds, look_at, near_far, perspective
+    from .camera import _norm, frame_bounds, look_at, near_far, perspective
 
-    framed = frame_bounds(bounds, width=args.width, height=args.height, fovy=args.fov,
-                          up=args.up)
+    try:
+        framed = frame_bounds(bounds, width=args.width, height=args.height, fovy=args.fov,
+                              up=args.up)
+    except ValueError as exc:
+        if str(exc).startswith("fovy="):    # too narrow a field of view to frame the mesh
+            raise CLIError(f"--fov {args.fov:g}: {str(exc).split(': ', 1)[-1]}") from None
+        raise CLIError(f"mesh file '{args.mesh}': the camera framing it: {exc}") from None
     near, far = near_far(framed.proj)
     view = framed.view
     if args.eye is not None or args.target is not None:
@@ -189,15 +222,25 @@ def _camera(args, bounds):
             eye = np.linalg.inv(framed.view)[:3, 3] + (target - centre)
         view = look_at(eye, target, args.up)
         # enclose the same bounding sphere as frame_bounds (radius × margin 1.1 × 1.05)
-        radius = 1.155 * max(0.5 * float(np.linalg.norm(bounds[1] - bounds[0])), 1e-9)
-        dist = float(np.linalg.norm(eye - centre))
+        radius = 1.155 * max(0.5 * float(_norm(bounds[1] - bounds[0])), 1e-9)
+        with np.errstate(over="ignore"):
+            dist = float(_norm(eye - centre))
         near = max(dist - radius, 1e-3 * dist, 1e-6)
         far = max(dist + radius, 2.0 * near)
     if args.near is None and args.far is None and view is framed.view:
         return view, framed.proj
     near = args.near if args.near is not None else near
     far = args.far if args.far is not None else far
-    return view, perspective(args.fov, args.width / args.height, near, far)
+    try:
+        return view, perspective(args.fov, args.width / args.height, near, far)
+    except ValueError as exc:   # a projection beyond float32: name what was given
+        given = " ".join(f"{o} {v:g}" for o, v in (("--near", args.near), ("--far", args.far))
+                         if v is not None)
+        if args.eye is not None and not given:   # near and far fitted to the eye's distance
+            given = "--eye " + " ".join(f"{v:g}" for v in args.eye)
+        if not given:
+            raise CLIError(f"mesh file '{args.mesh}': the camera framing it: {exc}") from None
+        raise CLIError(f"{given}: {exc}") from None
 
 
 def _cmd_render(args):
@@ -208,6 +251,8 @@ def _cmd_render(args):
 
     out = _check_output(args.out, ".png", "--out")
     buffers = _check_output(args.buffers, ".npz", "--buffers") if args.buffers else None
+    if out == "-" and buffers == "-":
+        raise CLIError("--out and --buffers cannot both be '-' (standard output)")
     try:
         as_image_size(args.width, args.height)
     except (TypeError, ValueError) as exc:
@@ -221,7 +266,7 @@ def _cmd_render(args):
     if args.normals == "smooth":
         # STL and other per-face formats repeat vertices; sharing them makes normals smooth.
         # Merging renumbers vertices only, so face (primitive) ids keep the file's order.
-        mesh.merge_vertices()
+        _merge_vertices(mesh)
     progress = getattr(args, "compile_progress", None)
     if progress is not None and progress.n:
         # first run, options checked: compile the pipeline's kernels on a tiny frame first
@@ -240,19 +285,33 @@ def _cmd_render(args):
         seconds = time.perf_counter() - t0
         bar.update(1)
         # both files or neither: staged first, then renamed together (a failure undoes both)
+        # '-': that one goes to standard output once the files are in place
         outputs = Outputs(command="refraster render")
+        stdout = None
         try:
             if buffers is not None:
-                outputs.file(buffers, npz_bytes(fb.arrays()))
-            outputs.file(out, _png_bytes(fb.color))
+                data = npz_bytes(fb.arrays())
+                if buffers == "-":
+                    stdout = data
+                else:
+                    outputs.file(buffers, data)
+            data = _png_bytes(fb.color)
+            if out == "-":
+                stdout = data
+            else:
+                outputs.file(out, data)
             outputs.commit()
         except BaseException:
             outputs.discard()
             raise
+        if stdout is not None:
+            sys.stdout.buffer.write(stdout)
+            sys.stdout.flush()
         bar.update(1)
-    _say(args, f"wrote {out} ({args.width}x{args.height}, {len(mesh.faces):,} faces, "
-               f"{int(fb.mask.sum()):,} pixels covered, {seconds:.2f} s)"
-               + (f" and {buffers}" if buffers else ""))
+    where = {"-": "standard output"}
+    _say(args, f"wrote {where.get(out, out)} ({args.width}x{args.height}, "
+               f"{len(mesh.faces):,} faces, {int(fb.mask.sum()):,} pixels covered, "
+               f"{seconds:.2f} s)" + (f" and {where.get(buffers, buffers)}" if buffers else ""))
     return 0
 
 
@@ -725,9 +784,13 @@ def main(argv=None):
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130
     except Exception as exc:
-        if debug and not isinstance(exc, UsageError):
-            raise
-        what = "" if isinstance(exc, CLIError) else f"{type(exc).__name__}: "
+        if debug and not isinstance(exc, UsageError):   # the traceback, then the same line
+            import traceback
+            traceback.print_exception(exc, file=sys.stderr)
+        name = type(exc).__name__
+        if name.lower() == "error":                     # struct.error: never "error: error:"
+            name = f"{type(exc).__module__}.{name}"
+        what = "" if isinstance(exc, CLIError) else f"{name}: "
         text = _one_line(exc)
         if isinstance(exc, MemoryError):
             what, text = "", f"out of memory ({type(exc).__name__}" + (

@@ -73,6 +73,25 @@ NORMAL_TOL = 2e-3
 COLOR_TOL = 2.0 / 255.0
 
 
+def _geometry_state(cull, raster):
+    """The state the allowance functions prepare with: ``cull`` and, from ``raster`` (a
+    :class:`RasterState` or None), the clip volume's ``depth_clamp``. The allowances are
+    derived in OpenGL's conventions (counter-clockwise fronts, ``less``, −w ≤ z ≤ w, NDC y up);
+    a scene in others is first mapped into them (:mod:`refraster.golden.allowances.conventions`,
+    docs/tolerance.md, "Conventions"), so any other field away from its default is refused."""
+    if raster is None:
+        return RasterState(cull=cull)
+    if not isinstance(raster, RasterState):
+        raise TypeError(f"raster must be a refraster.RasterState or None, got "
+                        f"{type(raster).__name__}")
+    from .raster.state import require_default
+    require_default(raster, ("depth_func", "front_face", "depth_range", "origin", "ndc_y"),
+                    "the conformance allowances (map the scene into OpenGL's conventions)")
+    if raster.cull != cull:
+        raise ValueError(f"raster.cull ({raster.cull!r}) and cull ({cull!r}) differ")
+    return RasterState(cull=cull, depth_clamp=raster.depth_clamp)
+
+
 def edge_epsilon(width, height, *, min_bits=4, ref_bits=8):
     """The largest distance (pixels) an edge may move between allowed rasterizers."""
     snap = np.sqrt(2.0) * (2.0 ** -(min_bits + 1) + 2.0 ** -(ref_bits + 1))
@@ -215,7 +234,7 @@ def _edge_boundary(faces, front):
 
 
 def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps=None,
-              depth_eps=DEPTH_EPS, min_bits=4):
+              depth_eps=DEPTH_EPS, min_bits=4, raster=None):
     """Coverage masks, id masks and depth intervals for rendering ``meshes`` (as
     :func:`refraster.render` would, with ``depth_func="less"``).
 
@@ -229,13 +248,17 @@ def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps
         Window-depth tolerance for depth ties and depth intervals.
     min_bits : int
         Coarsest sub-pixel precision allowed (4 by default).
+    raster : RasterState, optional
+        Its ``depth_clamp`` sets the clip volume (no near/far clipping); its ``cull`` must be
+        ``cull``. The allowances are OpenGL's: a state in other conventions is refused
+        (``docs/tolerance.md``, "Conventions", maps a scene into them).
 
     Returns
     -------
     Tolerance
     """
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
-                   raster=RasterState(cull=cull))
+                   raster=_geometry_state(cull, raster))
     w, h = prep.width, prep.height
     eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
     depth_eps = as_real(depth_eps, "depth_eps", lo=0.0)
@@ -382,7 +405,7 @@ def _set_pass(mode, X, Y, Z, face, fragile, eps, fslack, mask, zsure, counts, of
 
 
 def may_faces(meshes, *, view, proj, width, height, model=None, cull="none", mask=None,
-              eps=None, depth_eps=DEPTH_EPS, min_bits=4):
+              eps=None, depth_eps=DEPTH_EPS, min_bits=4, raster=None):
     """Per pixel, the faces that may be visible there in an allowed rasterizer.
 
     A face may win at a pixel centre when its footprint, dilated by the edge tolerance ``ε``
@@ -400,6 +423,8 @@ def may_faces(meshes, *, view, proj, width, height, model=None, cull="none", mas
         As :func:`refraster.render`.
     mask : (H, W) bool, optional
         Only these pixels (default: all).
+    raster : RasterState, optional
+        As :func:`tolerance` (its ``depth_clamp``).
 
     Returns
     -------
@@ -410,7 +435,7 @@ def may_faces(meshes, *, view, proj, width, height, model=None, cull="none", mas
         without repeats.
     """
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
-                   raster=RasterState(cull=cull))
+                   raster=_geometry_state(cull, raster))
     w, h = prep.width, prep.height
     eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
     mask = np.ones((h, w), np.bool_) if mask is None else np.ascontiguousarray(mask, np.bool_)
@@ -598,16 +623,17 @@ def check(tol, *, prim_id=None, depth=None, reference_prim_id=None):
 
 
 def edge_may(meshes, *, view, proj, width, height, model=None, cull="none", eps=None,
-             min_bits=4):
+             min_bits=4, raster=None):
     """Pixels within ``eps`` of *any* edge of a drawn triangle, whatever lies in front of it.
 
     For techniques that make hidden surfaces visible (a clip surface removes the front ones), the
     depth relevance of :func:`tolerance` does not hold; this is its conservative twin: every
     non-culled triangle's edges count. Returns ``(id_may, coverage_may)``, ``(H, W)`` bool each
     (``coverage_may`` only near border, fold and silhouette edges, as in :func:`tolerance`).
+    ``raster``: as :func:`tolerance` (its ``depth_clamp``).
     """
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
-                   raster=RasterState(cull=cull))
+                   raster=_geometry_state(cull, raster))
     w, h = prep.width, prep.height
     eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
     p = prep.triangles
@@ -643,7 +669,8 @@ def fragile_faces(prep, eps):
     return ok & (np.abs(area) <= eps * perim + 3.0 * eps * eps)
 
 
-def facing_may(meshes, *, view, proj, width, height, model=None, eps=None, min_bits=4):
+def facing_may(meshes, *, view, proj, width, height, model=None, eps=None, min_bits=4,
+               raster=None):
     """Pixels of faces whose facing may flip between allowed rasterizers, and near their edges.
 
     :func:`tolerance` keeps coverage "must" across an edge shared by two faces of the same
@@ -657,7 +684,11 @@ def facing_may(meshes, *, view, proj, width, height, model=None, eps=None, min_b
     Returns ``(id_may, coverage_may)`` ``(H, W)`` bool (faces with a vertex behind the eye are
     left to :func:`tolerance`'s clipped-piece handling).
     """
-    prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model)
+    if raster is not None:   # facing: no culling; the clip volume of raster
+        raster = _geometry_state("none", _geometry_state(raster.cull, raster).replace(
+            cull="none"))
+    prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
+                   raster=raster)
     w, h = prep.width, prep.height
     eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
     fragile = fragile_faces(prep, eps)
@@ -675,4 +706,5 @@ def facing_may(meshes, *, view, proj, width, height, model=None, eps=None, min_b
         corners = m.vertices[m.faces[local[obj == o]]].reshape(-1, 3)
         alone.append(Mesh(corners, np.arange(len(corners)).reshape(-1, 3)))
     return edge_may(alone, view=view, proj=proj, width=w, height=h,
-                    model=[prep.models[o] for o in draws], cull="none", eps=5.0 * eps)
+                    model=[prep.models[o] for o in draws], cull="none", eps=5.0 * eps,
+                    raster=raster)

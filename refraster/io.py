@@ -8,6 +8,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import stat
 import tempfile
 from pathlib import Path
 
@@ -20,6 +21,17 @@ __all__ = ["atomic_write_bytes", "write_png", "write_npz", "write_json", "to_uin
 def atomic_write_bytes(path, data: bytes):
     """Write ``data`` to ``path`` atomically (same-directory temporary file + ``os.replace``)."""
     path = Path(path)
+    try:
+        st = os.stat(path)   # a FIFO, socket or device there (or a link to one) is never replaced
+    except FileNotFoundError:
+        st = None
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        kind = next((word for test, word in (
+            (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"),
+            (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+            (stat.S_ISDIR, "a directory")) if test(st.st_mode)), "not a regular file")
+        raise ValueError(f"{path} is {kind}, not a regular file; refraster writes only regular "
+                         "files")
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:

@@ -166,6 +166,7 @@ def fault_table(golden_dir, scene, *, buffers=None, seed=SEED, covered_of=None, 
         arrays = {k: z[k].copy() for k in z.files}
     info = entry["allowances"]
     clear = entry["parameters"]["raster"].get("clear_depth", 1.0)
+    func = entry["parameters"]["raster"].get("depth_func", "less")
     covered = (covered_of or _covered)(ref_all, clear)
     radius = max(int(info["may_radius"]), 1)
     table = {}
@@ -204,7 +205,7 @@ def fault_table(golden_dir, scene, *, buffers=None, seed=SEED, covered_of=None, 
                          if "prim_id" in ids else None)
                 _, checks, images = tolerant_metrics(
                     key, ref, cand, kind, spec["tolerant"], arrays, clear_depth=clear,
-                    fallback=fallback, named=named, others=others)
+                    fallback=fallback, named=named, others=others, depth_func=func)
                 bad = images["over"] & ~images["forgiven"]
                 ok = all(c["ok"] for c in checks)
                 m = np.zeros_like(covered)

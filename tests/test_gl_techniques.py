@@ -141,6 +141,7 @@ def test_unsupported_options_are_skipped_with_the_reason(gold, tmp_path):
              ("halos4d_figure1", {"stereo": True}, "'stereo' is not implemented"),
              ("cutaway_shells", {"angle": 2.0}, "parameters.angle"),
              ("halos4d_figure1", {"slices": 0}, "parameters.slices"),
+             ("halos4d_figure1", {"split": "dompierre"}, "parameters.split"),
              ("edges_npr_gooch", {"npr": {"style": "toon"}}, "npr.style")]
     for scene, edit, words in cases:
         pkg = tmp_path / scene

@@ -386,6 +386,16 @@ TOML_CASES = {
              "[raster] cull must be one of ['none', 'back', 'front'], got a string 'sideways'"),
     "bits float": (("[[draw]]", "[raster]\nsubpixel_bits = 8.0\n[[draw]]"),
                    "[raster] subpixel_bits must be an integer, got a float 8.0"),
+    "depth_range": (("[[draw]]", '[raster]\ndepth_range = "minus_one_to_one"\n[[draw]]'),
+                    "[raster] depth_range must be one of ['negative_one_to_one', "
+                    "'zero_to_one'], got a string 'minus_one_to_one'"),
+    "depth_clamp string": (("[[draw]]", '[raster]\ndepth_clamp = "yes"\n[[draw]]'),
+                           "[raster] depth_clamp must be a boolean, got a string 'yes'"),
+    "depth_format": (("[[draw]]", '[raster]\ndepth_format = "unorm32"\n[[draw]]'),
+                     "[raster] depth_format must be one of ['float32', 'unorm24', 'unorm16'], "
+                     "got a string 'unorm32'"),
+    "reversed string": (("far = 20.0", 'far = 20.0\nreversed = "yes"'),
+                        "[camera] reversed must be a boolean, got a string 'yes'"),
     "model": (('solid = "cube"', 'solid = "cube"\nmodel = [[1, 0, 0], [0, 1, 0]]'),
               "[[draw]] 0: model must be a 4x4 array of finite numbers"),
     "name int": (("[viewport]", "name = 7\n[viewport]"), "name must be a string, got an "

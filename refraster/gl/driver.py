@@ -180,7 +180,7 @@ class Backend:
         (timing a frame without the upload); free it with :meth:`unload`."""
         package_dir = Path(package_dir)
         scene = read_scene(package_dir)
-        reason = self.supports(scene)
+        reason = self.supports(scene) or self._size_limit(scene)
         if reason is not None:
             raise Unsupported(reason)
         if scene["technique"] == "clipsurface":            # issue 26 item 1
@@ -233,6 +233,23 @@ class Backend:
             for obj in d["release"]:
                 obj.release()
         loaded["draws"] = []
+
+    def _size_limit(self, scene):
+        """``None`` if this context can hold the scene's viewport, else the reason naming the
+        size and the limit (the render targets are textures and the viewport is clamped, so a
+        larger side would fail as GL error 0x501, GL_INVALID_VALUE)."""
+        w, h = scene["viewport"]["width"], scene["viewport"]["height"]
+        info = self.ctx.info
+        limits = [("GL_MAX_TEXTURE_SIZE", int(info["GL_MAX_TEXTURE_SIZE"])),
+                  ("GL_MAX_RENDERBUFFER_SIZE", int(info["GL_MAX_RENDERBUFFER_SIZE"]))]
+        dims = info.get("GL_MAX_VIEWPORT_DIMS")
+        if dims:
+            limits.append(("GL_MAX_VIEWPORT_DIMS", int(min(dims))))
+        name, limit = min(limits, key=lambda item: item[1])
+        if max(w, h) > limit:
+            return (f"viewport {w}x{h} is larger than this OpenGL's limit of {limit} pixels "
+                    f"per side ({name} = {limit}, {info['GL_RENDERER']})")
+        return None
 
     # --- geometry ---------------------------------------------------------------------------
     def _upload(self, package_dir, scene):

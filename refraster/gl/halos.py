@@ -4,8 +4,11 @@ scene package's maps and ``parameters`` alone (``docs/golden-schema.md``, techni
 
 On the CPU (NumPy, as a GPU team's per-frame setup): the 4D rotation and projection of the
 vertices and tangents, the thickening directions (Eq. 1 normalized, face-normal fallback), the
-offset copies v ± ρn̂ (Eq. 2), the headlight colour, and the prisms split into tetrahedra by the
-global-index rule. On the GPU, per slicing plane z = c_k, back (smallest z) to front:
+offset copies v ± ρn̂ (Eq. 2), the headlight colour, and the prisms split into tetrahedra
+(``parameters.split``: ``"paper"``, the default, each prism in its face's vertex order with the
+paper's repair of mismatched sides — a diagonal flip, Fig. 4(b), and a prism whose sides end
+cyclic rebuilt from its triangles' centroids as three smaller prisms, Fig. 4(d); or
+``"global_index"``, the global-index rule; ``docs/halos4d.md``). On the GPU, per slicing plane z = c_k, back (smallest z) to front:
 
 A. every tetrahedron sliced in a geometry shader (``halo_slice.geom``, lines_adjacency = the
    tetrahedron's 4 vertices), Eq. 3's halo depth per fragment into a MIN-blended R32F target;
@@ -35,6 +38,7 @@ NORMAL_EPS = 1e-6
 AMBIENT = 0.3
 DELTA_MIN = 1e-3
 MAX_SLICES = 4096
+SPLITS = ("paper", "global_index")
 
 
 def _num(p, key, lo=None, hi=None, default=None):
@@ -105,6 +109,10 @@ def options(scene):
                 or not np.all(sb[1] > sb[0]):
             raise PackageError("parameters.screen_bounds must be [[x0, y0, z0], [x1, y1, z1]]")
     opt["screen_bounds"] = sb
+    split = p.get("split", "paper")
+    if split not in SPLITS:
+        raise PackageError(f"parameters.split must be one of {list(SPLITS)}")
+    opt["split"] = split
     return opt, None
 
 
@@ -117,8 +125,9 @@ def supports(scene):
 
 
 def prepare(vertices4d, faces, tangents, colors, opt):
-    """Project, thicken and tetrahedralize (float64) → ``(points (2V, 3), attr (2V, 5) = (δ, t,
-    r, g, b), tets (3F, 4), projected points (V, 3))``."""
+    """Project, thicken and tetrahedralize (float64) → ``(points (2V + 2K, 3), attr (2V + 2K, 5)
+    = (δ, t, r, g, b), tets (T, 4), projected points (V, 3))``, K the vertices inserted by the
+    paper's split."""
     f = np.asarray(faces, np.int64)
     f = f[~((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2]))]
     if len(f) == 0:
@@ -166,12 +175,62 @@ def prepare(vertices4d, faces, tangents, colors, opt):
     shade = AMBIENT + (1.0 - AMBIENT) * np.abs(normals[:, 2])
     rgb = np.asarray(colors, np.float64) * shade[:, None]
     attr = np.column_stack([np.concatenate([depth, depth]), tt, np.concatenate([rgb, rgb])])
-    srt = np.sort(f, axis=1)
-    a, b, c = srt[:, 0], srt[:, 1], srt[:, 2]
     nv = len(pts)
-    tets = np.stack([np.stack([a, b, c, c + nv], 1), np.stack([a, b, c + nv, b + nv], 1),
-                     np.stack([a, a + nv, b + nv, c + nv], 1)], 1).reshape(-1, 4)
+    if opt.get("split", "paper") == "global_index":
+        srt = np.sort(f, axis=1)
+        a, b, c = srt[:, 0], srt[:, 1], srt[:, 2]
+        tets = np.stack([np.stack([a, b, c, c + nv], 1), np.stack([a, b, c + nv, b + nv], 1),
+                         np.stack([a, a + nv, b + nv, c + nv], 1)], 1).reshape(-1, 4)
+        return verts, attr, tets, pts, rho
+    tets, cyc = _paper_split(f, nv)
+    if len(cyc):
+        def centroids(x):
+            lo = (x[cyc[:, 0]] + x[cyc[:, 1]] + x[cyc[:, 2]]) / 3.0
+            hi = (x[cyc[:, 0] + nv] + x[cyc[:, 1] + nv] + x[cyc[:, 2] + nv]) / 3.0
+            return np.concatenate([x, lo, hi])
+        verts, attr = centroids(verts), centroids(attr)
     return verts, attr, tets, pts, rho
+
+
+def _apex(a, b, c, a1, b1, c1, cb):
+    """Prisms whose lower vertex a starts the diagonals to b⁺ and c⁺; side (b, c) split b–c⁺, or
+    c–b⁺ where ``cb``: (F, 3, 4)."""
+    t0 = np.where(cb[:, None], np.stack([a, b, c, b1], 1), np.stack([a, b, c, c1], 1))
+    t1 = np.where(cb[:, None], np.stack([a, b1, c, c1], 1), np.stack([a, b, c1, b1], 1))
+    return np.stack([t0, t1, np.stack([a, a1, b1, c1], 1)], 1)
+
+
+def _paper_split(f, nv):
+    """Wang et al. Sec. 4.4/5.1: each prism in its face's order (diagonals v0–v1⁺, v1–v2⁺,
+    v0–v2⁺), each later prism's diagonal on a shared side flipped to the first prism's, a
+    cyclic prism rebuilt as (m, v_k, v_k+1) with its triangles' centroids m, m⁺ (numbered
+    2·nv + k and 2·nv + K + k). Returns (tets, the rebuilt prisms' faces)."""
+    d = np.zeros((len(f), 3), np.int64)
+    d[:, 2] = 1                                  # 0: side k split v_k → v_k+1⁺; 1: the other
+    nxt = np.roll(f, -1, axis=1)
+    start = np.where(d == 0, f, nxt).ravel()
+    key = (np.minimum(f, nxt) * np.int64(nv) + np.maximum(f, nxt)).ravel()
+    order = np.lexsort((np.arange(key.size), key))
+    first = np.ones(key.size, bool)
+    first[1:] = key[order][1:] != key[order][:-1]
+    head = order[np.maximum.accumulate(np.where(first, np.arange(key.size), 0))]
+    flip = order[start[order] != start[head]]
+    d.reshape(-1)[flip] ^= 1
+    cyc = (d[:, 0] == d[:, 1]) & (d[:, 1] == d[:, 2])
+    ok, cy = np.flatnonzero(~cyc), np.flatnonzero(cyc)
+    apex = np.argmax((d[ok] == 0).astype(np.int64) + (np.roll(d[ok], 1, axis=1) == 1), axis=1)
+    abc = f[ok[:, None], (apex[:, None] + np.arange(3)) % 3]
+    valid = _apex(*abc.T, *(abc + nv).T, d[ok, (apex + 1) % 3] == 1)
+    m = 2 * nv + np.arange(len(cy), dtype=np.int64)
+    rebuilt = np.concatenate([_apex(m, f[cy, k], f[cy, (k + 1) % 3], m + len(cy),
+                                    f[cy, k] + nv, f[cy, (k + 1) % 3] + nv, d[cy, k] == 1)
+                              for k in range(3)], axis=1)
+    count = np.where(cyc, 9, 3)
+    offset = np.concatenate([[0], np.cumsum(count)])
+    tets = np.zeros((int(offset[-1]), 4), np.int64)
+    tets[(offset[ok][:, None] + np.arange(3)).ravel()] = valid.reshape(-1, 4)
+    tets[(offset[cy][:, None] + np.arange(9)).ravel()] = rebuilt.reshape(-1, 4)
+    return tets, f[cy]
 
 
 def _screen_bounds(points, width, height, margin):

@@ -40,18 +40,30 @@ def _inside(package_dir, rel, where):
 
 
 def _read_bytes(path, limit, what):
+    """The bytes of ``path``: a regular file (checked before the open and on the descriptor),
+    no link followed, never blocking on a FIFO, at most ``limit`` bytes."""
+    import stat
     try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+        st = os.lstat(path)
+        if stat.S_ISLNK(st.st_mode):
+            raise PackageError(f"cannot open {what} {path}: a symbolic link (links are not "
+                               "followed)")
+        if not stat.S_ISREG(st.st_mode):
+            raise PackageError(f"{what} {path} is not a regular file")
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0)
+                     | getattr(os, "O_NONBLOCK", 0))
     except OSError as exc:
         raise PackageError(f"cannot open {what} {path}: {exc.strerror or exc}") from None
     with os.fdopen(fd, "rb") as fh:
-        st = os.fstat(fh.fileno())
-        import stat
-        if not stat.S_ISREG(st.st_mode):
+        fst = os.fstat(fh.fileno())
+        if not stat.S_ISREG(fst.st_mode) or (fst.st_dev, fst.st_ino) != (st.st_dev, st.st_ino):
             raise PackageError(f"{what} {path} is not a regular file")
-        if st.st_size > limit:
+        if fst.st_size > limit:
             raise PackageError(f"{what} {path} is larger than {limit} bytes")
-        return fh.read()
+        data = fh.read()
+    if len(data) > limit:
+        raise PackageError(f"{what} {path} is larger than {limit} bytes")
+    return data
 
 
 def matrix(value, where):
@@ -70,11 +82,34 @@ def read_scene(package_dir):
     checked (schema, version, viewport, camera matrices, raster state, draws)."""
     path = Path(package_dir) / "scene.json"
     raw = _read_bytes(path, MAX_SCENE_BYTES, "scene file")
+    huge = []
+
+    def parse_int(text):        # past the int-string conversion limit: found by key below
+        try:
+            return int(text)
+        except ValueError:
+            huge.append(len(text.lstrip("-")))
+            return huge
+
     try:
-        scene = json.loads(raw.decode("utf-8"),
+        scene = json.loads(raw.decode("utf-8"), parse_int=parse_int,
                            parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
-    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+    except RecursionError:
+        raise PackageError(f"{path}: not valid JSON (nested too deeply)") from None
+    except (UnicodeDecodeError, ValueError) as exc:
         raise PackageError(f"{path}: not valid JSON ({exc})") from None
+    if huge:
+        stack, key = [(scene, "")], None
+        while key is None and stack:
+            node, at = stack.pop()
+            if node is huge:
+                key = at.lstrip(".") or "the document"
+            elif isinstance(node, dict):
+                stack.extend(reversed([(v, f"{at}.{k}") for k, v in node.items()]))
+            elif isinstance(node, list):
+                stack.extend(reversed([(v, f"{at}[{i}]") for i, v in enumerate(node)]))
+        raise PackageError(f"{path}: {key} is an integer of {huge[0]} digits, beyond the "
+                           "int-string conversion limit")
     if not isinstance(scene, dict) or scene.get("schema") != "refraster.scene":
         raise PackageError(f"{path}: schema is not 'refraster.scene'")
     if scene.get("schema_version") != 1:
@@ -102,8 +137,11 @@ def read_scene(package_dir):
         for i, d in enumerate(scene["draws"]):
             matrix(d["model"], f"{path}: draws[{i}].model")
             _inside(package_dir, d["mesh"], f"{path}: draws[{i}].mesh")
-            if not isinstance(d["object_id"], int):
-                raise PackageError(f"{path}: draws[{i}].object_id must be an integer")
+            oid = d["object_id"]
+            if not isinstance(oid, int) or isinstance(oid, bool) or not 0 <= oid <= 2 ** 31 - 2:
+                raise PackageError(f"{path}: draws[{i}].object_id must be an integer in "
+                                   f"0..2147483646 (the id buffers are int32), got "
+                                   f"{str(oid)[:40]}")
         sh = scene["shading"]
         for key in ("ambient", "diffuse", "specular", "shininess"):
             if not isinstance(sh[key], (int, float)) or not math.isfinite(sh[key]):

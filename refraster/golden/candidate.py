@@ -57,9 +57,13 @@ def candidate(golden_dir, out, *, backend="gl", scenes=None, faults=(), threads=
     ``faults`` (tests only) plants :data:`refraster.gl.FAULTS`.
     """
     golden_dir = Path(golden_dir)
-    write.recover(golden_dir)
+    names = None if scenes is None else list(scenes)
+    twice = next((n for i, n in enumerate(names or ()) if n in names[:i]), None)
+    if twice is not None:
+        raise GoldenError(f"scenes: {twice!r} is given twice")
+    write.pending_swap(golden_dir)   # the golden is only read: its journal is not acted on
     manifest = load_manifest(golden_dir)
-    names = list(manifest["scenes"]) if scenes is None else list(scenes)
+    names = list(manifest["scenes"]) if names is None else names
     unknown = [n for n in names if n not in manifest["scenes"]]
     if unknown:
         raise GoldenError(f"scene(s) {unknown} are not in the golden; it has "

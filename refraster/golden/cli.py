@@ -5,7 +5,7 @@
     refraster golden generate --out DIR [--scene NAME ...] [--scene-file SCENE.toml ...]
                               [--update] [--list] [--sweep KEY=V1,V2 ...] [--size WxH ...]
                               [--jobs N | --workers N | --scheduler ADDRESS]
-                              [--no-wait]
+                              [--convention gl|vulkan|d3d12|metal|webgpu] [--no-wait]
     refraster golden compare GOLDEN_DIR CANDIDATE_DIR [--report DIR] [--mode tolerant|exact]
                              [--profile exact|conformant] [--tolerance [SCENE:][BUFFER.]KEY=VALUE ...]
                              [--scene NAME ...] [--json FILE] [--no-wait]
@@ -38,16 +38,28 @@ __all__ = ["register", "main"]
 
 
 def _error(args, prog, exc, *, usage=False):
-    """One line on stderr and exit status 2; ``--debug`` re-raises (not for usage errors)."""
+    """One line on stderr and exit status 2; ``--debug`` prints the traceback above it (not for
+    usage errors) and keeps the status."""
     if getattr(args, "debug", False) and not usage:
-        raise exc
+        import traceback
+        traceback.print_exception(exc, file=sys.stderr)
+    print(f"{prog}: error: {error_text(exc)}", file=sys.stderr)
+    return EXIT_UNUSABLE
+
+
+def error_text(exc):
+    """The one line an exception is reported as: its message on one line, after its class name
+    unless it is a ``ValueError`` or an ``OSError`` (whose messages name the cause); a class
+    named ``error`` (``struct.error``, ``re.error``) by its module, never "error: error:"."""
     text = " ".join(str(exc).split())
     if isinstance(exc, MemoryError):
-        text = f"out of memory ({type(exc).__name__}{': ' + text if text else ''})"
-    elif not isinstance(exc, (ValueError, OSError)):
-        text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
-    print(f"{prog}: error: {text or type(exc).__name__}", file=sys.stderr)
-    return EXIT_UNUSABLE
+        return f"out of memory ({type(exc).__name__}{': ' + text if text else ''})"
+    name = type(exc).__name__
+    if name.lower() == "error":
+        name = f"{type(exc).__module__}.{name}"
+    if not isinstance(exc, (ValueError, OSError)):
+        return f"{name}: {text}" if text else name
+    return text or name
 
 
 def _positive_int(text):
@@ -94,6 +106,24 @@ def _say(args, message):
         print(message, file=sys.stderr)
 
 
+def _in_convention(api, names, scene_files):
+    """The scenes of ``generate --convention API``: the named ones (or, without ``--scene``,
+    every registered scene whose technique honours the conventions) and the TOML scenes, each
+    drawn in ``api``'s conventions (:func:`refraster.golden.conventions.in_convention`)."""
+    from .conventions import TECHNIQUES_IN_CONVENTIONS, in_convention
+    from .scenes import available_scenes, load_scene_file
+    registry = available_scenes()
+    if names is None:
+        names = [] if scene_files else [
+            n for n, e in registry.items()
+            if api == "gl" or e.technique in TECHNIQUES_IN_CONVENTIONS]
+    unknown = [n for n in names if n not in registry]
+    if unknown:
+        raise ValueError(f"unknown golden scene(s) {unknown}; known: {sorted(registry)}")
+    entries = [registry[n] for n in names] + [load_scene_file(p) for p in scene_files]
+    return [in_convention(e, api) for e in entries]
+
+
 @_guarded("golden generate")
 def _cmd_generate(args):
     from .generate import generate
@@ -122,9 +152,15 @@ def _cmd_generate(args):
         retried.append(name)
         _say(args, f"retrying {name} once: {reason}")
 
+    scenes, scene_files = args.scene or None, args.scene_file or ()
+    if args.convention is not None:
+        try:
+            scenes, scene_files = _in_convention(args.convention, scenes, scene_files), ()
+        except ValueError as exc:
+            return _error(args, "golden generate", exc)
     try:
-        manifest = generate(args.out, args.scene or None, update=args.update,
-                            scene_files=args.scene_file or (), sweeps=args.sweep or (),
+        manifest = generate(args.out, scenes, update=args.update,
+                            scene_files=scene_files, sweeps=args.sweep or (),
                             sizes=args.size or (), workers=args.workers or 1,
                             scheduler=args.scheduler, progress_bar=not quiet,
                             on_retry=on_retry, wait=not args.no_wait,
@@ -147,7 +183,8 @@ def _cmd_compare(args):
     from .compare.run import compare
     from .compare.run import has_allowances, load_manifest
     try:
-        write.recover(args.golden_dir)  # before reading the manifest for the default mode
+        # compare only reads the golden: a journal beside it is never acted on
+        write.pending_swap(args.golden_dir)
     except (GoldenError, OSError) as exc:
         return _error(args, "golden compare", exc)
     mode = args.mode
@@ -161,18 +198,25 @@ def _cmd_compare(args):
             mode = "exact"   # compare reports what is wrong with the golden
     # every output is staged, then all are committed together (or none)
     outputs = write.Outputs(wait=not args.no_wait, command="refraster golden compare")
+    to_stdout = args.json == "-"
     try:
-        if args.json is not None:
+        if args.json is not None and not to_stdout:
+            write.check_regular_output(args.json, f"--json {args.json}")
             write.check_output_path(args.json, "--json", {
                 "golden directory": args.golden_dir, "candidate directory": args.candidate_dir,
                 "report directory": args.report})
         result = compare(args.golden_dir, args.candidate_dir, report=args.report,
                          profile=args.profile, mode=mode, tolerances=args.tolerance or (),
                          scenes=args.scene or None, outputs=outputs)
+        text = None
         if args.json is not None:
             text = json.dumps(result.to_json(), indent=2, sort_keys=True) + "\n"
-            outputs.file(args.json, text.encode("utf-8"))
+            if not to_stdout:
+                outputs.file(args.json, text.encode("utf-8"))
         outputs.commit()
+        if to_stdout:     # standard output holds the JSON alone; the summary goes to stderr
+            sys.stdout.write(text)
+            sys.stdout.flush()
     except (GoldenError, ValueError, OSError) as exc:
         outputs.discard()
         return _error(args, "golden compare", exc)
@@ -180,11 +224,12 @@ def _cmd_compare(args):
         outputs.discard()
         raise
     if not getattr(args, "quiet", False):
-        print(result.summary())
+        summary = sys.stderr if to_stdout else sys.stdout
+        print(result.summary(), file=summary)
         for line in result.failures():
             print(f"FAIL {line}", file=sys.stderr)
         if result.report_dir is not None:
-            print(f"report: {result.report_dir / 'index.html'}")
+            print(f"report: {result.report_dir / 'index.html'}", file=summary)
     else:   # -q still names why the input is unusable (exit 2), one line per scene
         for s in result.scenes:
             if s.status == "error":
@@ -196,6 +241,10 @@ def _cmd_compare(args):
 @_guarded("golden candidate")
 def _cmd_candidate(args):
     from .candidate import candidate
+    twice = next((n for i, n in enumerate(args.scene or ()) if n in args.scene[:i]), None)
+    if twice is not None:   # before anything is read or rendered
+        return _error(args, "golden candidate", ValueError(f"--scene {twice} is given twice"),
+                      usage=True)
     result = candidate(args.golden_dir, args.out, backend=args.backend, scenes=args.scene,
                        threads=args.threads, wait=not args.no_wait,
                        on_wait=lambda holder: _say(args, f"waiting for {holder} to finish "
@@ -248,6 +297,10 @@ def register(subparsers):
                    help="render on a Dask LocalCluster of N processes (N > 1; 1 = serial)")
     g.add_argument("--scheduler", metavar="ADDRESS",
                    help="render on an existing Dask cluster (e.g. tcp://host:8786)")
+    g.add_argument("--convention", choices=("gl", "vulkan", "d3d12", "metal", "webgpu"),
+                   help="emit the scenes in that API's conventions (raster fields, the "
+                        "projection converted to its clip depth, the winding flip; "
+                        "docs/backends.md); plain-rendering scenes only (default: those)")
     g.add_argument("--no-wait", action="store_true",
                    help="if another run is writing DIR, exit 2 naming it instead of waiting")
     g.set_defaults(func=_cmd_generate)
@@ -267,7 +320,9 @@ def register(subparsers):
                    help="override a tolerance (repeatable), e.g. color.max_flip_mean=0.02")
     c.add_argument("--scene", metavar="NAME", action="append",
                    help="compare only this scene (repeatable)")
-    c.add_argument("--json", metavar="FILE", help="write the metrics as JSON")
+    c.add_argument("--json", metavar="FILE",
+                   help="write the metrics as JSON ('-': to standard output, the summary "
+                        "then goes to stderr)")
     c.add_argument("--no-wait", action="store_true",
                    help="if another run is writing the report directory, exit 2 naming it")
     c.set_defaults(func=_cmd_compare)

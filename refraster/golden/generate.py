@@ -30,7 +30,8 @@ from .._validate import check_shape
 from .io.buffers import DTYPES, KINDS, infer_kind, preview, preview_range
 from .io.package import export_package, npz_bytes, sha256_file
 from .io.read import copy_listed_scene
-from .scenes import DEFAULT_RASTER, GoldenScene, available_scenes, id_range, raster_state
+from .scenes import (DEFAULT_RASTER, GoldenScene, SceneEntry, available_scenes, id_range,
+                     manifest_raster, raster_state)
 from .io.schema import MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION, validate
 from .compare.profiles import default_tolerances
 from .io import write
@@ -116,7 +117,8 @@ def _write_scene(root, name, scene):
                              for k, v in sorted(arrays.items())}}
     return {"technique": scene.technique, "description": scene.description,
             "package": f"{name}/package/scene.json", "buffers_file": f"{name}/buffers.npz",
-            "buffers": buffers, "parameters": {"raster": raster, "technique": scene.parameters},
+            "buffers": buffers,
+            "parameters": {"raster": manifest_raster(raster), "technique": scene.parameters},
             "allowances": allowances}
 
 
@@ -433,9 +435,10 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
     out : path
         The golden directory. It must not exist unless ``update`` is true, and then it must be a
         golden directory (a ``manifest.json`` this refraster reads).
-    scenes : sequence of str, optional
-        Registered scene names; ``None`` means every registered scene (and none when only
-        ``scene_files`` are given).
+    scenes : sequence of str or SceneEntry, optional
+        Registered scene names, or entries (a scene in another API's conventions:
+        :func:`refraster.golden.conventions.in_convention`); ``None`` means every registered
+        scene (and none when only ``scene_files`` are given).
     update : bool
         Replace an existing golden; scenes it holds that are not regenerated are kept.
     scene_files : sequence of paths
@@ -488,14 +491,16 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
     sweeps = [parse_sweep(x) if isinstance(x, str) else (x[0], list(x[1])) for x in sweeps]
     sizes = [parse_size(x) if isinstance(x, str) else tuple(x) for x in sizes]
     registry = available_scenes()
+    given = {}
     if scenes is None:
         names = [] if scene_files else list(registry)
     else:
-        names = list(scenes)
-        unknown = [n for n in names if n not in registry]
+        given = {s.name: s for s in scenes if isinstance(s, SceneEntry)}
+        names = [s.name if isinstance(s, SceneEntry) else s for s in scenes]
+        unknown = [n for n in names if n not in registry and n not in given]
         if unknown:
             raise ValueError(f"unknown golden scene(s) {unknown}; known: {sorted(registry)}")
-    entries = {n: registry[n] for n in names}
+    entries = {n: given.get(n) or registry[n] for n in names}
     for path in scene_files:
         entry = load_scene_file(path)
         if entry.name in entries or entry.name in registry:

@@ -40,17 +40,47 @@ from ..raster.state import RasterState
 __all__ = [
     "Draw", "GoldenScene", "SceneEntry", "SCENES", "SCENE_MODULES", "TECHNIQUES",
     "register_scene", "register_technique", "prepare_draws", "render_scene", "available_scenes",
-    "load_scene_file", "DEFAULT_RASTER",
+    "load_scene_file", "DEFAULT_RASTER", "CONVENTION_FIELDS",
 ]
 
 #: Raster state of every golden unless a scene overrides a field (``scene.json`` "raster").
 DEFAULT_RASTER = dict(subpixel_bits=8, fill_rule="llvmpipe", precision="float32", cull="none",
-                      depth_func="less", front_face="ccw", clear_depth=1.0, normals="flat")
+                      depth_func="less", front_face="ccw", clear_depth=1.0, normals="flat",
+                      depth_range="negative_one_to_one", origin="lower_left", ndc_y="up",
+                      depth_clamp=False, depth_format="float32")
+#: The API conventions among the raster fields (:class:`refraster.RasterState`'s names and
+#: values; ``docs/architecture.md``, "Conventions"). A manifest's ``parameters.raster`` lists
+#: them only where they differ from :data:`DEFAULT_RASTER` (``scene.json`` always has them).
+CONVENTION_FIELDS = ("depth_range", "origin", "ndc_y", "depth_clamp", "depth_format")
 
 #: Modules imported by :func:`available_scenes`; each registers its scenes on import.
-SCENE_MODULES = ("refraster.golden.technique_scenes",)
+SCENE_MODULES = ("refraster.golden.technique_scenes", "refraster.golden.convention_scenes")
 
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_]*$")
+#: Longest scene or draw name: a name becomes a directory (``<scene>/``, with ``__<sweep>``
+#: and ``__<W>x<H>`` suffixes) or a file (``meshes/<draw>.ply``) name, and file systems stop
+#: at 255 bytes.
+NAME_MAX = 128
+
+
+def _control(text):
+    return any(ord(c) < 32 or 127 <= ord(c) <= 159 for c in text)
+
+
+def check_name(name, what):
+    """``name`` if it is a scene or draw name (lower-case ``[a-z0-9_]``, at most
+    :data:`NAME_MAX` characters, no control character: a trailing newline does not pass);
+    else one line naming ``what`` and what is wrong."""
+    if not isinstance(name, str):
+        raise TypeError(f"{what} must be a string, got {type(name).__name__}")
+    if _control(name):
+        raise ValueError(f"{what} must not contain control characters, got {name!r}"[:300])
+    if len(name) > NAME_MAX:
+        raise ValueError(f"{what} must be at most {NAME_MAX} characters (it names "
+                         f"directories), got {len(name)}")
+    if not _NAME.fullmatch(name):
+        raise ValueError(f"{what} must match {_NAME.pattern}, got {name!r}")
+    return name
 
 
 @dataclass(frozen=True)
@@ -167,8 +197,7 @@ def register_scene(name, *, technique, description=""):
     ``name`` is lower-case ``[a-z0-9_]`` (it becomes a directory name). Registering a name twice
     is an error.
     """
-    if not isinstance(name, str) or not _NAME.match(name):
-        raise ValueError(f"scene name must match {_NAME.pattern}, got {name!r}")
+    check_name(name, "scene name")
     if name in SCENES:
         raise ValueError(f"golden scene {name!r} is already registered")
 
@@ -213,8 +242,7 @@ def prepare_draws(draws, *, normals="flat"):
     for i, d in enumerate(draws):
         if not isinstance(d, Draw):
             raise TypeError(f"draws[{i}] must be a Draw, got {type(d).__name__}")
-        if not _NAME.match(d.name):
-            raise ValueError(f"draws[{i}].name must match {_NAME.pattern}, got {d.name!r}")
+        check_name(d.name, f"draws[{i}].name")
         m = as_mesh(d.mesh, f"draws[{i}].mesh")
         v = _float32_exact(m.vertices)
         vn = _float32_exact(vertex_normals(v, m.faces)) if normals == "smooth" else None
@@ -232,11 +260,20 @@ def raster_state(overrides):
     return {**DEFAULT_RASTER, **overrides}
 
 
+def manifest_raster(raster):
+    """The raster fields a manifest's ``parameters.raster`` lists: every field of
+    :data:`DEFAULT_RASTER` but the :data:`CONVENTION_FIELDS` at their defaults (so a golden in
+    OpenGL's conventions keeps the manifest it had before the conventions existed)."""
+    return {k: v for k, v in raster.items()
+            if k not in CONVENTION_FIELDS or v != DEFAULT_RASTER[k]}
+
+
 def as_state(raster):
     """The :class:`refraster.RasterState` of a scene's stored raster fields (``scene.json``'s
-    ``"raster"``: every field of :data:`DEFAULT_RASTER`; the package spells the fill rule
-    ``"top_left"``, the state ``"top-left"``)."""
-    fields = {k: raster[k] for k in DEFAULT_RASTER}
+    ``"raster"``; a field it lacks — a package written before the conventions, a manifest's
+    ``parameters.raster`` — takes its :data:`DEFAULT_RASTER` value; the package spells the fill
+    rule ``"top_left"``, the state ``"top-left"``)."""
+    fields = {k: raster.get(k, v) for k, v in DEFAULT_RASTER.items()}
     fields["fill_rule"] = fields["fill_rule"].replace("_", "-")
     return RasterState(**fields)
 
@@ -373,7 +410,7 @@ def _render_multi_draw(width=160, height=120, **raster):
 
 # --- TOML scenes ---------------------------------------------------------------------------------
 
-def _toml_camera(spec, meshes, width, height, where):
+def _toml_camera(spec, meshes, width, height, where, depth_range="negative_one_to_one"):
     def num(key, default=None):
         value = spec.get(key, default)
         if value is None:
@@ -381,19 +418,31 @@ def _toml_camera(spec, meshes, width, height, where):
         return value
 
     kind = spec.get("kind", "frame")
+    rev = bool(spec.get("reversed", False))
+    if spec.get("far") == math.inf and kind != "perspective":
+        raise ValueError(f"{where}: [camera] far = inf needs kind = 'perspective', got "
+                         f"{kind!r}")
     if kind == "frame":
         lo = np.min([m.vertices.min(axis=0) for m in meshes], axis=0)
         hi = np.max([m.vertices.max(axis=0) for m in meshes], axis=0)
-        return frame_bounds(np.stack([lo, hi]), width=width, height=height,
-                            fovy=num("fovy", 35.0), direction=num("direction", (1.0, 0.8, 1.4)),
-                            up=num("up", (0.0, 1.0, 0.0)), margin=num("margin", 1.1))
+        cam = frame_bounds(np.stack([lo, hi]), width=width, height=height,
+                           fovy=num("fovy", 35.0), direction=num("direction", (1.0, 0.8, 1.4)),
+                           up=num("up", (0.0, 1.0, 0.0)), margin=num("margin", 1.1))
+        if depth_range == "negative_one_to_one" and not rev:
+            return cam
+        near, far = cam.near_far   # the same frustum, built for the depth range
+        return Camera(cam.view, perspective(num("fovy", 35.0), width / height, near, far,
+                                            reversed=rev, depth_range=depth_range),
+                      width, height)
     view = look_at(num("eye"), num("target"), num("up", (0.0, 1.0, 0.0)))
     if kind == "perspective":
-        proj = perspective(num("fovy"), width / height, num("near"), num("far"))
+        proj = perspective(num("fovy"), width / height, num("near"), num("far"),
+                           reversed=rev, depth_range=depth_range)
     elif kind == "orthographic":
         left, right, bottom, top = as_float_array(num("extent"), f"{where}: camera.extent",
                                                   shape=(4,))
-        proj = orthographic(left, right, bottom, top, num("near"), num("far"))
+        proj = orthographic(left, right, bottom, top, num("near"), num("far"),
+                            reversed=rev, depth_range=depth_range)
     else:
         raise ValueError(f"{where}: camera.kind must be 'frame', 'perspective' or "
                          f"'orthographic', got {kind!r}")
@@ -430,6 +479,7 @@ def _vector(n):
 
 
 _STR = ("a string", lambda v: isinstance(v, str))
+_BOOL = ("a boolean", lambda v: isinstance(v, bool))
 _INT = ("an integer", lambda v: isinstance(v, int) and not isinstance(v, bool))
 _NUM = ("a finite number", _is_number)
 _TABLE = ("a table", lambda v: isinstance(v, dict))
@@ -444,10 +494,14 @@ _TOML_TYPES = {
                     lambda v: isinstance(v, list) and all(isinstance(d, dict) for d in v))},
     "viewport": {"width": _INT, "height": _INT},
     "camera": {"kind": _STR, "eye": _vector(3), "target": _vector(3), "up": _vector(3),
-               "direction": _vector(3), "fovy": _NUM, "near": _NUM, "far": _NUM,
-               "margin": _NUM, "extent": _vector(4)},
+               "direction": _vector(3), "fovy": _NUM, "near": _NUM,
+               "far": ("a finite number (or inf: an infinite far plane, perspective only)",
+                       lambda v: _is_number(v) or (isinstance(v, float) and v == math.inf)),
+               "margin": _NUM, "extent": _vector(4), "reversed": _BOOL},
     "raster": {"subpixel_bits": _INT, "fill_rule": _STR, "precision": _STR, "cull": _STR,
-               "depth_func": _STR, "front_face": _STR, "clear_depth": _NUM, "normals": _STR},
+               "depth_func": _STR, "front_face": _STR, "clear_depth": _NUM, "normals": _STR,
+               "depth_range": _STR, "origin": _STR, "ndc_y": _STR, "depth_clamp": _BOOL,
+               "depth_format": _STR},
     "draw": {"mesh": ("a string (a path relative to the scene file)", _STR[1]),
              "solid": _STR, "name": _STR, "model": _MAT4},
 }
@@ -460,8 +514,8 @@ def _toml_enums():
     from .io.schema import SCENE_SCHEMA
     raster = SCENE_SCHEMA["properties"]["raster"]["properties"]
     enums = {("raster", k): raster[k]["enum"] for k in ("precision", "cull", "depth_func",
-                                                        "normals")}
-    enums[("raster", "front_face")] = [raster["front_face"]["const"]]
+                                                        "normals", "front_face", "depth_range",
+                                                        "origin", "ndc_y", "depth_format")}
     enums[("camera", "kind")] = list(_CAMERA_KINDS)
     return enums
 
@@ -498,6 +552,32 @@ def _check_toml(spec, where):
         check("draw", f"[[draw]] {i}:", d)
         if ("mesh" in d) == ("solid" in d):
             raise ValueError(f"{where}: [[draw]] {i}: needs exactly one of 'mesh' or 'solid'")
+        if "name" in d:
+            check_name(d["name"], f"{where}: [[draw]] {i}: name")
+        if "mesh" in d and _control(d["mesh"]):
+            raise ValueError(f"{where}: [[draw]] {i}: mesh must not contain control "
+                             f"characters, got {d['mesh']!r}"[:300])
+
+
+_TOML_KEY = re.compile(r"""^\s*([A-Za-z0-9_."'-]+?)\s*=""")
+_TOML_TABLE = re.compile(r"^\s*(\[\[?[^\]]+\]\]?)")
+
+
+def _toml_value_error(text, path, exc):
+    """One line for a ``ValueError`` ``tomllib`` raised outside its own errors: an integer
+    beyond Python's int-string conversion limit, named by line, table and key."""
+    from .io.safe import huge_int_digits
+    limit = huge_int_digits()
+    for m in re.finditer(r"(?<![.\w])[0-9][0-9_]*(?![.\w])", text):
+        digits = len(m.group().replace("_", ""))
+        if limit and digits > limit:
+            lines = text[:m.start()].split("\n")
+            key = next((k.group(1) for k in map(_TOML_KEY.match, reversed(lines)) if k), "?")
+            table = next((t.group(1) + " " for t in map(_TOML_TABLE.match, reversed(lines))
+                          if t), "")
+            return (f"scene file {path} line {len(lines)}: {table}{key} is an integer of "
+                    f"{digits} digits (more than the {limit} this reader converts)")
+    return f"cannot read scene file {path}: {' '.join(str(exc).split())}"
 
 
 def load_scene_file(path):
@@ -513,16 +593,17 @@ def load_scene_file(path):
     if path.stat().st_size > _MAX_TOML_BYTES:
         raise ValueError(f"scene file {path} is larger than {_MAX_TOML_BYTES >> 20} MiB")
     try:
-        spec = tomllib.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
+        spec = tomllib.loads(text)
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ValueError(f"cannot read scene file {path}: {exc}") from exc
     except RecursionError:
         raise ValueError(f"cannot read scene file {path}: nested too deeply") from None
+    except ValueError as exc:   # tomllib lets the int-string conversion limit through
+        raise ValueError(_toml_value_error(text, path, exc)) from None
     where = str(path)
     _check_toml(spec, where)
-    name = spec.get("name", path.stem)
-    if not _NAME.match(name):
-        raise ValueError(f"{where}: name must match {_NAME.pattern}, got {name!r}")
+    name = check_name(spec.get("name", path.stem), f"{where}: name")
     technique = spec.get("technique", "render")
     if technique not in TECHNIQUES:
         raise ValueError(f"{where}: unknown technique {technique!r}; "
@@ -552,8 +633,13 @@ def load_scene_file(path):
         width, height = int(viewport.get("width", 320)), int(viewport.get("height", 240))
         state = raster_state(spec.get("raster", {}))
         prepared = prepare_draws(draws, normals=state["normals"])
-        camera = _toml_camera(spec.get("camera", {}), [d.mesh for d in prepared], width,
-                              height, where)
+        try:
+            camera = _toml_camera(spec.get("camera", {}), [d.mesh for d in prepared], width,
+                                  height, where, state["depth_range"])
+        except ValueError as exc:   # a projection beyond float32, a degenerate look_at, …
+            if str(exc).startswith(where):
+                raise
+            raise ValueError(f"{where}: [camera] {exc}") from None
         buffers, params = TECHNIQUES[technique](prepared, camera, state,
                                                 spec.get("parameters", {}))
         return GoldenScene(technique=technique, camera=camera, draws=prepared, buffers=buffers,

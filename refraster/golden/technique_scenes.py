@@ -330,6 +330,7 @@ HALO_FIELDS = {
     "halos": ("halos", "enabled"), "rho": ("halos", "rho"), "delta_d": ("halos", "delta_d"),
     "delta_t": ("halos", "delta_t"), "surface_width": ("halos", "surface_width"),
     "antialias": ("halos", "antialias"), "depth_eps": ("halos", "depth_eps"),
+    "split": ("halos", "split"),
     "opacity": ("style", "opacity"), "ambient": ("style", "ambient"),
     "halo_color": ("style", "halo_color"), "halo_opacity": ("style", "halo_opacity"),
     "boundary_color": ("style", "boundary_color"),
@@ -367,7 +368,7 @@ def _halos4d_patches(projection):
     rot = compose(("zx", 0.5), ("yz", -1.0))
     params = dict(rotation=rot.tolist(), projection=projection, slices=48, delta_t=0.3,
                   surface_width=0.3, opacity=0.9, halos=True, margin=0.05, width=128,
-                  height=128, background=[0.0, 0.0, 0.0])
+                  height=128, background=[0.0, 0.0, 0.0], split="paper")
     out = render_halos(surface, **halo_options(params), volume=True)
     params["rho"] = float(out.stats["rho"])
     # the defaults the reference derived (issue 21), so a backend can use the same values

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._validate import as_choice, as_float_array, as_matrix, as_real
+from .thicken import SPLITS
 from .transforms import PROJECTIONS
 
 __all__ = ["View4D", "Halos", "HaloStyle", "AMBIENT", "STEREO_ANGLE"]
@@ -152,6 +153,14 @@ class Halos(_Value):
     depth_eps : float ≥ 0 or None
         ε of the occlusion rule δ ≤ minD + ε (MATH.md §5.4 [guess]); None (default):
         1e-6·max|δ|, above the rounding of float32 barycentrics, which do not sum to exactly 1.
+    split : {"paper", "global_index"}
+        How the prisms become tetrahedra (Sec. 4.4, 5.1; MATH.md §5.5;
+        :func:`refraster.halos4d.thicken.split_prisms`). ``"paper"`` (default): each prism in
+        its face's vertex order, then the paper's repair of mismatched shared faces (a diagonal
+        flip, Fig. 4(b); two inserted vertices and three smaller prisms where a prism's sides
+        end cyclic, Fig. 4(d)). ``"global_index"``: the global vertex-index rule (Dompierre et
+        al.), conforming by construction, no inserted vertex; the output of the releases
+        before issue 46.
     """
 
     enabled: bool = True
@@ -161,6 +170,7 @@ class Halos(_Value):
     surface_width: float = 0.3
     antialias: float | None = None
     depth_eps: float | None = None
+    split: str = "paper"
 
     def __post_init__(self):
         put = object.__setattr__.__get__(self)
@@ -177,6 +187,7 @@ class Halos(_Value):
                                      hi=self.surface_width))
         if self.depth_eps is not None:
             put("depth_eps", as_real(self.depth_eps, "halos.depth_eps", lo=0.0))
+        put("split", as_choice(self.split, "halos.split", SPLITS))
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,8 @@
 Pipeline (one frame)::
 
     4D surface ─rotation─► projection (3D screen space, 4D depth δ, projected tangents)
-      ─► thickening v ± ρ n̂ (t = 0 / 1) ─► prisms → 3 tetrahedra each (global-index rule)
+      ─► thickening v ± ρ n̂ (t = 0 / 1) ─► prisms → tetrahedra (``Halos.split``: the paper's
+         decomposition and mismatch repair, or the global-index rule)
       ─► orthographic camera over the xy bounds ─► N slices z = c_k (back to front)
       ─► per slice: cross-section triangles rasterized (llvmpipe fill rule, 1/256 px snapping);
          per fragment t, δ and colour interpolated, Eq. 3 ``d_new = δ + max(0, |2t−1| − δt)·δd``
@@ -49,8 +50,8 @@ from ..raster.rasterizer import _inv_float_area, lambdas, row_span
 from .slicing import (MAX_SLICES, SUBPIXEL_BITS, _slice, _window_vertex, ortho_ndc,
                       setup_window)
 from .surfaces import Surface4D
-from .thicken import (RHO_FRACTION, default_halo_parameters, prism_tetrahedra, thicken,
-                      thickening_normals)
+from .thicken import (RHO_FRACTION, default_halo_parameters, split_prisms, steiner_values,
+                      thicken, thickening_normals)
 from .options import AMBIENT, Halos, HaloStyle, View4D, as_option
 from .transforms import project, rotate_3d
 
@@ -70,7 +71,8 @@ BIN_CHUNK = 1 << 14
 class HaloGeometry:
     """Thickened, tetrahedralized surface in 3D screen space (one view).
 
-    ``vertices (2V, 3)``, ``tets (3F, 4)``, ``attributes (2V, 5)`` = (4D depth δ, t, r, g, b),
+    ``vertices (2V + 2K, 3)``, ``tets (T, 4)``, ``attributes (2V + 2K, 5)`` = (4D depth δ, t,
+    r, g, b), the K vertices inserted by the paper's split last (:func:`split_prisms`),
     ``n_fallback`` vertices that used the normal fallback, ``n_degenerate`` faces skipped;
     ``points (V, 3)`` the projected surface, ``spatial (V, 3)`` the rotated 4D xyz, ``faces``
     the non-degenerate faces (for the default δd).
@@ -126,11 +128,12 @@ def default_antialias(pixel, rho, surface_width):
     return float(min(surface_width, 0.5 * ANTIALIAS_PIXELS * pixel / rho))
 
 
-def prepare(surface, *, view=None, rho=None, ambient=AMBIENT):
-    """Project, thicken and tetrahedralize ``surface`` (Sec. 4.2–4.4). Returns
+def prepare(surface, *, view=None, rho=None, ambient=AMBIENT, split="paper"):
+    """Project, thicken and tetrahedralize ``surface`` (Sec. 4.2–4.4, 5.1). Returns
     ``(HaloGeometry, rho)``; ``view`` a :class:`View4D` (its rotation, projection, eye and scale;
     None: ``View4D()``); ``rho=None`` picks RHO_FRACTION (3 %) of the projected bounding-box
-    diagonal; ``ambient`` is the ambient part of the headlight shading."""
+    diagonal; ``ambient`` is the ambient part of the headlight shading; ``split`` the prism
+    split (``Halos.split``)."""
     view = DEFAULT_VIEW if view is None else as_option(view, View4D, "view")
     rotation = None if view.rotation is None else np.array(view.rotation, np.float64)
     if not isinstance(surface, Surface4D):
@@ -153,7 +156,10 @@ def prepare(surface, *, view=None, rho=None, ambient=AMBIENT):
     n = surface.n_vertices
     attr = np.column_stack([np.concatenate([pr.depth, pr.depth]), t,
                             np.concatenate([rgb, rgb])])
-    tets = prism_tetrahedra(f, n)
+    ps = split_prisms(f, n, split)
+    verts = steiner_values(verts, ps.steiner, n)
+    attr = steiner_values(attr, ps.steiner, n)
+    tets = ps.tets
     spatial = surface.vertices if rotation is None else surface.vertices @ np.asarray(
         rotation, np.float64).T
     return HaloGeometry(verts, tets, attr, n_fb, int(degenerate.sum()), pr.points,
@@ -658,7 +664,8 @@ def render_halos(surface, *, view=DEFAULT_VIEW, width=512, height=512, slices=25
     -----
     Eq. 1 is normalized and guarded (MATH.md §5.3 [fix]); Eq. 3 is evaluated per fragment
     (§5.4); the occlusion rule "surface voxel drawn iff δ ≤ minD + ε" is MATH.md §5.4 [guess];
-    prisms are split by the global-index rule (§5.5); slicing follows §5.6.
+    prisms are split as ``halos.split`` says (the paper's repair by default, §5.5); slicing
+    follows §5.6.
 
     Examples
     --------
@@ -709,7 +716,8 @@ def _render(surface, view, width, height, slices, halos, style, background, volu
     halo_rgb = np.array(style.halo_color, np.float64)
     boundary = style.boundary_color is not None
     boundary_rgb = np.zeros(3) if not boundary else np.array(style.boundary_color, np.float64)
-    geo, rho = prepare(surface, view=view, rho=halos.rho, ambient=style.ambient)
+    geo, rho = prepare(surface, view=view, rho=halos.rho, ambient=style.ambient,
+                       split=halos.split)
     depth = geo.attributes[:, 0]
     n_pairs = None
     delta_d = halos.delta_d

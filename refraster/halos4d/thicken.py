@@ -8,8 +8,13 @@ knot's poles) it falls back to the normalized sum of the area-weighted normals o
 lower copy ``v − ρ n̂`` (t = 0) at indices ``0 … n−1`` and the upper copy ``v + ρ n̂`` (t = 1) at
 ``n … 2n−1``.
 
-Tetrahedra (MATH.md §5.5): the global vertex-index rule, so neighbouring prisms split every
-shared quad by the same diagonal without extra vertices.
+Tetrahedra (MATH.md §5.5): :func:`split_prisms` with ``split="paper"`` (the default of
+:class:`refraster.halos4d.Halos`) decomposes each prism in its face's vertex order and then
+repairs the mismatched shared quads as Wang et al. Sec. 5.1 / Fig. 4 do: a flip of the shared
+face's diagonal (Fig. 4(b)), and where a prism's three side diagonals end cyclic (Fig. 4(c)),
+two inserted vertices and three smaller prisms (Fig. 4(d)). ``split="global_index"``
+(:func:`prism_tetrahedra`) is the global vertex-index rule, which avoids mismatches by
+construction.
 
 Halo depth (Eq. 3, MATH.md §5.4): ``d_new = d_orig + max(0, |2t − 1| − δt)·δd``, evaluated per
 fragment (|·| is not linear).
@@ -17,11 +22,14 @@ fragment (|·| is not linear).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from .._validate import as_float_array, as_index_array, as_real
+from .._validate import as_choice, as_float_array, as_index_array, as_real
 
-__all__ = ["thickening_normals", "thicken", "prism_tetrahedra", "halo_depth", "NORMAL_EPS",
+__all__ = ["thickening_normals", "thicken", "prism_tetrahedra", "split_prisms", "PrismSplit",
+           "steiner_values", "SPLITS", "halo_depth", "NORMAL_EPS",
            "default_halo_parameters", "crossing_depth_differences", "RHO_FRACTION",
            "DEPTH_QUANTILE"]
 
@@ -86,7 +94,8 @@ def thicken(points, normals, rho):
 
 
 def prism_tetrahedra(faces, n_vertices):
-    """Split each prism (face × [lower, upper]) into three tetrahedra (MATH.md §5.5).
+    """Split each prism (face × [lower, upper]) into three tetrahedra by the global vertex-index
+    rule (MATH.md §5.5): :func:`split_prisms`' ``split="global_index"``.
 
     Parameters
     ----------
@@ -109,7 +118,8 @@ def prism_tetrahedra(faces, n_vertices):
     the smallest global index" for the numbering i / i + n; it depends only on the quad's own
     vertices, so two prisms sharing a quad split it the same way, and a prism's minimum vertex
     carries two diagonals, so the pattern is never the cyclic one that needs a Steiner point
-    (Wang et al. Fig. 4(c)–(d) are unnecessary). Orientation: when the upper copy lies on the side
+    (no repair of Wang et al. Fig. 4 is needed; the paper's split with its repair is
+    :func:`split_prisms`' default). Orientation: when the upper copy lies on the side
     of the face normal (right-hand rule of the face as given) of an untwisted prism, all three
     tetrahedra have positive signed volume ``det[v1−v0, v2−v0, v3−v0] > 0``.
     """
@@ -133,6 +143,173 @@ def prism_tetrahedra(faces, n_vertices):
     odd = _odd_permutation(f)
     tets[odd] = tets[odd][:, :, [1, 0, 2, 3]]
     return tets.reshape(-1, 4)
+
+
+#: The prism splits: the paper's decomposition and repair (default), the global-index rule.
+SPLITS = ("paper", "global_index")
+
+
+class PrismSplit(NamedTuple):
+    """Result of :func:`split_prisms`.
+
+    ``tets (T, 4)`` int64, prism by prism in face order (3 tetrahedra per prism, 9 per rebuilt
+    one); ``prism (T,)`` the face each tetrahedron fills; ``steiner (K, 3)`` the faces of the
+    rebuilt prisms, in face order: inserted vertex k is the centroid of face k's lower
+    triangle, index ``2·n_vertices + k``, and of its upper triangle, ``2·n_vertices + K + k``
+    (:func:`steiner_values`); ``flips`` the number of shared-face diagonals flipped by the
+    repair (Fig. 4(b)).
+    """
+
+    tets: np.ndarray
+    prism: np.ndarray
+    steiner: np.ndarray
+    flips: int
+
+
+def _checked_faces(faces, n_vertices):
+    if isinstance(n_vertices, bool) or not isinstance(n_vertices, (int, np.integer)):
+        raise TypeError(f"n_vertices must be an int, got {type(n_vertices).__name__}")
+    if n_vertices < 3:
+        raise ValueError(f"n_vertices must be at least 3, got {n_vertices}")
+    f = as_index_array(faces, "faces", shape=(None, 3), upper=int(n_vertices))
+    s = np.sort(f, axis=1)
+    if np.any((s[:, 0] == s[:, 1]) | (s[:, 1] == s[:, 2])):
+        bad = int(np.count_nonzero((s[:, 0] == s[:, 1]) | (s[:, 1] == s[:, 2])))
+        raise ValueError(f"faces has {bad} degenerate triangle(s) with a repeated vertex")
+    return f
+
+
+def paper_diagonals(f):
+    """The side diagonals of each prism in the paper's order (Sec. 4.4: one geometry-program
+    call per triangle, its vertices in their given order v0, v1, v2), as ``(F, 3)`` int8:
+    entry k is 0 when the side over edge ``(v_k, v_k+1)`` is split from ``v_k``'s lower copy
+    to ``v_k+1``'s upper copy, 1 for the other diagonal. The order's decomposition is
+    ``(v0, v1, v2, v2⁺), (v0, v1, v2⁺, v1⁺), (v0, v0⁺, v1⁺, v2⁺)``: diagonals v0–v1⁺, v1–v2⁺,
+    v0–v2⁺, i.e. ``(0, 0, 1)`` for every prism."""
+    d = np.zeros((len(f), 3), np.int8)
+    d[:, 2] = 1
+    return d
+
+
+def repair_mismatches(f, diag, skip=()):
+    """The repair pass of Sec. 5.1 (Fig. 4(b)), in place on ``diag`` (:func:`paper_diagonals`'
+    encoding). On every shared face the first prism (smallest face index) keeps its diagonal
+    and every later prism whose diagonal differs is flipped there, its other faces keeping
+    their pattern (a flip touches one face, so a face repaired stays repaired and the result
+    does not depend on the order of the pass). Returns the number of flips. ``skip``: positions
+    in the list of flips (ordered by the flipped prism's face index, then side) left undone —
+    the tests' planted fault."""
+    n_faces = len(f)
+    start = np.where(diag == 0, f, np.roll(f, -1, axis=1))      # lower copy the diagonal leaves
+    u, w = f, np.roll(f, -1, axis=1)
+    nv = np.int64(f.max()) + 1 if n_faces else np.int64(1)
+    key = (np.minimum(u, w).astype(np.int64) * nv + np.maximum(u, w)).ravel()
+    side = np.arange(3 * n_faces)                               # = 3·face + side, face order
+    order = np.lexsort((side, key))
+    k = key[order]
+    first = np.ones(len(k), bool)
+    first[1:] = k[1:] != k[:-1]
+    head = order[np.maximum.accumulate(np.where(first, np.arange(len(k)), 0))]
+    flat_start = start.ravel()
+    wrong = order[flat_start[order] != flat_start[head]]        # later prisms that disagree
+    wrong = np.sort(wrong)
+    if len(skip):
+        wrong = np.delete(wrong, np.asarray(skip, np.int64))
+    flat = diag.reshape(-1)
+    flat[wrong] ^= 1
+    return int(len(wrong))
+
+
+def _apex_tets(a, b, c, a1, b1, c1, cb):
+    """The 3 tetrahedra of prisms whose lower vertex ``a`` carries the diagonals to ``b⁺`` and
+    ``c⁺`` (a, b, c in the face's orientation); side (b, c) split b–c⁺ (``cb`` False) or
+    c–b⁺ (True). Positive volumes for an untwisted prism with the upper copy on the face
+    normal's side."""
+    t0 = np.where(cb[:, None], np.stack([a, b, c, b1], 1), np.stack([a, b, c, c1], 1))
+    t1 = np.where(cb[:, None], np.stack([a, b1, c, c1], 1), np.stack([a, b, c1, b1], 1))
+    t2 = np.stack([a, a1, b1, c1], 1)
+    return np.stack([t0, t1, t2], axis=1)
+
+
+def split_prisms(faces, n_vertices, split="paper"):
+    """Split each prism (face × [lower, upper]) into tetrahedra (MATH.md §5.5; Wang et al.
+    Sec. 4.4, 5.1, Fig. 4).
+
+    Parameters
+    ----------
+    faces : (F, 3) int
+        Triangles over vertices ``0 … n_vertices−1``; the upper copy of vertex i is
+        ``i + n_vertices``. Faces with a repeated vertex are rejected.
+    n_vertices : int
+    split : {"paper", "global_index"}
+        ``"paper"``: every prism decomposed in its face's vertex order
+        (:func:`paper_diagonals`), then the mismatched shared faces repaired
+        (:func:`repair_mismatches`, Fig. 4(b)); a prism whose three side diagonals end cyclic
+        — each of its six vertices on exactly one diagonal, which no 3-tetrahedron
+        decomposition admits (Fig. 4(c)) — is rebuilt with two inserted vertices, the
+        centroids m, m⁺ of its lower and upper triangles, as three smaller prisms
+        ``(m, v_k, v_k+1)`` whose inner sides are split from m (Fig. 4(d)), nine tetrahedra.
+        ``"global_index"``: :func:`prism_tetrahedra`, three per prism, no inserted vertex.
+
+    Returns
+    -------
+    PrismSplit
+    """
+    f = _checked_faces(faces, n_vertices)
+    split = as_choice(split, "split", SPLITS)
+    n = int(n_vertices)
+    nf = len(f)
+    if split == "global_index":
+        return PrismSplit(prism_tetrahedra(f, n), np.repeat(np.arange(nf), 3),
+                          np.zeros((0, 3), np.int64), 0)
+    diag = paper_diagonals(f)
+    flips = repair_mismatches(f, diag)
+    cyc = (diag[:, 0] == diag[:, 1]) & (diag[:, 1] == diag[:, 2])
+    # a valid prism: the lower vertex that starts two diagonals is the apex
+    starts = (diag == 0).astype(np.int8) + (np.roll(diag, 1, axis=1) == 1)
+    ok = np.flatnonzero(~cyc)
+    apex = np.argmax(starts[ok], axis=1)
+    rows = ok[:, None]
+    loc = (apex[:, None] + np.arange(3)) % 3
+    abc = f[rows, loc]
+    cb = diag[ok, (apex + 1) % 3] == 1
+    valid = _apex_tets(abc[:, 0], abc[:, 1], abc[:, 2], abc[:, 0] + n, abc[:, 1] + n,
+                       abc[:, 2] + n, cb)
+    # cyclic prisms: three sub-prisms (m, v_k, v_k+1) with apex m (Fig. 4(d))
+    cy = np.flatnonzero(cyc)
+    kk = len(cy)
+    m = 2 * n + np.arange(kk, dtype=np.int64)
+    m1 = m + kk
+    subs = []
+    for side in range(3):
+        b, c = f[cy, side], f[cy, (side + 1) % 3]
+        subs.append(_apex_tets(m, b, c, m1, b + n, c + n, diag[cy, side] == 1))
+    rebuilt = np.concatenate(subs, axis=1) if kk else np.zeros((0, 9, 4), np.int64)
+    count = np.where(cyc, 9, 3)
+    offset = np.concatenate([[0], np.cumsum(count)])
+    tets = np.zeros((int(offset[-1]), 4), np.int64)
+    idx = offset[ok][:, None] + np.arange(3)
+    tets[idx.ravel()] = valid.reshape(-1, 4)
+    idx = offset[cy][:, None] + np.arange(9)
+    tets[idx.ravel()] = rebuilt.reshape(-1, 4)
+    return PrismSplit(tets, np.repeat(np.arange(nf), count), f[cy].astype(np.int64), flips)
+
+
+def steiner_values(values, steiner, n_vertices):
+    """The per-vertex ``values (2·n_vertices, C)`` of the thickened surface extended by the
+    inserted vertices of :func:`split_prisms` (``steiner (K, 3)``): ``(2·n_vertices + 2K, C)``,
+    vertex ``2n + k`` the mean ``(x_a + x_b + x_c)/3`` (in that order, float64) of its lower
+    triangle's values and ``2n + K + k`` of its upper triangle's — positions on the triangles'
+    planes, t = 0 and 1 exactly, the 4D depth and colour of the centroid; computed once, so
+    every tetrahedron of the rebuilt prism reads the same bits."""
+    v = np.asarray(values, np.float64)
+    s = np.asarray(steiner, np.int64)
+    if len(s) == 0:
+        return v
+    n = int(n_vertices)
+    lo = (v[s[:, 0]] + v[s[:, 1]] + v[s[:, 2]]) / 3.0
+    hi = (v[s[:, 0] + n] + v[s[:, 1] + n] + v[s[:, 2] + n]) / 3.0
+    return np.concatenate([v, lo, hi])
 
 
 def _odd_permutation(f):

@@ -62,6 +62,8 @@ from ...conformance import (COLOR_TOL, DEPTH_EPS, MAY, MUST, MUST_NOT, NORMAL_TO
                          facing_may, tolerance)
 from refraster.raster.state import RasterState
 
+from .conventions import depth_covered
+
 __all__ = ["scene_allowances", "tolerant_metrics", "dilate", "surface_step", "TOLERANT_CHECKS"]
 
 TOLERANT_CHECKS = ("coverage", "id", "interval", "angle", "masked", "face", "layers", "bounds",
@@ -175,7 +177,24 @@ def _surface_labels(buffers):
 
 
 def scene_allowances(scene, raster):
-    """Allowances of one scene.
+    """Allowances of one scene, in its own conventions: derived on the equivalent scene in
+    OpenGL's (:func:`refraster.golden.allowances.conventions.equivalent`) and moved back
+    (:func:`~refraster.golden.allowances.conventions.move_back`). Returns as
+    :func:`gl_allowances`."""
+    from .conventions import equivalent, move_back
+    eq_scene, eq_raster = equivalent(scene, raster)
+    arrays, info, checks = gl_allowances(eq_scene, eq_raster)
+    move_back(arrays, scene, raster, eq_scene)
+    return arrays, info, checks
+
+
+def _geometry(raster):
+    """The state the geometric allowances prepare with: the scene's cull and clip volume."""
+    return RasterState(cull=raster["cull"], depth_clamp=bool(raster.get("depth_clamp", False)))
+
+
+def gl_allowances(scene, raster):
+    """Allowances of one scene in OpenGL's conventions.
 
     Returns
     -------
@@ -191,7 +210,11 @@ def scene_allowances(scene, raster):
     models = [d.model for d in scene.draws]
     buffers = scene.buffers
     geometry = bool(scene.geometry) and raster["depth_func"] == "less"
+    clamp = bool(raster.get("depth_clamp", False))
+    geom = _geometry(raster) if clamp else None
     kw = dict(**cam.kwargs, model=models, cull=raster["cull"])
+    if clamp:
+        kw["raster"] = geom
     tol = tolerance(meshes, **kw)
     # tolerance() decides whether an edge's triangle is "in front" at a pixel within depth_eps;
     # a plane set up from snapped vertices differs from the interpolated depth by up to
@@ -210,7 +233,8 @@ def scene_allowances(scene, raster):
                          f"{extra.shape}")
     radius = int(scene.may_radius)
     # slivers that may change facing at 4 bits (a gap in tolerance()'s shared-edge rule)
-    flip_id, flip_cov = facing_may(meshes, **cam.kwargs, model=models)
+    flip_id, flip_cov = facing_may(meshes, **cam.kwargs, model=models,
+                                   **({"raster": geom} if clamp else {}))
     if geometry:
         coverage = masks.coverage.copy()
         coverage[flip_cov] = MAY
@@ -219,7 +243,8 @@ def scene_allowances(scene, raster):
         depth_hi = np.where(id_may, np.float32(1.0), tol.depth_hi)
         method = "geometry"
     else:
-        edges_id, _ = edge_may(meshes, **cam.kwargs, model=models, cull=raster["cull"])
+        edges_id, _ = edge_may(meshes, **cam.kwargs, model=models, cull=raster["cull"],
+                               **({"raster": geom} if clamp else {}))
         id_may = dilate(edges_id | flip_id | extra, 1)
         if "prim_id" in buffers:
             ref_cov = np.asarray(buffers["prim_id"]) >= 0
@@ -466,7 +491,7 @@ def _clip_value_entries(scene, raster, arrays, eps, keys):
     cam = scene.camera
     meshes = [d.mesh for d in scene.draws]
     models = [d.model for d in scene.draws]
-    prep = prepare(meshes, **cam.kwargs, model=models, raster=RasterState(cull=raster["cull"]))
+    prep = prepare(meshes, **cam.kwargs, model=models, raster=_geometry(raster))
     off = arrays["cs_offsets"].astype(np.int64)
     face = arrays["cs_face"].astype(np.int64)
     n = len(face)
@@ -563,8 +588,10 @@ def face_sets(scene, raster, id_may, eps):
     models = [d.model for d in scene.draws]
     h, w = cam.height, cam.width
     offsets, faces = may_faces(meshes, **cam.kwargs, model=models, cull=raster["cull"],
-                               mask=id_may, eps=eps)
-    prep = prepare(meshes, **cam.kwargs, model=models, raster=RasterState(cull=raster["cull"]))
+                               mask=id_may, eps=eps,
+                               **({"raster": _geometry(raster)}
+                                  if raster.get("depth_clamp") else {}))
+    prep = prepare(meshes, **cam.kwargs, model=models, raster=_geometry(raster))
     pix = np.repeat(np.arange(h * w), np.diff(offsets))
     out = entry_values(scene, raster, prep, pix, faces, eps)
     out["set_offsets"] = offsets.astype(np.int32)
@@ -609,6 +636,8 @@ def entry_values(scene, raster, prep, pix, faces, eps):
         return lo.astype(np.float32), hi.astype(np.float32)
 
     out = {}
+    if raster.get("depth_clamp"):   # each fragment's depth is clamped to [0, 1]
+        depth = np.clip(depth, 0.0, 1.0)
     out["set_depth_lo"], out["set_depth_hi"] = spread(depth, slack)
     eye = fb.eye_depth.astype(np.float64)
     out["set_eye_depth_lo"], out["set_eye_depth_hi"] = spread(
@@ -928,15 +957,15 @@ def named_entries(arrays, prim_id, object_id=None):
 
 # --- the tolerant check --------------------------------------------------------------------------
 
-def _candidate_coverage(key, kind, candidate, clear_depth):
+def _candidate_coverage(key, kind, candidate, clear_depth, depth_func="less"):
     if kind == "id":
         return np.asarray(candidate) >= 0
     if key == "depth":
-        return np.asarray(candidate) < clear_depth
+        return depth_covered(candidate, clear_depth, depth_func)
     raise ValueError(f"buffer {key!r} ({kind}) cannot give coverage")
 
 
-def _face_outside(key, kind, cand, arrays, named, step, clear_depth):
+def _face_outside(key, kind, cand, arrays, named, step, clear_depth, depth_func="less"):
     """(H, W) bool: where the visible primitive may differ (``id_may``), the candidate's value
     is not what the face its own ``prim_id`` names can show there (its face-set entry), or —
     for ids — that face may not win there. Without candidate ids (``named`` None) values are
@@ -957,7 +986,7 @@ def _face_outside(key, kind, cand, arrays, named, step, clear_depth):
     # without ids (the envelope), a pixel counts as covered by what its own buffer says (or,
     # for buffers that cannot say, where the golden's coverage is "must")
     if key == "depth":
-        covered = c < clear_depth
+        covered = depth_covered(c, clear_depth, depth_func)
     elif key == "eye_depth":
         covered = np.isfinite(c)
     elif key == "normal":
@@ -1072,7 +1101,7 @@ def face_allowed(key, arrays, r, c, named, step=0.0):
 
 
 def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_depth=1.0,
-                     fallback=None, step=0.0, named=None, others=None):
+                     fallback=None, step=0.0, named=None, others=None, depth_func="less"):
     """Metrics, checks and images of one buffer under its tolerant checks.
 
     Parameters
@@ -1086,6 +1115,10 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
         The scene's ``tolerance.npz``.
     clear_depth : float
         Depth of an uncovered pixel (coverage of a depth buffer).
+    depth_func : str
+        The scene's depth test: a depth buffer covers a pixel where it holds a value before
+        ``clear_depth`` in the test's direction (``greater``/``gequal``: above it), layers
+        are peeled in that direction.
     fallback : dict
         The ``conformant`` tolerance, for ``masked``.
     step : float
@@ -1112,7 +1145,7 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
     for name in spec["checks"]:
         if name == "coverage":
             cov = arrays["coverage"]
-            cc = _candidate_coverage(key, kind, cand, clear_depth)
+            cc = _candidate_coverage(key, kind, cand, clear_depth, depth_func)
             outside["coverage"] = ((cov == MUST) & ~cc) | ((cov == MUST_NOT) & cc)
         elif name == "id":
             region = ~id_may
@@ -1129,7 +1162,8 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
             bad = bad.any(axis=2) if bad.ndim == 3 else bad
             region = _value_region(spec, arrays, others)
             if key == "depth" and "coverage" in arrays:
-                region &= (arrays["coverage"] == MUST) & (cand < clear_depth)
+                region &= (arrays["coverage"] == MUST) & depth_covered(cand, clear_depth,
+                                                                       depth_func)
             outside["interval"] = region & bad
         elif name == "angle":
             limit = arrays[spec["angle"]].astype(np.float64) + step * math.sqrt(3.0)
@@ -1139,7 +1173,8 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
             masked = buffer_metrics(ref, cand, kind, fallback, step=step,
                                     forgive=arrays[spec.get("may", "may")])
         elif name == "face":
-            outside["face"] = _face_outside(key, kind, cand, arrays, named, step, clear_depth)
+            outside["face"] = _face_outside(key, kind, cand, arrays, named, step, clear_depth,
+                                            depth_func)
         elif name == "bounds":   # an interval at every pixel, whatever the visible face
             lo = arrays[spec["lo"]].astype(np.float64) - step
             hi = arrays[spec["hi"]].astype(np.float64) + step
@@ -1155,7 +1190,7 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
         elif name == "layers":
             from .layers import layers_outside
             outside["layers"] = layers_outside(spec["layer"], cand, arrays, others, step=step,
-                                               clear=clear_depth)
+                                               clear=clear_depth, depth_func=depth_func)
         else:
             raise ValueError(f"unknown tolerant check {name!r}")
     err_el = _elementwise_error(ref, cand)

@@ -80,7 +80,8 @@ def render_variant(surface, p, *, dsw=0.0, ddt=0.0, eps_scale=1.0, dz=0.0, dxy=(
     from ...halos4d.slicing import SUBPIXEL_BITS, _slice, ortho_ndc
     w, h, n = int(p["width"]), int(p["height"]), int(p["slices"])
     geo, rho = prepare(surface, view=View4D(rotation=np.asarray(p["rotation"], np.float64),
-                                            projection=p["projection"]), rho=p.get("rho"))
+                                            projection=p["projection"]), rho=p.get("rho"),
+                       split=p.get("split", "paper"))
     verts, attr = geo.vertices, geo.attributes
     if f32:
         verts = verts.astype(np.float32).astype(np.float64)

@@ -182,7 +182,9 @@ def ldi_allowances(scene, raster, eps, k_max, clear=1.0):
     meshes = [d.mesh for d in scene.draws]
     models = [d.model for d in scene.draws]
     h, w = cam.height, cam.width
-    prep = prepare(meshes, **cam.kwargs, model=models, raster=RasterState(cull=raster["cull"]))
+    prep = prepare(meshes, **cam.kwargs, model=models,
+                   raster=RasterState(cull=raster["cull"],
+                                      depth_clamp=bool(raster.get("depth_clamp", False))))
     pix, faces, sure, fragile, fslack = _covering_faces(prep, eps)
     # the centre and the corners of the square of half-side ε (⊇ the ε-disc): window depth is
     # a ratio of affine functions of the point, so its extremes over the square are corners
@@ -258,7 +260,7 @@ def _named(arrays, ids):
     return np.where(ok, jc, -1).reshape(h, w, k)
 
 
-def _candidate_count(cand, others, layer, clear):
+def _candidate_count(cand, others, layer, clear, depth_func="less"):
     if layer == "count":
         return np.asarray(cand, np.int64)
     if others is not None and "layer_count" in others:
@@ -266,12 +268,15 @@ def _candidate_count(cand, others, layer, clear):
     if others is not None and "layer_prim_id" in others:
         return (np.asarray(others["layer_prim_id"]) >= 0).sum(axis=2)
     if others is not None and "layer_depth" in others:
-        return (np.asarray(others["layer_depth"]) < clear).sum(axis=2)
+        from .conventions import depth_covered
+        return depth_covered(others["layer_depth"], clear, depth_func).sum(axis=2)
     return None
 
 
-def layers_outside(layer, cand, arrays, others=None, *, step=0.0, clear=1.0):
-    """(H, W) bool: pixels whose candidate ``layer`` buffer lies outside the allowance.
+def layers_outside(layer, cand, arrays, others=None, *, step=0.0, clear=1.0, depth_func="less"):
+    """(H, W) bool: pixels whose candidate ``layer`` buffer lies outside the allowance
+    (layers peeled in ``depth_func``'s direction: front to back, so increasing depth under
+    ``less``, decreasing under ``greater``).
 
     ``others``: the candidate's buffers (its ``layer_prim_id`` names each layer's entry, its
     ``layer_count`` says which layers are present); without ids, depths are held to the
@@ -279,7 +284,7 @@ def layers_outside(layer, cand, arrays, others=None, *, step=0.0, clear=1.0):
     h, w = arrays["ldi_count_lo"].shape
     off = arrays["ldi_offsets"].astype(np.int64)
     c = np.asarray(cand)
-    count = _candidate_count(c, others, layer, clear)
+    count = _candidate_count(c, others, layer, clear, depth_func)
     if layer == "count":
         bad = (c < arrays["ldi_count_lo"]) | (c > arrays["ldi_count_hi"])
         if others is not None and "layer_prim_id" in others:
@@ -348,7 +353,9 @@ def layers_outside(layer, cand, arrays, others=None, *, step=0.0, clear=1.0):
     # layers strictly behind one another (peeling), the absent ones at the clear depth
     if k > 1:
         both = present[..., 1:] & present[..., :-1]
-        bad |= (both & ~(v[..., 1:] > v[..., :-1])).any(axis=2)
+        behind = (v[..., 1:] < v[..., :-1] if depth_func in ("greater", "gequal")
+                  else v[..., 1:] > v[..., :-1])
+        bad |= (both & ~behind).any(axis=2)
     bad |= (~present & ~(np.abs(v - clear) <= step)).any(axis=2)
     return bad
 

@@ -174,7 +174,8 @@ _SCRIPT = r"""
         out.push("allowed set: " + set + " (coverage: " + COVER[cov] + "; " +
                  (free ? "the visible primitive may differ" : "the id must agree") + ")");
       } else if (ch === "coverage") {
-        out.push("coverage (value < clear depth " + num(m.clear, "f8") + "): " + COVER[cov]);
+        out.push("coverage (value " + (m.greater ? ">" : "<") + " clear depth " +
+                 num(m.clear, "f8") + "): " + COVER[cov]);
       } else if (ch === "id" && m.kind !== "id") {
         out.push("allowed set: " + (free ? "{false, true} (the visible primitive may differ)"
                                          : "{" + values(m, "ref", i).join(", ") + "}"));
@@ -182,7 +183,7 @@ _SCRIPT = r"""
         if (free) { out.push("interval: not checked (the visible primitive may differ here)"); }
         else if (A.coverage && cov !== 2) {
           out.push("interval: not checked (coverage is not required here)");
-        } else if (A.coverage && cand[0] >= m.clear) {
+        } else if (A.coverage && (m.greater ? cand[0] <= m.clear : cand[0] >= m.clear)) {
           out.push("interval: not checked (the candidate does not cover this pixel)");
         } else {
           const lo = raw(m, "lo", i), hi = raw(m, "hi", i);
@@ -422,7 +423,8 @@ def _crop_data(b, box, bad):
             "channels": int(ref.shape[2]) if ref.ndim == 3 else 1}
     if al is not None:
         meta.update(mode="tolerant", checks=al["checks"], step=al["step"],
-                    clear=al["clear_depth"])
+                    clear=al["clear_depth"],
+                    greater=al.get("depth_func", "less") in ("greater", "gequal"))
         for key in ("id_may", "coverage", "lo", "hi", "angle", "may"):
             if key in al:
                 arrays[key] = np.asarray(al[key])[sl]

@@ -29,6 +29,7 @@ from ..io.read import (_check_candidate, _inside, _manifest_paths, load_candidat
                    load_manifest)
 from ..io.read import allowance_arrays as _read_allowances
 from ..io.read import reference_buffers as _read_reference
+from ..io.read import some_names as _some_names
 from .profiles import PROFILES, apply_overrides, parse_override
 
 __all__ = ["GoldenError", "CandidateError", "BufferResult", "SceneResult", "Comparison",
@@ -204,7 +205,8 @@ class Comparison:
         for s in self.scenes:
             lines.append(f"{s.name}: {s.status.upper()}" + (f" ({s.error})" if s.error else ""))
             if s.skipped:
-                lines.append(f"  skipped (not in the golden, not read): {', '.join(s.skipped)}")
+                lines.append(f"  skipped (not in the golden, not read): "
+                             f"{_some_names(s.skipped)}")
             for b in s.buffers:
                 lines.append(_summary_line(b, tolerant))
         lines.append(f"result: {['PASS', 'FAIL', 'UNUSABLE INPUT'][self.exit_code]}")
@@ -279,7 +281,7 @@ def _edge_may(ref, specs):
     return near
 
 
-def buffer_allowance(spec, arrays, *, step=0.0, clear_depth=1.0):
+def buffer_allowance(spec, arrays, *, step=0.0, clear_depth=1.0, depth_func="less"):
     """The allowance one buffer's tolerant checks use, as the report shows it per pixel.
 
     Parameters
@@ -290,6 +292,8 @@ def buffer_allowance(spec, arrays, *, step=0.0, clear_depth=1.0):
         The scene's ``tolerance.npz`` (:mod:`refraster.golden.allowances.core`).
     step, clear_depth : float
         As passed to :func:`refraster.golden.allowances.core.tolerant_metrics`.
+    depth_func : str
+        The scene's depth test (the direction of a depth buffer's coverage).
 
     Returns
     -------
@@ -298,7 +302,8 @@ def buffer_allowance(spec, arrays, *, step=0.0, clear_depth=1.0):
         ``id_may``, and where they apply ``coverage``, ``lo``/``hi``, ``angle``, ``may``.
     """
     out = {"checks": list(spec["checks"]), "step": float(step),
-           "clear_depth": float(clear_depth), "id_may": arrays["id_may"]}
+           "clear_depth": float(clear_depth), "depth_func": str(depth_func),
+           "id_may": arrays["id_may"]}
     for key in ("lo", "hi", "angle"):
         if key in spec:
             out[key] = arrays[spec[key]]
@@ -355,8 +360,8 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
         The golden directory, the arguments or the report directory are unusable.
     """
     golden_dir, candidate_dir = Path(golden_dir), Path(candidate_dir)
-    from ..io.write import recover
-    recover(golden_dir)  # a swap a killed generate left half-done (journal fallback)
+    from ..io.write import pending_swap
+    pending_swap(golden_dir)  # a swap a killed generate left half-done: only generate acts
     if mode is not None and mode not in MODES:
         raise GoldenError(f"mode must be one of {MODES}, got {mode!r}")
     if profile is not None and profile not in PROFILES:
@@ -439,8 +444,10 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
             if allow is not None:
                 from ..allowances.core import tolerant_metrics
                 clear = entry["parameters"]["raster"].get("clear_depth", 1.0)
+                func = entry["parameters"]["raster"].get("depth_func", "less")
                 metrics, checks, images = tolerant_metrics(
                     key, ref[key], a, spec["kind"], spec["tolerant"], allow, clear_depth=clear,
+                    depth_func=func,
                     fallback=tol, step=step, named=named,
                     others={k: v[0] for k, v in cand.items()})
                 if spec["kind"] == "color" and metrics.get("flip_mean") is None:
@@ -451,7 +458,7 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
                         metrics["flip_mean"] = None
                 tol = {**tol, "tolerant": spec["tolerant"]}
                 allowance = buffer_allowance(spec["tolerant"], allow, step=step,
-                                             clear_depth=clear)
+                                             clear_depth=clear, depth_func=func)
                 if "face" in spec["tolerant"]["checks"]:
                     allowance.update(sets=allow, named=named)
             else:

@@ -71,10 +71,28 @@ def _map_png(values):
     return png, enc
 
 
+def is_reversed(proj):
+    """Whether a perspective or orthographic ``proj`` maps nearer points to larger depths
+    (reversed-Z): ``z_ndc = −a + b/d`` at distance ``d`` (perspective: reversed when ``b > 0``),
+    ``−a·d + b`` (orthographic: when ``a > 0``)."""
+    a, b = float(proj[2, 2]), float(proj[2, 3])
+    return b > 0.0 if is_perspective(proj) else a > 0.0
+
+
+def camera_near_far(proj, depth_range="negative_one_to_one"):
+    """(near, far) distances of a projection built for ``depth_range``, reversed or not
+    (:func:`is_reversed`); far is ``None`` for an infinite far plane (``scene.json``)."""
+    if depth_range == "negative_one_to_one" and not is_reversed(proj):
+        near, far = near_far(proj)
+    else:
+        near, far = near_far(proj, reversed=is_reversed(proj), depth_range=depth_range)
+    return float(near), (float(far) if np.isfinite(far) else None)
+
+
 def scene_document(name, scene, raster, map_entries):
     """The ``scene.json`` document of a :class:`GoldenScene` (validated against the schema)."""
     cam = scene.camera
-    near, far = near_far(cam.proj)
+    near, far = camera_near_far(cam.proj, raster.get("depth_range", "negative_one_to_one"))
     doc = {
         "schema": "refraster.scene",
         "schema_version": SCENE_SCHEMA_VERSION,
@@ -84,7 +102,7 @@ def scene_document(name, scene, raster, map_entries):
         "viewport": {"width": cam.width, "height": cam.height},
         "camera": {"view": cam.view.tolist(), "projection": cam.proj.tolist(),
                    "kind": "perspective" if is_perspective(cam.proj) else "orthographic",
-                   "near": float(near), "far": float(far)},
+                   "near": near, "far": far},
         "raster": dict(raster),
         "draws": [{"object_id": k, "name": d.name, "mesh": f"meshes/{d.name}.ply",
                    "model": np.asarray(d.model, np.float64).tolist(),

@@ -5,7 +5,8 @@ trusts"). In short:
 
 * **No link is followed.** Every file the manifest lists is opened only when no component of
   its path below the golden directory is a symbolic link and it is a regular file (a FIFO or a
-  device is refused before it is read); candidate files likewise.
+  device is refused before it is read); candidate files likewise, and a candidate scene
+  directory that is a link is refused.
 * **The manifest's file list is the golden.** Every listed file matches its sha256; every path
   the manifest or a scene package names is listed; kept scenes are copied from that list only
   (:func:`copy_listed_scene`), unlisted files are skipped and named.
@@ -17,6 +18,12 @@ trusts"). In short:
   are read before any data; a shape or dtype the golden does not expect is refused before
   anything is decompressed, and ``.npz`` members the golden does not have are skipped unread.
   So reading costs about the size of the golden's own buffers, whatever the candidate holds.
+* **Archives sized from their end records.** An ``.npz`` of more than
+  :data:`MAX_NPZ_MEMBERS` members, or a member stored twice, is refused before any member is
+  read (:func:`read_npz`).
+* **Files are opened by** :mod:`refraster.golden.io.safe`: ``lstat``, ``O_NOFOLLOW |
+  O_NONBLOCK``, ``fstat``; side files size-capped before they are read; JSON parsed into one
+  error line (nesting, integers past the conversion limit named by JSON path).
 """
 
 from __future__ import annotations
@@ -35,6 +42,7 @@ import numpy as np
 
 from ..._validate import MAX_PIXELS, MAX_SIDE
 from .errors import CandidateError, GoldenError
+from .safe import MAX_SIDE_FILE_BYTES, loads_json, open_regular, read_capped
 from .schema import (MANIFEST_SCHEMA, MANIFEST_SCHEMA_OLDEST, MANIFEST_SCHEMA_VERSION, SCENE_SCHEMA,
                      SCENE_SCHEMA_VERSION, SchemaError, check_version, is_safe_relpath,
                      validate)
@@ -46,7 +54,7 @@ __all__ = ["GoldenError", "CandidateError", "load_manifest", "check_package", "o
 log = logging.getLogger("refraster.golden")
 
 #: Largest ``manifest.json`` or ``scene.json`` read (bytes).
-MAX_JSON_BYTES = 64 << 20
+MAX_JSON_BYTES = MAX_SIDE_FILE_BYTES
 #: Largest number of channels (layers) of a buffer or an allowance array.
 MAX_CHANNELS = 256
 #: Largest number of elements of one golden array (1 GiB of float32).
@@ -56,37 +64,6 @@ MAX_ELEMENTS = 1 << 28
 
 
 # --- files: no links, regular files only ---------------------------------------------------------
-
-def _regular(path, error, what):
-    """``os.stat_result`` of ``path`` (not following a link); refuses links and non-files."""
-    try:
-        st = os.lstat(path)
-    except FileNotFoundError:
-        raise error(f"{what} {path} is missing") from None
-    except OSError as exc:
-        raise error(f"cannot read {what} {path}: {exc}") from None
-    if stat.S_ISLNK(st.st_mode):
-        raise error(f"{what} {path} is a symbolic link; links are never followed")
-    if not stat.S_ISREG(st.st_mode):
-        raise error(f"{what} {path} is not a regular file")
-    return st
-
-
-def _open_regular(path, error, what):
-    """Open ``path`` for reading: no link followed, a regular file only (checked on the open
-    descriptor too, so a file swapped in between is caught); never blocks on a FIFO."""
-    st = _regular(path, error, what)
-    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
-    try:
-        fd = os.open(path, flags)
-    except OSError as exc:
-        raise error(f"cannot read {what} {path}: {exc}") from None
-    fst = os.fstat(fd)
-    if not stat.S_ISREG(fst.st_mode) or (fst.st_dev, fst.st_ino) != (st.st_dev, st.st_ino):
-        os.close(fd)
-        raise error(f"{what} {path} changed while it was opened; refusing to read it")
-    return os.fdopen(fd, "rb")
-
 
 def _no_links_below(root, rel, error, what):
     """Refuse ``root/rel`` when a directory on the way from ``root`` is a symbolic link."""
@@ -135,7 +112,7 @@ def open_listed(golden_dir, manifest, rel, *, verify=True):
         raise GoldenError(f"golden file {rel!r} is not listed in {root / 'manifest.json'}")
     _inside(root, rel, f"{root / 'manifest.json'} $.files")
     path = _no_links_below(root, rel, GoldenError, "golden file")
-    fh = _open_regular(path, GoldenError, "golden file")
+    fh = open_regular(path, GoldenError, "golden file")
     if verify:
         try:
             digest = _sha256(fh)
@@ -153,15 +130,10 @@ def open_listed(golden_dir, manifest, rel, *, verify=True):
 def _read_json(fh, path, error):
     if os.fstat(fh.fileno()).st_size > MAX_JSON_BYTES:
         raise error(f"cannot read {path}: larger than {MAX_JSON_BYTES >> 20} MiB")
-    data = b"".join(iter(lambda: fh.read(1 << 20), b""))
+    data = read_capped(fh, MAX_JSON_BYTES)
     if len(data) > MAX_JSON_BYTES:
         raise error(f"cannot read {path}: larger than {MAX_JSON_BYTES >> 20} MiB")
-    try:
-        return json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise error(f"cannot read {path}: {exc}") from None
-    except RecursionError:
-        raise error(f"cannot read {path}: JSON nested too deeply") from None
+    return loads_json(data, path, error)
 
 
 # --- the manifest --------------------------------------------------------------------------------
@@ -222,7 +194,7 @@ def load_manifest(golden_dir, *, verify=True):
     path = root / "manifest.json"
     if not path.is_file() and not path.is_symlink():
         raise GoldenError(f"{root} is not a golden directory: {path} not found")
-    with _open_regular(path, GoldenError, "manifest") as fh:
+    with open_regular(path, GoldenError, "manifest") as fh:
         manifest = _read_json(fh, path, GoldenError)
     try:
         check_version(manifest, kind="refraster.golden", supported=MANIFEST_SCHEMA_VERSION,
@@ -430,14 +402,63 @@ def read_npy(fh, where, error, accept=None):
     return _read_data(fh, shape, fortran, dtype, where, error)
 
 
+#: Most members of an ``.npz`` read (a golden's ``tolerance.npz`` has a few dozen).
+MAX_NPZ_MEMBERS = 1024
+#: Largest central directory of an ``.npz`` read (its member names, bytes).
+MAX_NPZ_DIRECTORY = 1 << 20
+
+_EOCD = struct.Struct("<4s4H2LH")           # end of central directory record
+_EOCD64_LOCATOR = struct.Struct("<4sLQL")
+_EOCD64 = struct.Struct("<4sQ2H2L4Q")       # zip64 end of central directory record
+
+
+def _zip_directory_size(fh, where, error):
+    """``(members, central directory bytes)`` from a zip's end records (at most 64 KiB and
+    a few bytes read), so that a directory of 200,000 members is refused before ``zipfile``
+    builds it; ``None`` without an end record."""
+    try:
+        end = fh.seek(0, os.SEEK_END)
+        tail_len = min(end, _EOCD.size + 0xFFFF + _EOCD64_LOCATOR.size)
+        fh.seek(end - tail_len)
+        tail = fh.read(tail_len)
+        i = tail.rfind(b"PK\x05\x06")
+        if i < 0 or len(tail) - i < _EOCD.size:
+            return None
+        _, _, _, _, members, size, _, _ = _EOCD.unpack_from(tail, i)
+        j = i - _EOCD64_LOCATOR.size
+        if j >= 0 and tail[j:j + 4] == b"PK\x06\x07":     # zip64: the counts are there
+            _, _, at, _ = _EOCD64_LOCATOR.unpack_from(tail, j)
+            fh.seek(at)
+            record = fh.read(_EOCD64.size)
+            if len(record) == _EOCD64.size and record[:4] == b"PK\x06\x06":
+                fields = _EOCD64.unpack(record)
+                members, size = fields[7], fields[8]
+        fh.seek(0)
+    except (OSError, ValueError, struct.error) as exc:
+        raise error(f"cannot read {where}: {type(exc).__name__}: {exc}") from None
+    return members, size
+
+
 def read_npz(fh, where, error, accept):
     """Read the members of an ``.npz`` stream that ``accept`` knows.
 
     ``accept(key)`` returns ``None`` for a member to skip (unread), else a function
     ``check(shape, dtype)`` called on the member's ``.npy`` header before its data is
-    decompressed. Only stored and deflated members are read (what NumPy writes). Returns
-    ``(arrays, skipped member names)``.
+    decompressed. Only stored and deflated members are read (what NumPy writes). Refused
+    (``error``) before any member is read: more than :data:`MAX_NPZ_MEMBERS` members or a
+    central directory over :data:`MAX_NPZ_DIRECTORY` bytes, and a member stored twice
+    (``depth.npy`` twice, or ``depth`` and ``depth.npy``: readers disagree on which one
+    counts). Returns ``(arrays, skipped member names)``.
     """
+    found = _zip_directory_size(fh, where, error)
+    if found is None:
+        raise error(f"cannot read {where}: not an .npz archive (no end of central directory "
+                    "record: truncated, or not a zip file)")
+    members, size = found
+    if members > MAX_NPZ_MEMBERS or size > MAX_NPZ_DIRECTORY:
+        raise error(f"cannot read {where}: {members} members in a central directory of "
+                    f"{size} bytes (at most {MAX_NPZ_MEMBERS} members and "
+                    f"{MAX_NPZ_DIRECTORY >> 20} MiB are read)")
     try:
         zf = zipfile.ZipFile(fh)
     except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:
@@ -445,10 +466,21 @@ def read_npz(fh, where, error, accept):
                     f"{exc})") from None
     arrays, skipped = {}, []
     with zf:
-        for info in zf.infolist():
+        infos = zf.infolist()
+        if len(infos) > MAX_NPZ_MEMBERS:
+            raise error(f"cannot read {where}: {len(infos)} members (at most "
+                        f"{MAX_NPZ_MEMBERS} are read)")
+        seen = set()
+        for info in infos:
+            key = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+            if key in seen:
+                raise error(f"cannot read {where}: member {key!r} is stored twice (readers "
+                            "disagree on which copy counts); refusing the archive")
+            seen.add(key)
+        for info in infos:
             key = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
             check = accept(key)
-            if check is None or key in arrays:
+            if check is None:
                 skipped.append(info.filename)
                 continue
             member = f"{where}:{key}"
@@ -464,6 +496,15 @@ def read_npz(fh, where, error, accept):
             with stream:
                 arrays[key] = read_npy(stream, member, error, check)
     return arrays, skipped
+
+
+def some_names(names, limit=10, width=80):
+    """``names`` joined for one line: the first ``limit`` (each cut to ``width`` characters),
+    then how many more."""
+    names = list(names)
+    shown = [n if len(n) <= width else n[:width - 1] + "…" for n in names[:limit]]
+    more = f" and {len(names) - limit} more" if len(names) > limit else ""
+    return ", ".join(shown) + more
 
 
 def _expect(spec, what, error, where):
@@ -591,7 +632,7 @@ def png_header(fh, where, error):
 
 def _candidate_file(path, error, what):
     """Open a candidate file: a regular file, no link followed."""
-    return _open_regular(path, error, what)
+    return open_regular(path, error, what)
 
 
 def _exists(path):
@@ -608,9 +649,17 @@ def load_candidate(candidate_dir, scene, specs, skipped=None):
     became bools, for the domain checks). Headers are read first: a shape or dtype the golden
     does not expect is refused before any data is decompressed. ``.npz`` members the golden
     does not have are not read; their names are appended to ``skipped`` (a list) and logged.
-    Raises :class:`CandidateError`."""
+    No link is followed: not the scene's directory, not a file in it. Raises
+    :class:`CandidateError`."""
     from .buffers import png_decode
     base = Path(candidate_dir) / scene
+    try:
+        linked = stat.S_ISLNK(os.lstat(base).st_mode)
+    except OSError:
+        linked = False      # missing: each buffer is then named as missing
+    if linked:
+        raise CandidateError(f"candidate scene directory {base} is a symbolic link; links are "
+                             "never followed")
     npz = base / "buffers.npz"
     packed = {}
     if _exists(npz):
@@ -622,7 +671,7 @@ def load_candidate(candidate_dir, scene, specs, skipped=None):
                              if key in specs else None))
         if extra:
             log.warning("candidate %s: skipped %d member(s) the golden does not have (not "
-                        "read): %s", source, len(extra), ", ".join(extra))
+                        "read): %s", source, len(extra), some_names(extra))
             if skipped is not None:
                 skipped.extend(f"{source}:{m}" for m in extra)
     out = {}

@@ -18,7 +18,8 @@ import re
 
 __all__ = [
     "SCENE_SCHEMA_VERSION", "MANIFEST_SCHEMA_VERSION", "SCENE_SCHEMA", "MANIFEST_SCHEMA",
-    "SchemaError", "validate", "check_version", "is_safe_relpath",
+    "SchemaError", "validate", "check_version", "is_safe_relpath", "OBJECT_ID_MAX",
+    "CANDIDATE_MARKER_SCHEMA", "REPORT_MARKER_SCHEMA", "LISTING_SCHEMA",
 ]
 
 SCENE_SCHEMA_VERSION = 1
@@ -40,6 +41,10 @@ class SchemaError(ValueError):
 #: no drive letter, no empty or "." segments.
 _SEGMENT = r"[A-Za-z0-9_\-][A-Za-z0-9_.\-]*"
 RELPATH_PATTERN = rf"^{_SEGMENT}(/{_SEGMENT})*$"
+
+#: Largest ``object_id`` of a draw: the id buffers are int32, and a backend may store
+#: ``object_id + 1`` (0 for "no draw"), which must fit too.
+OBJECT_ID_MAX = 2 ** 31 - 2
 
 _MAT4 = {
     "type": "array", "minItems": 4, "maxItems": 4,
@@ -74,7 +79,9 @@ SCENE_SCHEMA = {
             "additionalProperties": False,
             "properties": {"view": _MAT4, "projection": _MAT4,
                            "kind": {"enum": ["perspective", "orthographic"]},
-                           "near": {"type": "number"}, "far": {"type": "number"}},
+                           "near": {"type": "number"},
+                           # null: an infinite far plane (JSON has no infinity)
+                           "far": {"type": ["number", "null"]}},
         },
         "raster": {
             "type": "object",
@@ -88,9 +95,16 @@ SCENE_SCHEMA = {
                 "cull": {"enum": ["none", "back", "front"]},
                 "depth_func": {"enum": ["less", "lequal", "greater", "gequal", "equal",
                                         "notequal", "always", "never"]},
-                "front_face": {"const": "ccw"},
+                "front_face": {"enum": ["ccw", "cw"]},
                 "clear_depth": {"type": "number", "minimum": 0, "maximum": 1},
                 "normals": {"enum": ["flat", "smooth"]},
+                # the API conventions (RasterState's names and values; optional: a package
+                # without them is in OpenGL's conventions, the defaults)
+                "depth_range": {"enum": ["negative_one_to_one", "zero_to_one"]},
+                "origin": {"enum": ["lower_left", "upper_left"]},
+                "ndc_y": {"enum": ["up", "down"]},
+                "depth_clamp": {"type": "boolean"},
+                "depth_format": {"enum": ["float32", "unorm24", "unorm16"]},
             },
         },
         "draws": {
@@ -100,7 +114,7 @@ SCENE_SCHEMA = {
                 "required": ["object_id", "name", "mesh", "model", "n_vertices", "n_faces"],
                 "additionalProperties": False,
                 "properties": {
-                    "object_id": {"type": "integer", "minimum": 0},
+                    "object_id": {"type": "integer", "minimum": 0, "maximum": OBJECT_ID_MAX},
                     "name": _NAME,
                     "mesh": _RELPATH,
                     "model": _MAT4,
@@ -268,6 +282,44 @@ MANIFEST_SCHEMA = {
     },
 }
 
+_FILES = {
+    "type": "object",
+    "propertyNames": _RELPATH,
+    "additionalProperties": {"type": "string", "pattern": r"^[0-9a-f]{64}$"},
+}
+
+#: ``.refraster-candidate``: the marker of a candidate directory (``golden candidate``), as
+#: far as it is trusted before a candidate is replaced (other fields are kept as written).
+CANDIDATE_MARKER_SCHEMA = {
+    "type": "object",
+    "required": ["written_by", "files"],
+    "properties": {
+        "written_by": {"type": "string"},
+        "files": _FILES,
+        "backend": {"type": "string"},
+        "renderer": {"type": "string"},
+        "golden": {"type": "string"},
+        "faults": {"type": "array", "items": {"type": "string"}},
+        "rendered": {"type": "array", "items": _NAME},
+        "skipped": {"type": "object", "propertyNames": _NAME,
+                    "additionalProperties": {"type": "string"}},
+    },
+}
+
+#: ``.refraster-report``: the marker of a report directory (``golden compare --report``).
+REPORT_MARKER_SCHEMA = {
+    "type": "object",
+    "required": ["written_by", "files"],
+    "properties": {"written_by": {"type": "string"}, "files": _FILES},
+}
+
+#: What a writer trusts of a golden's ``manifest.json`` before it replaces the golden (the
+#: golden reader checks all of it against :data:`MANIFEST_SCHEMA`).
+LISTING_SCHEMA = {"type": "object", "required": ["files"], "properties": {"files": _FILES}}
+
+#: C0 and C1 control characters and DEL.
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+
 _TYPES = {
     "object": lambda v: isinstance(v, dict),
     "array": lambda v: isinstance(v, list),
@@ -296,8 +348,13 @@ def _check(value, schema, path):
             raise SchemaError(f"{path}: must be >= {schema['minimum']}, got {value}")
         if "maximum" in schema and value > schema["maximum"]:
             raise SchemaError(f"{path}: must be <= {schema['maximum']}, got {value}")
-    if isinstance(value, str) and "pattern" in schema and not re.search(schema["pattern"], value):
-        raise SchemaError(f"{path}: {value!r} does not match {schema['pattern']}")
+    if isinstance(value, str) and "pattern" in schema:
+        # a control character never matches a pattern here; the check first, because Python's
+        # "$" also matches before a final newline (ECMA-262's, the schema's dialect, does not)
+        if _CONTROL.search(value):
+            raise SchemaError(f"{path}: {value!r} contains a control character")
+        if not re.search(schema["pattern"], value):
+            raise SchemaError(f"{path}: {value!r} does not match {schema['pattern']}")
     if isinstance(value, list):
         if len(value) < schema.get("minItems", 0) or len(value) > schema.get("maxItems", 1 << 62):
             raise SchemaError(f"{path}: has {len(value)} items, expected "

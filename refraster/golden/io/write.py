@@ -45,6 +45,7 @@ import fcntl
 import hashlib
 import json
 import os
+import re
 import shutil
 import signal
 import socket
@@ -59,7 +60,8 @@ from .errors import GoldenError
 
 __all__ = ["HOOKS", "RefusedError", "LockedError", "Terminated", "locked", "snapshot",
            "make_tree", "commit_tree", "recover", "clean_debris", "discard_tree", "Outputs",
-           "check_output_path", "check_report_dir", "commit_report", "resolve_target",
+           "check_output_path", "check_regular_output", "check_report_dir", "pending_swap",
+           "commit_report", "resolve_target",
            "terminate_as_interrupt", "dir_mode", "REPORT_MARKER", "CANDIDATE_MARKER",
            "rename_exchange",
            "rename_noreplace"]
@@ -310,6 +312,35 @@ def resolve_target(out, what="--out"):
     return Path(os.path.realpath(out))
 
 
+def _kind(mode):
+    for test, word in ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISDIR, "a directory")):
+        if test(mode):
+            return word
+    return "not a regular file"
+
+
+def check_regular_output(path, what):
+    """Refuse (:class:`RefusedError`, one line naming ``what``) an output path where something
+    other than a regular file is: a FIFO, a socket, a device, a directory, or a link to one of
+    them. Nothing is opened (a FIFO is never blocked on) and nothing is written. Nothing there,
+    a regular file, or a link to one is accepted (the link is replaced, as before)."""
+    try:
+        st = os.stat(path)      # through a link: what a write would reach
+    except FileNotFoundError:
+        return path
+    except OSError as exc:
+        raise RefusedError(f"{what} cannot be checked ({exc.strerror}); refusing to write "
+                           "there") from None
+    if stat.S_ISREG(st.st_mode):
+        return path
+    if stat.S_ISDIR(st.st_mode):
+        raise RefusedError(f"{what} is a directory")
+    raise RefusedError(f"{what} is {_kind(st.st_mode)}, not a regular file; refraster writes "
+                       "only regular files (use '-' for standard output)")
+
+
 def _sha256(path):
     h = hashlib.sha256()
     with open(path, "rb") as fh:
@@ -318,30 +349,39 @@ def _sha256(path):
     return h.hexdigest()
 
 
+_LISTINGS = (("report", REPORT_MARKER, "refraster golden compare", "report marker"),
+             ("golden", MANIFEST, None, "golden manifest"),
+             ("candidate", CANDIDATE_MARKER, "refraster golden candidate", "candidate marker"))
+
+
 def _listing(tree):
     """``(kind, digest, files, hashes)`` of a tree refraster wrote: files its report marker or
     golden manifest lists (relative paths, the listing file included) and their sha256;
-    ``None`` if it has neither."""
-    from .schema import is_safe_relpath
+    ``None`` if it has neither. A listing file that is there but cannot be trusted (a link,
+    not a regular file, larger than :data:`~.safe.MAX_SIDE_FILE_BYTES`, not JSON, nested too
+    deeply, an integer beyond the conversion limit, or breaking its schema) is refused with
+    :class:`RefusedError`, one line naming it, before anything it lists is read."""
+    from .safe import read_json_file
+    from .schema import (CANDIDATE_MARKER_SCHEMA, LISTING_SCHEMA, REPORT_MARKER_SCHEMA,
+                         SchemaError, validate)
+    schemas = {"report": REPORT_MARKER_SCHEMA, "golden": LISTING_SCHEMA,
+               "candidate": CANDIDATE_MARKER_SCHEMA}
     tree = Path(tree)
-    for kind, name in (("report", REPORT_MARKER), ("golden", MANIFEST),
-                       ("candidate", CANDIDATE_MARKER)):
+    for kind, name, writer, what in _LISTINGS:
         path = tree / name
-        if path.is_symlink() or not path.is_file():
+        if not os.path.lexists(path):
+            continue
+        doc, raw = read_json_file(path, RefusedError, what)
+        if writer is not None and (not isinstance(doc, dict) or doc.get("written_by") != writer):
             continue
         try:
-            raw = path.read_bytes()
-            doc = json.loads(raw)
-            files = doc["files"]
-            if kind == "report" and doc.get("written_by") != "refraster golden compare":
-                continue
-            if kind == "candidate" and doc.get("written_by") != "refraster golden candidate":
-                continue
-            if not isinstance(files, dict) or not all(isinstance(k, str) and is_safe_relpath(k)
-                                                      for k in files):
-                continue
-        except (OSError, ValueError, KeyError, TypeError):
-            continue
+            validate(doc, schemas[kind])
+        except SchemaError as exc:
+            raise RefusedError(f"{what} {path} {exc}; refusing to trust it") from None
+        except RecursionError:
+            raise RefusedError(f"{what} {path}: JSON nested too deeply; refusing to trust "
+                               "it") from None
+        files = doc["files"]
         return kind, hashlib.sha256(raw).hexdigest(), set(files) | {name}, files
     return None
 
@@ -363,7 +403,9 @@ def snapshot(target):
     """What is at ``target``, to be compared at the final step: ``None`` (nothing),
     ``("empty",)``, ``(kind, digest, foreign)`` for a golden or report refraster wrote
     (``foreign``: files it does not list, then listed files whose sha256 differs),
-    ``("file",)`` or ``("foreign", names)``."""
+    ``("file",)`` or ``("foreign", names)``. Raises :class:`RefusedError` (one line) for a
+    marker or manifest not to trust (:func:`_listing`) or a file it lists that is not a
+    regular file (a FIFO is refused, never opened for reading)."""
     target = Path(target)
     if not os.path.lexists(target):
         return None
@@ -376,9 +418,11 @@ def snapshot(target):
     if listing is None:
         return ("foreign", tuple(sorted(files)[:5]))
     kind, digest, owned, hashes = listing
+    from .safe import sha256_regular
     changed = [rel for rel, h in sorted(hashes.items())
                if rel in files and (os.path.islink(target / rel)
-                                      or _sha256(target / rel) != h)]
+                                      or sha256_regular(target / rel, RefusedError,
+                                                        f"{kind} file") != h)]
     return (kind, digest, tuple(sorted(files - owned)) + tuple(changed))
 
 
@@ -429,7 +473,10 @@ def discard_tree(tree, target_name=None, *, building=False):
     if tree.is_symlink() or not tree.is_dir():
         os.unlink(tree)
         return None
-    listing = _listing(tree)
+    try:
+        listing = _listing(tree)
+    except RefusedError:        # a listing not to trust owns nothing: the tree is kept
+        listing = None
     if listing is None and building:
         shutil.rmtree(tree)
         return None
@@ -471,7 +518,13 @@ def _debris(target):
 def recover(target, *, wait=True, command="refraster"):
     """Finish a swap a dead run left half-done (two renames and a journal, where ``renameat2``
     is missing): the new tree is moved into place (roll forward) or, if it is gone, the old one
-    back. Takes the lock only when there is a journal. Returns what it did or ``None``."""
+    back. Takes the lock only when there is a journal. Returns what it did or ``None``.
+
+    Only a command that may write ``target`` calls this (``golden generate`` on its ``--out``,
+    ``golden candidate`` on its ``--out``); a command that only reads a directory never acts on
+    a journal beside it (:func:`pending_swap`). The journal is trusted only when it is a small
+    regular file (not a link) naming exactly the target and two trees beside it that a swap
+    of this target makes (``.NAME.tmp-PID-…`` and ``.NAME.old-PID-…``), neither a link."""
     target = Path(os.path.realpath(target))
     if not os.path.lexists(_journal_path(target)):
         return None
@@ -479,20 +532,76 @@ def recover(target, *, wait=True, command="refraster"):
         return _recover_locked(target)
 
 
+def pending_swap(target, what="golden directory"):
+    """For a command that only reads ``target``: refuse (:class:`GoldenError`, one line) when
+    ``target`` is missing and a journal lies beside it (a swap stopped between its two renames),
+    saying which command finishes it. Reads nothing but the two names; acts on nothing."""
+    target = Path(os.path.realpath(target))
+    journal = _journal_path(target)
+    if os.path.lexists(journal) and not os.path.lexists(target):
+        raise GoldenError(f"{what} {target} is missing and the journal {journal} lies beside "
+                          "it: a `refraster golden generate` was stopped in the middle of "
+                          f"replacing it; run `refraster golden generate --out {target} "
+                          "--update` (it finishes the swap first), or move the journal away")
+
+
+#: Largest journal read (one written by :func:`_swap_with_journal` is under 1 KiB).
+JOURNAL_MAX_BYTES = 4096
+
+
+def _read_journal(journal, target):
+    """The ``(new, old)`` names of a journal refraster wrote for ``target``, or a
+    :class:`RefusedError` naming what is wrong with it (nothing is acted on)."""
+    def refuse(why):
+        return RefusedError(f"journal {journal} is not one refraster wrote ({why}); refusing to "
+                            "act on it (move it away by hand)")
+
+    try:
+        fd = os.open(journal, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise refuse("it is a symbolic link") from None
+        raise refuse(exc.strerror) from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise refuse(f"it is {_kind(st.st_mode)}, not a regular file")
+        if st.st_size > JOURNAL_MAX_BYTES:
+            raise refuse(f"it is larger than {JOURNAL_MAX_BYTES} bytes")
+        raw = os.read(fd, JOURNAL_MAX_BYTES + 1)
+    finally:
+        os.close(fd)
+    if len(raw) > JOURNAL_MAX_BYTES:
+        raise refuse(f"it is larger than {JOURNAL_MAX_BYTES} bytes")
+    try:
+        doc = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError):
+        raise refuse("not JSON") from None
+    if not isinstance(doc, dict) or sorted(doc) != ["new", "old", "target"]:
+        raise refuse("its fields must be exactly target, new and old")
+    if doc["target"] != target.name:
+        raise refuse(f"it names the target {doc['target']!r}, not {target.name!r}")
+    names = []
+    for key, kind in (("new", "tmp"), ("old", "old")):
+        value = doc[key]
+        pattern = rf"\.{re.escape(target.name)}\.{kind}-[0-9]+-[A-Za-z0-9_]+"
+        if not isinstance(value, str) or re.fullmatch(pattern, value) is None:
+            raise refuse(f"{key} must name a .{target.name}.{kind}-PID-… tree beside the "
+                         f"target, got {value!r}"[:300])
+        path = target.parent / value
+        if os.path.islink(path):
+            raise refuse(f"{key} {path} is a symbolic link")
+        if os.path.lexists(path) and not path.is_dir():
+            raise refuse(f"{key} {path} is not a directory")
+        names.append(value)
+    return names
+
+
 def _recover_locked(target):
     journal = _journal_path(target)
     if not os.path.lexists(journal):
         return None
-    try:
-        doc = json.loads(journal.read_text(encoding="utf-8"))
-        names = doc["new"], doc["old"]
-        ok = all(isinstance(n, str) and "/" not in n and n.startswith(f".{target.name}.")
-                 for n in names)
-    except (OSError, ValueError, KeyError, TypeError):
-        ok = False
-    if not ok:
-        raise RefusedError(f"journal {journal} is not one refraster wrote; refusing to act on "
-                           "it (move it away by hand)")
+    names = _read_journal(journal, target)
     new, old = (target.parent / n for n in names)
     done = None
     with _signals_deferred():
@@ -670,6 +779,7 @@ class Outputs:
         """Stage ``data`` for ``path`` (a temporary file ``.NAME.tmp-PID-…`` beside it; those
         of dead processes, never committed, are removed first)."""
         path = Path(path)
+        check_regular_output(path, str(path))
         path.parent.mkdir(parents=True, exist_ok=True)
         _clean_file_debris(path)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.tmp-{os.getpid()}-", dir=path.parent)
@@ -744,6 +854,7 @@ class Outputs:
     def _commit_file(tmp, target):
         backup = None
         with _signals_deferred():
+            check_regular_output(target, str(target))   # what may have appeared since staging
             if os.path.lexists(target) and not os.path.isdir(target):
                 fd, name = tempfile.mkstemp(prefix=f".{target.name}.bak-", dir=target.parent)
                 os.close(fd)
