@@ -27,6 +27,11 @@ PACKAGE = "refraster"
 ORDER = ("core", "techniques", "tools", "goldens", "gallery", "command")
 #: Beside the floors: the GLSL backend (imports nothing of refraster; see GL_USERS).
 GL = "gl"
+#: Beside the floors: the WebGPU backend (imports only itself and WGPU_USES).
+WGPU = "wgpu"
+#: What refraster.wgpu imports of refraster beside itself: the standalone scene package
+#: reader (standard library and NumPy; no moderngl, no core).
+WGPU_USES = {"refraster.gl.package"}
 
 #: module-name prefix → floor. A key names a module or package and everything under it
 #: (``refraster.edges`` covers ``edges.py`` today and the package ``edges/`` with
@@ -67,6 +72,7 @@ FLOORS = {
     "refraster.testing": "command",
     # beside the floors
     "refraster.gl": GL,
+    "refraster.wgpu": WGPU,
 }
 
 #: A technique imports another technique only as listed here (technique key → the technique
@@ -79,8 +85,8 @@ TECHNIQUE_USES = {
 
 
 def gl_user(module):
-    """The one module outside refraster.gl that may import it: the golden's ``candidate``
-    (wherever the goldens' grouping puts it)."""
+    """The one module outside refraster.gl (and refraster.wgpu) that may import it: the
+    golden's ``candidate`` (wherever the goldens' grouping puts it)."""
     return module.startswith("refraster.golden.") and module.rsplit(".", 1)[1] == "candidate"
 
 
@@ -260,6 +266,14 @@ def floor_violations(graph, mods):
             if kb is None:
                 continue                                      # reported as b's own line
             fb = FLOORS[kb]
+            if fa == WGPU or fb == WGPU:
+                if fa == WGPU and fb != WGPU and b not in WGPU_USES:
+                    bad.append(f"{where(a, b)} (wgpu) imports {b} ({fb}): refraster.wgpu "
+                               f"imports only itself and {sorted(WGPU_USES)}")
+                elif fb == WGPU and fa != WGPU and not gl_user(a):
+                    bad.append(f"{where(a, b)} ({fa}) imports {b} (wgpu): only the golden's "
+                               "candidate module imports refraster.wgpu")
+                continue
             if fa == GL and fb != GL:
                 bad.append(f"{where(a, b)} (gl) imports {b} ({fb}): refraster.gl imports "
                            "nothing of refraster")
@@ -326,7 +340,7 @@ def test_the_docs_name_every_floor_key():
     text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
     missing = [k for k in FLOORS if f"`{k}`" not in text]
     assert not missing, f"docs/architecture.md does not name {missing} (mirror FLOORS there)"
-    for floor in ORDER + (GL,):
+    for floor in ORDER + (GL, WGPU):
         assert re.search(rf"\b{floor}\b", text), floor
 
 
@@ -403,6 +417,11 @@ def test_the_floor_rules_report_planted_back_imports(tmp_path):
         "refraster/gallery/__init__.py": "from ..gl import driver\n",
         "refraster/cli.py": "from .gallery import x\n",
         "refraster/newthing.py": "",
+        "refraster/gl/package.py": "",
+        "refraster/wgpu/__init__.py": "",
+        "refraster/wgpu/driver.py": "from ..gl.package import read_ply\nfrom ..gl import driver\n"
+                                    "from ..golden import common\n",
+        "refraster/golden/io/read.py": "from ...wgpu import driver\n",
     })
     graph, _, _ = module_graph(tmp_path)
     assert cycles(graph) == []
@@ -415,7 +434,11 @@ def test_the_floor_rules_report_planted_back_imports(tmp_path):
     assert "refraster.gl.driver (gl) imports refraster.io (core)" in bad
     assert "refraster.gallery (gallery) imports refraster.gl.driver (gl)" in bad
     assert "refraster.newthing has no floor" in bad
-    for allowed in ("refraster.cutaway", "refraster.edges.npr", "refraster.golden.io.candidate"):
+    assert "refraster.wgpu.driver (wgpu) imports refraster.gl.driver (gl)" in bad
+    assert "refraster.wgpu.driver (wgpu) imports refraster.golden.common (goldens)" in bad
+    assert "refraster.golden.io.read (goldens) imports refraster.wgpu.driver (wgpu)" in bad
+    for allowed in ("refraster.cutaway", "refraster.edges.npr", "refraster.golden.io.candidate",
+                    "imports refraster.gl.package"):
         assert allowed not in bad, allowed
     assert "/refraster/cli.py:" not in bad            # the command imports the gallery
-    assert len(bad.splitlines()) == 7, bad
+    assert len(bad.splitlines()) == 10, bad

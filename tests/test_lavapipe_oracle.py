@@ -302,8 +302,10 @@ class Result:
         return self.differ - self.ties - self.lavapipe_wrong
 
 
-def compare(sc, conv, lav, *, state=None, depth_format="float32"):
-    """Render ``sc`` in ``conv`` with both; ``state`` overrides refraster's (a planted fault)."""
+def compare(sc, conv, lav, *, state=None, depth_format="float32", allowance=None):
+    """Render ``sc`` in ``conv`` with both; ``state`` overrides refraster's (a planted fault);
+    ``allowance`` replaces :func:`depth_allowance` (same arguments)."""
+    allowance = depth_allowance if allowance is None else allowance
     proj = conv.proj(sc.proj)
     draws = [(lav.clip_positions(v, _mvp(sc, proj)), f) for v, f in sc.meshes]
     g = lav.rasterize(draws, sc.width, sc.height, depth_format=depth_format, **conv.lav)
@@ -330,13 +332,13 @@ def compare(sc, conv, lav, *, state=None, depth_format="float32"):
     same = (ours == g.prim_id) & (ours >= 0)
     facing = int(np.count_nonzero(same & (fb.front_facing != g.front)))
     over, ratio, max_dz = 0, 0.0, 0.0
-    quantum = {"float32": 0.0, "unorm16": 1.0 / 65535.0}[depth_format]
+    quantum = {"float32": 0.0, "unorm24": 1.0 / 16777215.0, "unorm16": 1.0 / 65535.0}[depth_format]
     allow = {}
     for r, c in zip(*np.nonzero(same)):
         k = ours[r, c]
         if k not in allow:
             allow[k] = (np.inf if np.abs(tris[k]).max() > HUGE_CLIP
-                        else depth_allowance(tris[k], sc.width, sc.height, ndc_y))
+                        else allowance(tris[k], sc.width, sc.height, ndc_y))
         dz = abs(float(fb.depth[r, c]) - float(g.depth[r, c]))
         a = allow[k] + 0.6 * quantum
         if np.isfinite(a):

@@ -18,7 +18,7 @@ On the command line: ``refraster golden candidate GOLDEN_DIR --backend gl --out 
 (docs/backends.md).
 """
 
-__all__ = ["SUPPORTED_TECHNIQUES", "FAULTS", "TECHNIQUE_FAULTS"]
+__all__ = ["SUPPORTED_TECHNIQUES", "FAULTS", "TECHNIQUE_FAULTS", "CONVENTION_FAULTS"]
 
 #: Techniques this backend renders, with what it renders for them.
 SUPPORTED_TECHNIQUES = {
@@ -80,3 +80,21 @@ TECHNIQUE_FAULTS = {
                                                            "back"),
 }
 FAULTS.update(TECHNIQUE_FAULTS)
+
+#: Planted faults of the API conventions (issue 39; tests/test_gl_conventions.py), also in
+#: :data:`FAULTS`. They are switches of the driver's GL state (the ``#define`` is inert).
+CONVENTION_FAULTS = {
+    "depth_remap_on_zero_to_one": ("FAULT_DEPTH_REMAP_ON_ZERO_TO_ONE",
+                                   "glClipControl's depth mode left at GL_NEGATIVE_ONE_TO_ONE "
+                                   "under depth_range 'zero_to_one': GL's remap 0.5·z/w + 0.5 "
+                                   "and clipping at z = −w applied to a [0, 1] projection"),
+    "reversed_z_less": ("FAULT_REVERSED_Z_LESS", "reversed-Z drawn with the depth test 'less' "
+                                                 "('lequal' for 'gequal')"),
+    "reversed_z_clear_one": ("FAULT_REVERSED_Z_CLEAR_ONE", "the depth buffer cleared to 1 under "
+                                                           "'greater' / 'gequal'"),
+    "winding_not_flipped": ("FAULT_WINDING_NOT_FLIPPED", "under the upper-left origin, the "
+                                                         "polygon area's sign not negated with "
+                                                         "the origin (glFrontFace inverted "
+                                                         "there): front and back swap"),
+}
+FAULTS.update(CONVENTION_FAULTS)

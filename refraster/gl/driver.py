@@ -5,11 +5,20 @@ Conventions it implements (``docs/backends.md`` walks through them):
 
 * ``clip = projection @ view @ model @ [x y z 1]`` with the package's row-major matrices,
   uploaded transposed (GL uniforms are column-major), one float32 matrix ``P·V·M`` per draw.
-* Depth: a 32-bit float depth attachment (``GL_DEPTH_COMPONENT32F``; moderngl's own is 24-bit),
-  cleared to ``raster.clear_depth``, test ``raster.depth_func``; the window depth written out is
-  ``gl_FragCoord.z`` into an ``R32F`` target (bit-identical to the stored depth).
-* Front faces CCW as the picture is seen (GL's default in y-up window coordinates); the arrays
-  read back have GL's bottom row first and are flipped to row 0 at the top.
+* Depth: a depth attachment of ``raster.depth_format`` (``GL_DEPTH_COMPONENT32F``, ``24`` or
+  ``16``; moderngl's own is 24-bit), cleared to ``raster.clear_depth``, test
+  ``raster.depth_func``; the window depth written out is ``gl_FragCoord.z`` into an ``R32F``
+  target (bit-identical to a float32 depth buffer), or the depth buffer read back under the
+  unorm formats (its quantised values).
+* The API conventions of the raster state (issue 39; ``docs/backends.md``, "Conventions"):
+  ``glClipControl(origin, depth mode)`` from ``raster.origin`` and ``raster.depth_range``,
+  ``GL_DEPTH_CLAMP`` from ``raster.depth_clamp``; ``raster.ndc_y = "down"`` (Vulkan) is a
+  negation of the clip y in the vertex shader (GL's NDC y points up).
+* Front faces: ``glFrontFace`` of ``raster.front_face`` (as the picture is seen) in every
+  convention — GL negates the polygon area under ``GL_UPPER_LEFT``, and the y negation of
+  ``ndc_y = "down"`` happens before GL judges facing. The arrays read back have GL's bottom row
+  first under ``GL_LOWER_LEFT`` (flipped to row 0 at the top) and the top row first under
+  ``GL_UPPER_LEFT`` (kept).
 * Every target is cleared to zero (one clear of all attachments; zero bits are 0 in float and
   integer targets alike) and a ``covered`` channel of the integer target says which pixels a
   fragment wrote; background values (``docs/golden-schema.md``) are filled in after read-back.
@@ -38,7 +47,8 @@ from .edges import render_edges
 from .edges import supports as edges_supports
 from .halos import render_halos
 from .halos import supports as halos_supports
-from .package import PackageError, matrix, read_map, read_ply, read_scene
+from .package import (CONVENTION_DEFAULTS, PackageError, conventions, matrix, read_map,
+                      read_ply, read_scene)
 
 __all__ = ["Backend", "GLUnavailable", "Unsupported", "programs", "shader_source"]
 
@@ -46,6 +56,20 @@ _GL_TEXTURE_2D = 0x0DE1
 _GL_DEPTH_COMPONENT = 0x1902
 _GL_DEPTH_COMPONENT32F = 0x8CAC
 _GL_FLOAT = 0x1406
+_GL_UNSIGNED_SHORT = 0x1403
+_GL_UNSIGNED_INT = 0x1405
+_GL_DEPTH_CLAMP = 0x864F
+_GL_LOWER_LEFT, _GL_UPPER_LEFT = 0x8CA1, 0x8CA2
+_GL_NEGATIVE_ONE_TO_ONE, _GL_ZERO_TO_ONE = 0x935E, 0x935F
+
+#: ``raster.depth_format`` → (internal format, pixel type) of the depth attachment.
+_DEPTH_FORMATS = {"float32": (_GL_DEPTH_COMPONENT32F, _GL_FLOAT),
+                  "unorm24": (0x81A6, _GL_UNSIGNED_INT),      # GL_DEPTH_COMPONENT24
+                  "unorm16": (0x81A5, _GL_UNSIGNED_SHORT)}    # GL_DEPTH_COMPONENT16
+_CLIP_ORIGIN = {"lower_left": _GL_LOWER_LEFT, "upper_left": _GL_UPPER_LEFT}
+_CLIP_DEPTH = {"negative_one_to_one": _GL_NEGATIVE_ONE_TO_ONE, "zero_to_one": _GL_ZERO_TO_ONE}
+#: the reversed depth tests and what the planted ``reversed_z_less`` fault draws instead
+_REVERSED = {"greater": "less", "gequal": "lequal"}
 
 _DEPTH_FUNCS = {"less": "<", "lequal": "<=", "greater": ">", "gequal": ">=", "equal": "==",
                 "notequal": "!=", "always": "1", "never": "0"}
@@ -72,9 +96,15 @@ def _gl_functions():
         return ctypes.CFUNCTYPE(restype, *argtypes)(addr)
 
     u, i, p = ctypes.c_uint, ctypes.c_int, ctypes.c_void_p
-    return {"BindTexture": fn("glBindTexture", None, u, u),
-            "TexImage2D": fn("glTexImage2D", None, u, i, i, i, i, i, u, u, p),
-            "GetError": fn("glGetError", u)}
+    out = {"BindTexture": fn("glBindTexture", None, u, u),
+           "TexImage2D": fn("glTexImage2D", None, u, i, i, i, i, i, u, u, p),
+           "GetError": fn("glGetError", u),
+           "Enable": fn("glEnable", None, u), "Disable": fn("glDisable", None, u)}
+    try:       # OpenGL 4.5 core or ARB_clip_control; moderngl does not wrap it
+        out["ClipControl"] = fn("glClipControl", None, u, u)
+    except GLUnavailable:
+        out["ClipControl"] = None
+    return out
 
 
 class Backend:
@@ -141,6 +171,14 @@ class Backend:
     def supports(scene):
         """``None`` if the scene (a ``scene.json`` dict) can be rendered, else the reason."""
         technique = scene.get("technique")
+        conv = conventions(scene.get("raster", {}))
+        if technique not in ("render", "vds", "ldi") and conv != CONVENTION_DEFAULTS:
+            changed = sorted(k for k in conv if conv[k] != CONVENTION_DEFAULTS[k])
+            return (f"technique {technique!r} renders OpenGL's conventions only; the scene sets "
+                    f"raster {', '.join(changed)}")
+        if technique == "ldi" and conv["depth_format"] != "float32":
+            return ("ldi: peeling compares gl_FragCoord.z with the previous layer's; it needs "
+                    "depth_format 'float32'")
         if technique not in SUPPORTED_TECHNIQUES:
             return (f"technique {technique!r} is not implemented by the gl backend (it renders "
                     f"{', '.join(sorted(SUPPORTED_TECHNIQUES))})")
@@ -304,43 +342,100 @@ class Backend:
         if name in prog:
             prog[name].write(np.ascontiguousarray(m.T, np.float32).tobytes())
 
-    def _depth_attachment(self, size):
-        """A depth texture re-specified as ``GL_DEPTH_COMPONENT32F`` (moderngl's is 24-bit)."""
+    def _depth_attachment(self, size, depth_format="float32"):
+        """A depth texture re-specified as ``GL_DEPTH_COMPONENT32F`` (moderngl's is 24-bit),
+        or ``24`` / ``16`` for ``depth_format`` ``"unorm24"`` / ``"unorm16"``."""
+        internal, kind = _DEPTH_FORMATS[depth_format]
         tex = self.ctx.depth_texture(size)
         gl = self._gl
         while gl["GetError"]():
             pass
         gl["BindTexture"](_GL_TEXTURE_2D, tex.glo)
-        gl["TexImage2D"](_GL_TEXTURE_2D, 0, _GL_DEPTH_COMPONENT32F, size[0], size[1], 0,
-                         _GL_DEPTH_COMPONENT, _GL_FLOAT, None)
+        gl["TexImage2D"](_GL_TEXTURE_2D, 0, internal, size[0], size[1], 0,
+                         _GL_DEPTH_COMPONENT, kind, None)
         err = gl["GetError"]()
         if err:
             tex.release()
-            raise GLUnavailable(f"glTexImage2D(GL_DEPTH_COMPONENT32F) failed: GL error {err:#x}")
+            raise GLUnavailable(f"glTexImage2D(depth {depth_format}, {internal:#x}) failed: GL "
+                                f"error {err:#x}")
         return tex
 
+    def _clear_depth(self, raster):
+        """The depth clear value: ``raster.clear_depth`` (1 under a reversed depth test with
+        the planted ``reversed_z_clear_one`` fault)."""
+        if "reversed_z_clear_one" in self.faults and raster["depth_func"] in _REVERSED:
+            return 1.0
+        return float(raster["clear_depth"])
+
     def _state(self, scene):
+        """The fixed-function state of ``scene``'s raster fields: depth test, culling, front
+        face, ``glClipControl`` and ``GL_DEPTH_CLAMP`` (set for every frame: the context is
+        shared by the scenes)."""
         mgl, ctx, raster = self.mgl, self.ctx, scene["raster"]
+        conv = conventions(raster)
         cull = raster["cull"]
         ctx.enable_only(mgl.DEPTH_TEST | (mgl.CULL_FACE if cull != "none" else 0))
-        ctx.depth_func = _DEPTH_FUNCS[raster["depth_func"]]
-        ctx.front_face = "ccw"
+        func = raster["depth_func"]
+        if "reversed_z_less" in self.faults:
+            func = _REVERSED.get(func, func)
+        ctx.depth_func = _DEPTH_FUNCS[func]
+        # glFrontFace is judged as the picture is seen in every convention: GL negates the
+        # polygon area under GL_UPPER_LEFT, and ndc_y="down" is negated in the vertex shader
+        # before GL judges facing (docs/backends.md, "Conventions")
+        front = raster["front_face"]
+        if "winding_not_flipped" in self.faults and conv["origin"] == "upper_left":
+            front = {"ccw": "cw", "cw": "ccw"}[front]
+        ctx.front_face = front
         if cull != "none":
             ctx.cull_face = cull
+        self._conventions(conv)
 
-    def _read(self, tex, dtype, comps, size):
+    def _conventions(self, conv):
+        """``glClipControl`` and ``GL_DEPTH_CLAMP`` for the convention fields ``conv``."""
+        gl = self._gl
+        depth_mode = conv["depth_range"]
+        if "depth_remap_on_zero_to_one" in self.faults:
+            depth_mode = "negative_one_to_one"
+        if gl["ClipControl"] is None:
+            if (conv["origin"], depth_mode) != ("lower_left", "negative_one_to_one"):
+                raise Unsupported("this OpenGL has no glClipControl (4.5 or ARB_clip_control): "
+                                  f"origin {conv['origin']!r}, depth_range "
+                                  f"{conv['depth_range']!r} cannot be drawn")
+        else:
+            while gl["GetError"]():
+                pass
+            gl["ClipControl"](_CLIP_ORIGIN[conv["origin"]], _CLIP_DEPTH[depth_mode])
+            err = gl["GetError"]()
+            if err:
+                raise Unsupported(f"glClipControl failed: GL error {err:#x}")
+        (gl["Enable"] if conv["depth_clamp"] else gl["Disable"])(_GL_DEPTH_CLAMP)
+
+    def _default_conventions(self):
+        """OpenGL's conventions again (after a frame that changed them)."""
+        self._conventions(dict(CONVENTION_DEFAULTS))
+
+    def _read(self, tex, dtype, comps, size, *, top_first=False):
+        """A target's pixels as ``(H, W, comps)`` with row 0 at the top of the picture: GL's
+        first row is the bottom under ``GL_LOWER_LEFT`` (flipped), the top under
+        ``GL_UPPER_LEFT`` (``top_first``; kept)."""
         w, h = size
         a = np.frombuffer(tex.read(), dtype=dtype).reshape(h, w, comps)
-        return np.ascontiguousarray(a[::-1])          # GL's row 0 is the bottom
+        return np.ascontiguousarray(a if top_first else a[::-1])
+
+    @staticmethod
+    def _top_first(scene):
+        return conventions(scene["raster"])["origin"] == "upper_left"
 
     def _read_gbuffer(self, scene, targets, size):
         """The G-buffer's first six targets (window depth, eye depth, normal, barycentric,
         colour, ids + covered) read back → ``({buffer: array}, covered)``: the golden's eight
         G-buffer buffers with the background values (``docs/golden-schema.md``) filled in where
         no fragment was written. Used by :meth:`_gbuffer` and the cutaway's clipped G-buffer."""
-        win, eye = (self._read(t, "<f4", 1, size)[..., 0] for t in targets[:2])
-        normal, bary, color = (self._read(t, "<f4", 4, size)[..., :3] for t in targets[2:5])
-        ids = self._read(targets[5], "<i4", 4, size)
+        top = self._top_first(scene)
+        win, eye = (self._read(t, "<f4", 1, size, top_first=top)[..., 0] for t in targets[:2])
+        normal, bary, color = (self._read(t, "<f4", 4, size, top_first=top)[..., :3]
+                               for t in targets[2:5])
+        ids = self._read(targets[5], "<i4", 4, size, top_first=top)
         covered = ids[..., 3] == 1
         c3 = covered[..., None]
         raster = scene["raster"]
@@ -373,13 +468,15 @@ class Backend:
             self._set(prog, "u_sprite_depth", 0)
             self._set(prog, "u_sprite_count", 1)
             sprite = matrix(scene["parameters"]["sprite_matrix"], "parameters.sprite_matrix")
-        depth = self._depth_attachment(size)
+        conv = conventions(raster)
+        depth = self._depth_attachment(size, conv["depth_format"])
         fbo = ctx.framebuffer(color_attachments=targets, depth_attachment=depth)
         try:
             fbo.use()
             ctx.viewport = (0, 0, *size)
-            fbo.clear(0.0, 0.0, 0.0, 0.0, depth=float(raster["clear_depth"]))
+            fbo.clear(0.0, 0.0, 0.0, 0.0, depth=self._clear_depth(raster))
             self._state(scene)
+            self._set(prog, "u_ndc_y_down", conv["ndc_y"] == "down")
             self._set(prog, "u_light", tuple(float(shading[k]) for k in
                                              ("ambient", "diffuse", "specular", "shininess")))
             self._set(prog, "u_smooth", raster["normals"] == "smooth")
@@ -399,8 +496,15 @@ class Backend:
                 self._vao(d, prog).render(self.mgl.TRIANGLES)
             ctx.finish()
             out, covered = self._read_gbuffer(scene, targets, size)
-            inside = self._read(targets[6], "<i4", 1, size)[..., 0] if vds else None
+            top = self._top_first(scene)
+            inside = (self._read(targets[6], "<i4", 1, size, top_first=top)[..., 0] if vds
+                      else None)
+            if conv["depth_format"] != "float32":
+                # the candidate's depth is its depth buffer: k / (2^n − 1), read as float
+                stored = self._read(depth, "<f4", 1, size, top_first=top)[..., 0]
+                out["depth"] = np.where(covered, stored, out["depth"]).astype(np.float32)
         finally:
+            self._default_conventions()
             self._parking.use()
             for obj in (fbo, depth, *targets):
                 obj.release()
@@ -413,8 +517,11 @@ class Backend:
         mgl, ctx, prog = self.mgl, self.ctx, self.peeler
         size = (scene["viewport"]["width"], scene["viewport"]["height"])
         raster = scene["raster"]
-        if raster["depth_func"] != "less":
-            raise Unsupported(f"peeling with depth_func {raster['depth_func']!r}: only 'less'")
+        if raster["depth_func"] not in ("less", "greater"):
+            raise Unsupported(f"peeling with depth_func {raster['depth_func']!r}: only 'less' "
+                              "and 'greater' (reversed-Z, peeled from the largest depth)")
+        conv = conventions(raster)
+        top = conv["origin"] == "upper_left"
         max_layers = scene.get("parameters", {}).get("max_layers")
         faces = sum(d["n_faces"] for d in draws)
         limit = min(MAX_PEEL_PASSES, faces + 1) if max_layers is None else int(max_layers)
@@ -424,7 +531,7 @@ class Backend:
             for tex in t:
                 tex.filter = (mgl.NEAREST, mgl.NEAREST)
             sets.append(t)
-        depth = self._depth_attachment(size)
+        depth = self._depth_attachment(size, conv["depth_format"])
         fbos = [ctx.framebuffer(color_attachments=t, depth_attachment=depth) for t in sets]
         query = ctx.query(samples=True)
         found_depth, found_ids = [], []
@@ -433,10 +540,12 @@ class Backend:
             self._set(prog, "u_viewport", tuple(float(s) for s in size))
             self._set(prog, "u_prev_depth", 0)
             self._set(prog, "u_prev_ids", 1)
+            self._set(prog, "u_ndc_y_down", conv["ndc_y"] == "down")
+            self._set(prog, "u_reversed", raster["depth_func"] == "greater")
             for k in range(limit):
                 cur, prev = k % 2, 1 - k % 2
                 fbos[cur].use()
-                fbos[cur].clear(0.0, 0.0, 0.0, 0.0, depth=float(raster["clear_depth"]))
+                fbos[cur].clear(0.0, 0.0, 0.0, 0.0, depth=self._clear_depth(raster))
                 self._state(scene)
                 self._set(prog, "u_peel", k > 0)
                 sets[prev][0].use(location=0)
@@ -451,9 +560,11 @@ class Backend:
                         self._vao(d, prog).render(mgl.TRIANGLES)
                 if query.samples == 0:
                     break
-                found_depth.append(self._read(sets[cur][0], "<f4", 1, size)[..., 0])
-                found_ids.append(self._read(sets[cur][1], "<i4", 4, size))
+                found_depth.append(self._read(sets[cur][0], "<f4", 1, size,
+                                              top_first=top)[..., 0])
+                found_ids.append(self._read(sets[cur][1], "<i4", 4, size, top_first=top))
         finally:
+            self._default_conventions()
             self._parking.use()
             for obj in (*fbos, depth, *sets[0], *sets[1]):
                 obj.release()

@@ -16,7 +16,17 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["PackageError", "read_scene", "read_ply", "read_map", "matrix"]
+__all__ = ["PackageError", "read_scene", "read_ply", "read_map", "matrix", "conventions",
+           "CONVENTION_DEFAULTS"]
+
+#: The API-convention fields of ``scene.json``'s ``"raster"`` (issue 39) and their values when
+#: a package leaves them out (OpenGL's: a package written before they existed).
+CONVENTION_DEFAULTS = {"depth_range": "negative_one_to_one", "origin": "lower_left",
+                       "ndc_y": "up", "depth_clamp": False, "depth_format": "float32"}
+_CONVENTION_VALUES = {"depth_range": ("negative_one_to_one", "zero_to_one"),
+                      "origin": ("lower_left", "upper_left"), "ndc_y": ("up", "down"),
+                      "depth_clamp": (False, True),
+                      "depth_format": ("float32", "unorm24", "unorm16")}
 
 #: Largest ``scene.json`` read.
 MAX_SCENE_BYTES = 16 << 20
@@ -127,10 +137,18 @@ def read_scene(package_dir):
         for key, allowed in (("cull", ("none", "back", "front")),
                              ("depth_func", ("less", "lequal", "greater", "gequal", "equal",
                                              "notequal", "always", "never")),
-                             ("front_face", ("ccw",)), ("normals", ("flat", "smooth"))):
+                             ("front_face", ("ccw", "cw")), ("normals", ("flat", "smooth"))):
             if raster.get(key) not in allowed:
                 raise PackageError(f"{path}: raster.{key} must be one of {list(allowed)}, got "
                                    f"{raster.get(key)!r}")
+        for key, allowed in _CONVENTION_VALUES.items():
+            value = raster.get(key, CONVENTION_DEFAULTS[key])
+            if key == "depth_clamp" and not isinstance(value, bool):
+                raise PackageError(f"{path}: raster.depth_clamp must be true or false, got "
+                                   f"{value!r}")
+            if value not in allowed:
+                raise PackageError(f"{path}: raster.{key} must be one of {list(allowed)}, got "
+                                   f"{value!r}")
         cd = raster["clear_depth"]
         if not isinstance(cd, (int, float)) or not 0.0 <= cd <= 1.0:
             raise PackageError(f"{path}: raster.clear_depth must be a number in [0, 1]")
@@ -151,6 +169,12 @@ def read_scene(package_dir):
     except (KeyError, TypeError) as exc:
         raise PackageError(f"{path}: missing or malformed field {exc}") from None
     return scene
+
+
+def conventions(raster):
+    """The API-convention fields of a scene's ``"raster"`` (checked by :func:`read_scene`), with
+    :data:`CONVENTION_DEFAULTS` where the package leaves one out → dict."""
+    return {k: raster.get(k, v) for k, v in CONVENTION_DEFAULTS.items()}
 
 
 def read_ply(path, n_vertices=None, n_faces=None):

@@ -10,7 +10,8 @@ by one atomic swap; ``OUT`` must be nothing, an empty directory or a candidate r
 (its marker ``.refraster-candidate`` lists every file with its sha256, the scenes rendered, the
 scenes skipped and why, the backend and the renderer); it may not overlap the golden directory.
 
-Backends: ``gl`` (:mod:`refraster.gl`, the optional extra ``gl``).
+Backends: ``gl`` (:mod:`refraster.gl`, the optional extra ``gl``) and ``wgpu``
+(:mod:`refraster.wgpu`, WebGPU in WGSL, the optional extra ``wgpu``).
 """
 
 from __future__ import annotations
@@ -29,12 +30,23 @@ from .io.read import load_manifest
 __all__ = ["BACKENDS", "candidate"]
 
 #: Backends ``golden candidate`` can drive.
-BACKENDS = ("gl",)
+BACKENDS = ("gl", "wgpu")
 
 
 def _open_backend(backend, faults, threads):
-    if backend != "gl":
+    if backend not in BACKENDS:
         raise ValueError(f"--backend must be one of {list(BACKENDS)}, got {backend!r}")
+    if backend == "wgpu":
+        try:
+            from ..wgpu.driver import Backend as WGPUBackend
+            from ..wgpu.device import WGPUUnavailable
+        except ImportError as exc:
+            raise GoldenError(f"the wgpu backend cannot be imported ({exc}); install the "
+                              "'wgpu' extra: pip install refraster[wgpu]") from None
+        try:
+            return WGPUBackend(faults=faults, threads=threads)
+        except WGPUUnavailable as exc:
+            raise GoldenError(f"the wgpu backend has no WebGPU device: {exc}") from None
     try:
         from ..gl.driver import Backend, GLUnavailable
     except ImportError as exc:
@@ -54,7 +66,8 @@ def candidate(golden_dir, out, *, backend="gl", scenes=None, faults=(), threads=
     Returns ``{"rendered": [names], "skipped": {name: reason}, "renderer": str}``. Raises
     :class:`GoldenError` (the golden, the backend or the output path is unusable) or
     :class:`refraster.golden.io.write.RefusedError` (``out`` holds something else).
-    ``faults`` (tests only) plants :data:`refraster.gl.FAULTS`.
+    ``faults`` (tests only) plants :data:`refraster.gl.FAULTS` (``backend="wgpu"``:
+    :data:`refraster.wgpu.FAULTS`).
     """
     golden_dir = Path(golden_dir)
     names = None if scenes is None else list(scenes)
@@ -86,8 +99,11 @@ def candidate(golden_dir, out, *, backend="gl", scenes=None, faults=(), threads=
 
 
 def _candidate_locked(golden_dir, manifest, names, target, gl, backend, on_scene):
-    from ..gl.driver import Unsupported
     from ..gl.package import PackageError
+    if backend == "wgpu":
+        from ..wgpu.driver import Unsupported
+    else:
+        from ..gl.driver import Unsupported
     found = write.snapshot(target)
     if found is not None and found[0] != "empty":
         if found[0] != "candidate":

@@ -9,7 +9,7 @@
     refraster golden compare GOLDEN_DIR CANDIDATE_DIR [--report DIR] [--mode tolerant|exact]
                              [--profile exact|conformant] [--tolerance [SCENE:][BUFFER.]KEY=VALUE ...]
                              [--scene NAME ...] [--json FILE] [--no-wait]
-    refraster golden candidate GOLDEN_DIR --backend gl --out CANDIDATE_DIR [--scene NAME ...]
+    refraster golden candidate GOLDEN_DIR --backend gl|wgpu --out CANDIDATE_DIR [--scene NAME ...]
                                [--threads N] [--no-wait]
 
 ``-q``/``--quiet`` and ``--debug`` go before or after ``golden``, ``generate`` or ``compare``.
@@ -331,9 +331,10 @@ def register(subparsers):
                                          "backend into a candidate directory")
     _common(k)
     k.add_argument("golden_dir", metavar="GOLDEN_DIR")
-    k.add_argument("--backend", choices=("gl",), default="gl",
+    k.add_argument("--backend", choices=("gl", "wgpu"), default="gl",
                    help="gl: the GLSL backend refraster.gl (OpenGL 3.3 core on headless EGL; "
-                        "the extra 'gl')")
+                        "the extra 'gl'); wgpu: the WGSL backend refraster.wgpu (WebGPU "
+                        "through wgpu-py, default limits; the extra 'wgpu')")
     k.add_argument("--out", metavar="CANDIDATE_DIR", required=True,
                    help="candidate directory to write (nothing, empty, or a candidate "
                         "refraster wrote; replaced atomically)")
@@ -341,7 +342,7 @@ def register(subparsers):
                    help="render only this scene (repeatable; default: every scene the "
                         "backend supports)")
     k.add_argument("--threads", metavar="N", type=_positive_int,
-                   help="rasterizer threads of Mesa's llvmpipe (LP_NUM_THREADS)")
+                   help="rasterizer threads of Mesa's llvmpipe or lavapipe (LP_NUM_THREADS)")
     k.add_argument("--no-wait", action="store_true",
                    help="if another run is writing CANDIDATE_DIR, exit 2 naming it")
     k.set_defaults(func=_cmd_candidate)

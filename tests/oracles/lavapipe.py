@@ -72,23 +72,17 @@ struct FOut { @location(0) face: i32, @location(1) front: u32 };
 
 
 def _device():
+    # the adapter as refraster.wgpu finds it (refraster/wgpu/device.py); the oracle's device
+    # keeps wgpu-py's own limits (it renders two small targets)
+    from refraster.wgpu.device import WGPUUnavailable, adapter
     try:
-        import wgpu
-    except ImportError as exc:
-        raise LavapipeUnavailable(f"wgpu is not installed (pip install wgpu): {exc}") from exc
-    try:
-        adapter = wgpu.gpu.request_adapter_sync(power_preference="low-power")
-    except Exception as exc:  # no Vulkan driver at all
-        raise LavapipeUnavailable(f"no WebGPU adapter (apt-get install mesa-vulkan-drivers): "
-                                  f"{exc}") from exc
-    info = adapter.info
-    if "llvmpipe" not in str(info.get("device", "")) or info.get("backend_type") != "Vulkan":
-        raise LavapipeUnavailable(f"the WebGPU adapter is not lavapipe: {info.get('device')!r} "
-                                  f"on {info.get('backend_type')!r}")
-    if "depth-clip-control" not in adapter.features:
+        wgpu, found = adapter(require_lavapipe=True)
+    except WGPUUnavailable as exc:
+        raise LavapipeUnavailable(str(exc)) from exc
+    if "depth-clip-control" not in found.features:
         raise LavapipeUnavailable("lavapipe does not expose depth-clip-control")
-    device = adapter.request_device_sync(required_features=["depth-clip-control"])
-    return wgpu, adapter, device
+    device = found.request_device_sync(required_features=["depth-clip-control"])
+    return wgpu, found, device
 
 
 _WGPU, _ADAPTER, _DEVICE = _device()
@@ -126,26 +120,9 @@ class Frame:
         return self.prim_id >= 0
 
 
-class _UnclippedDepth:
-    """wgpu-py 0.32 does not pass ``primitive.unclipped_depth`` on to wgpu-native (its
-    ``_api.py`` marks ``unclippedDepth`` "not used"): for the ``with`` body, the struct it
-    builds for the primitive state gets ``unclippedDepth = 1`` (the C field of WebGPU's
-    ``GPUPrimitiveState.unclippedDepth``)."""
-
-    def __enter__(self):
-        from wgpu.backends.wgpu_native import _api
-        self.api, self.real = _api, _api.new_struct
-
-        def new_struct(ctype, **kwargs):
-            if ctype == "WGPUPrimitiveState":
-                kwargs["unclippedDepth"] = 1
-            return self.real(ctype, **kwargs)
-
-        _api.new_struct = new_struct
-
-    def __exit__(self, *exc):
-        self.api.new_struct = self.real
-        return False
+#: wgpu-py 0.32 does not pass ``primitive.unclipped_depth`` on: the struct it builds is patched
+#: for the ``with`` body (shared with refraster.wgpu).
+from refraster.wgpu.device import unclipped_depth as _UnclippedDepth  # noqa: E402
 
 
 def _pipeline(ndc_y, compare, unclipped, cull, front_face, fmt):
@@ -153,17 +130,9 @@ def _pipeline(ndc_y, compare, unclipped, cull, front_face, fmt):
     if key not in _PIPELINES:
         ysign = "-1.0" if ndc_y == "down" else "1.0"
         mod = _DEVICE.create_shader_module(code=_SHADER.replace("YSIGN", ysign))
-        with (_UnclippedDepth() if unclipped else _NoChange()):
+        with _UnclippedDepth(unclipped):
             _PIPELINES[key] = _create(mod, compare, unclipped, cull, front_face, fmt)
     return _PIPELINES[key]
-
-
-class _NoChange:
-    def __enter__(self):
-        return None
-
-    def __exit__(self, *exc):
-        return False
 
 
 def _create(mod, compare, unclipped, cull, front_face, fmt):

@@ -18,6 +18,14 @@ order with their index as the object id. Depth test ``GL_LESS``; front faces CCW
 seen (GL's default). Every returned image is ``(H, W, ...)`` with **row 0 at the top** (GL reads
 the bottom row first; this module flips).
 
+The API conventions (issue 39) are OpenGL state here too: ``origin`` and ``depth_range`` through
+``glClipControl`` (GL 4.5, resolved with ``eglGetProcAddress``; moderngl does not wrap it),
+``depth_clamp`` as ``GL_DEPTH_CLAMP``, ``depth_format`` as a ``GL_DEPTH_COMPONENT32F`` / ``24`` /
+``16`` attachment, ``depth_func`` and ``clear_depth`` as ``glDepthFunc`` / the depth clear, and
+Vulkan's ``ndc_y="down"`` as a negation of the clip y in the vertex shader (GL's NDC y points
+up). Under ``GL_UPPER_LEFT`` GL's first row is the top of the picture (kept as read). Every
+frame restores OpenGL's defaults.
+
 Importing the module creates the context and raises :class:`LlvmpipeUnavailable` when it cannot,
 so tests reach it through the ``oracle`` fixture and skip (or fail under ``CI=true``).
 """
@@ -36,6 +44,10 @@ __all__ = [
 ]
 
 CULL_MODES = ("none", "back", "front")
+#: The conventions of :class:`GLScene` and OpenGL's values of them.
+DEFAULT_CONVENTIONS = {"origin": "lower_left", "depth_range": "negative_one_to_one",
+                       "ndc_y": "up", "depth_clamp": False, "depth_format": "float32",
+                       "depth_func": "less", "clear_depth": 1.0}
 
 _GL_TEXTURE_2D = 0x0DE1
 _GL_DEPTH_COMPONENT = 0x1902
@@ -44,16 +56,26 @@ _GL_FLOAT = 0x1406
 _GL_COLOR = 0x1800
 _GL_DEPTH = 0x1801
 _GL_NO_ERROR = 0
+_GL_DEPTH_CLAMP = 0x864F
+_CLIP_ORIGIN = {"lower_left": 0x8CA1, "upper_left": 0x8CA2}
+_CLIP_DEPTH = {"negative_one_to_one": 0x935E, "zero_to_one": 0x935F}
+#: depth_format → (internal format, pixel type)
+_DEPTH_FORMATS = {"float32": (_GL_DEPTH_COMPONENT32F, _GL_FLOAT),
+                  "unorm24": (0x81A6, 0x1405),      # GL_DEPTH_COMPONENT24, GL_UNSIGNED_INT
+                  "unorm16": (0x81A5, 0x1403)}      # GL_DEPTH_COMPONENT16, GL_UNSIGNED_SHORT
+_DEPTH_FUNCS = {"less": "<", "lequal": "<=", "greater": ">", "gequal": ">="}
 
 _VERTEX = """
 #version 450 core
 in vec4 in_clip;
+uniform bool u_ndc_y_down;   // Vulkan's NDC y points down; GL's up: negate the clip y
 #ifdef BARY
 in vec3 in_bary;
 out vec3 v_bary;
 #endif
 void main() {
     gl_Position = in_clip;
+    if (u_ndc_y_down) gl_Position.y = -gl_Position.y;
 #ifdef BARY
     v_bary = in_bary;
 #endif
@@ -135,6 +157,9 @@ def _load_gl():
         "ClearBufferiv": fn("glClearBufferiv", None, u, i, ctypes.POINTER(ctypes.c_int)),
         "ClearBufferfv": fn("glClearBufferfv", None, u, i, ctypes.POINTER(ctypes.c_float)),
         "GetError": fn("glGetError", u),
+        "ClipControl": fn("glClipControl", None, u, u),
+        "Enable": fn("glEnable", None, u),
+        "Disable": fn("glDisable", None, u),
     }
 
 
@@ -240,11 +265,21 @@ class GLScene:
     barycentric : bool
         Expand the triangles to unindexed vertices carrying (1,0,0), (0,1,0), (0,0,1) so that the
         interpolated attribute is the perspective-correct barycentric coordinate.
+    conventions : dict, optional
+        The API conventions (module docstring): ``origin``, ``depth_range``, ``ndc_y``,
+        ``depth_clamp``, ``depth_format``, ``depth_func`` (``less``, ``lequal``, ``greater``,
+        ``gequal``; the peel needs ``less``), ``clear_depth``. Absent keys: OpenGL's defaults.
     """
 
-    def __init__(self, draws, width, height, *, cull="none", barycentric=False):
+    def __init__(self, draws, width, height, *, cull="none", barycentric=False,
+                 conventions=None):
         if cull not in CULL_MODES:
             raise ValueError(f"cull must be one of {CULL_MODES}, got {cull!r}")
+        conv = {**DEFAULT_CONVENTIONS, **(conventions or {})}
+        unknown = set(conv) - set(DEFAULT_CONVENTIONS)
+        if unknown:
+            raise ValueError(f"unknown conventions {sorted(unknown)}")
+        self.conventions = conv
         ctx = context()
         self.ctx = ctx
         self.width, self.height = int(width), int(height)
@@ -260,12 +295,14 @@ class GLScene:
                 self._n_faces += len(faces)
         size = (self.width, self.height)
         self._depth = ctx.depth_texture(size)
-        # moderngl allocates 24 bits; re-specify the same texture object as 32-bit float
+        # moderngl allocates 24 bits; re-specify the same texture object as 32-bit float (or
+        # the convention's depth_format)
         gl = _STATE["gl"]
+        internal, kind = _DEPTH_FORMATS[conv["depth_format"]]
         gl["BindTexture"](_GL_TEXTURE_2D, self._depth.glo)
-        gl["TexImage2D"](_GL_TEXTURE_2D, 0, _GL_DEPTH_COMPONENT32F, self.width, self.height, 0,
-                         _GL_DEPTH_COMPONENT, _GL_FLOAT, None)
-        _check_gl("re-specifying the depth texture as GL_DEPTH_COMPONENT32F")
+        gl["TexImage2D"](_GL_TEXTURE_2D, 0, internal, self.width, self.height, 0,
+                         _GL_DEPTH_COMPONENT, kind, None)
+        _check_gl(f"re-specifying the depth texture as {conv['depth_format']}")
         self._resources.append(self._depth)
         # two sets of colour targets, ping-ponged by the peel (each reads the other's depth)
         self._targets = [self._colour_targets() for _ in range(2)]
@@ -328,18 +365,32 @@ class GLScene:
         gl["ClearBufferiv"](_GL_COLOR, 3, zero)
         if self.barycentric:
             gl["ClearBufferfv"](_GL_COLOR, 4, (ctypes.c_float * 4)(0.0, 0.0, 0.0, 0.0))
-        gl["ClearBufferfv"](_GL_DEPTH, 0, one)
+        gl["ClearBufferfv"](_GL_DEPTH, 0, (ctypes.c_float * 4)(
+            float(self.conventions["clear_depth"]), 0.0, 0.0, 0.0))
         _check_gl("clearing the targets")
 
     def _pass(self, which, peel, count_samples):
         """Clear target set ``which`` and draw every draw call into it."""
         mgl, ctx = _STATE["moderngl"], self.ctx
+        conv, gl = self.conventions, _STATE["gl"]
         self._clear(which)
         ctx.enable_only(mgl.DEPTH_TEST | (mgl.CULL_FACE if self.cull != "none" else 0))
-        ctx.depth_func = "<"
+        ctx.depth_func = _DEPTH_FUNCS[conv["depth_func"]]
         if self.cull != "none":
             ctx.front_face = "ccw"
             ctx.cull_face = self.cull
+        gl["ClipControl"](_CLIP_ORIGIN[conv["origin"]], _CLIP_DEPTH[conv["depth_range"]])
+        (gl["Enable"] if conv["depth_clamp"] else gl["Disable"])(_GL_DEPTH_CLAMP)
+        _check_gl("glClipControl / GL_DEPTH_CLAMP")
+        self.prog["u_ndc_y_down"].value = conv["ndc_y"] == "down"
+        try:
+            return self._draw(peel, count_samples, which)
+        finally:
+            gl["ClipControl"](_CLIP_ORIGIN["lower_left"], _CLIP_DEPTH["negative_one_to_one"])
+            gl["Disable"](_GL_DEPTH_CLAMP)
+
+    def _draw(self, peel, count_samples, which):
+        mgl = _STATE["moderngl"]
         self.prog["u_peel"].value = bool(peel)
         if peel:
             self._targets[1 - which][0].use(location=0)
@@ -358,7 +409,9 @@ class GLScene:
     def _read(self, tex, dtype, comps=1):
         a = np.frombuffer(tex.read(), dtype=dtype)
         shape = (self.height, self.width) if comps == 1 else (self.height, self.width, comps)
-        return np.ascontiguousarray(a.reshape(shape)[::-1])
+        a = a.reshape(shape)
+        # GL's first row is the bottom under GL_LOWER_LEFT, the top under GL_UPPER_LEFT
+        return np.ascontiguousarray(a if self.conventions["origin"] == "upper_left" else a[::-1])
 
     def rasterize(self):
         """One pass, depth test LESS → :class:`Frame`."""
@@ -380,6 +433,8 @@ class GLScene:
         pass writes no sample (``max_layers=None``; an occlusion query counts them).
         ``read=False`` draws the passes without reading anything back (for timing).
         """
+        if self.conventions["depth_func"] != "less":
+            raise ValueError("the peel runs with depth_func 'less' only")
         if max_layers is not None and max_layers < 1:
             raise ValueError(f"max_layers must be positive, got {max_layers}")
         # a pixel cannot have more layers than there are triangles
@@ -411,9 +466,11 @@ class GLScene:
                       count=np.count_nonzero(prim >= 0, axis=0).astype(np.int32))
 
 
-def rasterize(draws, width, height, *, cull="none", barycentric=False):
-    """Rasterize ``draws`` (one ``(clip, faces)`` or a list) once with llvmpipe → :class:`Frame`."""
-    with GLScene(draws, width, height, cull=cull, barycentric=barycentric) as scene:
+def rasterize(draws, width, height, *, cull="none", barycentric=False, conventions=None):
+    """Rasterize ``draws`` (one ``(clip, faces)`` or a list) once with llvmpipe → :class:`Frame`
+    (``conventions``: as :class:`GLScene`)."""
+    with GLScene(draws, width, height, cull=cull, barycentric=barycentric,
+                 conventions=conventions) as scene:
         return scene.rasterize()
 
 

@@ -7,6 +7,9 @@
 uniform mat4 u_mvp;        // projection · view · model (uploaded column-major)
 uniform mat4 u_mv;         // view · model
 uniform vec2 u_viewport;   // width, height in pixels
+uniform bool u_ndc_y_down; // raster.ndc_y = "down" (Vulkan): NDC y points down the picture;
+                           // GL's points up, so the clip y is negated here (exact), before
+                           // GL's clipping, window transform and facing
 
 in vec3 in_pos;
 in vec3 in_normal;
@@ -25,6 +28,7 @@ void main() {
     // planted fault: the viewport shifted by half a pixel in x and y
     clip.xy += clip.w / u_viewport;
 #endif
+    if (u_ndc_y_down) clip.y = -clip.y;
     gl_Position = clip;
     vs_eye = (u_mv * vec4(in_pos, 1.0)).xyz;
     vs_obj = in_pos;

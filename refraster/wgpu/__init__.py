@@ -1,0 +1,60 @@
+"""refraster.wgpu: a WebGPU backend (WGSL) for refraster's golden scene packages (optional
+extra ``wgpu``).
+
+A WebGPU team's client of the goldens, written as one: one WGSL file (``shaders/gbuffer.wgsl``)
+beside a thin driver (:mod:`refraster.wgpu.driver`) on wgpu-py (wgpu-native), which on a
+machine without a GPU runs on Mesa's lavapipe (Vulkan on llvmpipe). It reads only the scene
+packages of a golden directory (``scene.json``, PLY meshes, ``.npy`` maps) through the
+standalone package reader :mod:`refraster.gl.package` (standard library and NumPy), renders in
+the convention each scene declares, and works under WebGPU's **default limits**
+(:data:`refraster.wgpu.device.DEFAULT_LIMITS`: 32 bytes per sample across the colour targets,
+so the G-buffer takes three passes), asking for an optional feature only by name
+(:data:`refraster.wgpu.device.OPTIONAL_FEATURES`).
+
+``import refraster`` never imports this subpackage; ``import refraster.wgpu`` imports no wgpu
+either (the device is created by :class:`refraster.wgpu.driver.Backend`).
+
+    from refraster.wgpu.driver import Backend
+    with Backend() as gpu:
+        buffers = gpu.render("golden/render_cube/package")   # {name: (H, W[, C]) array}
+
+On the command line: ``refraster golden candidate GOLDEN_DIR --backend wgpu --out CANDIDATE_DIR``
+(docs/backends.md, "refraster.wgpu").
+"""
+
+__all__ = ["SUPPORTED_TECHNIQUES", "LATER_TECHNIQUES", "FAULTS"]
+
+#: Techniques this backend renders, with how.
+SUPPORTED_TECHNIQUES = {
+    "render": "the G-buffer in three passes of at most 32 bytes per sample (ids and depths; "
+              "normal and barycentrics; colour), de-indexed draws with flat face attributes",
+    "ldi": "classic depth peeling (one pass per layer, the previous layer read with "
+           "textureLoad; front to back under less and under greater)",
+    "vds": "the volumetric parity test in the fragment shader over the sprite as a 2D array "
+           "texture",
+}
+
+#: Techniques skipped with a reason: the second part of the WebGPU backend (issue 45).
+LATER_TECHNIQUES = ("clipsurface", "edges", "cutaway", "halos4d")
+
+#: Planted faults (tests only; ``Backend(faults=[name, ...])``): name → (where, what it does).
+FAULTS = {
+    "gl_remap_on_zero_to_one": ("host: the DEPTH_REMAP constant",
+                                "OpenGL's depth remap z' = (z + w)/2 applied to a scene whose "
+                                "projection is already [0, 1] (depth_range zero_to_one)"),
+    "y_not_flipped": ("host: the Y_SIGN constant",
+                      "y not flipped between NDC and the image: NDC y = +1 lands on the "
+                      "image's bottom row"),
+    "reversed_z_less": ("host: the pipeline's depthCompare",
+                        "a reversed-Z scene (greater) drawn with the depth test less"),
+    "clear_one_under_greater": ("host: the depth attachment's depthClearValue",
+                                "the depth buffer cleared to 1 under the depth test greater"),
+    "half_pixel": ("gbuffer.wgsl: the HALF_PIXEL constant",
+                   "the viewport shifted by half a pixel in x and y (vertex stage)"),
+    "provoking_vertex_face_id": ("host: the face attribute",
+                                 "the face id as a per-vertex attribute of an indexed mesh "
+                                 "(the last face listing the vertex), read flat from the "
+                                 "provoking vertex"),
+    "sprite_rows_flipped": ("gbuffer.wgsl: the SPRITE_ROWS_FLIPPED constant",
+                            "the volumetric depth sprite's rows read top-down"),
+}
