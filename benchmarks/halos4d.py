@@ -1,7 +1,7 @@
 """Benchmark: volumetric halos of the spun trefoil (~20k triangles) at 512² (Wang et al. Table 1).
 
     python -m benchmarks.halos4d [--size 512] [--repeats 5] [--reference-repeats 1]
-                                 [--slices 64,128,256,512] [--stages]
+                                 [--slices 64,128,256,512] [--stages] [--stage-minima]
 
 Columns: refraster's fused engine (median wall time of ``repeats`` frames, and the median CPU
 time summed over threads, which a busy machine inflates less), the reference engine
@@ -11,7 +11,10 @@ A frame is everything from the 4D surface to the composited image: rotation, pro
 thickening, tetrahedra, slicing, rasterization and compositing. Compile time (first call minus
 steady state) is printed once. ``--stages``: the CPU time of each stage of the 256-slice frame
 (projection and thickening, the default δd, slicing, window set-up, fill), which a shared
-machine inflates less than wall time; ``--reference-repeats 0`` skips the reference engine.
+machine inflates less than wall time; ``--stage-minima``: each stage of that frame called
+``repeats`` times on the frame's own arguments (captured from one frame), the minimum CPU time
+of each, and of the whole frame (steadier than ``--stages`` on a busy machine);
+``--reference-repeats 0`` skips the reference engine.
 """
 
 from __future__ import annotations
@@ -77,6 +80,43 @@ def stages(surface, size, slices, repeats):
     return total, per
 
 
+def stage_minima(surface, size, slices, repeats):
+    """Minimum CPU ms of each stage over ``repeats`` calls on the captured arguments of one
+    frame (prepare, slicing, window set-up and band binning, fill), and of the whole frame."""
+    import refraster.halos4d as h
+    from refraster.halos4d import render as hr
+    got = {}
+    fused, slice_ = hr._fused, hr._slice
+
+    def cap_fused(*a):
+        got["fused"] = a
+        return fused(*a)
+
+    def cap_slice(*a):
+        got["slice"] = a
+        return slice_(*a)
+    hr._fused, hr._slice = cap_fused, cap_slice
+    try:
+        frame(surface, size, slices)
+    finally:
+        hr._fused, hr._slice = fused, slice_
+    st, width, height, params, volume = got["fused"][:5]
+    win = hr._window(st, width, height)
+    view = h.View4D(rotation=h.compose(("zw", 0.6), ("zx", 0.3), ("yz", 0.4)))
+    calls = {"prepare": lambda: hr.prepare(surface, view=view),
+             "slicing": lambda: slice_(*got["slice"]),
+             "window set-up and band binning": lambda: hr._window(st, width, height),
+             "fill and compositing": lambda: fused(st, width, height, params, volume, win),
+             "frame": lambda: frame(surface, size, slices)}
+    best = {k: np.inf for k in calls}
+    for _ in range(repeats):
+        for k, fn in calls.items():
+            c = time.process_time()
+            fn()
+            best[k] = min(best[k], 1000.0 * (time.process_time() - c))
+    return best
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=512)
@@ -84,6 +124,7 @@ def main(argv=None):
     ap.add_argument("--reference-repeats", type=int, default=1)
     ap.add_argument("--slices", default="64,128,256,512")
     ap.add_argument("--stages", action="store_true")
+    ap.add_argument("--stage-minima", action="store_true")
     args = ap.parse_args(argv)
     import refraster.halos4d as h
 
@@ -122,6 +163,14 @@ def main(argv=None):
                   "fill": "fill and compositing"}
         for k, label in labels.items():
             print(f"| {label} | {per[k]:.0f} |")
+
+    if args.stage_minima:
+        print()
+        print(f"256 slices, minimum CPU ms of {args.repeats} calls per stage")
+        print("| stage | CPU ms (min) |")
+        print("|---|---:|")
+        for k, v in stage_minima(surface, args.size, 256, args.repeats).items():
+            print(f"| {k} | {v:.0f} |")
 
 
 if __name__ == "__main__":

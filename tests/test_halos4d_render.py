@@ -431,3 +431,35 @@ def test_reference_opacity_is_libm_pow_per_value():
     for alpha in (0.6, 0.05, 1.0):
         want = np.array([alpha if c == 1.0 else 1.0 - math.pow(1.0 - alpha, c) for c in cov])
         assert hr._opacity(alpha, cov).tobytes() == want.tobytes()
+
+
+def test_band_binning_and_slicing_equal_their_serial_definitions():
+    """The fused engine's parallel pieces against the plain definitions, on a frame with
+    several binning chunks (hr.BIN_CHUNK) and slices: the slice triangles are those of a
+    tetrahedron-major walk (per slice, tetrahedra in index order, each tetrahedron's
+    section corners), and each band lists the valid triangles touching it in draw order,
+    the window set-up being ``setup_window``'s."""
+    s = h.spun_trefoil(n_s=100, n_phi=24)
+    geo, _ = hr.prepare(s, view=h.View4D(rotation=h.compose(("zw", 0.6), ("zx", 0.3))))
+    v = geo.vertices
+    w, hgt, n = 96, 80, 48
+    bounds = hr._screen_bounds([v], w, hgt, 0.05)
+    centres = bounds[0, 2] + (np.arange(n) + 0.5) * (bounds[1, 2] - bounds[0, 2]) / n
+    st_ = hs._slice(v[:, 2].copy(), geo.tets, centres, geo.attributes, hs.ortho_ndc(v, bounds))
+    assert len(st_) > 2 * hr.BIN_CHUNK
+    # slicing: per slice, the tetrahedra in index order
+    z = v[:, 2][geo.tets]
+    expect = [t for k, c in enumerate(centres)
+              for t in np.flatnonzero((z.min(axis=1) < c) & (c <= z.max(axis=1)))
+              for _ in range(hs._section_corners(*(z[t] - c))[0])]
+    assert np.array_equal(st_.tet, expect)
+    assert np.array_equal(st_.slice, np.repeat(np.arange(n), np.diff(st_.starts)))
+    # band binning
+    X, Y, order, bbox, valid, _, _ = hs.setup_window(st_.xy, w, hgt)
+    starts, lists, bad = hr._window(st_, w, hgt)
+    assert bad == np.count_nonzero(~valid)
+    nb = (hgt + hr.BAND_ROWS - 1) // hr.BAND_ROWS
+    for band in range(nb):
+        rows = (hgt - 1 - bbox[:, 3]) // hr.BAND_ROWS, (hgt - 1 - bbox[:, 2]) // hr.BAND_ROWS
+        mine = np.flatnonzero(valid & (rows[0] <= band) & (band <= rows[1]))
+        assert np.array_equal(lists[starts[band]:starts[band + 1]], mine), band

@@ -44,10 +44,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit, prange
 
-from .._config import JIT, PJIT
+from .._config import IJIT, JIT, PJIT
 from .._validate import as_choice, as_float_array, as_image_size, as_real
 from ..raster.rasterizer import _inv_float_area, lambdas, row_span
-from .slicing import MAX_SLICES, SUBPIXEL_BITS, _slice, ortho_ndc, setup_window
+from .slicing import (MAX_SLICES, SUBPIXEL_BITS, _slice, _window_vertex, ortho_ndc,
+                      setup_window)
 from .surfaces import Surface4D
 from .thicken import (RHO_FRACTION, default_halo_parameters, split_prisms, steiner_values,
                       thicken, thickening_normals)
@@ -62,6 +63,8 @@ EMPTY, SURFACE, CARVED, HALO, BOUNDARY = 0, 1, 2, 3, 4
 ENGINES = ("fused", "reference")
 #: Rows per band of the fused kernel (each band is one unit of parallel work).
 BAND_ROWS = 8
+#: Slice triangles per chunk of the parallel band binning (one unit of parallel work).
+BIN_CHUNK = 1 << 14
 
 
 @dataclass(frozen=True, eq=False)
@@ -182,26 +185,77 @@ def _screen_bounds(points_list, width, height, margin):
 
 
 # ----------------------------------------------------------------------------- fused engine
-@njit(**JIT)
-def _bin_bands(bbox, valid, height, band_rows, nbands):
-    """Per band of rows, the valid triangles touching it, in draw order (CSR)."""
-    counts = np.zeros(nbands + 1, np.int64)
-    for j in range(bbox.shape[0]):
-        if valid[j]:
-            for band in range((height - 1 - bbox[j, 3]) // band_rows,
-                              (height - 1 - bbox[j, 2]) // band_rows + 1):
-                counts[band + 1] += 1
+@njit(**IJIT)
+def _tri_window(xy, j, width, height, bits):
+    """:func:`~refraster.halos4d.slicing.window_setup` of slice triangle ``j`` (NDC ``xy``), in
+    scalars, the same bits: ``(valid, X0, X1, X2, Y0, Y1, Y2, xf0, xf1, xf2, yf0, yf1, yf2,
+    swap, bx0, bx1, by0, by1, area)``, the vertices as stored (``swap``: the original vertices
+    1 and 2 exchanged, clockwise), the pixel bounding box and the doubled snapped area (> 0).
+    Recomputed where it is needed instead of stored: a few float32 operations per triangle
+    cost less than writing and reading back eight arrays of 1.3 M rows (issue 46)."""
+    hw = np.float32(width * 0.5)
+    hh = np.float32(height * 0.5)
+    half = np.float32(0.5)
+    s = np.float32(1 << bits)
+    one = np.int64(1) << bits
+    x0, y0, xf0, yf0 = _window_vertex(xy[j, 0, 0], xy[j, 0, 1], hw, hh, half, s)
+    x1, y1, xf1, yf1 = _window_vertex(xy[j, 1, 0], xy[j, 1, 1], hw, hh, half, s)
+    x2, y2, xf2, yf2 = _window_vertex(xy[j, 2, 0], xy[j, 2, 1], hw, hh, half, s)
+    a = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+    swap = a < 0
+    if swap:
+        x1, y1, xf1, yf1, x2, y2, xf2, yf2 = x2, y2, xf2, yf2, x1, y1, xf1, yf1
+    bx0 = max((min(x0, x1, x2) + one - 1) >> bits, 0)
+    bx1 = min(max(x0, x1, x2) >> bits, width - 1)
+    by0 = max((min(y0, y1, y2) + one - 1) >> bits, 0)
+    by1 = min(max(y0, y1, y2) >> bits, height - 1)
+    valid = a != 0 and bx0 <= bx1 and by0 <= by1
+    return (valid, x0, x1, x2, y0, y1, y2, xf0, xf1, xf2, yf0, yf1, yf2, swap, bx0, bx1, by0,
+            by1, abs(a))
+
+
+@njit(**PJIT)
+def _bin_bands(xy, width, height, bits, band_rows, nbands):
+    """Per band of rows, the valid slice triangles touching it, in draw order (CSR
+    ``(starts (nbands + 1,), lists)``), and the number of triangles that are not valid (zero
+    snapped area, or outside the image). Parallel over chunks of :data:`BIN_CHUNK` triangles
+    and deterministic: a count pass, an exclusive prefix sum over (band, chunk), and a write
+    pass in which each chunk appends its triangles of each band, in index order, after those
+    of the chunks before it."""
+    n = xy.shape[0]
+    nchunks = (n + BIN_CHUNK - 1) // BIN_CHUNK
+    first = np.empty(n, np.int64)
+    last = np.empty(n, np.int64)
+    counts = np.zeros((nchunks, nbands), np.int64)
+    bad = np.zeros(nchunks, np.int64)
+    for c in prange(nchunks):
+        for j in range(c * BIN_CHUNK, min(n, (c + 1) * BIN_CHUNK)):
+            w = _tri_window(xy, j, width, height, bits)
+            if w[0]:
+                first[j] = (height - 1 - w[17]) // band_rows
+                last[j] = (height - 1 - w[16]) // band_rows
+                for band in range(first[j], last[j] + 1):
+                    counts[c, band] += 1
+            else:
+                first[j] = 0
+                last[j] = -1
+                bad[c] += 1
+    starts = np.zeros(nbands + 1, np.int64)
+    offset = np.zeros((nchunks, nbands), np.int64)
+    total = 0
     for band in range(nbands):
-        counts[band + 1] += counts[band]
-    cursor = counts[:-1].copy()
-    lists = np.zeros(counts[-1], np.int64)
-    for j in range(bbox.shape[0]):
-        if valid[j]:
-            for band in range((height - 1 - bbox[j, 3]) // band_rows,
-                              (height - 1 - bbox[j, 2]) // band_rows + 1):
-                lists[cursor[band]] = j
-                cursor[band] += 1
-    return counts, lists
+        starts[band] = total
+        for c in range(nchunks):
+            offset[c, band] = total
+            total += counts[c, band]
+    starts[nbands] = total
+    lists = np.zeros(total, np.int64)
+    for c in prange(nchunks):
+        for j in range(c * BIN_CHUNK, min(n, (c + 1) * BIN_CHUNK)):
+            for band in range(first[j], last[j] + 1):
+                lists[offset[c, band]] = j
+                offset[c, band] += 1
+    return starts, lists, bad.sum()
 
 
 @njit(**JIT)
@@ -271,15 +325,14 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
 
 
 @njit(**PJIT)
-def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_lists, attr,
-                  width,
-                  height, bits, band_rows, delta_t, delta_d, surface_width, eps, alpha, halos,
+def _render_bands(xy, tri_slice, band_starts, band_lists, attr, width, height, bits, band_rows, delta_t, delta_d, surface_width, eps, alpha, halos,
                   aa, halo_alpha, halo_rgb, boundary, boundary_width, boundary_rgb,
                   want_volume, out_rgb, out_a, volume, voxel_rgba, pair, out_rgb2, out_a2):
     """The fill pass, parallel over bands of rows. With ``pair`` (and ``halos``), also the
     halos-off twin (``halos`` False, ``halo_alpha`` 0, no boundaries, the other parameters the
     same) into ``out_rgb2``, ``out_a2``: its fragments, barycentrics and surface fragments are
-    the first picture's, only the depth buffer differs (issue 27)."""
+    the first picture's, only the depth buffer differs (issue 27). ``xy``: the slice triangles'
+    NDC corners, set up per band by :func:`_tri_window`."""
     nbands = band_starts.shape[0] - 1
     for band in prange(nbands):
         r0 = band * band_rows
@@ -311,28 +364,23 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
                                    voxel_rgba, pair, min_d2, acc2, acc_a2)
                 cur = tri_slice[j]
                 lr0, lr1, c0, c1 = rows, -1, width, -1
-            ra = max(height - 1 - bbox[j, 3], r0)
-            rb = min(height - 1 - bbox[j, 2], r1 - 1)
-            x0 = bbox[j, 0]
-            x1 = bbox[j, 1]
+            (_, X0, X1, X2, Y0, Y1, Y2, fx0, fx1, fx2, fy0, fy1, fy2, swap, x0, x1, by0, by1,
+             area) = _tri_window(xy, j, width, height, bits)
+            ra = max(height - 1 - by1, r0)
+            rb = min(height - 1 - by0, r1 - 1)
             lr0 = min(lr0, ra - r0)
             lr1 = max(lr1, rb - r0)
             c0 = min(c0, x0)
             c1 = max(c1, x1)
-            inv_area = 1.0 / np.float64(area[j])
-            fx0, fy0 = XF[j, 0], YF[j, 0]
-            fx1, fy1 = XF[j, 1], YF[j, 1]
-            fx2, fy2 = XF[j, 2], YF[j, 2]
+            inv_area = 1.0 / np.float64(area)
             inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
-            # stored vertex k is original vertex order[j, k]
-            swap = order[j, 1] != 1
             # edge k (opposite stored vertex k): value at (x0, py), x step, ownership bias
-            dx0 = X[j, 2] - X[j, 1]
-            dy0 = Y[j, 2] - Y[j, 1]
-            dx1 = X[j, 0] - X[j, 2]
-            dy1 = Y[j, 0] - Y[j, 2]
-            dx2 = X[j, 1] - X[j, 0]
-            dy2 = Y[j, 1] - Y[j, 0]
+            dx0 = X2 - X1
+            dy0 = Y2 - Y1
+            dx1 = X0 - X2
+            dy1 = Y0 - Y2
+            dx2 = X1 - X0
+            dy2 = Y1 - Y0
             bias0 = 0 if (dy0 < 0 or (dy0 == 0 and dx0 > 0)) else 1
             bias1 = 0 if (dy1 < 0 or (dy1 == 0 and dx1 > 0)) else 1
             bias2 = 0 if (dy2 < 0 or (dy2 == 0 and dx2 > 0)) else 1
@@ -345,9 +393,9 @@ def _render_bands(X, Y, XF, YF, order, bbox, area, tri_slice, band_starts, band_
             for r in range(ra, rb + 1):
                 py = height - 1 - r
                 li = r - r0
-                e0 = dx0 * ((py << bits) - Y[j, 1]) - dy0 * ((x0 << bits) - X[j, 1])
-                e1 = dx1 * ((py << bits) - Y[j, 2]) - dy1 * ((x0 << bits) - X[j, 2])
-                e2 = dx2 * ((py << bits) - Y[j, 0]) - dy2 * ((x0 << bits) - X[j, 0])
+                e0 = dx0 * ((py << bits) - Y1) - dy0 * ((x0 << bits) - X1)
+                e1 = dx1 * ((py << bits) - Y2) - dy1 * ((x0 << bits) - X2)
+                e2 = dx2 * ((py << bits) - Y0) - dy2 * ((x0 << bits) - X0)
                 # the row's exact span (all three biased edge functions ≥ 0): the pixels the
                 # bounding-box scan would accept, without visiting the empty corners (issue 27)
                 sa, sb = row_span(e0 - bias0, sx0, e1 - bias1, sx1, e2 - bias2, sx2,
@@ -421,29 +469,26 @@ def _fused(st, width, height, params, want_volume, win=None, pair=False):
     """``win``: :func:`_window` of ``st`` computed before (the same for every fill pass).
     ``pair`` (``params`` with halos, no volume): also the halos-off twin's colour and alpha,
     from the same pass; they are appended to the result."""
-    X, Y, order, bbox, valid, XF, YF, area, band_starts, band_lists = (
-        _window(st, width, height) if win is None else win)
+    band_starts, band_lists, n_invalid = _window(st, width, height) if win is None else win
     n = len(st.starts) - 1
     rgb = np.zeros((height, width, 3))
     a = np.zeros((height, width))
     vol = np.zeros((n, height, width) if want_volume else (1, 1, 1), np.int8)
     rgb2 = np.zeros((height, width, 3) if pair else (1, 1, 3))
     a2 = np.zeros((height, width) if pair else (1, 1))
-    _render_bands(X, Y, XF, YF, order, bbox, area, st.slice, band_starts, band_lists, st.attr, width,
-                  height, SUBPIXEL_BITS, BAND_ROWS, *params, want_volume, rgb, a, vol,
+    _render_bands(st.xy, st.slice, band_starts, band_lists, st.attr, width, height, SUBPIXEL_BITS, BAND_ROWS, *params, want_volume, rgb, a, vol,
                   np.zeros((1, 1, 1, 4)), pair, rgb2, a2)
-    out = rgb, a, (vol if want_volume else None), int(np.count_nonzero(~valid))
+    out = rgb, a, (vol if want_volume else None), int(n_invalid)
     return out + (rgb2, a2) if pair else out
 
 
 def _window(st, width, height):
-    """The fill pass's set-up of slice triangles ``st``: window coordinates, areas and the
-    triangles of each band of rows (independent of the fill parameters)."""
-    X, Y, order, bbox, valid, XF, YF = setup_window(st.xy, width, height)
-    area = ((X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0]))
+    """The fill pass's set-up of slice triangles ``st``: the triangles of each band of rows
+    and the number of invalid ones (independent of the fill parameters; the window
+    coordinates are recomputed per band, :func:`_tri_window`)."""
     nbands = (height + BAND_ROWS - 1) // BAND_ROWS
-    band_starts, band_lists = _bin_bands(bbox, valid, height, BAND_ROWS, nbands)
-    return X, Y, order, bbox, valid, XF, YF, area, band_starts, band_lists
+    return _bin_bands(np.ascontiguousarray(st.xy), width, height, SUBPIXEL_BITS, BAND_ROWS,
+                      nbands)
 
 
 # ----------------------------------------------------------------------------- reference engine

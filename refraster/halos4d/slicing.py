@@ -147,36 +147,47 @@ def _count_pass(tets, z, centres, k0, pair_start, pair_count):
 
 @njit(**JIT)
 def _place(k0, pair_start, pair_count, n):
-    """Slice-major output offsets of every (tetrahedron, slice) pair, tetrahedra in index order
-    within a slice; and the slices' start offsets ``(n + 1,)``."""
+    """The slices' start offsets ``(n + 1,)`` in the slice-major output (tetrahedra in index
+    order within a slice), and the (tetrahedron, slice) pairs that yield triangles grouped by
+    slice: pair ``i`` of slice k (``pstarts[k] <= i < pstarts[k + 1]``) is tetrahedron
+    ``ptet[i]``, in index order, so the write pass walks each slice's output in order."""
     starts = np.zeros(n + 1, np.int64)
+    pstarts = np.zeros(n + 1, np.int64)
     nt = k0.shape[0]
     for t in range(nt):
         for p in range(pair_start[t], pair_start[t + 1]):
-            starts[k0[t] + p - pair_start[t] + 1] += pair_count[p]
+            if pair_count[p] > 0:
+                k = k0[t] + p - pair_start[t]
+                starts[k + 1] += pair_count[p]
+                pstarts[k + 1] += 1
     for k in range(n):
         starts[k + 1] += starts[k]
-    cursor = starts[:-1].copy()
-    pos = np.zeros(pair_count.shape[0], np.int64)
+        pstarts[k + 1] += pstarts[k]
+    cursor = pstarts[:-1].copy()
+    ptet = np.zeros(pstarts[n], np.int64)
     for t in range(nt):
         for p in range(pair_start[t], pair_start[t + 1]):
-            k = k0[t] + p - pair_start[t]
-            pos[p] = cursor[k]
-            cursor[k] += pair_count[p]
-    return pos, starts
+            if pair_count[p] > 0:
+                k = k0[t] + p - pair_start[t]
+                ptet[cursor[k]] = t
+                cursor[k] += 1
+    return starts, pstarts, ptet
 
 
 @njit(**PJIT)
-def _write_pass(tets, z, xy, attr, centres, k0, pair_start, pos, oxy, oattr, oslice, otet):
+def _write_pass(tets, z, xy, attr, centres, starts, pstarts, ptet, oxy, oattr, oslice, otet):
+    """Parallel over slices: each writes its triangles in output order (no scattered stores
+    across the output, which a tetrahedron-major pass makes: one tetrahedron's slices lie
+    ``starts[k + 1] − starts[k]`` triangles apart)."""
     nc = attr.shape[1]
-    for t in prange(tets.shape[0]):
-        g = (tets[t, 0], tets[t, 1], tets[t, 2], tets[t, 3])
-        for p in range(pair_start[t], pair_start[t + 1]):
-            k = k0[t] + p - pair_start[t]
-            c = centres[k]
+    for k in prange(centres.shape[0]):
+        c = centres[k]
+        o = starts[k]
+        for pi in range(pstarts[k], pstarts[k + 1]):
+            t = ptet[pi]
+            g = (tets[t, 0], tets[t, 1], tets[t, 2], tets[t, 3])
             s = (z[g[0]] - c, z[g[1]] - c, z[g[2]] - c, z[g[3]] - c)
             n, e = _section_corners(s[0], s[1], s[2], s[3])
-            o = pos[p]
             for corner in range(3 * n):
                 # from the endpoint with the smaller global index: shared edges agree bitwise
                 i = e[2 * corner]
@@ -195,6 +206,7 @@ def _write_pass(tets, z, xy, attr, centres, k0, pair_start, pos, oxy, oattr, osl
             for q in range(n):
                 oslice[o + q] = k
                 otet[o + q] = t
+            o += n
 
 
 class SliceTriangles:
@@ -251,14 +263,14 @@ def _slice(z, tets, centres, attr, xy):
     np.cumsum(np.maximum(k1 - k0, 0), out=pair_start[1:])
     pair_count = np.zeros(int(pair_start[-1]), np.int64)
     _count_pass(tets, z, centres, k0, pair_start, pair_count)
-    pos, starts = _place(k0, pair_start, pair_count, len(centres))
+    starts, pstarts, ptet = _place(k0, pair_start, pair_count, len(centres))
     k = int(starts[-1])
     st = SliceTriangles()
     st.xy = np.zeros((k, 3, 2))
     st.attr = np.zeros((k, 3, attr.shape[1]))
     st.tet = np.zeros(k, np.int64)
     st.slice = np.zeros(k, np.int64)
-    _write_pass(tets, z, xy, attr, centres, k0, pair_start, pos, st.xy, st.attr, st.slice,
+    _write_pass(tets, z, xy, attr, centres, starts, pstarts, ptet, st.xy, st.attr, st.slice,
                 st.tet)
     st.starts = starts
     return st

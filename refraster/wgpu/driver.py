@@ -97,15 +97,9 @@ def convention(scene):
 
 
 def _read_scene(package_dir):
-    """``scene.json`` through the package reader; a clockwise front face, which that reader
-    does not read yet, is :class:`Unsupported` (the scene is skipped with the reason)."""
-    try:
-        return read_scene(package_dir)
-    except PackageError as exc:
-        if "raster.front_face" in str(exc) and "'cw'" in str(exc):
-            raise Unsupported("raster.front_face 'cw': the package reader "
-                              "(refraster.gl.package) reads only 'ccw' scenes") from None
-        raise
+    """``scene.json`` through the package reader (it checks every raster field, the
+    conventions' included)."""
+    return read_scene(package_dir)
 
 
 class Backend:

@@ -77,7 +77,7 @@ def render_variant(surface, p, *, dsw=0.0, ddt=0.0, eps_scale=1.0, dz=0.0, dxy=(
     from ...halos4d import View4D
     from ...halos4d.render import (_render_bands, _screen_bounds, _bin_bands, BAND_ROWS,
                                   prepare, slice_alpha)
-    from ...halos4d.slicing import SUBPIXEL_BITS, _slice, ortho_ndc, setup_window
+    from ...halos4d.slicing import SUBPIXEL_BITS, _slice, ortho_ndc
     w, h, n = int(p["width"]), int(p["height"]), int(p["slices"])
     geo, rho = prepare(surface, view=View4D(rotation=np.asarray(p["rotation"], np.float64),
                                             projection=p["projection"]), rho=p.get("rho"),
@@ -98,18 +98,16 @@ def render_variant(surface, p, *, dsw=0.0, ddt=0.0, eps_scale=1.0, dz=0.0, dxy=(
     v[:, 1] += dxy[1] * (bounds[1, 1] - bounds[0, 1]) / h
     st = _slice(v[:, 2].copy(), geo.tets, centres, attr, ortho_ndc(v, bounds))
     b = SUBPIXEL_BITS if bits is None else bits
-    X, Y, order, bbox, valid, XF, YF = setup_window(st.xy, w, h, b)
-    area = ((X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0]))
     nbands = (h + BAND_ROWS - 1) // BAND_ROWS
-    band_starts, band_lists = _bin_bands(bbox, valid, h, BAND_ROWS, nbands)
+    band_starts, band_lists, _ = _bin_bands(st.xy, w, h, b, BAND_ROWS, nbands)
     rgb = np.zeros((h, w, 3))
     a = np.zeros((h, w))
     vol = np.zeros((n, h, w), np.int8)
     vox = np.zeros((n, h, w, 4))
-    _render_bands(X, Y, XF, YF, order, bbox, area, st.slice, band_starts, band_lists, st.attr,
-                  w, h, b, BAND_ROWS, float(p["delta_t"]) + ddt, float(p["delta_d"]), sw + dsw,
-                  eps, alpha, bool(p["halos"]), aa, 0.0, np.zeros(3), False, 0.15, np.zeros(3),
-                  True, rgb, a, vol, vox, False, np.zeros((1, 1, 3)), np.zeros((1, 1)))
+    _render_bands(st.xy, st.slice, band_starts, band_lists, st.attr, w, h, b, BAND_ROWS,
+                  float(p["delta_t"]) + ddt, float(p["delta_d"]), sw + dsw, eps, alpha,
+                  bool(p["halos"]), aa, 0.0, np.zeros(3), False, 0.15, np.zeros(3), True,
+                  rgb, a, vol, vox, False, np.zeros((1, 1, 3)), np.zeros((1, 1)))
     bg = np.asarray(p.get("background", [0.0, 0.0, 0.0]), np.float64)
     if voxels:
         return rgb + (1.0 - a)[..., None] * bg, a, vol, vox, alpha
