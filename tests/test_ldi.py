@@ -457,8 +457,8 @@ def test_load_rejects_corrupt_and_foreign_files(tmp_path):
 def test_failed_save_leaves_nothing(tmp_path):
     vds = VolumetricDepthSprite.from_mesh(icosphere(subdivisions=2), 32)
     (tmp_path / "taken").mkdir()
-    with pytest.raises(OSError):
-        vds.save(tmp_path / "taken")    # a directory is in the way: the rename fails
+    with pytest.raises(ValueError, match="is a directory, not a regular file"):
+        vds.save(tmp_path / "taken")    # a directory is in the way: refused before any write
     assert [p.name for p in tmp_path.iterdir()] == ["taken"]
     assert list((tmp_path / "taken").iterdir()) == []
 

@@ -215,6 +215,20 @@ def test_oracle_orientation_and_facing(oracle):
     assert not back.mask.any()
 
 
+def test_oracle_draws_in_its_own_context_when_another_is_current(oracle):
+    """A GL context created after the oracle's (refraster.gl's backend) is current; the oracle
+    must still draw in its own (CI found the frames wrong after a test that made a backend)."""
+    llvmpipe = oracle("oracles.llvmpipe")
+    from refraster.gl.driver import Backend
+    clip = np.array([[-1, 1, 0.25, 1], [-1, -1, 0.25, 1], [1, 1, 0.25, 1]], np.float32)
+    before = llvmpipe.rasterize((clip, [[0, 1, 2]]), 16, 8)
+    Backend()                                   # another context, made current
+    after = llvmpipe.rasterize((clip, [[0, 1, 2]]), 16, 8)
+    np.testing.assert_array_equal(after.prim_id, before.prim_id)
+    np.testing.assert_array_equal(after.depth, before.depth)
+    assert before.prim_id[0, 0] == 0 and before.prim_id[-1, -1] == -1
+
+
 def test_clip_coordinates_identical(oracle):
     llvmpipe = oracle("oracles.llvmpipe")
     for sc in SCENES:

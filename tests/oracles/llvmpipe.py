@@ -281,6 +281,10 @@ class GLScene:
             raise ValueError(f"unknown conventions {sorted(unknown)}")
         self.conventions = conv
         ctx = context()
+        # make the oracle's context current: another context created in this process since
+        # (refraster.gl's backend, e.g. by a test of its limits) is current otherwise, and the
+        # raw GL calls and moderngl's draws would land in it
+        ctx.__enter__()
         self.ctx = ctx
         self.width, self.height = int(width), int(height)
         self.cull = cull
