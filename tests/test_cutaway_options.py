@@ -100,3 +100,15 @@ def test_values_are_immutable_normalized_and_compare():
         c.angle = 0.2
     with pytest.raises(dataclasses.FrozenInstanceError):
         GhostLines().distance = 1.0
+
+
+def test_an_option_of_the_wrong_type_is_refused_by_its_public_name():
+    from refraster._validate import as_option
+    from refraster.halos4d import Halos
+    with pytest.raises(TypeError, match=r"^cutaway must be a refraster\.cutaway\.Cutaway, got dict$"):
+        as_option({}, Cutaway, "cutaway")
+    with pytest.raises(TypeError, match=r"^ghosts must be a refraster\.cutaway\.GhostLines \(or None\)"):
+        as_option(1, GhostLines, "ghosts", optional=True)
+    with pytest.raises(TypeError, match=r"^halos must be a refraster\.halos4d\.Halos, got Cutaway$"):
+        as_option(Cutaway(), Halos, "halos")
+    assert as_option(None, GhostLines, "ghosts", optional=True) is None
