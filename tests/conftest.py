@@ -132,8 +132,10 @@ def camera_kw(w=96, h=72, eye=(1.6, 1.2, 2.4)):
                 width=w, height=h)
 
 
-def fault_matrix(gold, columns, scenes, expected, untouched=None, *, only_scenes=False):
-    """Render the golden ``gold/golden``'s scenes with refraster.gl once correct and once per
+def fault_matrix(gold, columns, scenes, expected, untouched=None, *, only_scenes=False,
+                 backend="gl"):
+    """Render the golden ``gold/golden``'s scenes with refraster.gl (``backend="wgpu"``:
+    refraster.wgpu) once correct and once per
     planted fault (``columns``: ``correct`` and fault names) and compare each candidate
     tolerantly: the correct one must pass every scene; each fault must fail, naming
     ``expected[fault]``'s ``{scene: buffer}``, and pass ``untouched[fault]``'s scenes. Returns
@@ -147,11 +149,11 @@ def fault_matrix(gold, columns, scenes, expected, untouched=None, *, only_scenes
     for column in columns:
         out = gold / f"cand_{column}"
         faults = () if column == "correct" else (column,)
-        r = candidate(gold / "golden", out, faults=faults,
+        r = candidate(gold / "golden", out, backend=backend, faults=faults,
                       **({"scenes": scenes} if only_scenes else {}))
         assert sorted(r["rendered"]) == sorted(scenes) and not r["skipped"], r["skipped"]
         marker = json.loads((out / ".refraster-candidate").read_text())
-        assert marker["faults"] == list(faults)
+        assert marker["faults"] == list(faults) and marker["backend"] == backend
         assert marker["renderer"].startswith("llvmpipe") or not IN_CI
         cmp = golden.compare(gold / "golden", out, mode="tolerant", scenes=r["rendered"])
         results[column] = {s.name: s for s in cmp.scenes}

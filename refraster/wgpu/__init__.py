@@ -22,14 +22,14 @@ On the command line: ``refraster golden candidate GOLDEN_DIR --backend wgpu --ou
 (docs/backends.md, "refraster.wgpu").
 """
 
-__all__ = ["SUPPORTED_TECHNIQUES", "LATER_TECHNIQUES", "FAULTS"]
+__all__ = ["SUPPORTED_TECHNIQUES", "LATER_TECHNIQUES", "FAULTS", "CONVENTION_FAULTS"]
 
 #: Techniques this backend renders, with how.
 SUPPORTED_TECHNIQUES = {
     "render": "the G-buffer in three passes of at most 32 bytes per sample (ids and depths; "
               "normal and barycentrics; colour), de-indexed draws with flat face attributes",
     "ldi": "classic depth peeling (one pass per layer, the previous layer read with "
-           "textureLoad; front to back under less and under greater)",
+           "textureLoad; front to back under less and lequal, and under greater and gequal)",
     "vds": "the volumetric parity test in the fragment shader over the sprite as a 2D array "
            "texture",
 }
@@ -58,3 +58,24 @@ FAULTS = {
     "sprite_rows_flipped": ("gbuffer.wgsl: the SPRITE_ROWS_FLIPPED constant",
                             "the volumetric depth sprite's rows read top-down"),
 }
+
+#: Planted faults of the API conventions (issue 39; tests/test_wgpu_conventions.py), also in
+#: :data:`FAULTS`, beside the three of :data:`FAULTS` that concern the conventions too
+#: (``gl_remap_on_zero_to_one``, ``reversed_z_less``, ``clear_one_under_greater``).
+CONVENTION_FAULTS = {
+    "winding_not_flipped": ("host: the read-back and primitive.frontFace",
+                            "Vulkan's NDC y down (ndc_y 'down') drawn without the clip-y "
+                            "negation and mirrored top to bottom at read-back, frontFace left "
+                            "as the scene says although the framebuffer is mirrored: front "
+                            "and back swap"),
+    "unclipped_depth_dropped": ("host: the pipeline's primitive state",
+                                "depth clamp (raster.depth_clamp) drawn without "
+                                "unclippedDepth — wgpu-py 0.32's own behaviour without "
+                                "refraster.wgpu.device.unclipped_depth: near/far clipping "
+                                "kept"),
+    "depth_not_quantised": ("host: the depth read-back",
+                            "under the unorm depth formats, the float32 @builtin(position).z "
+                            "written as the candidate's depth instead of the depth buffer "
+                            "(k / (2^n − 1))"),
+}
+FAULTS.update(CONVENTION_FAULTS)

@@ -12,7 +12,10 @@ Conventions it implements (``docs/backends.md``, "refraster.wgpu", walks through
   its clip y negated. ``origin`` changes no pixel of the picture (only which triangle owns an
   exact tie, which the goldens allow either way). ``depth_clamp`` is WebGPU's
   ``unclippedDepth`` (feature ``depth-clip-control``); ``depth_format`` picks the depth
-  attachment (``depth32float``, ``depth24plus``, ``depth16unorm``).
+  attachment (``depth32float``, ``depth24plus``, ``depth16unorm``); under the unorm formats the
+  candidate's ``depth`` is the depth buffer itself, read with ``textureLoad`` (``k/(2^n − 1)``;
+  WebGPU cannot copy ``depth24plus`` to a buffer). The fill rule (``raster.fill_rule``) is not a
+  WebGPU setting: the adapter's decides exact ties, which the goldens allow either way.
 * Front faces as the scene says, counter-clockwise as the picture is seen (WebGPU's
   ``frontFace`` is defined on the framebuffer, whose row 0 is the image's top row); the arrays
   read back have row 0 at the top already: no flip.
@@ -40,6 +43,8 @@ from .device import WGPUUnavailable, adapter, create_device, describe, unclipped
 __all__ = ["Backend", "Unsupported", "WGPUUnavailable", "CONVENTION_DEFAULTS", "SHADER"]
 
 SHADER = Path(__file__).with_name("shaders") / "gbuffer.wgsl"
+#: The depth buffer read back as float under the unorm depth formats.
+DEPTH_READ_SHADER = Path(__file__).with_name("shaders") / "depth_read.wgsl"
 
 #: The convention fields of ``scene.json``'s ``"raster"`` and their values when absent
 #: (OpenGL's, which every scene package had before the fields existed).
@@ -56,6 +61,9 @@ _COMPARE = {"less": "less", "lequal": "less-equal", "greater": "greater",
             "always": "always", "never": "never"}
 _DEPTH_FORMAT = {"float32": "depth32float", "unorm24": "depth24plus",
                  "unorm16": "depth16unorm"}
+#: The depth functions a peel follows: ascending depth (less, lequal), descending (greater,
+#: gequal: reversed-Z).
+_PEEL_FUNCS = ("less", "lequal", "greater", "gequal")
 
 #: Peel passes at most (a pixel's ray crosses each face at most once).
 MAX_PEEL_PASSES = 256
@@ -138,7 +146,10 @@ class Backend:
         self.renderer = describe(self.adapter, self.wgpu)
         self.module_code = SHADER.read_text(encoding="utf-8")
         self.module = self.device.create_shader_module(code=self.module_code)
+        self.depth_module = self.device.create_shader_module(
+            code=DEPTH_READ_SHADER.read_text(encoding="utf-8"))
         self._pipelines = {}
+        self._depth_pipeline = None
         self._layouts()
 
     # --- life cycle -----------------------------------------------------------------------
@@ -171,9 +182,13 @@ class Backend:
         if technique == "ldi":
             if p.get("mode", "peel") != "peel":
                 return f"ldi mode {p.get('mode')!r}: only classic peeling ('peel') is implemented"
-            if scene["raster"]["depth_func"] not in ("less", "greater"):
+            if scene["raster"]["depth_func"] not in _PEEL_FUNCS:
                 return (f"peeling with depth_func {scene['raster']['depth_func']!r}: only "
-                        "'less' and 'greater'")
+                        f"{', '.join(repr(f) for f in _PEEL_FUNCS)} define a front-to-back "
+                        "order")
+            if conv["depth_format"] != "float32":
+                return (f"peeling with raster.depth_format {conv['depth_format']!r}: the peel "
+                        "compares with the previous layer's float32 depth; only 'float32'")
         if technique == "vds" and (p.get("test") != "parity" or p.get("axis") not in ("z",)
                                    or p.get("rule", "parity") != "parity"):
             return ("vds: only the parity test over one sprite (test 'parity', one axis) is "
@@ -355,17 +370,27 @@ class Backend:
         remap = (conv["depth_range"] == "negative_one_to_one"
                  or "gl_remap_on_zero_to_one" in self.faults)
         ysign = -1.0 if conv["ndc_y"] == "down" else 1.0
+        if self._mirrored(conv):
+            ysign = 1.0             # planted fault: mirrored at read-back instead (_mirrored)
         if "y_not_flipped" in self.faults:
             ysign = -ysign                              # planted fault
+        clamp = conv["depth_clamp"] and "unclipped_depth_dropped" not in self.faults
         constants = {"DEPTH_REMAP": float(remap), "Y_SIGN": ysign,
                      "DEPTH_CLAMP": float(conv["depth_clamp"]),
-                     "PEEL_GREATER": float(raster["depth_func"] == "greater"),
+                     "PEEL_GREATER": float(raster["depth_func"] in ("greater", "gequal")),
                      "HALF_PIXEL": float("half_pixel" in self.faults),
                      "SPRITE_ROWS_FLIPPED": float("sprite_rows_flipped" in self.faults)}
         state = (compare, raster["cull"], conv["front_face"], conv["depth_write"],
-                 _DEPTH_FORMAT[conv["depth_format"]], conv["depth_clamp"],
+                 _DEPTH_FORMAT[conv["depth_format"]], clamp,
                  tuple(sorted(constants.items())))
         return state, clear
+
+    def _mirrored(self, conv):
+        """The planted ``winding_not_flipped`` fault on a scene with NDC y down: drawn without
+        the y negation, so WebGPU's framebuffer holds the Vulkan picture mirrored top to
+        bottom; its rows are mirrored back at read-back, but ``frontFace`` stays as the
+        scene says although a mirror reverses every winding as seen."""
+        return "winding_not_flipped" in self.faults and conv["ndc_y"] == "down"
 
     def _pipeline(self, entry, targets, state, layout=None, peel=False):
         key = (entry, targets, state, layout, peel)
@@ -374,7 +399,7 @@ class Backend:
             constants = dict(constants)
             if entry == "fs_peel":
                 constants["PEEL"] = float(peel)
-            with unclipped_depth(clamp):
+            with unclipped_depth(clamp):   # the C field wgpu-py 0.32 does not set
                 self._pipelines[key] = self.device.create_render_pipeline(
                     layout=self._layout[layout],
                     vertex={"module": self.module, "entry_point": "vs", "constants": constants,
@@ -427,9 +452,40 @@ class Backend:
             {"offset": 0, "bytes_per_row": w * comps * 4}, (w, h, 1))
         return np.frombuffer(data, dtype).reshape(h, w, comps).copy()   # row 0: the top
 
-    def _depth(self, state, size):
-        return self.device.create_texture(size=(*size, 1), format=state[4],
-                                          usage=self.wgpu.TextureUsage.RENDER_ATTACHMENT)
+    def _depth(self, state, size, sampled=False):
+        usage = self.wgpu.TextureUsage.RENDER_ATTACHMENT
+        if sampled:
+            usage |= self.wgpu.TextureUsage.TEXTURE_BINDING
+        return self.device.create_texture(size=(*size, 1), format=state[4], usage=usage)
+
+    def _read_depth_buffer(self, depth, size):
+        """The depth attachment's values as float32 ``(H, W)``, row 0 at the top: one
+        full-screen pass of ``depth_read.wgsl`` (``textureLoad`` of the depth texture)."""
+        if self._depth_pipeline is None:
+            self._depth_pipeline = self.device.create_render_pipeline(
+                layout="auto",
+                vertex={"module": self.depth_module, "entry_point": "vs_full"},
+                primitive={"topology": "triangle-list"},
+                fragment={"module": self.depth_module, "entry_point": "fs_depth",
+                          "targets": [{"format": "r32float"}]})
+        pipe = self._depth_pipeline
+        group = self.device.create_bind_group(
+            layout=pipe.get_bind_group_layout(0),
+            entries=[{"binding": 0, "resource": depth.create_view(aspect="depth-only")}])
+        target = self._targets(("r32float",), size)[0]
+        encoder = self.device.create_command_encoder()
+        rp = encoder.begin_render_pass(color_attachments=[
+            {"view": target.create_view(), "clear_value": (0, 0, 0, 0), "load_op": "clear",
+             "store_op": "store"}])
+        rp.set_pipeline(pipe)
+        rp.set_bind_group(0, group)
+        rp.draw(3)
+        rp.end()
+        self.device.queue.submit([encoder.finish()])
+        try:
+            return self._read(target, "r32float", size)[..., 0]
+        finally:
+            target.destroy()
 
     # --- the G-buffer -----------------------------------------------------------------------
     def _gbuffer(self, loaded):
@@ -447,7 +503,9 @@ class Backend:
             group1 = self.device.create_bind_group(layout=self._group_vds, entries=[
                 {"binding": 0, "resource": arr.create_view(dimension="2d-array")},
                 {"binding": 1, "resource": cnt.create_view()}])
-        depth = self._depth(state, size)
+        quantised = (conv["depth_format"] != "float32"
+                     and "depth_not_quantised" not in self.faults)
+        depth = self._depth(state, size, sampled=quantised)
         encoder = self.device.create_command_encoder()
         made = {}
         for entry, formats in passes.items():
@@ -460,10 +518,15 @@ class Backend:
         self.device.queue.submit([encoder.finish()])
         got = {entry: [self._read(t, f, size) for t, f in zip(ts, fs)]
                for entry, (ts, fs) in made.items()}
+        # the last pass leaves the frame's depth buffer (every pass has the same winners)
+        stored = self._read_depth_buffer(depth, size) if quantised else None
         for ts, _ in made.values():
             for t in ts:
                 t.destroy()
         depth.destroy()
+        if self._mirrored(conv):                        # planted fault (see _mirrored)
+            got = {entry: [a[::-1] for a in arrays] for entry, arrays in got.items()}
+            stored = None if stored is None else stored[::-1]
         win, eye, ids = got["fs_ids"]
         normal, bary = got["fs_surface"]
         shade = got["fs_shade_vds" if vds else "fs_shade"]
@@ -471,8 +534,9 @@ class Backend:
         c3 = covered[..., None]
         bg = np.asarray(scene["shading"]["background"], np.float32)
         raster = scene["raster"]
+        written = win[..., 0] if stored is None else stored   # unorm: the depth buffer
         out = {
-            "depth": np.where(covered, win[..., 0],
+            "depth": np.where(covered, written,
                               np.float32(raster["clear_depth"])).astype(np.float32),
             "eye_depth": np.where(covered, eye[..., 0], np.float32(np.inf)).astype(np.float32),
             "normal": np.where(c3, normal[..., :3], 0).astype(np.float32),
@@ -511,7 +575,10 @@ class Backend:
                 ids = self._read(sets[cur][1], _PEEL_TARGETS[1], size)
                 if not np.any(ids[..., 3] == 1):
                     break
-                found_depth.append(self._read(sets[cur][0], _PEEL_TARGETS[0], size)[..., 0])
+                dep = self._read(sets[cur][0], _PEEL_TARGETS[0], size)[..., 0]
+                if self._mirrored(conv):                # planted fault (see _mirrored)
+                    dep, ids = dep[::-1], ids[::-1]
+                found_depth.append(dep)
                 found_ids.append(ids)
         finally:
             for s in sets:
