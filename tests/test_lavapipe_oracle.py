@@ -31,7 +31,8 @@ than the 1e30 ones (reported, not counted: docs/oracles.md, residual differences
 Both directions: :func:`test_planted_convention_faults_are_caught` runs refraster with a
 convention planted wrong (GL's depth remap on a zero-to-one projection, y not negated, the origin
 at the bottom, ``less`` under reversed-Z, no depth clamp) and the same check fails.
-``agreement_report()`` prints the table quoted in docs/oracles.md.
+``agreement_report()`` prints the per-scene tables quoted in docs/oracles.md;
+``test_agreement_table_in_docs`` holds the per-convention table of docs/backends.md to this run.
 """
 
 from __future__ import annotations
@@ -507,3 +508,27 @@ def agreement_report():
             print(f"| {r.scene}{note} | {r.covered} | {r.differ} | {r.ties} | "
                   f"{r.lavapipe_wrong} | {r.ours_wrong} | {r.max_dz:.2e} | "
                   f"{r.depth_ratio:.2f} |")
+
+
+def agreement_tables_script():
+    """``docs/scripts/convention_agreement_tables.py`` as a module."""
+    import importlib.util
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[1] / "docs" / "scripts" / \
+        "convention_agreement_tables.py"
+    spec = importlib.util.spec_from_file_location("convention_agreement_tables", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_agreement_table_in_docs():
+    """docs/backends.md's lavapipe table is this run's (``docs/scripts/convention_agreement_
+    tables.py`` measures and rewrites it)."""
+    _lav()
+    tables = agreement_tables_script()
+    text = tables.BACKENDS_MD.read_text(encoding="utf-8")
+    new = tables.table("lavapipe")
+    assert tables.replaced(text, "lavapipe", new) == text, (
+        "docs/backends.md's lavapipe agreement table differs from this run; run python "
+        "docs/scripts/convention_agreement_tables.py and review the change\n" + new)

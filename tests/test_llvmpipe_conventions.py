@@ -20,8 +20,8 @@ the origin), so refraster runs with its ``fill_rule="llvmpipe"`` in every conven
 
 Both directions: :func:`test_planted_convention_faults_are_caught` runs refraster with a
 convention planted wrong and the same verdict fails. Skips locally without moderngl/EGL, fails
-under ``CI=true`` (``conftest.require``). ``agreement_report()`` prints the table of
-docs/backends.md.
+under ``CI=true`` (``conftest.require``). ``test_agreement_table_in_docs`` holds the table of
+docs/backends.md to this run (``docs/scripts/convention_agreement_tables.py`` rewrites it).
 """
 
 from __future__ import annotations
@@ -194,20 +194,13 @@ def test_planted_convention_faults_are_caught(name, fault, what):
     assert not ok, f"the planted fault ({what}) passed the check"
 
 
-def agreement_report():
-    """Print the per-convention tables of docs/backends.md."""
-    gl = _gl()
-    print(gl.llvmpipe.renderer())
-    for name in CONVENTIONS:
-        rows = _results(name, gl)
-        counted = [r for r, sc in zip(rows, L.SCENES) if L.counted(sc)]
-        ok, agreement, why = L._check(counted)
-        covered = sum(r.covered for r in counted)
-        raw = 1.0 - sum(r.differ for r in counted) / covered
-        ties = sum(r.ties for r in counted)
-        wrong = sum(r.lavapipe_wrong for r in counted)
-        worst = max(r.depth_ratio for r in counted)
-        print(f"| {name} | {covered} | {sum(r.differ for r in counted)} | {ties} | {wrong} | "
-              f"{sum(r.unexplained for r in counted)} | {raw:.6f} | {agreement:.6f} | "
-              f"{max(r.max_dz for r in counted):.2e} | {worst:.2f} | "
-              f"{'pass' if ok else 'FAIL: ' + '; '.join(why)} |")
+def test_agreement_table_in_docs():
+    """docs/backends.md's llvmpipe table is this run's (``docs/scripts/convention_agreement_
+    tables.py`` measures and rewrites it)."""
+    _gl()
+    tables = L.agreement_tables_script()
+    text = tables.BACKENDS_MD.read_text(encoding="utf-8")
+    new = tables.table("llvmpipe")
+    assert tables.replaced(text, "llvmpipe", new) == text, (
+        "docs/backends.md's llvmpipe agreement table differs from this run; run python "
+        "docs/scripts/convention_agreement_tables.py and review the change\n" + new)
