@@ -11,9 +11,10 @@ Two ceilings are measured in the same run as the frame, on the same machine and 
   output pays). The fill ceiling of a frame is its bytes at the mapped memset's rate;
 * **triangle setup** — :func:`setup_ceiling`, the least per-triangle work any exact rasterizer
   does before its first pixel: perspective divide and viewport of each vertex, snapping to
-  1/256 pixel, then per triangle the doubled signed area, the three edge functions' integer
-  coefficients and the clamped pixel bounding box (no clipping, no culling decisions, no
-  binning). Its triangles/s, run with the frame's threads, bounds setup from above.
+  1/256 pixel, then per triangle the doubled signed area (the edge functions' determinant) and
+  the clamped pixel bounding box, 24 bytes per triangle stored (no clipping, no culling
+  decisions, no binning; the edge coefficients follow from the snapped vertices, which a
+  rasterizer keeps per vertex). Its triangles/s, run with the frame's threads, bound setup.
 
 For each case the frame's time is split by stage (:func:`benchmarks.raster._stages`: vertex,
 setup, binning, rasterization + resolve, G-buffer) and set beside both ceilings; the frame can be
@@ -41,7 +42,7 @@ from benchmarks._timing import median_ms
 
 W, H = 1024, 768
 SUBPIXEL = 8
-#: SHA-256 of :func:`setup_ceiling`'s outputs (area, edges, box) on the icosphere of 81,920
+#: SHA-256 of :func:`setup_ceiling`'s outputs (area, box) on the icosphere of 81,920
 #: faces with :func:`benchmarks.raster._camera`'s view at 1024×768.
 DIGESTS = pathlib.Path(__file__).with_name("roofline_digests.json")
 
@@ -58,21 +59,11 @@ def _vertices(clip, width, height, bits, X, Y):
 
 
 @njit(parallel=True, cache=True)
-def _triangles(faces, X, Y, width, height, bits, area, edges, box):
+def _triangles(faces, X, Y, width, height, bits, area, box):
     for t in prange(faces.shape[0]):
         a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
         x0, y0, x1, y1, x2, y2 = X[a], Y[a], X[b], Y[b], X[c], Y[c]
         area[t] = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-        # edge k: A·x + B·y + C over the snapped grid
-        edges[t, 0] = y0 - y1
-        edges[t, 1] = x1 - x0
-        edges[t, 2] = x0 * y1 - x1 * y0
-        edges[t, 3] = y1 - y2
-        edges[t, 4] = x2 - x1
-        edges[t, 5] = x1 * y2 - x2 * y1
-        edges[t, 6] = y2 - y0
-        edges[t, 7] = x0 - x2
-        edges[t, 8] = x2 * y0 - x0 * y2
         lo_x = min(x0, min(x1, x2)) >> bits
         hi_x = (max(x0, max(x1, x2)) >> bits) + 1
         lo_y = min(y0, min(y1, y2)) >> bits
@@ -84,15 +75,14 @@ def _triangles(faces, X, Y, width, height, bits, area, edges, box):
 
 
 def setup_ceiling(clip, faces, width=W, height=H, bits=SUBPIXEL):
-    """The setup-only kernel: ``(area, edges, box)`` of every face (see the module docstring)."""
+    """The setup-only kernel: ``(area, box)`` of every face (see the module docstring)."""
     nv, nf = len(clip), len(faces)
     X, Y = np.empty(nv, np.int64), np.empty(nv, np.int64)
     area = np.empty(nf, np.int64)
-    edges = np.empty((nf, 9), np.int64)
     box = np.empty((nf, 4), np.int32)
     _vertices(clip, width, height, bits, X, Y)
-    _triangles(faces, X, Y, width, height, bits, area, edges, box)
-    return area, edges, box
+    _triangles(faces, X, Y, width, height, bits, area, box)
+    return area, box
 
 
 def digest(arrays):
