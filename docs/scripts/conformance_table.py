@@ -111,6 +111,37 @@ def current_lines(text=None):
     return [line for line in text[i:j].strip().splitlines()[len(HEAD):]]
 
 
+CAT_BEGIN = "<!-- catalogue:begin (docs/scripts/conformance_table.py) -->"
+CAT_END = "<!-- catalogue:end -->"
+
+
+def catalogue_text(classes=None):
+    """The catalogue by group (from refraster/gl/catalogue.py, no rendering): each class with
+    its bug, what the golden allows by design where it does, its planted fault, its scenes."""
+    from refraster.gl import FAULTS
+    from refraster.gl.catalogue import CLASSES, GROUPS
+    classes = CLASSES if classes is None else classes
+    out = []
+    for group in GROUPS:
+        members = [c for c in classes if c.group == group]
+        out += [f"### {group[0].upper()}{group[1:]} ({len(members)})", ""]
+        for c in members:
+            scenes = ", ".join(f"`{s}`" for s in c.scenes)
+            text = (f"- **{c.name}**: {c.bug}. Planted: `{c.fault}` "
+                    f"({FAULTS[c.fault][1]}). Scenes: {scenes}.")
+            if c.allowance:
+                text += f" *Allowed by design:* {c.allowance}."
+            out.append(text)
+        out.append("")
+    return "\n".join(out).strip()
+
+
+def with_catalogue(text):
+    """``text`` with the catalogue section between its markers rewritten."""
+    i, j = text.index(CAT_BEGIN) + len(CAT_BEGIN), text.index(CAT_END)
+    return text[:i] + "\n" + catalogue_text() + "\n" + text[j:]
+
+
 def main(argv):
     from refraster import golden
     from refraster.gl.catalogue import CLASSES
@@ -119,7 +150,7 @@ def main(argv):
         results = measure(Path(tmp) / "golden", tmp, CLASSES)
     new_table = table(rows(CLASSES, results))
     text = CONFORMANCE_MD.read_text(encoding="utf-8")
-    new = replaced(text, new_table)
+    new = with_catalogue(replaced(text, new_table))
     if "--check" in argv:
         if new != text:
             print("docs/conformance.md's table is stale: run python "
