@@ -26,7 +26,9 @@ Conventions it implements (``docs/backends.md`` walks through them):
   ``object_id`` uniform.
 
 Faults (:data:`refraster.gl.FAULTS`) are test-only ``#define`` lines inserted after
-``#version``; a normal run sets none.
+``#version``; those of the conventions and of the catalogue of GPU bug classes
+(:mod:`refraster.gl.catalogue`) are also switches of the driver's GL state and upload. A normal
+run sets none.
 """
 
 from __future__ import annotations
@@ -316,7 +318,8 @@ class Backend:
                 nmat = mv[:3, :3]
             if "degenerate_dropped" in faults and len(faces):   # planted fault
                 tri = vertices[faces].astype(np.float64)
-                area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+                area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
+                                      axis=1)
                 faces = faces[area > 0]
             if "index_offset" in faults and len(faces):   # planted fault: one index late
                 faces = np.roll(faces.ravel(), -1).reshape(faces.shape)
