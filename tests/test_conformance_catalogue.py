@@ -82,19 +82,47 @@ def measured(tmp_path_factory):
     _backend_or_skip().release()
     root = generate_gold(tmp_path_factory, "conformance", TABLE.scenes_of(RUN))
     results = TABLE.measure(root / "golden", root, RUN)
-    return results, TABLE.rows(RUN, results)
+    return results, TABLE.rows(RUN, results), root
 
 
 def test_correct_backend_passes_every_scene(measured):
-    results, _ = measured
+    results = measured[0]
     correct = results[TABLE.CORRECT]
     assert sorted(correct) == sorted(TABLE.scenes_of(RUN))
     failing = [s for s, r in correct.items() if r.status != "pass"]
     assert not failing, f"the correct backend fails {failing}"
 
 
+#: Conformant variants of refraster itself (tests/test_golden_faults.py's): the golden allows
+#: 4 to 8 sub-pixel bits and either fill rule by design, so they pass the catalogue's scenes.
+VARIANTS = {"4bit": {"subpixel_bits": 4}, "top_left": {"fill_rule": "top-left"},
+            "4bit_top_left": {"subpixel_bits": 4, "fill_rule": "top-left"},
+            "float64": {"precision": "float64"}}
+
+
+@pytest.mark.parametrize("variant", sorted(VARIANTS))
+def test_allowed_variants_pass_the_catalogue_scenes(measured, tmp_path, variant):
+    import numpy as np
+
+    from refraster import golden
+    from refraster.golden.compare.run import compare
+    from refraster.golden.scenes import raster_state, render_draws
+    registry = golden.available_scenes()
+    names = [n for n in TABLE.scenes_of(RUN)
+             if registry[n].build.__module__ == "refraster.golden.catalogue_scenes"]
+    assert len(names) == 5
+    for name in names:
+        scene = registry[name].build()
+        fb = render_draws(scene.draws, scene.camera,
+                          {**raster_state(scene.raster), **VARIANTS[variant]})
+        (tmp_path / name).mkdir()
+        np.savez(tmp_path / name / "buffers.npz", **fb.arrays())
+    result = compare(measured[2] / "golden", tmp_path, mode="tolerant", scenes=names)
+    assert result.exit_code == 0, "\n".join(result.failures()[:20])
+
+
 def test_every_class_is_caught(measured):
-    _, rows = measured
+    rows = measured[1]
     assert len(rows) == len(RUN)
     none = [c.name for c, caught, _ in rows if not caught]
     assert not none, f"classes caught by no scene: {none}"
@@ -103,7 +131,7 @@ def test_every_class_is_caught(measured):
 
 
 def test_doc_table_is_this_run(measured):
-    _, rows = measured
+    rows = measured[1]
     lines = TABLE.row_lines(rows)
     if os.environ.get("REFRASTER_WRITE_CONFORMANCE") and FULL:
         text = TABLE.CONFORMANCE_MD.read_text(encoding="utf-8")
