@@ -34,9 +34,11 @@ from conftest import llvmpipe_frames
 from refraster import golden
 
 #: The plain scenes in OpenGL's conventions (those in other conventions:
-#: tests/test_golden_conventions.py, the same harness).
+#: tests/test_golden_conventions.py, the same harness; the catalogue's scenes, each there for
+#: one class of GPU bug: tests/test_conformance_catalogue.py, with the conformant variants).
 PLAIN = [n for n, e in golden.available_scenes().items() if e.technique == "render"
-         and e.build.__module__ != "refraster.golden.convention_scenes"]
+         and e.build.__module__ not in ("refraster.golden.convention_scenes",
+                                        "refraster.golden.catalogue_scenes")]
 #: (scene, buffer) pairs whose allowance admits the fault at more than 5 % of covered pixels
 #: (docs/tolerance.md says why a pair may be). None since the slivers' values are bounded by
 #: their vertices and barycentrics and facing by the allowed snappings: the crank's value

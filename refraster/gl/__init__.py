@@ -18,7 +18,8 @@ On the command line: ``refraster golden candidate GOLDEN_DIR --backend gl --out 
 (docs/backends.md).
 """
 
-__all__ = ["SUPPORTED_TECHNIQUES", "FAULTS", "TECHNIQUE_FAULTS", "CONVENTION_FAULTS"]
+__all__ = ["SUPPORTED_TECHNIQUES", "FAULTS", "TECHNIQUE_FAULTS", "CONVENTION_FAULTS",
+           "CATALOGUE_FAULTS"]
 
 #: Techniques this backend renders, with what it renders for them.
 SUPPORTED_TECHNIQUES = {
@@ -98,3 +99,69 @@ CONVENTION_FAULTS = {
                                                          "there): front and back swap"),
 }
 FAULTS.update(CONVENTION_FAULTS)
+
+#: Planted faults of the catalogue of GPU bug classes (issue 41; :mod:`refraster.gl.catalogue`,
+#: tests/test_conformance_catalogue.py, docs/conformance.md), also in :data:`FAULTS`. Each is
+#: the bug itself: a ``#define`` of a shader or a switch of the driver's GL state or upload.
+CATALOGUE_FAULTS = {
+    # transforms (driver: the matrices of _upload / _write)
+    "normal_matrix_modelview": ("FAULT_NORMAL_MATRIX_MODELVIEW", "normals transformed by the "
+                                "model-view matrix instead of its inverse transpose"),
+    "mirror_compensated": ("FAULT_MIRROR_COMPENSATED", "glFrontFace flipped for a draw whose "
+                           "model matrix has a negative determinant (facing judged in object "
+                           "space, not by the window winding)"),
+    "matrix_row_major": ("FAULT_MATRIX_ROW_MAJOR", "the row-major matrices uploaded without "
+                         "the transpose (GL reads them column-major)"),
+    "projection_left_handed": ("FAULT_PROJECTION_LEFT_HANDED", "the projection applied to a "
+                               "left-handed eye space (eye z negated: the camera looks down "
+                               "+z)"),
+    # rasterization (shaders/gbuffer.vert, gbuffer.geom, gbuffer.frag; driver upload)
+    "subpixel_1bit": ("FAULT_SUBPIXEL_1BIT", "vertices snapped to 1 sub-pixel bit (half-pixel "
+                      "grid), below the 4 bits the allowance admits"),
+    "fill_rule_neither": ("FAULT_FILL_RULE_NEITHER", "a tie rule that gives a pixel centre on "
+                          "an edge to neither triangle (cracks along shared edges)"),
+    "guard_band_clamp": ("FAULT_GUARD_BAND_CLAMP", "vertices beyond an 8x guard band clamped "
+                         "to it instead of clipped (huge triangles change shape)"),
+    "near_w_clamped": ("FAULT_NEAR_W_CLAMPED", "clip w clamped to at least 1e-3 (a guard "
+                       "against w -> 0 that moves vertices behind the eye)"),
+    "degenerate_dropped": ("FAULT_DEGENERATE_DROPPED", "zero-area triangles removed from the "
+                           "index buffer at upload (the primitive ids after them shift)"),
+    # depth
+    "linear_depth_written": ("FAULT_LINEAR_DEPTH_WRITTEN", "the linear eye depth written as "
+                             "the window depth"),
+    "depth_unorm16_declared_float": ("FAULT_DEPTH_UNORM16", "a 16-bit fixed-point depth buffer "
+                                     "where the scene declares float32"),
+    "depth_clamp_always": ("FAULT_DEPTH_CLAMP_ALWAYS", "GL_DEPTH_CLAMP enabled where the scene "
+                           "does not ask for it (nothing clipped at near and far)"),
+    # state
+    "cull_face_inverted": ("FAULT_CULL_FACE_INVERTED", "glCullFace front and back swapped"),
+    "front_face_inverted": ("FAULT_FRONT_FACE_INVERTED", "glFrontFace CCW and CW swapped"),
+    "depth_func_always": ("FAULT_DEPTH_FUNC_ALWAYS", "the depth function left at GL_ALWAYS"),
+    "depth_cleared_per_draw": ("FAULT_DEPTH_CLEARED_PER_DRAW", "the depth buffer cleared "
+                               "before every draw call (the last draw wins)"),
+    # data
+    "base_vertex_ignored": ("FAULT_BASE_VERTEX_IGNORED", "draws packed into one vertex buffer, "
+                            "their indices used without the base vertex"),
+    "index_offset": ("FAULT_INDEX_OFFSET", "the index range read one index late"),
+    "index16": ("FAULT_INDEX16", "indices uploaded as 16-bit (truncated past 65,535 "
+                "vertices)"),
+    "object_id_stale": ("FAULT_OBJECT_ID_STALE", "the object id uniform set for the first "
+                        "draw call only"),
+    "readback_rows_unflipped": ("FAULT_READBACK_ROWS", "the read-back rows kept bottom-first "
+                                "(GL_LOWER_LEFT) as if row 0 were the top"),
+    # compositing
+    "srgb_encoded": ("FAULT_SRGB_ENCODED", "the linear colour sRGB-encoded before it is "
+                     "written to the float colour target"),
+    "halo_premultiplied": ("FAULT_HALO_PREMULTIPLIED", "the straight-alpha halo slices "
+                           "blended as premultiplied (ONE, ONE_MINUS_SRC_ALPHA)"),
+    # technique-specific
+    "offset_map_nearest": ("FAULT_OFFSET_MAP_NEAREST", "the offset map filtered NEAREST "
+                           "instead of bilinearly"),
+    "offset_map_clamped": ("FAULT_OFFSET_MAP_CLAMPED", "the offset map's wrap mode "
+                           "clamp-to-edge whatever the surface's wrap"),
+    "eq3_sign": ("FAULT_EQ3_SIGN", "Eq. 3's drop-off subtracted (halo depth in front of the "
+                 "line)"),
+    "ghost_not_depth_tested": ("FAULT_GHOST_NOT_DEPTH_TESTED", "ghost-line fragments not "
+                               "tested against the removed layer D"),
+}
+FAULTS.update(CATALOGUE_FAULTS)

@@ -103,7 +103,11 @@ def _load(backend, package_dir, scene):
         wrap = s.get("wrap", "repeat")
         entry = {"enabled": bool(s.get("enabled", True)), "s": s}
         om = read_map(package_dir, scene, s["offset_map"])
+        if "offset_map_clamped" in backend.faults:   # planted fault: the wrap ignored
+            wrap = "clamp_to_edge"
         entry["offset"] = _texture(backend, [om], wrap)
+        if "offset_map_nearest" in backend.faults:   # planted fault: no bilinear filtering
+            entry["offset"].filter = (backend.mgl.NEAREST, backend.mgl.NEAREST)
         if p.get("caps"):
             maps = [read_map(package_dir, scene, n) for n in s["normal_map"]]
             maps.append(read_map(package_dir, scene, s["occlusion_map"]))

@@ -26,7 +26,9 @@ Conventions it implements (``docs/backends.md`` walks through them):
   ``object_id`` uniform.
 
 Faults (:data:`refraster.gl.FAULTS`) are test-only ``#define`` lines inserted after
-``#version``; a normal run sets none.
+``#version``; those of the conventions and of the catalogue of GPU bug classes
+(:mod:`refraster.gl.catalogue`) are also switches of the driver's GL state and upload. A normal
+run sets none.
 """
 
 from __future__ import annotations
@@ -98,7 +100,7 @@ def _gl_functions():
     u, i, p = ctypes.c_uint, ctypes.c_int, ctypes.c_void_p
     out = {"BindTexture": fn("glBindTexture", None, u, u),
            "TexImage2D": fn("glTexImage2D", None, u, i, i, i, i, i, u, u, p),
-           "GetError": fn("glGetError", u),
+           "GetError": fn("glGetError", u), "Clear": fn("glClear", None, u),
            "Enable": fn("glEnable", None, u), "Disable": fn("glDisable", None, u)}
     try:       # OpenGL 4.5 core or ARB_clip_control; moderngl does not wrap it
         out["ClipControl"] = fn("glClipControl", None, u, u)
@@ -294,7 +296,10 @@ class Backend:
         view = matrix(scene["camera"]["view"], "camera.view")
         proj = matrix(scene["camera"]["projection"], "camera.projection")
         smooth = scene["raster"]["normals"] == "smooth"
-        out = []
+        faults = self.faults
+        if "projection_left_handed" in faults:   # planted fault: eye z negated
+            proj = proj @ np.diag([1.0, 1.0, -1.0, 1.0])
+        out, packed = [], []
         for i, d in enumerate(scene["draws"]):
             vertices, faces, normals = read_ply(package_dir / d["mesh"], d.get("n_vertices"),
                                                 d.get("n_faces"))
@@ -309,12 +314,31 @@ class Backend:
                 nmat = np.linalg.inv(mv[:3, :3]).T
             except np.linalg.LinAlgError:
                 raise PackageError(f"draws[{i}]: view·model is singular") from None
+            if "normal_matrix_modelview" in faults:   # planted fault: not the inverse transpose
+                nmat = mv[:3, :3]
+            if "degenerate_dropped" in faults and len(faces):   # planted fault
+                tri = vertices[faces].astype(np.float64)
+                area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
+                                      axis=1)
+                faces = faces[area > 0]
+            if "index_offset" in faults and len(faces):   # planted fault: one index late
+                faces = np.roll(faces.ravel(), -1).reshape(faces.shape)
+            if "base_vertex_ignored" in faults:   # planted fault: packed, no base vertex
+                packed.append(np.concatenate([vertices, normals], 1))
+                data = np.concatenate(packed)
+            else:
+                data = np.concatenate([vertices, normals], 1)
             ctx = self.ctx
-            vbo = ctx.buffer(np.ascontiguousarray(np.concatenate([vertices, normals], 1),
-                                                  np.float32).tobytes())
-            ibo = ctx.buffer(faces.tobytes()) if len(faces) else None
+            vbo = ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes())
+            index_size = 4
+            if "index16" in faults:   # planted fault: 16-bit indices, truncated
+                index_size = 2
+                ibo = ctx.buffer(faces.astype(np.uint16).tobytes()) if len(faces) else None
+            else:
+                ibo = ctx.buffer(faces.tobytes()) if len(faces) else None
             out.append(dict(
                 object_id=d["object_id"], n_faces=len(faces), vbo=vbo, ibo=ibo, model=model,
+                index_size=index_size, mirrored=bool(np.linalg.det(model[:3, :3]) < 0),
                 mvp=(proj @ mv).astype(np.float32), mv=mv.astype(np.float32),
                 nmat=nmat.astype(np.float32), release=[b for b in (vbo, ibo) if b is not None],
                 vaos={}))
@@ -327,7 +351,7 @@ class Backend:
             layout = ((draw["vbo"], "3f 3f", "in_pos", "in_normal") if "in_normal" in prog
                       else (draw["vbo"], "3f 12x", "in_pos"))
             vao = self.ctx.vertex_array(prog, [layout], index_buffer=draw["ibo"],
-                                        index_element_size=4)
+                                        index_element_size=draw.get("index_size", 4))
             draw["vaos"][key] = vao
             draw["release"].insert(0, vao)
         return draw["vaos"][key]
@@ -337,14 +361,18 @@ class Backend:
         if name in prog:   # the compiler may drop an unused uniform
             prog[name].value = value
 
-    @staticmethod
-    def _write(prog, name, m):
+    def _write(self, prog, name, m):
         if name in prog:
-            prog[name].write(np.ascontiguousarray(m.T, np.float32).tobytes())
+            # GL reads uniforms column-major: the row-major matrix is uploaded transposed
+            # (not with the planted fault matrix_row_major)
+            data = m if "matrix_row_major" in self.faults else m.T
+            prog[name].write(np.ascontiguousarray(data, np.float32).tobytes())
 
     def _depth_attachment(self, size, depth_format="float32"):
         """A depth texture re-specified as ``GL_DEPTH_COMPONENT32F`` (moderngl's is 24-bit),
         or ``24`` / ``16`` for ``depth_format`` ``"unorm24"`` / ``"unorm16"``."""
+        if "depth_unorm16_declared_float" in self.faults:   # planted fault
+            depth_format = "unorm16"
         internal, kind = _DEPTH_FORMATS[depth_format]
         tex = self.ctx.depth_texture(size)
         gl = self._gl
@@ -378,6 +406,8 @@ class Backend:
         func = raster["depth_func"]
         if "reversed_z_less" in self.faults:
             func = _REVERSED.get(func, func)
+        if "depth_func_always" in self.faults:
+            func = "always"
         ctx.depth_func = _DEPTH_FUNCS[func]
         # glFrontFace is judged as the picture is seen in every convention: GL negates the
         # polygon area under GL_UPPER_LEFT, and ndc_y="down" is negated in the vertex shader
@@ -385,8 +415,12 @@ class Backend:
         front = raster["front_face"]
         if "winding_not_flipped" in self.faults and conv["origin"] == "upper_left":
             front = {"ccw": "cw", "cw": "ccw"}[front]
+        if "front_face_inverted" in self.faults:
+            front = {"ccw": "cw", "cw": "ccw"}[front]
         ctx.front_face = front
         if cull != "none":
+            if "cull_face_inverted" in self.faults:
+                cull = {"back": "front", "front": "back"}[cull]
             ctx.cull_face = cull
         self._conventions(conv)
 
@@ -408,7 +442,8 @@ class Backend:
             err = gl["GetError"]()
             if err:
                 raise Unsupported(f"glClipControl failed: GL error {err:#x}")
-        (gl["Enable"] if conv["depth_clamp"] else gl["Disable"])(_GL_DEPTH_CLAMP)
+        clamp = conv["depth_clamp"] or "depth_clamp_always" in self.faults
+        (gl["Enable"] if clamp else gl["Disable"])(_GL_DEPTH_CLAMP)
 
     def _default_conventions(self):
         """OpenGL's conventions again (after a frame that changed them)."""
@@ -420,6 +455,8 @@ class Backend:
         ``GL_UPPER_LEFT`` (``top_first``; kept)."""
         w, h = size
         a = np.frombuffer(tex.read(), dtype=dtype).reshape(h, w, comps)
+        if "readback_rows_unflipped" in self.faults:   # planted fault: GL's rows kept
+            top_first = True
         return np.ascontiguousarray(a if top_first else a[::-1])
 
     @staticmethod
@@ -481,16 +518,24 @@ class Backend:
                                              ("ambient", "diffuse", "specular", "shininess")))
             self._set(prog, "u_smooth", raster["normals"] == "smooth")
             self._set(prog, "u_viewport", tuple(float(s) for s in size))
+            self._set(prog, "u_upper_left", conv["origin"] == "upper_left")
             palette = shading["palette"]
-            for d in draws:
+            front = ctx.front_face
+            for k, d in enumerate(draws):
                 if not d["n_faces"]:
                     continue
+                if "depth_cleared_per_draw" in self.faults and k:   # planted fault
+                    self._gl["Clear"](0x100)                         # GL_DEPTH_BUFFER_BIT
+                if "mirror_compensated" in self.faults:   # planted fault
+                    ctx.front_face = ({"ccw": "cw", "cw": "ccw"}[front] if d["mirrored"]
+                                      else front)
                 self._write(prog, "u_mvp", d["mvp"])
                 self._write(prog, "u_mv", d["mv"])
                 self._write(prog, "u_nmat", d["nmat"])
                 if vds:
                     self._write(prog, "u_tmat", (sprite @ d["model"]).astype(np.float32))
-                self._set(prog, "u_object", int(d["object_id"]))
+                if "object_id_stale" not in self.faults or k == 0:   # planted fault: first only
+                    self._set(prog, "u_object", int(d["object_id"]))
                 self._set(prog, "u_base", tuple(float(c) for c in
                                                 palette[d["object_id"] % len(palette)]))
                 self._vao(d, prog).render(self.mgl.TRIANGLES)
@@ -499,7 +544,7 @@ class Backend:
             top = self._top_first(scene)
             inside = (self._read(targets[6], "<i4", 1, size, top_first=top)[..., 0] if vds
                       else None)
-            if conv["depth_format"] != "float32":
+            if conv["depth_format"] != "float32" or "depth_unorm16_declared_float" in self.faults:
                 # the candidate's depth is its depth buffer: k / (2^n − 1), read as float
                 stored = self._read(depth, "<f4", 1, size, top_first=top)[..., 0]
                 out["depth"] = np.where(covered, stored, out["depth"]).astype(np.float32)

@@ -387,6 +387,9 @@ def render_halos(gl, loaded, package_dir):
             ctx.blend_equation = mgl.FUNC_ADD
             ctx.blend_func = (mgl.SRC_ALPHA, mgl.ONE_MINUS_SRC_ALPHA, mgl.ONE,
                               mgl.ONE_MINUS_SRC_ALPHA)
+            if "halo_premultiplied" in gl.faults:   # planted fault: straight as premultiplied
+                ctx.blend_func = (mgl.ONE, mgl.ONE_MINUS_SRC_ALPHA, mgl.ONE,
+                                  mgl.ONE_MINUS_SRC_ALPHA)
             gl._set(pr, "u_class_pass", False)
             fullscreen(gl, pr)
             fk.use()

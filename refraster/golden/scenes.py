@@ -54,7 +54,8 @@ DEFAULT_RASTER = dict(subpixel_bits=8, fill_rule="llvmpipe", precision="float32"
 CONVENTION_FIELDS = ("depth_range", "origin", "ndc_y", "depth_clamp", "depth_format")
 
 #: Modules imported by :func:`available_scenes`; each registers its scenes on import.
-SCENE_MODULES = ("refraster.golden.technique_scenes", "refraster.golden.convention_scenes")
+SCENE_MODULES = ("refraster.golden.technique_scenes", "refraster.golden.convention_scenes",
+                 "refraster.golden.catalogue_scenes")
 
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_]*$")
 #: Longest scene or draw name: a name becomes a directory (``<scene>/``, with ``__<sweep>``

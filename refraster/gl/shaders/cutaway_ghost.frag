@@ -21,6 +21,9 @@ void main() {
     float z = 2.0 * gl_FragCoord.z - 1.0;
     float d = texelFetch(u_D, p, 0).r;
     float limit = min(d, texelFetch(u_occluder, p, 0).r);
+#ifdef FAULT_GHOST_NOT_DEPTH_TESTED
+    limit = texelFetch(u_occluder, p, 0).r;   // planted fault: not tested against D
+#endif
     if (!(z < limit)) discard;
     float gap = max(eye_depth(d) - eye_depth(z), 0.0);
     if (!(gap < u_g_max)) discard;

@@ -18,6 +18,12 @@ INTERP in vec3 gs_eye;
 INTERP in vec3 gs_normal;
 INTERP in vec3 gs_bary;
 
+#ifdef FAULT_FILL_RULE_NEITHER
+uniform bool u_upper_left;     // glClipControl's origin: gl_FragCoord.y counted from the top
+uniform vec2 u_viewport;
+flat in vec2 gs_win[3];
+#endif
+
 layout(location = 0) out float o_depth;
 layout(location = 1) out float o_eye_depth;
 layout(location = 2) out vec4 o_normal;
@@ -61,6 +67,18 @@ bool parity_inside(vec3 T) {
 #endif
 
 void main() {
+#ifdef FAULT_FILL_RULE_NEITHER
+    // planted fault: a pixel centre exactly on an edge (the edge function exactly 0, as it
+    // is in float for window coordinates on a half-pixel grid) belongs to neither triangle
+    vec2 p = gl_FragCoord.xy;
+    if (u_upper_left) p.y = u_viewport.y - p.y;
+    p *= 2.0;
+    vec2 q0 = gs_win[0], q1 = gs_win[1], q2 = gs_win[2];
+    float e0 = (q1.x - q0.x) * (p.y - q0.y) - (q1.y - q0.y) * (p.x - q0.x);
+    float e1 = (q2.x - q1.x) * (p.y - q1.y) - (q2.y - q1.y) * (p.x - q1.x);
+    float e2 = (q0.x - q2.x) * (p.y - q2.y) - (q0.y - q2.y) * (p.x - q2.x);
+    if (e0 == 0.0 || e1 == 0.0 || e2 == 0.0) discard;
+#endif
     vec3 n = gs_normal;
     float len = length(n);
     if (len > 0.0) n /= len;
@@ -74,6 +92,14 @@ void main() {
     front = !front;
 #endif
     o_depth = gl_FragCoord.z;
+#ifdef FAULT_LINEAR_DEPTH_WRITTEN
+    o_depth = -gs_eye.z;           // planted fault: the linear eye depth as the window depth
+#endif
+#ifdef FAULT_SRGB_ENCODED
+    // planted fault: the linear colour sRGB-encoded into the float target
+    c = clamp(c, 0.0, 1.0);
+    c = mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
+#endif
     o_eye_depth = -gs_eye.z;
     o_normal = vec4(n, 0.0);
     o_bary = vec4(gs_bary, 0.0);

@@ -22,6 +22,10 @@ in vec3 vs_normal[];
 INTERP out vec3 gs_eye;
 INTERP out vec3 gs_normal;
 INTERP out vec3 gs_bary;
+#ifdef FAULT_FILL_RULE_NEITHER
+uniform vec2 u_viewport;
+flat out vec2 gs_win[3];   // the window positions (×2, pixel centres on odd integers)
+#endif
 #ifdef VDS
 in vec3 vs_T[];
 INTERP out vec3 gs_T;
@@ -29,12 +33,22 @@ INTERP out vec3 gs_T;
 
 void main() {
     vec3 face = cross(vs_obj[1] - vs_obj[0], vs_obj[2] - vs_obj[0]);
+#ifdef FAULT_FILL_RULE_NEITHER
+    vec2 win[3];
+    for (int i = 0; i < 3; ++i) {
+        vec4 c = gl_in[i].gl_Position;
+        win[i] = c.w > 0.0 ? (c.xy / c.w * 0.5 + 0.5) * u_viewport * 2.0 : vec2(-1e9);
+    }
+#endif
     for (int i = 0; i < 3; ++i) {
         gl_Position = gl_in[i].gl_Position;
         gl_PrimitiveID = gl_PrimitiveIDIn;
         gs_eye = vs_eye[i];
         gs_normal = u_nmat * (u_smooth ? vs_normal[i] : face);
         gs_bary = vec3(i == 0, i == 1, i == 2);
+#ifdef FAULT_FILL_RULE_NEITHER
+        gs_win = win;
+#endif
 #ifdef VDS
         gs_T = vs_T[i];
 #endif

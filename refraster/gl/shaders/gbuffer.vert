@@ -28,6 +28,22 @@ void main() {
     // planted fault: the viewport shifted by half a pixel in x and y
     clip.xy += clip.w / u_viewport;
 #endif
+#ifdef FAULT_NEAR_W_CLAMPED
+    // planted fault: w kept away from 0 (vertices behind the eye move in front of it)
+    clip.w = max(clip.w, 1e-3);
+#endif
+#ifdef FAULT_GUARD_BAND_CLAMP
+    // planted fault: a vertex beyond an 8x guard band clamped to it instead of clipped
+    if (clip.w > 0.0) clip.xy = clamp(clip.xy, vec2(-8.0 * clip.w), vec2(8.0 * clip.w));
+#endif
+#ifdef FAULT_SUBPIXEL_1BIT
+    // planted fault: the window position snapped to 1 sub-pixel bit (a half-pixel grid)
+    if (clip.w > 0.0) {
+        vec2 win = (clip.xy / clip.w * 0.5 + 0.5) * u_viewport;
+        win = floor(win * 2.0 + 0.5) * 0.5;
+        clip.xy = (win / u_viewport * 2.0 - 1.0) * clip.w;
+    }
+#endif
     if (u_ndc_y_down) clip.y = -clip.y;
     gl_Position = clip;
     vs_eye = (u_mv * vec4(in_pos, 1.0)).xyz;

@@ -24,6 +24,9 @@ void main() {
 #else
     float drop = u_delta_d;
 #endif
+#ifdef FAULT_EQ3_SIGN
+    drop = -drop;                     // planted fault: Eq. 3's drop-off subtracted
+#endif
     if (u_halos) dn = d + max(0.0, u - u_delta_t) * drop;
     else if (u < u_ws_aa) dn = d;
     o_min_d = vec4(dn, 0.0, 0.0, 0.0);
