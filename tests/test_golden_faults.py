@@ -401,7 +401,9 @@ def test_harness_sees_unbounded_slivers(tmp_path, monkeypatch):
         out["set_normal_angle"][fragile] = np.pi
 
     monkeypatch.setattr(allowance, "_sliver_bounds", free)
-    golden.generate(tmp_path / "g", ["render_crank"])
+    # the sliver population of a 4-bit declaration: freed, over 40 % of the crank's covered
+    # pixels admit the fault (at the default 8 bits far fewer faces are slivers: 30 of 3 662)
+    golden.generate(tmp_path / "g", ["render_crank"], candidate_subpixel_bits=4)
     t = faults.fault_table(tmp_path / "g", "render_crank", buffers=["depth", "front_facing"])
     for key in ("depth", "front_facing"):
         assert t[key]["admitted"] > 0.4 * t[key]["covered"], (key, t[key]["admitted"])
