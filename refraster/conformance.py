@@ -18,7 +18,9 @@ surface; or anywhere on the background), where
 ``ε = √2 · (2^−(b_min+1) + 2^−(b_ref+1)) + ε_float``
 
 is the largest distance an edge can move: each vertex is snapped to within half a grid step,
-by the candidate (``b_min = 4``) and by the reference (``b_ref = 8``), and
+by the candidate (``b_min``: ``min_bits``, 4 by default; a golden passes the bits its
+candidates are declared with, ``golden generate --candidate-subpixel-bits``, 8 by default) and
+by the reference (``b_ref = 8``), and
 ``ε_float = 4 ulp_f32(max window coordinate) + 8 · 2^−24 · max(W, H)`` covers float32 viewport
 and transform rounding; an edge with an endpoint far from the origin (a huge triangle) adds
 ``4 ulp_f32`` of that endpoint's coordinate, and a piece of a clipped face adds the float32

@@ -34,7 +34,7 @@ def main():
         print(f"{COMPILED}{target}", file=sys.stderr, flush=True)
     real = generate.render_task
 
-    def planted(name, entry, params):
+    def planted(name, entry, params, bits):
         if name == target and kind == "raise":
             raise RuntimeError(f"planted fault in {name}")
         if name == target and kind == "warn":
@@ -44,7 +44,7 @@ def main():
             sys.stderr.write("dying on purpose\n")
             sys.stderr.flush()
             os._exit(7)
-        name, item, files = real(name, entry, params)
+        name, item, files = real(name, entry, params, bits)
         if name == target and kind == "escape":
             files[f"{name}/../escaped.txt"] = b"outside"
         return name, item, files

@@ -38,7 +38,8 @@ def _camera():
 
 
 def _eps_by_hand(width, height):
-    """docs/tolerance.md: ε = √2 (2⁻⁵ + 2⁻⁹) + 4 ulp_f32(max(W, H)) + 8·2⁻²⁴·max(W, H)."""
+    """docs/tolerance.md: ε = √2 (2⁻⁵ + 2⁻⁹) + 4 ulp_f32(max(W, H)) + 8·2⁻²⁴·max(W, H) (a
+    candidate declared at 4 sub-pixel bits: the allowances here are derived with ``bits=4``)."""
     m = max(width, height)
     ulp = float(np.spacing(np.float32(m)))
     return math.sqrt(2.0) * (2.0 ** -5 + 2.0 ** -9) + 4.0 * ulp + 8.0 * 2.0 ** -24 * m
@@ -53,7 +54,7 @@ def tilted():
     v[:, 2] = -(2.0 + 0.01 * v[:, 0])
     f = np.array([[0, 1, 2]], np.int32)
     scene = render_scene([Draw("plane", (v, f))], _camera())
-    arrays, info, checks = scene_allowances(scene, raster_state(scene.raster))
+    arrays, info, checks = scene_allowances(scene, raster_state(scene.raster), bits=4)
     return scene, arrays, info, checks
 
 
@@ -115,7 +116,7 @@ def step():
     front = (np.array([[0.5, -100.0, -2.0], [100.0, -100.0, -2.0], [0.5, 100.0, -2.0]]),
              np.array([[0, 1, 2]], np.int32))
     scene = render_scene([Draw("back", back), Draw("front", front)], _camera())
-    arrays, info, checks = scene_allowances(scene, raster_state(scene.raster))
+    arrays, info, checks = scene_allowances(scene, raster_state(scene.raster), bits=4)
     return scene, arrays, info, checks
 
 

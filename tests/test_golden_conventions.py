@@ -28,7 +28,8 @@ FIELDS = dict(depth_range="negative_one_to_one", origin="lower_left", ndc_y="up"
 @pytest.fixture(scope="module")
 def gold(tmp_path_factory):
     out = tmp_path_factory.mktemp("conventions") / "g"
-    golden.generate(out, CONVENTION_SCENES)
+    # for candidates of 4 sub-pixel bits: test_correct_candidates_pass and the "4bit" variant
+    golden.generate(out, CONVENTION_SCENES, candidate_subpixel_bits=4)
     return out
 
 
@@ -292,11 +293,20 @@ def test_faults_caught_and_few_admitted(gold, scene):
 
 
 @pytest.fixture(scope="module")
-def realistic(gold):
+def gold8(tmp_path_factory):
+    """The plain convention scenes at the goldens' default declaration (8 sub-pixel bits):
+    the realistic table's."""
+    out = tmp_path_factory.mktemp("conventions8") / "g"
+    golden.generate(out, PLAIN)
+    return out
+
+
+@pytest.fixture(scope="module")
+def realistic(gold8):
     import time
     import faults
     t0 = time.time()
-    return {s: faults.realistic_table(gold, s) for s in PLAIN}, time.time() - t0
+    return {s: faults.realistic_table(gold8, s) for s in PLAIN}, time.time() - t0
 
 
 def test_write_realistic_table(realistic):

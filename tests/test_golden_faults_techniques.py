@@ -54,7 +54,8 @@ OLD_PROFILE = frozenset(
 @pytest.fixture(scope="module")
 def gold(tmp_path_factory):
     out = tmp_path_factory.mktemp("tfaults") / "g"
-    golden.generate(out, TECH)
+    # for candidates of 4 sub-pixel bits: the "4bit" variants plant them
+    golden.generate(out, TECH, candidate_subpixel_bits=4)
     return out
 
 
@@ -72,9 +73,17 @@ REALISTIC = TECH if os.environ.get("REFRASTER_TEETH_FULL") else [
 
 
 @pytest.fixture(scope="module")
-def realistic(gold):
+def gold8(tmp_path_factory):
+    """The realistic table's scenes at the goldens' default declaration (8 sub-pixel bits)."""
+    out = tmp_path_factory.mktemp("tfaults8") / "g"
+    golden.generate(out, REALISTIC)
+    return out
+
+
+@pytest.fixture(scope="module")
+def realistic(gold8):
     t0 = time.time()
-    tables = {s: faults.realistic_table(gold, s, table=faults_techniques.fault_table)
+    tables = {s: faults.realistic_table(gold8, s, table=faults_techniques.fault_table)
               for s in REALISTIC}
     return tables, time.time() - t0
 

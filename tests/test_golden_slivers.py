@@ -67,7 +67,8 @@ def test_every_concrete_snapping_lies_in_the_bounds(seed):
     X, Y = P[:, 0] + rng.uniform(-1e-3, 1e-3, 3), P[:, 1] + rng.uniform(-1e-3, 1e-3, 3)
     w = rng.uniform(1.0, 3.0, 3)
     (_, _), (lo, hi), can = _snap_barycentrics(X[None], Y[None], w[None], np.array([px]),
-                                               np.array([py]), EPS)
+                                               np.array([py]), EPS,
+                                               min_bits=MIN_SNAP_BITS)
     got, facings = _brute(X, Y, w, px, py, rng)
     tol = 1e-9 * (1.0 + np.abs(got))
     assert (got >= lo[0] - tol).all() and (got <= hi[0] + tol).all(), (lo, hi, got.min(0),
@@ -83,7 +84,8 @@ def test_a_triangle_on_the_grid_has_one_answer():
     X = np.array([[0.0, 8.0, 0.0]])
     Y = np.array([[0.0, 0.0, 6.0]])
     w = np.ones((1, 3))
-    (_, _), (lo, hi), can = _snap_barycentrics(X, Y, w, np.array([2.5]), np.array([1.5]), EPS)
+    (_, _), (lo, hi), can = _snap_barycentrics(X, Y, w, np.array([2.5]), np.array([1.5]), EPS,
+                                               min_bits=MIN_SNAP_BITS)
     # λ1 = x/8 = 0.3125, λ2 = y/6 = 0.25, λ0 = 1 − λ1 − λ2
     want = np.array([1 - 0.3125 - 0.25, 0.3125, 0.25])
     assert (lo[0] <= want).all() and (want <= hi[0]).all()
@@ -101,13 +103,15 @@ def test_a_needle_keeps_its_facing_a_cap_may_flip():
     w = np.ones((1, 3))
     X = np.array([[8.0, 11.0, 11.0]])
     Y = np.array([[7.5, 7.505, 7.495]])
-    (_, _), (lo, hi), can = _snap_barycentrics(X, Y, w, np.array([9.5]), np.array([7.5]), EPS)
+    (_, _), (lo, hi), can = _snap_barycentrics(X, Y, w, np.array([9.5]), np.array([7.5]), EPS,
+                                               min_bits=MIN_SNAP_BITS)
     assert can[0].tolist() == [False, True]
     want = np.array([0.5, 0.25, 0.25])
     assert (lo[0] <= want).all() and (want <= hi[0]).all() and (hi[0] - lo[0]).max() < 0.1
     X = np.array([[8.843301, 9.585050, 10.282229]])
     Y = np.array([[7.478784, 7.530125, 7.537891]])
-    (_, _), (lo, hi), can = _snap_barycentrics(X, Y, w, np.array([9.5]), np.array([7.5]), EPS)
+    (_, _), (lo, hi), can = _snap_barycentrics(X, Y, w, np.array([9.5]), np.array([7.5]), EPS,
+                                               min_bits=MIN_SNAP_BITS)
     assert can[0].tolist() == [True, True]
     _, facings = _brute(X[0], Y[0], w[0], 9.5, 7.5, np.random.default_rng(0), n=50)
     assert facings == {True, False}

@@ -24,7 +24,7 @@ ALARM = re.compile(r"FAIL|\bfail|\bover\b|over=|unforgiven|outside|error|wrong|\
 @pytest.fixture(scope="module")
 def gold(tmp_path_factory):
     out = tmp_path_factory.mktemp("summary") / "g"
-    golden.generate(out, [SCENE])
+    golden.generate(out, [SCENE], candidate_subpixel_bits=4)    # four_bit's candidate
     return out
 
 

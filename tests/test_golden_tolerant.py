@@ -20,7 +20,9 @@ RENDER = ["render_cube", "render_multi_draw", "render_icosphere_smooth", "render
 @pytest.fixture(scope="module")
 def gold(tmp_path_factory):
     out = tmp_path_factory.mktemp("tolerant") / "g"
-    golden.generate(out, RENDER + ["edges_building", "clipsurface_building"])
+    # for candidates of 4 sub-pixel bits (four_bit)
+    golden.generate(out, RENDER + ["edges_building", "clipsurface_building"],
+                    candidate_subpixel_bits=4)
     return out
 
 

@@ -211,7 +211,7 @@ def test_concurrent_updates_keep_both_scenes(g, hooks):
     hooks["locked"] = pause
     a, box = start("A", gen, g, "render_multi_draw", update=True)
     assert pause.reached.wait(120)
-    gen(g, "render_torus_ortho", update=True, on_wait=lambda holder: pause.release.set())
+    gen(g, "render_torus_ortho", update=True, wait=lambda holder: pause.release.set())
     a.join()
     assert "error" not in box, box
     assert sorted(load_manifest(g)["scenes"]) == [CUBE, MULTI, TORUS]

@@ -6,6 +6,7 @@
                               [--update] [--list] [--sweep KEY=V1,V2 ...] [--size WxH ...]
                               [--jobs N | --workers N | --scheduler ADDRESS]
                               [--convention gl|vulkan|d3d12|metal|webgpu] [--no-wait]
+                              [--candidate-subpixel-bits N]
     refraster golden compare GOLDEN_DIR CANDIDATE_DIR [--report DIR] [--mode tolerant|exact]
                              [--profile exact|conformant] [--tolerance [SCENE:][BUFFER.]KEY=VALUE ...]
                              [--scene NAME ...] [--json FILE] [--no-wait]
@@ -69,6 +70,17 @@ def _positive_int(text):
         value = 0
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
+    return value
+
+
+def _candidate_bits(text):
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 4 <= value <= 8:
+        raise argparse.ArgumentTypeError(f"must be an integer from 4 to 8 (the sub-pixel bits "
+                                         f"a conformant candidate may use), got {text!r}")
     return value
 
 
@@ -163,10 +175,12 @@ def _cmd_generate(args):
                             scene_files=scene_files, sweeps=args.sweep or (),
                             sizes=args.size or (), workers=args.workers or 1,
                             scheduler=args.scheduler, progress_bar=not quiet,
-                            on_retry=on_retry, wait=not args.no_wait,
-                            on_wait=lambda holder: _say(args, f"waiting for {holder} to finish "
-                                                              f"writing {args.out}"),
-                            jobs=jobs, compile_progress=getattr(args, "compile_progress", None))
+                            on_retry=on_retry,
+                            wait=False if args.no_wait else (
+                                lambda holder: _say(args, f"waiting for {holder} to finish "
+                                                          f"writing {args.out}")),
+                            jobs=jobs, compile_progress=getattr(args, "compile_progress", None),
+                            candidate_subpixel_bits=args.candidate_subpixel_bits)
     except (ValueError, TypeError, OSError, GenerationError) as exc:
         return _error(args, "golden generate", exc)
     if retried:
@@ -303,6 +317,11 @@ def register(subparsers):
                         "docs/backends.md); plain-rendering scenes only (default: those)")
     g.add_argument("--no-wait", action="store_true",
                    help="if another run is writing DIR, exit 2 naming it instead of waiting")
+    g.add_argument("--candidate-subpixel-bits", metavar="N", type=_candidate_bits, default=8,
+                   help="the sub-pixel bits of the candidates the golden is for, 4 to 8 "
+                        "(default 8, as the CTS reference renderer and current desktop GPUs; 4 "
+                        "for devices at OpenGL's minimum): the allowances assume it "
+                        "(docs/tolerance.md)")
     g.set_defaults(func=_cmd_generate)
 
     c = sub.add_parser("compare", help="compare CANDIDATE_DIR against GOLDEN_DIR")

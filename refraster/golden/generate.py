@@ -33,6 +33,8 @@ from .io.read import copy_listed_scene
 from .scenes import (DEFAULT_RASTER, GoldenScene, SceneEntry, available_scenes, id_range,
                      manifest_raster, raster_state)
 from .io.schema import MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION, validate
+from .allowances.precision import (CANDIDATE_BITS, as_candidate_bits, declared,
+                                   manifest_candidate_bits)
 from .compare.profiles import default_tolerances
 from .io import write
 
@@ -93,7 +95,8 @@ def _id_range(name, key, scene, a):
 
 
 def _write_scene(root, name, scene):
-    """Write one scene under ``root``; return its manifest entry."""
+    """Write one scene under ``root``; return its manifest entry. The allowances are derived
+    for the declared candidate bits (:func:`render_task`)."""
     from .allowances.core import scene_allowances
     raster = raster_state(scene.raster)
     export_package(root / name / "package", name, scene, raster)
@@ -219,21 +222,25 @@ def suite(entries, *, sweeps=(), sizes=()):
     return tasks
 
 
-def render_task(name, entry, params):
+def render_task(name, entry, params, bits=CANDIDATE_BITS):
     """Build and write one scene (in a private temporary directory) and return
     ``(name, manifest entry, {relative path: bytes})``: the unit of work of a serial or a
-    distributed run, so both write the same bytes."""
-    scene = entry.build(**params)
-    _check_scene(name, scene)
-    if not scene.description:
-        scene.description = entry.description
-    with tempfile.TemporaryDirectory(prefix="refraster-golden-task-") as tmp:
-        root = Path(tmp)
-        item = _write_scene(root, name, scene)
-        if params:
-            item["parameters"]["variant"] = {"scene": entry.name, **params}
-        files = {p.relative_to(root).as_posix(): p.read_bytes()
-                 for p in sorted(root.rglob("*")) if p.is_file()}
+    distributed run, so both write the same bytes. ``bits``: the candidate's declared
+    sub-pixel bits (4 to 8), which the scene's allowances assume — those the scene function
+    derives while it builds (:func:`refraster.golden.allowances.precision.candidate_bits`)
+    and those of :func:`refraster.golden.allowances.core.scene_allowances`."""
+    with declared(bits):
+        scene = entry.build(**params)
+        _check_scene(name, scene)
+        if not scene.description:
+            scene.description = entry.description
+        with tempfile.TemporaryDirectory(prefix="refraster-golden-task-") as tmp:
+            root = Path(tmp)
+            item = _write_scene(root, name, scene)
+            if params:
+                item["parameters"]["variant"] = {"scene": entry.name, **params}
+            files = {p.relative_to(root).as_posix(): p.read_bytes()
+                     for p in sorted(root.rglob("*")) if p.is_file()}
     return name, item, files
 
 
@@ -242,11 +249,11 @@ class GenerationError(RuntimeError):
     process of ``jobs > 1``."""
 
 
-def _run_serial(tasks, progress, bar):
+def _run_serial(tasks, progress, bar, bits):
     for name, entry, params in tasks:
         if progress is not None:
             progress(name)
-        yield render_task(name, entry, params)
+        yield render_task(name, entry, params, bits)
         bar.update(1)
 
 
@@ -320,7 +327,7 @@ def _answer(name, result):
     return item, out
 
 
-def _run_jobs(tasks, groups, jobs, progress, bar, compile_progress):
+def _run_jobs(tasks, groups, jobs, progress, bar, compile_progress, bits):
     """Render ``tasks`` in worker processes of one thread each (:mod:`refraster.golden.worker`
     by :func:`refraster._workers.run_groups`), ``groups`` of them at most ``jobs`` at a time;
     yield ``(name, entry, files)`` as each arrives. The first failure stops the run
@@ -329,7 +336,7 @@ def _run_jobs(tasks, groups, jobs, progress, bar, compile_progress):
     import contextlib
 
     from .._workers import cold_start_groups, run_groups
-    spec = {name: [entry.name, params] for name, entry, params in tasks}
+    spec = {name: [entry.name, params, bits] for name, entry, params in tasks}
     technique = {name: entry.technique for name, entry, _ in tasks}
 
     def command(group):
@@ -371,14 +378,14 @@ def _open_client(workers, scheduler):
     return Client(cluster), cluster
 
 
-def _run_distributed(tasks, workers, scheduler, progress, bar, on_retry):
+def _run_distributed(tasks, workers, scheduler, progress, bar, on_retry, bits):
     from dask.distributed import as_completed
     client, cluster = _open_client(workers, scheduler)
     try:
         by_key = {}
         futures = []
         for task in tasks:
-            fut = client.submit(render_task, *task, pure=False)
+            fut = client.submit(render_task, *task, bits, pure=False)
             by_key[fut.key] = (task, 0)
             futures.append(fut)
         failed = []
@@ -392,7 +399,7 @@ def _run_distributed(tasks, workers, scheduler, progress, bar, on_retry):
                 if attempt == 0:
                     if on_retry is not None:
                         on_retry(task[0], reason)
-                    again = client.submit(render_task, *task, pure=False)
+                    again = client.submit(render_task, *task, bits, pure=False)
                     by_key[again.key] = (task, 1)
                     pending.add(again)
                 else:
@@ -427,7 +434,7 @@ class _NoBar:
 
 def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, sweeps=(),
              sizes=(), workers=1, scheduler=None, progress_bar=False, on_retry=None,
-             wait=True, on_wait=None, jobs=1, compile_progress=None):
+             wait=True, jobs=1, compile_progress=None, candidate_subpixel_bits=CANDIDATE_BITS):
     """Render ``scenes`` (names; default all registered) and write a golden directory ``out``.
 
     Parameters
@@ -458,11 +465,11 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
     on_retry : callable, optional
         ``on_retry(name, reason)`` when a distributed task failed and is run once more. A task
         that fails twice makes the whole run fail (:class:`GenerationError`).
-    wait : bool
-        Another run writing ``out`` holds its lock: wait for it (default), or raise
-        :class:`refraster.golden.io.write.LockedError` naming it.
-    on_wait : callable, optional
-        ``on_wait(holder)`` before waiting for the lock (``holder`` describes the other run).
+    wait : bool or callable
+        Another run writing ``out`` holds its lock: wait for it (true, default), or raise
+        :class:`refraster.golden.io.write.LockedError` naming it (false). A callable waits
+        too and is called as ``wait(holder)`` before waiting (``holder`` describes the other
+        run).
     jobs : int
         More than 1 (and no ``workers``/``scheduler``): render in that many worker processes
         of one thread each, the scenes grouped by technique (:data:`WORKER_GROUPS`), each
@@ -472,6 +479,12 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
         registered at run time) make the run serial. The bytes written do not depend on it.
     compile_progress : refraster.warmup.CompileProgress, optional
         Counts the kernels the worker processes compile (the command's progress line).
+    candidate_subpixel_bits : int
+        The sub-pixel precision of the candidates the golden is for, 4 to 8 (default 8, as the
+        CTS reference renderer and current desktop GPUs; 4 for devices at OpenGL's minimum).
+        Every allowance that depends on vertex snapping assumes it (docs/tolerance.md); the
+        manifest records it (``candidate.subpixel_bits``). ``update`` keeps old scenes only if
+        they were derived for the same bits.
 
     A symbolic link at ``out`` is followed: the golden it points to is updated, the link stays.
     The run refuses (:class:`refraster.golden.io.write.RefusedError`, nothing deleted) if at the
@@ -488,6 +501,8 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
         raise ValueError(f"workers must be an int >= 1, got {workers!r}")
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ValueError(f"jobs must be an int >= 1, got {jobs!r}")
+    bits = as_candidate_bits(candidate_subpixel_bits)
+    on_wait = wait if callable(wait) else None
     sweeps = [parse_sweep(x) if isinstance(x, str) else (x[0], list(x[1])) for x in sweeps]
     sizes = [parse_size(x) if isinstance(x, str) else tuple(x) for x in sizes]
     registry = available_scenes()
@@ -510,15 +525,16 @@ def generate(out, scenes=None, *, update=False, scene_files=(), progress=None, s
         raise ValueError("no scenes to generate")
     tasks = suite(entries, sweeps=sweeps, sizes=sizes)
     out = write.resolve_target(out)  # through a symlink: the golden it points to
-    with write.locked(out, wait=wait, command="refraster golden generate", on_wait=on_wait):
+    with write.locked(out, wait=bool(wait), command="refraster golden generate",
+                      on_wait=on_wait):
         write._hook("locked", target=out)
         write.clean_debris(out)
         return _generate_locked(out, tasks, update, progress, workers, scheduler, progress_bar,
-                                on_retry, jobs, compile_progress)
+                                on_retry, jobs, compile_progress, bits)
 
 
 def _generate_locked(out, tasks, update, progress, workers, scheduler, progress_bar, on_retry,
-                     jobs=1, compile_progress=None):
+                     jobs=1, compile_progress=None, bits=CANDIDATE_BITS):
     generated = {t[0] for t in tasks}
     old = None
     found = write.snapshot(out)
@@ -533,6 +549,13 @@ def _generate_locked(out, tasks, update, progress, workers, scheduler, progress_
                                      f"that changed since ({', '.join(found[2][:5])}); "
                                      "refusing to replace it")
         old = _old_manifest(out)
+        kept = [n for n in old["scenes"] if n not in generated]
+        old_bits = manifest_candidate_bits(old)
+        if kept and old_bits != bits:
+            raise ValueError(f"candidate_subpixel_bits is {bits} but the golden {out} was "
+                             f"generated for {old_bits}, and its scenes {kept[:3]} would be "
+                             f"kept with allowances for {old_bits}; regenerate every scene or "
+                             f"declare {old_bits}")
     tmp = write.make_tree(out)
     bar = _NoBar()
     if progress_bar:
@@ -542,11 +565,12 @@ def _generate_locked(out, tasks, update, progress, workers, scheduler, progress_
         manifest_scenes = {}
         groups = worker_groups(tasks, jobs)
         if scheduler is not None or workers > 1:
-            results = _run_distributed(tasks, workers, scheduler, progress, bar, on_retry)
+            results = _run_distributed(tasks, workers, scheduler, progress, bar, on_retry,
+                                       bits)
         elif groups is not None:
-            results = _run_jobs(tasks, groups, jobs, progress, bar, compile_progress)
+            results = _run_jobs(tasks, groups, jobs, progress, bar, compile_progress, bits)
         else:
-            results = _run_serial(tasks, progress, bar)
+            results = _run_serial(tasks, progress, bar, bits)
         try:
             for name, item, files in results:
                 for rel, data in files.items():
@@ -574,6 +598,7 @@ def _generate_locked(out, tasks, update, progress, workers, scheduler, progress_
             "generator": versions(),
             "raster": {"subpixel_bits": DEFAULT_RASTER["subpixel_bits"],
                        "fill_rule": DEFAULT_RASTER["fill_rule"]},
+            "candidate": {"subpixel_bits": bits},
             "scenes": dict(sorted(manifest_scenes.items())),
             "files": files,
         }

@@ -248,6 +248,7 @@ def _clip_decision_may(draws, camera, clip, cap_mask):
     from ..camera import is_perspective
     from ..clipsurface import clip_function
     from ..conformance import decision_may, edge_epsilon
+    from .allowances.precision import candidate_bits
     from .allowances.core import dilate
     frags = draw([d.mesh for d in draws], **camera.kwargs, model=[d.model for d in draws])
     pos = frags.world_position()
@@ -261,7 +262,7 @@ def _clip_decision_may(draws, camera, clip, cap_mask):
     else:
         pixel = np.full(len(frags), 2.0 / (proj[1, 1] * camera.height))
     scale = np.maximum(np.linalg.norm(grad, axis=1) * pixel, 1e-12)
-    eps = edge_epsilon(camera.width, camera.height)
+    eps = edge_epsilon(camera.width, camera.height, min_bits=candidate_bits())
     res = resolve(frags, keep=g >= 0)
     return decision_may(frags, res, g / scale, 1.5 * eps) | dilate(cap_mask, 1)
 
@@ -489,6 +490,7 @@ def _vds_parity_building():
     from ..ldi import VolumetricDepthSprite
     from ..scenes import solid
     from ..conformance import edge_epsilon
+    from .allowances.precision import candidate_bits
     state = raster_state({})
     building = solid("building")
     resolution, axis, margin = 128, "z", 2
@@ -520,7 +522,8 @@ def _vds_parity_building():
     proj = camera.proj
     eye_z = -frags.eye_position()[winner[covered], 2]
     pixel = (eye_z if is_perspective(proj) else 1.0) * 2.0 / (proj[1, 1] * camera.height)
-    delta = 1.5 * edge_epsilon(camera.width, camera.height) * pixel + 1e-6
+    delta = 1.5 * edge_epsilon(camera.width, camera.height,
+                               min_bits=candidate_bits()) * pixel + 1e-6
     centre = inside.ravel()[covered]
     flip = np.zeros(len(pos), np.bool_)
     for e in np.eye(3):
@@ -550,6 +553,7 @@ def _clip_decision_may_multi(draws, camera, clips, cap_mask):
     from ..camera import is_perspective
     from ..clipsurface import clip_function
     from ..conformance import decision_may, edge_epsilon
+    from .allowances.precision import candidate_bits
     from .allowances.core import dilate
     frags = draw([d.mesh for d in draws], **camera.kwargs, model=[d.model for d in draws])
     pos = frags.world_position()
@@ -567,7 +571,7 @@ def _clip_decision_may_multi(draws, camera, clips, cap_mask):
         grad = np.stack([(clip_function(pos + h * e, clip) - clip_function(pos - h * e, clip))
                          / (2 * h) for e in np.eye(3)], axis=1)
         dist = np.minimum(dist, g / np.maximum(np.linalg.norm(grad, axis=1) * pixel, 1e-12))
-    eps = edge_epsilon(camera.width, camera.height)
+    eps = edge_epsilon(camera.width, camera.height, min_bits=candidate_bits())
     res = resolve(frags, keep=dist >= 0)
     return decision_may(frags, res, dist, 1.5 * eps) | dilate(cap_mask, 1)
 

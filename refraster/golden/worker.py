@@ -2,9 +2,9 @@
 
 ``python -m refraster.golden.worker TASKS_JSON NAME ...``
 
-``TASKS_JSON`` maps each task name to ``[registered scene, parameters]`` (the sweeps' and sizes'
-keyword arguments); a name of :data:`refraster._workers.WARM_TASKS` compiles kernels ahead
-instead. Each task is rendered by :func:`refraster.golden.generate.render_task` — the unit of
+``TASKS_JSON`` maps each task name to ``[registered scene, parameters, candidate bits]`` (the
+sweeps' and sizes' keyword arguments, the candidate's declared sub-pixel bits); a name of
+:data:`refraster._workers.WARM_TASKS` compiles kernels ahead instead. Each task is rendered by :func:`refraster.golden.generate.render_task` — the unit of
 work of the serial run, so the bytes are the same — in its own temporary directory; nothing is
 written anywhere else. Its answer is one JSON line on stdout, ``{"scene", "item", "files",
 "error"}``: the manifest entry and every file's bytes (base64) by its path relative to the
@@ -31,8 +31,8 @@ def main(argv=None):
     registry = available_scenes()
 
     def run(name):
-        scene, params = spec[name]
-        _, item, files = render_task(name, registry[scene], dict(params))
+        scene, params, bits = spec[name]
+        _, item, files = render_task(name, registry[scene], dict(params), bits)
         return {"item": item,
                 "files": {rel: base64.b64encode(data).decode("ascii")
                           for rel, data in files.items()}}

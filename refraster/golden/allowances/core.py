@@ -63,6 +63,7 @@ from ...conformance import (COLOR_TOL, DEPTH_EPS, MAY, MUST, MUST_NOT, NORMAL_TO
 from refraster.raster.state import RasterState
 
 from .conventions import depth_covered
+from .precision import candidate_bits, declared
 
 __all__ = ["scene_allowances", "tolerant_metrics", "dilate", "surface_step", "TOLERANT_CHECKS"]
 
@@ -74,7 +75,8 @@ EYE_DEPTH_ABS, EYE_DEPTH_REL = 1e-5, 4e-6
 BARY_TOL = 1e-3
 #: Second-order margin on the first-order "value changes by step · ε" estimate.
 SHIFT_MARGIN = 1.5
-#: Sub-pixel precisions an allowed rasterizer may snap to (docs/tolerance.md).
+#: Sub-pixel precisions an allowed rasterizer may snap to (docs/tolerance.md): from the
+#: candidate's declared bits (:mod:`~refraster.golden.allowances.precision`, at least 4) to 8.
 MIN_SNAP_BITS, MAX_SNAP_BITS = 4, 8
 
 
@@ -176,14 +178,17 @@ def _surface_labels(buffers):
     return np.where(prim >= 0, obj * (int(prim.max()) + 1) + prim, -1)
 
 
-def scene_allowances(scene, raster):
+def scene_allowances(scene, raster, bits=None):
     """Allowances of one scene, in its own conventions: derived on the equivalent scene in
     OpenGL's (:func:`refraster.golden.allowances.conventions.equivalent`) and moved back
-    (:func:`~refraster.golden.allowances.conventions.move_back`). Returns as
+    (:func:`~refraster.golden.allowances.conventions.move_back`), for a candidate of ``bits``
+    sub-pixel bits (4 to 8; default the declared ones,
+    :func:`refraster.golden.allowances.precision.candidate_bits`). Returns as
     :func:`gl_allowances`."""
     from .conventions import equivalent, move_back
-    eq_scene, eq_raster = equivalent(scene, raster)
-    arrays, info, checks = gl_allowances(eq_scene, eq_raster)
+    with declared(candidate_bits() if bits is None else bits):
+        eq_scene, eq_raster = equivalent(scene, raster)
+        arrays, info, checks = gl_allowances(eq_scene, eq_raster)
     move_back(arrays, scene, raster, eq_scene)
     return arrays, info, checks
 
@@ -194,7 +199,8 @@ def _geometry(raster):
 
 
 def gl_allowances(scene, raster):
-    """Allowances of one scene in OpenGL's conventions.
+    """Allowances of one scene in OpenGL's conventions, for a candidate of the declared
+    sub-pixel bits (:func:`refraster.golden.allowances.precision.candidate_bits`).
 
     Returns
     -------
@@ -212,7 +218,8 @@ def gl_allowances(scene, raster):
     geometry = bool(scene.geometry) and raster["depth_func"] == "less"
     clamp = bool(raster.get("depth_clamp", False))
     geom = _geometry(raster) if clamp else None
-    kw = dict(**cam.kwargs, model=models, cull=raster["cull"])
+    bits = candidate_bits()
+    kw = dict(**cam.kwargs, model=models, cull=raster["cull"], min_bits=bits)
     if clamp:
         kw["raster"] = geom
     tol = tolerance(meshes, **kw)
@@ -232,8 +239,9 @@ def gl_allowances(scene, raster):
         raise ValueError(f"GoldenScene.may must be (H, W) = {(cam.height, cam.width)}, got "
                          f"{extra.shape}")
     radius = int(scene.may_radius)
-    # slivers that may change facing at 4 bits (a gap in tolerance()'s shared-edge rule)
-    flip_id, flip_cov = facing_may(meshes, **cam.kwargs, model=models,
+    # slivers that may change facing at the candidate's bits (a gap in tolerance()'s
+    # shared-edge rule)
+    flip_id, flip_cov = facing_may(meshes, **cam.kwargs, model=models, min_bits=bits,
                                    **({"raster": geom} if clamp else {}))
     if geometry:
         coverage = masks.coverage.copy()
@@ -244,6 +252,7 @@ def gl_allowances(scene, raster):
         method = "geometry"
     else:
         edges_id, _ = edge_may(meshes, **cam.kwargs, model=models, cull=raster["cull"],
+                               min_bits=bits,
                                **({"raster": geom} if clamp else {}))
         id_may = dilate(edges_id | flip_id | extra, 1)
         if "prim_id" in buffers:
@@ -336,7 +345,11 @@ def gl_allowances(scene, raster):
             if "ghost" in buffers:
                 # ghost lines: α intervals from D's, the occluder's and the line's (ghosts.py)
                 from .ghosts import ghost_bounds
-                gb = ghost_bounds(scene, arrays, tol.eps)
+                # the line placement keeps the 4-bit ε (ghosts.LINE_BITS)
+                from ...conformance import edge_epsilon
+                from .ghosts import LINE_BITS
+                gb = ghost_bounds(scene, arrays, max(tol.eps, edge_epsilon(
+                    cam.width, cam.height, min_bits=LINE_BITS)))
                 if gb is not None:
                     arrays["ghost_lo"], arrays["ghost_hi"], arrays["ghost_zero"] = gb
                     checks["ghost"] = {"checks": ["bounds"], "lo": "ghost_lo", "hi": "ghost_hi",
@@ -375,13 +388,13 @@ def gl_allowances(scene, raster):
         # 4D halos: class range and alpha / colour intervals from the classification margins
         # (golden/allowances/halos.py)
         from .halos import HALO_CHECKS, halo_allowances
-        arrays.update(halo_allowances(scene))
+        arrays.update(halo_allowances(scene, bits))
         for key, (lo, hi) in HALO_CHECKS.items():
             if key in checks:
                 checks[key] = {"checks": ["bounds"], "lo": lo, "hi": hi}
     info = {"method": method, "eps": float(tol.eps), "depth_eps": float(tol.depth_eps),
             "normal_tol": NORMAL_TOL, "color_tol": COLOR_TOL, "may_radius": radius,
-            "min_subpixel_bits": 4}
+            "min_subpixel_bits": bits}
     return arrays, info, checks
 
 
@@ -719,7 +732,7 @@ def _cone(lo, hi):
     return c, ang
 
 
-def _snap_barycentrics(X, Y, cw, px, py, eps):
+def _snap_barycentrics(X, Y, cw, px, py, eps, min_bits=None):
     """What barycentrics an allowed rasterizer can give a face at a pixel centre it covers.
 
     ``X, Y (m, 3)`` the face's unsnapped window vertices (pixels, GL y-up), ``cw (m, 3)`` their
@@ -729,7 +742,9 @@ def _snap_barycentrics(X, Y, cw, px, py, eps):
     the union of
 
     * (snapped) every snapping the allowed variation permits — each window coordinate rounded
-      to the nearest multiple of ``2^−b``, ``b = 4…8``, either way where the float part ``δ`` of
+      to the nearest multiple of ``2^−b``, ``b`` from the candidate's declared bits
+      (``min_bits``; default :func:`~refraster.golden.allowances.precision.candidate_bits`)
+      to 8, either way where the float part ``δ`` of
       ``ε`` (float32 arithmetic in another order) reaches a rounding boundary — that covers the
       centre (both fill rules: edges included): ``λ_i = A_i / Σ A_j`` with ``A_i`` the doubled
       signed area of ``(p, V_j, V_k)``, ``β_i ∝ λ_i / w_i``;
@@ -741,8 +756,8 @@ def _snap_barycentrics(X, Y, cw, px, py, eps):
     the centre with front / back facing.
     """
     m = len(px)
-    delta = max(eps - math.sqrt(2.0) * (2.0 ** -(MIN_SNAP_BITS + 1) + 2.0 ** -(MAX_SNAP_BITS + 1)),
-                0.0)
+    b_min = candidate_bits() if min_bits is None else int(min_bits)
+    delta = max(eps - math.sqrt(2.0) * (2.0 ** -(b_min + 1) + 2.0 ** -(MAX_SNAP_BITS + 1)), 0.0)
     q_of = (np.ones((m, 3)), 1.0 / cw)
     lims = [(np.full((m, 3), np.inf), np.full((m, 3), -np.inf)) for _ in q_of]
     can = np.zeros((m, 2), np.bool_)
@@ -767,7 +782,7 @@ def _snap_barycentrics(X, Y, cw, px, py, eps):
             lo[ok] = np.minimum(lo[ok], bb)
             hi[ok] = np.maximum(hi[ok], bb)
 
-    for bits in range(MIN_SNAP_BITS, MAX_SNAP_BITS + 1):
+    for bits in range(b_min, MAX_SNAP_BITS + 1):
         sc = float(1 << bits)
         t = coords * sc
         base = np.floor(t)
@@ -980,6 +995,8 @@ def _face_outside(key, kind, cand, arrays, named, step, clear_depth, depth_func=
         if named is None:
             return np.zeros((h, w), np.bool_)
         if key == "front_facing":
+            if not len(arrays["set_facing"]):    # no pixel where the primitive may differ
+                return np.zeros((h, w), np.bool_)
             e = np.maximum(named, 0)
             facing = arrays["set_facing"][e]
             return id_may & (named >= 0) & (facing >= 0) & (c != (facing == 1))

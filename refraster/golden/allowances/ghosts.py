@@ -57,6 +57,11 @@ __all__ = ["ghost_bounds", "GHOST_ARRAYS"]
 F32 = 2.0 ** -24
 #: Margin on the edge ε, as the other intervals' (``SHIFT_MARGIN``).
 MARGIN = 1.5
+#: The sub-pixel bits of the edge ε the line placement uses, whatever the candidate declares
+#: for its triangles: a GPU draws ``GL_LINES`` with a line algorithm of its own (llvmpipe: a
+#: quad per line), whose fragments lie within the 4-bit ε of the diamond-exit ones but not
+#: within the 8-bit one (measured: llvmpipe at cutaway_shells (42, 33), (31, 41), (33, 40)).
+LINE_BITS = 4
 GHOST_ARRAYS = ("ghost_lo", "ghost_hi", "ghost_zero")
 
 

@@ -14,9 +14,11 @@ shifts, and only such voxels do: each test is monotone in its threshold):
 ==================  ==========================================================================
 shift               ε and where it comes from
 ==================  ==========================================================================
-sample position     the corners (±1/16, ±1/16) pixel: 4 sub-pixel bits snap each slice vertex
-                    by up to 1/32 pixel; a fill rule differs only for centres on an edge; an
-                    edge function is affine in the shift, so its extremes are at the corners
+sample position     the corners (±2^−b, ±2^−b) pixel, ``b`` the candidate's declared sub-pixel
+                    bits (:mod:`~refraster.golden.allowances.precision`; 1/256 at 8, 1/16 at
+                    4): b bits snap each slice vertex by up to 2^−(b+1) pixel; a fill rule
+                    differs only for centres on an edge; an edge function is affine in the
+                    shift, so its extremes are at the corners
 slice planes        ±``Z_REL``·max|z| (float32 rounding of the plane ``c_k`` and of the
                     tetrahedron vertices' z: a plane through a vertex)
 w_s (and a)         ±``T_EPS`` on ``|2t − 1|``: t interpolated with float32 barycentrics
@@ -24,7 +26,7 @@ w_s (and a)         ±``T_EPS`` on ``|2t − 1|``: t interpolated with float32 b
 ε of the occlusion  ε·0 and ε·2 (float32 δ and minD: the ε of the rule is itself
 rule                "1e-6·max|δ|", the size of float32 rounding of δ)
 float32 vertices    the thickened vertices and their attributes rounded to float32
-4 sub-pixel bits    the slice triangles snapped to 1/16 pixel instead of 1/256
+b sub-pixel bits    the slice triangles snapped to 2^−b pixel instead of 1/256 (b < 8)
 ==================  ==========================================================================
 
 From the renders (the kernel's optional per-voxel colour and opacity, ``voxel_rgba``):
@@ -48,8 +50,10 @@ import numpy as np
 
 __all__ = ["halo_allowances", "halo_variants", "HALO_CHECKS"]
 
-#: Sample-position shift (pixels): half of a 4-bit sub-pixel step, doubled for the fill rule.
-XY_SHIFT = 1.0 / 16.0
+def xy_shift(bits):
+    """Sample-position shift (pixels): half of a ``bits``-bit sub-pixel step, doubled for the
+    fill rule (1/16 at 4 bits, 1/256 at 8)."""
+    return 2.0 ** -int(bits)
 #: Relative float32 rounding of slice planes and vertex z (a few units of 2^-24).
 Z_REL = 4e-7
 #: Error of |2t − 1| from float32 barycentrics (3 products and sums at 2^-24, times 2).
@@ -134,29 +138,37 @@ def column_class(vol):
         (vol == 1).any(axis=0), 1, np.where((vol == 3).any(axis=0), 3, 0))).astype(np.int32)
 
 
-def halo_variants(p):
-    """The shifts of the module docstring, as keyword sets of :func:`render_variant`."""
+def halo_variants(p, bits=None):
+    """The shifts of the module docstring, as keyword sets of :func:`render_variant`, for a
+    candidate of ``bits`` sub-pixel bits (default the declared ones)."""
+    from ...halos4d.slicing import SUBPIXEL_BITS
+    from .precision import as_candidate_bits, candidate_bits
+    bits = as_candidate_bits(candidate_bits() if bits is None else bits, "bits")
+    shift = xy_shift(bits)
     zmax = max(abs(float(x)) for x in np.asarray(p["screen_bounds"], np.float64)[:, 2])
     out = [{}]
     for s in (-1.0, 1.0):
         # the square's corners: an edge function is affine in the shift, so its extremes over
         # the square are at the corners
-        out += [{"dxy": (s * XY_SHIFT, XY_SHIFT)}, {"dxy": (s * XY_SHIFT, -XY_SHIFT)},
+        out += [{"dxy": (s * shift, shift)}, {"dxy": (s * shift, -shift)},
                 {"dz": s * Z_REL * max(zmax, 1.0)}, {"dsw": s * T_EPS}, {"ddt": s * T_EPS}]
-    out += [{"eps_scale": 0.0}, {"eps_scale": 2.0}, {"f32": True}, {"bits": 4}]
+    out += [{"eps_scale": 0.0}, {"eps_scale": 2.0}, {"f32": True}]
+    if bits < SUBPIXEL_BITS:
+        out.append({"bits": bits})
     return out
 
 
-def halo_allowances(scene):
+def halo_allowances(scene, bits=None):
     """``tolerance.npz`` arrays of a 4D-halo scene: per-pixel class range and alpha / colour
-    intervals (module docstring)."""
+    intervals (module docstring), for a candidate of ``bits`` sub-pixel bits (default the
+    declared ones)."""
     p = dict(scene.parameters)
     surface = _surface(scene.maps)
     seen = None      # per voxel, the classes some shift gives it (bit c for class c)
     a_lo = a_hi = c_lo = c_hi = u_min = u_max = None
     sw = float(p["surface_width"])
     aa = float(p.get("antialias", sw))
-    for kw in halo_variants(p):
+    for kw in halo_variants(p, bits):
         rgb, a, vol, vox, alpha = render_variant(surface, p, voxels=True, **kw)
         u = _core_distance(vox[..., 3], alpha, sw, aa)
         u_min = u if u_min is None else np.fmin(u_min, u)

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ... import io as rio
+from ..allowances.precision import manifest_candidate_bits
 from ..io.buffers import preview, preview_range
 from ..io import write
 
@@ -697,7 +698,9 @@ def _page(root, comparison, manifest):
         f"<b>{html.escape(str(manifest.get('schema_version')))}</b>, refraster "
         f"{html.escape(gen['refraster'])}, numpy {html.escape(gen['numpy'])}, numba "
         f"{html.escape(gen['numba'])}; {html.escape(str(manifest['raster']['subpixel_bits']))} "
-        f"sub-pixel bits, fill rule {html.escape(manifest['raster']['fill_rule'])}. Candidate "
+        f"sub-pixel bits, fill rule {html.escape(manifest['raster']['fill_rule'])}; "
+        f"allowances for a candidate of {manifest_candidate_bits(manifest)} sub-pixel bits. "
+        f"Candidate "
         f"<code>{html.escape(str(comparison.candidate_dir))}</code>.</p>"
         f'<div class="scenes"><table class="metrics"><tr><th>scene</th><th>status</th>'
         f"<th>failing</th></tr>{''.join(overview)}</table></div>{sections}"

@@ -232,6 +232,12 @@ MANIFEST_SCHEMA = {
             "properties": {"subpixel_bits": {"type": "integer", "minimum": 0},
                            "fill_rule": {"type": "string"}},
         },
+        # optional, added without a version bump: the candidate's declared sub-pixel bits the
+        # allowances assume (a manifest without it was generated for 4)
+        "candidate": {
+            "type": "object", "required": ["subpixel_bits"], "additionalProperties": False,
+            "properties": {"subpixel_bits": {"type": "integer", "minimum": 4, "maximum": 8}},
+        },
         "scenes": {
             "type": "object",
             "propertyNames": _NAME,
