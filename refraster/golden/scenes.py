@@ -52,12 +52,12 @@ DEFAULT_RASTER = dict(subpixel_bits=8, fill_rule="llvmpipe", precision="float32"
 #: values; ``docs/architecture.md``, "Conventions"). A manifest's ``parameters.raster`` lists
 #: them only where they differ from :data:`DEFAULT_RASTER` (``scene.json`` always has them).
 CONVENTION_FIELDS = ("depth_range", "origin", "ndc_y", "depth_clamp", "depth_format")
-#: The multisample fields (:class:`refraster.RasterState`'s ``samples`` and
-#: ``sample_locations``; ``docs/multisample.md``) and their single-sample defaults. A scene
+#: The multisample fields (:class:`refraster.RasterState`'s ``samples``, ``sample_locations``
+#: and ``interpolation``; ``docs/multisample.md``) and their single-sample defaults. A scene
 #: stores them (``scene.json``'s ``"raster"``) only where it overrides them, so a
 #: single-sample package keeps the bytes it had before they existed; user positions are
 #: stored as a list of ``[x, y]`` pairs in 1/16 pixel.
-MULTISAMPLE_DEFAULTS = dict(samples=1, sample_locations="standard")
+MULTISAMPLE_DEFAULTS = dict(samples=1, sample_locations="standard", interpolation="center")
 
 #: Modules imported by :func:`available_scenes`; each registers its scenes on import.
 SCENE_MODULES = ("refraster.golden.technique_scenes", "refraster.golden.convention_scenes")

@@ -203,7 +203,7 @@ def prepare(meshes, *, view, proj, width, height, model=None, raster=None, scrat
                         state=state, scratch=scratch)
 
 
-def _prepare(meshes, *, view, proj, width, height, model, state, scratch):
+def _prepare(meshes, *, view, proj, width, height, model, state, scratch, multisample=False):
     view = as_matrix(view, "view")
     proj = as_matrix(proj, "proj")
     width, height = as_image_size(width, height)
@@ -250,9 +250,11 @@ def _prepare(meshes, *, view, proj, width, height, model, state, scratch):
     p.face_offsets = np.asarray(offsets, np.int64)
     p.clip = clip
     p.state = state
+    # multisampling: boxes widened by half a pixel, for samples away from the centre
+    pad = (1 << (state.subpixel_bits - 1)) if multisample else 0
     p.triangles = setup_triangles(clip, face, width, height, cull=cull_code(state),
                                   subpixel_bits=state.subpixel_bits, conv=conv_code(state),
-                                  scratch=scratch)
+                                  scratch=scratch, pad=pad)
     if prec == "float64":
         _check_divide(p.triangles, clip, vfirst, offsets, meshes)
     return p

@@ -26,7 +26,8 @@ import numpy as np
 
 __all__ = ["RasterState", "as_raster_state", "DEPTH_FUNC_NAMES", "CULL_MODES", "FRONT_FACES",
            "FILL_RULE_NAMES", "PRECISIONS", "NORMALS_MODES", "SUBPIXEL_BITS", "DEPTH_RANGES",
-           "ORIGINS", "NDC_Y", "DEPTH_FORMATS", "SAMPLE_COUNTS", "SAMPLE_PATTERNS"]
+           "ORIGINS", "NDC_Y", "DEPTH_FORMATS", "SAMPLE_COUNTS", "SAMPLE_PATTERNS",
+           "INTERPOLATIONS"]
 
 #: OpenGL's eight depth functions (``glDepthFunc``), comparing the incoming fragment's depth
 #: against the stored one.
@@ -55,6 +56,8 @@ SAMPLE_COUNTS = (1, 2, 4, 8, 16)
 #: Named sample patterns: Vulkan's standard sample locations (the same as Direct3D's), and the
 #: 4× pattern llvmpipe rasterizes with under OpenGL (``refraster.raster.samples``).
 SAMPLE_PATTERNS = ("standard", "gl_llvmpipe")
+#: Where a multisampled fragment's attributes are interpolated.
+INTERPOLATIONS = ("center", "centroid", "sample")
 
 
 def _sample_locations(value, samples):
@@ -167,6 +170,11 @@ class RasterState:
         too), llvmpipe's 4× pattern under OpenGL (``samples=4`` only), or one ``(x, y)`` per
         sample in 1/16 pixel, 0..15, from the pixel's upper-left corner as the picture is
         seen, x right and y down (``VK_EXT_sample_locations``' grid).
+    interpolation : {"center", "centroid", "sample"}
+        Where a multisampled fragment's attributes (barycentrics, so normals and colour) are
+        interpolated: the pixel centre, a centroid point (the centre when the primitive covers
+        every sample, else its covered sample nearest the centre) or each sample's own
+        position (sample shading). One sample per pixel: all three are the centre.
 
     Front faces, the fill rule and the window origin are defined as the picture is seen
     (row 0 at the top): ``front_face="ccw"`` is counter-clockwise on screen for every
@@ -199,6 +207,7 @@ class RasterState:
     depth_format: str = "float32"
     samples: int = 1
     sample_locations: object = "standard"
+    interpolation: str = "center"
 
     def __post_init__(self):
         put = object.__setattr__.__get__(self)
@@ -240,6 +249,7 @@ class RasterState:
             raise ValueError(f"raster.samples must be one of 1, 2, 4, 8, 16, got {n}")
         put("samples", int(n))
         put("sample_locations", _sample_locations(self.sample_locations, int(n)))
+        put("interpolation", _choice(self.interpolation, "interpolation", INTERPOLATIONS))
 
     def replace(self, **changes):
         """A copy with some fields changed (validated like a new value)."""

@@ -113,6 +113,7 @@ SCENE_SCHEMA = {
                                      "items": {"type": "array", "minItems": 2, "maxItems": 2,
                                                "items": {"type": "integer", "minimum": 0,
                                                          "maximum": 15}}},
+                "interpolation": {"enum": ["center", "centroid", "sample"]},
             },
         },
         "draws": {
