@@ -8,8 +8,6 @@ Vulkan's resolve modes (``VkResolveModeFlagBits``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from ._threads import frame_work, threads_for
@@ -30,7 +28,6 @@ __all__ = ["SampleFramebuffer", "render_samples", "resolve_color", "resolve_samp
 RESOLVE_MODES = ("sample_zero", "average", "min", "max")
 
 
-@dataclass
 class SampleFramebuffer:
     """A multisampled G-buffer: :class:`refraster.Framebuffer`'s buffers with a sample axis.
 
@@ -38,20 +35,29 @@ class SampleFramebuffer:
     ``normal``, ``barycentric``, ``color`` ``(H, W, S, 3)`` — sample ``s`` of pixel ``(r, c)``
     at ``[r, c, s]``, row 0 at the top, the samples in the pattern's index order. Each
     sample's values are those of the fragment that won its depth test, its attributes
-    interpolated where ``raster.interpolation`` says. ``positions``: ``(S, 2)`` the samples'
-    positions in pixels from the pixel's upper-left corner as the picture is seen, y down.
+    interpolated where ``raster.interpolation`` says. ``color`` is shaded when first read, as
+    :attr:`refraster.Framebuffer.color`. ``positions``: ``(S, 2)`` the samples' positions in
+    pixels from the pixel's upper-left corner as the picture is seen, y down; ``raster``: the
+    state it was rendered with.
     """
 
-    depth: np.ndarray
-    eye_depth: np.ndarray
-    normal: np.ndarray
-    prim_id: np.ndarray
-    object_id: np.ndarray
-    front_facing: np.ndarray
-    barycentric: np.ndarray
-    color: np.ndarray
-    positions: np.ndarray
-    raster: object = field(repr=False, default=None)
+    __slots__ = ("depth", "eye_depth", "normal", "prim_id", "object_id", "front_facing",
+                 "barycentric", "positions", "raster", "_shade", "_color")
+
+    def __init__(self, *, depth, eye_depth, normal, prim_id, object_id, front_facing,
+                 barycentric, color, positions, raster=None):
+        self.depth, self.eye_depth, self.normal = depth, eye_depth, normal
+        self.prim_id, self.object_id, self.front_facing = prim_id, object_id, front_facing
+        self.barycentric, self.positions, self.raster = barycentric, positions, raster
+        # an array, or a callable giving the (H, W, S, 3) colour when first read
+        self._shade, self._color = (color, None) if callable(color) else (None, color)
+
+    @property
+    def color(self):
+        if self._color is None:
+            self._color = self._shade()
+            self._shade = None
+        return self._color
 
     @property
     def samples(self):
@@ -103,12 +109,12 @@ def render_samples(meshes, *, view, proj, width, height, model=None, raster=None
         fb = _build(prep.meshes, prep.models, prep.view, prep.proj, depth.reshape(h, w * s),
                     prim_global.reshape(h, w * s), prep.face_offsets,
                     front.reshape(h, w * s), bary.reshape(h, w * s, 3), state.normals, bg)
-        color = np.asarray(fb.color)
     return SampleFramebuffer(
         depth=depth, eye_depth=fb.eye_depth.reshape(h, w, s),
         normal=fb.normal.reshape(h, w, s, 3), prim_id=fb.prim_id.reshape(h, w, s),
         object_id=fb.object_id.reshape(h, w, s), front_facing=front,
-        barycentric=bary, color=color.reshape(h, w, s, 3), positions=sample_points(state),
+        barycentric=bary, color=lambda: np.asarray(fb.color).reshape(h, w, s, 3),
+        positions=sample_points(state),
         raster=state)
 
 

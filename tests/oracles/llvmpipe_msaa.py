@@ -96,53 +96,77 @@ def sample_positions(fbo):
     return out
 
 
-def rasterize_samples(clip, faces, width, height):
-    """Per-sample primitive ids ``(H, W, 4)`` int32 (−1: no primitive), row 0 at the top, and
-    the sample positions llvmpipe reports."""
-    ctx = L.context()
-    ctx.__enter__()
-    mgl = L._STATE["moderngl"]
-    gl = _gl()
-    prog, resolve = _programs(ctx)
-    size = (int(width), int(height))
-    ids_ms = ctx.texture(size, 1, samples=SAMPLES, dtype="i4")
-    depth_ms = ctx.depth_texture(size, samples=SAMPLES)
-    gl["BindTexture"](_GL_TEXTURE_2D_MULTISAMPLE, depth_ms.glo)
-    gl["TexImage2DMultisample"](_GL_TEXTURE_2D_MULTISAMPLE, SAMPLES, _GL_DEPTH_COMPONENT32F,
-                                size[0], size[1], 1)
-    err = gl["GetError"]()
-    if err:
-        raise RuntimeError(f"GL error 0x{err:04x} re-specifying the multisample depth")
-    fbo = ctx.framebuffer(color_attachments=[ids_ms], depth_attachment=depth_ms)
-    out_tex = ctx.texture(size, 4, dtype="i4")
-    out_fbo = ctx.framebuffer(color_attachments=[out_tex])
-    pos = ctx.buffer(np.ascontiguousarray(clip, np.float32).tobytes())
-    ibo = ctx.buffer(np.ascontiguousarray(faces, np.int32).tobytes())
-    vao = ctx.vertex_array(prog, [(pos, "4f", "in_clip")], index_buffer=ibo,
-                           index_element_size=4)
-    quad = ctx.buffer(np.array([-1, -1, 3, -1, -1, 3], np.float32).tobytes())
-    qvao = ctx.vertex_array(resolve, [(quad, "2f", "in_pos")])
-    try:
-        fbo.use()
-        ctx.viewport = (0, 0, size[0], size[1])
+class MultisampleScene:
+    """The geometry uploaded and the 4× targets made once; :meth:`draw` renders a frame
+    (``glFinish`` included), :meth:`read` resolves the per-sample ids and reads them back.
+    Use as a context manager (releases the GL objects)."""
+
+    def __init__(self, clip, faces, width, height):
+        ctx = L.context()
+        ctx.__enter__()   # the oracle's context, whatever context is current
+        self.ctx, self.mgl, self.gl = ctx, L._STATE["moderngl"], _gl()
+        self.prog, self.resolve = _programs(ctx)
+        self.size = size = (int(width), int(height))
+        self.ids_ms = ctx.texture(size, 1, samples=SAMPLES, dtype="i4")
+        self.depth_ms = ctx.depth_texture(size, samples=SAMPLES)
+        gl = self.gl
+        gl["BindTexture"](_GL_TEXTURE_2D_MULTISAMPLE, self.depth_ms.glo)
+        gl["TexImage2DMultisample"](_GL_TEXTURE_2D_MULTISAMPLE, SAMPLES, _GL_DEPTH_COMPONENT32F,
+                                    size[0], size[1], 1)
+        err = gl["GetError"]()
+        if err:
+            raise RuntimeError(f"GL error 0x{err:04x} re-specifying the multisample depth")
+        self.fbo = ctx.framebuffer(color_attachments=[self.ids_ms],
+                                   depth_attachment=self.depth_ms)
+        self.out_tex = ctx.texture(size, 4, dtype="i4")
+        self.out_fbo = ctx.framebuffer(color_attachments=[self.out_tex])
+        self.pos = ctx.buffer(np.ascontiguousarray(clip, np.float32).tobytes())
+        self.ibo = ctx.buffer(np.ascontiguousarray(faces, np.int32).tobytes())
+        self.vao = ctx.vertex_array(self.prog, [(self.pos, "4f", "in_clip")],
+                                    index_buffer=self.ibo, index_element_size=4)
+        self.quad = ctx.buffer(np.array([-1, -1, 3, -1, -1, 3], np.float32).tobytes())
+        self.qvao = ctx.vertex_array(self.resolve, [(self.quad, "2f", "in_pos")])
+        self.positions = sample_positions(self.fbo)
+
+    def draw(self):
+        ctx, mgl = self.ctx, self.mgl
+        ctx.__enter__()
+        self.fbo.use()
+        ctx.viewport = (0, 0, self.size[0], self.size[1])
         ctx.disable(mgl.CULL_FACE | mgl.BLEND)
         ctx.enable(mgl.DEPTH_TEST)
         ctx.depth_func = "<"
-        minus = (ctypes.c_int * 4)(-1, -1, -1, -1)
         ctx.clear(depth=1.0)
-        gl["ClearBufferiv"](0x1800, 0, minus)   # GL_COLOR: an integer clear to -1
-        positions = sample_positions(fbo)
-        fbo.use()
-        vao.render(mgl.TRIANGLES)
-        out_fbo.use()
-        ctx.disable(mgl.DEPTH_TEST)
-        ids_ms.use(location=0)
-        resolve["u_ids"].value = 0
-        qvao.render(mgl.TRIANGLES)
+        minus = (ctypes.c_int * 4)(-1, -1, -1, -1)
+        self.gl["ClearBufferiv"](0x1800, 0, minus)   # GL_COLOR: an integer clear to -1
+        self.vao.render(mgl.TRIANGLES)
         ctx.finish()
-        a = np.frombuffer(out_tex.read(), np.int32).reshape(size[1], size[0], 4)
-        return np.ascontiguousarray(a[::-1]), positions
-    finally:
-        for r in (qvao, quad, vao, ibo, pos, out_fbo, out_tex, fbo, depth_ms, ids_ms):
+
+    def read(self):
+        """Per-sample ids ``(H, W, 4)`` int32, row 0 at the top."""
+        ctx, mgl = self.ctx, self.mgl
+        self.out_fbo.use()
+        ctx.disable(mgl.DEPTH_TEST)
+        self.ids_ms.use(location=0)
+        self.resolve["u_ids"].value = 0
+        self.qvao.render(mgl.TRIANGLES)
+        ctx.finish()
+        a = np.frombuffer(self.out_tex.read(), np.int32).reshape(self.size[1], self.size[0], 4)
+        return np.ascontiguousarray(a[::-1])
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        for r in (self.qvao, self.quad, self.vao, self.ibo, self.pos, self.out_fbo,
+                  self.out_tex, self.fbo, self.depth_ms, self.ids_ms):
             r.release()
         L._STATE["parking"].use()
+
+
+def rasterize_samples(clip, faces, width, height):
+    """Per-sample primitive ids ``(H, W, 4)`` int32 (−1: no primitive), row 0 at the top, and
+    the sample positions llvmpipe reports."""
+    with MultisampleScene(clip, faces, width, height) as sc:
+        sc.draw()
+        return sc.read(), sc.positions
