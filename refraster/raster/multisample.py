@@ -117,26 +117,41 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
                 r0 += sy0
                 r1 += sy1
                 r2 += sy2
-        # write the winners: face, facing, depth and the barycentrics at the interpolation point
+        # write the winners: face, facing, depth and the barycentrics at the interpolation
+        # point; the set-up (_load, 1/areas) is redone only when the item changes, the edge
+        # values at the pixel centre once per pixel and item
+        last = lists[starts[tile]]
+        (X0, Y0, X1, Y1, X2, Y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
+         iw2, area, prim, front, piece) = _load(last, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
+                                                sIW, sXf, sYf, sprim, sfront, sarea)
+        inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
+        inv_area = 1.0 / np.float64(area)
+        e0 = e1 = e2 = c0 = c1 = c2 = np.int64(0)
         for y in range(ty0, ty1 + 1):
             row = height - 1 - y
             for x in range(tx0, tx1 + 1):
+                fresh = True
                 for s in range(ns):
                     item = win[y - ty0, x - tx0, s]
                     if item == NO_ITEM:
                         continue
-                    (X0, Y0, X1, Y1, X2, Y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
-                     iw2, area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf,
-                                                            sX, sY, sZ, sIW, sXf, sYf, sprim,
-                                                            sfront, sarea)
-                    inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
-                    inv_area = 1.0 / np.float64(area)
+                    if item != last:
+                        last = item
+                        fresh = True
+                        (X0, Y0, X1, Y1, X2, Y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0,
+                         iw1, iw2, area, prim, front, piece) = _load(
+                            item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf,
+                            sprim, sfront, sarea)
+                        inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
+                        inv_area = 1.0 / np.float64(area)
                     o_depth[row, x, s] = zbuf[y - ty0, x - tx0, s]
                     o_prim[row, x, s] = prim
                     o_front[row, x, s] = front
-                    e0, _, _, c0 = _edge(X1, Y1, X2, Y2, bits, rule, x, y)
-                    e1, _, _, c1 = _edge(X2, Y2, X0, Y0, bits, rule, x, y)
-                    e2, _, _, c2 = _edge(X0, Y0, X1, Y1, bits, rule, x, y)
+                    if fresh:
+                        e0, _, _, c0 = _edge(X1, Y1, X2, Y2, bits, rule, x, y)
+                        e1, _, _, c1 = _edge(X2, Y2, X0, Y0, bits, rule, x, y)
+                        e2, _, _, c2 = _edge(X0, Y0, X1, Y1, bits, rule, x, y)
+                        fresh = False
                     # the point: the centre (offset 0) or a sample
                     px = np.int64(0)
                     py = np.int64(0)
