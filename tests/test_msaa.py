@@ -144,11 +144,21 @@ def test_scene_packages_store_the_sample_fields():
 
 
 def test_gl_package_reader_refuses_multisample_packages(tmp_path):
-    from refraster.gl.package import PackageError
-    from refraster.gl import package as P
-    src = (Path(P.__file__)).read_text()
-    assert "raster.samples must be 1 for this backend" in src
-    assert issubclass(PackageError, ValueError)
+    from refraster.gl.package import PackageError, read_scene
+    eye = np.eye(4).tolist()
+    doc = {"schema": "refraster.scene", "schema_version": 1,
+           "viewport": {"width": 8, "height": 8}, "camera": {"view": eye, "projection": eye},
+           "raster": {"cull": "none", "depth_func": "less", "front_face": "ccw",
+                      "normals": "flat", "clear_depth": 1.0}, "draws": []}
+    (tmp_path / "scene.json").write_text(json.dumps(doc))
+    with pytest.raises(PackageError) as err:               # one sample: past the raster
+        read_scene(tmp_path)
+    assert "shading" in str(err.value)
+    for extra in ({"samples": 4}, {"sample_locations": [[8, 8]]}):
+        doc["raster"] = {**doc["raster"], **extra}
+        (tmp_path / "scene.json").write_text(json.dumps(doc))
+        with pytest.raises(PackageError, match="raster.samples must be 1 for this backend"):
+            read_scene(tmp_path)
 
 
 # ------------------------------------------------------------------ the float64 twin
