@@ -7,6 +7,7 @@ for a wrong shape or value.
 
 from __future__ import annotations
 
+import dataclasses
 import numbers
 
 import numpy as np
@@ -118,3 +119,35 @@ def as_real(value, name, *, lo=None, hi=None, lo_open=False, hi_open=False):
     if hi is not None and (value > hi or (hi_open and value == hi)):
         raise ValueError(f"{name} must be {'<' if hi_open else '<='} {hi}, got {value}")
     return value
+
+
+def as_flag(value, name):
+    """A bool (NumPy's too); anything else refused with one line naming ``name``."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be a bool, got {type(value).__name__}")
+    return bool(value)
+
+
+def as_colour(value, name):
+    """A finite RGB triple as a tuple of three floats (so that option values compare and hash)."""
+    return tuple(float(c) for c in as_float_array(value, name, shape=(3,)))
+
+
+class OptionValue:
+    """Base of the frozen option values of the techniques: ``replace`` gives a validated copy."""
+
+    def replace(self, **changes):
+        """A copy with some fields changed (validated like a new value)."""
+        return dataclasses.replace(self, **changes)
+
+
+def as_option(value, cls, name, *, optional=False):
+    """``value`` if it is a ``cls``; ``None`` too with ``optional``; anything else refused.
+
+    The message names the class by its public path (``refraster.cutaway.Cutaway``)."""
+    if isinstance(value, cls) or (optional and value is None):
+        return value
+    package = cls.__module__.rsplit(".", 1)[0]
+    none = " (or None)" if optional else ""
+    raise TypeError(f"{name} must be a {package}.{cls.__name__}{none}, got "
+                    f"{type(value).__name__}")

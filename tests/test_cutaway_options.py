@@ -9,6 +9,7 @@ import pytest
 
 from refraster.cutaway import CutSurfaces, Cutaway, GhostLines
 from refraster.cutaway.surface import FLOOR_MARGIN
+from option_values import assert_refused_with_one_line
 
 #: (value class, field, bad value, exception, the error's first words)
 BAD = [
@@ -53,14 +54,7 @@ BAD = [
 @pytest.mark.parametrize("cls, name, bad, exc, words", BAD,
                          ids=[f"{c.__name__}.{n}={b!r}" for c, n, b, _, _ in BAD])
 def test_a_bad_field_is_refused_with_one_line_naming_it(cls, name, bad, exc, words):
-    with pytest.raises(exc) as info:
-        cls(**{name: bad})
-    message = str(info.value)
-    assert message.startswith(words), message
-    assert "\n" not in message
-    # replace() validates like a new value
-    with pytest.raises(exc, match="^" + words.split(" ")[0].replace(".", r"\.")):
-        cls().replace(**{name: bad})
+    assert_refused_with_one_line(cls, name, bad, exc, words)
 
 
 def test_defaults_are_the_papers_choices():
@@ -106,3 +100,15 @@ def test_values_are_immutable_normalized_and_compare():
         c.angle = 0.2
     with pytest.raises(dataclasses.FrozenInstanceError):
         GhostLines().distance = 1.0
+
+
+def test_an_option_of_the_wrong_type_is_refused_by_its_public_name():
+    from refraster._validate import as_option
+    from refraster.halos4d import Halos
+    with pytest.raises(TypeError, match=r"^cutaway must be a refraster\.cutaway\.Cutaway, got dict$"):
+        as_option({}, Cutaway, "cutaway")
+    with pytest.raises(TypeError, match=r"^ghosts must be a refraster\.cutaway\.GhostLines \(or None\)"):
+        as_option(1, GhostLines, "ghosts", optional=True)
+    with pytest.raises(TypeError, match=r"^halos must be a refraster\.halos4d\.Halos, got Cutaway$"):
+        as_option(Cutaway(), Halos, "halos")
+    assert as_option(None, GhostLines, "ghosts", optional=True) is None

@@ -16,13 +16,13 @@ are kept as tuples of floats: the values compare with ``==`` and hash.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from .._validate import as_choice, as_float_array, as_image_size, as_real
+from .._validate import (OptionValue, as_choice, as_colour, as_flag, as_float_array,
+                         as_image_size, as_real)
 from .flood import VARIANTS
 from .lines import GHOST_CREASE_ANGLE
 from .surface import FLOOR_MARGIN, as_angles
@@ -36,26 +36,10 @@ GHOST_SOURCES = ("lines", "visible")
 GHOST_DISTANCE_FRACTION = 0.1
 
 
-def _flag(value, name):
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be a bool, got {type(value).__name__}")
-    return bool(value)
-
-
-def _colour(value, name):
-    return tuple(float(c) for c in as_float_array(value, name, shape=(3,)))
-
-
-class _Value:
-    """``replace`` for the frozen option values (a copy, validated like a new value)."""
-
-    def replace(self, **changes):
-        """A copy with some fields changed (validated like a new value)."""
-        return dataclasses.replace(self, **changes)
 
 
 @dataclass(frozen=True)
-class Cutaway(_Value):
+class Cutaway(OptionValue):
     """The cutaway surface D (Burns & Finkelstein Sec. 3, 5, 6; MATH.md §4).
 
     Parameters
@@ -106,13 +90,13 @@ class Cutaway(_Value):
         put("angle", float(thetas[0]) if np.ndim(self.angle) == 0
             else tuple(float(t) for t in thetas))
         put("variant", as_choice(self.variant, "cutaway.variant", VARIANTS + ("exact",)))
-        put("perspective_compensation", _flag(self.perspective_compensation,
+        put("perspective_compensation", as_flag(self.perspective_compensation,
                                               "cutaway.perspective_compensation"))
         if self.edge_compression is not None:
             put("edge_compression", as_real(self.edge_compression, "cutaway.edge_compression",
                                             lo=0.0))
         if self.floor_normal is not None:
-            n = _colour(self.floor_normal, "cutaway.floor_normal")
+            n = as_colour(self.floor_normal, "cutaway.floor_normal")
             if not any(n):
                 raise ValueError("cutaway.floor_normal must not be zero")
             put("floor_normal", n)
@@ -130,7 +114,7 @@ class Cutaway(_Value):
 
 
 @dataclass(frozen=True)
-class CutSurfaces(_Value):
+class CutSurfaces(OptionValue):
     """What the cut looks like (Burns & Finkelstein Sec. 4.1–4.2; MATH.md D-C8 … D-C10).
 
     Parameters
@@ -156,15 +140,15 @@ class CutSurfaces(_Value):
 
     def __post_init__(self):
         put = object.__setattr__.__get__(self)
-        put("shade", _flag(self.shade, "cut_surfaces.shade"))
+        put("shade", as_flag(self.shade, "cut_surfaces.shade"))
         if self.color is not None:
-            put("color", _colour(self.color, "cut_surfaces.color"))
-        put("dilation", _flag(self.dilation, "cut_surfaces.dilation"))
-        put("outlines", _flag(self.outlines, "cut_surfaces.outlines"))
+            put("color", as_colour(self.color, "cut_surfaces.color"))
+        put("dilation", as_flag(self.dilation, "cut_surfaces.dilation"))
+        put("outlines", as_flag(self.outlines, "cut_surfaces.outlines"))
 
 
 @dataclass(frozen=True)
-class GhostLines(_Value):
+class GhostLines(OptionValue):
     """Ghost lines (Burns & Finkelstein Sec. 4.3, Fig. 4d–e; MATH.md D-C11).
 
     ``render_cutaway(ghosts=None)`` draws no ghost lines; a :class:`GhostLines` value always
@@ -203,14 +187,5 @@ class GhostLines(_Value):
                 raise ValueError("ghosts.distance must be > 0, got 0.0 (ghosts=None draws no "
                                  "ghost lines)")
             put("distance", distance)
-        put("fade", _flag(self.fade, "ghosts.fade"))
+        put("fade", as_flag(self.fade, "ghosts.fade"))
         put("crease_angle", as_real(self.crease_angle, "ghosts.crease_angle", lo=0.0, hi=180.0))
-
-
-def as_option(value, cls, name, *, optional=False):
-    """``value`` if it is a ``cls``; ``None`` too with ``optional``; anything else refused."""
-    if isinstance(value, cls) or (optional and value is None):
-        return value
-    none = " (or None)" if optional else ""
-    raise TypeError(f"{name} must be a refraster.cutaway.{cls.__name__}{none}, got "
-                    f"{type(value).__name__}")

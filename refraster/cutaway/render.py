@@ -9,11 +9,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import framebuffer as _fb
-from .._validate import as_image_size, as_matrix
+from .._validate import as_image_size, as_matrix, as_option
 from ..raster.state import as_raster_state, require_default
 from ..mesh import as_meshes
 from .lines import feature_segments, ghost_alpha
-from .options import GHOST_DISTANCE_FRACTION, Cutaway, CutSurfaces, GhostLines, as_option
+from .options import GHOST_DISTANCE_FRACTION, Cutaway, CutSurfaces, GhostLines
 from .surface import (as_angles, cutaway_surface, min_filter_3x3, ndc_to_eye_depth, pixel_ndc,
                       unproject, upsample_bilinear)
 

@@ -19,12 +19,12 @@ are kept as tuples of floats: the values compare with ``==`` and hash.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
-from .._validate import as_choice, as_float_array, as_matrix, as_real
+from .._validate import (OptionValue, as_choice, as_colour, as_flag, as_float_array, as_matrix,
+                         as_real)
 from .thicken import SPLITS
 from .transforms import PROJECTIONS
 
@@ -36,26 +36,10 @@ AMBIENT = 0.3
 STEREO_ANGLE = 6.0
 
 
-def _flag(value, name):
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be a bool, got {type(value).__name__}")
-    return bool(value)
-
-
-def _colour(value, name):
-    return tuple(float(c) for c in as_float_array(value, name, shape=(3,)))
-
-
-class _Value:
-    """``replace`` for the frozen option values (a copy, validated like a new value)."""
-
-    def replace(self, **changes):
-        """A copy with some fields changed (validated like a new value)."""
-        return dataclasses.replace(self, **changes)
 
 
 @dataclass(frozen=True)
-class View4D(_Value):
+class View4D(OptionValue):
     """How a 4D surface is seen (Wang et al. Sec. 4.2; MATH.md §5.1–5.2).
 
     Parameters
@@ -115,7 +99,7 @@ class View4D(_Value):
 
 
 @dataclass(frozen=True)
-class Halos(_Value):
+class Halos(OptionValue):
     """The depth-dependent volumetric halos (Wang et al. Sec. 4.3–4.6, Eq. 2–3; MATH.md §5.3–5.4).
 
     Parameters
@@ -174,7 +158,7 @@ class Halos(_Value):
 
     def __post_init__(self):
         put = object.__setattr__.__get__(self)
-        put("enabled", _flag(self.enabled, "halos.enabled"))
+        put("enabled", as_flag(self.enabled, "halos.enabled"))
         if self.rho is not None:
             put("rho", as_real(self.rho, "halos.rho", lo=0.0, lo_open=True))
         if self.delta_d is not None:
@@ -191,7 +175,7 @@ class Halos(_Value):
 
 
 @dataclass(frozen=True)
-class HaloStyle(_Value):
+class HaloStyle(OptionValue):
     """How the surface and its halos are drawn (Wang et al. Sec. 4.6, Figs. 3(e), 5(b), 8).
 
     Parameters
@@ -230,18 +214,10 @@ class HaloStyle(_Value):
         put = object.__setattr__.__get__(self)
         put("opacity", as_real(self.opacity, "style.opacity", lo=0.0, hi=1.0, lo_open=True))
         put("ambient", as_real(self.ambient, "style.ambient", lo=0.0, hi=1.0))
-        put("halo_color", _colour(self.halo_color, "style.halo_color"))
+        put("halo_color", as_colour(self.halo_color, "style.halo_color"))
         put("halo_opacity", as_real(self.halo_opacity, "style.halo_opacity", lo=0.0, hi=1.0,
                                     hi_open=True))
         if self.boundary_color is not None:
-            put("boundary_color", _colour(self.boundary_color, "style.boundary_color"))
+            put("boundary_color", as_colour(self.boundary_color, "style.boundary_color"))
         put("boundary_width", as_real(self.boundary_width, "style.boundary_width", lo=0.0,
                                       hi=1.0, lo_open=True, hi_open=True))
-
-
-def as_option(value, cls, name):
-    """``value`` if it is a ``cls``; anything else refused with one line."""
-    if isinstance(value, cls):
-        return value
-    raise TypeError(f"{name} must be a refraster.halos4d.{cls.__name__}, got "
-                    f"{type(value).__name__}")

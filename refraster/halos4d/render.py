@@ -45,14 +45,14 @@ import numpy as np
 from numba import njit, prange
 
 from .._config import IJIT, JIT, PJIT
-from .._validate import as_choice, as_float_array, as_image_size, as_real
+from .._validate import as_choice, as_float_array, as_image_size, as_option, as_real
 from ..raster.rasterizer import _inv_float_area, lambdas, row_span
 from .slicing import (MAX_SLICES, SUBPIXEL_BITS, _slice, _window_vertex, ortho_ndc,
                       setup_window)
 from .surfaces import Surface4D
 from .thicken import (RHO_FRACTION, default_halo_parameters, split_prisms, steiner_values,
                       thicken, thickening_normals)
-from .options import AMBIENT, Halos, HaloStyle, View4D, as_option
+from .options import AMBIENT, Halos, HaloStyle, View4D
 from .transforms import project, rotate_3d
 
 __all__ = ["render_halos", "render_halos_pair", "HaloRender", "prepare", "HaloGeometry", "slice_alpha",
