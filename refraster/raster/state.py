@@ -304,7 +304,9 @@ def require_single_sample(state, where):
 
 def require_default(state, fields, where):
     """Refuse, with one line, a state whose ``fields`` differ from the default: for a technique
-    that does not honour them (yet), a silent default would be a wrong picture."""
+    that does not honour them (yet), a silent default would be a wrong picture. A multisample
+    state is refused too (:func:`require_single_sample`): no technique makes samples."""
+    require_single_sample(state, where)
     for f in fields:
         if getattr(state, f) != getattr(DEFAULT, f):
             raise ValueError(f"raster.{f} must be {getattr(DEFAULT, f)!r} for {where} (it "
