@@ -127,6 +127,7 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
         inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
         inv_area = 1.0 / np.float64(area)
         e0 = e1 = e2 = c0 = c1 = c2 = np.int64(0)
+        q0 = q1 = q2 = np.float32(0.0)
         for y in range(ty0, ty1 + 1):
             row = height - 1 - y
             for x in range(tx0, tx1 + 1):
@@ -147,6 +148,13 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
                     o_depth[row, x, s] = zbuf[y - ty0, x - tx0, s]
                     o_prim[row, x, s] = prim
                     o_front[row, x, s] = front
+                    if not fresh and interp != 2:
+                        # the same face at the same point (the centre or the centroid) as the
+                        # pixel's previous sample: the same barycentrics
+                        o_bary[row, x, s, 0] = q0
+                        o_bary[row, x, s, 1] = q1
+                        o_bary[row, x, s, 2] = q2
+                        continue
                     if fresh:
                         e0, _, _, c0 = _edge(X1, Y1, X2, Y2, bits, rule, x, y)
                         e1, _, _, c1 = _edge(X2, Y2, X0, Y0, bits, rule, x, y)
