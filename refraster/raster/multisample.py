@@ -28,7 +28,7 @@ from numba import njit, prange
 from .._config import IJIT, PJIT
 from .rasterizer import (NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geometry,
                          _inv_float_area, _load, _setup, bin_primitives, depth_test,
-                         perspective_bary, tile_rect)
+                         perspective_bary, row_span, tile_rect)
 
 #: ``RasterState.interpolation`` names and the kernel's codes.
 INTERPOLATIONS = {"center": 0, "centroid": 1, "sample": 2}
@@ -92,28 +92,28 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
             dx0, dy0 = sy0 >> bits, -(sx0 >> bits)
             dx1, dy1 = sy1 >> bits, -(sx1 >> bits)
             dx2, dy2 = sy2 >> bits, -(sx2 >> bits)
+            # each sample's row span (row_span: exact, every sample in it is covered), so no
+            # edge test and no sample outside the triangle's rows is visited
+            nx = bx1 - bx0 + 1
             for y in range(by0, by1 + 1):
-                e0, e1, e2 = r0, r1, r2
                 ly = y - ty0
-                for x in range(bx0, bx1 + 1):
-                    lx = x - tx0
-                    for s in range(ns):
-                        a0 = e0 + dx0 * oy[s] - dy0 * ox[s]
-                        a1 = e1 + dx1 * oy[s] - dy1 * ox[s]
-                        a2 = e2 + dx2 * oy[s] - dy2 * ox[s]
-                        if a0 >= 0 and a1 >= 0 and a2 >= 0:
-                            cx = np.float64(x) + 0.5 + fox[s]
-                            cy = np.float64(y) + 0.5 + foy[s]
-                            z = _depth_at(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, cx, cy,
-                                          np.float64(a0 + b0) * inv_area,
-                                          np.float64(a1 + b1) * inv_area,
-                                          np.float64(a2 + b2) * inv_area)
-                            if depth_test(func, z, zbuf[ly, lx, s]):
-                                zbuf[ly, lx, s] = z
-                                win[ly, lx, s] = item
-                    e0 += sx0
-                    e1 += sx1
-                    e2 += sx2
+                for s in range(ns):
+                    d0 = dx0 * oy[s] - dy0 * ox[s]
+                    d1 = dx1 * oy[s] - dy1 * ox[s]
+                    d2 = dx2 * oy[s] - dy2 * ox[s]
+                    a, b = row_span(r0 + d0, sx0, r1 + d1, sx1, r2 + d2, sx2, nx)
+                    cy = np.float64(y) + 0.5 + foy[s]
+                    for i in range(a, b + 1):
+                        x = bx0 + i
+                        cx = np.float64(x) + 0.5 + fox[s]
+                        z = _depth_at(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, cx, cy,
+                                      np.float64(r0 + d0 + sx0 * i + b0) * inv_area,
+                                      np.float64(r1 + d1 + sx1 * i + b1) * inv_area,
+                                      np.float64(r2 + d2 + sx2 * i + b2) * inv_area)
+                        lx = x - tx0
+                        if depth_test(func, z, zbuf[ly, lx, s]):
+                            zbuf[ly, lx, s] = z
+                            win[ly, lx, s] = item
                 r0 += sy0
                 r1 += sy1
                 r2 += sy2
