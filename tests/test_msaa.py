@@ -656,3 +656,26 @@ def test_techniques_refuse_a_multisample_state():
         with pytest.raises(ValueError, match="raster.samples must be 1 .*render_samples"):
             fn(*args, view=EYE, proj=EYE, width=8, height=8,
                raster=RasterState(samples=4))
+
+
+@pytest.mark.parametrize("samples", [4, 8])
+def test_vulkan_window_is_the_gl_picture_mirrored(samples):
+    """Under ``ndc_y="down"`` with ``origin="upper_left"`` the same clip coordinates make the
+    picture mirrored top to bottom with the same window numbers (so the same snapping): the
+    frame is the OpenGL frame flipped, rendered with the pattern mirrored and the fill rule that
+    owns top edges instead of bottom ones (the rule and the pattern are the picture's): the
+    same faces at every sample, the facing turned."""
+    w, h = 31, 22
+    v, f = _soup(samples, 40, w, h, grid=True)
+    pts = SPEC[samples]
+    mirrored = [(x, 16 - y) for x, y in pts]
+    assert all(0 < y for _, y in pts)   # 4x, 8x: every mirror image is on the 0..15 grid
+    vk = _render(v, f, w, h, samples=samples, ndc_y="down", origin="upper_left")
+    gl = _render(v, f, w, h, samples=samples, fill_rule="top-left",
+                 sample_locations=mirrored)
+    assert np.array_equal(vk.prim_id, gl.prim_id[::-1])
+    # the depth plane is evaluated in each window's own float32 coordinates: rounding apart
+    np.testing.assert_allclose(vk.depth, gl.depth[::-1], atol=3e-7, rtol=0)
+    cov = vk.prim_id >= 0
+    assert cov.any()
+    assert np.array_equal(vk.front_facing[cov], ~gl.front_facing[::-1][cov])
