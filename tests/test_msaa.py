@@ -679,3 +679,19 @@ def test_vulkan_window_is_the_gl_picture_mirrored(samples):
     cov = vk.prim_id >= 0
     assert cov.any()
     assert np.array_equal(vk.front_facing[cov], ~gl.front_facing[::-1][cov])
+
+
+def test_reversed_depth_per_sample():
+    """``depth_func="greater"`` with the depth cleared to 0 on the scene with z negated picks
+    the same face at every sample as ``"less"`` on the scene (window depth 1 − z there)."""
+    w, h = 27, 19
+    v, f = _soup(21, 40, w, h)
+    near = _render(v, f, w, h, samples=8)
+    flip = v * np.array([1, 1, -1], np.float32)
+    far = _render(flip, f, w, h, samples=8, depth_func="greater", clear_depth=0.0)
+    same = near.prim_id == far.prim_id
+    tw = twin(v, f, w, h, SPEC[8])
+    assert (same | (np.abs(tw[2] - tw[1]) < 1e-5)).all()
+    cov = near.prim_id >= 0
+    np.testing.assert_allclose(far.depth[cov], 1.0 - near.depth[cov], atol=2e-7)
+    assert (far.depth[~cov] == 0.0).all()
