@@ -8,6 +8,7 @@ from .framebuffer import Framebuffer, normalized_linear_depth, render
 from .mesh import Mesh, as_mesh
 from .raster import Fragments, Resolved, concat, draw, rasterize, resolve
 from .raster.state import RasterState
+from .multisample import SampleFramebuffer, render_samples, resolve_color, resolve_samples
 
 try:
     __version__ = _version("refraster")
@@ -17,5 +18,6 @@ except PackageNotFoundError:  # running from a source tree that was not installe
 __all__ = [
     "render", "draw", "rasterize", "resolve", "concat", "RasterState", "Framebuffer", "Fragments", "Resolved",
     "normalized_linear_depth", "Mesh", "as_mesh", "Camera", "camera", "look_at", "perspective",
-    "frustum", "orthographic", "__version__",
+    "frustum", "orthographic", "__version__", "render_samples", "resolve_color",
+    "resolve_samples", "SampleFramebuffer",
 ]

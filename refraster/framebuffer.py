@@ -15,7 +15,7 @@ from ._threads import frame_work, threads_for
 from ._validate import as_float_array, as_image_size, as_real
 from .mesh import as_meshes, smooth_normals
 from .raster import DEPTH_FUNCS, Fragments, facing, prepare, resolve
-from .raster.state import as_raster_state
+from .raster.state import as_raster_state, require_single_sample
 from .raster.fragments import _interpolate
 from .raster.gbuffer import clear_spans, finalize, per_face_normals, readonly, shade
 from .raster.rasterizer import fused
@@ -547,7 +547,7 @@ def render(meshes, *, view, proj, width, height, raster=None, model=None, fragme
     a frame of the same thread is in progress: each call makes its own frame
     (docs/reliability.md).
     """
-    state = as_raster_state(raster)
+    state = require_single_sample(as_raster_state(raster), "render")
     bg = as_float_array(background, "background", shape=(3,))
     if fragment_stage is not None and not callable(fragment_stage):
         raise TypeError("fragment_stage must be callable: frags -> keep mask")

@@ -32,7 +32,7 @@ from ._config import IJIT, JIT, PJIT
 from ._validate import as_choice, as_float_array, as_size
 from .mesh import as_mesh
 from .raster.rasterizer import DEPTH_FUNCS, depth_test
-from .raster.state import RasterState, as_raster_state
+from .raster.state import RasterState, as_raster_state, require_single_sample
 
 __all__ = ["LayeredDepthImage", "peel", "peel_fragments", "VolumetricDepthSprite",
            "NonWatertightWarning", "MODES", "RULES", "AXES"]
@@ -240,7 +240,7 @@ PEEL_DEPTH_FUNCS = ("less", "lequal", "greater", "gequal")
 
 
 def _peel_state(raster):
-    state = as_raster_state(raster)
+    state = require_single_sample(as_raster_state(raster), "depth peeling")
     if state.depth_func not in PEEL_DEPTH_FUNCS:
         raise ValueError(f"raster.depth_func must be one of {', '.join(PEEL_DEPTH_FUNCS)} for "
                          f"depth peeling (a front-to-back order), got {state.depth_func!r}")

@@ -63,7 +63,8 @@ CLIPSURFACE_SIDE_KERNELS = (
     "refraster.clipsurface.capping._differing_words")
 #: Every module that defines kernels, in pipeline order.
 KERNEL_MODULES = CORE_MODULES + (
-    "refraster.raster.fragments", "refraster.raster.resolve", "refraster.ldi",
+    "refraster.raster.fragments", "refraster.raster.resolve", "refraster.raster.multisample",
+    "refraster.ldi",
     "refraster.clipsurface.offsetmaps", "refraster.clipsurface.capping",
     "refraster.clipsurface.surfaces", "refraster.clipsurface.textures",
     "refraster.clipsurface.fused", "refraster.edges.operators", "refraster.edges.npr",
@@ -77,6 +78,7 @@ KERNEL_MODULES = CORE_MODULES + (
 #: (``python -m benchmarks.cold_start --kernels``, 2026-12-01). A stale entry only makes the
 #: count approximate.
 GALLERY_SKIPS = (
+    "refraster.raster.multisample._msaa_pass",
     "refraster.golden.allowances.edges._absdiff",
     "refraster.golden.allowances.edges._bounds_kernel",
     "refraster.golden.allowances.edges._component_bounds",

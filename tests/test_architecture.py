@@ -43,6 +43,7 @@ FLOORS = {
     "refraster": "core",
     "refraster.raster": "core",
     "refraster.framebuffer": "core",
+    "refraster.multisample": "core",
     "refraster.mesh": "core",
     "refraster.camera": "core",
     "refraster.io": "core",

@@ -63,7 +63,8 @@ def test_the_defaults_are_opengls():
                                cull="none", front_face="ccw", subpixel_bits=8,
                                fill_rule="llvmpipe", precision="float32", normals="flat",
                                depth_range="negative_one_to_one", origin="lower_left",
-                               ndc_y="up", depth_clamp=False, depth_format="float32")
+                               ndc_y="up", depth_clamp=False, depth_format="float32",
+                               samples=1, sample_locations="standard", interpolation="center")
 
 
 def _bytes(fb):

@@ -149,6 +149,11 @@ def read_scene(package_dir):
             if value not in allowed:
                 raise PackageError(f"{path}: raster.{key} must be one of {list(allowed)}, got "
                                    f"{value!r}")
+        if raster.get("samples", 1) != 1 or raster.get("sample_locations", "standard") \
+                != "standard":
+            raise PackageError(f"{path}: raster.samples must be 1 for this backend (one sample "
+                               f"per pixel), got samples={raster.get('samples', 1)!r}, "
+                               f"sample_locations={raster.get('sample_locations', 'standard')!r}")
         cd = raster["clear_depth"]
         if not isinstance(cd, (int, float)) or not 0.0 <= cd <= 1.0:
             raise PackageError(f"{path}: raster.clear_depth must be a number in [0, 1]")

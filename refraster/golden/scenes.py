@@ -40,7 +40,7 @@ from ..raster.state import RasterState
 __all__ = [
     "Draw", "GoldenScene", "SceneEntry", "SCENES", "SCENE_MODULES", "TECHNIQUES",
     "register_scene", "register_technique", "prepare_draws", "render_scene", "available_scenes",
-    "load_scene_file", "DEFAULT_RASTER", "CONVENTION_FIELDS",
+    "load_scene_file", "DEFAULT_RASTER", "CONVENTION_FIELDS", "MULTISAMPLE_DEFAULTS",
 ]
 
 #: Raster state of every golden unless a scene overrides a field (``scene.json`` "raster").
@@ -52,6 +52,12 @@ DEFAULT_RASTER = dict(subpixel_bits=8, fill_rule="llvmpipe", precision="float32"
 #: values; ``docs/architecture.md``, "Conventions"). A manifest's ``parameters.raster`` lists
 #: them only where they differ from :data:`DEFAULT_RASTER` (``scene.json`` always has them).
 CONVENTION_FIELDS = ("depth_range", "origin", "ndc_y", "depth_clamp", "depth_format")
+#: The multisample fields (:class:`refraster.RasterState`'s ``samples``, ``sample_locations``
+#: and ``interpolation``; ``docs/multisample.md``) and their single-sample defaults. A scene
+#: stores them (``scene.json``'s ``"raster"``) only where it overrides them, so a
+#: single-sample package keeps the bytes it had before they existed; user positions are
+#: stored as a list of ``[x, y]`` pairs in 1/16 pixel.
+MULTISAMPLE_DEFAULTS = dict(samples=1, sample_locations="standard", interpolation="center")
 
 #: Modules imported by :func:`available_scenes`; each registers its scenes on import.
 SCENE_MODULES = ("refraster.golden.technique_scenes", "refraster.golden.convention_scenes",
@@ -255,10 +261,14 @@ def prepare_draws(draws, *, normals="flat"):
 
 def raster_state(overrides):
     """:data:`DEFAULT_RASTER` updated with ``overrides`` (unknown keys are an error)."""
-    unknown = set(overrides) - set(DEFAULT_RASTER)
+    known = set(DEFAULT_RASTER) | set(MULTISAMPLE_DEFAULTS)
+    unknown = set(overrides) - known
     if unknown:
-        raise ValueError(f"unknown raster fields {sorted(unknown)}; known: {sorted(DEFAULT_RASTER)}")
-    return {**DEFAULT_RASTER, **overrides}
+        raise ValueError(f"unknown raster fields {sorted(unknown)}; known: {sorted(known)}")
+    out = {**DEFAULT_RASTER, **overrides}
+    if not isinstance(out.get("sample_locations", "standard"), str):
+        out["sample_locations"] = [[int(c) for c in p] for p in out["sample_locations"]]
+    return out
 
 
 def manifest_raster(raster):
@@ -272,9 +282,11 @@ def manifest_raster(raster):
 def as_state(raster):
     """The :class:`refraster.RasterState` of a scene's stored raster fields (``scene.json``'s
     ``"raster"``; a field it lacks — a package written before the conventions, a manifest's
-    ``parameters.raster`` — takes its :data:`DEFAULT_RASTER` value; the package spells the fill
+    ``parameters.raster`` — takes its :data:`DEFAULT_RASTER` (or :data:`MULTISAMPLE_DEFAULTS`)
+    value; the package spells the fill
     rule ``"top_left"``, the state ``"top-left"``)."""
-    fields = {k: raster.get(k, v) for k, v in DEFAULT_RASTER.items()}
+    fields = {k: raster.get(k, v)
+              for k, v in {**DEFAULT_RASTER, **MULTISAMPLE_DEFAULTS}.items()}
     fields["fill_rule"] = fields["fill_rule"].replace("_", "-")
     return RasterState(**fields)
 

@@ -16,7 +16,7 @@ from .primitive import CULL, FILL_RULES, W_EPS, convention_code, setup_triangles
     transform_vertices
 from .rasterizer import DEPTH_FUNCS, stream
 from .resolve import Resolved, resolve
-from .state import RasterState, as_raster_state
+from .state import RasterState, as_raster_state, require_single_sample
 
 __all__ = ["draw", "rasterize", "resolve", "Fragments", "Resolved", "concat", "DEPTH_FUNCS",
            "prepare", "RasterState"]
@@ -203,7 +203,7 @@ def prepare(meshes, *, view, proj, width, height, model=None, raster=None, scrat
                         state=state, scratch=scratch)
 
 
-def _prepare(meshes, *, view, proj, width, height, model, state, scratch):
+def _prepare(meshes, *, view, proj, width, height, model, state, scratch, multisample=False):
     view = as_matrix(view, "view")
     proj = as_matrix(proj, "proj")
     width, height = as_image_size(width, height)
@@ -250,9 +250,11 @@ def _prepare(meshes, *, view, proj, width, height, model, state, scratch):
     p.face_offsets = np.asarray(offsets, np.int64)
     p.clip = clip
     p.state = state
+    # multisampling: boxes widened by half a pixel, for samples away from the centre
+    pad = (1 << (state.subpixel_bits - 1)) if multisample else 0
     p.triangles = setup_triangles(clip, face, width, height, cull=cull_code(state),
                                   subpixel_bits=state.subpixel_bits, conv=conv_code(state),
-                                  scratch=scratch)
+                                  scratch=scratch, pad=pad)
     if prec == "float64":
         _check_divide(p.triangles, clip, vfirst, offsets, meshes)
     return p
@@ -290,6 +292,7 @@ def draw(meshes, *, view, proj, width, height, model=None, raster=None):
         With ``meshes``, ``models``, ``view`` and ``proj`` attached, so ``interpolate`` and
         ``world_position`` work.
     """
+    require_single_sample(as_raster_state(raster), "draw")
     meshes = as_meshes(meshes)
     w, h = as_image_size(width, height)
     with threads_for(frame_work(sum(m.n_faces for m in meshes), w, h)):
@@ -325,7 +328,7 @@ def rasterize(clip_positions, faces, width, height, *, raster=None):
         f = np.zeros((0, 3), np.int64)
     f = as_index_array(f, "faces", shape=(None, 3), upper=len(c))
     width, height = as_image_size(width, height)
-    state = as_raster_state(raster)
+    state = require_single_sample(as_raster_state(raster), "rasterize")
     st = setup_triangles(c, f, width, height, cull=cull_code(state),
                          subpixel_bits=state.subpixel_bits, conv=conv_code(state))
     pixel, depth, prim, front, bary, _ = stream(st, fill_rule=FILL_RULES[state.fill_rule])

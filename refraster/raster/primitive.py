@@ -255,12 +255,12 @@ def _area(X, Y, i, j, k):
 
 
 @njit(**IJIT)
-def _bbox(X, Y, i, j, k, bits, width, height):
+def _bbox(X, Y, i, j, k, bits, width, height, pad):
     one = np.int64(1) << bits
-    xmin = min(X[i], X[j], X[k])
-    xmax = max(X[i], X[j], X[k])
-    ymin = min(Y[i], Y[j], Y[k])
-    ymax = max(Y[i], Y[j], Y[k])
+    xmin = min(X[i], X[j], X[k]) - pad
+    xmax = max(X[i], X[j], X[k]) + pad
+    ymin = min(Y[i], Y[j], Y[k]) - pad
+    ymax = max(Y[i], Y[j], Y[k]) + pad
     # pixel centres sit at integer multiples of 2^bits (the half-pixel offset is in X, Y)
     return (max((xmin + one - 1) >> bits, 0), min(xmax >> bits, width - 1),
             max((ymin + one - 1) >> bits, 0), min(ymax >> bits, height - 1))
@@ -318,10 +318,12 @@ SKIP, SIMPLE, CLIPPED = 0, 1, 2
 
 
 @njit(**PJIT)
-def _classify(f, vX, vY, vcode, width, height, bits, cull, status, fbox):
+def _classify(f, vX, vY, vcode, width, height, bits, cull, pad, status, fbox):
     """Faces that need no clipping are set up in the rasterizer from the vertex pass's window
     positions (status SIMPLE, with their pixel bounding box); faces crossing a clip plane get
-    status CLIPPED; culled, degenerate, rejected or centre-less faces SKIP."""
+    status CLIPPED; culled, degenerate, rejected or centre-less faces SKIP. ``pad`` (fixed
+    point) widens the box: the pixels whose centre lies within ``pad`` of the triangle's box
+    (0: pixel centres; half a pixel under multisampling, whose samples leave the centre)."""
     for i in prange(f.shape[0]):
         a, b, d = f[i, 0], f[i, 1], f[i, 2]
         status[i] = SKIP
@@ -336,10 +338,10 @@ def _classify(f, vX, vY, vcode, width, height, bits, cull, status, fbox):
         if area == 0 or (cull == 1 and area < 0) or (cull == 2 and area > 0):
             continue
         one = np.int64(1) << bits
-        bx0 = max((min(x0, x1, x2) + one - 1) >> bits, 0)
-        bx1 = min(max(x0, x1, x2) >> bits, width - 1)
-        by0 = max((min(y0, y1, y2) + one - 1) >> bits, 0)
-        by1 = min(max(y0, y1, y2) >> bits, height - 1)
+        bx0 = max((min(x0, x1, x2) - pad + one - 1) >> bits, 0)
+        bx1 = min((max(x0, x1, x2) + pad) >> bits, width - 1)
+        by0 = max((min(y0, y1, y2) - pad + one - 1) >> bits, 0)
+        by1 = min((max(y0, y1, y2) + pad) >> bits, height - 1)
         if bx0 > bx1 or by0 > by1:
             continue
         status[i] = SIMPLE
@@ -350,7 +352,7 @@ def _classify(f, vX, vY, vcode, width, height, bits, cull, status, fbox):
 
 
 @njit(**PJIT)
-def _clip_pass(c, f, idx, width, height, bits, gx, gy, conv, cull, counts, offsets, write,
+def _clip_pass(c, f, idx, width, height, bits, gx, gy, conv, cull, pad, counts, offsets, write,
                oX, oY, oZ, oIW, oXf, oYf, oprim, ofront, obox, oarea, obidx, oB):
     n_idx = idx.shape[0]
     nchunks = (n_idx + _CHUNK - 1) // _CHUNK
@@ -379,7 +381,8 @@ def _clip_pass(c, f, idx, width, height, bits, gx, gy, conv, cull, counts, offse
                 area = _area(X, Y, 0, k, k + 1)
                 if area == 0 or (area > 0) != (total > 0):
                     continue  # snapped to a sliver that flipped or vanished
-                box[0], box[1], box[2], box[3] = _bbox(X, Y, 0, k, k + 1, bits, width, height)
+                box[0], box[1], box[2], box[3] = _bbox(X, Y, 0, k, k + 1, bits, width, height,
+                                                       pad)
                 if box[0] > box[1] or box[2] > box[3]:
                     continue
                 if write:
@@ -439,9 +442,11 @@ def _zeros(scratch, key, shape, dtype):
 
 
 def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8, conv=0,
-                    scratch=None):
+                    scratch=None, pad=0):
     """Run the primitive stage on validated arrays; returns :class:`Primitives`.
-    ``conv``: the convention bits (:func:`convention_code`; 0: OpenGL's).
+    ``conv``: the convention bits (:func:`convention_code`; 0: OpenGL's). ``pad``: how far (in
+    ``1/2^subpixel_bits`` pixel) outside a triangle's box a pixel centre may lie and the pixel
+    still be in its box (0; half a pixel for multisampling).
     ``scratch``: a :class:`refraster._scratch.Scratch` for the per-vertex and per-face arrays
     (the result is then valid until that scratch is used again)."""
     conv = int(conv)
@@ -461,12 +466,13 @@ def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8, conv
                  vcode)
     status = _zeros(scratch, "status", len(f), np.int8)
     fbox = _zeros(scratch, "fbox", (len(f), 4), np.int32)
-    _classify(f, vX, vY, vcode, width, height, subpixel_bits, cull, status, fbox)
+    pad = np.int64(pad)
+    _classify(f, vX, vY, vcode, width, height, subpixel_bits, cull, pad, status, fbox)
     idx = np.flatnonzero(status == CLIPPED)
     nchunks = max((len(idx) + _CHUNK - 1) // _CHUNK, 1)
     counts = np.zeros(nchunks, np.int64)
     offsets = np.zeros(nchunks, np.int64)
-    args = (c, f, idx, width, height, subpixel_bits, gx, gy, conv, cull, counts, offsets)
+    args = (c, f, idx, width, height, subpixel_bits, gx, gy, conv, cull, pad, counts, offsets)
     if len(idx):
         _clip_pass(*args, False, *_alloc(0))
         offsets[1:] = np.cumsum(counts)[:-1]

@@ -16,7 +16,7 @@ from numba import njit
 
 from .._config import JIT
 from .rasterizer import DEPTH_FUNCS, depth_test
-from .state import as_raster_state
+from .state import as_raster_state, require_single_sample
 
 __all__ = ["Resolved", "resolve"]
 
@@ -61,7 +61,7 @@ def resolve(frags, *, raster=None, keep=None):
     -------
     Resolved
     """
-    state = as_raster_state(raster)
+    state = require_single_sample(as_raster_state(raster), "resolve")
     func = DEPTH_FUNCS[state.depth_func]
     clear = state.clear_depth
     n = len(frags)

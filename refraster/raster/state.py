@@ -26,7 +26,8 @@ import numpy as np
 
 __all__ = ["RasterState", "as_raster_state", "DEPTH_FUNC_NAMES", "CULL_MODES", "FRONT_FACES",
            "FILL_RULE_NAMES", "PRECISIONS", "NORMALS_MODES", "SUBPIXEL_BITS", "DEPTH_RANGES",
-           "ORIGINS", "NDC_Y", "DEPTH_FORMATS"]
+           "ORIGINS", "NDC_Y", "DEPTH_FORMATS", "SAMPLE_COUNTS", "SAMPLE_PATTERNS",
+           "INTERPOLATIONS"]
 
 #: OpenGL's eight depth functions (``glDepthFunc``), comparing the incoming fragment's depth
 #: against the stored one.
@@ -50,6 +51,44 @@ ORIGINS = ("lower_left", "upper_left")
 NDC_Y = ("up", "down")
 #: The depth buffer a candidate renders into (refraster's own output stays float32).
 DEPTH_FORMATS = ("float32", "unorm24", "unorm16")
+#: Samples per pixel (``VkSampleCountFlagBits`` 1 to 16; ``docs/multisample.md``).
+SAMPLE_COUNTS = (1, 2, 4, 8, 16)
+#: Named sample patterns: Vulkan's standard sample locations (the same as Direct3D's), and the
+#: 4× pattern llvmpipe rasterizes with under OpenGL (``refraster.raster.samples``).
+SAMPLE_PATTERNS = ("standard", "gl_llvmpipe")
+#: Where a multisampled fragment's attributes are interpolated.
+INTERPOLATIONS = ("center", "centroid", "sample")
+
+
+def _sample_locations(value, samples):
+    """A named pattern (lower-cased) or user positions as a tuple of ``(x, y)`` int pairs."""
+    if isinstance(value, str):
+        key = _choice(value, "sample_locations", SAMPLE_PATTERNS)
+        if key == "gl_llvmpipe" and samples != 4:
+            raise ValueError(f"raster.sample_locations='gl_llvmpipe' is llvmpipe's 4x pattern; "
+                             f"raster.samples must be 4 for it, got {samples}")
+        return key
+    try:
+        pairs = tuple(tuple(p) for p in value)
+    except TypeError:
+        raise TypeError(f"raster.sample_locations must be one of {', '.join(SAMPLE_PATTERNS)} "
+                        f"or a sequence of (x, y) pairs in 1/16 pixel, got "
+                        f"{type(value).__name__}") from None
+    if len(pairs) != samples:
+        raise ValueError(f"raster.sample_locations must give one (x, y) pair per sample "
+                         f"({samples}), got {len(pairs)}")
+    out = []
+    for i, p in enumerate(pairs):
+        if len(p) != 2 or any(isinstance(c, (bool, np.bool_))
+                              or not isinstance(c, numbers.Integral) for c in p):
+            raise TypeError(f"raster.sample_locations[{i}] must be a pair of ints (x, y) in "
+                            f"1/16 pixel, got {p!r}")
+        if not all(0 <= int(c) <= 15 for c in p):
+            raise ValueError(f"raster.sample_locations[{i}] must lie in 0..15 (1/16 pixel from "
+                             f"the pixel's upper-left corner, as VK_EXT_sample_locations), "
+                             f"got {p!r}")
+        out.append((int(p[0]), int(p[1])))
+    return tuple(out)
 
 
 def _choice(value, field, choices):
@@ -123,6 +162,19 @@ class RasterState:
     depth_format : {"float32", "unorm24", "unorm16"}
         The candidate's depth buffer (its quantisation is part of the golden allowance; the
         GL and wgpu backends render into it). refraster's own depth output stays float32.
+    samples : {1, 2, 4, 8, 16}
+        Samples per pixel (``rasterizationSamples``). 1 is the single-sample pipeline; more
+        are rendered by :func:`refraster.render_samples` (``docs/multisample.md``).
+    sample_locations : {"standard", "gl_llvmpipe"} or sequence of (x, y) int pairs
+        Where the samples lie in a pixel: Vulkan's standard sample locations (Direct3D's
+        too), llvmpipe's 4× pattern under OpenGL (``samples=4`` only), or one ``(x, y)`` per
+        sample in 1/16 pixel, 0..15, from the pixel's upper-left corner as the picture is
+        seen, x right and y down (``VK_EXT_sample_locations``' grid).
+    interpolation : {"center", "centroid", "sample"}
+        Where a multisampled fragment's attributes (barycentrics, so normals and colour) are
+        interpolated: the pixel centre, a centroid point (the centre when the primitive covers
+        every sample, else its covered sample nearest the centre) or each sample's own
+        position (sample shading). One sample per pixel: all three are the centre.
 
     Front faces, the fill rule and the window origin are defined as the picture is seen
     (row 0 at the top): ``front_face="ccw"`` is counter-clockwise on screen for every
@@ -153,6 +205,9 @@ class RasterState:
     ndc_y: str = "up"
     depth_clamp: bool = False
     depth_format: str = "float32"
+    samples: int = 1
+    sample_locations: object = "standard"
+    interpolation: str = "center"
 
     def __post_init__(self):
         put = object.__setattr__.__get__(self)
@@ -187,6 +242,14 @@ class RasterState:
                             f"{type(self.depth_clamp).__name__}")
         put("depth_clamp", bool(self.depth_clamp))
         put("depth_format", _choice(self.depth_format, "depth_format", DEPTH_FORMATS))
+        n = self.samples
+        if isinstance(n, (bool, np.bool_)) or not isinstance(n, numbers.Integral):
+            raise TypeError(f"raster.samples must be an int, got {type(n).__name__}")
+        if int(n) not in SAMPLE_COUNTS:
+            raise ValueError(f"raster.samples must be one of 1, 2, 4, 8, 16, got {n}")
+        put("samples", int(n))
+        put("sample_locations", _sample_locations(self.sample_locations, int(n)))
+        put("interpolation", _choice(self.interpolation, "interpolation", INTERPOLATIONS))
 
     def replace(self, **changes):
         """A copy with some fields changed (validated like a new value)."""
@@ -194,7 +257,10 @@ class RasterState:
 
     def as_dict(self):
         """The fields as a plain dict (JSON types), in declaration order."""
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        if not isinstance(self.sample_locations, str):
+            out["sample_locations"] = [list(p) for p in self.sample_locations]
+        return out
 
     @classmethod
     def from_dict(cls, fields, *, name="raster"):
@@ -224,9 +290,23 @@ def as_raster_state(raster, name="raster"):
                     f"{type(raster).__name__}; e.g. raster=RasterState(depth_func='lequal')")
 
 
+def require_single_sample(state, where):
+    """Refuse, with one line, a multisample state where only one sample per pixel is made
+    (the single-sample pipeline and the techniques); :func:`refraster.render_samples` makes
+    the samples."""
+    if state.samples != 1 or state.sample_locations != "standard":
+        raise ValueError(f"raster.samples must be 1 with sample_locations 'standard' for "
+                         f"{where} (one sample at the pixel centre), got samples="
+                         f"{state.samples}, sample_locations={state.sample_locations!r}; "
+                         f"refraster.render_samples renders multisampled frames")
+    return state
+
+
 def require_default(state, fields, where):
     """Refuse, with one line, a state whose ``fields`` differ from the default: for a technique
-    that does not honour them (yet), a silent default would be a wrong picture."""
+    that does not honour them (yet), a silent default would be a wrong picture. A multisample
+    state is refused too (:func:`require_single_sample`): no technique makes samples."""
+    require_single_sample(state, where)
     for f in fields:
         if getattr(state, f) != getattr(DEFAULT, f):
             raise ValueError(f"raster.{f} must be {getattr(DEFAULT, f)!r} for {where} (it "

@@ -105,6 +105,15 @@ SCENE_SCHEMA = {
                 "ndc_y": {"enum": ["up", "down"]},
                 "depth_clamp": {"type": "boolean"},
                 "depth_format": {"enum": ["float32", "unorm24", "unorm16"]},
+                # multisampling (optional: a package without them has one sample per pixel)
+                "samples": {"enum": [1, 2, 4, 8, 16]},
+                # "standard", "gl_llvmpipe" or [[x, y], ...] in 1/16 pixel (RasterState checks
+                # the names, the count and the range)
+                "sample_locations": {"type": ["string", "array"], "maxItems": 16,
+                                     "items": {"type": "array", "minItems": 2, "maxItems": 2,
+                                               "items": {"type": "integer", "minimum": 0,
+                                                         "maximum": 15}}},
+                "interpolation": {"enum": ["center", "centroid", "sample"]},
             },
         },
         "draws": {

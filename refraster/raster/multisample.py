@@ -1,0 +1,218 @@
+"""The multisample tile pass: coverage, depth and the depth test per sample.
+
+The same fixed-point edge functions and fill rule as the single-sample rasterizer
+(:mod:`refraster.raster.rasterizer`), evaluated at each sample instead of the pixel centre: a
+sample at offset ``(ox, oy)`` from the centre (fixed point, picture-up; :mod:`.samples`) has
+``E_k + dx_k·oy − dy_k·ox`` (exact int64) and is covered when every biased value is ≥ 0. The
+window depth of a sample is the depth plane through the unsnapped vertices at the sample's
+position, in float64, clamped to [0, 1] and rounded to float32, and the depth test runs per
+sample (ties to the first fragment drawn, as at one sample). Attributes (the barycentrics) are
+interpolated, per winning fragment, at
+
+* ``"center"``: the pixel centre (extrapolated where the centre is outside the triangle, as a
+  GPU's non-centroid interpolation);
+* ``"centroid"``: the centre when the primitive covers every sample of the pixel, else its
+  covered sample nearest the centre (the lowest index among equals) — a point inside both
+  the pixel and the primitive, as Vulkan and OpenGL allow;
+* ``"sample"``: the sample's own position (sample shading).
+
+Triangle boxes are widened by half a pixel (``setup_triangles(pad=)``), so a triangle that
+covers samples but no pixel centre is rasterized.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from .._config import IJIT, PJIT
+from .rasterizer import (NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geometry,
+                         _inv_float_area, _load, _setup, bin_primitives, depth_test,
+                         perspective_bary, row_span, tile_rect)
+
+#: ``RasterState.interpolation`` names and the kernel's codes.
+INTERPOLATIONS = {"center": 0, "centroid": 1, "sample": 2}
+
+
+@njit(**IJIT)
+def _depth_at(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, cx, cy, l0, l1, l2):
+    """Window depth at ``(cx, cy)``: the plane through the unsnapped vertices (the snapped
+    barycentrics ``l`` when snapping flattened the triangle), clamped, float32."""
+    if inv_af > 0.0:
+        z = np.float64(z0) + dzdx * (cx - fx0) + dzdy * (cy - fy0)
+    else:
+        z = l0 * np.float64(z0) + l1 * np.float64(z1) + l2 * np.float64(z2)
+    if z < 0.0:
+        z = 0.0
+    elif z > 1.0:
+        z = 1.0
+    return np.float32(z)
+
+
+@njit(**IJIT)
+def _lambdas_at(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, cx, cy, e0, e1, e2, inv_area):
+    """Screen-space barycentrics at ``(cx, cy)`` (unbiased snapped edge values ``e`` there for
+    the fallback), as :func:`refraster.raster.rasterizer.lambdas` at a pixel centre."""
+    if inv_af > 0.0:
+        l0 = ((fx2 - fx1) * (cy - fy1) - (fy2 - fy1) * (cx - fx1)) * inv_af
+        l1 = ((fx0 - fx2) * (cy - fy2) - (fy0 - fy2) * (cx - fx2)) * inv_af
+        l2 = ((fx1 - fx0) * (cy - fy0) - (fy1 - fy0) * (cx - fx0)) * inv_af
+        return l0, l1, l2
+    return np.float64(e0) * inv_area, np.float64(e1) * inv_area, np.float64(e2) * inv_area
+
+
+@njit(**PJIT)
+def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront,
+               sbox, sarea, B, starts, lists, ntx, width, height, bits, rule, func, clear,
+               ox, oy, interp, o_depth, o_prim, o_front, o_bary):
+    ntiles = starts.shape[0] - 1
+    ns = ox.shape[0]
+    one = np.float64(1 << bits)
+    fox = np.empty(ns)
+    foy = np.empty(ns)
+    for s in range(ns):
+        fox[s] = np.float64(ox[s]) / one
+        foy[s] = np.float64(oy[s]) / one
+    for tile in prange(ntiles):
+        if starts[tile] == starts[tile + 1]:
+            continue
+        tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
+        zbuf = np.full((TILE, TILE, ns), clear, np.float32)
+        win = np.full((TILE, TILE, ns), NO_ITEM, np.int64)
+        for j in range(starts[tile], starts[tile + 1]):
+            item = lists[j]
+            bx0, bx1, by0, by1 = _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1)
+            if bx0 > bx1 or by0 > by1:
+                continue
+            (r0, sx0, sy0, b0, r1, sx1, sy1, b1, r2, sx2, sy2, b2, fx0, fy0, fx1, fy1, fx2, fy2,
+             z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx,
+             dzdy) = _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
+                            sfront, sarea, bits, rule, bx0, by0)
+            # the edges' dx, dy (the steps are their multiples of 2^bits)
+            dx0, dy0 = sy0 >> bits, -(sx0 >> bits)
+            dx1, dy1 = sy1 >> bits, -(sx1 >> bits)
+            dx2, dy2 = sy2 >> bits, -(sx2 >> bits)
+            # each sample's row span (row_span: exact, every sample in it is covered), so no
+            # edge test and no sample outside the triangle's rows is visited
+            nx = bx1 - bx0 + 1
+            for y in range(by0, by1 + 1):
+                ly = y - ty0
+                for s in range(ns):
+                    d0 = dx0 * oy[s] - dy0 * ox[s]
+                    d1 = dx1 * oy[s] - dy1 * ox[s]
+                    d2 = dx2 * oy[s] - dy2 * ox[s]
+                    a, b = row_span(r0 + d0, sx0, r1 + d1, sx1, r2 + d2, sx2, nx)
+                    cy = np.float64(y) + 0.5 + foy[s]
+                    for i in range(a, b + 1):
+                        x = bx0 + i
+                        cx = np.float64(x) + 0.5 + fox[s]
+                        z = _depth_at(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, cx, cy,
+                                      np.float64(r0 + d0 + sx0 * i + b0) * inv_area,
+                                      np.float64(r1 + d1 + sx1 * i + b1) * inv_area,
+                                      np.float64(r2 + d2 + sx2 * i + b2) * inv_area)
+                        lx = x - tx0
+                        if depth_test(func, z, zbuf[ly, lx, s]):
+                            zbuf[ly, lx, s] = z
+                            win[ly, lx, s] = item
+                r0 += sy0
+                r1 += sy1
+                r2 += sy2
+        # write the winners: face, facing, depth and the barycentrics at the interpolation
+        # point; the set-up (_load, 1/areas) is redone only when the item changes, the edge
+        # values at the pixel centre once per pixel and item
+        last = lists[starts[tile]]
+        (X0, Y0, X1, Y1, X2, Y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
+         iw2, area, prim, front, piece) = _load(last, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
+                                                sIW, sXf, sYf, sprim, sfront, sarea)
+        inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
+        inv_area = 1.0 / np.float64(area)
+        e0 = e1 = e2 = c0 = c1 = c2 = np.int64(0)
+        q0 = q1 = q2 = np.float32(0.0)
+        for y in range(ty0, ty1 + 1):
+            row = height - 1 - y
+            for x in range(tx0, tx1 + 1):
+                fresh = True
+                for s in range(ns):
+                    item = win[y - ty0, x - tx0, s]
+                    if item == NO_ITEM:
+                        continue
+                    if item != last:
+                        last = item
+                        fresh = True
+                        (X0, Y0, X1, Y1, X2, Y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0,
+                         iw1, iw2, area, prim, front, piece) = _load(
+                            item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf,
+                            sprim, sfront, sarea)
+                        inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
+                        inv_area = 1.0 / np.float64(area)
+                    o_depth[row, x, s] = zbuf[y - ty0, x - tx0, s]
+                    o_prim[row, x, s] = prim
+                    o_front[row, x, s] = front
+                    if not fresh and interp != 2:
+                        # the same face at the same point (the centre or the centroid) as the
+                        # pixel's previous sample: the same barycentrics
+                        o_bary[row, x, s, 0] = q0
+                        o_bary[row, x, s, 1] = q1
+                        o_bary[row, x, s, 2] = q2
+                        continue
+                    if fresh:
+                        e0, _, _, c0 = _edge(X1, Y1, X2, Y2, bits, rule, x, y)
+                        e1, _, _, c1 = _edge(X2, Y2, X0, Y0, bits, rule, x, y)
+                        e2, _, _, c2 = _edge(X0, Y0, X1, Y1, bits, rule, x, y)
+                        fresh = False
+                    # the point: the centre (offset 0) or a sample
+                    px = np.int64(0)
+                    py = np.int64(0)
+                    if interp == 2:
+                        px, py = ox[s], oy[s]
+                    elif interp == 1:
+                        best = -1
+                        dbest = np.int64(0)
+                        full = True
+                        d0x, d0y = Y1 - Y2, X2 - X1   # -dy, dx of each edge
+                        d1x, d1y = Y2 - Y0, X0 - X2
+                        d2x, d2y = Y0 - Y1, X1 - X0
+                        for t in range(ns):
+                            if (e0 + d0y * oy[t] + d0x * ox[t] >= 0
+                                    and e1 + d1y * oy[t] + d1x * ox[t] >= 0
+                                    and e2 + d2y * oy[t] + d2x * ox[t] >= 0):
+                                d = ox[t] * ox[t] + oy[t] * oy[t]
+                                if best < 0 or d < dbest:
+                                    best = t
+                                    dbest = d
+                            else:
+                                full = False
+                        if not full and best >= 0:
+                            px, py = ox[best], oy[best]
+                    cx = np.float64(x) + 0.5 + np.float64(px) / one
+                    cy = np.float64(y) + 0.5 + np.float64(py) / one
+                    u0 = e0 + c0 + (X2 - X1) * py - (Y2 - Y1) * px
+                    u1 = e1 + c1 + (X0 - X2) * py - (Y0 - Y2) * px
+                    u2 = e2 + c2 + (X1 - X0) * py - (Y1 - Y0) * px
+                    l0, l1, l2 = _lambdas_at(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, cx, cy,
+                                             u0, u1, u2, inv_area)
+                    q0, q1, q2 = perspective_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2)
+                    o_bary[row, x, s, 0] = q0
+                    o_bary[row, x, s, 1] = q1
+                    o_bary[row, x, s, 2] = q2
+
+
+def rasterize_samples(prims, ox, oy, *, fill_rule=0, depth_func=1, clear_depth=1.0,
+                      interpolation="center"):
+    """Rasterize and depth-resolve every sample (``prims`` set up with ``pad`` of half a pixel).
+
+    ``ox, oy``: the samples' fixed-point offsets (:func:`refraster.raster.samples.sample_offsets`).
+    Returns ``(depth (H, W, S) float32, prim (H, W, S) int64 face or −1, front (H, W, S) bool,
+    bary (H, W, S, 3) float32)``, row 0 at the top."""
+    ntx, nty, starts, lists = bin_primitives(prims)
+    h, w = prims.height, prims.width
+    ns = len(ox)
+    depth = np.full((h, w, ns), np.float32(clear_depth), np.float32)
+    prim = np.full((h, w, ns), -1, np.int64)
+    front = np.zeros((h, w, ns), np.bool_)
+    bary = np.zeros((h, w, ns, 3), np.float32)
+    _msaa_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits, fill_rule,
+               depth_func, np.float32(clear_depth), np.ascontiguousarray(ox, np.int64),
+               np.ascontiguousarray(oy, np.int64), INTERPOLATIONS[interpolation], depth, prim,
+               front, bary)
+    return depth, prim, front, bary
