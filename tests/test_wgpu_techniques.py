@@ -1,0 +1,154 @@
+"""refraster.wgpu on the technique scenes of issue 45 it renders (edge maps with NPR
+compositing; 2.5D clip surfaces with the parity test and caps): ``golden candidate --backend
+wgpu`` renders every edges and clipsurface scene and each passes the tolerant compare on
+lavapipe; each planted fault of a technique (``refraster.wgpu.TECHNIQUE_FAULTS``, an override
+constant of the technique's WGSL) fails it on the scenes whose passes contain the faulty code,
+naming the buffer, and passes the scenes whose passes do not. The pass/fail matrix is the one
+in docs/backends.md ("refraster.wgpu: technique scenes").
+
+Needs wgpu-py and a WebGPU adapter (Mesa's lavapipe): skips without them, fails under CI=true
+(the project's optional-oracle rule).
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import IN_CI, check_backends_matrix, generate_gold, matrix_cell
+from test_wgpu_backend import backend_or_skip
+
+BEGIN = "<!-- wgpu-techniques-matrix:begin (tests/test_wgpu_techniques.py) -->"
+END = "<!-- wgpu-techniques-matrix:end -->"
+
+EDGES = ["edges_building", "edges_sobel", "edges_c1", "edges_diagonal2", "edges_c1_paper",
+         "edges_npr_gooch"]
+CLIPS = ["clipsurface_building", "clipsurface_textured_caps", "clipsurface_two_surfaces",
+         "clipsurface_relief_plane"]
+SCENES = EDGES + CLIPS
+
+#: fault → the scenes it is run on (its technique's)
+RUN = {"sobel_transposed": EDGES, "one_diagonal": EDGES,
+       "offset_wrong_address_mode": CLIPS, "parity_far_end": CLIPS}
+#: fault → {scene: buffer that must be named among the failing ones}
+EXPECTED = {
+    # Sobel operators: edges_sobel (normal and depth), edges_c1_paper (normal)
+    "sobel_transposed": {"edges_sobel": "edge_map", "edges_c1_paper": "edge_map"},
+    # diagonal operators: edges_building, edges_npr_gooch (both), edges_diagonal2 (normal)
+    "one_diagonal": {"edges_building": "edge_map", "edges_diagonal2": "edge_map",
+                     "edges_npr_gooch": "npr_color"},
+    # every scene's clip test reads an offset map outside [0, 1] or across its border
+    "offset_wrong_address_mode": {s: "object_id" for s in CLIPS},
+    # every scene's caps are seen where the sprite has layers behind the cap: caps appear and
+    # vanish, so the ids name it (cap_mask's own check allows the pixels the ids fail)
+    "parity_far_end": {s: "object_id" for s in CLIPS},
+}
+#: scenes of a fault's technique whose passes do not contain the faulty code (they must pass)
+UNTOUCHED = {
+    "sobel_transposed": ["edges_building", "edges_c1", "edges_diagonal2", "edges_npr_gooch"],
+    "one_diagonal": ["edges_sobel", "edges_c1", "edges_c1_paper"],
+    "offset_wrong_address_mode": [],
+    "parity_far_end": [],
+}
+
+
+@pytest.fixture(scope="module")
+def gold(tmp_path_factory):
+    return generate_gold(tmp_path_factory, "wgputech", SCENES)
+
+
+def run_matrix(gold, columns):
+    """Every scene rendered by the correct backend and each fault on its technique's scenes
+    through ``golden candidate``, compared tolerantly → ``{column: {scene: SceneResult}}``."""
+    from refraster import golden
+    from refraster.golden.candidate import candidate
+    results = {}
+    for column in columns:
+        faults = () if column == "correct" else (column,)
+        scenes = SCENES if column == "correct" else RUN[column]
+        out = gold / f"cand_{column}"
+        r = candidate(gold / "golden", out, backend="wgpu", scenes=scenes, faults=faults)
+        assert sorted(r["rendered"]) == sorted(scenes) and not r["skipped"], r["skipped"]
+        marker = json.loads((out / ".refraster-candidate").read_text())
+        assert marker["faults"] == list(faults) and marker["backend"] == "wgpu"
+        assert marker["renderer"].startswith("llvmpipe") or not IN_CI
+        cmp = golden.compare(gold / "golden", out, mode="tolerant", scenes=scenes)
+        assert all(s.status in ("pass", "fail") for s in cmp.scenes), cmp.summary()
+        results[column] = {s.name: s for s in cmp.scenes}
+        if column == "correct":
+            assert cmp.exit_code == 0, "\n".join(cmp.failures())
+            continue
+        assert cmp.exit_code == 1, f"fault {column} passed every scene"
+        for scene, buffer in EXPECTED[column].items():
+            assert [line for line in cmp.failures() if line.startswith(f"{scene}/{buffer}")], \
+                f"fault {column}: {scene}/{buffer} not named ({cmp.failures()})"
+        for scene in UNTOUCHED[column]:
+            assert results[column][scene].status == "pass", (column, scene)
+    return results
+
+
+def matrix(columns, results):
+    """The Markdown matrix; a fault's cell on another technique's scene is "—" (not run: the
+    fault's code is in no pass of that technique)."""
+    head = ["scene"] + [c if c == "correct" else f"`{c}`" for c in columns]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for scene in SCENES:
+        cells = [matrix_cell(results[c][scene], all_count=False) if scene in results[c]
+                 else "—" for c in columns]
+        lines.append(f"| {scene} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def test_technique_scenes_pass_and_every_planted_fault_fails(gold):
+    from refraster.wgpu import FAULTS, TECHNIQUE_FAULTS
+    backend_or_skip().release()
+    assert set(EXPECTED) == set(UNTOUCHED) == set(RUN) == set(TECHNIQUE_FAULTS)
+    assert not set(TECHNIQUE_FAULTS) & set(FAULTS)
+    columns = ["correct", *TECHNIQUE_FAULTS]
+    results = run_matrix(gold, columns)
+    check_backends_matrix(BEGIN, END, matrix(columns, results), "wgpu technique matrix")
+
+
+def test_techniques_ask_for_no_optional_feature_and_ids_are_exact(gold):
+    """The techniques run on a device given no optional feature at all (float32 maps are
+    filtered in WGSL, nothing is blended); the clip scenes' ids and cap mask equal the
+    golden's pixel for pixel, and two runs give the same bytes."""
+    with backend_or_skip(features=[]) as gpu:
+        assert list(gpu.device.features) == []
+        for scene in ("edges_npr_gooch", "clipsurface_two_surfaces"):
+            pkg = gold / "golden" / scene / "package"
+            a, b = gpu.render(pkg), gpu.render(pkg)
+            for key in a:
+                np.testing.assert_array_equal(a[key], b[key], err_msg=f"{scene}/{key}")
+            if scene.startswith("clip"):
+                with np.load(gold / "golden" / scene / "buffers.npz") as z:
+                    for key in ("object_id", "front_facing", "cap_mask"):
+                        np.testing.assert_array_equal(a[key], z[key], err_msg=f"{scene}/{key}")
+                assert a["cap_mask"].sum() > 500
+
+
+def test_address_modes_match_a_numpy_bilinear_filter():
+    """clip.wgsl's address function against NumPy's np.pad modes (wrap, edge, symmetric =
+    WebGPU's repeat, clamp-to-edge, mirror-repeat), both directions: the planted fault's mode
+    differs from the surface's."""
+    from refraster.wgpu.clipsurface import ADDRESS_MODES
+    pad = {0: "wrap", 1: "edge", 2: "symmetric"}
+    n, idx = 5, np.arange(-12, 13)
+
+    def address(i, mode):                       # clip.wgsl's address(), transcribed
+        if mode == 1:
+            return np.clip(i, 0, n - 1)
+        if mode == 0:
+            return ((i % n) + n) % n
+        p = ((i % (2 * n)) + 2 * n) % (2 * n)
+        return np.where(p >= n, 2 * n - 1 - p, p)
+
+    base = np.arange(n)
+    for mode in set(ADDRESS_MODES.values()):
+        padded = np.pad(base, 12, mode=pad[mode])
+        np.testing.assert_array_equal(address(idx, mode), padded[idx + 12], err_msg=pad[mode])
+        wrong = 0 if mode == 1 else 1             # WRONG_ADDRESS_MODE
+        assert not np.array_equal(address(idx, wrong), padded[idx + 12])
+    src = (__import__("pathlib").Path(__file__).parents[1] / "refraster" / "wgpu" / "shaders"
+           / "clip.wgsl").read_text()
+    assert "return ((i % n) + n) % n;" in src and "select(p, 2 * n - 1 - p, p >= n)" in src
