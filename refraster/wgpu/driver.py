@@ -161,7 +161,7 @@ class Backend:
         technique = scene.get("technique")
         if technique in LATER_TECHNIQUES:
             return (f"technique {technique!r} is not implemented by the wgpu backend yet "
-                    "(issue 45: clip surfaces, edge maps, cutaways and 4D halos in WGSL)")
+                    "(issue 45: cutaways and 4D halos in WGSL)")
         if technique not in SUPPORTED_TECHNIQUES:
             return (f"technique {technique!r} is not implemented by the wgpu backend (it "
                     f"renders {', '.join(sorted(SUPPORTED_TECHNIQUES))})")
