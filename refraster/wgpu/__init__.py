@@ -4,8 +4,8 @@ extra ``wgpu``).
 A WebGPU team's client of the goldens, written as one: WGSL files (``shaders/gbuffer.wgsl``; the
 techniques' ``shaders/edges.wgsl`` and ``shaders/clip.wgsl`` with :mod:`refraster.wgpu.edges` and
 :mod:`refraster.wgpu.clipsurface`) beside a thin driver (:mod:`refraster.wgpu.driver`) on wgpu-py
-(wgpu-native), which on a
-machine without a GPU runs on Mesa's lavapipe (Vulkan on llvmpipe). It reads only the scene
+(wgpu-native), which on a machine without a GPU runs on Mesa's lavapipe (Vulkan on llvmpipe).
+It reads only the scene
 packages of a golden directory (``scene.json``, PLY meshes, ``.npy`` maps) through the
 standalone package reader :mod:`refraster.gl.package` (standard library and NumPy), renders in
 the convention each scene declares, and works under WebGPU's **default limits**
