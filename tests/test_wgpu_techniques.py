@@ -152,3 +152,32 @@ def test_address_modes_match_a_numpy_bilinear_filter():
     src = (__import__("pathlib").Path(__file__).parents[1] / "refraster" / "wgpu" / "shaders"
            / "clip.wgsl").read_text()
     assert "return ((i % n) + n) % n;" in src and "select(p, 2 * n - 1 - p, p >= n)" in src
+
+
+def test_bad_parameters_are_one_clear_error_and_unsupported_options_a_reason(gold):
+    """A malformed edges parameter is one PackageError naming the key; a clip-surface option
+    the backend does not draw makes ``supports`` give the reason (candidate skips with it). No
+    device needed."""
+    from refraster.gl.package import PackageError
+    from refraster.wgpu import clipsurface, edges
+    doc = json.loads((gold / "golden" / "edges_npr_gooch" / "package" / "scene.json")
+                     .read_text())
+    good = doc["parameters"]
+    assert edges.options(good)["gbuffer_format"] == "rgba8" and "npr" in edges.options(good)
+    for edit, words in (({"depth_filter": "roberts"}, "depth_filter"), ({"width": 0}, "width"),
+                        ({"inner_threshold": 2}, "inner_threshold"),
+                        ({"output_format": "rgb565"}, "output_format"),
+                        ({"ids": "yes"}, "ids"), ({"npr": {**good["npr"], "style": "toon"}},
+                                                  "npr.style"),
+                        ({"npr": {**good["npr"], "alpha": 3}}, "npr.alpha")):
+        with pytest.raises(PackageError, match=words):
+            edges.options({**good, **edit})
+        assert words in edges.supports({"parameters": {**good, **edit}})
+    with pytest.raises(PackageError, match="parameters.bounds"):
+        edges.near_far({**doc, "parameters": {**good, "bounds": [[0, 0], [1, 1]]}})
+    clip = json.loads((gold / "golden" / "clipsurface_building" / "package" / "scene.json")
+                      .read_text())
+    assert clipsurface.supports(clip) is None
+    for edit, words in (({"cap_mode": "exact"}, "cap_mode"), ({"space": "object"}, "world"),
+                        ({"surfaces": []}, "1 to 2 surfaces")):
+        assert words in clipsurface.supports({"parameters": {**clip["parameters"], **edit}})
