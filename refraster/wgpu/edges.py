@@ -208,6 +208,7 @@ def render(backend, loaded, package_dir):
         encoder = dev.create_command_encoder()
         # pass 1: T_G
         u_tg = uniform(backend, np.array([near, far, 0, 0], np.float32))
+        made.append(u_tg)
         g_tg = dev.create_bind_group(layout=lay["tg_group"], entries=[
             {"binding": 10, "resource": {"buffer": u_tg, "offset": 0, "size": 16}}])
         pipe = scene_pipeline(backend, SHADER, "fs_tg", (tg_fmt, "r32sint"), state, lay["tg"],
@@ -220,6 +221,7 @@ def render(backend, loaded, package_dir):
                                      opt["width"] - 1]
         params[4:] = [opt["k_n"], opt["k_z"], opt["inner_threshold"], opt["profile_threshold"]]
         u_edge = uniform(backend, params)
+        made.append(u_edge)
         res = {"binding": 10, "resource": {"buffer": u_edge, "offset": 0, "size": 32}}
         edge = texture(edge_fmt)
         group = dev.create_bind_group(layout=lay["edge_group"], entries=[
@@ -237,7 +239,7 @@ def render(backend, loaded, package_dir):
         color = None
         if "npr" in opt:
             color = texture("rgba32float")
-            made.append(_npr_pass(backend, encoder, opt["npr"], edge, color, state, clear,
+            made.extend(_npr_pass(backend, encoder, opt["npr"], edge, color, state, clear,
                                   draws, faults))
         dev.queue.submit([encoder.finish()])
         e = (backend._read(edge, "rgba32float", size) if edge_fmt == "rgba32float"
@@ -247,7 +249,7 @@ def render(backend, loaded, package_dir):
             out["npr_color"] = np.ascontiguousarray(
                 backend._read(color, "rgba32float", size)[..., :3], np.float32)
     finally:
-        for t in made:
+        for t in made:           # textures and buffers
             t.destroy()
     return out
 
@@ -264,7 +266,7 @@ def _read_rgba8(backend, texture, size):
 
 def _npr_pass(backend, encoder, npr, edge, target, state, clear, draws, faults):
     """Pass 3: the draws with the Gooch style and the edge map composited over it → the depth
-    attachment it made (destroyed by the caller after the submit)."""
+    attachment and the uniform buffer it made (destroyed by the caller after the read-back)."""
     lay = _layouts(backend)
     kd = np.array(npr["base"])
     block = np.zeros((5, 4), np.float32)
@@ -294,4 +296,4 @@ def _npr_pass(backend, encoder, npr, edge, target, state, clear, draws, faults):
             rp.set_vertex_buffer(0, d["vbo"])
             rp.draw(3 * d["n_faces"])
     rp.end()
-    return depth
+    return depth, u_npr
