@@ -181,3 +181,5 @@ def test_bad_parameters_are_one_clear_error_and_unsupported_options_a_reason(gol
     for edit, words in (({"cap_mode": "exact"}, "cap_mode"), ({"space": "object"}, "world"),
                         ({"surfaces": []}, "1 to 2 surfaces")):
         assert words in clipsurface.supports({"parameters": {**clip["parameters"], **edit}})
+    assert "depth_format" in clipsurface.supports({**clip, "raster": {**clip["raster"],
+                                                                      "depth_format": "unorm16"}})

@@ -48,6 +48,24 @@ SUPPORTED_TECHNIQUES = {
 #: Techniques skipped with a reason: the second part of the WebGPU backend (issue 45).
 LATER_TECHNIQUES = ("cutaway", "halos4d")
 
+#: Planted faults of the technique passes (issue 45; tests/test_wgpu_techniques.py), test-only
+#: like :data:`FAULTS`, kept apart so that the G-buffer's matrix (tests/test_wgpu_backend.py)
+#: stays its own: name → (where, what it does).
+TECHNIQUE_FAULTS = {
+    "sobel_transposed": ("edges.wgsl: the SOBEL_TRANSPOSED constant",
+                         "the Sobel G_y kernel written as the transposed G_x (edges along x "
+                         "vanish)"),
+    "one_diagonal": ("edges.wgsl: the ONE_DIAGONAL constant",
+                     "the diagonal normal and depth operators with one diagonal (A–H) only"),
+    "offset_wrong_address_mode": ("clip.wgsl: the WRONG_ADDRESS_MODE constant",
+                                  "the offset map sampled clamp-to-edge where the surface says "
+                                  "repeat or mirrored repeat (and repeat where it says "
+                                  "clamp-to-edge)"),
+    "parity_far_end": ("clip.wgsl: the PARITY_FAR_END constant",
+                       "the caps' parity count started at the sprite's far end (the last "
+                       "layer) with the front-to-back early exit"),
+}
+
 #: Planted faults (tests only; ``Backend(faults=[name, ...])``): name → (where, what it does).
 FAULTS = {
     "gl_remap_on_zero_to_one": ("host: the DEPTH_REMAP constant",
@@ -70,20 +88,3 @@ FAULTS = {
                             "the volumetric depth sprite's rows read top-down"),
 }
 
-#: Planted faults of the technique passes (issue 45; tests/test_wgpu_techniques.py), test-only
-#: like :data:`FAULTS`, kept apart so that the G-buffer's matrix (tests/test_wgpu_backend.py)
-#: stays its own: name → (where, what it does).
-TECHNIQUE_FAULTS = {
-    "sobel_transposed": ("edges.wgsl: the SOBEL_TRANSPOSED constant",
-                         "the Sobel G_y kernel written as the transposed G_x (edges along x "
-                         "vanish)"),
-    "one_diagonal": ("edges.wgsl: the ONE_DIAGONAL constant",
-                     "the diagonal normal and depth operators with one diagonal (A–H) only"),
-    "offset_wrong_address_mode": ("clip.wgsl: the WRONG_ADDRESS_MODE constant",
-                                  "the offset map sampled clamp-to-edge where the surface says "
-                                  "repeat or mirrored repeat (and repeat where it says "
-                                  "clamp-to-edge)"),
-    "parity_far_end": ("clip.wgsl: the PARITY_FAR_END constant",
-                       "the caps' parity count started at the sprite's far end (the last "
-                       "layer) with the front-to-back early exit"),
-}

@@ -40,6 +40,10 @@ def supports(scene):
     """``None`` if this module can draw the clip-surface scene, else the reason."""
     p = scene.get("parameters", {})
     surfaces = p.get("surfaces") or []
+    fmt = scene.get("raster", {}).get("depth_format", "float32")
+    if fmt != "float32":
+        return (f"clipsurface with raster.depth_format {fmt!r}: the passes write the float32 "
+                "window depth; only 'float32'")
     if p.get("cap_mode", "mesh") != "mesh":
         return f"clipsurface cap_mode {p.get('cap_mode')!r}: only 'mesh' (the exported grid)"
     if p.get("space", "world") != "world" or p.get("evaluation_space", "world") != "world":

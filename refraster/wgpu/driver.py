@@ -176,14 +176,14 @@ class Backend:
             if scene["raster"]["depth_func"] not in ("less", "greater"):
                 return (f"peeling with depth_func {scene['raster']['depth_func']!r}: only "
                         "'less' and 'greater'")
-        if technique == "edges":                # issue 45: refraster/wgpu/edges.py
-            return edges.supports(scene)
-        if technique == "clipsurface":          # issue 45: refraster/wgpu/clipsurface.py
-            return clipsurface.supports(scene)
         if technique == "vds" and (p.get("test") != "parity" or p.get("axis") not in ("z",)
                                    or p.get("rule", "parity") != "parity"):
             return ("vds: only the parity test over one sprite (test 'parity', one axis) is "
                     "implemented")
+        if technique == "edges":                # issue 45: refraster/wgpu/edges.py
+            return edges.supports(scene)
+        if technique == "clipsurface":          # issue 45: refraster/wgpu/clipsurface.py
+            return clipsurface.supports(scene)
         return None
 
     def render(self, package_dir, *, layers=None):
