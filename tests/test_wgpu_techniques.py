@@ -226,3 +226,27 @@ def test_techniques_pass_in_the_vulkan_and_reversed_z_twins(gold):
             unreverse(out, scenes)
         cmp = golden.compare(where, out, mode="tolerant", scenes=scenes)
         assert cmp.exit_code == 0, "\n".join(cmp.failures())
+
+
+def test_edge_width_is_the_disk_dilation_of_the_width_one_map(gold, tmp_path):
+    """No golden scene sets ``width > 1``: the dilation pass against scipy's grey dilation
+    (footprint the disk dx² + dy² ≤ r², r = width − 1, outside the image not part of the
+    neighbourhood) of the same backend's width-1 map, exactly (float32 edge map)."""
+    import shutil
+
+    from scipy import ndimage
+    src = gold / "golden" / "edges_sobel" / "package"
+    pkg = tmp_path / "pkg"
+    shutil.copytree(src, pkg)
+    doc = json.loads((pkg / "scene.json").read_text())
+    doc["parameters"]["width"] = 3
+    (pkg / "scene.json").write_text(json.dumps(doc))
+    with backend_or_skip() as gpu:
+        one = gpu.render(src)["edge_map"]
+        three = gpu.render(pkg)["edge_map"]
+    yy, xx = np.mgrid[-2:3, -2:3]
+    disk = xx * xx + yy * yy <= 4
+    want = np.stack([ndimage.grey_dilation(one[..., c], footprint=disk, mode="constant",
+                                           cval=0.0) for c in range(4)], -1)
+    assert np.abs(three - one).max() > 0.1               # the pass changes something
+    np.testing.assert_array_equal(three, want)
