@@ -1,9 +1,11 @@
 """refraster.wgpu: a WebGPU backend (WGSL) for refraster's golden scene packages (optional
 extra ``wgpu``).
 
-A WebGPU team's client of the goldens, written as one: one WGSL file (``shaders/gbuffer.wgsl``)
-beside a thin driver (:mod:`refraster.wgpu.driver`) on wgpu-py (wgpu-native), which on a
-machine without a GPU runs on Mesa's lavapipe (Vulkan on llvmpipe). It reads only the scene
+A WebGPU team's client of the goldens, written as one: WGSL files (``shaders/gbuffer.wgsl``; the
+techniques' ``shaders/edges.wgsl`` and ``shaders/clip.wgsl`` with :mod:`refraster.wgpu.edges` and
+:mod:`refraster.wgpu.clipsurface`) beside a thin driver (:mod:`refraster.wgpu.driver`) on wgpu-py
+(wgpu-native), which on a machine without a GPU runs on Mesa's lavapipe (Vulkan on llvmpipe).
+It reads only the scene
 packages of a golden directory (``scene.json``, PLY meshes, ``.npy`` maps) through the
 standalone package reader :mod:`refraster.gl.package` (standard library and NumPy), renders in
 the convention each scene declares, and works under WebGPU's **default limits**
@@ -22,7 +24,8 @@ On the command line: ``refraster golden candidate GOLDEN_DIR --backend wgpu --ou
 (docs/backends.md, "refraster.wgpu").
 """
 
-__all__ = ["SUPPORTED_TECHNIQUES", "LATER_TECHNIQUES", "FAULTS", "CONVENTION_FAULTS"]
+__all__ = ["SUPPORTED_TECHNIQUES", "LATER_TECHNIQUES", "FAULTS", "CONVENTION_FAULTS",
+           "TECHNIQUE_FAULTS"]
 
 #: Techniques this backend renders, with how.
 SUPPORTED_TECHNIQUES = {
@@ -32,10 +35,37 @@ SUPPORTED_TECHNIQUES = {
            "textureLoad; front to back under less and lequal, and under greater and gequal)",
     "vds": "the volumetric parity test in the fragment shader over the sprite as a 2D array "
            "texture",
+    # issue 45 (refraster/wgpu/edges.py, shaders/edges.wgsl)
+    "edges": "the edge G-buffer T_G (rgba8unorm or rgba32float), the operators in one "
+             "full-screen pass read with textureLoad, the width dilation, the Gooch NPR pass "
+             "with the edge map composited (no optional feature)",
+    # issue 45 (refraster/wgpu/clipsurface.py, shaders/clip.wgsl)
+    "clipsurface": "2.5D clip surfaces: the clip test's discard with the offset map filtered "
+                   "bilinearly in WGSL under the surface's address mode (no float32-filterable), "
+                   "caps as the exported grid with the parity-test discard, shaded from the "
+                   "derived and user maps; the G-buffer in three passes",
 }
 
 #: Techniques skipped with a reason: the second part of the WebGPU backend (issue 45).
-LATER_TECHNIQUES = ("clipsurface", "edges", "cutaway", "halos4d")
+LATER_TECHNIQUES = ("cutaway", "halos4d")
+
+#: Planted faults of the technique passes (issue 45; tests/test_wgpu_techniques.py), test-only
+#: like :data:`FAULTS`, kept apart so that the G-buffer's matrix (tests/test_wgpu_backend.py)
+#: stays its own: name → (where, what it does).
+TECHNIQUE_FAULTS = {
+    "sobel_transposed": ("edges.wgsl: the SOBEL_TRANSPOSED constant",
+                         "the Sobel G_y kernel written as the transposed G_x (edges along x "
+                         "vanish)"),
+    "one_diagonal": ("edges.wgsl: the ONE_DIAGONAL constant",
+                     "the diagonal normal and depth operators with one diagonal (A–H) only"),
+    "offset_wrong_address_mode": ("clip.wgsl: the WRONG_ADDRESS_MODE constant",
+                                  "the offset map sampled clamp-to-edge where the surface says "
+                                  "repeat or mirrored repeat (and repeat where it says "
+                                  "clamp-to-edge)"),
+    "parity_far_end": ("clip.wgsl: the PARITY_FAR_END constant",
+                       "the caps' parity count started at the sprite's far end (the last "
+                       "layer) with the front-to-back early exit"),
+}
 
 #: Planted faults (tests only; ``Backend(faults=[name, ...])``): name → (where, what it does).
 FAULTS = {

@@ -37,7 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from ..gl.package import PackageError, matrix, read_map, read_ply, read_scene
-from . import FAULTS, LATER_TECHNIQUES, SUPPORTED_TECHNIQUES
+from . import FAULTS, LATER_TECHNIQUES, SUPPORTED_TECHNIQUES, TECHNIQUE_FAULTS
+from . import clipsurface, edges
 from .device import WGPUUnavailable, adapter, create_device, describe, unclipped_depth
 
 __all__ = ["Backend", "Unsupported", "WGPUUnavailable", "CONVENTION_DEFAULTS", "SHADER"]
@@ -127,9 +128,10 @@ class Backend:
     """
 
     def __init__(self, faults=(), features=None, threads=None):
-        unknown = [f for f in faults if f not in FAULTS]
+        unknown = [f for f in faults if f not in FAULTS and f not in TECHNIQUE_FAULTS]
         if unknown:
-            raise ValueError(f"unknown fault(s) {unknown}; known: {sorted(FAULTS)}")
+            raise ValueError(f"unknown fault(s) {unknown}; known: "
+                             f"{sorted([*FAULTS, *TECHNIQUE_FAULTS])}")
         self.faults = tuple(faults)
         if threads is not None:
             os.environ.setdefault("LP_NUM_THREADS", str(int(threads)))
@@ -170,7 +172,7 @@ class Backend:
         technique = scene.get("technique")
         if technique in LATER_TECHNIQUES:
             return (f"technique {technique!r} is not implemented by the wgpu backend yet "
-                    "(issue 45: clip surfaces, edge maps, cutaways and 4D halos in WGSL)")
+                    "(issue 45: cutaways and 4D halos in WGSL)")
         if technique not in SUPPORTED_TECHNIQUES:
             return (f"technique {technique!r} is not implemented by the wgpu backend (it "
                     f"renders {', '.join(sorted(SUPPORTED_TECHNIQUES))})")
@@ -193,6 +195,10 @@ class Backend:
                                    or p.get("rule", "parity") != "parity"):
             return ("vds: only the parity test over one sprite (test 'parity', one axis) is "
                     "implemented")
+        if technique == "edges":                # issue 45: refraster/wgpu/edges.py
+            return edges.supports(scene)
+        if technique == "clipsurface":          # issue 45: refraster/wgpu/clipsurface.py
+            return clipsurface.supports(scene)
         return None
 
     def render(self, package_dir, *, layers=None):
@@ -219,12 +225,20 @@ class Backend:
                   "draws": self._upload(package_dir, scene), "sprite": None}
         if scene["technique"] == "vds":
             loaded["sprite"] = self._sprite(package_dir, scene)
+        if scene["technique"] in ("edges", "clipsurface"):       # issue 45
+            loaded["package_dir"] = package_dir
+        if scene["technique"] == "clipsurface":
+            loaded["clip"] = clipsurface.load(self, package_dir, scene)
         return loaded
 
     def draw(self, loaded, *, layers=None):
         """Render a :meth:`load`-ed scene → ``{buffer name: array}`` (see :meth:`render`)."""
         if loaded["scene"]["technique"] == "ldi":
             return self._peel(loaded, layers)
+        if loaded["scene"]["technique"] == "edges":                # issue 45
+            return edges.render(self, loaded, loaded["package_dir"])
+        if loaded["scene"]["technique"] == "clipsurface":
+            return clipsurface.draw(self, loaded)
         return self._gbuffer(loaded)
 
     def unload(self, loaded):
@@ -234,6 +248,7 @@ class Backend:
                     buf.destroy()
         for tex in loaded.get("sprite") or ():
             tex.destroy()
+        clipsurface.release(loaded.pop("clip", None))           # issue 45
         loaded["draws"], loaded["sprite"] = [], None
 
     # --- geometry ---------------------------------------------------------------------------
