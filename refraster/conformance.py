@@ -91,7 +91,11 @@ def _geometry_state(cull, raster):
                     "the conformance allowances (map the scene into OpenGL's conventions)")
     if raster.cull != cull:
         raise ValueError(f"raster.cull ({raster.cull!r}) and cull ({cull!r}) differ")
-    return RasterState(cull=cull, depth_clamp=raster.depth_clamp)
+    # the reference's own rasterization (its bits, fill rule and precision): the masks'
+    # "must" and "must not" are the reference's coverage, so they are made with its state
+    return RasterState(cull=cull, depth_clamp=raster.depth_clamp,
+                       subpixel_bits=raster.subpixel_bits, fill_rule=raster.fill_rule,
+                       precision=raster.precision)
 
 
 def edge_epsilon(width, height, *, min_bits=4, ref_bits=8):
@@ -262,7 +266,8 @@ def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
                    raster=_geometry_state(cull, raster))
     w, h = prep.width, prep.height
-    eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
+    eps = (edge_epsilon(w, h, min_bits=min_bits, ref_bits=prep.triangles.subpixel_bits)
+           if eps is None else as_real(eps, "eps", lo=0.0))
     depth_eps = as_real(depth_eps, "depth_eps", lo=0.0)
     pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
     from .raster import Fragments
@@ -439,7 +444,8 @@ def may_faces(meshes, *, view, proj, width, height, model=None, cull="none", mas
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
                    raster=_geometry_state(cull, raster))
     w, h = prep.width, prep.height
-    eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
+    eps = (edge_epsilon(w, h, min_bits=min_bits, ref_bits=prep.triangles.subpixel_bits)
+           if eps is None else as_real(eps, "eps", lo=0.0))
     mask = np.ones((h, w), np.bool_) if mask is None else np.ascontiguousarray(mask, np.bool_)
     p = prep.triangles
     scale = float(1 << p.subpixel_bits)
@@ -637,7 +643,8 @@ def edge_may(meshes, *, view, proj, width, height, model=None, cull="none", eps=
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
                    raster=_geometry_state(cull, raster))
     w, h = prep.width, prep.height
-    eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
+    eps = (edge_epsilon(w, h, min_bits=min_bits, ref_bits=prep.triangles.subpixel_bits)
+           if eps is None else as_real(eps, "eps", lo=0.0))
     p = prep.triangles
     id_may = np.zeros((h, w), np.bool_)
     cov_may = np.zeros((h, w), np.bool_)
@@ -692,7 +699,8 @@ def facing_may(meshes, *, view, proj, width, height, model=None, eps=None, min_b
     prep = prepare(meshes, view=view, proj=proj, width=width, height=height, model=model,
                    raster=raster)
     w, h = prep.width, prep.height
-    eps = edge_epsilon(w, h, min_bits=min_bits) if eps is None else as_real(eps, "eps", lo=0.0)
+    eps = (edge_epsilon(w, h, min_bits=min_bits, ref_bits=prep.triangles.subpixel_bits)
+           if eps is None else as_real(eps, "eps", lo=0.0))
     fragile = fragile_faces(prep, eps)
     id_may = np.zeros((h, w), np.bool_)
     cov_may = np.zeros((h, w), np.bool_)

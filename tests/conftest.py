@@ -103,11 +103,14 @@ def check_backends_matrix(begin_marker, end_marker, table, what):
         "REFRASTER_WRITE_BACKENDS_MATRIX=1 and review the change\n" + table)
 
 
-def generate_gold(tmp_path_factory, name, scenes):
-    """A module's golden directory: ``<tmp>/<name>/golden`` with ``scenes`` generated."""
+def generate_gold(tmp_path_factory, name, scenes, candidate_subpixel_bits=None):
+    """A module's golden directory: ``<tmp>/<name>/golden`` with ``scenes`` generated (for a
+    candidate of ``candidate_subpixel_bits``; default: generate's own default)."""
     from refraster import golden
     root = tmp_path_factory.mktemp(name)
-    golden.generate(root / "golden", scenes)
+    bits = {} if candidate_subpixel_bits is None else {
+        "candidate_subpixel_bits": candidate_subpixel_bits}
+    golden.generate(root / "golden", scenes, **bits)
     return root
 
 

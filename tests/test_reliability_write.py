@@ -565,3 +565,50 @@ def test_a_toml_frame_camera_with_a_zero_direction_names_it(tmp_path, capsys):
     assert err == [f"golden generate: error: {path}: [camera] direction must not be the zero "
                    "vector"], err
 
+
+
+#: The fuzz harness's 10⁴-case run (2026-12-04): a triangle drawn twice each way round.
+CANCELLING_OBJ = ("v -0.9182562204804083 -0.4598014730790345 1.3183565944521054\n"
+                  "v 1.3332853637345776 -1.3992106289976538 -1.3232249303201957\n"
+                  "v -1.495552267141217 0.4866507563791944 -0.17041779625766962\n"
+                  "f 1 3 2\nf 3 2 1\nf 2 3 1\nf 2 3 1\n")
+
+
+def test_a_toml_scene_whose_smooth_normals_cancel_names_the_draw(tmp_path, capsys):
+    """Smooth normals summed from a face and its reverse are 0: the golden stored a zero
+    normal on covered pixels and failed its own compare (found by the fuzz harness)."""
+    (tmp_path / "m0.obj").write_text(CANCELLING_OBJ)
+    path = _toml(tmp_path, TOML_BODY + '[raster]\nnormals = "smooth"\n[[draw]]\nmesh = "m0.obj"\n')
+    assert cli.main(["generate", "--out", str(tmp_path / "g"), "--scene-file", str(path),
+                     "--jobs", "1", "-q"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        f"golden generate: error: {path}: draw[0].mesh: the smooth normal of vertex 0 is "
+        "undefined"), err
+    assert not (tmp_path / "g").exists() or not any((tmp_path / "g").iterdir())
+    # flat normals are defined: the same mesh makes a golden that passes itself
+    path.write_text(path.read_text().replace('normals = "smooth"', 'normals = "flat"'))
+    assert cli.main(["generate", "--out", str(tmp_path / "g"), "--scene-file", str(path),
+                     "--jobs", "1", "-q"]) == 0
+    for mode in (None, "tolerant"):   # the golden's own mode, then tolerant
+        assert golden.compare(tmp_path / "g", tmp_path / "g", mode=mode).exit_code == 0
+
+
+@pytest.mark.parametrize("raster", ['subpixel_bits = 4', 'fill_rule = "top_left"',
+                                    'precision = "float64"'])
+def test_a_golden_of_a_non_default_reference_raster_passes_itself(tmp_path, raster):
+    """The allowance's coverage is the reference's own: with the scene's sub-pixel bits, fill
+    rule and precision, not the defaults (at 4 bits it said "must be covered" at 4 pixels
+    the reference left empty; found by the fuzz harness)."""
+    (tmp_path / "m0.obj").write_text(CANCELLING_OBJ)
+    path = _toml(tmp_path, 'name = "fz"\n[camera]\nkind = "frame"\nfovy = 5.35\n'
+                 'direction = [-3.836815757877854, -6.0, 1.5179350005708705e-287]\n'
+                 f'[raster]\n{raster}\n[[draw]]\nmesh = "m0.obj"\n'
+                 'model = [[1.8075204463268892, 0.0, 0.0, 0.19342228198779066], '
+                 '[0.0, 1.8075204463268892, 0.0, 0.0], '
+                 '[0.0, 0.0, 1.8075204463268892, 0.39194114517104794], [0, 0, 0, 1]]\n')
+    assert cli.main(["generate", "--out", str(tmp_path / "g"), "--scene-file", str(path),
+                     "--jobs", "1", "-q"]) == 0
+    for mode in (None, "tolerant"):   # the golden's own mode, then tolerant
+        result = golden.compare(tmp_path / "g", tmp_path / "g", mode=mode)
+        assert result.exit_code == 0, (mode, result.failures()[:3])

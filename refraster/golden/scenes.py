@@ -238,6 +238,22 @@ def _float32_exact(a):
     return np.asarray(a, np.float64).astype(np.float32).astype(np.float64)
 
 
+def _check_smooth_normals(v, faces, vn, where):
+    """Refuse a mesh whose smooth normal is undefined at a vertex of a face that can cover a
+    pixel: the normals of the faces around it cancel (a face drawn twice with opposite
+    windings, say), so the normal there would be 0 and a GPU's ``normalize`` undefined."""
+    f = np.asarray(faces, np.int64)
+    if not len(f):
+        return
+    area = np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    used = np.unique(f[area > 0])
+    zero = used[~np.any(vn[used] != 0.0, axis=1)]
+    if len(zero):
+        raise ValueError(f"{where}: the smooth normal of vertex {int(zero[0])} is undefined "
+                         f"({len(zero)} vertices): the normals of its faces cancel (a face "
+                         "drawn twice with opposite windings?); use normals = \"flat\"")
+
+
 def prepare_draws(draws, *, normals="flat"):
     """Round each draw's vertices to float32 (the PLY precision) and, for ``"smooth"``,
     compute area-weighted vertex normals of the rounded mesh, also float32-exact.
@@ -253,6 +269,8 @@ def prepare_draws(draws, *, normals="flat"):
         m = as_mesh(d.mesh, f"draws[{i}].mesh")
         v = _float32_exact(m.vertices)
         vn = _float32_exact(vertex_normals(v, m.faces)) if normals == "smooth" else None
+        if vn is not None:
+            _check_smooth_normals(v, m.faces, vn, f"draws[{i}].mesh")
         out.append(Draw(d.name, Mesh(v, m.faces), as_matrix(d.model, f"draws[{i}].model"), vn))
     if len({d.name for d in out}) != len(out):
         raise ValueError("draw names must be unique within a scene")
@@ -645,7 +663,10 @@ def load_scene_file(path):
         viewport = spec.get("viewport", {})
         width, height = int(viewport.get("width", 320)), int(viewport.get("height", 240))
         state = raster_state(spec.get("raster", {}))
-        prepared = prepare_draws(draws, normals=state["normals"])
+        try:
+            prepared = prepare_draws(draws, normals=state["normals"])
+        except ValueError as exc:   # a smooth normal that is undefined
+            raise ValueError(f"{where}: {str(exc).replace('draws[', 'draw[', 1)}") from None
         try:
             camera = _toml_camera(spec.get("camera", {}), [d.mesh for d in prepared], width,
                                   height, where, state["depth_range"])

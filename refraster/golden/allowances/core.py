@@ -194,8 +194,14 @@ def scene_allowances(scene, raster, bits=None):
 
 
 def _geometry(raster):
-    """The state the geometric allowances prepare with: the scene's cull and clip volume."""
-    return RasterState(cull=raster["cull"], depth_clamp=bool(raster.get("depth_clamp", False)))
+    """The state the geometric allowances prepare with: the scene's cull and clip volume, and
+    the reference's own sub-pixel bits, fill rule and precision (the allowance's "must" and
+    "must not" are the reference's coverage; the ε of its snapping is the reference's)."""
+    from ..scenes import as_state
+    s = as_state(raster)
+    return RasterState(cull=raster["cull"], depth_clamp=bool(raster.get("depth_clamp", False)),
+                       subpixel_bits=s.subpixel_bits, fill_rule=s.fill_rule,
+                       precision=s.precision)
 
 
 def gl_allowances(scene, raster):
@@ -216,12 +222,9 @@ def gl_allowances(scene, raster):
     models = [d.model for d in scene.draws]
     buffers = scene.buffers
     geometry = bool(scene.geometry) and raster["depth_func"] == "less"
-    clamp = bool(raster.get("depth_clamp", False))
-    geom = _geometry(raster) if clamp else None
+    geom = _geometry(raster)
     bits = candidate_bits()
-    kw = dict(**cam.kwargs, model=models, cull=raster["cull"], min_bits=bits)
-    if clamp:
-        kw["raster"] = geom
+    kw = dict(**cam.kwargs, model=models, cull=raster["cull"], min_bits=bits, raster=geom)
     tol = tolerance(meshes, **kw)
     # tolerance() decides whether an edge's triangle is "in front" at a pixel within depth_eps;
     # a plane set up from snapped vertices differs from the interpolated depth by up to
@@ -242,7 +245,7 @@ def gl_allowances(scene, raster):
     # slivers that may change facing at the candidate's bits (a gap in tolerance()'s
     # shared-edge rule)
     flip_id, flip_cov = facing_may(meshes, **cam.kwargs, model=models, min_bits=bits,
-                                   **({"raster": geom} if clamp else {}))
+                                   raster=geom)
     if geometry:
         coverage = masks.coverage.copy()
         coverage[flip_cov] = MAY
@@ -253,7 +256,7 @@ def gl_allowances(scene, raster):
     else:
         edges_id, _ = edge_may(meshes, **cam.kwargs, model=models, cull=raster["cull"],
                                min_bits=bits,
-                               **({"raster": geom} if clamp else {}))
+                               raster=geom)
         id_may = dilate(edges_id | flip_id | extra, 1)
         if "prim_id" in buffers:
             ref_cov = np.asarray(buffers["prim_id"]) >= 0
@@ -603,8 +606,7 @@ def face_sets(scene, raster, id_may, eps):
     h, w = cam.height, cam.width
     offsets, faces = may_faces(meshes, **cam.kwargs, model=models, cull=raster["cull"],
                                mask=id_may, eps=eps,
-                               **({"raster": _geometry(raster)}
-                                  if raster.get("depth_clamp") else {}))
+                               raster=_geometry(raster))
     prep = prepare(meshes, **cam.kwargs, model=models, raster=_geometry(raster))
     pix = np.repeat(np.arange(h * w), np.diff(offsets))
     out = entry_values(scene, raster, prep, pix, faces, eps)
