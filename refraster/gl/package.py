@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["PackageError", "read_scene", "read_ply", "read_map", "matrix", "conventions",
-           "CONVENTION_DEFAULTS"]
+           "CONVENTION_DEFAULTS", "edges_options", "edges_npr_options", "edges_near_far",
+           "edges_supports"]
 
 #: The API-convention fields of ``scene.json``'s ``"raster"`` (issue 39) and their values when
 #: a package leaves them out (OpenGL's: a package written before they existed).
@@ -254,3 +255,125 @@ def read_map(package_dir, scene, name):
         return np.load(io.BytesIO(_read_bytes(path, MAX_PLY_BYTES, "map")), allow_pickle=False)
     except ValueError as exc:
         raise PackageError(f"map {path}: {exc}") from None
+
+
+# --- the edges technique's parameters (both GPU backends read them so) -------------------------
+
+#: The edge G-buffer's and edge map's formats a package may name (each backend maps them).
+EDGE_FORMATS = ("rgba8", "rgba32f", "float32")
+
+NORMAL_FILTERS = {"diagonal": 0, "sobel": 1, "angle": 2}
+DEPTH_FILTERS = {"diagonal": 0, "c1": 1, "c1-paper": 2, "sobel": 3, "diagonal2": 4}
+#: The presets' option defaults (as the scene may name a preset and override options).
+PRESETS = {
+    "paper": dict(normal_filter="diagonal", depth_filter="diagonal", ids=False,
+                  inner_threshold=0.0, profile_threshold=0.0),
+    "clean": dict(normal_filter="diagonal", depth_filter="diagonal2", ids=True,
+                  inner_threshold=0.1, profile_threshold=0.03),
+}
+
+
+def _number(v, lo, hi):
+    return (not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+            and lo <= v <= hi)
+
+
+def edges_options(params, where="parameters"):
+    """The operator options of a scene's parameters, checked → dict (raises PackageError)."""
+    if not isinstance(params, dict):
+        raise PackageError(f"{where} must be an object")
+    preset = params.get("preset", "paper")
+    if preset not in PRESETS:
+        raise PackageError(f"{where}.preset must be one of {sorted(PRESETS)}, got {preset!r}")
+    opt = dict(PRESETS[preset])
+    opt.update({k: params[k] for k in opt if params.get(k) is not None})
+    if opt["normal_filter"] not in NORMAL_FILTERS:
+        raise PackageError(f"{where}.normal_filter must be one of {sorted(NORMAL_FILTERS)}")
+    if opt["depth_filter"] not in DEPTH_FILTERS:
+        raise PackageError(f"{where}.depth_filter must be one of {sorted(DEPTH_FILTERS)}")
+    if not isinstance(opt["ids"], bool):
+        raise PackageError(f"{where}.ids must be true or false")
+    for key in ("inner_threshold", "profile_threshold"):
+        if not _number(opt[key], 0.0, 1.0):
+            raise PackageError(f"{where}.{key} must be a number in [0, 1]")
+    for key in ("k_n", "k_z"):
+        v = params.get(key, 1.0)
+        if not _number(v, 0.0, math.inf):
+            raise PackageError(f"{where}.{key} must be a finite number >= 0")
+        opt[key] = float(v)
+    width = params.get("width", 1)
+    if isinstance(width, bool) or not isinstance(width, int) or not 1 <= width <= 64:
+        raise PackageError(f"{where}.width must be an integer in 1..64")
+    opt["width"] = width
+    for key in ("gbuffer_format", "output_format"):
+        v = params.get(key, "float32")
+        if v not in EDGE_FORMATS:
+            raise PackageError(f"{where}.{key} must be one of {sorted(EDGE_FORMATS)}, got {v!r}")
+        opt[key] = v
+    if params.get("npr") is not None:
+        opt["npr"] = edges_npr_options(params["npr"], f"{where}.npr")
+    return opt
+
+
+def edges_npr_options(npr, where):
+    """The NPR pass's options (style ``gooch``; ``mask`` ``objects``) → dict."""
+    if not isinstance(npr, dict) or npr.get("style") != "gooch":
+        raise PackageError(f"{where}.style must be 'gooch' (the only style the backends have)")
+    if npr.get("mask", "objects") != "objects":
+        raise PackageError(f"{where}.mask must be 'objects'")
+    light = npr.get("light")
+    if not (isinstance(light, list) and len(light) == 3
+            and all(_number(c, -math.inf, math.inf) for c in light)) or not any(light):
+        raise PackageError(f"{where}.light must be a non-zero direction of 3 numbers")
+    out = {"light": (np.array(light, np.float64) / np.linalg.norm(light)).tolist()}
+    for key in ("base", "cool", "warm", "background", "inner_color", "profile_color"):
+        v = npr.get(key)
+        if not (isinstance(v, list) and len(v) == 3 and all(_number(c, 0.0, 1.0) for c in v)):
+            raise PackageError(f"{where}.{key} must be 3 numbers in [0, 1]")
+        out[key] = [float(c) for c in v]
+    for key in ("alpha", "beta"):
+        if not _number(npr.get(key), 0.0, 1.0):
+            raise PackageError(f"{where}.{key} must be a number in [0, 1]")
+        out[key] = float(npr[key])
+    return out
+
+
+def edges_near_far(scene, package_dir=None):
+    """Near and far (float64) fitted to ``parameters.bounds`` (the eight corners of the world
+    box in eye space; Sec. 4.1.1), or without bounds to the eye-space depth of every vertex of
+    the draws; a flat range is widened by a relative 1e-6 (as refraster's ``fit_near_far``)."""
+    view = matrix(scene["camera"]["view"], "camera.view")
+    bounds = scene.get("parameters", {}).get("bounds")
+    if bounds is not None:
+        try:
+            b = np.array(bounds, np.float64)
+        except (TypeError, ValueError):
+            b = None
+        if b is None or b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[1] < b[0]):
+            raise PackageError("parameters.bounds must be [[xmin, ymin, zmin], [xmax, ymax, "
+                               "zmax]] of finite numbers")
+        corners = np.array([[b[i, 0], b[j, 1], b[k, 2]]
+                            for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+        z = -(corners @ view[2, :3] + view[2, 3])
+    else:
+        zs = []
+        for i, d in enumerate(scene["draws"]):
+            v, _, _ = read_ply(package_dir / d["mesh"], d.get("n_vertices"), d.get("n_faces"))
+            mv = view @ matrix(d["model"], f"draws[{i}].model")
+            zs.append(-(v.astype(np.float64) @ mv[2, :3] + mv[2, 3]))
+        z = np.concatenate(zs) if zs else np.zeros(0)
+        if z.size == 0:
+            raise PackageError("edges: no bounds and no vertices to fit near and far to")
+    near, far = float(z.min()), float(z.max())
+    if not far > near:
+        far = near + max(abs(near), 1.0) * 1e-6
+    return near, far
+
+
+def edges_supports(scene):
+    """``None`` if the edges scene can be rendered, else the reason."""
+    try:
+        edges_options(scene.get("parameters", {}))
+    except PackageError as exc:
+        return f"edges: {exc}"
+    return None
