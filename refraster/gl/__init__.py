@@ -117,7 +117,7 @@ CATALOGUE_FAULTS = {
                                "+z)"),
     # rasterization (shaders/gbuffer.vert, gbuffer.geom, gbuffer.frag; driver upload)
     "subpixel_1bit": ("FAULT_SUBPIXEL_1BIT", "vertices snapped to 1 sub-pixel bit (half-pixel "
-                      "grid), below the 4 bits the allowance admits"),
+                      "grid), below the 4 bits any golden admits"),
     "fill_rule_neither": ("FAULT_FILL_RULE_NEITHER", "a tie rule that gives a pixel centre on "
                           "an edge to neither triangle (cracks along shared edges)"),
     "guard_band_clamp": ("FAULT_GUARD_BAND_CLAMP", "vertices beyond an 8x guard band clamped "

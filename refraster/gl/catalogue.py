@@ -69,8 +69,9 @@ CLASSES = (
        "the viewport shifted by half a pixel (pixel centres at integers)"),
     _C("sub-pixel precision", "rasterization", "subpixel_1bit", ("render_cube",),
        "vertices snapped to too coarse a grid",
-       "4 to 8 sub-pixel bits are allowed (the coverage allowance moves every edge by the "
-       "snapping of either); the planted variant snaps to 1 bit (a half-pixel grid)"),
+       "the sub-pixel bits the golden declares (4 to 8; 8 by default) are allowed (the coverage "
+       "allowance moves every edge by the snapping of either); the planted variant snaps to 1 "
+       "bit (a half-pixel grid)"),
     _C("fill rule on shared edges", "rasterization", "fill_rule_neither",
        ("catalogue_pixel_centres", "d3d12_exact_ties"),
        "a pixel centre exactly on an edge shared by two triangles covered by neither",
