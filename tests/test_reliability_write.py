@@ -612,3 +612,31 @@ def test_a_golden_of_a_non_default_reference_raster_passes_itself(tmp_path, rast
     for mode in (None, "tolerant"):   # the golden's own mode, then tolerant
         result = golden.compare(tmp_path / "g", tmp_path / "g", mode=mode)
         assert result.exit_code == 0, (mode, result.failures()[:3])
+
+
+def test_a_golden_with_another_clear_depth_passes_itself_and_holds_its_cut(tmp_path):
+    """``clear_depth = 0.5`` under ``less``: the reference drops the fragments behind 0.5, and
+    the allowance follows its coverage (the geometric masks said "must be covered" there; found
+    by the fuzz harness, 2026-12-04). A candidate that clears to 1 draws them and fails."""
+    import numpy as np
+
+    from refraster.golden.scenes import raster_state, render_draws
+    for size in ((4, 4), (32, 24)):
+        path = _toml(tmp_path, f'name = "c"\n[viewport]\nwidth = {size[0]}\nheight = {size[1]}\n'
+                     '[raster]\nclear_depth = 0.5\n[[draw]]\nsolid = "cube"\n')
+        out = tmp_path / f"g{size[0]}"
+        assert cli.main(["generate", "--out", str(out), "--scene-file", str(path), "--jobs",
+                         "1", "-q"]) == 0
+        for mode in (None, "tolerant"):
+            assert golden.compare(out, out, mode=mode).exit_code == 0, (size, mode)
+    # the candidate that ignores the clear depth: the same draws cleared to 1
+    from refraster.golden.scenes import load_scene_file
+    built = load_scene_file(path).build()
+    fb = render_draws(built.draws, built.camera, {**raster_state(built.raster),
+                                                  "clear_depth": 1.0})
+    cand = tmp_path / "cand" / "c"
+    cand.mkdir(parents=True)
+    np.savez(cand / "buffers.npz", **fb.arrays())
+    assert (fb.prim_id >= 0).sum() > 0
+    result = golden.compare(out, tmp_path / "cand", mode="tolerant")
+    assert result.exit_code != 0

@@ -221,7 +221,11 @@ def gl_allowances(scene, raster):
     meshes = [d.mesh for d in scene.draws]
     models = [d.model for d in scene.draws]
     buffers = scene.buffers
-    geometry = bool(scene.geometry) and raster["depth_func"] == "less"
+    # the geometric masks assume "less" against a buffer cleared to 1: under another clear
+    # depth the reference drops fragments at or behind it, so its own coverage decides
+    # (the decision path, as for the other depth functions)
+    geometry = (bool(scene.geometry) and raster["depth_func"] == "less"
+                and float(raster.get("clear_depth", 1.0)) == 1.0)
     geom = _geometry(raster)
     bits = candidate_bits()
     kw = dict(**cam.kwargs, model=models, cull=raster["cull"], min_bits=bits, raster=geom)
