@@ -140,6 +140,22 @@ def test_generate_in_vulkan_conventions_matches_the_registered_scene(tmp_path):
     assert abs(int((ids >= 0).sum()) - int((gl.buffers["prim_id"] >= 0).sum())) < 80
 
 
+def test_the_near_plane_cuts_what_the_clamp_keeps(gold):
+    """The near plane of the crossing pair cuts visible geometry: where
+    ``zero_to_one_near_crossing`` clips the torus (and the ground) at z = 0,
+    ``depth_clamp_near_crossing`` keeps the fragments in front of the near plane, their depth
+    clamped to 0 — thousands of pixels, else the clamp and its planted faults would prove
+    nothing."""
+    with np.load(gold / "zero_to_one_near_crossing" / "buffers.npz") as z:
+        cut = {k: z[k] for k in ("prim_id", "depth")}
+    with np.load(gold / "depth_clamp_near_crossing" / "buffers.npz") as z:
+        kept = {k: z[k] for k in ("prim_id", "depth")}
+    changed = cut["prim_id"] != kept["prim_id"]
+    assert changed.sum() > 5000, changed.sum()
+    assert (kept["depth"][changed] == 0.0).all()
+    assert (cut["depth"][changed] > 0.0).all()
+
+
 # ------------------------------------------------------------------------------ both directions
 
 def test_correct_candidates_pass(gold, tmp_path):

@@ -3,10 +3,8 @@
 picture is seen) against the project's twelve convention scenes — Vulkan's y-down NDC (a
 negation of the clip y in the vertex shader: WebGPU's NDC y points up), reversed-Z with an
 infinite far plane, a peel under reversed-Z, z = 0 and eye-plane crossings with and without depth
-clamp, Direct3D's exact ties, ``depth24plus`` and ``depth16unorm`` — and two test-only scenes whose
-torus the near plane really cuts (:data:`EXTRA`; the project's ``depth_clamp_near_crossing`` keeps
-every visible fragment in front of its far plane and behind its near plane, so clamping changes
-no pixel of it). Every scene passes the tolerant compare on lavapipe; each planted convention
+clamp, Direct3D's exact ties, ``depth24plus`` and ``depth16unorm``. Every scene passes the
+tolerant compare on lavapipe; each planted convention
 fault fails the scenes it can change, naming the buffer, and passes the others. The matrix is
 the one in docs/backends.md ("refraster.wgpu in the API conventions").
 
@@ -32,16 +30,12 @@ BEGIN = "<!-- wgpu-conventions-matrix:begin (tests/test_wgpu_conventions.py) -->
 END = "<!-- wgpu-conventions-matrix:end -->"
 
 #: The project's convention goldens (refraster/golden/convention_scenes.py).
-GOLDENS = ["vulkan_cube", "vulkan_icosphere_smooth", "vulkan_torus_ortho",
-           "vulkan_nested_shells", "vulkan_multi_draw", "reversed_z_multi_draw",
-           "reversed_z_peel", "zero_to_one_near_crossing", "depth_clamp_near_crossing",
-           "d3d12_exact_ties", "unorm24_torus_ortho", "unorm16_planes"]
-#: Test-only scenes: the crossing scene with the near plane at 1.4, where it cuts the torus
-#: (about 9,000 pixels change with the clamp) → depth_clamp.
-EXTRA = {"wgpu_near_cut": False, "wgpu_near_cut_clamp": True}
-SCENES = GOLDENS + list(EXTRA)
+SCENES = ["vulkan_cube", "vulkan_icosphere_smooth", "vulkan_torus_ortho",
+          "vulkan_nested_shells", "vulkan_multi_draw", "reversed_z_multi_draw",
+          "reversed_z_peel", "zero_to_one_near_crossing", "depth_clamp_near_crossing",
+          "d3d12_exact_ties", "unorm24_torus_ortho", "unorm16_planes"]
 
-_VULKAN = [s for s in GOLDENS if s.startswith("vulkan_")]
+_VULKAN = [s for s in SCENES if s.startswith("vulkan_")]
 _ZERO_TO_ONE = [s for s in SCENES if s != "unorm24_torus_ortho"]
 _REVERSED = ["reversed_z_multi_draw", "reversed_z_peel"]
 
@@ -63,7 +57,7 @@ EXPECTED = {
                             "vulkan_nested_shells": "prim_id",
                             "vulkan_icosphere_smooth": "prim_id",
                             "reversed_z_peel": "layer_front_facing"},
-    "unclipped_depth_dropped": {"wgpu_near_cut_clamp": "prim_id"},
+    "unclipped_depth_dropped": {"depth_clamp_near_crossing": "prim_id"},
 }
 #: scenes a fault cannot change (they must pass)
 UNTOUCHED = {
@@ -72,41 +66,14 @@ UNTOUCHED = {
     "reversed_z_less": [s for s in SCENES if s not in _REVERSED],
     "clear_one_under_greater": [s for s in SCENES if s not in _REVERSED],
     "winding_not_flipped": [s for s in SCENES if s not in _VULKAN + ["reversed_z_peel"]],
-    "unclipped_depth_dropped": [s for s in SCENES if s != "wgpu_near_cut_clamp"],
+    "unclipped_depth_dropped": [s for s in SCENES if s != "depth_clamp_near_crossing"],
 }
 COLUMNS = ["correct", *EXPECTED]
 
 
-def _near_cut(clamp, width=160, height=120):
-    """``zero_to_one_near_crossing``'s draws and eye with the near plane at 1.4 (it cuts the
-    torus), Direct3D's window conventions, with or without depth clamp."""
-    from refraster.camera import Camera, look_at, perspective
-    from refraster.golden.convention_scenes import _ground, _window
-    from refraster.golden.scenes import Draw, _rotate_x, _translate, render_scene
-    from refraster.scenes import solid
-    draws = [Draw("ground", _ground(), np.eye(4)),
-             Draw("torus", solid("torus", quick=True),
-                  _translate(0.0, 0.5, 1.6) @ _rotate_x(80))]
-    view = look_at((0.0, 1.2, 3.0), (0.0, 0.3, 0.0))
-    proj = perspective(50.0, width / height, 1.4, 30.0, depth_range="zero_to_one")
-    return render_scene(draws, Camera(view, proj, width, height),
-                        raster={**_window("d3d12"), "depth_range": "zero_to_one",
-                                "depth_clamp": clamp})
-
-
 @pytest.fixture(scope="module")
 def gold(tmp_path_factory):
-    from refraster.golden.scenes import SCENES as REGISTRY
-    from refraster.golden.scenes import register_scene
-    for name, clamp in EXTRA.items():
-        register_scene(name, technique="render",
-                       description="test-only (tests/test_wgpu_conventions.py)")(
-                           lambda clamp=clamp, **params: _near_cut(clamp, **params))
-    try:
-        return generate_gold(tmp_path_factory, "wgpuconv", SCENES)
-    finally:   # the registry is the project's (docs/golden.md lists it): leave it as found
-        for name in EXTRA:
-            REGISTRY.pop(name, None)
+    return generate_gold(tmp_path_factory, "wgpuconv", SCENES)
 
 
 def test_convention_goldens_pass_and_every_convention_fault_fails(gold):
@@ -119,16 +86,6 @@ def test_convention_goldens_pass_and_every_convention_fault_fails(gold):
     results = fault_matrix(gold, COLUMNS, SCENES, EXPECTED, UNTOUCHED, backend="wgpu")
     table = matrix_table(COLUMNS, SCENES, results)
     check_backends_matrix(BEGIN, END, table, "wgpu conventions matrix")
-
-
-def test_the_near_cut_scenes_cut(gold):
-    """The test-only pair differs where the clamp keeps what the near plane cuts (else the
-    ``unclipped_depth_dropped`` column would prove nothing)."""
-    a = np.load(gold / "golden" / "wgpu_near_cut" / "buffers.npz")
-    b = np.load(gold / "golden" / "wgpu_near_cut_clamp" / "buffers.npz")
-    changed = a["prim_id"] != b["prim_id"]
-    assert changed.sum() > 5000
-    assert (b["depth"][changed] == 0).all()
 
 
 def _scene(gold, name):
@@ -152,11 +109,11 @@ def test_depth_clamp_is_refused_without_depth_clip_control(gold):
                 assert reason is None, (name, reason)
         with pytest.raises(Unsupported, match="raster.depth_clamp needs WebGPU's optional "
                                               "feature depth-clip-control"):
-            gpu.render(gold / "golden" / "wgpu_near_cut_clamp" / "package")
+            gpu.render(gold / "golden" / "depth_clamp_near_crossing" / "package")
     with backend_or_skip() as gpu:
         if "depth-clip-control" not in gpu.adapter.features:
             pytest.skip("the adapter does not offer depth-clip-control")
-        assert gpu.supports(_scene(gold, "wgpu_near_cut_clamp")) is None
+        assert gpu.supports(_scene(gold, "depth_clamp_near_crossing")) is None
 
 
 def test_unorm_formats_write_the_depth_buffer(gold):

@@ -109,7 +109,7 @@ def _crossing(width, height, raster):
     draws = [Draw("ground", _ground(), np.eye(4)),
              Draw("torus", solid("torus", quick=True), _translate(0.0, 0.5, 1.6) @ _rotate_x(80))]
     view = look_at((0.0, 1.2, 3.0), (0.0, 0.3, 0.0))
-    proj = perspective(50.0, width / height, 1.0, 30.0, depth_range="zero_to_one")
+    proj = perspective(50.0, width / height, 1.4, 30.0, depth_range="zero_to_one")
     return render_scene(draws, Camera(view, proj, width, height), raster=raster)
 
 
