@@ -288,10 +288,20 @@ def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps
                 float(1 << p.subpixel_bits), p.clipped.x, p.clipped.y, p.clipped.z,
                 p.clipped.prim, _piece_epsilon(prep), fslack, eps, winz, covered, id_may,
                 cov_may)
-    # depth ties: another primitive within the depth slack of the visible one
+    # depth ties: another primitive within the depth slack of the visible one, each slack at
+    # the pixel (a clipped face's part falls with 1/w there: _clipped_slack_at)
+    fbase = _face_depth_slack(p, depth_eps)
     vis_flat = vis_prim.ravel()[pixel]
     zw = res.depth.ravel()[pixel].astype(np.float64)
-    slack_i = np.maximum(fslack[prim], fslack[np.maximum(vis_flat, 0)])
+    px, py = pixel_centres(pixel, w, h)
+    vis_all = vis_prim.ravel()
+    cov_flat = np.flatnonzero(vis_all >= 0)
+    vis_slack = np.full(h * w, depth_eps)
+    vis_slack[cov_flat] = fbase[vis_all[cov_flat]] + _clipped_slack_at(
+        prep, vis_all[cov_flat], *pixel_centres(cov_flat, w, h))
+    frag_slack = fbase[prim] + _clipped_slack_at(prep, prim, px, py) if len(prim) else \
+        np.zeros(0)
+    slack_i = np.maximum(frag_slack, vis_slack[pixel])
     tie = (np.abs(depth.astype(np.float64) - zw) <= slack_i) & (prim != vis_flat)
     id_may.ravel()[pixel[tie]] = True
     coverage = np.where(covered, MUST, MUST_NOT).astype(np.int8)
@@ -299,8 +309,7 @@ def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps
     g = np.maximum(_depth_step(res.depth, vis_prim), _plane_gradient(p, vis_prim))
     # moving the vertices by up to eps moves the plane's depth at a pixel by up to |∇z|·eps
     # (first order; 1.5× for the second-order terms)
-    base = fslack[np.maximum(vis_prim, 0)] if len(fslack) else np.full(vis_prim.shape, depth_eps)
-    slack = np.where(vis_prim >= 0, base, depth_eps) + 1.5 * g * eps
+    slack = vis_slack.reshape(h, w) + 1.5 * g * eps
     lo = np.where(covered, res.depth - slack, 0.0).astype(np.float32)
     hi = np.where(covered, res.depth + slack, 1.0).astype(np.float32)
     lo[id_may] = 0.0
@@ -309,9 +318,63 @@ def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps
                      depth_eps=depth_eps)
 
 
+def pixel_centres(pixel, width, height):
+    """Window points ``px, py`` (pixels, GL y-up, centres at +0.5) of flat pixel indices (row 0
+    at the top)."""
+    rows, cols = np.divmod(np.asarray(pixel, np.int64), width)
+    return cols + 0.5, (height - 1 - rows) + 0.5
+
+
+def _clipped_slack_at(prep, faces, px, py):
+    """Per entry — a global face ``faces[i]`` at the window point ``(px[i], py[i])`` (pixels,
+    GL y-up) — the window-depth slack a clipped face's new vertices bring **at that point**
+    (0 for a face not clipped; docs/tolerance.md, "Clipped pieces, per pixel").
+
+    A new vertex ``V_k`` is placed by float32 clipping to ``4 ulp_f32(R)`` in each clip
+    coordinate (``R`` the largest of the face's), which moves it off the face's plane by at
+    most ``e_k = 4 ulp_f32(R)/w_k·(1 + g·max(W, H)/2)`` in window depth (``g`` the plane's
+    depth gradient per pixel: the depth error, and the window position's error times the
+    gradient). The plane through the moved vertices differs at a point by the weights of the
+    piece's vertices there: ``Σ λ_k e_k``, and ``Σ λ_k / w_k = 1/w(p)`` (``1/w`` is affine in
+    window coordinates over a plane), so the slack at the point is
+    ``4 ulp_f32(R)·(1 + g·max(W, H)/2)/w(p)``, ``1/w(p)`` capped at the face's largest
+    ``1/w`` over its pieces (the per-face worst case, where ``λ = 1`` at its nearest new
+    vertex)."""
+    faces = np.asarray(faces, np.int64)
+    out = np.zeros(len(faces))
+    st = prep.triangles.clipped
+    if not len(st) or not len(faces):
+        return out
+    inv_max = np.zeros(len(prep.triangles.faces))
+    np.maximum.at(inv_max, st.prim, st.inv_w.max(axis=1).astype(np.float64))
+    sel = np.flatnonzero(inv_max[faces] > 0.0)
+    if not len(sel):
+        return out
+    f = faces[sel]
+    c = prep.clip[prep.triangles.faces[f]].astype(np.float64)             # (m, 3, 4)
+    r = np.spacing(np.abs(c).max(axis=(1, 2)).astype(np.float32)).astype(np.float64)
+    m = c[:, :, [0, 1, 3]]
+    ok = np.abs(np.linalg.det(m)) > 1e-300
+    m[~ok] = np.eye(3)
+    # a·x + b·y + c·w = 1 and α·x + β·y + δ·w = z at the vertices: 1/w and z/w over NDC x, y
+    inv_c = np.linalg.solve(m, np.ones((len(f), 3, 1)))[:, :, 0]
+    z_c = np.linalg.solve(m, c[:, :, 2:3])[:, :, 0]
+    wd, ht = prep.width, prep.height
+    xn = 2.0 * np.asarray(px, np.float64)[sel] / wd - 1.0
+    yn = 2.0 * np.asarray(py, np.float64)[sel] / ht - 1.0
+    inv = inv_c[:, 0] * xn + inv_c[:, 1] * yn + inv_c[:, 2]
+    inv = np.where(ok & (inv > 0.0), np.minimum(inv, inv_max[f]), inv_max[f])
+    # window depth ½·z/w + ½ per window pixel: ½·α·2/W, ½·β·2/H
+    g = np.where(ok, np.hypot(z_c[:, 0] / wd, z_c[:, 1] / ht), 0.0)
+    out[sel] = 4.0 * r * inv * (1.0 + g * max(wd, ht) / 2.0)
+    return out
+
+
 def _depth_slacks(prep, depth_eps):
     """Per-face depth slack (:func:`_face_depth_slack`); the depth of a clipped face's new
-    vertex carries float32 clipping rounding too."""
+    vertex carries float32 clipping rounding too, here its worst case over the face (where it
+    decides which faces may win; a visible pixel's own interval takes it at the pixel,
+    :func:`_clipped_slack_at`)."""
     p = prep.triangles
     fslack = _face_depth_slack(p, depth_eps)
     if len(p.clipped):

@@ -284,10 +284,9 @@ def test_command_refuses_a_technique_scene_in_one_line(tmp_path, capsys):
 # ------------------------------------------------------------------------------ teeth
 
 #: (scene, buffer) pairs admitting the fault at more than 5 % of covered pixels (docs/
-#: tolerance.md, "In the goldens: scenes in other conventions"): the depth-clamped ground plane's
-#: pieces clipped near the eye plane carry OpenGL's clipped-piece slack (about 0.2 in window
-#: depth); every edge of the exact-ties grid passes through pixel centres.
-OVER_AIM = {("depth_clamp_near_crossing", "depth"), ("d3d12_exact_ties", "barycentric")}
+#: tolerance.md, "In the goldens: scenes in other conventions"): every edge of the exact-ties
+#: grid passes through pixel centres.
+OVER_AIM = {("d3d12_exact_ties", "barycentric")}
 VARIANTS = {"4bit": {"subpixel_bits": 4}, "top_left": {"fill_rule": "top-left"},
             "float64": {"precision": "float64"}}
 

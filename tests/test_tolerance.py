@@ -119,3 +119,47 @@ def test_decision_may():
 def test_empty_scene_must_not_be_covered():
     tol = tolerance([], **KW)
     assert np.all(tol.coverage == MUST_NOT) and not tol.id_may.any()
+
+
+def test_clipped_piece_slack_falls_with_one_over_w_at_the_pixel():
+    """A face cut by the near plane: the slack its new vertices bring at a pixel is
+    ``4 ulp_f32(R)·(1 + |∇z|·max(W, H)/2) / w(p)`` (docs/tolerance.md, "Clipped pieces, per
+    pixel"), with ``w(p)`` and ``|∇z|`` derived here by hand — the ground plane y = −1 in eye
+    space seen from the origin: a centre at ``y_ndc < 0`` sees it at ``w = 1/(−y_ndc·t)``,
+    ``t = tan(fovy/2)``, and ``z_ndc = (f+n)/(f−n) + 2fn·t·y_ndc/(f−n)``; capped at the face's
+    ``1/w_min`` (its new vertices on the near plane: ``w = n``) where the centre's ray misses
+    the plane. The visible pixels' depth interval takes it there (not ``1/w_min``)."""
+    from refraster.conformance import (_clipped_slack_at, _depth_slacks, _face_depth_slack,
+                                       pixel_centres)
+    from refraster.raster import prepare
+    w_, h_, fovy, n, f = 64, 48, 60.0, 1.0, 50.0
+    verts = np.array([[-20.0, -1.0, 0.5], [20.0, -1.0, 0.5], [0.0, -1.0, -40.0]])
+    faces = np.array([[0, 1, 2]])
+    kw = dict(view=np.eye(4), proj=rf.perspective(fovy, w_ / h_, n, f), width=w_, height=h_)
+    prep = prepare([(verts, faces)], **kw)
+    assert len(prep.triangles.clipped) > 0
+    t = np.tan(np.radians(fovy) / 2)
+    clip = np.asarray(prep.clip)[:3].astype(np.float64)
+    ulp = float(np.spacing(np.float32(np.abs(clip).max())))
+    g = 2.0 * f * n * t / ((f - n) * h_)               # ½·∂z_ndc/∂y_ndc · 2/H
+    k = 4.0 * ulp * (1.0 + g * max(w_, h_) / 2.0)
+    rows = np.array([h_ - 1, h_ - 5, h_ // 2 + 3, 2])  # three below the horizon, one above
+    pix = rows * w_ + w_ // 2
+    px, py = pixel_centres(pix, w_, h_)
+    y_ndc = 2.0 * py / h_ - 1.0
+    got = _clipped_slack_at(prep, np.zeros(len(pix), np.int64), px, py)
+    want = np.where(y_ndc < 0, k * np.minimum(-y_ndc * t, 1.0 / n), k / n)
+    assert np.allclose(got, want, rtol=1e-6, atol=0.0), (got, want)
+    assert got[2] < got[1] < got[0] < got[3]          # nearer the eye: larger; the cap above
+    # under depth clamp the guard band cuts the face near the eye plane (w_min ≪ n): the
+    # per-face worst case is large, the interval at a visible pixel takes the pixel's own
+    clamp = rf.RasterState(depth_clamp=True)
+    prep = prepare([(verts, faces)], **kw, raster=clamp)
+    worst = _depth_slacks(prep, 0.0)[0]
+    at = _clipped_slack_at(prep, np.zeros(len(pix), np.int64), px, py)
+    clipped = worst - _face_depth_slack(prep.triangles, 0.0)[0]    # 4 ulp_f32(R)/w_min
+    assert clipped > 0.01 and at[:3].max() < 1e-4
+    tol = tolerance((verts, faces), **kw, raster=clamp)
+    r, c = rows[0], w_ // 2
+    half = 0.5 * (float(tol.depth_hi[r, c]) - float(tol.depth_lo[r, c]))
+    assert not tol.id_may[r, c] and half < worst - 0.5 * clipped

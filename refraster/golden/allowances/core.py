@@ -627,7 +627,7 @@ def entry_values(scene, raster, prep, pix, faces, eps):
     Shared by the face sets of plain scenes and the clip sets of clip-surface and cutaway
     scenes (:func:`_clip_value_entries`)."""
     from ...framebuffer import _build
-    from ...conformance import _depth_slacks, _face_facing, fragile_faces
+    from ...conformance import _clipped_slack_at, _face_depth_slack, _face_facing, fragile_faces
     h, w = prep.height, prep.width
     # sample points: the centre and the corners of the square of half-side eps (⊇ the ε-disc);
     # every value here is quasi-linear (affine or a ratio of affine functions of the point), so
@@ -643,7 +643,12 @@ def entry_values(scene, raster, prep, pix, faces, eps):
                 prep.face_offsets, np.zeros(shape, np.bool_),
                 np.nan_to_num(beta, nan=0.0).astype(np.float32), normals,
                 np.ones(3))
-    slack = _depth_slacks(prep, DEPTH_EPS)[faces] if n else np.zeros(0)
+    # the face's depth slack at the entry's pixel: a clipped face's part over the ε-square
+    # (affine in 1/w: largest at a corner, _clipped_slack_at)
+    slack = _face_depth_slack(prep.triangles, DEPTH_EPS)[faces] if n else np.zeros(0)
+    if n:
+        slack = slack + np.max([_clipped_slack_at(prep, faces, px[:, k], py[:, k])
+                                for k in range(px.shape[1])], axis=0)
 
     def spread(v, base, margin=1.0):
         """``centre ∓ (margin · spread + base)`` per entry (and channel). Depth, eye depth and
