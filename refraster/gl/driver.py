@@ -9,7 +9,8 @@ Conventions it implements (``docs/backends.md`` walks through them):
   ``16``; moderngl's own is 24-bit), cleared to ``raster.clear_depth``, test
   ``raster.depth_func``; the window depth written out is ``gl_FragCoord.z`` into an ``R32F``
   target (bit-identical to a float32 depth buffer), or the depth buffer read back under the
-  unorm formats (its quantised values).
+  unorm formats (its quantised values) and under ``GL_DEPTH_CLAMP`` (the buffer holds the
+  clamped depth; ``gl_FragCoord.z`` is not clamped: GL clamps at the depth test).
 * The API conventions of the raster state (issue 39; ``docs/backends.md``, "Conventions"):
   ``glClipControl(origin, depth mode)`` from ``raster.origin`` and ``raster.depth_range``,
   ``GL_DEPTH_CLAMP`` from ``raster.depth_clamp``; ``raster.ndc_y = "down"`` (Vulkan) is a
@@ -544,8 +545,10 @@ class Backend:
             top = self._top_first(scene)
             inside = (self._read(targets[6], "<i4", 1, size, top_first=top)[..., 0] if vds
                       else None)
-            if conv["depth_format"] != "float32" or "depth_unorm16_declared_float" in self.faults:
-                # the candidate's depth is its depth buffer: k / (2^n − 1), read as float
+            if conv["depth_format"] != "float32" or conv["depth_clamp"] \
+                    or "depth_unorm16_declared_float" in self.faults:
+                # the candidate's depth is its depth buffer: k / (2^n − 1), read as float, or
+                # under depth clamp the clamped depth (gl_FragCoord.z is not clamped)
                 stored = self._read(depth, "<f4", 1, size, top_first=top)[..., 0]
                 out["depth"] = np.where(covered, stored, out["depth"]).astype(np.float32)
         finally:
