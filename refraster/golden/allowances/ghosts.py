@@ -6,43 +6,45 @@ over the line fragments of the secondary meshes' feature segments there:
     α(z) = 1 − (e(D) − e(z)) / g_max   where z < min(D, occ) and e(D) − e(z) < g_max, else 0
 
 (``e`` the eye depth of an NDC depth, ``occ`` the NDC depth of a visible object of interest, +∞
-elsewhere; without the fade α = 1 there). refraster draws a segment on every pixel its window
-projection crosses (supercover) and takes the largest α over the chord; a GPU draws it as
-``GL_LINES`` (diamond exit: one fragment per column of an x-major line, at the pixel whose
-diamond the line crosses) and evaluates α at one point of the line, the foot of the pixel
-centre, which lies inside the pixel (a line through the diamond passes within 0.5 of the centre).
+elsewhere; without the fade α = 1 there). Two rules are accepted:
+
+* **refraster's**: a segment on every pixel its window projection crosses (supercover), the
+  largest α over its chord there — on the golden's own segment (no snapping to vary), float32
+  interpolation ``32·2⁻²⁴``;
+* **a GPU's** ``GL_LINES``: one fragment per column of an x-major line (row of a y-major one),
+  its depth at ONE point of the line (:func:`_evaluation_depths`): GL's foot of the pixel
+  centre ``t_F`` or, as llvmpipe does (its line depth plane has no minor-axis slope), the
+  point on the column's (row's) centre line ``t_C``, extended linearly beyond the segment's
+  ends; any parallelogram line whose sides lie between the perpendicular and the minor axis
+  evaluates between them. Window depth is affine along the projected line (GL's linear line
+  depth). Vertex moves of ``1.5·ε`` per axis move those points' depths by the first-order terms
+  of :func:`_evaluation_depths`, float32 interpolation by ``32·2⁻²⁴``.
 
 Per pixel the golden stores ``ghost_lo ≤ ghost ≤ ghost_hi``, or ``ghost = 0`` where
 ``ghost_zero``:
 
-* **hi**: the supremum of α over every fragment a conformant line rasterizer may put there —
-  the chords of the supercover (a superset of the diamond-exit fragments) and, for a line that
-  passes within ``1.5·ε`` of the pixel's square (vertices moved by the edge ε), its chord in the
-  neighbouring pixel — over the chord's depth range widened by the line depth allowance, D in
-  ``[D_lo, D_hi]`` (:mod:`.cutaway`) and the occluder in the range the cut frame's face
-  sets allow (``cs_*`` of :func:`.clip.cutaway_allowances`);
+* **hi**: the supremum of α over refraster's chords at the pixel and over every fragment a GPU
+  may draw there — at every chord pixel and, for a line that passes within ``1.5·ε`` of the
+  pixel's square, there too — each over its evaluation range, D in ``[D_lo, D_hi]``
+  (:mod:`.cutaway`) and the occluder in the range the cut frame's face sets allow (``cs_*`` of
+  :func:`.clip.cutaway_allowances`);
 * **lo**: the largest, over the segments that *surely* produce a fragment there, of the
-  infimum of α over the segment's chord in the pixel (it holds the foot of the centre, GL's
-  interpolation point, and the point on the column's centre line, where llvmpipe's line depth
-  plane puts it). A segment surely produces a fragment at pixel (r, c) where, for its major
-  axis (certain: ``| |Δx| − |Δy| | > 6ε``, the ends moving by 1.5ε; else both rules must
-  agree), the line crosses the column's centre line at ``y_c`` with ``frac(y_c)`` more than
-  ``1.5·ε·(1 + |slope|)`` from an integer (the pixel's diamond is crossed whatever the vertices'
-  moves), ``1.5·ε`` inside the segment's extent along the major axis, and the segment's second
-  vertex lies outside the diamond by ``3ε`` in L1 distance (diamond exit: a segment ending
-  inside a diamond does not produce it; one starting inside does).
+  infimum of α over the GPU's evaluation range (refraster's chord maximum is at least that:
+  the centre-line point lies on the chord). A segment surely produces a fragment at pixel
+  (r, c) where, for its major axis (certain: ``| |Δx| − |Δy| | > 6ε``, the ends moving by 1.5ε;
+  else both rules must agree), the line crosses the column's centre line at ``y_c`` with
+  ``frac(y_c)`` more than ``1.5·ε·(1 + |slope|)`` from an integer (the pixel's diamond is
+  crossed whatever the vertices' moves), ``1.5·ε`` inside the segment's extent along the major
+  axis, and the segment's second vertex lies outside the diamond by ``3ε`` in L1 distance
+  (diamond exit: a segment ending inside a diamond does not produce it; one starting inside
+  does).
 * **zero**: where no segment surely produces a fragment, α is 0 (none drawn) or, drawn, at
-  least the least α of the fragments that may be drawn there — the largest gap, at ``D_hi``
-  and the chord's nearest depth less ``1.5 px·|dz/ds|`` (a neighbour's chord, or llvmpipe's
-  centre-line point, takes its depth up to 1.5 px along the line from the chord); ``lo`` holds
+  least the least α of the fragments that may be drawn there (refraster's chords, the GPU's
+  evaluation ranges): the largest gap, at ``D_hi`` and the range's nearest depth; ``lo`` holds
   that bound there and ``zero`` says 0 is allowed too.
 
-The line depth allowance: window depth is affine along a projected line (GL interpolates line
-depth linearly in window space; refraster's perspective-correct chord depth is the same
-function), so moving the ends by ε moves a point's depth by at most ``2·ε·|dz/ds|`` (``dz/ds``
-the segment's NDC depth per window pixel) to first order, plus ``32·2⁻²⁴`` for float32
-interpolation. The opacity itself is evaluated in float32 on a GPU: the gap ``e(D) − e(z)``
-carries ``32·2⁻²⁴·(e(D) + e(z))``.
+The opacity itself is evaluated in float32 on a GPU: the gap ``e(D) − e(z)`` carries
+``32·2⁻²⁴·(e(D) + e(z))``.
 
 Not admitted: GL's licence for line algorithms other than diamond exit to put a fragment one
 pixel off the diamond-exit one (its rule 1), which would leave every pixel next to a line free.
@@ -59,8 +61,9 @@ F32 = 2.0 ** -24
 MARGIN = 1.5
 #: The sub-pixel bits of the edge ε the line placement uses, whatever the candidate declares
 #: for its triangles: a GPU draws ``GL_LINES`` with a line algorithm of its own (llvmpipe: a
-#: quad per line), whose fragments lie within the 4-bit ε of the diamond-exit ones but not
-#: within the 8-bit one (measured: llvmpipe at cutaway_shells (42, 33), (31, 41), (33, 40)).
+#: quad per line), not with the triangles' snapping the declaration describes; 4 is GL's
+#: minimum sub-pixel precision (llvmpipe's lines pass the 8-bit ε too, on the five cutaway
+#: scenes).
 LINE_BITS = 4
 GHOST_ARRAYS = ("ghost_lo", "ghost_hi", "ghost_zero")
 
