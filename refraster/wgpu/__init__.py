@@ -2,8 +2,9 @@
 extra ``wgpu``).
 
 A WebGPU team's client of the goldens, written as one: WGSL files (``shaders/gbuffer.wgsl``; the
-techniques' ``shaders/edges.wgsl`` and ``shaders/clip.wgsl`` with :mod:`refraster.wgpu.edges` and
-:mod:`refraster.wgpu.clipsurface`) beside a thin driver (:mod:`refraster.wgpu.driver`) on wgpu-py
+techniques' ``shaders/edges.wgsl``, ``shaders/clip.wgsl`` and ``shaders/cutaway.wgsl`` with
+:mod:`refraster.wgpu.edges`, :mod:`refraster.wgpu.clipsurface` and :mod:`refraster.wgpu.cutaway`)
+beside a thin driver (:mod:`refraster.wgpu.driver`) on wgpu-py
 (wgpu-native), which on a machine without a GPU runs on Mesa's lavapipe (Vulkan on llvmpipe).
 It reads only the scene
 packages of a golden directory (``scene.json``, PLY meshes, ``.npy`` maps) through the
