@@ -315,3 +315,48 @@ def test_exact_caps_refuse_depth_clamp():
                                          "caps.mode='exact'"):
         render_clipped(_box_solid(), CLIP_SURFACE, **kw, raster=RasterState(depth_clamp=True),
                        caps=Caps(mode="exact"))
+
+
+# ----------------------------------------------------------------------- planar mirror
+
+MIRROR_W, MIRROR_H = 96, 72
+
+
+def _mirrored(state, keywords, flip, reverse):
+    import trimesh
+    from refraster.edges import npr
+    torus = trimesh.creation.torus(0.6, 0.22, major_sections=32, minor_sections=12)
+    model = np.eye(4)
+    model[:3, :3] = trimesh.transformations.rotation_matrix(1.1, [1, 0, 0])[:3, :3]
+    model[1, 3] = 0.9
+    floor = (np.array([[-2, 0, -2], [2, 0, -2], [2, 0, 2], [-2, 0, 2.0]]),
+             np.array([[0, 2, 1], [0, 3, 2]]))
+    # the mirror's winding reversed under cw (its front by the state's front face); the
+    # torus keeps its own, whose smooth normals follow its winding
+    torus = _winding([torus], False)[0]
+    floor = _winding([floor], reverse)[0] + (np.tile([0.0, 1.0, 0.0], (4, 1)),)  # own normals
+    view = look_at((2.2, 1.6, 3.0), (0.0, 0.5, 0.0))
+    proj = _frame_projection(keywords, flip, MIRROR_W / MIRROR_H, 0.5, 20.0)
+    return npr.render_mirrored(torus, floor, view=view, proj=proj, width=MIRROR_W,
+                               height=MIRROR_H, models=[model],
+                               raster=state.replace(normals="smooth"))
+
+
+@pytest.mark.parametrize("name", ["reversed_infinite", "vulkan_cw", "d3d_reversed"])
+def test_mirror_agrees_across_conventions(name):
+    """render_mirrored: both passes in the state's conventions, the mirror's front by the
+    state's front face; the mirror mask, both passes' ids and the picture agree (the edge
+    maps are found from eye depth, which is interpolated, not window depth). Under ``cw`` the
+    torus keeps its winding, so its fragments' facing is the reference's turned."""
+    state, kw, flip, reverse, ref_name = CONVENTIONS[name]
+    ref = _mirrored(REFERENCES[ref_name][0], REFERENCES[ref_name][1], False, False)
+    got = _mirrored(state, kw, flip, reverse)
+    assert ref.mirror_mask.sum() > 500 and ref.mirrored.mask.sum() > 300
+    assert np.array_equal(got.mirror_mask, ref.mirror_mask)
+    for part in ("scene", "mirrored"):
+        for f in ("prim_id", "object_id", "front_facing", "mask"):
+            want = getattr(getattr(ref, part), f)
+            if f == "front_facing" and state.front_face == "cw":
+                want = want != (getattr(ref, part).object_id == 0)   # the torus's pixels
+            assert np.array_equal(getattr(getattr(got, part), f), want), (part, f)
+    assert np.abs(got.image - ref.image).max() <= 1e-3
