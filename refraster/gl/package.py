@@ -377,3 +377,29 @@ def edges_supports(scene):
     except PackageError as exc:
         return f"edges: {exc}"
     return None
+
+
+#: The clip surfaces either backend draws in one pass (a uniform block of this many).
+CLIP_MAX_SURFACES = 2
+
+
+def clipsurface_supports(scene):
+    """``None`` if a backend can draw the clip-surface scene from its package, else the reason:
+    mesh caps, the world-space clip test, diffuse caps, 1 to :data:`CLIP_MAX_SURFACES`
+    surfaces, and the derived maps a package since issue 25 carries."""
+    p = scene.get("parameters", {})
+    surfaces = p.get("surfaces") or []
+    if p.get("cap_mode", "mesh") != "mesh":
+        return f"clipsurface cap_mode {p.get('cap_mode')!r}: only 'mesh' (the exported grid)"
+    if p.get("space", "world") != "world" or p.get("evaluation_space", "world") != "world":
+        return "clipsurface: only the world-space clip test (space 'world') is implemented"
+    if p.get("caps") and p.get("cap_style", "diffuse") != "diffuse":
+        return f"clipsurface cap_style {p.get('cap_style')!r}: only 'diffuse'"
+    if not 1 <= len(surfaces) <= CLIP_MAX_SURFACES:
+        return (f"clipsurface: 1 to {CLIP_MAX_SURFACES} surfaces, the scene has "
+                f"{len(surfaces)}")
+    if p.get("caps") and ("cap_meshes" not in p or "sprites" not in p
+                          or any("normal_map" not in s for s in surfaces)):
+        return ("clipsurface: the package lacks the cap meshes, sprites or derived maps "
+                "(golden written before issue 25 item 2)")
+    return None
