@@ -71,13 +71,15 @@ def _centre_depth(scene, state, frame):
     return depth
 
 
-def candidate_buffers(name, fault="none"):
-    """The candidate's buffers of golden scene ``name`` with ``fault`` (module docstring)."""
+def candidate_buffers(name, fault="none", **changes):
+    """The candidate's buffers of golden scene ``name`` with ``fault`` (module docstring) and
+    the pattern it states; ``changes``: raster fields the candidate renders with instead
+    (``interpolation="center"``, say)."""
     if fault not in FAULTS:
         raise ValueError(f"fault must be one of {FAULTS}, got {fault!r}")
     scene = available_scenes()[name].build()
     raster = raster_state(scene.raster)
-    state = as_state(raster)
+    state = dataclasses.replace(as_state(raster), **changes)
     positions = pattern_of(raster)["positions"]
     if fault == "pattern_mirrored":
         state = dataclasses.replace(state, sample_locations=tuple(
@@ -96,12 +98,13 @@ def candidate_buffers(name, fault="none"):
     return buffers, pattern_of(raster)
 
 
-def write_candidate(out, names, fault="none", *, pattern=None):
+def write_candidate(out, names, fault="none", *, pattern=None, **changes):
     """Write a candidate directory ``out`` for the golden scenes ``names`` with ``fault``;
-    ``pattern`` (``{"samples", "positions"}``) overrides the pattern it states."""
+    ``pattern`` (``{"samples", "positions"}``) overrides the pattern it states, ``changes``
+    the raster fields it renders with (:func:`candidate_buffers`)."""
     out = Path(out)
     for name in names:
-        buffers, declared = candidate_buffers(name, fault)
+        buffers, declared = candidate_buffers(name, fault, **changes)
         d = out / name
         d.mkdir(parents=True, exist_ok=True)
         (d / "buffers.npz").write_bytes(npz_bytes(buffers))

@@ -159,13 +159,14 @@ _FAN_FACES = np.array([[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4], [3, 4, 7], [3
                 description="Exact ties at 4 samples: four fans of triangles with vertices on "
                             "the 1/16-pixel grid whose shared and outer edges pass exactly "
                             "through sample positions (the fill rule decides each such sample), "
-                            "orthographic, one window pixel per unit (every coordinate exact "
-                            "in float32).")
+                            "each fan tilted in depth, orthographic, one window pixel per unit "
+                            "(every window coordinate exact in float32).")
 def _msaa4_ties(width=16, height=16):
     v, f = [], []
     for k, (tx, ty) in enumerate(((0, 0), (128, 0), (0, 128), (128, 128))):
+        # each fan tilted (depth varies along x), one behind the other
         v.append(np.column_stack([(_FAN[:, 0] + tx) / 16.0, (_FAN[:, 1] + ty) / 16.0,
-                                  np.full(len(_FAN), -1.0 - 0.25 * k)]))
+                                  -1.0 - 0.25 * k - _FAN[:, 0] / 512.0]))
         f.append(_FAN_FACES + k * len(_FAN))
     proj = orthographic(0.0, float(width), 0.0, float(height), 0.5, 4.0)
     return msaa_scene([Draw("fans", (np.concatenate(v), np.concatenate(f)))],
@@ -173,13 +174,13 @@ def _msaa4_ties(width=16, height=16):
 
 
 @register_scene("msaa4_asymmetric", technique="msaa",
-                description="One asymmetric triangle (no mirror symmetry) over a quad at 4 "
-                            "samples, orthographic, one window pixel per unit: its edges cross "
+                description="One asymmetric triangle (no mirror symmetry), tilted in depth, over "
+                            "a quad at 4 samples, orthographic, one window pixel per unit: its edges cross "
                             "pixels between samples that the standard pattern and its mirror "
                             "image place differently, so a mirrored pattern changes many "
                             "samples' coverage.")
 def _msaa4_asymmetric(width=24, height=16):
-    tri = np.array([[1.3, 2.45, -1.0], [22.6, 6.3, -1.0], [5.15, 14.2, -1.0]])
+    tri = np.array([[1.3, 2.45, -1.0], [22.6, 6.3, -1.6], [5.15, 14.2, -1.2]])
     quad = np.array([[12.0, 0.0, -2.0], [24.0, 0.0, -2.0], [24.0, 16.0, -2.0], [12.0, 16.0, -2.0]])
     draws = [Draw("triangle", (tri, np.array([[0, 1, 2]]))),
              Draw("quad", (quad, np.array([[0, 1, 2], [0, 2, 3]])))]
