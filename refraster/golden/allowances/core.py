@@ -186,11 +186,6 @@ def scene_allowances(scene, raster, bits=None):
     :func:`refraster.golden.allowances.precision.candidate_bits`). Returns as
     :func:`gl_allowances`."""
     from .conventions import equivalent, move_back
-    if scene.technique == "msaa":
-        # per sample, on the scene moved by each sample's offset (allowances/samples.py)
-        from .samples import msaa_allowances
-        with declared(candidate_bits() if bits is None else bits):
-            return msaa_allowances(scene, raster)
     with declared(candidate_bits() if bits is None else bits):
         eq_scene, eq_raster = equivalent(scene, raster)
         arrays, info, checks = gl_allowances(eq_scene, eq_raster)
