@@ -30,7 +30,7 @@ import numpy as np
 from refraster.golden.io.package import npz_bytes
 from refraster.golden.io.read import PATTERN_FILE
 from refraster.golden.msaa_scenes import pattern_of, sample_buffer, sample_buffers
-from refraster.golden.scenes import SCENES, as_state, available_scenes, draw_meshes, raster_state
+from refraster.golden.scenes import as_state, available_scenes, draw_meshes, raster_state
 
 FAULTS = ("none", "pattern_mirrored", "depth_per_pixel", "srgb_resolve", "centre_coverage")
 #: The buffer a fault's failure names first (every sample's, or the resolve).
@@ -112,4 +112,4 @@ def write_candidate(out, names, fault="none", *, pattern=None, **changes):
     return out
 
 
-__all__ = ["FAULTS", "NAMES", "candidate_buffers", "write_candidate", "SCENES"]
+__all__ = ["FAULTS", "NAMES", "candidate_buffers", "write_candidate"]

@@ -44,7 +44,6 @@ __all__ = ["msaa_allowances", "sample_shift", "centroid_ranges", "resolve_bounds
 _AT_CENTRE = ("set_eye_depth_lo", "set_eye_depth_hi", "set_barycentric_lo",
               "set_barycentric_hi", "set_color_lo", "set_color_hi", "set_normal",
               "set_normal_angle")
-_CHANNELS = ("depth", "prim_id", "object_id", "front_facing", "barycentric", "color")
 
 
 def sample_shift(position, width, height):
@@ -67,7 +66,7 @@ def msaa_allowances(scene, raster):
     """Per-sample allowances of an ``msaa`` scene (module docstring). Returns ``(arrays, info,
     checks)`` as :func:`refraster.golden.allowances.core.gl_allowances`."""
     from ...camera import Camera
-    from ..msaa_scenes import sample_buffer
+    from ..msaa_scenes import SAMPLE_CHANNELS, sample_buffer
     from ..scenes import DEFAULT_RASTER
     from .conventions import is_gl
     if not is_gl(raster) or raster.get("depth_func", "less") != "less" \
@@ -87,7 +86,7 @@ def msaa_allowances(scene, raster):
     for s, pos in enumerate(positions):
         moved = Camera(cam.view, sample_shift(pos, cam.width, cam.height) @ cam.proj,
                        cam.width, cam.height)
-        bufs = {ch: scene.buffers[sample_buffer(s, ch)] for ch in _CHANNELS
+        bufs = {ch: scene.buffers[sample_buffer(s, ch)] for ch in SAMPLE_CHANNELS
                 if sample_buffer(s, ch) in scene.buffers}
         sub = dataclasses.replace(scene, technique="render", camera=moved, buffers=bufs,
                                   parameters={}, raster=overrides, geometry=True, may=None,
