@@ -640,3 +640,32 @@ def test_a_golden_with_another_clear_depth_passes_itself_and_holds_its_cut(tmp_p
     assert (fb.prim_id >= 0).sum() > 0
     result = golden.compare(out, tmp_path / "cand", mode="tolerant")
     assert result.exit_code != 0
+
+
+@pytest.mark.parametrize("func", ["always", "equal", "notequal", "never", "greater", "gequal"])
+def test_a_golden_under_any_depth_function_with_another_clear_passes_itself(tmp_path, func):
+    """``clear_depth = 0.5`` under a depth test with no direction (``always``, ``equal``,
+    ``notequal``, ``never``) or the reversed one: the buffer's depths lie on both sides of the
+    clear value, so coverage is not "in front of the clear depth" (the golden failed itself on
+    ``depth`` at 9,831 pixels under ``always``; found by the fuzz harness, 2026-12-04)."""
+    path = _toml(tmp_path, 'name = "c"\n[viewport]\nwidth = 32\nheight = 24\n'
+                 f'[raster]\nclear_depth = 0.5\ndepth_func = "{func}"\n'
+                 '[[draw]]\nsolid = "cube"\n')
+    out = tmp_path / "g"
+    assert cli.main(["generate", "--out", str(out), "--scene-file", str(path), "--jobs",
+                     "1", "-q"]) == 0
+    for mode in (None, "tolerant"):
+        result = golden.compare(out, out, mode=mode)
+        assert result.exit_code == 0, (mode, result.failures()[:3])
+    # and a candidate that ignores the declared test (draws under "less") fails
+    import numpy as np
+
+    from refraster.golden.scenes import load_scene_file, raster_state, render_draws
+    built = load_scene_file(path).build()
+    fb = render_draws(built.draws, built.camera, {**raster_state(built.raster),
+                                                  "depth_func": "less"})
+    assert (fb.prim_id >= 0).sum() > 0
+    cand = tmp_path / "cand" / "c"
+    cand.mkdir(parents=True)
+    np.savez(cand / "buffers.npz", **fb.arrays())
+    assert golden.compare(out, tmp_path / "cand", mode="tolerant").exit_code != 0

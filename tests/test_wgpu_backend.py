@@ -39,7 +39,7 @@ PLAIN = ["render_cube", "render_icosphere_smooth", "render_torus_ortho", "render
 LDI, VDS = "ldi_nested_shells", "vds_parity_building"
 SCENES = PLAIN + [LDI, VDS]
 #: a scene of a technique of issue 45 not yet in WGSL, skipped with its reason
-LATER = "cutaway_shells"
+LATER = "halos4d_figure1"
 
 #: OpenGL clip space → WebGPU's 0 ≤ z ≤ w, the same planes: z' = (z + w)/2.
 ZERO_TO_ONE = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]])
@@ -377,7 +377,7 @@ def test_candidate_command_writes_and_lists_what_it_skipped(gold):
                "--scene", LATER)
     assert run.returncode == 0, run.stderr
     assert "wgpu backend (llvmpipe" in run.stdout or not IN_CI
-    assert f"skipped {LATER}: technique 'cutaway' is not implemented by the wgpu " \
+    assert f"skipped {LATER}: technique 'halos4d' is not implemented by the wgpu " \
            "backend yet (issue 45" in run.stdout, run.stdout
     assert "--scene render_cube" in run.stdout
     assert sorted(p.name for p in out.iterdir()) == [".refraster-candidate", "render_cube"]

@@ -1,8 +1,9 @@
 """refraster.wgpu on the technique scenes of issue 45 it renders (edge maps with NPR
-compositing; 2.5D clip surfaces with the parity test and caps): ``golden candidate --backend
-wgpu`` renders every edges and clipsurface scene and each passes the tolerant compare on
-lavapipe; each planted fault of a technique (``refraster.wgpu.TECHNIQUE_FAULTS``, an override
-constant of the technique's WGSL) fails it on the scenes whose passes contain the faulty code,
+compositing; 2.5D clip surfaces with the parity test and caps; adaptive cutaways): ``golden
+candidate --backend wgpu`` renders every edges, clipsurface and cutaway scene and each passes
+the tolerant compare on lavapipe; each planted fault of a technique
+(``refraster.wgpu.TECHNIQUE_FAULTS``, an override constant of the technique's WGSL or a host
+switch) fails it on the scenes whose passes contain the faulty code,
 naming the buffer, and passes the scenes whose passes do not. The pass/fail matrix is the one
 in docs/backends.md ("refraster.wgpu: technique scenes").
 
@@ -25,11 +26,15 @@ EDGES = ["edges_building", "edges_sobel", "edges_c1", "edges_diagonal2", "edges_
          "edges_npr_gooch"]
 CLIPS = ["clipsurface_building", "clipsurface_textured_caps", "clipsurface_two_surfaces",
          "clipsurface_relief_plane"]
-SCENES = EDGES + CLIPS
+CUTS = ["cutaway_shells", "cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa",
+        "cutaway_floor", "cutaway_floor_jfa"]
+FLOORS = ["cutaway_floor", "cutaway_floor_jfa"]
+SCENES = EDGES + CLIPS + CUTS
 
 #: fault → the scenes it is run on (its technique's)
 RUN = {"sobel_transposed": EDGES, "one_diagonal": EDGES,
-       "offset_wrong_address_mode": CLIPS, "parity_far_end": CLIPS}
+       "offset_wrong_address_mode": CLIPS, "parity_far_end": CLIPS,
+       "jfa_halved_once_more": CUTS, "ghost_not_depth_tested": CUTS, "ndc_y_from_row": CUTS}
 #: fault → {scene: buffer that must be named among the failing ones}
 EXPECTED = {
     # Sobel operators: edges_sobel (normal and depth), edges_c1_paper (normal)
@@ -42,6 +47,13 @@ EXPECTED = {
     # every scene's caps are seen where the sprite has layers behind the cap: caps appear and
     # vanish, so the ids name it (cap_mask's own check allows the pixels the ids fail)
     "parity_far_end": {s: "object_id" for s in CLIPS},
+    # jumps n/2, n/8, …: the flood misses the best seed wherever the schedule's own does not
+    "jfa_halved_once_more": {s: "cutaway_depth" for s in CUTS},
+    # line pieces behind the removed layer (z ≥ D) counted where nothing of interest is seen
+    "ghost_not_depth_tested": {s: "ghost" for s in CUTS},
+    # the cut normals unprojected upside down (every scene's cut surfaces' colour); with the
+    # floor constraint, D itself
+    "ndc_y_from_row": {s: ("cutaway_depth" if s in FLOORS else "color") for s in CUTS},
 }
 #: scenes of a fault's technique whose passes do not contain the faulty code (they must pass)
 UNTOUCHED = {
@@ -49,6 +61,9 @@ UNTOUCHED = {
     "one_diagonal": ["edges_sobel", "edges_c1", "edges_c1_paper"],
     "offset_wrong_address_mode": [],
     "parity_far_end": [],
+    "jfa_halved_once_more": [],
+    "ghost_not_depth_tested": [],
+    "ndc_y_from_row": [],
 }
 
 
@@ -111,11 +126,12 @@ def test_technique_scenes_pass_and_every_planted_fault_fails(gold):
 
 def test_techniques_ask_for_no_optional_feature_and_ids_are_exact(gold):
     """The techniques run on a device given no optional feature at all (float32 maps are
-    filtered in WGSL, nothing is blended); the clip scenes' ids and cap mask equal the
+    filtered in WGSL, nothing is blended: the ghost lines' maximum is kept by a depth test);
+    the clip scenes' ids and cap mask equal the
     golden's pixel for pixel, and two runs give the same bytes."""
     with backend_or_skip(features=[]) as gpu:
         assert list(gpu.device.features) == []
-        for scene in ("edges_npr_gooch", "clipsurface_two_surfaces"):
+        for scene in ("edges_npr_gooch", "clipsurface_two_surfaces", "cutaway_floor"):
             pkg = gold / "golden" / scene / "package"
             a, b = gpu.render(pkg), gpu.render(pkg)
             for key in a:
@@ -288,3 +304,41 @@ def test_id_edges_and_thresholds_agree_with_refraster(gold, tmp_path):
     assert (ref[..., 3][keep] == 1.0).sum() > 40           # the id edges are seen
     np.testing.assert_allclose(got[..., 0][keep], ref[..., 0][keep], atol=2e-3)
     np.testing.assert_allclose(got[..., 3][keep], ref[..., 3][keep], atol=2e-3)
+
+
+def test_cutaway_options_the_backends_do_not_draw_are_a_reason(gold):
+    """A cutaway option neither GPU backend draws, or a package in another NDC than OpenGL's
+    (the cutaway function is stated in it), makes ``supports`` give the reason, the same for
+    refraster.wgpu and the shared reader of refraster.gl.package; a malformed one names the
+    parameter. No device needed."""
+    from refraster.gl.package import cutaway_supports
+    from refraster.wgpu import cutaway
+    doc = json.loads((gold / "golden" / "cutaway_floor" / "package" / "scene.json").read_text())
+    assert cutaway.supports(doc) is None
+    p = doc["parameters"]
+    for edit, words in (({"variant": "exact"}, "only the jump-flooding schedules"),
+                        ({"cutaway_size": [48, 36]}, "'cutaway_size' is not implemented"),
+                        ({"ghost": "visible"}, "ghost 'visible'"),
+                        ({"angle": 2.0}, "parameters.angle"),
+                        ({"floor_normal": [0, 0, 0]}, "parameters.floor_normal"),
+                        ({"interest": ["nope"]}, "parameters.interest")):
+        scene = {**doc, "parameters": {**p, **edit}}
+        assert words in cutaway.supports(scene), edit
+        assert cutaway_supports(scene) == cutaway.supports(scene)
+    for raster, words in (({"depth_range": "zero_to_one"}, "OpenGL's NDC"),
+                          ({"ndc_y": "down"}, "OpenGL's NDC"),
+                          ({"depth_format": "unorm16"}, "depth_format")):
+        assert words in cutaway.supports({**doc, "raster": {**doc["raster"], **raster}})
+
+
+def test_the_planted_jfa_schedule_halves_once_too_often():
+    """The planted schedule halves from pass to pass once too often (n/2, n/8, …) and keeps the
+    variant's extra passes; the correct one is the package's. No device needed."""
+    from refraster.gl.package import cutaway_step_schedule
+    from refraster.wgpu.cutaway import schedule
+    bad = ("jfa_halved_once_more",)
+    for v in ("jfa", "jfa+1", "jfa+2", "1+jfa"):
+        assert schedule(72, 96, v) == cutaway_step_schedule(72, 96, v)
+    assert schedule(72, 96, "jfa", bad) == [64, 16, 4, 1]
+    assert schedule(72, 96, "jfa+2", bad) == [64, 16, 4, 1, 2, 1]
+    assert schedule(72, 96, "1+jfa", bad) == [1, 64, 16, 4, 1]

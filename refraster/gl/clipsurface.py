@@ -16,12 +16,12 @@ import ctypes.util
 import numpy as np
 
 from .common import programs
-from .package import PackageError, matrix, read_map
+from .package import CLIP_MAX_SURFACES, PackageError, clipsurface_supports, matrix, read_map
 
 __all__ = ["supports", "load", "draw", "release", "MAX_SURFACES"]
 
 #: Surfaces one scene may have (``clip.frag``'s ``MAX_SURFACES``).
-MAX_SURFACES = 2
+MAX_SURFACES = CLIP_MAX_SURFACES
 
 _GL_TEXTURE_2D = 0x0DE1
 _GL_TEXTURE_WRAP_S, _GL_TEXTURE_WRAP_T = 0x2802, 0x2803
@@ -30,22 +30,9 @@ _WRAP = {"repeat": 0x2901, "clamp": 0x812F, "clamp_to_edge": 0x812F,
 
 
 def supports(scene):
-    """``None`` if this module can draw the clip-surface scene, else the reason."""
-    p = scene.get("parameters", {})
-    surfaces = p.get("surfaces") or []
-    if p.get("cap_mode", "mesh") != "mesh":
-        return f"clipsurface cap_mode {p.get('cap_mode')!r}: only 'mesh' (the exported grid)"
-    if p.get("space", "world") != "world" or p.get("evaluation_space", "world") != "world":
-        return "clipsurface: only the world-space clip test (space 'world') is implemented"
-    if p.get("caps") and p.get("cap_style", "diffuse") != "diffuse":
-        return f"clipsurface cap_style {p.get('cap_style')!r}: only 'diffuse'"
-    if not 1 <= len(surfaces) <= MAX_SURFACES:
-        return f"clipsurface: 1 to {MAX_SURFACES} surfaces, the scene has {len(surfaces)}"
-    if p.get("caps") and ("cap_meshes" not in p or "sprites" not in p
-                          or any("normal_map" not in s for s in surfaces)):
-        return ("clipsurface: the package lacks the cap meshes, sprites or derived maps "
-                "(golden written before issue 25 item 2)")
-    return None
+    """``None`` if this module can draw the clip-surface scene, else the reason
+    (:func:`refraster.gl.package.clipsurface_supports`)."""
+    return clipsurface_supports(scene)
 
 
 def _tex_parameter():

@@ -21,168 +21,21 @@ Buffers: the G-buffer, ``cutaway_depth`` (window depth ½D + ½), ``cut_mask`` a
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from .common import Unsupported, fullscreen, programs
-from .package import PackageError, matrix, read_ply
+# the package's cutaway parameters and ghost-line preprocessing: one reader for both backends
+from .package import CUTAWAY_VARIANTS as VARIANTS  # noqa: F401  (re-exported)
+from .package import cutaway_feature_segments as feature_segments
+from .package import cutaway_ghost_lines, matrix
+from .package import cutaway_options as options
+from .package import cutaway_step_schedule as step_schedule
+from .package import cutaway_supports as supports
 
 __all__ = ["supports", "step_schedule", "render_cutaway", "feature_segments"]
 
-VARIANTS = ("jfa", "jfa+1", "jfa+2", "1+jfa")
 #: Passes dropped by the planted fault ``schedule_truncated`` (the schedule's last ones).
 TRUNCATED_PASSES = 3
-
-
-def step_schedule(height, width, variant):
-    """The jump lengths of one run, in order (as refraster.cutaway.flood.step_schedule)."""
-    n = 1
-    while n < max(height, width):
-        n *= 2
-    plain, k = [], n // 2
-    while k >= 1:
-        plain.append(k)
-        k //= 2
-    plain = plain or [1]
-    return {"jfa": plain, "jfa+1": plain + [1], "jfa+2": plain + [2, 1],
-            "1+jfa": [1] + plain}[variant]
-
-
-def _names(scene, key):
-    p = scene.get("parameters", {})
-    names = p.get(key)
-    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
-        raise PackageError(f"parameters.{key} must be a list of draw names")
-    by_name = {d.get("name"): i for i, d in enumerate(scene["draws"])}
-    missing = [n for n in names if n not in by_name]
-    if missing:
-        raise PackageError(f"parameters.{key} names draws {missing} the scene does not have")
-    return [by_name[n] for n in names]
-
-
-def options(scene):
-    p = scene.get("parameters", {})
-    if not isinstance(p, dict):
-        raise PackageError("parameters must be an object")
-    opt = {}
-    variant = p.get("variant", "jfa")      # Cutaway().variant: the paper's schedule
-    if variant not in VARIANTS:
-        return None, (f"cutaway variant {variant!r}: only the jump-flooding schedules "
-                      f"{list(VARIANTS)} are implemented")
-    opt["variant"] = variant
-    for key in ("stand_ins", "cutaway_size", "cut_color"):
-        if p.get(key) is not None:
-            return None, f"cutaway parameter {key!r} is not implemented by the gl backend"
-    if p.get("ghost", "lines") != "lines":
-        return None, "cutaway ghost 'visible' is not implemented (only 'lines')"
-    angle = p.get("angle")
-    angles = angle if isinstance(angle, list) else [angle]
-    if not 1 <= len(angles) <= 8 or not all(
-            isinstance(a, (int, float)) and not isinstance(a, bool) and 0 < a < math.pi / 2
-            for a in angles):
-        raise PackageError("parameters.angle must be a number (or up to 8) in (0, π/2) rad")
-    opt["angles"] = [float(a) for a in angles]
-    ec = p.get("edge_compression", 0.1)
-    if ec is None:
-        ec = 0.0
-    if isinstance(ec, bool) or not isinstance(ec, (int, float)) or not ec >= 0:
-        raise PackageError("parameters.edge_compression must be a number >= 0 or null")
-    opt["r"] = float(ec)
-    for key, default in (("perspective_compensation", True), ("dilation", True),
-                         ("ghost_fade", True), ("outlines", True)):
-        v = p.get(key, default)
-        if not isinstance(v, bool):
-            raise PackageError(f"parameters.{key} must be true or false")
-        opt[key] = v
-    for key, default in (("ghost_distance", None), ("crease_angle", 30.0)):
-        v = p.get(key, default)
-        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
-                              or not math.isfinite(v) or v < 0):
-            raise PackageError(f"parameters.{key} must be a finite number >= 0")
-        opt[key] = v
-    fn = p.get("floor_normal")
-    if fn is not None:
-        if not (isinstance(fn, list) and len(fn) == 3 and all(
-                isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
-                for c in fn)) or not any(fn):
-            raise PackageError("parameters.floor_normal must be 3 finite numbers, not all 0")
-        fn = [float(c) for c in fn]
-    opt["floor_normal"] = fn
-    fm = p.get("floor_margin", math.radians(2.0))
-    if isinstance(fm, bool) or not isinstance(fm, (int, float)) or not 0 <= fm <= math.pi / 2:
-        raise PackageError("parameters.floor_margin must be a number in [0, π/2] rad")
-    opt["floor_margin"] = float(fm)
-    opt["interest"] = _names(scene, "interest")
-    opt["secondary"] = _names(scene, "secondary")
-    return opt, None
-
-
-def supports(scene):
-    try:
-        _, reason = options(scene)
-    except PackageError as exc:
-        return f"cutaway: {exc}"
-    if reason is None:
-        proj = np.asarray(scene["camera"]["projection"], np.float64)
-        if not (np.array_equal(proj[3], [0, 0, -1, 0]) or np.array_equal(proj[3], [0, 0, 0, 1])):
-            reason = "cutaway: the projection is neither glFrustum- nor glOrtho-shaped"
-    return reason
-
-
-def _face_normals(v, f):
-    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    return np.where(length > 0, n / np.where(length > 0, length, 1.0), 0.0)
-
-
-def _angle_deg(a, b):
-    return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0)))
-
-
-def feature_segments(vertices, faces, view, model, ortho, crease_angle):
-    """World-space feature lines (N, 2, 3) of one mesh for one view: silhouettes (front and back
-    faces meet; front: the CCW normal toward the eye), borders (one face) and creases (dihedral
-    angle > crease_angle degrees; for more than two faces the largest), vertices merged by
-    exact position first."""
-    v = np.asarray(vertices, np.float64)
-    uniq, inv = np.unique(v, axis=0, return_inverse=True)
-    f = inv.reshape(-1)[np.asarray(faces, np.int64)]
-    if len(f) == 0:
-        return np.zeros((0, 2, 3))
-    mv = view @ model
-    fn = _face_normals(uniq, f)
-    im = np.linalg.inv(mv)
-    towards = (np.broadcast_to(im[:3, :3] @ np.array([0.0, 0.0, 1.0]), fn.shape) if ortho
-               else im[:3, 3] - uniq[f[:, 0]])
-    front = np.einsum("ij,ij->i", fn, towards) > 0.0
-    if np.linalg.det(mv[:3, :3]) < 0:
-        front = ~front
-    nf = len(f)
-    pairs = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    face_of = np.tile(np.arange(nf), 3)
-    edges, inverse = np.unique(pairs, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    ne = len(edges)
-    count = np.bincount(inverse, minlength=ne)
-    n_front = np.bincount(inverse, weights=front[face_of], minlength=ne)
-    order = np.lexsort((face_of, inverse))
-    start = np.cumsum(count) - count
-    sf = face_of[order]
-    two = count >= 2
-    dihedral = np.full(ne, np.nan)
-    dihedral[two] = _angle_deg(fn[sf[start[two]]], fn[sf[start[two] + 1]])
-    for e in np.flatnonzero(count > 2):
-        adj = fn[sf[start[e]:start[e] + count[e]]]
-        i, j = np.triu_indices(len(adj), 1)
-        dihedral[e] = _angle_deg(adj[i], adj[j]).max()
-    with np.errstate(invalid="ignore"):
-        crease = dihedral > crease_angle
-    silhouette = two & (n_front > 0) & (n_front < count)
-    keep = silhouette | (count == 1) | (two & crease)
-    seg = uniq[edges[keep]]                                  # object space
-    hom = np.concatenate([seg, np.ones(seg.shape[:2] + (1,))], axis=-1)
-    return (hom @ model.T)[..., :3]
 
 
 #: The programs (vertex, geometry, fragment shader), compiled by refraster.gl.common.programs.
@@ -344,54 +197,42 @@ def render_cutaway(gl, loaded, package_dir):
         d_ndc = gl._read(dtex, "<f4", 1, size)[..., 0]
         # 6. ghost lines
         ghost = np.zeros((h, w), np.float32)
-        g_max = opt["ghost_distance"]
-        if g_max is None:
-            g_max = 0.1 * _diagonal(package_dir, scene, opt["secondary"])
+        seg, g_max = cutaway_ghost_lines(scene, package_dir, opt)
         interest_ids = {int(draws[i]["object_id"]) for i in opt["interest"]}
-        carved = bool(opt["secondary"])   # refraster draws lines only if something was carved
-        if g_max > 0 and carved:
-            segs = []
-            for i in opt["secondary"]:
-                dd = scene["draws"][i]
-                v, fc, _ = read_ply(package_dir / dd["mesh"], dd.get("n_vertices"),
-                                    dd.get("n_faces"))
-                segs.append(feature_segments(v, fc, view, matrix(dd["model"], "model"),
-                                             not persp, float(opt["crease_angle"])))
-            seg = np.concatenate(segs) if segs else np.zeros((0, 2, 3))
-            if len(seg):
-                # where covered, object_id and depth are the ids and window depth read back
-                ooi = covered & np.isin(out["object_id"], list(interest_ids))
-                occ = np.where(ooi, 2.0 * out["depth"] - 1.0, 2.0).astype(np.float32)
-                occ_tex = ctx.texture(size, 1, np.ascontiguousarray(occ[::-1]).tobytes(),
-                                      dtype="f4")
-                owned.append(occ_tex)
-                occ_tex.filter = (mgl.NEAREST, mgl.NEAREST)
-                gtex = tex(1, "f4")
-                fg = fbo([gtex])
-                fg.use()
-                fg.clear(0.0, 0.0, 0.0, 0.0)
-                ctx.enable_only(mgl.BLEND)
-                ctx.blend_equation = mgl.MAX
-                ctx.blend_func = mgl.ONE, mgl.ONE
-                prog = progs["ghost"]
-                gl._write(prog, "u_mvp", (proj @ view).astype(np.float32))
-                dtex.use(0)
-                occ_tex.use(1)
-                gl._set(prog, "u_D", 0)
-                gl._set(prog, "u_occluder", 1)
-                gl._set(prog, "u_g_max", float(g_max))
-                gl._set(prog, "u_fade", opt["ghost_fade"])
-                gl._set(prog, "u_p", (float(proj[2, 2]), float(proj[2, 3]), float(proj[3, 2]),
-                                      float(proj[3, 3])))
-                vbo = ctx.buffer(np.ascontiguousarray(seg.reshape(-1, 3), np.float32).tobytes())
-                owned.insert(0, vbo)
-                vao = ctx.vertex_array(prog, [(vbo, "3f", "in_pos")])
-                owned.insert(0, vao)
-                vao.render(mgl.LINES)
-                ctx.blend_equation = mgl.FUNC_ADD
-                ctx.disable(mgl.BLEND)
-                ctx.finish()
-                ghost = gl._read(gtex, "<f4", 1, size)[..., 0]
+        if len(seg):
+            # where covered, object_id and depth are the ids and window depth read back
+            ooi = covered & np.isin(out["object_id"], list(interest_ids))
+            occ = np.where(ooi, 2.0 * out["depth"] - 1.0, 2.0).astype(np.float32)
+            occ_tex = ctx.texture(size, 1, np.ascontiguousarray(occ[::-1]).tobytes(),
+                                  dtype="f4")
+            owned.append(occ_tex)
+            occ_tex.filter = (mgl.NEAREST, mgl.NEAREST)
+            gtex = tex(1, "f4")
+            fg = fbo([gtex])
+            fg.use()
+            fg.clear(0.0, 0.0, 0.0, 0.0)
+            ctx.enable_only(mgl.BLEND)
+            ctx.blend_equation = mgl.MAX
+            ctx.blend_func = mgl.ONE, mgl.ONE
+            prog = progs["ghost"]
+            gl._write(prog, "u_mvp", (proj @ view).astype(np.float32))
+            dtex.use(0)
+            occ_tex.use(1)
+            gl._set(prog, "u_D", 0)
+            gl._set(prog, "u_occluder", 1)
+            gl._set(prog, "u_g_max", float(g_max))
+            gl._set(prog, "u_fade", opt["ghost_fade"])
+            gl._set(prog, "u_p", (float(proj[2, 2]), float(proj[2, 3]), float(proj[3, 2]),
+                                  float(proj[3, 3])))
+            vbo = ctx.buffer(np.ascontiguousarray(seg.reshape(-1, 3), np.float32).tobytes())
+            owned.insert(0, vbo)
+            vao = ctx.vertex_array(prog, [(vbo, "3f", "in_pos")])
+            owned.insert(0, vao)
+            vao.render(mgl.LINES)
+            ctx.blend_equation = mgl.FUNC_ADD
+            ctx.disable(mgl.BLEND)
+            ctx.finish()
+            ghost = gl._read(gtex, "<f4", 1, size)[..., 0]
     finally:
         gl._parking.use()
         for obj in owned:
@@ -401,14 +242,3 @@ def render_cutaway(gl, loaded, package_dir):
     out["ghost"] = np.ascontiguousarray(ghost, np.float32)
     return out
 
-
-def _diagonal(package_dir, scene, indices):
-    vs = []
-    for i in indices:
-        d = scene["draws"][i]
-        v, _, _ = read_ply(package_dir / d["mesh"], d.get("n_vertices"), d.get("n_faces"))
-        vs.append(v.astype(np.float64))
-    if not vs:
-        return 0.0
-    v = np.concatenate(vs)
-    return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))

@@ -18,7 +18,8 @@ import numpy as np
 
 __all__ = ["PackageError", "read_scene", "read_ply", "read_map", "matrix", "conventions",
            "CONVENTION_DEFAULTS", "edges_options", "edges_npr_options", "edges_near_far",
-           "edges_supports"]
+           "edges_supports", "CUTAWAY_VARIANTS", "cutaway_step_schedule", "cutaway_options",
+           "cutaway_supports", "cutaway_feature_segments", "cutaway_ghost_lines"]
 
 #: The API-convention fields of ``scene.json``'s ``"raster"`` (issue 39) and their values when
 #: a package leaves them out (OpenGL's: a package written before they existed).
@@ -398,3 +399,225 @@ def edges_supports(scene):
     except PackageError as exc:
         return f"edges: {exc}"
     return None
+
+
+#: The clip surfaces either backend draws in one pass (a uniform block of this many).
+CLIP_MAX_SURFACES = 2
+
+
+def clipsurface_supports(scene):
+    """``None`` if a backend can draw the clip-surface scene from its package, else the reason:
+    mesh caps, the world-space clip test, diffuse caps, 1 to :data:`CLIP_MAX_SURFACES`
+    surfaces, and the derived maps a package since issue 25 carries."""
+    p = scene.get("parameters", {})
+    surfaces = p.get("surfaces") or []
+    if p.get("cap_mode", "mesh") != "mesh":
+        return f"clipsurface cap_mode {p.get('cap_mode')!r}: only 'mesh' (the exported grid)"
+    if p.get("space", "world") != "world" or p.get("evaluation_space", "world") != "world":
+        return "clipsurface: only the world-space clip test (space 'world') is implemented"
+    if p.get("caps") and p.get("cap_style", "diffuse") != "diffuse":
+        return f"clipsurface cap_style {p.get('cap_style')!r}: only 'diffuse'"
+    if not 1 <= len(surfaces) <= CLIP_MAX_SURFACES:
+        return (f"clipsurface: 1 to {CLIP_MAX_SURFACES} surfaces, the scene has "
+                f"{len(surfaces)}")
+    if p.get("caps") and ("cap_meshes" not in p or "sprites" not in p
+                          or any("normal_map" not in s for s in surfaces)):
+        return ("clipsurface: the package lacks the cap meshes, sprites or derived maps "
+                "(golden written before issue 25 item 2)")
+    return None
+
+
+# --- the cutaway technique's parameters (both GPU backends read them so) -----------------------
+
+#: The jump-flooding schedules a GPU backend draws (``parameters.variant``).
+CUTAWAY_VARIANTS = ("jfa", "jfa+1", "jfa+2", "1+jfa")
+
+
+def cutaway_step_schedule(height, width, variant):
+    """The jump lengths of one flooding run, in order (as refraster.cutaway.flood.step_schedule):
+    n/2 … 1 with n the power of two ≥ max(W, H), then 1 (``jfa+1``) or 2, 1 (``jfa+2``), or 1
+    first (``1+jfa``)."""
+    n = 1
+    while n < max(height, width):
+        n *= 2
+    plain, k = [], n // 2
+    while k >= 1:
+        plain.append(k)
+        k //= 2
+    plain = plain or [1]
+    return {"jfa": plain, "jfa+1": plain + [1], "jfa+2": plain + [2, 1],
+            "1+jfa": [1] + plain}[variant]
+
+
+def _draw_names(scene, key):
+    p = scene.get("parameters", {})
+    names = p.get(key)
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise PackageError(f"parameters.{key} must be a list of draw names")
+    by_name = {d.get("name"): i for i, d in enumerate(scene["draws"])}
+    missing = [n for n in names if n not in by_name]
+    if missing:
+        raise PackageError(f"parameters.{key} names draws {missing} the scene does not have")
+    return [by_name[n] for n in names]
+
+
+def cutaway_options(scene):
+    """A cutaway scene's parameters, checked → ``(options, None)``, or ``(None, reason)`` for
+    an option the GPU backends do not draw; a malformed one raises PackageError naming it."""
+    p = scene.get("parameters", {})
+    if not isinstance(p, dict):
+        raise PackageError("parameters must be an object")
+    opt = {}
+    variant = p.get("variant", "jfa")      # Cutaway().variant: the paper's schedule
+    if variant not in CUTAWAY_VARIANTS:
+        return None, (f"cutaway variant {variant!r}: only the jump-flooding schedules "
+                      f"{list(CUTAWAY_VARIANTS)} are implemented")
+    opt["variant"] = variant
+    for key in ("stand_ins", "cutaway_size", "cut_color"):
+        if p.get(key) is not None:
+            return None, f"cutaway parameter {key!r} is not implemented by the GPU backends"
+    if p.get("ghost", "lines") != "lines":
+        return None, "cutaway ghost 'visible' is not implemented (only 'lines')"
+    angle = p.get("angle")
+    angles = angle if isinstance(angle, list) else [angle]
+    if not 1 <= len(angles) <= 8 or not all(
+            isinstance(a, (int, float)) and not isinstance(a, bool) and 0 < a < math.pi / 2
+            for a in angles):
+        raise PackageError("parameters.angle must be a number (or up to 8) in (0, π/2) rad")
+    opt["angles"] = [float(a) for a in angles]
+    ec = p.get("edge_compression", 0.1)
+    if ec is None:
+        ec = 0.0
+    if isinstance(ec, bool) or not isinstance(ec, (int, float)) or not ec >= 0:
+        raise PackageError("parameters.edge_compression must be a number >= 0 or null")
+    opt["r"] = float(ec)
+    for key, default in (("perspective_compensation", True), ("dilation", True),
+                         ("ghost_fade", True), ("outlines", True)):
+        v = p.get(key, default)
+        if not isinstance(v, bool):
+            raise PackageError(f"parameters.{key} must be true or false")
+        opt[key] = v
+    for key, default in (("ghost_distance", None), ("crease_angle", 30.0)):
+        v = p.get(key, default)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
+                              or not math.isfinite(v) or v < 0):
+            raise PackageError(f"parameters.{key} must be a finite number >= 0")
+        opt[key] = v
+    fn = p.get("floor_normal")
+    if fn is not None:
+        if not (isinstance(fn, list) and len(fn) == 3 and all(
+                isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
+                for c in fn)) or not any(fn):
+            raise PackageError("parameters.floor_normal must be 3 finite numbers, not all 0")
+        fn = [float(c) for c in fn]
+    opt["floor_normal"] = fn
+    fm = p.get("floor_margin", math.radians(2.0))
+    if isinstance(fm, bool) or not isinstance(fm, (int, float)) or not 0 <= fm <= math.pi / 2:
+        raise PackageError("parameters.floor_margin must be a number in [0, π/2] rad")
+    opt["floor_margin"] = float(fm)
+    opt["interest"] = _draw_names(scene, "interest")
+    opt["secondary"] = _draw_names(scene, "secondary")
+    return opt, None
+
+
+def cutaway_supports(scene):
+    """``None`` if a GPU backend can draw the cutaway scene, else the reason. The cutaway
+    function is stated in OpenGL's NDC depth of a glFrustum- or glOrtho-shaped projection
+    (``docs/golden-schema.md``, "Cutaways: what the package carries"): a package must declare
+    ``depth_range`` ``negative_one_to_one`` and ``ndc_y`` ``up``."""
+    try:
+        _, reason = cutaway_options(scene)
+    except PackageError as exc:
+        return f"cutaway: {exc}"
+    if reason is None:
+        proj = np.asarray(scene["camera"]["projection"], np.float64)
+        if not (np.array_equal(proj[3], [0, 0, -1, 0]) or np.array_equal(proj[3], [0, 0, 0, 1])):
+            reason = "cutaway: the projection is neither glFrustum- nor glOrtho-shaped"
+    if reason is None:
+        raster = scene.get("raster", {})
+        if (raster.get("depth_range", "negative_one_to_one") != "negative_one_to_one"
+                or raster.get("ndc_y", "up") != "up"):
+            reason = ("cutaway: the cutaway function is defined in OpenGL's NDC (depth_range "
+                      "'negative_one_to_one', ndc_y 'up'); the scene declares another")
+    return reason
+
+
+def _face_normals(v, f):
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.where(length > 0, n / np.where(length > 0, length, 1.0), 0.0)
+
+
+def _angle_deg(a, b):
+    return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0)))
+
+
+def cutaway_feature_segments(vertices, faces, view, model, ortho, crease_angle):
+    """World-space feature lines (N, 2, 3) of one mesh for one view: silhouettes (front and back
+    faces meet; front: the CCW normal toward the eye), borders (one face) and creases (dihedral
+    angle > crease_angle degrees; for more than two faces the largest), vertices merged by
+    exact position first. A GPU team's preprocessing of the ghost lines (Sec. 4.3)."""
+    v = np.asarray(vertices, np.float64)
+    uniq, inv = np.unique(v, axis=0, return_inverse=True)
+    f = inv.reshape(-1)[np.asarray(faces, np.int64)]
+    if len(f) == 0:
+        return np.zeros((0, 2, 3))
+    mv = view @ model
+    fn = _face_normals(uniq, f)
+    im = np.linalg.inv(mv)
+    towards = (np.broadcast_to(im[:3, :3] @ np.array([0.0, 0.0, 1.0]), fn.shape) if ortho
+               else im[:3, 3] - uniq[f[:, 0]])
+    front = np.einsum("ij,ij->i", fn, towards) > 0.0
+    if np.linalg.det(mv[:3, :3]) < 0:
+        front = ~front
+    nf = len(f)
+    pairs = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    face_of = np.tile(np.arange(nf), 3)
+    edges, inverse = np.unique(pairs, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    ne = len(edges)
+    count = np.bincount(inverse, minlength=ne)
+    n_front = np.bincount(inverse, weights=front[face_of], minlength=ne)
+    order = np.lexsort((face_of, inverse))
+    start = np.cumsum(count) - count
+    sf = face_of[order]
+    two = count >= 2
+    dihedral = np.full(ne, np.nan)
+    dihedral[two] = _angle_deg(fn[sf[start[two]]], fn[sf[start[two] + 1]])
+    for e in np.flatnonzero(count > 2):
+        adj = fn[sf[start[e]:start[e] + count[e]]]
+        i, j = np.triu_indices(len(adj), 1)
+        dihedral[e] = _angle_deg(adj[i], adj[j]).max()
+    with np.errstate(invalid="ignore"):
+        crease = dihedral > crease_angle
+    silhouette = two & (n_front > 0) & (n_front < count)
+    keep = silhouette | (count == 1) | (two & crease)
+    seg = uniq[edges[keep]]                                  # object space
+    hom = np.concatenate([seg, np.ones(seg.shape[:2] + (1,))], axis=-1)
+    return (hom @ model.T)[..., :3]
+
+
+def cutaway_ghost_lines(scene, package_dir, opt):
+    """The ghost lines' world segments (N, 2, 3) of the secondary draws and g_max (eye units;
+    default 10 % of the secondary meshes' bounding-box diagonal); none when nothing is carved
+    (no secondary draw) or g_max is 0."""
+    view = matrix(scene["camera"]["view"], "camera.view")
+    proj = matrix(scene["camera"]["projection"], "camera.projection")
+    ortho = not np.array_equal(proj[3], [0, 0, -1, 0])
+    meshes = []
+    for i in opt["secondary"]:
+        d = scene["draws"][i]
+        v, f, _ = read_ply(package_dir / d["mesh"], d.get("n_vertices"), d.get("n_faces"))
+        meshes.append((v, f, matrix(d["model"], f"draws[{i}].model")))
+    g_max = opt["ghost_distance"]
+    if g_max is None:
+        vs = [v.astype(np.float64) for v, _, _ in meshes]
+        g_max = 0.0
+        if vs:
+            v = np.concatenate(vs)
+            g_max = 0.1 * float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    if not g_max > 0 or not meshes:
+        return np.zeros((0, 2, 3)), float(g_max)
+    segs = [cutaway_feature_segments(v, f, view, model, ortho, float(opt["crease_angle"]))
+            for v, f, model in meshes]
+    return np.concatenate(segs), float(g_max)

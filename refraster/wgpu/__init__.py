@@ -2,8 +2,9 @@
 extra ``wgpu``).
 
 A WebGPU team's client of the goldens, written as one: WGSL files (``shaders/gbuffer.wgsl``; the
-techniques' ``shaders/edges.wgsl`` and ``shaders/clip.wgsl`` with :mod:`refraster.wgpu.edges` and
-:mod:`refraster.wgpu.clipsurface`) beside a thin driver (:mod:`refraster.wgpu.driver`) on wgpu-py
+techniques' ``shaders/edges.wgsl``, ``shaders/clip.wgsl`` and ``shaders/cutaway.wgsl`` with
+:mod:`refraster.wgpu.edges`, :mod:`refraster.wgpu.clipsurface` and :mod:`refraster.wgpu.cutaway`)
+beside a thin driver (:mod:`refraster.wgpu.driver`) on wgpu-py
 (wgpu-native), which on a machine without a GPU runs on Mesa's lavapipe (Vulkan on llvmpipe).
 It reads only the scene
 packages of a golden directory (``scene.json``, PLY meshes, ``.npy`` maps) through the
@@ -44,10 +45,16 @@ SUPPORTED_TECHNIQUES = {
                    "bilinearly in WGSL under the surface's address mode (no float32-filterable), "
                    "caps as the exported grid with the parity-test discard, shaded from the "
                    "derived and user maps; the G-buffer in three passes",
+    # issue 45 (refraster/wgpu/cutaway.py, shaders/cutaway.wgsl)
+    "cutaway": "rear hulls (greater), seeds, ping-pong jump flooding in full-screen render "
+               "passes with the scene's schedule, D_dil and the cut normals, the clipped "
+               "G-buffer in three passes with the cut flag, ghost lines as a line list whose "
+               "opacity is kept as the maximum by a depth32float attachment (no optional "
+               "feature)",
 }
 
 #: Techniques skipped with a reason: the second part of the WebGPU backend (issue 45).
-LATER_TECHNIQUES = ("cutaway", "halos4d")
+LATER_TECHNIQUES = ("halos4d",)
 
 #: Planted faults of the technique passes (issue 45; tests/test_wgpu_techniques.py), test-only
 #: like :data:`FAULTS`, kept apart so that the G-buffer's matrix (tests/test_wgpu_backend.py)
@@ -65,6 +72,16 @@ TECHNIQUE_FAULTS = {
     "parity_far_end": ("clip.wgsl: the PARITY_FAR_END constant",
                        "the caps' parity count started at the sprite's far end (the last "
                        "layer) with the front-to-back early exit"),
+    "jfa_halved_once_more": ("host: refraster.wgpu.cutaway.schedule",
+                             "the jump-flooding schedule with n halved once too often: its "
+                             "first jump n/4 instead of n/2"),
+    "ghost_not_depth_tested": ("cutaway.wgsl: the GHOST_NOT_DEPTH_TESTED constant",
+                               "the ghost lines not depth-tested against the removed layer "
+                               "(z < D): only against the visible objects of interest"),
+    "ndc_y_from_row": ("cutaway.wgsl: the NDC_Y_FROM_ROW constant",
+                       "the full-screen passes' NDC y taken from the framebuffer row as "
+                       "OpenGL's gl_FragCoord.y (row 0 at the bottom): the floor constraint "
+                       "and the cut normals' unprojection upside down"),
 }
 
 #: Planted faults (tests only; ``Backend(faults=[name, ...])``): name → (where, what it does).

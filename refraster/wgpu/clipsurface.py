@@ -15,14 +15,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..gl.package import PackageError, matrix, read_map, read_ply
+from ..gl.package import (CLIP_MAX_SURFACES, PackageError, clipsurface_supports, matrix,
+                          read_map, read_ply)
 from .common import float_texture, scene_pipeline, uniform
 
 __all__ = ["supports", "load", "draw", "release", "MAX_SURFACES", "ADDRESS_MODES"]
 
 SHADER = "clip.wgsl"
 #: Surfaces one scene may have (``Clip.surfaces`` of clip.wgsl).
-MAX_SURFACES = 2
+MAX_SURFACES = CLIP_MAX_SURFACES
 #: The package's ``wrap`` → clip.wgsl's address mode (WebGPU's names: repeat, clamp-to-edge,
 #: mirror-repeat).
 ADDRESS_MODES = {"repeat": 0, "clamp": 1, "clamp_to_edge": 1, "mirrored_repeat": 2}
@@ -37,26 +38,13 @@ _UNIFORM_BYTES = 304            # gbuffer.wgsl's Draw (the driver's _UNIFORM_BYT
 
 
 def supports(scene):
-    """``None`` if this module can draw the clip-surface scene, else the reason."""
-    p = scene.get("parameters", {})
-    surfaces = p.get("surfaces") or []
+    """``None`` if this module can draw the clip-surface scene, else the reason (the shared
+    reading of :func:`refraster.gl.package.clipsurface_supports`, and a float32 depth)."""
     fmt = scene.get("raster", {}).get("depth_format", "float32")
     if fmt != "float32":
         return (f"clipsurface with raster.depth_format {fmt!r}: the passes write the float32 "
                 "window depth; only 'float32'")
-    if p.get("cap_mode", "mesh") != "mesh":
-        return f"clipsurface cap_mode {p.get('cap_mode')!r}: only 'mesh' (the exported grid)"
-    if p.get("space", "world") != "world" or p.get("evaluation_space", "world") != "world":
-        return "clipsurface: only the world-space clip test (space 'world') is implemented"
-    if p.get("caps") and p.get("cap_style", "diffuse") != "diffuse":
-        return f"clipsurface cap_style {p.get('cap_style')!r}: only 'diffuse'"
-    if not 1 <= len(surfaces) <= MAX_SURFACES:
-        return f"clipsurface: 1 to {MAX_SURFACES} surfaces, the scene has {len(surfaces)}"
-    if p.get("caps") and ("cap_meshes" not in p or "sprites" not in p
-                          or any("normal_map" not in s for s in surfaces)):
-        return ("clipsurface: the package lacks the cap meshes, sprites or derived maps "
-                "(golden written before issue 25 item 2)")
-    return None
+    return clipsurface_supports(scene)
 
 
 def _layouts(backend):

@@ -1,5 +1,5 @@
 """What the technique modules of refraster.wgpu (:mod:`refraster.wgpu.edges`,
-:mod:`refraster.wgpu.clipsurface`) share: their WGSL modules (each compiled after
+:mod:`refraster.wgpu.clipsurface`, :mod:`refraster.wgpu.cutaway`) share: their WGSL modules (each compiled after
 ``shaders/gbuffer.wgsl``, whose ``Draw``, ``VOut``, ``vs`` and helpers they use), the pipelines
 that draw a scene's de-indexed meshes with the scene's raster state, the full-screen pipelines,
 and uniform and texture helpers. The technique modules import this module and
@@ -76,8 +76,10 @@ def scene_pipeline(backend, shader, entry, targets, state, layout, constants=(),
 
 
 def fullscreen_pipeline(backend, shader, entry, target, layout, constants=()):
-    """A full-screen pipeline (``vs_full`` of ``shader``) writing one colour ``target``."""
+    """A full-screen pipeline (``vs_full`` of ``shader``) writing one colour ``target`` (a
+    format; a tuple of formats: several targets)."""
     key = ("full", shader, entry, target, id(layout), tuple(constants))
+    targets = target if isinstance(target, tuple) else (target,)
 
     def make():
         mod = module(backend, shader)
@@ -86,7 +88,7 @@ def fullscreen_pipeline(backend, shader, entry, target, layout, constants=()):
             vertex={"module": mod, "entry_point": "vs_full", "constants": dict(constants)},
             primitive={"topology": "triangle-list"},
             fragment={"module": mod, "entry_point": entry, "constants": dict(constants),
-                      "targets": [{"format": target}]})
+                      "targets": [{"format": f} for f in targets]})
     return _cached(backend, key, make)
 
 
@@ -99,10 +101,12 @@ def uniform(backend, data):
 
 
 def fullscreen(backend, encoder, pipeline, target, group, clear=(0, 0, 0, 0)):
-    """One full-screen triangle of ``pipeline`` into ``target`` with bind group 0 ``group``."""
+    """One full-screen triangle of ``pipeline`` into ``target`` (a texture, or a list of them)
+    with bind group 0 ``group``."""
+    targets = target if isinstance(target, (list, tuple)) else [target]
     rp = encoder.begin_render_pass(color_attachments=[
-        {"view": target.create_view(), "clear_value": clear, "load_op": "clear",
-         "store_op": "store"}])
+        {"view": t.create_view(), "clear_value": clear, "load_op": "clear",
+         "store_op": "store"} for t in targets])
     rp.set_pipeline(pipeline)
     rp.set_bind_group(0, group)
     rp.draw(3)

@@ -38,7 +38,7 @@ import numpy as np
 
 from ..gl.package import PackageError, matrix, read_map, read_ply, read_scene
 from . import FAULTS, LATER_TECHNIQUES, SUPPORTED_TECHNIQUES, TECHNIQUE_FAULTS
-from . import clipsurface, edges
+from . import clipsurface, cutaway, edges
 from .device import WGPUUnavailable, adapter, create_device, describe, unclipped_depth
 
 __all__ = ["Backend", "Unsupported", "WGPUUnavailable", "CONVENTION_DEFAULTS", "SHADER"]
@@ -172,7 +172,7 @@ class Backend:
         technique = scene.get("technique")
         if technique in LATER_TECHNIQUES:
             return (f"technique {technique!r} is not implemented by the wgpu backend yet "
-                    "(issue 45: cutaways and 4D halos in WGSL)")
+                    "(issue 45: 4D halos in WGSL)")
         if technique not in SUPPORTED_TECHNIQUES:
             return (f"technique {technique!r} is not implemented by the wgpu backend (it "
                     f"renders {', '.join(sorted(SUPPORTED_TECHNIQUES))})")
@@ -199,6 +199,8 @@ class Backend:
             return edges.supports(scene)
         if technique == "clipsurface":          # issue 45: refraster/wgpu/clipsurface.py
             return clipsurface.supports(scene)
+        if technique == "cutaway":              # issue 45: refraster/wgpu/cutaway.py
+            return cutaway.supports(scene)
         return None
 
     def render(self, package_dir, *, layers=None):
@@ -225,7 +227,7 @@ class Backend:
                   "draws": self._upload(package_dir, scene), "sprite": None}
         if scene["technique"] == "vds":
             loaded["sprite"] = self._sprite(package_dir, scene)
-        if scene["technique"] in ("edges", "clipsurface"):       # issue 45
+        if scene["technique"] in ("edges", "clipsurface", "cutaway"):       # issue 45
             loaded["package_dir"] = package_dir
         if scene["technique"] == "clipsurface":
             loaded["clip"] = clipsurface.load(self, package_dir, scene)
@@ -239,6 +241,8 @@ class Backend:
             return edges.render(self, loaded, loaded["package_dir"])
         if loaded["scene"]["technique"] == "clipsurface":
             return clipsurface.draw(self, loaded)
+        if loaded["scene"]["technique"] == "cutaway":
+            return cutaway.render(self, loaded, loaded["package_dir"])
         return self._gbuffer(loaded)
 
     def unload(self, loaded):

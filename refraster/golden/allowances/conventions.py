@@ -32,10 +32,13 @@ import dataclasses
 import numpy as np
 
 __all__ = ["is_gl", "reverses", "clip_map", "equivalent", "move_back", "quantum",
-           "face_depth_model", "depth_covered", "DEPTH_K", "QUANT_MARGIN"]
+           "face_depth_model", "depth_covered", "covered_by", "NO_DIRECTION", "DEPTH_K",
+           "QUANT_MARGIN"]
 
 #: Depth tests that keep the larger depth, and their mirror images under ``d → 1 − d``.
 REVERSING = {"greater": "less", "gequal": "lequal"}
+#: The depth tests with no direction: their depths lie on both sides of the clear value.
+NO_DIRECTION = frozenset({"always", "never", "equal", "notequal"})
 #: The relative depth model's constant (docs/tolerance.md, "zero_to_one": 16 counted, doubled).
 DEPTH_K = 32.0
 U = 2.0 ** -24
@@ -206,8 +209,23 @@ def face_depth_model(prep):
 
 def depth_covered(depth, clear_depth, depth_func="less"):
     """Where a depth buffer holds a fragment: strictly before the clear value in the test's
-    direction (``< clear`` for ``less``-like tests, ``> clear`` for ``greater``/``gequal``)."""
+    direction (``< clear`` for ``less``-like tests, ``> clear`` for ``greater``/``gequal``).
+    A test with no direction (``always``, ``notequal``, ``never``, ``equal``) writes depths on
+    both sides of the clear value, so a fragment reads as any value other than it; under
+    ``equal`` every fragment writes the clear value itself and the depth buffer cannot tell
+    coverage at all (:func:`covered_by` reads the ids when there are some)."""
     d = np.asarray(depth)
     if depth_func in REVERSING:
         return d > clear_depth
+    if depth_func in NO_DIRECTION:
+        return d != clear_depth
     return d < clear_depth
+
+
+def covered_by(depth, clear_depth, depth_func="less", prim_id=None):
+    """Where a frame covers a pixel: its ``prim_id`` when it has one and the depth test has no
+    direction (a fragment may then land on the clear value exactly), else
+    :func:`depth_covered`."""
+    if prim_id is not None and depth_func in NO_DIRECTION:
+        return np.asarray(prim_id) >= 0
+    return depth_covered(depth, clear_depth, depth_func)

@@ -62,7 +62,7 @@ from ...conformance import (COLOR_TOL, DEPTH_EPS, MAY, MUST, MUST_NOT, NORMAL_TO
                          facing_may, tolerance)
 from refraster.raster.state import RasterState
 
-from .conventions import depth_covered
+from .conventions import covered_by, depth_covered
 from .precision import candidate_bits, declared
 
 __all__ = ["scene_allowances", "tolerant_metrics", "dilate", "surface_step", "TOLERANT_CHECKS"]
@@ -265,7 +265,8 @@ def gl_allowances(scene, raster):
         if "prim_id" in buffers:
             ref_cov = np.asarray(buffers["prim_id"]) >= 0
         elif "depth" in buffers:
-            ref_cov = np.asarray(buffers["depth"]) < raster["clear_depth"]
+            ref_cov = depth_covered(buffers["depth"], raster["clear_depth"],
+                                    raster["depth_func"])
         else:
             ref_cov = None
         coverage = (None if ref_cov is None else
@@ -979,15 +980,16 @@ def named_entries(arrays, prim_id, object_id=None):
 
 # --- the tolerant check --------------------------------------------------------------------------
 
-def _candidate_coverage(key, kind, candidate, clear_depth, depth_func="less"):
+def _candidate_coverage(key, kind, candidate, clear_depth, depth_func="less", prim_id=None):
     if kind == "id":
         return np.asarray(candidate) >= 0
     if key == "depth":
-        return depth_covered(candidate, clear_depth, depth_func)
+        return covered_by(candidate, clear_depth, depth_func, prim_id)
     raise ValueError(f"buffer {key!r} ({kind}) cannot give coverage")
 
 
-def _face_outside(key, kind, cand, arrays, named, step, clear_depth, depth_func="less"):
+def _face_outside(key, kind, cand, arrays, named, step, clear_depth, depth_func="less",
+                  prim_id=None):
     """(H, W) bool: where the visible primitive may differ (``id_may``), the candidate's value
     is not what the face its own ``prim_id`` names can show there (its face-set entry), or —
     for ids — that face may not win there. Without candidate ids (``named`` None) values are
@@ -1010,7 +1012,7 @@ def _face_outside(key, kind, cand, arrays, named, step, clear_depth, depth_func=
     # without ids (the envelope), a pixel counts as covered by what its own buffer says (or,
     # for buffers that cannot say, where the golden's coverage is "must")
     if key == "depth":
-        covered = depth_covered(c, clear_depth, depth_func)
+        covered = covered_by(c, clear_depth, depth_func, prim_id)
     elif key == "eye_depth":
         covered = np.isfinite(c)
     elif key == "normal":
@@ -1167,10 +1169,12 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
     h, w = ref.shape[:2]
     outside = {}
     masked = None
+    # the candidate's own ids, where coverage cannot be read from its depth alone
+    ids = None if others is None or "prim_id" not in others else others["prim_id"]
     for name in spec["checks"]:
         if name == "coverage":
             cov = arrays["coverage"]
-            cc = _candidate_coverage(key, kind, cand, clear_depth, depth_func)
+            cc = _candidate_coverage(key, kind, cand, clear_depth, depth_func, ids)
             outside["coverage"] = ((cov == MUST) & ~cc) | ((cov == MUST_NOT) & cc)
         elif name == "id":
             region = ~id_may
@@ -1187,8 +1191,8 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
             bad = bad.any(axis=2) if bad.ndim == 3 else bad
             region = _value_region(spec, arrays, others)
             if key == "depth" and "coverage" in arrays:
-                region &= (arrays["coverage"] == MUST) & depth_covered(cand, clear_depth,
-                                                                       depth_func)
+                region &= (arrays["coverage"] == MUST) & covered_by(cand, clear_depth,
+                                                                    depth_func, ids)
             outside["interval"] = region & bad
         elif name == "angle":
             limit = arrays[spec["angle"]].astype(np.float64) + step * math.sqrt(3.0)
@@ -1199,7 +1203,7 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
                                     forgive=arrays[spec.get("may", "may")])
         elif name == "face":
             outside["face"] = _face_outside(key, kind, cand, arrays, named, step, clear_depth,
-                                            depth_func)
+                                            depth_func, ids)
         elif name == "bounds":   # an interval at every pixel, whatever the visible face
             lo = arrays[spec["lo"]].astype(np.float64) - step
             hi = arrays[spec["hi"]].astype(np.float64) + step
