@@ -27,10 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
-from refraster.golden.io.package import npz_bytes
-from refraster.golden.io.read import PATTERN_FILE
-from refraster.golden.msaa_scenes import pattern_of, sample_buffer, sample_buffers
 from refraster.golden.scenes import as_state, available_scenes, draw_meshes, raster_state
+
+# every scene module registers in its own order first (the registry's order is the docs' scene
+# table's): naming msaa_scenes before the others would register its scenes ahead of theirs
+available_scenes()
+
+from refraster.golden.io.package import npz_bytes  # noqa: E402
+from refraster.golden.io.read import PATTERN_FILE  # noqa: E402
+from refraster.golden.msaa_scenes import pattern_of, sample_buffer, sample_buffers  # noqa: E402
 
 FAULTS = ("none", "pattern_mirrored", "depth_per_pixel", "srgb_resolve", "centre_coverage")
 #: The buffer a fault's failure names first (every sample's, or the resolve).
