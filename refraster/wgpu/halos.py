@@ -30,6 +30,7 @@ import numpy as np
 from ..gl.package import PackageError, halos_frame
 from ..gl.package import halos_supports as supports
 from .common import SHADER_DIR, uniform
+from .device import DEFAULT_LIMITS
 
 __all__ = ["supports", "render", "SHADER"]
 
@@ -126,6 +127,10 @@ def render(backend, loaded, package_dir):
     n_tets = len(tets)
     if n_tets == 0:
         raise PackageError("halos4d: the surface has no tetrahedra")
+    limit = DEFAULT_LIMITS["max-storage-buffer-binding-size"]
+    if 6 * n_tets * 32 > limit:
+        raise PackageError(f"halos4d: {n_tets} tetrahedra need {6 * n_tets * 32} bytes of slice "
+                           f"vertices, more than WebGPU's default storage binding ({limit})")
     lay = _setup(backend)
     dev, wgpu = backend.device, backend.wgpu
     usage, busage = wgpu.TextureUsage, wgpu.BufferUsage
