@@ -243,8 +243,12 @@ def test_bad_inputs():
         render_clipped(box, [cs, None], **kw)
     with pytest.raises(TypeError, match="raster must be a refraster.RasterState"):
         render_clipped(box, cs, **kw, raster={"normals": "smooth"}, caps=None)
-    with pytest.raises(ValueError, match=r"raster.depth_func must be 'less' for render_clipped"):
+    with pytest.raises(ValueError, match=r"raster.clear_depth must be 0.0 under "
+                                         r"depth_func='greater' for render_clipped"):
         render_clipped(box, cs, **kw, raster=refraster.RasterState(depth_func="greater"))
+    with pytest.raises(ValueError, match=r"raster.depth_func must be one of less, lequal, "
+                                         r"greater, gequal for render_clipped"):
+        render_clipped(box, cs, **kw, raster=refraster.RasterState(depth_func="always"))
 
 
 

@@ -515,8 +515,9 @@ def _ray_roots_kernel(origin, direction, tau_range, tau_start, params, tex, mode
             tau = max(tau, tau_exit)
 
 
-def _ray_box(origin, direction, lo, hi):
-    """τ range of each ray inside the box (empty: lo > hi), slab method."""
+def _ray_box(origin, direction, lo, hi, tau_max=1.0):
+    """τ range of each ray inside the box and ``[0, tau_max]`` (empty: lo > hi), slab
+    method."""
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = 1.0 / direction
         t1 = (lo - origin) * inv
@@ -528,24 +529,56 @@ def _ray_box(origin, direction, lo, hi):
     inside = (origin >= lo) & (origin <= hi)
     tmin = np.where(par, np.where(inside, -np.inf, np.inf), tmin)
     tmax = np.where(par, np.where(inside, np.inf, -np.inf), tmax)
-    return np.stack([np.maximum(tmin.max(axis=1), 0.0), np.minimum(tmax.min(axis=1), 1.0)], 1)
+    return np.stack([np.maximum(tmin.max(axis=1), 0.0), np.minimum(tmax.min(axis=1), tau_max)], 1)
 
 
-def pixel_rays(view, proj, width, height):
+def pixel_rays(view, proj, width, height, raster=None):
     """World-space rays through the pixel centres: origin on the near plane, ``direction`` =
-    far point − near point (so τ ∈ [0, 1] spans the view volume). Row 0 is the top."""
+    far point − near point (so τ ∈ [0, 1] spans the view volume). Row 0 is the top.
+
+    ``raster`` (a :class:`refraster.RasterState`; None: OpenGL's conventions) gives the clip
+    volume the rays span: its NDC y direction (``ndc_y="down"``: a picture row's NDC y is
+    negated), its depth range (the near and far planes at NDC depth −1 and 1, or 0 and 1) and
+    its depth direction (under ``greater``/``gequal`` the near plane is at NDC depth 1). With
+    a far plane at infinity (the far end unprojects to a direction, w = 0) the direction is a
+    unit vector and the ray is unbounded. Returns ``(origin, direction, tau_max)``: τ ∈
+    ``[0, tau_max]`` spans the view volume (``tau_max`` 1, or an (N,) array under another
+    convention)."""
+    from ..raster.state import as_raster_state, reverses
+    state = as_raster_state(raster)
     inv = np.linalg.inv(proj @ view)
     rows, cols = np.mgrid[0:height, 0:width]
     x = 2.0 * (cols.ravel() + 0.5) / width - 1.0
     y = 2.0 * ((height - 1 - rows.ravel()) + 0.5) / height - 1.0
-    near = np.stack([x, y, -np.ones_like(x), np.ones_like(x)], 1) @ inv.T
-    far = np.stack([x, y, np.ones_like(x), np.ones_like(x)], 1) @ inv.T
-    near = near[:, :3] / near[:, 3:]
-    far = far[:, :3] / far[:, 3:]
-    return near, far - near
+    if state.ndc_y == "up" and state.depth_range == "negative_one_to_one" \
+            and not reverses(state):
+        near = np.stack([x, y, -np.ones_like(x), np.ones_like(x)], 1) @ inv.T
+        far = np.stack([x, y, np.ones_like(x), np.ones_like(x)], 1) @ inv.T
+        near = near[:, :3] / near[:, 3:]
+        far = far[:, :3] / far[:, 3:]
+        return near, far - near, 1.0
+    if state.ndc_y == "down":
+        y = -y
+    lo = 0.0 if state.depth_range == "zero_to_one" else -1.0
+    z_near, z_far = (1.0, lo) if reverses(state) else (lo, 1.0)
+    near = np.stack([x, y, np.full_like(x, z_near), np.ones_like(x)], 1) @ inv.T
+    far = np.stack([x, y, np.full_like(x, z_far), np.ones_like(x)], 1) @ inv.T
+    # homogeneous: the view volume's points between them have w of one sign (that of near)
+    sign = np.where(near[:, 3:] < 0.0, -1.0, 1.0)
+    near, far = near * sign, far * sign
+    nw, fw = near[:, 3:], far[:, 3:]
+    origin = near[:, :3] / nw
+    # far/fw − near/nw = (far·nw − near·fw) / (nw·fw): the direction stays finite as fw → 0
+    d = far[:, :3] * nw - near[:, :3] * fw
+    length = np.linalg.norm(d, axis=1, keepdims=True)
+    length = np.where(length > 0.0, length, 1.0)
+    with np.errstate(divide="ignore"):
+        tau_max = np.where(fw[:, 0] > 0.0, length[:, 0] / (nw[:, 0] * fw[:, 0]), np.inf)
+    return origin, d / length, tau_max
 
 
-def exact_caps(surfaces, solids, tests, *, view, proj, width, height, max_roots=8):
+def exact_caps(surfaces, solids, tests, *, view, proj, width, height, max_roots=8,
+               raster=None):
     """Per-pixel exact caps by ray – height-field intersection (see the module docstring).
 
     Parameters
@@ -558,6 +591,9 @@ def exact_caps(surfaces, solids, tests, *, view, proj, width, height, max_roots=
         The camera.
     max_roots : int
         Crossings examined per ray and round (more rounds run where needed).
+    raster : RasterState, optional
+        The frame's conventions (NDC y, depth range, depth direction) the rays follow
+        (:func:`pixel_rays`); None: OpenGL's.
 
     Returns
     -------
@@ -565,14 +601,14 @@ def exact_caps(surfaces, solids, tests, *, view, proj, width, height, max_roots=
     which : (H·W, 2) int64 (solid index, surface index) of that cap (−1: none)
     origin, direction : the rays (see :func:`pixel_rays`)
     """
-    origin, direction = pixel_rays(view, proj, width, height)
+    origin, direction, tau_max = pixel_rays(view, proj, width, height, raster)
     n = origin.shape[0]
     best = np.full(n, np.inf)
     which = np.full((n, 2), -1, np.int64)
     for m, (solid, test) in enumerate(zip(solids, tests)):
         lo, hi = solid.vertices.min(axis=0), solid.vertices.max(axis=0)
         pad = 1e-9 * (1.0 + np.abs(np.stack([lo, hi])).max())
-        box = _ray_box(origin, direction, lo - pad, hi + pad)
+        box = _ray_box(origin, direction, lo - pad, hi + pad, tau_max)
         hit = np.flatnonzero(box[:, 0] < box[:, 1])
         for k, surface in enumerate(surfaces):
             if not surface.enabled or hit.size == 0:

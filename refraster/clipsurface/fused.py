@@ -15,8 +15,9 @@ from .._config import IJIT, PJIT
 from ..ldi import parity_at
 from ..raster.gbuffer import _object_of
 from ..raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box_in_tile, _geometry, _setup,
-                                 bin_primitives, fragment_depth, lambdas, perspective_bary,
-                                 resolved_buffers, row_span, tile_rect, write_winner)
+                                 bin_primitives, depth_test, fragment_depth, lambdas,
+                                 perspective_bary, resolved_buffers, row_span, tile_rect,
+                                 write_winner)
 from .capping import SURE_EXTRAPOLATION
 from .surfaces import _Packed, clipped_at
 
@@ -64,8 +65,11 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
                      face_offsets, n_solids, n_surf, n_enabled, h_lo, h_hi, tv, wv, separate,
                      params, wrap, enabled,
                      maps, offset, shape, v_first, v_mat, v_depth, v_sign, v_count, v_start,
-                     v_cstart, v_hw, sure, sure_bary, tile_shift, o_depth, o_prim, o_front, o_bary):
-    """The rasterizer's fused tile pass (``GL_LESS``, clear 1) with the clip stage between
+                     v_cstart, v_hw, sure, sure_bary, tile_shift, func, clear, o_depth, o_prim,
+                     o_front, o_bary):
+    """The rasterizer's fused tile pass (depth function ``func`` of
+    :data:`refraster.raster.DEPTH_FUNCS`, the buffer cleared to ``clear``; ``GL_LESS`` and 1 for
+    the paper's pass) with the clip stage between
     rasterization and the depth test. A fragment that fails the depth test is left untested
     (it cannot change the tile whether discarded or not), so the result equals the fragment
     stream + stage + resolve exactly. A cap face flagged in ``sure`` skips its parity tests
@@ -79,7 +83,7 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
             continue   # nothing binned: the tile keeps resolved_buffers' clear values
         size = 1 << tile_shift
         tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, tile_shift, width, height)
-        zbuf = np.full((size, size), np.float32(1.0), np.float32)
+        zbuf = np.full((size, size), clear, np.float32)
         win = np.full((size, size), NO_ITEM, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
@@ -125,10 +129,12 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
                         z = fragment_depth(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, x, y,
                                            e0 + b0, e1 + b1, e2 + b2, inv_area)
                         lx = x - tx0
-                        if z < zbuf[ly, lx] and not test:
+                        if not depth_test(func, z, zbuf[ly, lx]):
+                            pass
+                        elif not test:
                             zbuf[ly, lx] = z
                             win[ly, lx] = item
-                        elif z < zbuf[ly, lx]:
+                        else:
                             l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
                                                  e0 + b0, e1 + b1, e2 + b2, inv_area)
                             c0, c1, c2 = perspective_bary(iw0, iw1, iw2, piece, front, B, l0,
@@ -286,8 +292,10 @@ def _no_sprites():
 
 
 def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests,
-                sure_flags=()):
-    """Rasterize, clip, parity-test and depth-resolve the prepared draw calls in one pass.
+                sure_flags=(), depth_func=1, clear_depth=1.0):
+    """Rasterize, clip, parity-test and depth-resolve the prepared draw calls in one pass,
+    with the depth function ``depth_func`` (:data:`refraster.raster.DEPTH_FUNCS`) against a
+    buffer cleared to ``clear_depth``.
     ``sure_flags`` holds, per cap draw call after the solids, the "surely inside" flags of its
     faces (:func:`refraster.clipsurface.capping.surely_inside`) or ``None``.
 
@@ -303,7 +311,7 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests,
         h_lo[k], h_hi[k] = ends.min(), ends.max()
     ntx, _, starts, lists = bin_primitives(prims)
     h, w = prims.height, prims.width
-    depth, prim, front, bary = resolved_buffers(h, w, 1.0)
+    depth, prim, front, bary = resolved_buffers(h, w, clear_depth)
     sprites = _pack_sprites(tests) if tests else _no_sprites()
     separate = world_vertices is not test_vertices
     sure = np.zeros(int(prep.face_offsets[-1]), np.bool_)
@@ -316,5 +324,6 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests,
                      int(packed.enabled.sum()), h_lo, h_hi,
                      test_vertices, world_vertices, separate, *packed.args(), *sprites, sure,
                      SURE_EXTRAPOLATION,
-                     TILE_SHIFT, depth, prim, front, bary)
+                     TILE_SHIFT, int(depth_func), np.float32(clear_depth), depth, prim, front,
+                     bary)
     return depth, prim, front, bary

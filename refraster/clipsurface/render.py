@@ -12,7 +12,7 @@ import numpy as np
 from .._validate import as_choice, as_float_array, as_matrix, as_real, as_size
 from ..framebuffer import Framebuffer
 from ..ldi import MAX_RESOLUTION
-from ..raster.state import as_raster_state, require_default
+from ..raster.state import as_raster_state, require_depth_direction
 from . import capping
 from .fused import _fused_clip
 from .surfaces import as_surfaces, clip_mask, _surfaces_in_space
@@ -273,10 +273,6 @@ def _cached_cap(surface, bounds, subdivision, sprite=None):
     return entry[1], entry[2]
 
 
-#: The depth test and facing of the paper's passes (the parity test reads the facing).
-_FIXED_STATE = ("depth_func", "depth_write", "clear_depth", "front_face")
-
-
 def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT_CAPS,
                    space="world", model=None, raster=None, vds=None,
                    background=(1.0, 1.0, 1.0)):
@@ -301,10 +297,13 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
     model : (4, 4) or list of them, optional
         Object → world matrix per solid; surfaces are always given in world space.
     raster : RasterState, optional
-        The fixed-function state (:class:`refraster.RasterState`): its cull mode, precision,
-        sub-pixel bits, fill rule and normals (the solids' shading normals) apply; the depth
-        test is the paper's (``less``, cleared to 1, writes on, counter-clockwise front
-        faces), and a state that changes it is refused with one line. None: the default.
+        The fixed-function state (:class:`refraster.RasterState`): its depth test, cull mode,
+        front face, precision, sub-pixel bits, fill rule, normals (the solids' shading
+        normals) and the API conventions (depth range, window origin, NDC y, depth clamp)
+        apply. The depth test must have a direction: ``less``/``lequal`` with the buffer
+        cleared to 1 (the paper's ``GL_LESS``) or ``greater``/``gequal`` cleared to 0
+        (reversed-Z), depth writes on; anything else is refused with one line naming the
+        field. None: the default.
     vds : sequence of objects with ``contains(points)``, optional
         Pre-built volumetric depth sprites (world space), one per solid; built with
         ``VolumetricDepthSprite.from_mesh(solid, resolution=caps.vds_resolution)`` otherwise.
@@ -317,21 +316,24 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
     ClippedFramebuffer
         The foundation's Framebuffer; cap pixels carry the cap's window and eye depth, its
         eye-space normal (from the normal map), its colour, ``front_facing`` (True when the
-        cap is seen from its −N side) and ``object_id = M + m·K + k`` for the cap of solid m
-        and surface k. ``prim_id`` is the cap mesh's face (``"mesh"``) or the cap texel
+        cap is seen from its −N side, under either front face) and
+        ``object_id = M + m·K + k`` for the cap of solid m and surface k. ``prim_id`` is the cap mesh's face (``"mesh"``) or the cap texel
         ``row·W + col`` (``"exact"``). ``cap_mask`` marks the cap pixels.
 
     Notes
     -----
     Solid fragments are discarded where any enabled surface clips them (MATH.md §1.1). A cap
     fragment of surface k is kept where the volumetric parity test says inside (MATH.md §2.2)
-    and no *other* enabled surface clips it. Caps are drawn after the solids with ``GL_LESS``,
-    so at equal depth the solid wins.
+    and no *other* enabled surface clips it. Caps are drawn after the solids with the state's
+    depth test, so at equal depth the solid wins under ``less``/``greater`` (the cap under
+    ``lequal``/``gequal``). The volumetric parity test is a test of world positions (the
+    sprites have their own camera) and so the same in every convention; the exact caps' rays
+    and window depths follow the state's conventions (:func:`capping.pixel_rays`).
     """
     from ..framebuffer import _build, render
     from ..ldi import VolumetricDepthSprite
     from ..mesh import Mesh, as_meshes, bounds
-    from ..raster import _models, prepare
+    from ..raster import DEPTH_FUNCS, _models, facing, prepare
     from ..raster.fragments import vertices_in
 
     solids = as_meshes(meshes)
@@ -355,7 +357,10 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
                          "is used by caps.style='diffuse'")
     # the base pass colours "solid" caps as "diffuse"; texture_caps recolours them
     base_style = "diffuse" if style == "solid" else style
-    state = require_default(as_raster_state(raster), _FIXED_STATE, "render_clipped")
+    state = require_depth_direction(as_raster_state(raster), "render_clipped")
+    if caps is not None and mode == "exact" and state.depth_clamp:
+        raise ValueError("raster.depth_clamp must be False for caps.mode='exact' (its rays "
+                         "span the clip volume between the near and far planes), got True")
     normals = state.normals
     models = _models(model, len(solids))
     world = [Mesh(v, s.faces) if v is not s.vertices else s
@@ -407,7 +412,8 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
             vertices_in(prep.meshes, prep.models, view, "world"))
         depth, prim_global, front, bary = _fused_clip(
             prep, tv, wv, n_solids, _surfaces_in_space(surfaces, space, view), cap_tests,
-            sure_flags)
+            sure_flags, DEPTH_FUNCS[state.depth_func], state.clear_depth)
+        facing(state, front, prim_global >= 0)
         h, w = depth.shape
         identity = all(np.array_equal(m, np.eye(4)) for m in prep.models)
         geometry = (tv, prep.triangles.faces) if identity and space == "world" else None
@@ -422,6 +428,10 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
     if not do_caps:
         return out
     if mode == "mesh":
+        if state.front_face == "cw":
+            # the cap meshes are the technique's own (counter-clockwise as seen from their −N
+            # side): a cap's facing keeps that meaning whatever the solids' front face
+            np.logical_xor(out.front_facing, cap_mask, out=out.front_facing)
         # the caps are drawn in world space (identity model): interpolate, light and colour
         # their pixels in one pass
         if geometry is None:
@@ -438,13 +448,17 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
         return out
     else:
         tau, which, origin, direction = capping.exact_caps(
-            surfaces, world, tests, view=view, proj=proj, width=width, height=height)
+            surfaces, world, tests, view=view, proj=proj, width=width, height=height,
+            raster=state)
         hit = np.isfinite(tau)
         pts = origin[hit] + tau[hit, None] * direction[hit]
         clip = np.c_[pts, np.ones(len(pts))] @ (proj @ view).T
-        depth = (0.5 * (clip[:, 2] / clip[:, 3]) + 0.5).astype(np.float32)
+        if state.depth_range == "zero_to_one":
+            depth = (clip[:, 2] / clip[:, 3]).astype(np.float32)
+        else:
+            depth = (0.5 * (clip[:, 2] / clip[:, 3]) + 0.5).astype(np.float32)
         flat = np.flatnonzero(hit)
-        nearer = depth < fb.depth.ravel()[flat]
+        nearer = _passes(state.depth_func, depth, fb.depth.ravel()[flat])
         flat, pts, depth = flat[nearer], pts[nearer], depth[nearer]
         m_k = which[flat]
         r, c = np.divmod(flat, w)
@@ -478,6 +492,17 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
     _texture_pass(out, surfaces, textured, style, color, solid_tex, solids, models, view,
                   occlusion_radius)
     return out
+
+
+def _passes(depth_func, depth, stored):
+    """The depth test of drawn cap fragments against the stored depths (vectorized)."""
+    if depth_func == "less":
+        return depth < stored
+    if depth_func == "lequal":
+        return depth <= stored
+    if depth_func == "greater":
+        return depth > stored
+    return depth >= stored
 
 
 def _texture_pass(out, surfaces, textured, style, color, solid_tex, solids, models, view,

@@ -10,7 +10,7 @@ import numpy as np
 
 from .. import framebuffer as _fb
 from .._validate import as_image_size, as_matrix, as_option
-from ..raster.state import as_raster_state, require_default
+from ..raster.state import as_raster_state, gl_clip_map, require_depth_direction, reverses
 from ..mesh import as_meshes
 from .lines import feature_segments, ghost_alpha
 from .options import GHOST_DISTANCE_FRACTION, Cutaway, CutSurfaces, GhostLines
@@ -35,9 +35,12 @@ class CutawayFramebuffer(_fb.Framebuffer):
     Attributes
     ----------
     cutaway_depth : (H, W) float32
-        The cutaway surface D at frame resolution, as *window* depth (0 = near: nothing cut).
+        The cutaway surface D at frame resolution, as the frame's *window* depth (the near
+        plane's depth — 0, or 1 under reversed-Z — where nothing is cut).
     cutaway_buffer : (Hc, Wc) float64
-        The cutaway surface at the cutaway buffer's own resolution, in NDC depth.
+        The cutaway surface at the cutaway buffer's own resolution, in OpenGL's NDC depth
+        (near = −1; in another convention the frame's clip space mapped by
+        :func:`refraster.raster.state.gl_clip_map`).
     cut_mask : (H, W) bool
         Pixels showing a cut surface (a visible back-facing secondary fragment).
     carved : (H, W) bool
@@ -163,11 +166,16 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
         secondary meshes' feature lines, faded out over 10 % of their bounding box's diagonal);
         None: no ghost lines.
     raster : RasterState, optional
-        The fixed-function state (:class:`refraster.RasterState`) of the frame: its cull mode,
-        precision, sub-pixel bits, fill rule and normals apply. The depth test is the paper's
-        (``less`` cleared to 1 for the frame; ``greater`` cleared to 0, no culling, for the rear
-        hull), and the cut surfaces are the back faces of counter-clockwise solids: a state that
-        changes the depth test or the front face is refused with one line. None: the default.
+        The fixed-function state (:class:`refraster.RasterState`) of the frame: its depth
+        test, cull mode, front face, precision, sub-pixel bits, fill rule, normals and the API
+        conventions (depth range, window origin, NDC y, depth clamp) apply. The depth test
+        must have a direction: ``less``/``lequal`` cleared to 1 (the paper's) or
+        ``greater``/``gequal`` cleared to 0 (reversed-Z), depth writes on; anything else is
+        refused with one line naming the field. The rear hulls are drawn with the opposite
+        test (``greater`` cleared to 0, or ``less`` cleared to 1 under reversed-Z), no
+        culling; the cut surfaces are the back faces as the state's front face defines them.
+        The cutaway surface itself is computed in OpenGL's clip space (the projection mapped
+        by :func:`refraster.raster.state.gl_clip_map`). None: the default.
     background
         As in :func:`refraster.render`.
 
@@ -204,8 +212,19 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
     view = as_matrix(view, "view")
     proj = as_matrix(proj, "proj")
     width, height = as_image_size(width, height)
-    state = require_default(as_raster_state(raster), ("depth_func", "depth_write", "clear_depth",
-                                                      "front_face"), "render_cutaway")
+    state = require_depth_direction(as_raster_state(raster), "render_cutaway")
+    # the cutaway is computed in OpenGL's clip space (MATH.md §4: NDC depth, near = −1): the
+    # frame's conventions map there by T (gl_clip_map) and window depth by d → 1 − d under a
+    # reversing depth test, so the paper's arithmetic and its comparisons stay as written
+    rev = reverses(state)
+    clip_map = gl_clip_map(state)
+    proj_gl = proj if clip_map is None else clip_map @ proj
+
+    def ndc(window_depth):
+        """OpenGL-equivalent NDC depth of the frame's window depths (float64)."""
+        z = 2.0 * np.asarray(window_depth, np.float64) - 1.0
+        return -z if rev else z
+
     cw, ch = cutaway.buffer_size or (width, height)
     thetas = as_angles(cutaway.angle, "cutaway.angle")
     hull = interest + stand_ins
@@ -224,9 +243,12 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
 
     # (1)–(2) the cutaway surface at its own resolution
     if hull:
+        # the farthest surface: the depth test opposite to the frame's, cleared to the near end
         rear = _fb.render(hull, width=cw, height=ch, raster=state.replace(
-            depth_func="greater", clear_depth=0.0, cull="none", normals="flat"), **camera)
-        buffer = cutaway_surface(rear.depth, rear.object_id, proj=proj, view=view,
+            depth_func="less" if rev else "greater", clear_depth=1.0 if rev else 0.0,
+            cull="none", normals="flat"), **camera)
+        rear_depth = 1.0 - rear.depth.astype(np.float64) if rev else rear.depth
+        buffer = cutaway_surface(rear_depth, rear.object_id, proj=proj_gl, view=view,
                                  angle=thetas, variant=cutaway.variant,
                                  perspective_compensation=cutaway.perspective_compensation,
                                  edge_compression=cutaway.edge_compression,
@@ -243,7 +265,7 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
     carved_px = np.zeros(height * width, bool)
 
     def fragment_stage(frags):
-        z = 2.0 * frags.depth.astype(np.float64) - 1.0
+        z = ndc(frags.depth)
         limit = np.where(frags.front_facing, d_ndc.reshape(-1)[frags.pixel],
                          d_back.reshape(-1)[frags.pixel])
         cut = (frags.object_id < n_sec) & (z < limit)
@@ -258,10 +280,9 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
     normal = fb.normal.copy()
     color = fb.color.copy()
     if cut_surfaces.shade and cut_mask.any():
-        n_cut = cut_surface_normals(d_back, proj)[cut_mask]
+        n_cut = cut_surface_normals(d_back, proj_gl)[cut_mask]
         x, y = pixel_ndc(height, width)
-        pos = unproject(x[cut_mask], y[cut_mask], 2.0 * fb.depth[cut_mask].astype(np.float64) - 1.0,
-                        proj)
+        pos = unproject(x[cut_mask], y[cut_mask], ndc(fb.depth[cut_mask]), proj_gl)
         base = cut_color if cut_color is not None else \
             _fb.PALETTE[fb.object_id[cut_mask] % len(_fb.PALETTE)]
         normal[cut_mask] = n_cut
@@ -272,11 +293,11 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
     ghost = np.zeros((height, width), np.float32)
     if ghost_distance > 0 and secondary and carved_px.any():
         if ghosts.source == "lines":
-            segments = feature_segments(secondary, view=view, proj=proj,
+            segments = feature_segments(secondary, view=view, proj=proj_gl,
                                         crease_angle=ghosts.crease_angle)
             ooi = fb.mask & (fb.object_id >= n_sec)
-            occluder = np.where(ooi, 2.0 * fb.depth.astype(np.float64) - 1.0, np.inf)
-            ghost = ghost_alpha(segments, view=view, proj=proj, width=width, height=height,
+            occluder = np.where(ooi, ndc(fb.depth), np.inf)
+            ghost = ghost_alpha(segments, view=view, proj=proj_gl, width=width, height=height,
                                 cutaway_ndc=d_ndc, g_max=ghost_distance, fade=ghosts.fade,
                                 occluder_depth=occluder)
         else:
@@ -284,7 +305,12 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
             plain = _fb.render(secondary, width=width, height=height, raster=state, **camera)
             em = edge_map(plain, preset="clean")
             strength = np.maximum(em[..., 0], em[..., 3])
-            ghost = ghost_lines(strength, plain.depth, d_ndc, fb.depth, proj, ghost_distance)
+            if rev:   # OpenGL-equivalent window depths (the background's clear 0 becomes 1)
+                ghost = ghost_lines(strength, 1.0 - plain.depth.astype(np.float64), d_ndc,
+                                    1.0 - fb.depth.astype(np.float64), proj_gl, ghost_distance)
+            else:
+                ghost = ghost_lines(strength, plain.depth, d_ndc, fb.depth, proj_gl,
+                                    ghost_distance)
             if not ghosts.fade:
                 ghost = np.where(ghost > 0, strength, 0.0).astype(np.float32)
     image = color.astype(np.float64) * (1.0 - ghost[..., None]) + GHOST_GREY * ghost[..., None]
@@ -293,7 +319,8 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
     base = fb.field_values()
     base.update(normal=normal, color=color)
     return CutawayFramebuffer(
-        **base, cutaway_depth=(0.5 * d_ndc + 0.5).astype(np.float32), cutaway_buffer=buffer,
+        **base, cutaway_depth=(0.5 - 0.5 * d_ndc if rev else 0.5 * d_ndc + 0.5).astype(
+            np.float32), cutaway_buffer=buffer,
         cut_mask=cut_mask, carved=carved_px.reshape(height, width), outline=edge, ghost=ghost,
         image=image.astype(np.float32))
 

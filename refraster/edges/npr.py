@@ -617,8 +617,9 @@ def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, s
     meshes : mesh or sequence of meshes
         The objects (on the mirror's front side, where its normal points).
     mirror : mesh
-        The mirror surface: planar triangles (e.g. a quad); its first face's counter-clockwise
-        normal is the mirror's front.
+        The mirror surface: planar triangles (e.g. a quad); its first face's front normal (the
+        counter-clockwise one, the clockwise one under ``raster.front_face="cw"``) is the
+        mirror's front.
     view, proj, width, height
         The camera.
     models : list of (4, 4), optional
@@ -635,9 +636,11 @@ def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, s
     raster : RasterState, optional
         The fixed-function state of both passes (:class:`refraster.RasterState`); None: the
         default state with ``normals="smooth"`` (the paper needs per-vertex normals: a mesh's
-        own, given as ``(vertices, faces, normals)``, or area-weighted ones). The mirror pass
-        tests depth with ``less``; a state that changes the depth test or the front face is
-        refused with one line.
+        own, given as ``(vertices, faces, normals)``, or area-weighted ones). Its depth test,
+        front face and API conventions apply to both passes (the edges are found from eye
+        depth, which no convention changes); the depth test must have a direction
+        (``less``/``lequal`` cleared to 1, or ``greater``/``gequal`` cleared to 0: reversed-Z),
+        depth writes on; anything else is refused with one line naming the field.
     mirror_style : MirrorStyle
         The mirror's reflectance and colour and the edge colours (default: ``MirrorStyle()``,
         reflectance 0.85, a light grey-blue mirror, white inner and black profile edges).
@@ -664,14 +667,13 @@ def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, s
     from . import operators as _edges
     from ..framebuffer import render
     from ..mesh import as_mesh, as_meshes, face_normals
-    from ..raster.state import RasterState, require_default
+    from ..raster.state import RasterState, require_depth_direction
 
     state = RasterState(normals="smooth") if raster is None else raster
     if not isinstance(state, RasterState):
         raise TypeError(f"raster must be a refraster.RasterState (or None), got "
                         f"{type(state).__name__}")
-    require_default(state, ("depth_func", "depth_write", "clear_depth", "front_face"),
-                    "render_mirrored")
+    require_depth_direction(state, "render_mirrored")
     objs = as_meshes(meshes)
     mir = as_mesh(mirror, "mirror")
     if mir.n_faces == 0:
@@ -686,6 +688,8 @@ def render_mirrored(meshes, mirror, *, view, proj, width, height, models=None, s
     if good.size == 0:
         raise ValueError("mirror faces are all degenerate")
     normal = fn[good[0]]
+    if state.front_face == "cw":   # the front as the state defines it
+        normal = -normal
     point = mir.vertices[mir.faces[good[0], 0]]
     size = float(np.linalg.norm(np.ptp(mir.vertices, axis=0)))
     if np.abs((mir.vertices - point) @ normal).max() > 1e-9 * max(size, 1.0):

@@ -27,7 +27,7 @@ import numpy as np
 __all__ = ["RasterState", "as_raster_state", "DEPTH_FUNC_NAMES", "CULL_MODES", "FRONT_FACES",
            "FILL_RULE_NAMES", "PRECISIONS", "NORMALS_MODES", "SUBPIXEL_BITS", "DEPTH_RANGES",
            "ORIGINS", "NDC_Y", "DEPTH_FORMATS", "SAMPLE_COUNTS", "SAMPLE_PATTERNS",
-           "INTERPOLATIONS"]
+           "INTERPOLATIONS", "DIRECTED_DEPTH_FUNCS"]
 
 #: OpenGL's eight depth functions (``glDepthFunc``), comparing the incoming fragment's depth
 #: against the stored one.
@@ -312,3 +312,59 @@ def require_default(state, fields, where):
             raise ValueError(f"raster.{f} must be {getattr(DEFAULT, f)!r} for {where} (it "
                              f"follows OpenGL's default there), got {getattr(state, f)!r}")
     return state
+
+
+#: The depth functions that define a direction (what "nearer" means): ascending depth for
+#: ``less``/``lequal`` (OpenGL's default), descending for ``greater``/``gequal`` (reversed-Z).
+DIRECTED_DEPTH_FUNCS = ("less", "lequal", "greater", "gequal")
+
+
+def reverses(state):
+    """True when the state's depth test keeps the larger depth (``greater``, ``gequal``:
+    reversed-Z): "nearer" is the larger window depth."""
+    return state.depth_func in ("greater", "gequal")
+
+
+def require_depth_direction(state, where):
+    """Refuse, with one line naming the field, a state whose depth test has no direction for a
+    technique that compares depths itself (cut tests, cap depth tests, peeling): the depth
+    function must be ``less``/``lequal`` with the buffer cleared to 1 (the far end) or
+    ``greater``/``gequal`` (reversed-Z) cleared to 0, with depth writes on. A multisample state
+    is refused too (:func:`require_single_sample`). The other fields (front face, culling, the
+    API conventions) are the technique's to honour."""
+    require_single_sample(state, where)
+    if state.depth_func not in DIRECTED_DEPTH_FUNCS:
+        raise ValueError(f"raster.depth_func must be one of {', '.join(DIRECTED_DEPTH_FUNCS)} "
+                         f"for {where} (a direction of depth: nearer is smaller or larger), "
+                         f"got {state.depth_func!r}")
+    far = 0.0 if reverses(state) else 1.0
+    if state.clear_depth != far:
+        raise ValueError(f"raster.clear_depth must be {far!r} under depth_func="
+                         f"{state.depth_func!r} for {where} (the buffer cleared to the far "
+                         f"end), got {state.clear_depth!r}")
+    if not state.depth_write:
+        raise ValueError(f"raster.depth_write must be True for {where} (its passes resolve "
+                         f"the nearest fragment), got False")
+    return state
+
+
+def gl_clip_map(state):
+    """``T`` (4×4 float64) taking the state's clip coordinates to the equivalent ones in
+    OpenGL's conventions (the same picture, window depth ``d`` kept, or ``1 − d`` under a
+    reversing depth test): ``y → −y`` under ``ndc_y="down"``, ``z → 2z − w`` under
+    ``depth_range="zero_to_one"``, then ``z → −z`` under ``greater``/``gequal``; ``None`` when
+    it is the identity (the state speaks OpenGL's dialect). The window origin is no map: images
+    are row 0 at the top in every convention. A technique that computes from window depth or
+    from the projection (unprojecting pixels, NDC depth slopes) works in these coordinates
+    with ``T·proj`` (``docs/architecture.md``, "Conventions")."""
+    if state.ndc_y == "up" and state.depth_range == "negative_one_to_one" \
+            and not reverses(state):
+        return None
+    t = np.eye(4)
+    if state.ndc_y == "down":
+        t[1, 1] = -1.0
+    if state.depth_range == "zero_to_one":
+        t[2] = (0.0, 0.0, 2.0, -1.0)
+    if reverses(state):
+        t[2] = -t[2]
+    return t
