@@ -1,6 +1,6 @@
-"""refraster.wgpu on the technique scenes of issue 45 it renders (edge maps with NPR
-compositing; 2.5D clip surfaces with the parity test and caps; adaptive cutaways): ``golden
-candidate --backend wgpu`` renders every edges, clipsurface and cutaway scene and each passes
+"""refraster.wgpu on the technique scenes of issue 45 (edge maps with NPR compositing; 2.5D
+clip surfaces with the parity test and caps; adaptive cutaways; 4D halos): ``golden candidate
+--backend wgpu`` renders every edges, clipsurface, cutaway and halos4d scene and each passes
 the tolerant compare on lavapipe; each planted fault of a technique
 (``refraster.wgpu.TECHNIQUE_FAULTS``, an override constant of the technique's WGSL or a host
 switch) fails it on the scenes whose passes contain the faulty code,
@@ -29,12 +29,14 @@ CLIPS = ["clipsurface_building", "clipsurface_textured_caps", "clipsurface_two_s
 CUTS = ["cutaway_shells", "cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa",
         "cutaway_floor", "cutaway_floor_jfa"]
 FLOORS = ["cutaway_floor", "cutaway_floor_jfa"]
-SCENES = EDGES + CLIPS + CUTS
+HALOS = ["halos4d_figure1", "halos4d_perspective"]
+SCENES = EDGES + CLIPS + CUTS + HALOS
 
 #: fault → the scenes it is run on (its technique's)
 RUN = {"sobel_transposed": EDGES, "one_diagonal": EDGES,
        "offset_wrong_address_mode": CLIPS, "parity_far_end": CLIPS,
-       "jfa_halved_once_more": CUTS, "ghost_not_depth_tested": CUTS, "ndc_y_from_row": CUTS}
+       "jfa_halved_once_more": CUTS, "ghost_not_depth_tested": CUTS, "ndc_y_from_row": CUTS,
+       "plane_half_slab": HALOS, "halo_depth_max": HALOS}
 #: fault → {scene: buffer that must be named among the failing ones}
 EXPECTED = {
     # Sobel operators: edges_sobel (normal and depth), edges_c1_paper (normal)
@@ -54,6 +56,10 @@ EXPECTED = {
     # the cut normals unprojected upside down (every scene's cut surfaces' colour); with the
     # floor constraint, D itself
     "ndc_y_from_row": {s: ("cutaway_depth" if s in FLOORS else "color") for s in CUTS},
+    # every plane on a slab boundary: other voxels, classes and opacities
+    "plane_half_slab": {s: "halo_class" for s in HALOS},
+    # the halo depth's maximum: surface voxels in front of a halo counted as carved
+    "halo_depth_max": {s: "halo_class" for s in HALOS},
 }
 #: scenes of a fault's technique whose passes do not contain the faulty code (they must pass)
 UNTOUCHED = {
@@ -64,6 +70,8 @@ UNTOUCHED = {
     "jfa_halved_once_more": [],
     "ghost_not_depth_tested": [],
     "ndc_y_from_row": [],
+    "plane_half_slab": [],
+    "halo_depth_max": [],
 }
 
 
@@ -126,12 +134,14 @@ def test_technique_scenes_pass_and_every_planted_fault_fails(gold):
 
 def test_techniques_ask_for_no_optional_feature_and_ids_are_exact(gold):
     """The techniques run on a device given no optional feature at all (float32 maps are
-    filtered in WGSL, nothing is blended: the ghost lines' maximum is kept by a depth test);
+    filtered in WGSL, nothing is blended: the ghost lines' maximum and the halo depth's minimum
+    are kept by a depth test, the halos composited through ping-pong textures);
     the clip scenes' ids and cap mask equal the
     golden's pixel for pixel, and two runs give the same bytes."""
     with backend_or_skip(features=[]) as gpu:
         assert list(gpu.device.features) == []
-        for scene in ("edges_npr_gooch", "clipsurface_two_surfaces", "cutaway_floor"):
+        for scene in ("edges_npr_gooch", "clipsurface_two_surfaces", "cutaway_floor",
+                      "halos4d_figure1"):
             pkg = gold / "golden" / scene / "package"
             a, b = gpu.render(pkg), gpu.render(pkg)
             for key in a:
@@ -342,3 +352,22 @@ def test_the_planted_jfa_schedule_halves_once_too_often():
     assert schedule(72, 96, "jfa", bad) == [64, 16, 4, 1]
     assert schedule(72, 96, "jfa+2", bad) == [64, 16, 4, 1, 2, 1]
     assert schedule(72, 96, "1+jfa", bad) == [1, 64, 16, 4, 1]
+
+
+def test_halo_options_the_backends_do_not_draw_are_a_reason(gold):
+    """A halos4d option neither GPU backend draws makes ``supports`` give the reason and a
+    malformed one names the parameter, the same for refraster.wgpu and refraster.gl (one reader,
+    refraster.gl.package.halos_supports). No device needed."""
+    from refraster.gl import halos as gl_halos
+    from refraster.wgpu import halos
+    doc = json.loads((gold / "golden" / "halos4d_figure1" / "package" / "scene.json")
+                     .read_text())
+    assert halos.supports(doc) is None
+    for edit, words in (({"stereo": 6.0}, "'stereo' is not implemented by the GPU backends"),
+                        ({"boundary_color": [0, 1, 0]}, "'boundary_color' is not implemented"),
+                        ({"slices": 0}, "parameters.slices"),
+                        ({"split": "dompierre"}, "parameters.split"),
+                        ({"rotation": [[2, 0, 0, 0]] * 4}, "parameters.rotation")):
+        scene = {**doc, "parameters": {**doc["parameters"], **edit}}
+        assert words in halos.supports(scene), edit
+        assert gl_halos.supports(scene) == halos.supports(scene)

@@ -2,8 +2,9 @@
 extra ``wgpu``).
 
 A WebGPU team's client of the goldens, written as one: WGSL files (``shaders/gbuffer.wgsl``; the
-techniques' ``shaders/edges.wgsl``, ``shaders/clip.wgsl`` and ``shaders/cutaway.wgsl`` with
-:mod:`refraster.wgpu.edges`, :mod:`refraster.wgpu.clipsurface` and :mod:`refraster.wgpu.cutaway`)
+techniques' ``shaders/edges.wgsl``, ``shaders/clip.wgsl``, ``shaders/cutaway.wgsl`` and ``shaders/halos.wgsl`` with
+:mod:`refraster.wgpu.edges`, :mod:`refraster.wgpu.clipsurface`, :mod:`refraster.wgpu.cutaway`
+and :mod:`refraster.wgpu.halos`)
 beside a thin driver (:mod:`refraster.wgpu.driver`) on wgpu-py
 (wgpu-native), which on a machine without a GPU runs on Mesa's lavapipe (Vulkan on llvmpipe).
 It reads only the scene
@@ -51,10 +52,16 @@ SUPPORTED_TECHNIQUES = {
                "G-buffer in three passes with the cut flag, ghost lines as a line list whose "
                "opacity is kept as the maximum by a depth32float attachment (no optional "
                "feature)",
+    # issue 45 (refraster/wgpu/halos.py, shaders/halos.wgsl)
+    "halos4d": "per slicing plane a compute pass cutting every tetrahedron into a storage "
+               "buffer drawn as the vertex buffer (no geometry shader), Eq. 3's halo depth "
+               "kept as the per-pixel minimum by a depth32float attachment, the surface "
+               "fragment by a depth-tested key, the resolve composited into ping-pong "
+               "rgba32float textures read with textureLoad (no optional feature)",
 }
 
-#: Techniques skipped with a reason: the second part of the WebGPU backend (issue 45).
-LATER_TECHNIQUES = ("halos4d",)
+#: Techniques skipped with a reason as not implemented yet (none: issue 45 is done).
+LATER_TECHNIQUES = ()
 
 #: Planted faults of the technique passes (issue 45; tests/test_wgpu_techniques.py), test-only
 #: like :data:`FAULTS`, kept apart so that the G-buffer's matrix (tests/test_wgpu_backend.py)
@@ -82,6 +89,13 @@ TECHNIQUE_FAULTS = {
                        "the full-screen passes' NDC y taken from the framebuffer row as "
                        "OpenGL's gl_FragCoord.y (row 0 at the bottom): the floor constraint "
                        "and the cut normals' unprojection upside down"),
+    "plane_half_slab": ("halos.wgsl: the PLANE_HALF_SLAB constant",
+                        "the slicing plane's depth offset by half a slab: z = c_k + dz/2, "
+                        "the slab's far boundary instead of its centre"),
+    "halo_depth_max": ("host: the halo-depth pipeline's depthCompare",
+                       "the halo depth kept as the per-pixel maximum (greater, cleared to 0) "
+                       "instead of the minimum: the depth trick that replaces MIN blending "
+                       "turned around"),
 }
 
 #: Planted faults (tests only; ``Backend(faults=[name, ...])``): name → (where, what it does).

@@ -1,5 +1,6 @@
 """What the technique modules of refraster.wgpu (:mod:`refraster.wgpu.edges`,
-:mod:`refraster.wgpu.clipsurface`, :mod:`refraster.wgpu.cutaway`) share: their WGSL modules (each compiled after
+:mod:`refraster.wgpu.clipsurface`, :mod:`refraster.wgpu.cutaway`; :mod:`refraster.wgpu.halos`
+uses only :data:`SHADER_DIR` and :func:`uniform`) share: their WGSL modules (each compiled after
 ``shaders/gbuffer.wgsl``, whose ``Draw``, ``VOut``, ``vs`` and helpers they use), the pipelines
 that draw a scene's de-indexed meshes with the scene's raster state, the full-screen pipelines,
 and uniform and texture helpers. The technique modules import this module and

@@ -38,7 +38,7 @@ import numpy as np
 
 from ..gl.package import PackageError, matrix, read_map, read_ply, read_scene
 from . import FAULTS, LATER_TECHNIQUES, SUPPORTED_TECHNIQUES, TECHNIQUE_FAULTS
-from . import clipsurface, cutaway, edges
+from . import clipsurface, cutaway, edges, halos
 from .device import WGPUUnavailable, adapter, create_device, describe, unclipped_depth
 
 __all__ = ["Backend", "Unsupported", "WGPUUnavailable", "CONVENTION_DEFAULTS", "SHADER"]
@@ -201,6 +201,8 @@ class Backend:
             return clipsurface.supports(scene)
         if technique == "cutaway":              # issue 45: refraster/wgpu/cutaway.py
             return cutaway.supports(scene)
+        if technique == "halos4d":              # issue 45: refraster/wgpu/halos.py
+            return halos.supports(scene)
         return None
 
     def render(self, package_dir, *, layers=None):
@@ -227,7 +229,7 @@ class Backend:
                   "draws": self._upload(package_dir, scene), "sprite": None}
         if scene["technique"] == "vds":
             loaded["sprite"] = self._sprite(package_dir, scene)
-        if scene["technique"] in ("edges", "clipsurface", "cutaway"):       # issue 45
+        if scene["technique"] in ("edges", "clipsurface", "cutaway", "halos4d"):  # issue 45
             loaded["package_dir"] = package_dir
         if scene["technique"] == "clipsurface":
             loaded["clip"] = clipsurface.load(self, package_dir, scene)
@@ -243,6 +245,8 @@ class Backend:
             return clipsurface.draw(self, loaded)
         if loaded["scene"]["technique"] == "cutaway":
             return cutaway.render(self, loaded, loaded["package_dir"])
+        if loaded["scene"]["technique"] == "halos4d":
+            return halos.render(self, loaded, loaded["package_dir"])
         return self._gbuffer(loaded)
 
     def unload(self, loaded):
