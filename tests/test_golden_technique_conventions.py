@@ -155,3 +155,35 @@ def test_all_scenes_in_a_convention_include_the_techniques():
     techniques = {golden.available_scenes()[n].technique for n in names}
     assert {"render", "clipsurface", "cutaway"} <= techniques
     assert not techniques & {"ldi", "edges", "vds", "halos4d"}
+
+
+def test_gpu_backends_render_or_skip_with_a_reason(tmp_path):
+    """``golden candidate``: wgpu (lavapipe) renders the clip-surface scene in Vulkan's
+    conventions and passes (its caps' facing included); both backends skip the cutaway in a
+    non-OpenGL NDC with a reason (the OpenGL backend skips both: it draws the techniques in
+    OpenGL's conventions only)."""
+    from test_wgpu_backend import backend_or_skip
+    from refraster.golden.candidate import candidate
+    backend_or_skip().release()
+    gold = tmp_path / "g"
+    golden.generate(gold, [in_convention(golden.available_scenes()[n], "vulkan")
+                           for n in SCENES])
+    r = candidate(gold, tmp_path / "wgpu", backend="wgpu")
+    assert r["rendered"] == ["clipsurface_relief_plane"], r
+    assert "OpenGL's NDC" in r["skipped"]["cutaway_shells"]
+    result = compare(gold, tmp_path / "wgpu", mode="tolerant",
+                     scenes=["clipsurface_relief_plane"])
+    assert result.exit_code == 0, "\n".join(result.failures()[:20])
+    # the caps' facing: the GPU's and the golden's, bit for bit (an outside check of the
+    # caps' rule under NDC y down)
+    ref, got = _stored(gold, "clipsurface_relief_plane"), _stored(tmp_path / "wgpu",
+                                                                   "clipsurface_relief_plane")
+    caps = ref["cap_mask"] & got["cap_mask"]
+    assert caps.sum() > 100 and np.array_equal(ref["front_facing"][caps],
+                                               got["front_facing"][caps])
+    try:
+        r = candidate(gold, tmp_path / "gl", backend="gl")
+    except golden.GoldenError as exc:   # no OpenGL context here
+        pytest.skip(str(exc))
+    assert not r["rendered"] and all("OpenGL's conventions only" in why
+                                     for why in r["skipped"].values()), r
