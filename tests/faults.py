@@ -273,24 +273,16 @@ REALISTIC_AIM = 0.95
 #: where a conformant implementation may differ by more than the realistic fault
 #: (docs/tolerance.md, "Teeth at realistic sizes", says by how much); the tests fail when a pair
 #: is listed but meets the aim at the realistic size, or is short and not listed.
-ENLARGED = {
-    # ghost lines: where a fragment may be drawn, α is 0 or within the drawn fragments' range,
-    # which spans the line's depth over its chord and 1.5 px beyond (the diamond-exit point)
-    ("cutaway_floor", "ghost"): 2.0,
-    ("cutaway_floor_jfa", "ghost"): 2.0,
-}
-_CUTS = ("cutaway_shells", "cutaway_shells_jfa", "cutaway_shells_jfa2", "cutaway_shells_1jfa")
+ENLARGED = {}
 #: Pairs short at the realistic size that no enlarged fault ≤ 2× brings to the aim (open): the
-#: shells' ghost lines (a drawn fragment's α over its depth range, which crosses the cutaway
-#: surface's interval: ranges wider than 2× the fault) and the depth-clamped ground plane's
+#: depth-clamped ground plane's
 #: clipped pieces (OpenGL's clipped-piece slack, about 0.2 in window depth; an OVER_AIM pair of
 #: tests/test_golden_conventions.py at the standard size too). A larger fault does not leave
 #: those intervals (docs/tolerance.md, "Teeth at realistic sizes"). Listed exactly: a pair
 #: leaves the list when its allowance is tightened and it meets the aim. The realistic table is
 #: measured on goldens of the default declaration, 8 sub-pixel bits (at 4 the edge maps, the
 #: NPR colour, the halos' alpha and colour and the crank's barycentrics fall short too).
-SHORT_OPEN = frozenset({(s, "ghost") for s in _CUTS}
-                       | {("depth_clamp_near_crossing", "depth")})
+SHORT_OPEN = frozenset({("depth_clamp_near_crossing", "depth")})
 
 
 def float_buffers(golden_dir, scene):

@@ -25,6 +25,7 @@ from refraster.conformance import MAY, MUST, MUST_NOT
 from refraster.golden.allowances import core
 from refraster.golden.allowances.core import scene_allowances, tolerant_metrics
 from refraster.golden.allowances.edges import _absdiff, _dot_bounds, _lin, _sq
+from refraster.golden.allowances.ghosts import _evaluation_depths
 from refraster.golden.allowances.layers import _count_bounds
 from refraster.golden.compare.run import GoldenError, _check_nothing_compared
 from refraster.golden.scenes import Draw, raster_state, render_scene
@@ -316,3 +317,37 @@ def test_layer_count_disjoint_intervals_by_hand():
     # clear depth may be there (lo < clear) or not
     assert _counts([0.1, 0.5, 0.9], [0.2, 0.6, 1.2], [True, False, True]) == (1, 3,
                                                                                 [True, False, False])
+
+
+# --- the depth a GPU's line fragment takes (golden/allowances/ghosts.py) ----------------------
+
+def _line_depths(a, b, row, col, eps=0.1, width=16):
+    ends = np.array([[a[0], a[1], b[0], b[1]]])
+    zends = np.array([[-0.5, 0.5]])          # Δz = 1: z(t) = t − 1/2
+    lo, hi = _evaluation_depths((ends, zends, np.array([0])), np.array([0]),
+                                np.array([row * width + col]), eps, width)
+    return float(lo[0]), float(hi[0])
+
+
+def test_line_fragment_depth_at_the_foot_and_the_column_centre_line():
+    """An x-major line (0.5, 0.5) → (10.5, 3.5), pixel (1, 3), centre (3.5, 1.5): GL's foot
+    t_F = (3·10 + 1·3)/109 = 33/109, the column's centre line t_C = 3/10; the depth range
+    [t_C, t_F] − 1/2, widened by the moves of m = 1.5ε per axis: the foot's
+    √2·m·(1 + 2h/L)/L·|Δz| with h = |3·3 − 1·10|/√109 = 1/√109, L = √109 (larger than the
+    centre line's m·|Δz/Δx| = m/10), and 32·2⁻²⁴."""
+    m, L = 0.15, math.sqrt(109.0)
+    slack = math.sqrt(2.0) * m * (1.0 + 2.0 / 109.0) / L + 32.0 * 2.0 ** -24
+    lo, hi = _line_depths((0.5, 0.5), (10.5, 3.5), 1, 3)
+    assert lo == pytest.approx(0.3 - 0.5 - slack, rel=1e-12, abs=1e-15)
+    assert hi == pytest.approx(33.0 / 109.0 - 0.5 + slack, rel=1e-12, abs=1e-15)
+
+
+def test_line_fragment_depth_of_a_nearly_diagonal_line_takes_both_centre_lines():
+    """(0.5, 0.5) → (8.5, 8.6): ||Δx| − |Δy|| = 0.1 ≤ 4m, either axis may be the major one.
+    Pixel (4, 4), centre (4.5, 4.5): t_C = 4/8, t_R = 4/8.1, t_F = 64.4/129.61 between them;
+    the largest move term the column line's m·|Δz/Δx|·1 = m/8."""
+    m = 0.15
+    slack = m / 8.0 + 32.0 * 2.0 ** -24
+    lo, hi = _line_depths((0.5, 0.5), (8.5, 8.6), 4, 4)
+    assert lo == pytest.approx(4.0 / 8.1 - 0.5 - slack, rel=1e-12, abs=1e-15)
+    assert hi == pytest.approx(0.5 - 0.5 + slack, rel=1e-12, abs=1e-15)

@@ -232,8 +232,21 @@ def _one_error_line(err, prefix):
     return lines[0]
 
 
+#: REFRASTER_FUZZ_PROGRESS=FILE: the counts so far, rewritten every 100 cases (a long run that
+#: is stopped still says how far it came).
+PROGRESS = os.environ.get("REFRASTER_FUZZ_PROGRESS")
+
+
+def _progress():
+    done = COUNTS["error"] + COUNTS["golden"]
+    if PROGRESS and done % 100 == 0:
+        with open(PROGRESS, "w") as f:
+            f.write(f"{done} cases: {dict(sorted(COUNTS.items(), key=lambda kv: -kv[1]))}\n")
+
+
 def _count(kind, line):
     COUNTS[kind] += 1
+    _progress()
     # the error's first words, numbers and paths folded
     words = re.sub(r"/\S+", "PATH", re.sub(r"-?\d[\d.e+-]*", "N", line)).split(": ")
     COUNTS[": ".join(words[2:4])[:80]] += 1
@@ -296,8 +309,9 @@ def test_toml_scene_ends_in_one_line_or_a_golden_with_its_properties(scene, tmp_
     (scene_name,) = manifest["scenes"]
     fb, bad = golden_coverage(out, scene_name)
     assert not bad, f"covered pixels outside their projected face: {bad[:5]}"
-    COUNTS["golden"] += 1
     COUNTS["golden, covered"] += bool((fb.prim_id >= 0).any())
+    COUNTS["golden"] += 1
+    _progress()
     for mode in (None, "tolerant"):   # its own mode, and within its allowances
         assert golden.compare(out, out, mode=mode).exit_code == 0, (
             f"the golden does not pass against itself (mode {mode})")

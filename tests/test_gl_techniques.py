@@ -236,3 +236,71 @@ def test_gl_floor_constraint_matches_refraster(gold, tmp_path, floor):
     # the constraint changes D (the test sees it) and the GPU follows it
     assert np.abs(want - plain.cutaway_depth).max() > 1e-2
     assert (diff < 1e-5).mean() > 0.99 and diff.max() < 1e-3, (diff.max(), (diff >= 1e-5).sum())
+
+
+def test_llvmpipe_line_depth_is_on_the_major_axis_centre_line():
+    """The evaluation point the ghost allowance assumes for llvmpipe (docs/tolerance.md, "Ghost
+    lines"): every ``GL_LINES`` fragment of cutaway_shells' feature segments, each segment drawn
+    alone with ``gl_FragCoord.z`` written out, has the line's window depth where the line
+    crosses the centre line of the fragment's column (x-major) or row (y-major), to float
+    precision — not at GL's foot of the centre, up to 0.3 px away along the line — and lies on
+    a pixel of refraster's supercover."""
+    from refraster import golden
+    from refraster.cutaway.lines import feature_segments, segment_pieces
+    from refraster.mesh import Mesh
+    scene = golden.available_scenes()["cutaway_shells"].build()
+    p, cam = scene.parameters, scene.camera
+    h, w = cam.height, cam.width
+    meshes = []
+    for d in scene.draws:
+        if d.name in p["secondary"]:
+            v = np.asarray(d.mesh.vertices, np.float64)
+            meshes.append(Mesh((np.c_[v, np.ones(len(v))] @ np.asarray(d.model).T)[:, :3],
+                               d.mesh.faces))
+    view, proj = np.asarray(cam.view, np.float64), np.asarray(cam.proj, np.float64)
+    segs = np.asarray(feature_segments(meshes, view=view, proj=proj,
+                                       crease_angle=p["crease_angle"]), np.float64)
+    pix, _, _, sidx, _, (ends, zends, widx) = segment_pieces(
+        segs, view=view, proj=proj, width=w, height=h, window=True)
+    chords = set(zip(sidx.tolist(), pix.tolist()))
+    off_centre, off_foot, n = [], [], 0
+    with _backend_or_skip() as gl:
+        ctx = gl.ctx
+        prog = ctx.program(
+            vertex_shader="#version 330 core\nuniform mat4 u_mvp; in vec3 in_pos;\n"
+                          "void main() { gl_Position = u_mvp * vec4(in_pos, 1.0); }",
+            fragment_shader="#version 330 core\nout vec4 o;\n"
+                            "void main() { o = vec4(gl_FragCoord.z, 0.0, 0.0, 1.0); }")
+        prog["u_mvp"].write((proj @ view).astype(np.float32).T.tobytes())
+        tex = ctx.texture((w, h), 4, dtype="f4")
+        fbo = ctx.framebuffer([tex])
+        fbo.use()
+        ctx.viewport = (0, 0, w, h)
+        for row, k in enumerate(widx):
+            vbo = ctx.buffer(segs[k].astype(np.float32).tobytes())
+            vao = ctx.vertex_array(prog, [(vbo, "3f", "in_pos")])
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
+            vao.render(gl.mgl.LINES)
+            img = np.frombuffer(tex.read(), np.float32).reshape(h, w, 4)[::-1]
+            vao.release()
+            vbo.release()
+            xa, ya, xb, yb = ends[row]
+            za, zb = zends[row]
+            dx, dy = xb - xa, yb - ya
+            length = np.hypot(dx, dy)
+            for r, c in np.argwhere(img[..., 3] > 0):
+                n += 1
+                assert (int(k), int(r * w + c)) in chords, (int(k), int(r), int(c))
+                if abs(zb - za) < 1e-3:
+                    continue        # too flat to locate the point along the line
+                t = (2.0 * float(img[r, c, 0]) - 1.0 - za) / (zb - za)
+                t_c = (c + 0.5 - xa) / dx if abs(dx) >= abs(dy) else (r + 0.5 - ya) / dy
+                t_f = ((c + 0.5 - xa) * dx + (r + 0.5 - ya) * dy) / length ** 2
+                off_centre.append(abs(t - t_c) * length)
+                off_foot.append(abs(t - t_f) * length)
+        tex.release()
+        fbo.release()
+        prog.release()
+    assert n > 300 and len(off_centre) > 300
+    assert max(off_centre) < 1e-3, max(off_centre)
+    assert max(off_foot) > 0.2

@@ -71,6 +71,46 @@ def _ghost_over(scene, b, d_ndc):
                        occluder_depth=occ)
 
 
+def _gl_lines_ghost(scene, b, point):
+    """A GL_LINES ghost buffer drawn in NumPy as a GPU would: one fragment per column (x-major)
+    or row (y-major), where the line crosses the column's (row's) centre line, its depth at
+    ``point`` ("foot": GL's foot of the pixel centre; "centre": the crossing, llvmpipe's)."""
+    from refraster.cutaway.lines import feature_segments, segment_pieces
+    from refraster.cutaway.surface import ndc_to_eye_depth
+    p, cam = scene.parameters, scene.camera
+    h, w = cam.height, cam.width
+    secondary = [d.mesh for d in scene.draws if d.name in p["secondary"]]
+    segs = feature_segments(secondary, view=cam.view, proj=cam.proj,
+                            crease_angle=p["crease_angle"])
+    *_, (ends, zends, _) = segment_pieces(segs, view=cam.view, proj=cam.proj, width=w,
+                                          height=h, window=True)
+    n_sec = len(secondary)
+    ooi = (b["prim_id"] >= 0) & (b["object_id"] >= n_sec)
+    occ = np.where(ooi, 2.0 * b["depth"].astype(np.float64) - 1.0, np.inf)
+    d = 2.0 * b["cutaway_depth"].astype(np.float64) - 1.0
+    e = lambda z: ndc_to_eye_depth(np.clip(z, -1.0, 1.0), np.asarray(cam.proj, np.float64))
+    g = float(p["ghost_distance"])
+    out = np.zeros((h, w))
+    for (xa, ya, xb, yb), (za, zb) in zip(ends, zends):
+        dx, dy = xb - xa, yb - ya
+        xmaj = abs(dx) >= abs(dy)
+        ua, ub, va, du, dv = (xa, xb, ya, dx, dy) if xmaj else (ya, yb, xa, dy, dx)
+        for k in range(int(np.ceil(min(ua, ub) - 0.5)), int(np.ceil(max(ua, ub) - 0.5))):
+            t_c = (k + 0.5 - ua) / du
+            j = int(np.floor(va + t_c * dv))
+            r, c = (j, k) if xmaj else (k, j)
+            if not (0 <= r < h and 0 <= c < w):
+                continue
+            t = t_c if point == "centre" else (
+                ((c + 0.5 - xa) * dx + (r + 0.5 - ya) * dy) / (dx * dx + dy * dy))
+            z = za + t * (zb - za)
+            gap = max(e(d[r, c]) - e(z), 0.0)
+            if z < min(d[r, c], occ[r, c]) and gap < g:
+                a = min(max(1.0 - gap / g, 0.0), 1.0) if p.get("ghost_fade", True) else 1.0
+                out[r, c] = max(out[r, c], a)
+    return out.astype(np.float32)
+
+
 def test_the_allowance_is_not_vacuous(gold):
     b = _buffers(gold)
     lo, hi = _bounds(gold)
@@ -163,3 +203,19 @@ def test_a_maybe_drawn_pixel_is_zero_or_drawn(gold, tmp_path):
     code, out = _compare(gold, _write(tmp_path / "b", b))
     line = [x for x in out.splitlines() if f"{CUT}/ghost: bounds" in x][0]
     assert code == 1 and f"[{r}, {c}]" in line and "or 0" in line, out
+
+
+@pytest.mark.parametrize("point", ["foot", "centre"])
+def test_gl_lines_evaluated_at_either_point_pass(gold, tmp_path, point):
+    """Specificity for the GPU's line rule: GL_LINES drawn in NumPy (one fragment per column
+    or row where the line crosses its centre line) with each fragment's depth at GL's foot of
+    the pixel centre or at that crossing (llvmpipe's point) pass; neither is refraster's
+    chord maximum."""
+    from refraster.golden.compare.run import compare
+    scene = golden.available_scenes()[CUT].build()
+    b = _buffers(gold)
+    ghost = _gl_lines_ghost(scene, b, point)
+    assert (ghost != b["ghost"]).sum() > 50 and (ghost > 0).sum() > 100
+    root = _write(tmp_path / point, {**b, "ghost": ghost})
+    result = compare(gold, root, mode="tolerant", scenes=[CUT], buffers=["ghost"])
+    assert result.exit_code == 0, result.failures()[:5]

@@ -19,7 +19,7 @@ On the command line: ``refraster golden candidate GOLDEN_DIR --backend gl --out 
 """
 
 __all__ = ["SUPPORTED_TECHNIQUES", "FAULTS", "TECHNIQUE_FAULTS", "CONVENTION_FAULTS",
-           "CATALOGUE_FAULTS"]
+           "CATALOGUE_FAULTS", "MSAA_FAULTS"]
 
 #: Techniques this backend renders, with what it renders for them.
 SUPPORTED_TECHNIQUES = {
@@ -34,6 +34,10 @@ SUPPORTED_TECHNIQUES = {
              "C1 / Sobel / angle operators into an RGBA8 or float edge map, the width dilation",
     "cutaway": "rear hulls (GREATER), seeds, ping-pong jump flooding with the scene's schedule, "
                "D_dil and cut normals, the clipped G-buffer with cut surfaces, ghost lines",
+    # issue 43 (refraster/gl/msaa.py)
+    "msaa": "the G-buffer into multisample targets at the context's own sample positions "
+            "(which must be the scene's declared pattern), each sample read with texelFetch, "
+            "the colour resolved by glBlitFramebuffer",
     "halos4d": "tetrahedra sliced per plane in a geometry shader, Eq. 3's halo depth per "
                "fragment (MIN blending), the surface fragment by depth test, slices "
                "composited back to front with blending",
@@ -165,3 +169,20 @@ CATALOGUE_FAULTS = {
                                "tested against the removed layer D"),
 }
 FAULTS.update(CATALOGUE_FAULTS)
+
+#: Planted faults of multisampling (issue 43; :mod:`refraster.gl.msaa`,
+#: tests/test_gl_msaa.py), also in :data:`FAULTS`.
+MSAA_FAULTS = {
+    "msaa_pattern_mirrored": ("FAULT_MSAA_PATTERN_MIRRORED", "the picture drawn upside down "
+                              "(clip y negated, front face swapped) and its rows read back "
+                              "turned: the sample pattern mirrored top to bottom"),
+    "msaa_depth_per_pixel": ("FAULT_MSAA_DEPTH_PER_PIXEL", "gl_FragDepth = gl_FragCoord.z: "
+                             "one depth per fragment, tested and stored at every sample (the "
+                             "depth test per pixel instead of per sample)"),
+    "msaa_srgb_resolve": ("FAULT_MSAA_SRGB_RESOLVE", "the colour resolved in sRGB space "
+                          "(decoded, averaged, encoded) instead of by the linear box filter"),
+    "msaa_centre_coverage": ("FAULT_MSAA_CENTRE_COVERAGE", "GL_MULTISAMPLE disabled: coverage "
+                             "taken at the pixel centre only, the fragment written to every "
+                             "sample"),
+}
+FAULTS.update(MSAA_FAULTS)

@@ -86,6 +86,13 @@ CLASSES = (
     _C("degenerate triangles", "rasterization", "degenerate_dropped",
        ("catalogue_pixel_centres",),
        "zero-area triangles removed at upload, shifting the primitive ids after them"),
+    _C("multisample pattern orientation", "rasterization", "msaa_pattern_mirrored",
+       ("msaa4gl_cube",),
+       "the sample pattern mirrored top to bottom (GL's y-up positions taken as the picture's, "
+       "or a picture drawn upside down and turned): per-sample coverage at the wrong samples"),
+    _C("multisample coverage", "rasterization", "msaa_centre_coverage", ("msaa4gl_cube",),
+       "coverage taken at the pixel centre only and the fragment written to every sample "
+       "(GL_MULTISAMPLE off)"),
     # --- depth ------------------------------------------------------------------------------
     _C("depth range remap", "depth", "depth_remap_on_zero_to_one",
        ("zero_to_one_near_crossing", "catalogue_depth_precision"),
@@ -102,6 +109,9 @@ CLASSES = (
        "GL_DEPTH_CLAMP enabled where the scene clips at the near plane"),
     _C("reversed-Z depth test", "depth", "reversed_z_less", ("reversed_z_multi_draw",),
        "reversed-Z drawn with the depth test 'less'"),
+    _C("per-sample depth", "depth", "msaa_depth_per_pixel", ("msaa4gl_cube",),
+       "one depth per fragment (the pixel centre's) tested and stored at every sample instead "
+       "of the depth plane at each sample"),
     # --- state ------------------------------------------------------------------------------
     _C("cull mode", "state", "cull_face_inverted",
        ("render_nested_shells", "render_icosphere_smooth"),
@@ -137,6 +147,9 @@ CLASSES = (
        "straight-alpha slices blended as premultiplied (ONE, ONE_MINUS_SRC_ALPHA)"),
     _C("slice compositing order", "compositing", "slices_front_to_back",
        ("halos4d_figure1",), "back-to-front slices composited front to back"),
+    _C("multisample resolve space", "compositing", "msaa_srgb_resolve", ("msaa4gl_cube",),
+       "the colour samples resolved in sRGB space (decoded, averaged, encoded) instead of by "
+       "the linear box filter"),
     # --- technique-specific -----------------------------------------------------------------
     _C("depth peeling discard", "technique-specific", "peel_no_discard",
        ("ldi_nested_shells",), "the previous layer not discarded"),

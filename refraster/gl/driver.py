@@ -49,6 +49,9 @@ from .edges import render_edges
 from .edges import supports as edges_supports
 from .halos import render_halos
 from .halos import supports as halos_supports
+from .msaa import render_msaa
+from .msaa import sample_pattern as _sample_pattern
+from .msaa import supports as msaa_supports
 from .package import (CONVENTION_DEFAULTS, PackageError, conventions, matrix, read_map,
                       read_ply, read_scene)
 
@@ -173,6 +176,8 @@ class Backend:
     def supports(scene):
         """``None`` if the scene (a ``scene.json`` dict) can be rendered, else the reason."""
         technique = scene.get("technique")
+        if technique == "msaa":           # issue 43: refraster/gl/msaa.py
+            return msaa_supports(scene)
         conv = conventions(scene.get("raster", {}))
         if technique not in ("render", "vds", "ldi") and conv != CONVENTION_DEFAULTS:
             changed = sorted(k for k in conv if conv[k] != CONVENTION_DEFAULTS[k])
@@ -200,6 +205,12 @@ class Backend:
         if technique == "clipsurface":
             return clipsurface.supports(scene)
         return None
+
+    def sample_pattern(self, samples):
+        """This context's sample pattern at ``samples`` as a candidate states it
+        (``{"samples": S, "positions": [[x, y], ...]}``, 1/16 pixel, y down as the picture is
+        seen), or ``None`` without such a multisample framebuffer."""
+        return _sample_pattern(self, samples)
 
     def render(self, package_dir, *, layers=None):
         """Render one scene package → ``{buffer name: array}`` as the golden stores them.
@@ -259,6 +270,8 @@ class Backend:
             return render_cutaway(self, loaded, loaded.get("package_dir"))
         if loaded["scene"]["technique"] == "halos4d":  # issue 26: refraster/gl/halos.py
             return render_halos(self, loaded, loaded.get("package_dir"))
+        if loaded["scene"]["technique"] == "msaa":     # issue 43: refraster/gl/msaa.py
+            return render_msaa(self, loaded)
         if loaded["scene"]["technique"] in ("render", "vds"):
             return self._gbuffer(loaded["scene"], loaded["draws"], loaded["textures"])
         return self._peel(loaded["scene"], loaded["draws"], layers)

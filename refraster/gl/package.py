@@ -89,6 +89,25 @@ def matrix(value, where):
     return m
 
 
+def _multisample(path, raster, parameters):
+    """A multisampled scene's fields (technique ``msaa``): ``raster.samples`` and the pattern
+    it declares (``parameters.sample_pattern``: the count and ``[x, y]`` positions in 1/16
+    pixel, y down from the pixel's upper-left corner), consistent with each other."""
+    samples = raster.get("samples", 1)
+    if samples not in (2, 4, 8, 16):
+        raise PackageError(f"{path}: an msaa scene's raster.samples must be one of 2, 4, 8, 16, "
+                           f"got {samples!r}")
+    p = (parameters or {}).get("sample_pattern") if isinstance(parameters, dict) else None
+    pos = p.get("positions") if isinstance(p, dict) else None
+    if (not isinstance(pos, list) or p.get("samples") != samples or len(pos) != samples
+            or not all(isinstance(q, list) and len(q) == 2
+                       and all(isinstance(c, int) and not isinstance(c, bool) and 0 <= c <= 15
+                               for c in q) for q in pos)):
+        raise PackageError(f"{path}: an msaa scene's parameters.sample_pattern must give "
+                           f"samples = raster.samples ({samples}) and as many [x, y] positions "
+                           "(integers 0..15)")
+
+
 def read_scene(package_dir):
     """``scene.json`` of ``package_dir`` as a dict, with the fields this backend relies on
     checked (schema, version, viewport, camera matrices, raster state, draws)."""
@@ -151,7 +170,9 @@ def read_scene(package_dir):
             if value not in allowed:
                 raise PackageError(f"{path}: raster.{key} must be one of {list(allowed)}, got "
                                    f"{value!r}")
-        if raster.get("samples", 1) != 1 or raster.get("sample_locations", "standard") \
+        if scene.get("technique") == "msaa":
+            _multisample(path, raster, scene.get("parameters"))
+        elif raster.get("samples", 1) != 1 or raster.get("sample_locations", "standard") \
                 != "standard":
             raise PackageError(f"{path}: raster.samples must be 1 for this backend (one sample "
                                f"per pixel), got samples={raster.get('samples', 1)!r}, "

@@ -25,7 +25,7 @@ import numpy as np
 
 from .io import write
 from .io.errors import GoldenError
-from .io.read import load_manifest
+from .io.read import PATTERN_FILE, load_manifest
 
 __all__ = ["BACKENDS", "candidate"]
 
@@ -144,6 +144,12 @@ def _candidate_locked(golden_dir, manifest, names, target, gl, backend, on_scene
             (tmp / name).mkdir()
             with open(tmp / name / "buffers.npz", "xb") as fh:
                 fh.write(data.getvalue())
+            declared = (entry["parameters"].get("technique") or {}).get("sample_pattern")
+            if declared is not None:
+                # the backend states its own sample pattern (the compare checks it)
+                own = gl.sample_pattern(int(declared["samples"]))
+                with open(tmp / name / PATTERN_FILE, "x", encoding="utf-8") as fh:
+                    fh.write(json.dumps(own, sort_keys=True) + "\n")
             rendered.append(name)
             if on_scene is not None:
                 on_scene(name, "rendered")

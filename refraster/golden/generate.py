@@ -98,10 +98,13 @@ def _write_scene(root, name, scene):
     """Write one scene under ``root``; return its manifest entry. The allowances are derived
     for the declared candidate bits (:func:`render_task`)."""
     from .allowances.core import scene_allowances
+    from .allowances.samples import msaa_allowances
     raster = raster_state(scene.raster)
     export_package(root / name / "package", name, scene, raster)
     rio.atomic_write_bytes(root / name / "buffers.npz", npz_bytes(scene.buffers))
-    arrays, info, tolerant = scene_allowances(scene, raster)
+    # multisampled scenes: per sample, on the scene moved by each sample's offset
+    allowances = msaa_allowances if scene.technique == "msaa" else scene_allowances
+    arrays, info, tolerant = allowances(scene, raster)
     rio.atomic_write_bytes(root / name / "tolerance.npz", npz_bytes(arrays))
     buffers = {}
     for key in sorted(scene.buffers):

@@ -40,6 +40,7 @@ THICK = "refraster/halos4d/thicken.py"
 ACORE = "refraster/golden/allowances/core.py"
 AEDGE = "refraster/golden/allowances/edges.py"
 ALAYER = "refraster/golden/allowances/layers.py"
+AGHOST = "refraster/golden/allowances/ghosts.py"
 ARITH = ["tests/test_allowance_arithmetic.py"]
 
 
@@ -327,4 +328,13 @@ MUTANTS = [
            "that may reach the clear depth", ALAYER,
            "            if lo[i] < clear:\n                n_may += 1",
            "            if hi[i] < clear:\n                n_may += 1", ARITH),
+    Mutant("ghost_eval_foot_only", "allowance", "a line fragment's depth taken at GL's foot of "
+           "the centre only (llvmpipe's centre-line point dropped)", AGHOST,
+           "            ts.append(t)\n", "            ts.append(t_f)\n", ARITH),
+    Mutant("ghost_foot_moves_untilted", "allowance", "the foot's move under vertex moves without "
+           "the line's turn (the 2h/L term)", AGHOST, "(reach(t_f) + 2.0 * h / ln)",
+           "reach(t_f)", ARITH),
+    Mutant("ghost_major_axis_sure_only", "allowance", "a nearly diagonal line's column centre "
+           "line used only where x is surely the major axis", AGHOST,
+           "(dx, (cx - xa) / dx, ~ymaj)", "(dx, (cx - xa) / dx, xmaj)", ARITH),
 ]

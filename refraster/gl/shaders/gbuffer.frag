@@ -92,6 +92,10 @@ void main() {
     front = !front;
 #endif
     o_depth = gl_FragCoord.z;
+#ifdef FAULT_MSAA_DEPTH_PER_PIXEL
+    // planted fault: one depth per fragment (the pixel centre's), tested at every sample
+    gl_FragDepth = gl_FragCoord.z;
+#endif
 #ifdef FAULT_LINEAR_DEPTH_WRITTEN
     o_depth = -gs_eye.z;           // planted fault: the linear eye depth as the window depth
 #endif

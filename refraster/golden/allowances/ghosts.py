@@ -6,43 +6,45 @@ over the line fragments of the secondary meshes' feature segments there:
     α(z) = 1 − (e(D) − e(z)) / g_max   where z < min(D, occ) and e(D) − e(z) < g_max, else 0
 
 (``e`` the eye depth of an NDC depth, ``occ`` the NDC depth of a visible object of interest, +∞
-elsewhere; without the fade α = 1 there). refraster draws a segment on every pixel its window
-projection crosses (supercover) and takes the largest α over the chord; a GPU draws it as
-``GL_LINES`` (diamond exit: one fragment per column of an x-major line, at the pixel whose
-diamond the line crosses) and evaluates α at one point of the line, the foot of the pixel
-centre, which lies inside the pixel (a line through the diamond passes within 0.5 of the centre).
+elsewhere; without the fade α = 1 there). Two rules are accepted:
+
+* **refraster's**: a segment on every pixel its window projection crosses (supercover), the
+  largest α over its chord there — on the golden's own segment (no snapping to vary), float32
+  interpolation ``32·2⁻²⁴``;
+* **a GPU's** ``GL_LINES``: one fragment per column of an x-major line (row of a y-major one),
+  its depth at ONE point of the line (:func:`_evaluation_depths`): GL's foot of the pixel
+  centre ``t_F`` or, as llvmpipe does (its line depth plane has no minor-axis slope), the
+  point on the column's (row's) centre line ``t_C``, extended linearly beyond the segment's
+  ends; any parallelogram line whose sides lie between the perpendicular and the minor axis
+  evaluates between them. Window depth is affine along the projected line (GL's linear line
+  depth). Vertex moves of ``1.5·ε`` per axis move those points' depths by the first-order terms
+  of :func:`_evaluation_depths`, float32 interpolation by ``32·2⁻²⁴``.
 
 Per pixel the golden stores ``ghost_lo ≤ ghost ≤ ghost_hi``, or ``ghost = 0`` where
 ``ghost_zero``:
 
-* **hi**: the supremum of α over every fragment a conformant line rasterizer may put there —
-  the chords of the supercover (a superset of the diamond-exit fragments) and, for a line that
-  passes within ``1.5·ε`` of the pixel's square (vertices moved by the edge ε), its chord in the
-  neighbouring pixel — over the chord's depth range widened by the line depth allowance, D in
-  ``[D_lo, D_hi]`` (:mod:`.cutaway`) and the occluder in the range the cut frame's face
-  sets allow (``cs_*`` of :func:`.clip.cutaway_allowances`);
+* **hi**: the supremum of α over refraster's chords at the pixel and over every fragment a GPU
+  may draw there — at every chord pixel and, for a line that passes within ``1.5·ε`` of the
+  pixel's square, there too — each over its evaluation range, D in ``[D_lo, D_hi]``
+  (:mod:`.cutaway`) and the occluder in the range the cut frame's face sets allow (``cs_*`` of
+  :func:`.clip.cutaway_allowances`);
 * **lo**: the largest, over the segments that *surely* produce a fragment there, of the
-  infimum of α over the segment's chord in the pixel (it holds the foot of the centre, GL's
-  interpolation point, and the point on the column's centre line, where llvmpipe's line depth
-  plane puts it). A segment surely produces a fragment at pixel (r, c) where, for its major
-  axis (certain: ``| |Δx| − |Δy| | > 6ε``, the ends moving by 1.5ε; else both rules must
-  agree), the line crosses the column's centre line at ``y_c`` with ``frac(y_c)`` more than
-  ``1.5·ε·(1 + |slope|)`` from an integer (the pixel's diamond is crossed whatever the vertices'
-  moves), ``1.5·ε`` inside the segment's extent along the major axis, and the segment's second
-  vertex lies outside the diamond by ``3ε`` in L1 distance (diamond exit: a segment ending
-  inside a diamond does not produce it; one starting inside does).
+  infimum of α over the GPU's evaluation range (refraster's chord maximum is at least that:
+  the centre-line point lies on the chord). A segment surely produces a fragment at pixel
+  (r, c) where, for its major axis (certain: ``| |Δx| − |Δy| | > 6ε``, the ends moving by 1.5ε;
+  else both rules must agree), the line crosses the column's centre line at ``y_c`` with
+  ``frac(y_c)`` more than ``1.5·ε·(1 + |slope|)`` from an integer (the pixel's diamond is
+  crossed whatever the vertices' moves), ``1.5·ε`` inside the segment's extent along the major
+  axis, and the segment's second vertex lies outside the diamond by ``3ε`` in L1 distance
+  (diamond exit: a segment ending inside a diamond does not produce it; one starting inside
+  does).
 * **zero**: where no segment surely produces a fragment, α is 0 (none drawn) or, drawn, at
-  least the least α of the fragments that may be drawn there — the largest gap, at ``D_hi``
-  and the chord's nearest depth less ``1.5 px·|dz/ds|`` (a neighbour's chord, or llvmpipe's
-  centre-line point, takes its depth up to 1.5 px along the line from the chord); ``lo`` holds
+  least the least α of the fragments that may be drawn there (refraster's chords, the GPU's
+  evaluation ranges): the largest gap, at ``D_hi`` and the range's nearest depth; ``lo`` holds
   that bound there and ``zero`` says 0 is allowed too.
 
-The line depth allowance: window depth is affine along a projected line (GL interpolates line
-depth linearly in window space; refraster's perspective-correct chord depth is the same
-function), so moving the ends by ε moves a point's depth by at most ``2·ε·|dz/ds|`` (``dz/ds``
-the segment's NDC depth per window pixel) to first order, plus ``32·2⁻²⁴`` for float32
-interpolation. The opacity itself is evaluated in float32 on a GPU: the gap ``e(D) − e(z)``
-carries ``32·2⁻²⁴·(e(D) + e(z))``.
+The opacity itself is evaluated in float32 on a GPU: the gap ``e(D) − e(z)`` carries
+``32·2⁻²⁴·(e(D) + e(z))``.
 
 Not admitted: GL's licence for line algorithms other than diamond exit to put a fragment one
 pixel off the diamond-exit one (its rule 1), which would leave every pixel next to a line free.
@@ -59,8 +61,9 @@ F32 = 2.0 ** -24
 MARGIN = 1.5
 #: The sub-pixel bits of the edge ε the line placement uses, whatever the candidate declares
 #: for its triangles: a GPU draws ``GL_LINES`` with a line algorithm of its own (llvmpipe: a
-#: quad per line), whose fragments lie within the 4-bit ε of the diamond-exit ones but not
-#: within the 8-bit one (measured: llvmpipe at cutaway_shells (42, 33), (31, 41), (33, 40)).
+#: quad per line), not with the triangles' snapping the declaration describes; 4 is GL's
+#: minimum sub-pixel precision (llvmpipe's lines pass the 8-bit ε too, on the five cutaway
+#: scenes).
 LINE_BITS = 4
 GHOST_ARRAYS = ("ghost_lo", "ghost_hi", "ghost_zero")
 
@@ -134,8 +137,8 @@ class _Alpha:
 
 
 def _sure_fragments(whole, eps, h, w):
-    """(segment row, pixel, foot parameter t) of the fragments every accepted line rasterizer
-    produces (see the module docstring)."""
+    """(segment row, pixel) of the fragments every accepted line rasterizer produces (see the
+    module docstring)."""
     ends, _, _ = whole
     xa, ya, xb, yb = ends.T
     dx, dy = xb - xa, yb - ya
@@ -174,13 +177,54 @@ def _sure_fragments(whole, eps, h, w):
     keep += [(s, p) for s, p in both if not xmaj[s] and not ymaj[s]]
     if not keep:
         z = np.zeros(0, np.int64)
-        return z, z, np.zeros(0)
+        return z, z
     seg, pix = (np.array(v, np.int64) for v in zip(*sorted(keep)))
-    # the foot of the pixel centre on the line (window space)
+    return seg, pix
+
+
+def _evaluation_depths(whole, seg, pix, eps, w):
+    """NDC depth range ``(z_lo, z_hi)`` of the fragment a GPU's line rasterizer gives segment
+    row ``seg`` (of ``whole``) at flat pixel ``pix`` when it draws one there: the line's depth
+    at the point(s) where the accepted line rules evaluate it, widened by the vertex moves of
+    ``MARGIN·eps`` per axis and float32 interpolation.
+
+    Window depth is affine along the projected line, ``z(t) = z_a + t·(z_b − z_a)`` (GL's
+    linear line depth, equation 14.7 of GL 4.6), ``t`` the fraction of the window segment,
+    extended linearly beyond the ends. The evaluation points: GL's foot of the pixel centre
+    ``t_F = ((p_r − p_a)·(p_b − p_a))/|p_b − p_a|²``, and where the major axis's centre line
+    through the centre crosses the line, ``t_C = (x_c − x_a)/Δx`` (x-major) or
+    ``t_R = (y_c − y_a)/Δy`` (y-major): llvmpipe's line depth plane has no minor-axis slope
+    (measured at every fragment of the cutaway scenes' lines, ``tests/test_gl_techniques.py``).
+    Both where the major axis may go either way (``||Δx| − |Δy|| ≤ 4·MARGIN·eps``).
+
+    Vertex moves (first order): ``z(t_C)`` at the fixed ``x_c`` moves by
+    ``m·|Δz/Δx|·(|1 − t_C| + |t_C|)``; ``t_F`` by ``√2·m·((|1 − t_F| + |t_F|) + 2|h|/L)/L``
+    (``h`` the centre's distance from the line, ``L`` its length), so ``z(t_F)`` by that times
+    ``|Δz|``; plus ``32·2⁻²⁴`` for float32 interpolation."""
+    ends, zends, _ = whole
+    xa, ya, xb, yb = (ends[seg, k] for k in range(4))
+    za, zb = zends[seg, 0], zends[seg, 1]
+    dx, dy, dz = xb - xa, yb - ya, zb - za
+    m = MARGIN * eps
+    ll = dx * dx + dy * dy
+    ln = np.sqrt(ll)
     cx, cy = pix % w + 0.5, pix // w + 0.5
-    ll = dx[seg] ** 2 + dy[seg] ** 2
-    t = ((cx - xa[seg]) * dx[seg] + (cy - ya[seg]) * dy[seg]) / ll
-    return seg, pix, t
+    t_f = ((cx - xa) * dx + (cy - ya) * dy) / ll
+    h = np.abs((cx - xa) * dy - (cy - ya) * dx) / ln
+    reach = lambda t: np.abs(1.0 - t) + np.abs(t)      # noqa: E731
+    ts = [t_f]
+    moved = [np.sqrt(2.0) * m * (reach(t_f) + 2.0 * h / ln) / ln * np.abs(dz)]
+    xmaj = np.abs(dx) - np.abs(dy) > 4.0 * m
+    ymaj = np.abs(dy) - np.abs(dx) > 4.0 * m
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for du, t, use in (((dx, (cx - xa) / dx, ~ymaj)), (dy, (cy - ya) / dy, ~xmaj)):
+            t = np.where(use, t, t_f)
+            ts.append(t)
+            moved.append(np.where(use, m * np.abs(dz / du) * reach(t), 0.0))
+    t = np.stack(ts)
+    z = za + t * dz
+    slack = np.max(np.stack(moved), axis=0) + 32.0 * F32
+    return z.min(axis=0) - slack, z.max(axis=0) + slack
 
 
 def ghost_bounds(scene, arrays, eps):
@@ -220,61 +264,44 @@ def ghost_bounds(scene, arrays, eps):
     d_hi = 2.0 * np.asarray(arrays["cutaway_depth_hi"], np.float64).ravel() - 1.0
     interest = {i for i, n in enumerate(names) if n in set(p["interest"])}
     occ_lo, occ_hi = _occluder_bounds(arrays, interest, h, w)
-    # the line depth allowance per clipped segment: 2ε·|dz/ds| + 32·2⁻²⁴
     ends, zends, widx = whole
-    length = np.hypot(ends[:, 2] - ends[:, 0], ends[:, 3] - ends[:, 1])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        grad = np.where(length > 0, np.abs(zends[:, 1] - zends[:, 0]) / length, np.inf)
+    row_of = np.full(int(widx.max()) + 1 if len(widx) else 0, -1, np.int64)
+    row_of[widx] = np.arange(len(widx))
     m = MARGIN * eps
-    slack_of = dict(zip(widx.tolist(), (2.0 * m * grad + 32.0 * F32).tolist()))
-    dz = np.array([slack_of[int(s)] for s in sidx]) if len(sidx) else np.zeros(0)
-    # a fragment drawn at a pixel (its own or a neighbour) may take its depth at a point of
-    # the line up to 1.5 px from the chord (the foot of a neighbour's centre; llvmpipe's
-    # centre-line point): the drawn fragments' depth range is the chord's widened by that
-    grad_of = dict(zip(widx.tolist(), np.where(np.isfinite(grad), grad, 0.0).tolist()))
-    reach_dz = (np.array([1.5 * grad_of[int(s)] for s in sidx]) if len(sidx)
-                else np.zeros(0))
-    zl = np.minimum(za, zb) - dz
-    zh = np.maximum(za, zb) + dz
-    # hi: every chord at its pixel and at the neighbours its line passes within 1.5ε of;
-    # present: the least α any of those fragments may have when drawn (the lower bound where
-    # a fragment may be present but none surely is: α is 0 there, or at least that)
+    # refraster's own rule (supercover, the largest α over the chord): the chord's depth range,
+    # the segment's own ends, float32 interpolation
+    zl = np.minimum(za, zb) - 32.0 * F32
+    zh = np.maximum(za, zb) + 32.0 * F32
+    np.maximum.at(hi, pix, alpha.sup(zl, zh, d_lo[pix], d_hi[pix], occ_hi[pix]))
     present = np.full(h * w, np.inf)
+    np.minimum.at(present, pix, alpha.drawn_inf(zl, zh, d_lo[pix], d_hi[pix], occ_hi[pix]))
+    # a GPU's GL_LINES: a fragment at every pixel of the chord and at the neighbours its line
+    # passes within 1.5ε of, its depth at the line's evaluation point(s) there
+    seg_rows, pair_pix = [], []
     r, c = pix // w, pix % w
     xmin, xmax = np.minimum(x0, x1), np.maximum(x0, x1)
     ymin, ymax = np.minimum(y0, y1), np.maximum(y0, y1)
     for di in (-1, 0, 1):
         for dj in (-1, 0, 1):
-            if di == 0 and dj == 0:
-                reach = np.ones(len(pix), np.bool_)
-            else:
-                gx = {-1: xmin - c, 0: 0.0 * xmin, 1: (c + 1) - xmax}[dj]
-                gy = {-1: ymin - r, 0: 0.0 * ymin, 1: (r + 1) - ymax}[di]
-                reach = (gx <= m) & (gy <= m)
+            gx = {-1: xmin - c, 0: 0.0 * xmin, 1: (c + 1) - xmax}[dj]
+            gy = {-1: ymin - r, 0: 0.0 * ymin, 1: (r + 1) - ymax}[di]
             rr, cc = r + di, c + dj
-            reach &= (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
-            q = (rr * w + cc)[reach]
-            a = alpha.sup(zl[reach], zh[reach], d_lo[q], d_hi[q], occ_hi[q])
-            np.maximum.at(hi, q, a)
-            a = alpha.drawn_inf(zl[reach] - reach_dz[reach], zh[reach], d_lo[q], d_hi[q],
-                                occ_hi[q])
-            np.minimum.at(present, q, a)
-    # lo: the fragments every accepted rasterizer produces, at the foot of the centre
-    sseg, spix, t = _sure_fragments(whole, eps, h, w)
-    if len(sseg):
-        # the depth range of the segment's chord in that pixel: it holds the foot of the centre
-        # (GL's t) and the point on the column's centre line (llvmpipe's line depth plane has no
-        # minor-axis slope: measured at cutaway_shells (45, 54))
-        top = h * w
-        keys = sidx.astype(np.int64) * top + pix
-        order = np.argsort(keys, kind="stable")
-        q = widx[sseg].astype(np.int64) * top + spix
-        j = np.clip(np.searchsorted(keys[order], q), 0, max(len(keys) - 1, 0))
-        hit = keys[order][j] == q
-        e = order[j[hit]]
-        a = alpha.inf(zl[e], zh[e], d_lo[spix[hit]], d_hi[spix[hit]], occ_lo[spix[hit]])
-        np.maximum.at(lo, spix[hit], a)
+            reach = (gx <= m) & (gy <= m) & (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
+            seg_rows.append(row_of[sidx[reach]])
+            pair_pix.append((rr * w + cc)[reach])
+    # the fragments every accepted rasterizer produces
+    sseg, spix = _sure_fragments(whole, eps, h, w)
+    keys = np.unique(np.concatenate(
+        [s * (h * w) + q for s, q in zip(seg_rows + [sseg], pair_pix + [spix])]))
+    gseg, gpix = keys // (h * w), keys % (h * w)
+    gl_, gh_ = _evaluation_depths(whole, gseg, gpix, eps, w)
+    np.maximum.at(hi, gpix, alpha.sup(gl_, gh_, d_lo[gpix], d_hi[gpix], occ_hi[gpix]))
+    sure = np.isin(keys, sseg * (h * w) + spix)
+    q = gpix[sure]
+    np.maximum.at(lo, q, alpha.inf(gl_[sure], gh_[sure], d_lo[q], d_hi[q], occ_lo[q]))
     # where no fragment is sure, α is 0 (none drawn) or at least the least a drawn one has
+    np.minimum.at(present, gpix, alpha.drawn_inf(gl_, gh_, d_lo[gpix], d_hi[gpix],
+                                                 occ_hi[gpix]))
     zero = lo <= 0
     lo = np.where(zero & np.isfinite(present), np.maximum(lo, present), lo)
     pos_lo, pos_hi = lo > 0, hi > 0

@@ -314,6 +314,67 @@ def buffer_allowance(spec, arrays, *, step=0.0, clear_depth=1.0, depth_func="les
     return out
 
 
+def _sample_view(allow, cand, s):
+    """What the checks of a multisampled golden's buffers at sample ``s`` read: that sample's
+    allowance arrays (``s<s>_<name>`` as ``<name>``), the candidate's buffers of that sample
+    (``sample<s>_<channel>`` as ``<channel>``), the face-set entries its ids name and its
+    coverage (:mod:`refraster.golden.allowances.samples`)."""
+    p, q = f"s{s}_", f"sample{s}_"
+    arrays = {k[len(p):]: v for k, v in allow.items() if k.startswith(p)}
+    others = {k[len(q):]: v[0] for k, v in cand.items() if k.startswith(q)}
+    named = coverage = None
+    prim = others.get("prim_id")
+    if prim is not None and np.asarray(prim).ndim == 2 \
+            and np.issubdtype(np.asarray(prim).dtype, np.integer):
+        from ..allowances.core import named_entries
+        obj = others.get("object_id")
+        named = named_entries(arrays, prim, obj if obj is not None and np.asarray(obj).ndim == 2
+                              else None)
+        coverage = np.asarray(prim) >= 0
+    return arrays, others, named, coverage
+
+
+def golden_sample_pattern(entry):
+    """The sample pattern a golden scene declares (``parameters.technique.sample_pattern``:
+    ``{"samples": S, "positions": [[x, y], ...]}``), or None for a single-sample scene."""
+    return (entry.get("parameters", {}).get("technique") or {}).get("sample_pattern")
+
+
+def _pattern_text(p):
+    return (f"{p['samples']} samples at " + " ".join(f"({x}, {y})" for x, y in p["positions"]))
+
+
+def check_sample_pattern(candidate_dir, name, entry):
+    """A multisampled golden's candidate must state its own sample pattern in
+    ``<scene>/sample_pattern.json`` (``{"samples": S, "positions": [[x, y], ...]}``, 1/16 pixel,
+    y down from the pixel's upper-left corner as the picture is seen), and it must be the
+    golden's: otherwise one :class:`CandidateError` line (the scene is unusable, exit 2)."""
+    want = golden_sample_pattern(entry)
+    if want is None:
+        return
+    from ..io.safe import read_json_file
+    from ..io.read import PATTERN_FILE
+    path = Path(candidate_dir) / name / PATTERN_FILE
+    if not path.exists() and not path.is_symlink():
+        raise CandidateError(f"the golden declares {_pattern_text(want)} (1/16 pixel, y down); "
+                             f"the candidate states no sample pattern (write {name}/"
+                             f"{PATTERN_FILE})")
+    doc, _ = read_json_file(path, CandidateError, "candidate sample pattern", limit=1 << 16)
+    try:
+        got = {"samples": int(doc["samples"]),
+               "positions": [[int(x), int(y)] for x, y in doc["positions"]]}
+        if isinstance(doc["samples"], bool) or len(got["positions"]) != got["samples"]:
+            raise ValueError
+    except (KeyError, TypeError, ValueError):
+        raise CandidateError(f"candidate {name}/{PATTERN_FILE} must hold {{\"samples\": S, "
+                             f"\"positions\": [[x, y], ...]}} with S pairs of integers") from None
+    if got != {"samples": int(want["samples"]), "positions": [list(p) for p in
+                                                             want["positions"]]}:
+        raise CandidateError(f"sample pattern mismatch: the golden declares "
+                             f"{_pattern_text(want)}, the candidate states {_pattern_text(got)} "
+                             "(1/16 pixel, y down); compare it against a golden of its pattern")
+
+
 def has_allowances(manifest, names):
     """Whether every scene in ``names`` has stored allowances (a tolerant compare is possible)."""
     return all("allowances" in manifest["scenes"][n] for n in names)
@@ -418,6 +479,7 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
                  else None)
         skipped = []
         try:
+            check_sample_pattern(candidate_dir, name, entry)
             cand = load_candidate(candidate_dir, name, entry["buffers"], skipped)
         except CandidateError as exc:
             results.append(SceneResult(name, "error", [], str(exc), skipped=skipped))
@@ -432,6 +494,7 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
                                   obj if obj is not None and obj.ndim == 2 else None)
         edge_may = (allow.get("may") if allow is not None
                     else _edge_may(ref, entry["buffers"]) if coverage is None else None)
+        views = {}
         for key, spec in entry["buffers"].items():
             tol = spec["tolerance"].get(profile)
             if tol is None:
@@ -441,15 +504,28 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
             except ValueError as exc:
                 raise GoldenError(str(exc)) from None
             a, source, step, raw = cand[key]
+            sample = spec.get("tolerant", {}).get("sample") if allow is not None else None
+            if sample is not None:
+                if sample not in views:
+                    views[sample] = _sample_view(allow, cand, sample)
+                arrays, others, b_named, b_coverage = views[sample]
+                b_may = arrays.get("may")
+                # the checks dispatch on the channel's own name (depth, prim_id, ...)
+                channel = key[len(f"sample{sample}_"):]
+            else:
+                channel = key
+                arrays, others, b_named, b_coverage = (
+                    allow, {k: v[0] for k, v in cand.items()}, named, coverage)
+                b_may = edge_may
             if allow is not None:
                 from ..allowances.core import tolerant_metrics
                 clear = entry["parameters"]["raster"].get("clear_depth", 1.0)
                 func = entry["parameters"]["raster"].get("depth_func", "less")
                 metrics, checks, images = tolerant_metrics(
-                    key, ref[key], a, spec["kind"], spec["tolerant"], allow, clear_depth=clear,
+                    channel, ref[key], a, spec["kind"], spec["tolerant"], arrays,
+                    clear_depth=clear,
                     depth_func=func,
-                    fallback=tol, step=step, named=named,
-                    others={k: v[0] for k, v in cand.items()})
+                    fallback=tol, step=step, named=b_named, others=others)
                 if spec["kind"] == "color" and metrics.get("flip_mean") is None:
                     # information only: in tolerant mode the allowance, not FLIP, decides
                     try:
@@ -457,17 +533,17 @@ def compare(golden_dir, candidate_dir, *, report=None, profile=None, tolerances=
                     except ImportError:
                         metrics["flip_mean"] = None
                 tol = {**tol, "tolerant": spec["tolerant"]}
-                allowance = buffer_allowance(spec["tolerant"], allow, step=step,
+                allowance = buffer_allowance(spec["tolerant"], arrays, step=step,
                                              clear_depth=clear, depth_func=func)
                 if "face" in spec["tolerant"]["checks"]:
-                    allowance.update(sets=allow, named=named)
+                    allowance.update(sets=arrays, named=b_named)
             else:
                 metrics, checks, images = buffer_metrics(ref[key], a, spec["kind"], tol,
                                                          step=step)
                 allowance = None
             checks = checks + domain_checks(
-                key, spec["kind"], ref[key], a, step=step, raw=raw, coverage=coverage,
-                may=edge_may, id_range=spec.get("ids"))
+                key, spec["kind"], ref[key], a, step=step, raw=raw, coverage=b_coverage,
+                may=b_may, id_range=spec.get("ids"))
             buffers.append(BufferResult(key, spec["kind"], source, tol, metrics, checks,
                                         ref[key], a, images, allowance))
         status = "pass" if all(b.passed for b in buffers) else "fail"

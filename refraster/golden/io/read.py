@@ -32,6 +32,7 @@ import hashlib
 import json
 import logging
 import os
+import re
 import stat
 import struct
 import zipfile
@@ -213,8 +214,9 @@ def load_manifest(golden_dir, *, verify=True):
     for name, entry in manifest["scenes"].items():
         for key, spec in entry["buffers"].items():
             _check_shape_size(spec["shape"], f"{path} $.scenes.{name}.buffers.{key}")
-        for key, spec in entry.get("allowances", {}).get("arrays", {}).items():
-            where = f"{path} $.scenes.{name}.allowances.arrays.{key}"
+        for full, spec in entry.get("allowances", {}).get("arrays", {}).items():
+            where = f"{path} $.scenes.{name}.allowances.arrays.{full}"
+            key = _unprefixed(full)
             if key.startswith("set_") or key == "draw_offsets" or (
                     key.startswith("ldi_") and not key.startswith("ldi_count")) or (
                     key.startswith("cs_") and key != "cs_bg"):
@@ -543,28 +545,20 @@ def allowance_arrays(golden_dir, manifest, name):
     arrays = _golden_npz(Path(golden_dir), manifest, spec["file"], spec["arrays"], "array")
     for key, b in entry["buffers"].items():
         t = b.get("tolerant", {})
-        needed = [t[k] for k in ("lo", "hi", "angle", "may", "zero") if k in t]
-        needed += ["id_may"] + (["coverage"] if "coverage" in t.get("checks", ()) else [])
-        if "face" in t.get("checks", ()):
-            needed += ["set_offsets", "set_face", "set_facing", "set_normal",
-                       "set_normal_angle", "draw_offsets"]
-            needed += [n for pair in _SET_INTERVAL_NAMES for n in pair]
-        if "layers" in t.get("checks", ()):
-            from ..allowances.layers import LAYER_ARRAYS
-            needed += list(LAYER_ARRAYS)
-        if "clip" in t.get("checks", ()):
-            from ..allowances.clip import CLIP_ARRAYS, CLIP_VALUES
-            needed += list(CLIP_ARRAYS)
-            if key in CLIP_VALUES:   # the values of the entries the candidate names
-                needed += list(CLIP_VALUES[key]) + ["golden_face", "golden_object",
-                                                    "face_sliver"]
+        needed = _needed(key, t)
+        if "sample" in t:   # a multisampled golden's buffer reads its sample's arrays
+            needed = [f"s{t['sample']}_{n}" for n in needed]
         missing = [n for n in needed if n not in arrays]
         if missing:
             raise GoldenError(f"golden {spec['file']}: buffer {key!r} needs arrays {missing}")
     from ..allowances.core import check_face_sets
     shape = next(iter(entry["buffers"].values()))["shape"] if entry["buffers"] else [0, 0]
+    samples = sorted({b["tolerant"]["sample"] for b in entry["buffers"].values()
+                      if "sample" in b.get("tolerant", {})})
     try:
-        check_face_sets(arrays, shape[0], shape[1])
+        for sub in [arrays] + [{k[len(f"s{s}_"):]: v for k, v in arrays.items()
+                                if k.startswith(f"s{s}_")} for s in samples]:
+            check_face_sets(sub, shape[0], shape[1])
         from ..allowances.layers import check_layer_arrays
         check_layer_arrays(arrays, shape[0], shape[1])
         from ..allowances.clip import check_clip_arrays
@@ -572,6 +566,34 @@ def allowance_arrays(golden_dir, manifest, name):
     except (ValueError, KeyError) as exc:
         raise GoldenError(f"golden {spec['file']}: {exc}") from None
     return arrays
+
+
+_SAMPLE_PREFIX = re.compile(r"^s[0-9]{1,2}_")
+
+
+def _unprefixed(name):
+    """An allowance array's name without a multisampled golden's sample prefix ``s<s>_``."""
+    return _SAMPLE_PREFIX.sub("", name, count=1)
+
+
+def _needed(key, t):
+    """The allowance arrays a buffer's ``tolerant`` entry ``t`` reads."""
+    needed = [t[k] for k in ("lo", "hi", "angle", "may", "zero") if k in t]
+    needed += ["id_may"] + (["coverage"] if "coverage" in t.get("checks", ()) else [])
+    if "face" in t.get("checks", ()):
+        needed += ["set_offsets", "set_face", "set_facing", "set_normal",
+                   "set_normal_angle", "draw_offsets"]
+        needed += [n for pair in _SET_INTERVAL_NAMES for n in pair]
+    if "layers" in t.get("checks", ()):
+        from ..allowances.layers import LAYER_ARRAYS
+        needed += list(LAYER_ARRAYS)
+    if "clip" in t.get("checks", ()):
+        from ..allowances.clip import CLIP_ARRAYS, CLIP_VALUES
+        needed += list(CLIP_ARRAYS)
+        if key in CLIP_VALUES:   # the values of the entries the candidate names
+            needed += list(CLIP_VALUES[key]) + ["golden_face", "golden_object",
+                                                "face_sliver"]
+    return needed
 
 
 _SET_INTERVAL_NAMES = (("set_depth_lo", "set_depth_hi"), ("set_eye_depth_lo", "set_eye_depth_hi"),
@@ -641,6 +663,11 @@ def _exists(path):
     except OSError:
         return False
     return True
+
+
+#: The file in a candidate's scene directory that states the candidate's sample pattern (a
+#: multisampled golden's candidate: ``{"samples": S, "positions": [[x, y], ...]}``).
+PATTERN_FILE = "sample_pattern.json"
 
 
 def load_candidate(candidate_dir, scene, specs, skipped=None):

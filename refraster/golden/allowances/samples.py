@@ -1,0 +1,318 @@
+"""Allowances of multisampled goldens: per sample, and the resolve's from the samples'
+(``docs/tolerance.md``, "Multisampling").
+
+A sample at offset ``o`` from its pixel's centre is the pixel centre of the same scene with the
+window moved by ``−o``: the clip coordinates mapped by ``x' = x − (2·o_x/W)·w``,
+``y' = y − (2·o_y/H)·w`` (o in pixels, GL window y up). So the single-sample allowances —
+the fixed-point edge functions' ε, the must / may / must-not coverage, the id "may" region,
+the depth intervals, the face sets and their values (:func:`.core.gl_allowances`) — are
+derived once per sample on that moved scene with the sample's own buffers, and stored with the
+prefix ``s<s>_`` (``s0_coverage``, ``s0_set_offsets``, …). A per-sample buffer
+``sample<s>_<channel>`` reads them through its manifest entry's ``"sample": s``.
+
+Values are interpolated where the scene's ``raster.interpolation`` says:
+
+* ``"sample"``: at the sample, as derived on the moved scene;
+* ``"center"``: at the pixel centre (window depth still at the sample): the face sets' values
+  other than depth are re-derived on the scene itself at the centre
+  (:func:`.core.entry_values`);
+* ``"centroid"``: at any point inside both the pixel and the primitive (Vulkan's and OpenGL's
+  rule): barycentrics and colour of every covered sample and every face-set entry widen to
+  their range over the pixel square ∩ the triangle, each grown by ε
+  (:func:`centroid_ranges`).
+
+The resolved colour (the box filter) gets a ``bounds`` interval: per sample the interval of
+whatever may show there — the background where coverage is "must not", the golden face's
+colour interval where coverage is "must" and the id may not differ, else the envelope of the
+pixel's face set at that sample (and the background where coverage is "may"), clamped to
+[0, 1] — and the mean of the samples' lower and upper ends (the mean is increasing in every
+sample).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ...conformance import COLOR_TOL, MAY, MUST, MUST_NOT
+from .core import BARY_TOL, SHIFT_MARGIN, entry_values, gl_allowances
+
+__all__ = ["msaa_allowances", "sample_shift", "centroid_ranges", "resolve_bounds"]
+
+#: The entry values taken at the interpolation point (not at the sample) under ``"center"``.
+_AT_CENTRE = ("set_eye_depth_lo", "set_eye_depth_hi", "set_barycentric_lo",
+              "set_barycentric_hi", "set_color_lo", "set_color_hi", "set_normal",
+              "set_normal_angle")
+
+
+def sample_shift(position, width, height):
+    """The 4×4 clip-space map that moves the window by minus the sample's offset from the
+    pixel centre: ``position`` ``(x, y)`` in 1/16 pixel, y down from the upper-left corner."""
+    ox = (float(position[0]) - 8.0) / 16.0
+    oy = (8.0 - float(position[1])) / 16.0           # GL window y up
+    t = np.eye(4)
+    t[0, 3] = -2.0 * ox / width
+    t[1, 3] = -2.0 * oy / height
+    return t
+
+
+def _plain_raster(raster):
+    from ..scenes import MULTISAMPLE_DEFAULTS
+    return {k: v for k, v in raster.items() if k not in MULTISAMPLE_DEFAULTS}
+
+
+def msaa_allowances(scene, raster):
+    """Per-sample allowances of an ``msaa`` scene (module docstring). Returns ``(arrays, info,
+    checks)`` as :func:`refraster.golden.allowances.core.gl_allowances`."""
+    from ...camera import Camera
+    from ..msaa_scenes import SAMPLE_CHANNELS, sample_buffer
+    from ..scenes import DEFAULT_RASTER
+    from .conventions import is_gl
+    if not is_gl(raster) or raster.get("depth_func", "less") != "less" \
+            or float(raster.get("clear_depth", 1.0)) != 1.0 \
+            or raster.get("depth_format", "float32") != "float32":
+        raise ValueError("the multisample allowances are derived in OpenGL's conventions with "
+                         "depth_func 'less', a float32 depth buffer cleared to 1; this scene's "
+                         "raster differs")
+    positions = scene.parameters["sample_pattern"]["positions"]
+    interp = raster.get("interpolation", "center")
+    cam = scene.camera
+    plain = _plain_raster(raster)
+    overrides = {k: v for k, v in plain.items() if v != DEFAULT_RASTER.get(k)}
+    arrays, checks, info = {}, {}, None
+    per_sample = []
+    centre = None
+    for s, pos in enumerate(positions):
+        moved = Camera(cam.view, sample_shift(pos, cam.width, cam.height) @ cam.proj,
+                       cam.width, cam.height)
+        bufs = {ch: scene.buffers[sample_buffer(s, ch)] for ch in SAMPLE_CHANNELS
+                if sample_buffer(s, ch) in scene.buffers}
+        sub = dataclasses.replace(scene, technique="render", camera=moved, buffers=bufs,
+                                  parameters={}, raster=overrides, geometry=True, may=None,
+                                  kinds={}, ids={})
+        a, info_s, ch_s = gl_allowances(sub, plain)
+        if info is None:
+            info = info_s
+        if interp != "sample" and "set_offsets" in a:
+            if centre is None:
+                centre = _Centre(scene, plain)
+            centre.values(a, info_s["eps"])
+        if interp == "centroid":
+            centroid_ranges(scene, plain, a, bufs, info_s["eps"])
+        per_sample.append(a)
+        for k, v in a.items():
+            arrays[f"s{s}_{k}"] = v
+        for key, spec in ch_s.items():
+            checks[sample_buffer(s, key)] = {**spec, "sample": s}
+    bg = np.asarray(scene.parameters.get("background", (1.0, 1.0, 1.0)), np.float64)
+    arrays["id_may"] = np.logical_or.reduce([a["id_may"] for a in per_sample])
+    arrays["may"] = np.logical_or.reduce([a["may"] for a in per_sample])
+    if "color" in scene.buffers:
+        arrays["resolve_color_lo"], arrays["resolve_color_hi"] = resolve_bounds(per_sample, bg)
+        checks["color"] = {"checks": ["bounds"], "lo": "resolve_color_lo",
+                           "hi": "resolve_color_hi"}
+    return arrays, info, checks
+
+
+class _Centre:
+    """The scene's own prepared draws, for face-set values at the pixel centre."""
+
+    def __init__(self, scene, raster):
+        from ...raster import prepare
+        from .core import _geometry
+        cam = scene.camera
+        self.scene, self.raster = scene, raster
+        self.prep = prepare([d.mesh for d in scene.draws], **cam.kwargs,
+                            model=[d.model for d in scene.draws], raster=_geometry(raster))
+
+    def values(self, a, eps):
+        """Replace the set entries' values other than window depth and facing by those at the
+        pixel centre (in place)."""
+        off = a["set_offsets"].astype(np.int64)
+        if not len(a["set_face"]):
+            return
+        pix = np.repeat(np.arange(off.size - 1, dtype=np.int64), np.diff(off))
+        vals = entry_values(self.scene, self.raster, self.prep, pix,
+                            a["set_face"].astype(np.int64), eps)
+        for k in _AT_CENTRE:
+            a[k] = vals[k]
+
+
+def _clip_polygon(poly, a, b, c):
+    """Clip convex polygons ``poly (m, k, 2)`` (NaN-padded) by ``a·x + b·y + c ≥ 0`` per row;
+    returns ``(m, k + 1, 2)``."""
+    m, k, _ = poly.shape
+    out = np.full((m, k + 1, 2), np.nan)
+    count = np.zeros(m, np.int64)
+    valid = ~np.isnan(poly[:, :, 0])
+    n = valid.sum(axis=1)
+    for i in range(k):
+        p = poly[:, i]
+        q = np.where(((i + 1) >= n)[:, None], poly[:, 0], poly[:, min(i + 1, k - 1)])
+        live = i < n
+        dp = a * p[:, 0] + b * p[:, 1] + c
+        dq = a * q[:, 0] + b * q[:, 1] + c
+        keep = live & (dp >= 0)
+        rows = np.flatnonzero(keep)
+        out[rows, count[rows]] = p[rows]
+        count[rows] += 1
+        cross = live & ((dp >= 0) != (dq >= 0))
+        rows = np.flatnonzero(cross)
+        t = (dp[rows] / (dp[rows] - dq[rows]))[:, None]
+        out[rows, count[rows]] = p[rows] + t * (q[rows] - p[rows])
+        count[rows] += 1
+    return out
+
+
+def _pixel_triangle(clip, pix, width, height, eps):
+    """The vertices ``(E, 7, 2)`` (NaN-padded, window pixels, GL y up) of each entry's pixel
+    square grown by ``eps`` clipped by its face's triangle with every edge moved out by
+    ``eps``; ``ok (E,)`` where the face lies in front of the eye and is not degenerate."""
+    rows, cols = np.divmod(pix, width)
+    y0 = (height - 1 - rows).astype(np.float64)
+    x0 = cols.astype(np.float64)
+    e = len(pix)
+    poly = np.full((e, 4, 2), np.nan)
+    poly[:, 0] = np.column_stack([x0 - eps, y0 - eps])
+    poly[:, 1] = np.column_stack([x0 + 1 + eps, y0 - eps])
+    poly[:, 2] = np.column_stack([x0 + 1 + eps, y0 + 1 + eps])
+    poly[:, 3] = np.column_stack([x0 - eps, y0 + 1 + eps])
+    w = clip[:, :, 3]
+    ok = (w > 0).all(axis=1)
+    ws = np.where(ok[:, None], w, 1.0)
+    X = (clip[:, :, 0] / ws + 1.0) * 0.5 * width
+    Y = (clip[:, :, 1] / ws + 1.0) * 0.5 * height
+    area = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0])
+    ok &= area != 0
+    sign = np.where(area < 0, -1.0, 1.0)
+    for k in range(3):
+        i, j = k, (k + 1) % 3
+        # inside: sign·((Xj − Xi)(y − Yi) − (Yj − Yi)(x − Xi)) ≥ −eps·|edge|
+        dx, dy = X[:, j] - X[:, i], Y[:, j] - Y[:, i]
+        length = np.hypot(dx, dy)
+        a = -sign * dy
+        b = sign * dx
+        c = sign * (dy * X[:, i] - dx * Y[:, i]) + eps * length
+        poly = _clip_polygon(poly, a, b, c)
+    return poly, ok
+
+
+def centroid_ranges(scene, raster, a, bufs, eps):
+    """Widen, in place, the barycentric and colour allowances of one sample's arrays ``a`` to
+    what any point inside both the pixel and the primitive gives (centroid interpolation):
+    for the golden's own face where it covers the sample, and for every face-set entry.
+    Barycentrics are ratios of affine functions of the point, so their extremes over the
+    (convex) polygon are at its vertices; the colour (a shade of the normal and the view
+    direction) takes the vertices' spread times ``SHIFT_MARGIN``."""
+    from ...framebuffer import _build
+    from ...raster import prepare
+    from .core import _geometry
+    from .homogeneous import face_barycentrics
+    cam = scene.camera
+    w, h = cam.width, cam.height
+    prep = prepare([d.mesh for d in scene.draws], **cam.kwargs,
+                   model=[d.model for d in scene.draws], raster=_geometry(raster))
+    normals = ([d.normals for d in scene.draws] if raster["normals"] == "smooth" else "flat")
+    prim = np.asarray(bufs["prim_id"], np.int64)
+    obj = np.asarray(bufs.get("object_id", np.zeros_like(prim)), np.int64)
+    offsets = np.asarray(prep.face_offsets, np.int64)
+    own_pix = np.flatnonzero((prim >= 0).ravel())
+    own_face = offsets[obj.ravel()[own_pix]] + prim.ravel()[own_pix]
+    off = a.get("set_offsets")
+    if off is not None and len(a["set_face"]):
+        set_pix = np.repeat(np.arange(off.size - 1, dtype=np.int64), np.diff(off.astype(np.int64)))
+        set_face = a["set_face"].astype(np.int64)
+    else:
+        set_pix = set_face = np.zeros(0, np.int64)
+    pix = np.concatenate([own_pix, set_pix])
+    face = np.concatenate([own_face, set_face])
+    if not len(pix):
+        return
+    clip = prep.clip[prep.triangles.faces[face]].astype(np.float64)
+    poly, ok = _pixel_triangle(clip, pix, w, h, eps)
+    has = ~np.isnan(poly[:, :, 0])
+    ok &= has.any(axis=1)
+    # pad each polygon with its first vertex (the extremes are unchanged)
+    first = poly[:, 0]
+    pts = np.where(has[:, :, None], poly, first[:, None, :])
+    pts = np.where(np.isnan(pts), 0.0, pts)
+    beta = face_barycentrics(clip, pts[:, :, 0], pts[:, :, 1], w, h)       # (E, K, 3)
+    k = beta.shape[1]
+    fb = _build(prep.meshes, prep.models, prep.view, prep.proj,
+                np.full((len(pix), k), 0.5, np.float32), np.repeat(face, k).reshape(-1, k),
+                prep.face_offsets, np.zeros((len(pix), k), np.bool_),
+                np.nan_to_num(beta, nan=0.0).astype(np.float32), normals, np.ones(3))
+    col = fb.color.astype(np.float64)
+    b_lo = np.where(ok[:, None], beta.min(axis=1) - BARY_TOL, -np.inf)
+    b_hi = np.where(ok[:, None], beta.max(axis=1) + BARY_TOL, np.inf)
+    c_mid = col.mean(axis=1)
+    c_lo = c_mid - SHIFT_MARGIN * (c_mid - col.min(axis=1)) - COLOR_TOL
+    c_hi = c_mid + SHIFT_MARGIN * (col.max(axis=1) - c_mid) + COLOR_TOL
+    c_lo = np.where(ok[:, None], c_lo, -np.inf)
+    c_hi = np.where(ok[:, None], c_hi, np.inf)
+    n_own = len(own_pix)
+    for key, lo, hi in (("barycentric", b_lo, b_hi), ("color", c_lo, c_hi)):
+        if f"{key}_lo" in a:
+            flat_lo = a[f"{key}_lo"].reshape(-1, 3)
+            flat_hi = a[f"{key}_hi"].reshape(-1, 3)
+            flat_lo[own_pix] = np.minimum(flat_lo[own_pix], lo[:n_own]).astype(np.float32)
+            flat_hi[own_pix] = np.maximum(flat_hi[own_pix], hi[:n_own]).astype(np.float32)
+        if len(set_pix):
+            sl, sh = f"set_{key}_lo", f"set_{key}_hi"
+            a[sl] = np.minimum(a[sl], lo[n_own:]).astype(np.float32)
+            a[sh] = np.maximum(a[sh], hi[n_own:]).astype(np.float32)
+
+
+def _set_envelope(a, key, h, w):
+    """Per pixel, the envelope ``(lo, hi) (H·W, 3)`` of the face-set entries' ``key``
+    intervals (NaN where a pixel has no entry)."""
+    lo = np.full((h * w, 3), np.nan)
+    hi = np.full((h * w, 3), np.nan)
+    off = a["set_offsets"].astype(np.int64)
+    n = np.diff(off)
+    runs = np.flatnonzero(n > 0)
+    if len(runs):
+        lo[runs] = np.minimum.reduceat(a[f"set_{key}_lo"].astype(np.float64), off[runs], axis=0)
+        hi[runs] = np.maximum.reduceat(a[f"set_{key}_hi"].astype(np.float64), off[runs], axis=0)
+    return lo, hi
+
+
+def resolve_bounds(per_sample, background):
+    """The resolved colour's interval ``(lo, hi) (H, W, 3)`` float32 from the samples'
+    allowances (module docstring)."""
+    h, w = per_sample[0]["coverage"].shape
+    bg = np.broadcast_to(np.asarray(background, np.float64), (h * w, 3))
+    sum_lo = np.zeros((h * w, 3))
+    sum_hi = np.zeros((h * w, 3))
+    for a in per_sample:
+        cov = a["coverage"].ravel()
+        id_may = a["id_may"].ravel()
+        own_lo = a["color_lo"].reshape(-1, 3).astype(np.float64)
+        own_hi = a["color_hi"].reshape(-1, 3).astype(np.float64)
+        if "set_offsets" in a:
+            env_lo, env_hi = _set_envelope(a, "color", h, w)
+        else:
+            env_lo = np.full((h * w, 3), np.nan)
+            env_hi = np.full((h * w, 3), np.nan)
+        sure = ((cov == MUST) & ~id_may)[:, None]
+        # where another face may show: the set's envelope (free without entries)
+        may_lo = np.where(np.isnan(env_lo), 0.0, env_lo)
+        may_hi = np.where(np.isnan(env_hi), 1.0, env_hi)
+        lo = np.where(sure, own_lo, may_lo)
+        hi = np.where(sure, own_hi, may_hi)
+        none = (cov == MUST_NOT)[:, None]
+        lo = np.where(none, bg, lo)
+        hi = np.where(none, bg, hi)
+        either = (cov == MAY)[:, None]
+        lo = np.where(either, np.minimum(lo, bg), lo)
+        hi = np.where(either, np.maximum(hi, bg), hi)
+        sum_lo += np.clip(lo, 0.0, 1.0)
+        sum_hi += np.clip(hi, 0.0, 1.0)
+    n = float(len(per_sample))
+    # the float32 mean of float32 samples: a few ulps (2^-22) around the exact mean
+    lo = sum_lo / n - 2.0 ** -20
+    hi = sum_hi / n + 2.0 ** -20
+    from .conventions import _outward
+    lo32, hi32 = _outward(lo, hi)
+    return lo32.reshape(h, w, 3), hi32.reshape(h, w, 3)
