@@ -187,3 +187,16 @@ def test_gpu_backends_render_or_skip_with_a_reason(tmp_path):
         pytest.skip(str(exc))
     assert not r["rendered"] and all("OpenGL's conventions only" in why
                                      for why in r["skipped"].values()), r
+
+
+def test_floor_constraint_follows_the_mirrored_picture():
+    """Under NDC y down the cutaway's rows run up the view plane (a negative row spacing): the
+    floor-side clamp (which changes ~4 % of cutaway_shells' cut) lands where OpenGL's does,
+    mirrored."""
+    reg = golden.available_scenes()
+    gl, vk = reg["cutaway_floor"].build(), _built("cutaway_floor", "vulkan", False)
+    assert (gl.buffers["cut_mask"] != reg["cutaway_shells"].build().buffers["cut_mask"]).mean() \
+        > 0.01
+    assert np.array_equal(np.flipud(gl.buffers["cut_mask"]), vk.buffers["cut_mask"])
+    assert np.abs(np.flipud(gl.buffers["cutaway_depth"]) - vk.buffers["cutaway_depth"]).max() \
+        < 1e-6
