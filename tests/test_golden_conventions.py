@@ -277,7 +277,9 @@ def test_command_refuses_a_technique_scene_in_one_line(tmp_path, capsys):
                      "--convention", "vulkan"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["golden generate: error: scene 'ldi_nested_shells': technique 'ldi' does not "
-                   "honour vulkan's conventions (--convention applies to render scenes)"]
+                   "honour vulkan's conventions: its allowances (layer face sets) are derived "
+                   "in OpenGL's conventions only (--convention applies to render, clipsurface, "
+                   "cutaway scenes)"]
     assert not (tmp_path / "g").exists()
 
 

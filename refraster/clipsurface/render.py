@@ -428,9 +428,12 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
     if not do_caps:
         return out
     if mode == "mesh":
-        if state.front_face == "cw":
+        p = np.asarray(proj, np.float64)
+        if (state.front_face == "cw") ^ (state.ndc_y == "down") ^ bool(p[0, 0] * p[1, 1] < 0):
             # the cap meshes are the technique's own (counter-clockwise as seen from their −N
-            # side): a cap's facing keeps that meaning whatever the solids' front face
+            # side): a cap's facing keeps that meaning whatever the solids' front face. Each of
+            # clockwise fronts, NDC y down and a projection mirroring x against y reverses
+            # which winding reads as front; an odd number of them turns the caps' round
             np.logical_xor(out.front_facing, cap_mask, out=out.front_facing)
         # the caps are drawn in world space (identity model): interpolate, light and colour
         # their pixels in one pass

@@ -287,8 +287,11 @@ def _as_sampling(sampling):
     if isinstance(sampling, numbers.Real) and not isinstance(sampling, bool):
         sampling = (sampling, sampling)
     s = as_float_array(sampling, "sampling", shape=(2,))
-    if not np.all(s > 0):
-        raise ValueError(f"sampling must be positive, got {tuple(s)}")
+    # a negative row spacing: rows run up the screen (a picture mirrored top to bottom, NDC y
+    # down); distances use |spacing|, the floor's screen direction the sign
+    if not (np.all(s != 0) and s[1] > 0):
+        raise ValueError(f"sampling must be nonzero (the column spacing positive), got "
+                         f"{tuple(s)}")
     return float(s[0]), float(s[1])
 
 
@@ -369,7 +372,10 @@ _DOC_COMMON = """
         Each seed's slope m(s) ≥ 0, in depth units per unit of distance (see ``sampling``).
     sampling : float or (2,) float, optional
         Distance between pixel centres along rows and columns (row spacing, column spacing), as
-        in ``scipy.ndimage.distance_transform_edt``. Default 1 (distances in pixels).
+        in ``scipy.ndimage.distance_transform_edt``. Default 1 (distances in pixels). A
+        negative row spacing says the rows run up the screen (the picture of a projection
+        drawn with NDC y down): distances use its magnitude, the floor normal's screen
+        direction (y up) its sign.
     floor_slope : (H, W) float, optional
         m_f(s), the slope toward the floor side (directional constraint, Sec. 5.5, D-C7).
     floor_normal : (H, W, 2) float, optional

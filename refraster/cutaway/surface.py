@@ -49,7 +49,8 @@ def pixel_ndc(height, width):
 
 def tangent_sampling(proj, height, width):
     """(row, column) spacing of pixel centres in view-plane tangent units (x_ndc/P00,
-    y_ndc/P11); for an orthographic camera these are eye-space units."""
+    y_ndc/P11); for an orthographic camera these are eye-space units. The row spacing is
+    negative when ``P11`` is (NDC y down: rows run up the view plane)."""
     return 2.0 / (height * proj[1, 1]), 2.0 / (width * proj[0, 0])
 
 

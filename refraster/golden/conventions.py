@@ -22,7 +22,7 @@ import numpy as np
 from ..raster.state import DEPTH_RANGES
 
 __all__ = ["API_CONVENTIONS", "convert_projection", "convention_overrides",
-           "TECHNIQUES_IN_CONVENTIONS"]
+           "TECHNIQUES_IN_CONVENTIONS", "REFUSED", "in_convention"]
 
 #: API → the raster fields that API's conventions set (the rest stay the scene's own). The
 #: fill rule: Direct3D's top-left rule is exact; Vulkan, Metal and WebGPU leave ties to the
@@ -36,9 +36,21 @@ API_CONVENTIONS = {
     "webgpu": dict(depth_range="zero_to_one", origin="upper_left", ndc_y="up"),
 }
 
-#: Techniques whose scenes can be re-rendered in any convention (their scene functions take
-#: the raster fields): plain rendering. A technique scene of another technique is refused.
-TECHNIQUES_IN_CONVENTIONS = ("render",)
+#: Techniques whose scenes can be re-rendered in any convention: plain rendering (the scene's
+#: draws rendered again) and the techniques that rasterize through the raster state and whose
+#: built scene carries every option to run them again
+#: (:data:`refraster.golden.technique_scenes.IN_RASTER`: clip surfaces, cutaways). A scene of
+#: another technique is refused, naming the scene and why (:data:`REFUSED`).
+TECHNIQUES_IN_CONVENTIONS = ("render", "clipsurface", "cutaway")
+#: Technique → why ``--convention`` refuses its scenes.
+REFUSED = {
+    "ldi": "its allowances (layer face sets) are derived in OpenGL's conventions only",
+    "edges": "the edge operators read OpenGL's window depth and their allowances are "
+             "derived on it",
+    "vds": "its parity decision's probes are derived in OpenGL's conventions only",
+    "halos4d": "it does not rasterize through the raster state (4D slicing into its own "
+               "volume)",
+}
 
 
 def convert_projection(proj, depth_range, *, source="negative_one_to_one", reversed=False):
@@ -77,43 +89,65 @@ def convention_overrides(api, raster):
     return out
 
 
-def in_convention(entry, api):
+def in_convention(entry, api, *, reversed=False):
     """The scene ``entry`` (a :class:`~refraster.golden.scenes.SceneEntry`) drawn in ``api``'s
     conventions: a new entry of the same name whose build renders the scene, moves its raster
     fields (:func:`convention_overrides`) and its projection (:func:`convert_projection`) into
-    the API's and renders it again. A scene that already is in them is returned as built; a
-    technique scene whose technique does not honour the conventions
-    (:data:`TECHNIQUES_IN_CONVENTIONS`) is refused with one line when built."""
-    from .scenes import DEFAULT_RASTER, SceneEntry, raster_state, render_scene
+    the API's and renders it again — a plain scene by its draws, a clip-surface or cutaway
+    scene by running its technique with the converted camera and raster state
+    (:data:`refraster.golden.technique_scenes.IN_RASTER`). ``reversed=True`` also reverses the
+    depth direction (reversed-Z: the projection's depth row, ``less``/``lequal`` →
+    ``greater``/``gequal``, clear depth ``c → 1 − c``) of a scene that is not reversed yet. A
+    scene that already is in them is returned as built; a technique scene whose technique does
+    not honour the conventions (:data:`TECHNIQUES_IN_CONVENTIONS`) is refused with one line
+    naming the scene and why."""
     from ..camera import Camera
+    from .scenes import DEFAULT_RASTER, SceneEntry, raster_state, render_scene
     if api not in API_CONVENTIONS:
         raise ValueError(f"convention must be one of {', '.join(API_CONVENTIONS)}; got {api!r}")
-    if api != "gl" and entry.technique not in TECHNIQUES_IN_CONVENTIONS:
+    if (api != "gl" or reversed) and entry.technique not in TECHNIQUES_IN_CONVENTIONS:
         _refuse(entry.name, entry.technique, api)
 
     def build(**params):
         scene = entry.build(**params)
         raster = raster_state(scene.raster)
         changes = {k: v for k, v in convention_overrides(api, raster).items() if raster[k] != v}
+        flip = reversed and raster["depth_func"] in _REVERSE
+        if flip:
+            changes.update(depth_func=_REVERSE[raster["depth_func"]],
+                           clear_depth=1.0 - float(raster["clear_depth"]))
         if not changes:
             return scene
         if scene.technique not in TECHNIQUES_IN_CONVENTIONS:
             _refuse(entry.name, scene.technique, api)
         new = {**raster, **changes}
         cam = scene.camera
-        proj = convert_projection(cam.proj, new["depth_range"], source=raster["depth_range"])
-        out = render_scene(scene.draws, Camera(cam.view, proj, cam.width, cam.height),
-                           raster={k: v for k, v in new.items() if v != DEFAULT_RASTER[k]})
-        out.description = (scene.description or entry.description) + f" In {api}'s conventions."
+        proj = convert_projection(cam.proj, new["depth_range"], source=raster["depth_range"],
+                                  reversed=bool(flip))
+        camera = Camera(cam.view, proj, cam.width, cam.height)
+        overrides = {k: v for k, v in new.items() if v != DEFAULT_RASTER[k]}
+        if scene.technique == "render":
+            out = render_scene(scene.draws, camera, raster=overrides)
+        else:
+            from .technique_scenes import IN_RASTER
+            out = IN_RASTER[scene.technique](scene, camera, new)
+            out.raster = overrides
+        where = f"{api}'s conventions" + (", reversed-Z" if flip else "")
+        out.description = (scene.description or entry.description) + f" In {where}."
         return out
 
     build.__signature__ = _signature(entry.build)
     return SceneEntry(entry.name, entry.technique, entry.description, build)
 
 
+#: The depth tests reversed-Z turns the usual ones into.
+_REVERSE = {"less": "greater", "lequal": "gequal"}
+
+
 def _refuse(name, technique, api):
+    why = REFUSED.get(technique, "its scenes cannot be rendered again from the built scene")
     raise ValueError(f"scene {name!r}: technique {technique!r} does not honour {api}'s "
-                     f"conventions (--convention applies to "
+                     f"conventions: {why} (--convention applies to "
                      f"{', '.join(TECHNIQUES_IN_CONVENTIONS)} scenes)")
 
 

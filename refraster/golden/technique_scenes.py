@@ -558,10 +558,11 @@ def _clip_decision_may_multi(draws, camera, clips, cap_mask):
     frags = draw([d.mesh for d in draws], **camera.kwargs, model=[d.model for d in draws])
     pos = frags.world_position()
     proj = camera.proj
+    # |proj[1, 1]|: an equivalent camera of NDC y down has it negated (_equivalent_camera)
     if is_perspective(proj):
-        pixel = -frags.eye_position()[:, 2] * 2.0 / (proj[1, 1] * camera.height)
+        pixel = -frags.eye_position()[:, 2] * 2.0 / (abs(proj[1, 1]) * camera.height)
     else:
-        pixel = np.full(len(frags), 2.0 / (proj[1, 1] * camera.height))
+        pixel = np.full(len(frags), 2.0 / (abs(proj[1, 1]) * camera.height))
     h = 1e-4 * max(1.0, float(np.abs(pos).max()))
     dist = np.full(len(frags), np.inf)
     for clip in clips:
@@ -695,7 +696,6 @@ def _cutaway_variant_scene(variant, extra=None):
     """``cutaway_shells`` with another jump-flooding schedule (the same camera and options);
     ``extra``: further stored options of :func:`refraster.cutaway.render_cutaway` (the floor:
     :func:`cutaway_options` names)."""
-    from ..cutaway import render_cutaway
     from ..scenes import icosphere, solid
     outer = solid("nested_shells", quick=True)
     inner = icosphere(subdivisions=2, radius=0.3)
@@ -707,8 +707,15 @@ def _cutaway_variant_scene(variant, extra=None):
                   interest=["interest"], secondary=["outer_shells"],
                   accepted_variants=list(_VARIANT_ACCEPTS[variant]))
     params.update(extra or {})
-    fb = render_cutaway([draws[1].mesh], [draws[0].mesh], **camera.kwargs,
-                        **cutaway_options(params))
+    return _cutaway_golden(draws, [draws[1].mesh], [draws[0].mesh], camera, params)
+
+
+def _cutaway_golden(draws, interest, secondary, camera, params, raster=None):
+    """The cutaway GoldenScene of ``params`` (:func:`cutaway_options`) rendered by
+    ``render_cutaway`` with ``camera`` and ``raster`` (None: the default state)."""
+    from ..cutaway import render_cutaway
+    kw = {} if raster is None else {"raster": raster}
+    fb = render_cutaway(interest, secondary, **camera.kwargs, **cutaway_options(params), **kw)
     buffers = {**fb.arrays(), "cutaway_depth": fb.cutaway_depth, "cut_mask": fb.cut_mask,
                "ghost": fb.ghost}
     # the cut decision z < D(x) is free within a pixel of where the cut region changes
@@ -763,3 +770,71 @@ def _cutaway_floor_jfa():
                             "projection (eye on the w axis at 3·max|v|, MATH.md §5.2), 48 slices.")
 def _halos4d_perspective():
     return _halos4d_patches("perspective")
+
+
+# --- technique scenes in another API's conventions (golden generate --convention) -----------
+
+def _equivalent_camera(camera, raster):
+    """The camera whose OpenGL-convention frame draws the picture ``camera`` draws under
+    ``raster``'s conventions (:func:`refraster.golden.allowances.conventions.clip_map`): the
+    technique's own "may" pixels are derived on it, in OpenGL's conventions."""
+    from .allowances.conventions import clip_map
+    return Camera(camera.view, clip_map(raster) @ np.asarray(camera.proj, np.float64),
+                  camera.width, camera.height)
+
+
+def _scene_clips(scene):
+    """The clip surfaces a clip-surface scene stores (``parameters["surfaces"]`` and its maps,
+    cap textures included), as :func:`refraster.clipsurface.render_clipped` takes them."""
+    from ..clipsurface import ClipSurface
+    from ..clipsurface.textures import CapTextures
+    out = []
+    for s in scene.parameters["surfaces"]:
+        om = scene.maps[s["offset_map"]] if s.get("offset_map") else None
+        textures = None
+        names = s.get("textures")
+        if names:
+            kw = {}
+            for key, chans in names.items():
+                arrs = [np.asarray(scene.maps[n]) for n in chans]
+                kw[key] = arrs[0] if len(arrs) == 1 else np.stack(arrs, axis=-1)
+            textures = CapTextures(**kw)
+        out.append(ClipSurface(s["origin"], s["u"], s["v"], s["scale"], om,
+                               wrap=s.get("wrap", "repeat"), textures=textures))
+    return out
+
+
+def clipsurface_in_raster(scene, camera, raster):
+    """The clip-surface ``scene`` (built) rendered again by
+    :func:`refraster.clipsurface.render_clipped` with ``camera`` and the complete raster
+    fields ``raster`` (another API's conventions): the same surfaces, caps and exported maps,
+    the buffers, cap mask and decision "may" pixels of the new frame (the latter derived on
+    its OpenGL equivalent, :func:`_equivalent_camera`)."""
+    from ..clipsurface import render_clipped
+    from .scenes import as_state
+    params = scene.parameters
+    clips = _scene_clips(scene)
+    fb = render_clipped([d.mesh for d in scene.draws], clips, **camera.kwargs,
+                        caps=clip_caps(params), space=params["space"], raster=as_state(raster))
+    may = _clip_decision_may_multi(scene.draws, _equivalent_camera(camera, raster), clips,
+                                   fb.cap_mask)
+    return GoldenScene(technique="clipsurface", camera=camera, draws=scene.draws,
+                       buffers={**fb.arrays(), "cap_mask": fb.cap_mask}, ids=scene.ids,
+                       parameters=params, maps=scene.maps, geometry=False, may=may)
+
+
+def cutaway_in_raster(scene, camera, raster):
+    """The cutaway ``scene`` (built) rendered again by :func:`refraster.cutaway.render_cutaway`
+    with ``camera`` and the complete raster fields ``raster`` (another API's conventions): the
+    same options (:func:`cutaway_options`), the buffers and "may" pixels of the new frame."""
+    from .scenes import as_state
+    named = {d.name: d.mesh for d in scene.draws}
+    params = scene.parameters
+    return _cutaway_golden(scene.draws, [named[n] for n in params["interest"]],
+                           [named[n] for n in params["secondary"]], camera, params,
+                           as_state(raster))
+
+
+#: Technique → how its built scene is rendered again in other conventions
+#: (``(scene, camera, raster) → GoldenScene``); :func:`refraster.golden.conventions.in_convention`.
+IN_RASTER = {"clipsurface": clipsurface_in_raster, "cutaway": cutaway_in_raster}

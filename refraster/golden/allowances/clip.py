@@ -37,6 +37,9 @@ __all__ = ["clip_allowances", "clip_outside", "clip_allowed", "CLIP_ARRAYS", "CL
            "CLIP_VALUES"]
 
 F32 = 2.0 ** -24
+#: The key :func:`refraster.golden.allowances.conventions.equivalent` sets in the equivalent
+#: raster when the scene's front faces are the equivalent scene's back faces.
+FACES_FLIPPED = "faces_flipped"
 CLIP_ARRAYS = ("cs_offsets", "cs_face", "cs_depth_lo", "cs_depth_hi", "cs_eye_lo", "cs_eye_hi",
                "cs_facing", "cs_flag", "cs_bg", "cs_draw_offsets")
 #: the buffers the check covers; the mask buffer (``cap_mask``, ``cut_mask``) must equal the
@@ -246,6 +249,10 @@ def cutaway_allowances(scene, raster, eps, d_lo, d_hi, eye_budget):
     draw = np.searchsorted(offs[1:], faces, side="right")
     is_sec = np.array([d.name in secondary for d in draws])[draw]
     facing = _face_facing_of(prep, faces, fragile)
+    if raster.get(FACES_FLIPPED, False):
+        # the equivalent OpenGL scene of clockwise fronts (allowances/conventions.py): its
+        # front faces are the scene's back faces; the cut and the flag follow the scene's
+        facing = np.where(facing >= 0, 1 - facing, facing).astype(np.int8)
     dil = bool(p.get("dilation", True))
     lim_lo = {True: np.asarray(d_lo, np.float64), False: np.asarray(d_lo, np.float64)}
     lim_hi = {True: np.asarray(d_hi, np.float64), False: np.asarray(d_hi, np.float64)}
@@ -343,8 +350,9 @@ def _named(arrays, prim, obj):
     return np.where(hit, jc, -1).reshape(h, w)
 
 
-def clip_outside(key, cand, arrays, others=None, *, step=0.0, clear=1.0):
-    """(H, W) bool: pixels whose candidate ``key`` lies outside the clip-surface allowance."""
+def clip_outside(key, cand, arrays, others=None, *, step=0.0, clear=1.0, depth_func="less"):
+    """(H, W) bool: pixels whose candidate ``key`` lies outside the clip-surface allowance
+    (a depth is a fragment's where it lies before ``clear`` in ``depth_func``'s direction)."""
     h, w = arrays["cs_bg"].shape
     c = np.asarray(cand)
     bg = np.asarray(arrays["cs_bg"], np.bool_)
@@ -383,7 +391,11 @@ def clip_outside(key, cand, arrays, others=None, *, step=0.0, clear=1.0):
     if key not in ("depth", "eye_depth"):
         raise ValueError(f"no clip-surface check for buffer {key!r}")
     v = c.astype(np.float64)
-    covered = v < clear if key == "depth" else np.isfinite(v)
+    if key == "depth":
+        from .conventions import depth_covered
+        covered = depth_covered(v, clear, depth_func)
+    else:
+        covered = np.isfinite(v)
     which = "depth" if key == "depth" else "eye"
     lo = arrays[f"cs_{which}_lo"].astype(np.float64)
     hi = arrays[f"cs_{which}_hi"].astype(np.float64)

@@ -48,8 +48,12 @@ UNORM_BITS = {"unorm24": 24, "unorm16": 16}
 QUANT_MARGIN = 0.6
 #: Intervals of window depth among the allowance arrays (plain scenes, face sets, layers).
 DEPTH_INTERVALS = (("depth_lo", "depth_hi"), ("set_depth_lo", "set_depth_hi"),
-                   ("ldi_depth_lo", "ldi_depth_hi"))
-_FACINGS = ("set_facing", "ldi_facing")
+                   ("ldi_depth_lo", "ldi_depth_hi"), ("cs_depth_lo", "cs_depth_hi"),
+                   ("cutaway_depth_lo", "cutaway_depth_hi"))
+#: Buffers of window depth (in the scene's direction): ``d → 1 − d`` in the equivalent scene
+#: of a reversing test.
+WINDOW_DEPTHS = ("depth", "layer_depth", "cutaway_depth")
+_FACINGS = ("set_facing", "ldi_facing", "cs_facing")
 _GL = dict(depth_range="negative_one_to_one", origin="lower_left", ndc_y="up",
            front_face="ccw")
 
@@ -82,21 +86,25 @@ def equivalent(scene, raster):
     if is_gl(raster):
         return scene, raster
     from ...camera import Camera
+    from .clip import FACES_FLIPPED
     new = {**raster, **_GL}
-    if raster.get("front_face", "ccw") == "cw" and raster["cull"] != "none":
-        new["cull"] = {"back": "front", "front": "back"}[raster["cull"]]
+    if raster.get("front_face", "ccw") == "cw":
+        if raster["cull"] != "none":
+            new["cull"] = {"back": "front", "front": "back"}[raster["cull"]]
+        new[FACES_FLIPPED] = True
     buffers = dict(scene.buffers)
     if reverses(raster):
         new["depth_func"] = REVERSING[raster["depth_func"]]
         new["clear_depth"] = 1.0 - float(raster["clear_depth"])
-        for key in ("depth", "layer_depth"):
+        for key in WINDOW_DEPTHS:
             if key in buffers:
                 buffers[key] = (1.0 - np.asarray(buffers[key], np.float64)).astype(
                     np.asarray(buffers[key]).dtype)
     cam = scene.camera
     camera = Camera(cam.view, clip_map(raster) @ cam.proj, cam.width, cam.height)
     from ..scenes import DEFAULT_RASTER
-    overrides = {k: v for k, v in new.items() if v != DEFAULT_RASTER.get(k)}
+    overrides = {k: v for k, v in new.items()
+                 if k != FACES_FLIPPED and v != DEFAULT_RASTER.get(k)}
     return dataclasses.replace(scene, camera=camera, buffers=buffers, raster=overrides), new
 
 

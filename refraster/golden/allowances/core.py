@@ -1222,7 +1222,7 @@ def tolerant_metrics(key, reference, candidate, kind, spec, arrays, *, clear_dep
             outside["clip"] = (_clip_value_outside(key, cand, arrays, others, step)
                                if key in CLIP_VALUES else
                                clip_outside(key, cand, arrays, others, step=step,
-                                            clear=clear_depth))
+                                            clear=clear_depth, depth_func=depth_func))
         elif name == "layers":
             from .layers import layers_outside
             outside["layers"] = layers_outside(spec["layer"], cand, arrays, others, step=step,
