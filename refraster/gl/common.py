@@ -24,6 +24,24 @@ class GLUnavailable(RuntimeError):
     """No OpenGL 3.3 core context could be created (moderngl or EGL missing)."""
 
 
+def gl_function(name, restype, *argtypes):
+    """A GL entry point moderngl does not wrap, through ``eglGetProcAddress`` (the context is
+    EGL's); :class:`GLUnavailable` with one line when EGL or the function is missing."""
+    import ctypes
+    import ctypes.util
+    path = ctypes.util.find_library("EGL") or "libEGL.so.1"
+    try:
+        egl = ctypes.CDLL(path)
+    except OSError as exc:
+        raise GLUnavailable(f"cannot load {path}: {exc}") from None
+    egl.eglGetProcAddress.restype = ctypes.c_void_p
+    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+    addr = egl.eglGetProcAddress(name.encode())
+    if not addr:
+        raise GLUnavailable(f"eglGetProcAddress({name}) returned NULL")
+    return ctypes.CFUNCTYPE(restype, *argtypes)(addr)
+
+
 class Unsupported(Exception):
     """The scene's technique (or a setting of it) is not implemented by this backend."""
 

@@ -35,7 +35,6 @@ run sets none.
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import os
 from pathlib import Path
 
@@ -43,7 +42,7 @@ import numpy as np
 
 from . import FAULTS, SUPPORTED_TECHNIQUES
 from . import clipsurface
-from .common import GLUnavailable, Unsupported, programs, shader_source
+from .common import GLUnavailable, Unsupported, gl_function, programs, shader_source
 from .cutaway import render_cutaway
 from .cutaway import supports as cutaway_supports
 from .edges import render_edges
@@ -87,20 +86,7 @@ MAX_PEEL_PASSES = 256
 
 def _gl_functions():
     """glTexImage2D and glGetError through eglGetProcAddress (the context is EGL's)."""
-    path = ctypes.util.find_library("EGL") or "libEGL.so.1"
-    try:
-        egl = ctypes.CDLL(path)
-    except OSError as exc:
-        raise GLUnavailable(f"cannot load {path}: {exc}") from None
-    egl.eglGetProcAddress.restype = ctypes.c_void_p
-    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
-
-    def fn(name, restype, *argtypes):
-        addr = egl.eglGetProcAddress(name.encode())
-        if not addr:
-            raise GLUnavailable(f"eglGetProcAddress({name}) returned NULL")
-        return ctypes.CFUNCTYPE(restype, *argtypes)(addr)
-
+    fn = gl_function
     u, i, p = ctypes.c_uint, ctypes.c_int, ctypes.c_void_p
     out = {"BindTexture": fn("glBindTexture", None, u, u),
            "TexImage2D": fn("glTexImage2D", None, u, i, i, i, i, i, u, u, p),

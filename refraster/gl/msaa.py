@@ -20,11 +20,10 @@ stored, linear values); uncovered samples hold the background colour (cleared to
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 
 import numpy as np
 
-from .common import GLUnavailable, Unsupported, fullscreen, programs
+from .common import GLUnavailable, Unsupported, fullscreen, gl_function, programs
 from .package import CONVENTION_DEFAULTS, conventions
 
 __all__ = ["supports", "sample_pattern", "render_msaa"]
@@ -43,17 +42,7 @@ _FNS = {}
 
 def _fns():
     if not _FNS:
-        path = ctypes.util.find_library("EGL") or "libEGL.so.1"
-        egl = ctypes.CDLL(path)
-        egl.eglGetProcAddress.restype = ctypes.c_void_p
-        egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
-
-        def fn(name, restype, *argtypes):
-            addr = egl.eglGetProcAddress(name.encode())
-            if not addr:
-                raise GLUnavailable(f"eglGetProcAddress({name}) returned NULL")
-            return ctypes.CFUNCTYPE(restype, *argtypes)(addr)
-
+        fn = gl_function
         u, i = ctypes.c_uint, ctypes.c_int
         _FNS.update({
             "BindTexture": fn("glBindTexture", None, u, u),

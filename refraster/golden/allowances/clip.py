@@ -33,13 +33,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .conventions import FACES_FLIPPED
+
 __all__ = ["clip_allowances", "clip_outside", "clip_allowed", "CLIP_ARRAYS", "CLIP_BUFFERS",
            "CLIP_VALUES"]
 
 F32 = 2.0 ** -24
-#: The key :func:`refraster.golden.allowances.conventions.equivalent` sets in the equivalent
-#: raster when the scene's front faces are the equivalent scene's back faces.
-FACES_FLIPPED = "faces_flipped"
 CLIP_ARRAYS = ("cs_offsets", "cs_face", "cs_depth_lo", "cs_depth_hi", "cs_eye_lo", "cs_eye_hi",
                "cs_facing", "cs_flag", "cs_bg", "cs_draw_offsets")
 #: the buffers the check covers; the mask buffer (``cap_mask``, ``cut_mask``) must equal the

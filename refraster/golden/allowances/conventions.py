@@ -37,6 +37,9 @@ __all__ = ["is_gl", "reverses", "clip_map", "equivalent", "move_back", "quantum"
 
 #: Depth tests that keep the larger depth, and their mirror images under ``d → 1 − d``.
 REVERSING = {"greater": "less", "gequal": "lequal"}
+#: The key :func:`equivalent` sets in the equivalent raster when the scene's front faces are
+#: the equivalent scene's back faces.
+FACES_FLIPPED = "faces_flipped"
 #: The depth tests with no direction: their depths lie on both sides of the clear value.
 NO_DIRECTION = frozenset({"always", "never", "equal", "notequal"})
 #: The relative depth model's constant (docs/tolerance.md, "zero_to_one": 16 counted, doubled).
@@ -86,7 +89,6 @@ def equivalent(scene, raster):
     if is_gl(raster):
         return scene, raster
     from ...camera import Camera
-    from .clip import FACES_FLIPPED
     new = {**raster, **_GL}
     if raster.get("front_face", "ccw") == "cw":
         if raster["cull"] != "none":
