@@ -324,6 +324,7 @@ def frame_bounds(bounds, *, width, height, fovy=35.0, direction=(1.0, 0.8, 1.4),
         raise ValueError("direction must not be the zero vector")
     d = d / nd
     aspect = width / height
+    fovy = as_real(fovy, "fovy", lo=0.0, hi=180.0, lo_open=True, hi_open=True)
     half = np.radians(fovy) / 2
     half_h = np.arctan(np.tan(half) * min(aspect, 1.0))
     dist = radius / np.sin(half_h)

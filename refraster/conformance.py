@@ -352,7 +352,7 @@ def _clipped_slack_at(prep, faces, px, py):
         return out
     f = faces[sel]
     c = prep.clip[prep.triangles.faces[f]].astype(np.float64)             # (m, 3, 4)
-    r = np.spacing(np.abs(c).max(axis=(1, 2)).astype(np.float32)).astype(np.float64)
+    r = _clip_ulp(np.abs(c).max(axis=(1, 2)))
     m = c[:, :, [0, 1, 3]]
     ok = np.abs(np.linalg.det(m)) > 1e-300
     m[~ok] = np.eye(3)
@@ -379,10 +379,9 @@ def _depth_slacks(prep, depth_eps):
     fslack = _face_depth_slack(p, depth_eps)
     if len(p.clipped):
         c = prep.clip[p.faces[p.clipped.prim]]
-        r = np.abs(c).max(axis=(1, 2)).astype(np.float32)
         w_min = 1.0 / p.clipped.inv_w.max(axis=1)
         extra = np.zeros(len(fslack))
-        np.maximum.at(extra, p.clipped.prim, 4.0 * np.spacing(r).astype(np.float64) / w_min)
+        np.maximum.at(extra, p.clipped.prim, 4.0 * _clip_ulp(np.abs(c).max(axis=(1, 2))) / w_min)
         fslack += extra
     return fslack
 
@@ -558,9 +557,22 @@ def _piece_epsilon(prep):
     if len(st) == 0:
         return np.zeros(0)
     c = prep.clip[prep.triangles.faces[st.prim]]          # (T, 3, 4)
-    r = np.abs(c).max(axis=(1, 2)).astype(np.float32)
     w_min = 1.0 / st.inv_w.max(axis=1)
-    return 4.0 * np.spacing(r).astype(np.float64) * max(prep.width, prep.height) / 2 / w_min
+    return (4.0 * _clip_ulp(np.abs(c).max(axis=(1, 2))) * max(prep.width, prep.height) / 2
+            / w_min)
+
+
+def _clip_ulp(r):
+    """``ulp_f32(R)`` of clipped faces' largest clip coordinates ``R``; a face whose ``R`` is
+    beyond float32's range (a float64 vertex stage carries it) is refused with one line: a
+    float32 candidate cannot clip it, so no allowance can say what it draws."""
+    r = np.asarray(r, np.float64)
+    big = r > float(np.finfo(np.float32).max)
+    if big.any():
+        raise ValueError(f"a face crossing a clip plane has clip coordinates up to "
+                         f"{float(r.max()):.3g}, beyond float32 (a float32 candidate cannot "
+                         "clip it): scale the scene down")
+    return np.spacing(r.astype(np.float32)).astype(np.float64)
 
 
 def _face_depth_slack(prims, depth_eps):

@@ -669,3 +669,35 @@ def test_a_golden_under_any_depth_function_with_another_clear_passes_itself(tmp_
     cand.mkdir(parents=True)
     np.savez(cand / "buffers.npz", **fb.arrays())
     assert golden.compare(out, tmp_path / "cand", mode="tolerant").exit_code != 0
+
+
+@pytest.mark.parametrize("case", ["frame_fovy_zero", "clipped_beyond_float32"])
+def test_fuzz_found_scenes_end_in_one_line_naming_the_cause(tmp_path, capsys, case):
+    """Found by the 10⁴-case TOML run (2026-12-04): a ``frame`` camera with ``fovy = 0`` ended
+    in ``RuntimeWarning: divide by zero`` and a float64-precision scene whose clipped face
+    reaches clip coordinates beyond float32 in ``RuntimeWarning: overflow encountered in
+    cast`` (the allowances' float32 ulp of them), not in lines naming the cause."""
+    import warnings
+    if case == "frame_fovy_zero":
+        text = ('name = "c"\n[viewport]\nwidth = 4\nheight = 4\n[camera]\nkind = "frame"\n'
+                'fovy = 0.0\n[[draw]]\nsolid = "cube"\n')
+        want = "[camera] fovy must be > 0.0, got 0.0"
+    else:
+        (tmp_path / "m0.obj").write_text("v 0.39716795569590957 0.0 0.0\nv 0.0 0.0 0.0\n"
+                                         "v 0.0 0.0 3e+38\nf 1 2 3\n")
+        text = ('name = "z"\n[viewport]\nwidth = 4\nheight = 4\n[camera]\n'
+                'kind = "perspective"\neye = [0.0, 3.35, 1.0]\ntarget = [0.0, 0.0, 0.0]\n'
+                'near = 0.5325990817148879\nfar = 512.5248786281053\nfovy = 5.0\n'
+                '[raster]\nprecision = "float64"\ncull = "none"\n[[draw]]\nmesh = "m0.obj"\n')
+        want = "scene 'z': its allowances: a face crossing a clip plane has clip coordinates"
+    path = _toml(tmp_path, text)
+    out = tmp_path / "out"
+    out.mkdir()
+    capsys.readouterr()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        code = cli.main(["generate", "--out", str(out / "g"), "--scene-file", str(path),
+                         "--jobs", "1", "-q"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and want in err, err
+    assert os.listdir(out) == []

@@ -104,7 +104,10 @@ def _write_scene(root, name, scene):
     rio.atomic_write_bytes(root / name / "buffers.npz", npz_bytes(scene.buffers))
     # multisampled scenes: per sample, on the scene moved by each sample's offset
     allowances = msaa_allowances if scene.technique == "msaa" else scene_allowances
-    arrays, info, tolerant = allowances(scene, raster)
+    try:
+        arrays, info, tolerant = allowances(scene, raster)
+    except ValueError as exc:
+        raise ValueError(f"scene {name!r}: its allowances: {exc}") from None
     rio.atomic_write_bytes(root / name / "tolerance.npz", npz_bytes(arrays))
     buffers = {}
     for key in sorted(scene.buffers):
