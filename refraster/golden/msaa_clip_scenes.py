@@ -76,11 +76,18 @@ def _clip_msaa_scene(raster):
 _RATES = {
     "msaa4_clipsurface_sample": (
         {"samples": 4, "interpolation": "sample"},
-        "sample rate: the clip test and the caps' parity test at each sample"),
+        "sample rate: the clip test and the caps' parity test at each sample (Vulkan's "
+        "standard positions)"),
     "msaa4_clipsurface_pixel": (
         {"samples": 4},
         "pixel rate: the clip test and the caps' parity test at the pixel centre, each "
-        "fragment's decision written to the samples it covers"),
+        "fragment's decision written to the samples it covers (Vulkan's standard positions)"),
+    "msaa4gl_clipsurface_sample": (
+        {"samples": 4, "sample_locations": "gl_llvmpipe", "interpolation": "sample"},
+        "sample rate (GL's GL_SAMPLE_SHADING at 1.0), at llvmpipe's GL positions"),
+    "msaa4gl_clipsurface_pixel": (
+        {"samples": 4, "sample_locations": "gl_llvmpipe"},
+        "pixel rate (no sample shading), at llvmpipe's GL positions"),
 }
 
 
@@ -89,8 +96,7 @@ def _register(name):
 
     @register_scene(name, technique="clipsurface",
                     description=f"Building cut by a Perlin 2.5D clip surface with diffuse caps "
-                                f"at 4 samples (Vulkan's standard positions), {how}: "
-                                f"per-sample buffers.")
+                                f"at 4 samples, {how}: per-sample buffers.")
     def _scene():
         return _clip_msaa_scene(raster)
     return _scene

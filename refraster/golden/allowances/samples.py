@@ -140,12 +140,10 @@ def _clip_sample_scene(scene, s, moved, overrides, interp, position):
                                      -(8.0 - float(position[1])) / 16.0]
     sub = dataclasses.replace(scene, camera=moved, buffers=bufs, parameters=params,
                               raster=overrides, kinds={}, ids={}, may=None)
-    may = _clip_decision_may_multi(scene.draws, moved, _surfaces(sub), bufs["cap_mask"])
-    if interp != "sample":
-        # the decision's point is not the sample's: any pixel whose centre's decision may
-        # differ from its samples' is free too (the one-pixel dilation of the decision map)
-        from .core import dilate
-        may = dilate(may, 1)
+    # the clip decision's "may" pixels where the rate takes it: at the sample (the moved
+    # scene's centre) or at the pixel centre (the scene's own)
+    may = _clip_decision_may_multi(scene.draws, moved if interp == "sample" else scene.camera,
+                                   _surfaces(sub), bufs["cap_mask"])
     return dataclasses.replace(sub, may=may)
 
 
