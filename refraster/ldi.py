@@ -349,6 +349,9 @@ def peel(meshes, *, view, proj, width, height, max_layers=None, mode="peel", mod
     Returns
     -------
     LayeredDepthImage
+        At ``raster.samples > 1`` each sample peels its own layers (layer k of sample s is the
+        k-th nearest fragment covering s): the arrays gain a sample axis, ``(K, H, W, S)`` and
+        ``count``, ``overflow`` ``(H, W, S)`` (``docs/ldi.md``, "Multisampled depth peeling").
 
     Notes
     -----
