@@ -554,8 +554,13 @@ class ClippedSampleFramebuffer(SampleFramebuffer):
 
     __slots__ = ("cap_mask", "cap_points", "n_solids", "n_surfaces")
 
-    def __init__(self, *, cap_mask, cap_points, n_solids, n_surfaces, **buffers):
-        super().__init__(**buffers)
+    def __init__(self, *, depth, eye_depth, normal, prim_id, object_id, front_facing,
+                 barycentric, color, positions, raster, cap_mask, cap_points, n_solids,
+                 n_surfaces):
+        super().__init__(depth=depth, eye_depth=eye_depth, normal=normal, prim_id=prim_id,
+                         object_id=object_id, front_facing=front_facing,
+                         barycentric=barycentric, color=color, positions=positions,
+                         raster=raster)
         self.cap_mask, self.cap_points = cap_mask, cap_points
         self.n_solids, self.n_surfaces = n_solids, n_surfaces
 
