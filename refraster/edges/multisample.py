@@ -89,7 +89,9 @@ def resolve_gbuffer(gbuffers, mode):
 
 
 def edge_map_samples(frame, *, sampling=GBufferSampling(), near=None, far=None, bounds=None,
-                     view=None, **options):
+                     view=None, preset="paper", normal_filter=None, depth_filter=None,
+                     ids=None, inner_threshold=None, profile_threshold=None, width=1, k_n=1.0,
+                     k_z=1.0):
     """The edge map of a multisampled frame (module docstring).
 
     Parameters
@@ -102,9 +104,8 @@ def edge_map_samples(frame, *, sampling=GBufferSampling(), near=None, far=None, 
     near, far : float, optional
         The planes of the linear depth; or ``bounds`` (a world box) with the frame's ``view``
         to fit them (:func:`refraster.edges.fit_near_far`).
-    **options
-        :func:`refraster.edges.edge_map`'s filter options (``preset``, ``normal_filter``, …),
-        the same for every sample.
+    preset, normal_filter, depth_filter, ids, inner_threshold, profile_threshold, width, k_n, k_z
+        :func:`refraster.edges.edge_map`'s filter options, the same for every sample.
 
     Returns
     -------
@@ -124,6 +125,9 @@ def edge_map_samples(frame, *, sampling=GBufferSampling(), near=None, far=None, 
         raise ValueError("give bounds or near/far, not both")
     elif not far > near:
         raise ValueError(f"far must be greater than near, got near={near}, far={far}")
+    options = dict(preset=preset, normal_filter=normal_filter, depth_filter=depth_filter,
+                   ids=ids, inner_threshold=inner_threshold,
+                   profile_threshold=profile_threshold, width=width, k_n=k_n, k_z=k_z)
     gbuffers = sample_gbuffers(frame, float(near), float(far))
     if sampling.mode == "resolved":
         gb = resolve_gbuffer(gbuffers, sampling.resolve)
