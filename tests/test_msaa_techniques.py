@@ -192,3 +192,16 @@ def test_halos_refuse_samples_in_one_line():
         h.render_halos_pair(h.figure1_scene(n=4), width=8, height=8, slices=2,
                             raster=r.RasterState(samples=2))
     h.render_halos(h.figure1_scene(n=4), width=8, height=8, slices=2, raster=r.RasterState())
+
+
+def test_the_gallery_shows_a_multisampled_picture_per_technique(tmp_path):
+    from refraster.gallery import multisample as g
+    items = g.picture("edges", "edges", tmp_path, True) + \
+        g.picture("cutaway", "Adaptive cutaways", tmp_path, True)
+    assert [i.filename for i in items] == ["edges/edges_building_msaa.png",
+                                          "cutaway_shells_msaa.png"]
+    assert all((tmp_path / i.filename).is_file() for i in items)
+    assert all("differ on" in i.caption for i in items)
+    assert g.picture("halos4d", "halos", tmp_path, True) == []
+    from refraster.gallery.halos4d import NO_MSAA
+    assert "refuses raster.samples > 1" in NO_MSAA

@@ -214,4 +214,5 @@ def render(out_dir, *, quick=False):
          "own G-buffer and edge map (the objects reflected through the mirror plane, clipped at "
          "it, lit by the reflected light) and composited inside the mirror's pixels (Sec. 5.3, "
          "Fig. 8)")
-    return items
+    from .multisample import picture
+    return items + picture("edges", SECTION, out_dir, quick)
