@@ -11,7 +11,8 @@ fault                          what the candidate computes
                                cutaways: one cutaway surface flooded from the resolved rear
                                hulls (sample 0's), shared by every sample
 ``per_sample_for_resolved``    the edge map per sample where the resolved G-buffer's is
-                               declared
+                               declared; cutaways: each sample flooded to its own surface
+                               where one surface from the resolved rear hulls is declared
 =============================  =============================================================
 """
 

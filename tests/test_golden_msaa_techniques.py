@@ -26,7 +26,8 @@ END = "<!-- msaa-techniques-matrix:end -->"
 EXPECTED = {
     "resolved_for_per_sample": {"edges4gl_building_per_sample": "edge_map",
                                 "cutaway4gl_shells_per_sample": "sample1_"},
-    "per_sample_for_resolved": {"edges4gl_building_resolved": "edge_map"},
+    "per_sample_for_resolved": {"edges4gl_building_resolved": "edge_map",
+                                "cutaway4gl_shells_resolved": "sample1_"},
 }
 
 
@@ -71,7 +72,7 @@ def _cell(result):
 
 def test_the_scenes_are_registered_with_their_sample_count():
     assert SCENES == ["edges4gl_building_per_sample", "edges4gl_building_resolved",
-                      "cutaway4gl_shells_per_sample"]
+                      "cutaway4gl_shells_per_sample", "cutaway4gl_shells_resolved"]
     for name in ROWS:
         assert available_scenes()[name].build().raster["samples"] == \
             available_scenes()[name].samples

@@ -160,3 +160,12 @@ def _cutaway_scene(sampling):
                             "its own cutaway surface, each sample carved by its own.")
 def _cutaway4gl_shells_per_sample():
     return _cutaway_scene({"mode": "per_sample", "resolve": "sample_zero"})
+
+
+@register_scene("cutaway4gl_shells_resolved", technique="cutaway", samples=4,
+                description="cutaway4gl_shells_per_sample's frame with one cutaway surface "
+                            "flooded from the rear hulls resolved by sample_zero (sample 0's), "
+                            "at the pixel centre's projection: every sample of a pixel carved "
+                            "by the pixel's.")
+def _cutaway4gl_shells_resolved():
+    return _cutaway_scene({"mode": "resolved", "resolve": "sample_zero"})

@@ -51,6 +51,26 @@ def _sample_may(scene, bufs):
     return edge | (np.asarray(bufs["ghost"]) > 0)
 
 
+def _resolved_surface(scene, plain, overrides, params, positions):
+    """The D interval of a cutaway whose rear hulls are resolved by ``sample_zero`` and
+    flooded once: sample 0's rear hulls (the scene moved by sample 0's offset) flooded with the
+    pixel centre's projection (:func:`.cutaway.cutaway_bounds` with ``flood_camera``)."""
+    from ...camera import Camera
+    from ...conformance import edge_epsilon
+    from .cutaway import cutaway_bounds
+    from .precision import candidate_bits
+    if scene.parameters["sampling"].get("resolve") != "sample_zero":
+        raise ValueError("no allowance for a cutaway surface flooded from rear hulls resolved "
+                         f"by {scene.parameters['sampling'].get('resolve')!r} (sample_zero "
+                         "only)")
+    cam = scene.camera
+    moved = Camera(cam.view, sample_shift(positions[0], cam.width, cam.height) @ cam.proj,
+                   cam.width, cam.height)
+    sub = dataclasses.replace(scene, camera=moved, parameters=params, raster=overrides)
+    eps = edge_epsilon(cam.width, cam.height, min_bits=candidate_bits())
+    return cutaway_bounds(sub, eps, flood_camera=cam)
+
+
 def sampled_allowances(scene, raster):
     """Per-sample allowances of a technique scene with ``raster.samples > 1`` (module
     docstring). Returns ``(arrays, info, checks)`` as :func:`.core.gl_allowances`."""
@@ -75,6 +95,9 @@ def sampled_allowances(scene, raster):
     technique_params = {k: v for k, v in params.items()
                         if k not in ("sample_pattern", "sampling")}
     arrays, checks, info, per = {}, {}, None, []
+    d_bounds = None
+    if scene.technique == "cutaway" and sampling["mode"] == "resolved":
+        d_bounds = _resolved_surface(scene, plain, overrides, technique_params, positions)
     for s, pos in enumerate(positions):
         moved = Camera(cam.view, sample_shift(pos, cam.width, cam.height) @ cam.proj,
                        cam.width, cam.height)
@@ -87,7 +110,7 @@ def sampled_allowances(scene, raster):
         sub = dataclasses.replace(scene, camera=moved, buffers=derive,
                                   parameters=technique_params, raster=overrides,
                                   may=_sample_may(scene, bufs), kinds={}, ids={})
-        a, info_s, ch_s = gl_allowances(sub, plain)
+        a, info_s, ch_s = gl_allowances(sub, plain, d_bounds)
         info = info if info is not None else info_s
         per.append(a)
         for k, v in a.items():
