@@ -15,21 +15,12 @@ from pathlib import Path
 import numpy as np
 
 from . import Item
+from .panels import label as _label, side_by_side as _side_by_side
 
 __all__ = ["PICTURES", "picture", "edges_picture", "cutaway_picture"]
 
 #: 4× at llvmpipe's positions with sample-rate interpolation (the goldens' state).
 _RASTER = dict(samples=4, sample_locations="gl_llvmpipe", interpolation="sample")
-
-
-def _label(image, text):
-    from .edges import _label as label
-    return label(image, text)
-
-
-def _side_by_side(images):
-    from .edges import _side_by_side as side
-    return side(images)
 
 
 def _zoom(image, factor):
