@@ -43,21 +43,24 @@ def _run(gold, fault):
     return compare(gold / "golden", out, mode="tolerant", scenes=SCENES)
 
 
-def _gl_cell(gold, name):
-    """refraster.gl's answer for one scene: its candidate's compare, or its one-line refusal."""
+def _gl_cell(gold, name, faults=()):
+    """refraster.gl's answer for one scene: its candidate's compare, or its one-line refusal
+    or skip."""
     from refraster.golden.candidate import candidate
     try:
         from refraster import gl  # noqa: F401
     except ImportError as exc:
         return f"not run ({exc})"
+    out = gold / f"cand_gl_{'_'.join(faults) or 'correct'}_{name}"
+    shutil.rmtree(out, ignore_errors=True)
     try:
-        r = candidate(gold / "golden", gold / "cand_gl", backend="gl", scenes=[name])
+        r = candidate(gold / "golden", out, backend="gl", scenes=[name], faults=faults)
     except GoldenError as exc:
         return "refused: " + str(exc).split(": ")[-1].split(" (")[0]
     if r["skipped"]:
-        return "skipped: " + str(r["skipped"][0])[:120]
-    c = compare(gold / "golden", gold / "cand_gl", mode="tolerant", scenes=[name])
-    return "pass" if c.exit_code == 0 else "**FAIL**"
+        return "skipped: " + str(r["skipped"][name]).split(" (")[0]
+    c = compare(gold / "golden", out, mode="tolerant", scenes=[name])
+    return _cell(c.scenes[0])
 
 
 def _cell(result):
@@ -96,8 +99,10 @@ def test_the_matrix_and_the_faults(gold):
             assert any(line.startswith(f"{scene}/{buffer}") for line in cmp.failures()), \
                 (fault, scene, cmp.failures()[:5])
     head = ("| scene | technique | sampling | refraster | `resolved_for_per_sample` | "
-            "`per_sample_for_resolved` | refraster.gl |")
-    lines = [head, "|" + "---|" * 7]
+            "`per_sample_for_resolved` | refraster.gl | refraster.gl "
+            "`msaa_edges_resolved_for_per_sample` |")
+    lines = [head, "|" + "---|" * 8]
+    gl_fault = ("msaa_edges_resolved_for_per_sample",)
     for name in ROWS:
         entry = available_scenes()[name]
         if name not in SCENES:
@@ -107,5 +112,9 @@ def test_the_matrix_and_the_faults(gold):
         sampling = "per sample" if name.endswith("per_sample") else "resolved"
         cells = [_cell(results[c][name]) for c in columns]
         lines.append(f"| {name} | {entry.technique} | {sampling} | " + " | ".join(cells)
-                     + f" | {_gl_cell(gold, name)} |")
+                     + f" | {_gl_cell(gold, name)} | {_gl_cell(gold, name, gl_fault)} |")
+    # refraster.gl passes what it draws, and its planted fault fails the per-sample edge map
+    if "refused" not in lines[2] and "not run" not in lines[2]:
+        row = next(line for line in lines if line.startswith("| edges4gl_building_per_sample"))
+        assert row.split(" | ")[6] == "pass" and row.split(" | ")[7].startswith("**FAIL**"), row
     check_backends_matrix(BEGIN, END, "\n".join(lines), "4x technique matrix")
