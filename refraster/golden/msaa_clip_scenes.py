@@ -94,7 +94,7 @@ _RATES = {
 def _register(name):
     raster, how = _RATES[name]
 
-    @register_scene(name, technique="clipsurface",
+    @register_scene(name, technique="clipsurface", samples=raster["samples"],
                     description=f"Building cut by a Perlin 2.5D clip surface with diffuse caps "
                                 f"at 4 samples, {how}: per-sample buffers.")
     def _scene():
