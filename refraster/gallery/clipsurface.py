@@ -242,4 +242,6 @@ def render(out_dir: Path, *, quick: bool = False) -> list[Item]:
     save("exact_vs_mesh", np.concatenate([mesh_fb.color, exact_fb.color, heat], axis=1),
          "A coarse 12×12 offset map: tessellated cap (left), exact per-pixel ray–height-field "
          f"cap (middle), and their eye-depth difference (right, red = {scale:.2g}).")
+    from .multisample import picture
+    items += picture("clipsurface", SECTION, out_dir, quick)
     return items
