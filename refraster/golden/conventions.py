@@ -44,12 +44,16 @@ API_CONVENTIONS = {
 TECHNIQUES_IN_CONVENTIONS = ("render", "clipsurface", "cutaway")
 #: Technique → why ``--convention`` refuses its scenes.
 REFUSED = {
-    "ldi": "its allowances (layer face sets) are derived in OpenGL's conventions only",
+    "ldi": "the peel is not run again from the built scene with the converted camera and "
+           "raster state, so its layers and their face sets would stay OpenGL's (the "
+           "reversed-Z peel golden is 'reversed_z_peel')",
     "edges": "the edge operators read OpenGL's window depth and their allowances are "
              "derived on it",
     "vds": "its parity decision's probes are derived in OpenGL's conventions only",
     "halos4d": "it does not rasterize through the raster state (4D slicing into its own "
                "volume)",
+    "msaa": "its per-sample allowances are derived in OpenGL's conventions only (depth_func "
+            "'less', a float32 depth buffer cleared to 1)",
 }
 
 
@@ -146,8 +150,8 @@ _REVERSE = {"less": "greater", "lequal": "gequal"}
 
 def _refuse(name, technique, api):
     why = REFUSED.get(technique, "its scenes cannot be rendered again from the built scene")
-    raise ValueError(f"scene {name!r}: technique {technique!r} does not honour {api}'s "
-                     f"conventions: {why} (--convention applies to "
+    raise ValueError(f"--convention {api} cannot emit scene {name!r}: technique {technique!r} "
+                     f"is not drawn again in other conventions: {why} (--convention emits "
                      f"{', '.join(TECHNIQUES_IN_CONVENTIONS)} scenes)")
 
 
