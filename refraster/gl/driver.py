@@ -373,6 +373,18 @@ class Backend:
             data = m if "matrix_row_major" in self.faults else m.T
             prog[name].write(np.ascontiguousarray(data, np.float32).tobytes())
 
+    def _draw(self, prog, draw, palette=None):
+        """One draw of a G-buffer program: the draw's matrices and object id as uniforms, its
+        palette colour as ``u_base`` when ``palette`` is given, then its triangles."""
+        self._write(prog, "u_mvp", draw["mvp"])
+        self._write(prog, "u_mv", draw["mv"])
+        self._write(prog, "u_nmat", draw["nmat"])
+        self._set(prog, "u_object", int(draw["object_id"]))
+        if palette is not None:
+            self._set(prog, "u_base", tuple(float(c) for c in
+                                            palette[draw["object_id"] % len(palette)]))
+        self._vao(draw, prog).render(self.mgl.TRIANGLES)
+
     def _depth_attachment(self, size, depth_format="float32"):
         """A depth texture re-specified as ``GL_DEPTH_COMPONENT32F`` (moderngl's is 24-bit),
         or ``24`` / ``16`` for ``depth_format`` ``"unorm24"`` / ``"unorm16"``."""
