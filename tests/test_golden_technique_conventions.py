@@ -158,6 +158,17 @@ def test_other_techniques_refused_naming_option_scene_and_why(tmp_path, capsys):
                        f"{name!r}: technique {technique!r} is not drawn again in other "
                        f"conventions: {REFUSED[technique]} (--convention emits render, "
                        f"clipsurface, cutaway scenes)"], err
+    # a multisampled technique scene (its technique drawn again at one sample only)
+    from refraster.golden.conventions import SAMPLED
+    name = next(n for n, e in registry.items()
+                if e.samples > 1 and e.technique in TECHNIQUES_IN_CONVENTIONS)
+    assert cli.main(["generate", "--out", str(tmp_path / "g"), "--scene", name,
+                     "--convention", "vulkan"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"golden generate: error: --convention vulkan cannot emit scene {name!r}: "
+                   f"technique {registry[name].technique!r} is not drawn again in other "
+                   f"conventions: {SAMPLED} (--convention emits render, clipsurface, "
+                   f"cutaway scenes)"], err
     assert not (tmp_path / "g").exists()
 
 
@@ -177,8 +188,11 @@ def test_a_technique_scene_in_other_conventions_is_refused_under_gl(tmp_path, ca
                    f"conventions: {REFUSED['ldi']} (--convention emits render, clipsurface, "
                    "cutaway scenes)"], err
     assert not (tmp_path / "g").exists()
-    names = {e.name for e in _in_convention("gl", None, ())}
-    assert "reversed_z_peel" not in names and "vulkan_cube" in names
+    registry = golden.available_scenes()
+    for api in ("gl", "vulkan"):
+        names = {e.name for e in _in_convention(api, None, ())}
+        assert "reversed_z_peel" not in names and "vulkan_cube" in names
+        assert all(registry[n].samples == 1 for n in names), api
 
 
 def test_all_scenes_in_a_convention_include_the_techniques():
