@@ -167,8 +167,8 @@ class Backend:
         technique = scene.get("technique")
         if technique == "msaa":           # issue 43: refraster/gl/msaa.py
             return msaa_supports(scene)
-        if scene.get("raster", {}).get("samples", 1) != 1:   # issue 44: gl/msaa_techniques.py
-            return sampled_supports(scene)
+        if scene.get("raster", {}).get("samples", 1) != 1 and technique != "clipsurface":
+            return sampled_supports(scene)   # issue 44: gl/msaa_techniques.py
         conv = conventions(scene.get("raster", {}))
         if technique not in ("render", "vds", "ldi") and conv != CONVENTION_DEFAULTS:
             changed = sorted(k for k in conv if conv[k] != CONVENTION_DEFAULTS[k])
@@ -199,6 +199,10 @@ class Backend:
             return ("vds: only the parity test over one sprite (test 'parity', one axis) is "
                     "implemented")
         if technique == "clipsurface":
+            interp = scene.get("raster", {}).get("interpolation", "center")
+            if scene.get("raster", {}).get("samples", 1) != 1 and interp == "centroid":
+                return ("clipsurface: interpolation 'centroid' at samples > 1 is not "
+                        "implemented (pixel rate at the centre, or sample rate)")
             return clipsurface.supports(scene)
         return None
 
@@ -230,7 +234,8 @@ class Backend:
         reason = self.supports(scene) or self._size_limit(scene)
         if reason is not None:
             raise Unsupported(reason)
-        if scene["raster"].get("samples", 1) != 1 and scene["technique"] != "msaa":
+        if scene["raster"].get("samples", 1) != 1 \
+                and scene["technique"] not in ("msaa", "clipsurface"):
             # issue 44: the technique's passes once per sample (refraster/gl/msaa_techniques.py)
             return {"scene": scene, "sampled": package_dir, "draws": [], "textures": []}
         if scene["technique"] == "clipsurface":            # issue 26 item 1

@@ -36,9 +36,11 @@ _GBUFFER = ("depth", "eye_depth", "normal", "prim_id", "object_id", "front_facin
 
 def sampled_scene_names(technique=None):
     """The registered technique scenes with more than one sample (optionally of one
-    technique), in registration order."""
+    technique), in registration order; the multisampled clip-surface scenes
+    (:mod:`.msaa_clip_scenes`, allowances of their own) are not among them."""
     from .scenes import SCENES
-    return [n for n, e in SCENES.items() if e.samples > 1 and e.technique != "msaa"
+    return [n for n, e in SCENES.items() if e.samples > 1
+            and e.technique not in ("msaa", "clipsurface")
             and (technique is None or e.technique == technique)]
 
 

@@ -62,7 +62,7 @@ MULTISAMPLE_DEFAULTS = dict(samples=1, sample_locations="standard", interpolatio
 #: Modules imported by :func:`available_scenes`; each registers its scenes on import.
 SCENE_MODULES = ("refraster.golden.technique_scenes", "refraster.golden.convention_scenes",
                  "refraster.golden.catalogue_scenes", "refraster.golden.msaa_scenes",
-                 "refraster.golden.msaa_technique_scenes")
+                 "refraster.golden.msaa_technique_scenes", "refraster.golden.msaa_clip_scenes")
 
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_]*$")
 #: Longest scene or draw name: a name becomes a directory (``<scene>/``, with ``__<sweep>``

@@ -78,6 +78,10 @@ def msaa_allowances(scene, raster):
                          "raster differs")
     positions = scene.parameters["sample_pattern"]["positions"]
     interp = raster.get("interpolation", "center")
+    clip = scene.technique == "clipsurface"
+    if clip and interp == "centroid":
+        raise ValueError("a multisampled clip-surface scene's allowances are derived at "
+                         "raster.interpolation 'sample' or 'center', got 'centroid'")
     cam = scene.camera
     plain = _plain_raster(raster)
     overrides = {k: v for k, v in plain.items() if v != DEFAULT_RASTER.get(k)}
@@ -89,13 +93,16 @@ def msaa_allowances(scene, raster):
                        cam.width, cam.height)
         bufs = {ch: scene.buffers[sample_buffer(s, ch)] for ch in SAMPLE_CHANNELS
                 if sample_buffer(s, ch) in scene.buffers}
-        sub = dataclasses.replace(scene, technique="render", camera=moved, buffers=bufs,
-                                  parameters={}, raster=overrides, geometry=True, may=None,
-                                  kinds={}, ids={})
+        if clip:
+            sub = _clip_sample_scene(scene, s, moved, overrides, interp, pos)
+        else:
+            sub = dataclasses.replace(scene, technique="render", camera=moved, buffers=bufs,
+                                      parameters={}, raster=overrides, geometry=True, may=None,
+                                      kinds={}, ids={})
         a, info_s, ch_s = gl_allowances(sub, plain)
         if info is None:
             info = info_s
-        if interp != "sample" and "set_offsets" in a:
+        if interp != "sample" and "set_offsets" in a and not clip:
             if centre is None:
                 centre = _Centre(scene, plain)
             centre.values(a, info_s["eps"])
@@ -114,6 +121,31 @@ def msaa_allowances(scene, raster):
         checks["color"] = {"checks": ["bounds"], "lo": "resolve_color_lo",
                            "hi": "resolve_color_hi"}
     return arrays, info, checks
+
+
+def _clip_sample_scene(scene, s, moved, overrides, interp, position):
+    """Sample ``s`` of a multisampled clip-surface scene as a single-sample clip-surface scene
+    on the camera moved to the sample (its buffers, its own clip-decision "may" pixels); at
+    pixel rate (``interp`` not ``"sample"``) the clip decision and parity test are taken at
+    the pixel centre, offset by minus the sample's offset from the moved scene's centre
+    (``parameters.decision_offset``, pixels, GL window y up; :mod:`.clip`)."""
+    from ..msaa_clip_scenes import CLIP_SAMPLE_CHANNELS
+    from ..msaa_scenes import sample_buffer
+    from ..technique_scenes import _clip_decision_may_multi
+    from .clip import _surfaces
+    bufs = {ch: scene.buffers[sample_buffer(s, ch)] for ch in CLIP_SAMPLE_CHANNELS
+            if sample_buffer(s, ch) in scene.buffers}
+    params = {k: v for k, v in scene.parameters.items() if k != "sample_pattern"}
+    if interp != "sample":
+        params["decision_offset"] = [-(float(position[0]) - 8.0) / 16.0,
+                                     -(8.0 - float(position[1])) / 16.0]
+    sub = dataclasses.replace(scene, camera=moved, buffers=bufs, parameters=params,
+                              raster=overrides, kinds={}, ids={}, may=None)
+    # the clip decision's "may" pixels where the rate takes it: at the sample (the moved
+    # scene's centre) or at the pixel centre (the scene's own)
+    may = _clip_decision_may_multi(scene.draws, moved if interp == "sample" else scene.camera,
+                                   _surfaces(sub), bufs["cap_mask"])
+    return dataclasses.replace(sub, may=may)
 
 
 class _Centre:
