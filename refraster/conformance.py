@@ -181,11 +181,11 @@ def _mark_edge(xa, ya, xb, yb, tri, eps, depth_eps, winz, covered, boundary, id_
 
 @njit(**JIT)
 def _mark_faces(f, vX, vY, vZ, vcode, status, cull, edge_boundary, scale, sX, sY, sZ, sprim,
-                seps, fslack, eps, winz, covered, id_may, cov_may):
+                seps, fslack, eps, winz, covered, id_may, cov_may, exact):
     tri = np.zeros(9)
     for i in range(f.shape[0]):
-        if status[i] == CLIPPED:
-            continue
+        if status[i] == CLIPPED or exact[i]:
+            continue   # exact: every allowed candidate places the edges, the rule decides ties
         a, b, d = f[i, 0], f[i, 1], f[i, 2]
         if vcode[a] | vcode[b] | vcode[d]:
             continue
@@ -212,6 +212,51 @@ def _mark_faces(f, vX, vY, vZ, vcode, status, cull, edge_boundary, scale, sX, sY
             _mark_edge(tri[3 * j], tri[3 * j + 1], tri[3 * ((j + 1) % 3)],
                        tri[3 * ((j + 1) % 3) + 1], tri, eps + seps[k], fslack[sprim[k]],
                        winz, covered, True, id_may, cov_may)
+
+
+#: Fill rules a golden declares as the candidate's own, exact at ties: Direct3D's top-left rule
+#: (``fill_rule="top_left"``, the d3d12 convention). Under the others (OpenGL's, and Vulkan's
+#: and WebGPU's, which leave ties to the implementation) a centre on an edge is "may".
+EXACT_FILL_RULES = ("top-left",)
+
+
+def exact_faces(prep, min_bits):
+    """(F,) bool: faces that every allowed candidate places exactly — unclipped, and each vertex's
+    exact window position (from the float64 matrices and positions) on the ``2^−min_bits``
+    grid of the coarsest declared snapping, within ``2·max(W, H)`` of the origin, while the
+    float32 rounding a candidate's transform and viewport may add (``ε_float`` of
+    :func:`edge_epsilon`) stays below half a step of the finest allowed grid (``2^−9`` px):
+    every candidate of 4…8 bits then snaps each vertex onto the same grid point, and a pixel
+    centre on such an edge is decided by the declared rule (docs/tolerance.md, "Ties under
+    Direct3D")."""
+    p = prep.triangles
+    f = p.faces
+    out = np.zeros(len(f), np.bool_)
+    w, h = prep.width, prep.height
+    m = float(max(w, h))
+    e_float = 4.0 * float(np.spacing(np.float32(m))) + 8.0 * 2.0 ** -24 * m
+    if not len(f) or e_float >= 2.0 ** -9:
+        return out
+    clip = np.concatenate([
+        np.column_stack([np.asarray(mesh.vertices, np.float64), np.ones(mesh.n_vertices)])
+        @ (np.asarray(prep.proj, np.float64) @ np.asarray(prep.view, np.float64)
+           @ np.asarray(model, np.float64)).T
+        for mesh, model in zip(prep.meshes, prep.models)])
+    cw = clip[:, 3]
+    front = cw > 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        X = (clip[:, 0] / cw + 1.0) * 0.5 * w
+        Y = (clip[:, 1] / cw + 1.0) * 0.5 * h
+    step = float(1 << min_bits)
+
+    def on_grid(v):
+        k = v * step
+        return np.isfinite(k) & (np.abs(k - np.rint(k)) <= 1e-9 * np.maximum(1.0, np.abs(k))) \
+            & (np.abs(v) <= 2.0 * m)
+
+    ok = front & on_grid(X) & on_grid(Y)
+    out = ok[f].all(axis=1) & (p.vcode[f].max(axis=1) == 0) & (p.status != CLIPPED)
+    return out
 
 
 def _edge_boundary(faces, front):
@@ -287,7 +332,8 @@ def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps
                 "front": 2}[cull.lower()], _edge_boundary(p.faces, face_front),
                 float(1 << p.subpixel_bits), p.clipped.x, p.clipped.y, p.clipped.z,
                 p.clipped.prim, _piece_epsilon(prep), fslack, eps, winz, covered, id_may,
-                cov_may)
+                cov_may, exact_faces(prep, min_bits) if raster is not None
+                and raster.fill_rule in EXACT_FILL_RULES else np.zeros(len(p.faces), np.bool_))
     # depth ties: another primitive within the depth slack of the visible one, each slack at
     # the pixel (a clipped face's part falls with 1/w there: _clipped_slack_at)
     fbase = _face_depth_slack(p, depth_eps)
@@ -729,7 +775,7 @@ def edge_may(meshes, *, view, proj, width, height, model=None, cull="none", eps=
                 _edge_boundary(p.faces, _face_facing(p)), float(1 << p.subpixel_bits),
                 p.clipped.x, p.clipped.y, p.clipped.z, p.clipped.prim, _piece_epsilon(prep),
                 np.full(len(p.faces), DEPTH_EPS), eps, np.ones((h, w)), nothing, id_may,
-                cov_may)
+                cov_may, np.zeros(len(p.faces), np.bool_))
     return id_may, cov_may
 
 

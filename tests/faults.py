@@ -113,6 +113,8 @@ def _set_admits(key, kind, arrays, cand, named):
     its value lies in that face's entry of the face set."""
     id_may = np.asarray(arrays["id_may"], np.bool_)
     ok = id_may & (named >= 0)
+    if not len(arrays["set_face"]):   # no pixel where the id may differ: no entry admits
+        return ok
     e = np.maximum(named, 0)
     if kind == "id":
         return ok

@@ -163,3 +163,49 @@ def jump_flood(z, slope, steps, sampling=(1.0, 1.0), floor_slope=None, floor_nor
     rc = np.stack([flat // w, flat % w], axis=-1)
     rc[flat < 0] = -1
     return d, rc
+
+
+def d3d_top_left_covered(tri, width, height):
+    """(H, W) bool: the pixel centres Direct3D's triangle rasterization rules put in ``tri``.
+
+    ``tri``: three (x, y) vertices in Direct3D's render-target coordinates (x right, y down
+    from the upper-left corner, pixel (col, row) centred at (col + ½, row + ½)), given as
+    anything :class:`fractions.Fraction` takes exactly; rows of the result top to bottom. Exact
+    rational arithmetic, written from the rule's words (D3D11.3 functional specification
+    §3.4.2.1; "Rasterization Rules (Direct3D 9)"), not from any edge-function bias: a centre
+    strictly inside is covered; a centre on an edge is covered when that edge is a **top** edge
+    — exactly horizontal and above the other edges (the third vertex has larger y) — or a
+    **left** edge — not exactly horizontal, with the triangle on its right (a step in +x from
+    the edge goes into the triangle: the third vertex lies on the same side of the edge's line
+    as a point one unit to the right of the edge); a centre on two edges (a vertex) is covered
+    when both are top or left edges. Either winding; a degenerate triangle covers nothing."""
+    from fractions import Fraction
+    p = [(Fraction(x), Fraction(y)) for x, y in tri]
+
+    def side(a, b, c):     # sign of the cross product (b − a) × (c − a)
+        v = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+        return (v > 0) - (v < 0)
+
+    if side(*p) == 0:
+        return np.zeros((height, width), np.bool_)
+    edges = []
+    for k in range(3):
+        a, b, c = p[k], p[(k + 1) % 3], p[(k + 2) % 3]
+        if a[1] == b[1]:
+            owned = c[1] > a[1]                                  # top: the others below
+        else:
+            right = ((a[0] + b[0]) / 2 + 1, (a[1] + b[1]) / 2)  # one unit right of the edge
+            owned = side(a, b, c) == side(a, b, right)           # left: triangle to the right
+        edges.append((a, b, side(a, b, c), owned))
+    out = np.zeros((height, width), np.bool_)
+    for row in range(height):
+        for col in range(width):
+            q = (Fraction(2 * col + 1, 2), Fraction(2 * row + 1, 2))
+            inside = True
+            for a, b, s, owned in edges:
+                t = side(a, b, q)
+                if t == -s or (t == 0 and not owned):
+                    inside = False
+                    break
+            out[row, col] = inside
+    return out

@@ -44,8 +44,13 @@ GOLD_END = "<!-- gl-convention-goldens-matrix:end -->"
 GOLDENS = ["vulkan_cube", "vulkan_icosphere_smooth", "vulkan_torus_ortho",
            "vulkan_nested_shells", "vulkan_multi_draw", "reversed_z_multi_draw",
            "reversed_z_peel", "zero_to_one_near_crossing", "depth_clamp_near_crossing",
-           "d3d12_exact_ties",
            "unorm24_torus_ortho", "unorm16_planes"]
+#: Convention goldens OpenGL cannot draw (``Backend.supports`` names the field): ties decided
+#: by Direct3D's top-left rule (``scene.json`` ``"exact_ties"``). The two crossing scenes
+#: declare that rule too, but none of their faces is placed exactly by every allowed candidate,
+#: so their ties stay "may" and OpenGL draws them.
+REFUSED = {"d3d12_exact_ties": "exact_ties: the golden decides pixel centres exactly on edges "
+                               "by raster.fill_rule 'top_left'"}
 _ZERO_TO_ONE_GOLDENS = [g for g in GOLDENS if g != "unorm24_torus_ortho"]
 #: fault → {golden scene: buffer the failure must name}
 GOLDEN_EXPECTED = {
@@ -54,8 +59,7 @@ GOLDEN_EXPECTED = {
     "reversed_z_less": {"reversed_z_multi_draw": "prim_id", "reversed_z_peel": "layer_prim_id"},
     "reversed_z_clear_one": {"reversed_z_multi_draw": "prim_id",
                              "reversed_z_peel": "layer_prim_id"},
-    "winding_not_flipped": {"d3d12_exact_ties": "front_facing",
-                            "vulkan_icosphere_smooth": "prim_id", "vulkan_cube": "front_facing",
+    "winding_not_flipped": {"vulkan_icosphere_smooth": "prim_id", "vulkan_cube": "front_facing",
                             "reversed_z_peel": "layer_front_facing",
                             "depth_clamp_near_crossing": "front_facing"},
 }
@@ -257,6 +261,22 @@ def gold(tmp_path_factory):
 @pytest.fixture(scope="module")
 def goldens(tmp_path_factory):
     return generate_gold(tmp_path_factory, "glconv_goldens", GOLDENS)
+
+
+def test_decided_ties_are_refused_in_one_line(goldens, tmp_path_factory):
+    """A golden whose ties Direct3D's top-left rule decides (``"exact_ties": true``,
+    docs/tolerance.md, "Ties under Direct3D") is refused in one line naming the field: OpenGL
+    has no such rule to ask for (llvmpipe owns a centre on a horizontal edge by the left/bottom
+    rule under GL_UPPER_LEFT too). Every other convention golden — the crossing scenes in
+    Direct3D's conventions among them — is drawn."""
+    from refraster.gl.driver import Backend
+    from refraster.gl.package import read_scene
+    refused = generate_gold(tmp_path_factory, "glconv_refused", list(REFUSED))
+    for name, start in REFUSED.items():
+        reason = Backend.supports(read_scene(refused / "golden" / name / "package"))
+        assert reason is not None and reason.startswith(start) and "\n" not in reason, reason
+    for name in GOLDENS:
+        assert Backend.supports(read_scene(goldens / "golden" / name / "package")) is None
 
 
 def test_convention_goldens_pass_and_every_convention_fault_fails(goldens):

@@ -119,7 +119,8 @@ def test_winding_flips_only_where_ndc_y_changes():
 
 def test_technique_scene_refused_in_another_convention():
     entry = golden.available_scenes()["ldi_nested_shells"]
-    with pytest.raises(ValueError, match="technique 'ldi' does not honour vulkan's"):
+    with pytest.raises(ValueError, match="--convention vulkan cannot emit scene "
+                                         "'ldi_nested_shells': technique 'ldi' "):
         in_convention(entry, "vulkan")
     assert in_convention(entry, "gl").name == "ldi_nested_shells"
 
@@ -188,6 +189,8 @@ def _wrong(name):
     if name == "winding_not_flipped":
         return "vulkan_icosphere_smooth", _rendered("vulkan_icosphere_smooth",
                                                     front_face="ccw")[1]
+    if name == "other_tie_rule":   # OpenGL-on-llvmpipe's left/bottom rule where D3D's is declared
+        return "d3d12_exact_ties", _rendered("d3d12_exact_ties", fill_rule="llvmpipe")[1]
     if name == "depth_off_two_unorm16_steps":
         scene, buffers = _rendered("unorm16_planes")
         covered = buffers["prim_id"] >= 0
@@ -214,6 +217,7 @@ WRONG = {"gl_remap_on_zero_to_one": ("depth",),
          "reversed_z_with_less": ("depth", "prim_id"),
          "clear_1_under_greater": ("depth", "prim_id"),
          "winding_not_flipped": ("prim_id", "front_facing"),
+         "other_tie_rule": ("prim_id",),
          "depth_off_two_unorm16_steps": ("depth",),
          "peel_in_gl_order": ("layer_depth",)}
 
@@ -238,6 +242,46 @@ def test_wrong_candidates_fail_naming_the_buffer(gold, tmp_path, fault):
     assert result.exit_code == 1, fault
     for key in WRONG[fault]:
         assert f"{scene}/{key}:" in text, (fault, key, text[:2000])
+
+
+def test_direct3d_ties_are_decided(gold):
+    """Under Direct3D's declared top-left rule the exact-ties grid (every vertex on a pixel
+    centre, every candidate of 4–8 bits places it there) has no "may": a centre on an edge
+    belongs to the face the rule names (``conformance.exact_faces``); the same geometry under
+    the left/bottom rule, which no API fixes, keeps its ties "may"."""
+    from refraster.conformance import MAY, exact_faces, tolerance
+    from refraster.golden.allowances.conventions import equivalent
+    from refraster.golden.allowances.core import _geometry
+    from refraster.raster import prepare
+    with np.load(gold / "d3d12_exact_ties" / "tolerance.npz") as z:
+        assert not z["id_may"].any() and not (z["coverage"] == MAY).any()
+    # the package says so, and only there: the crossing scenes declare the same rule, but no
+    # face of theirs is placed exactly by every candidate (their ties stay "may")
+    for name in CONVENTION_SCENES:
+        doc = json.loads((gold / name / "package" / "scene.json").read_text())
+        assert doc.get("exact_ties", False) is (name == "d3d12_exact_ties"), name
+    for name in ("zero_to_one_near_crossing", "depth_clamp_near_crossing"):
+        assert json.loads((gold / name / "package" / "scene.json").read_text())["raster"][
+            "fill_rule"] == "top_left"
+    scene = golden.available_scenes()["d3d12_exact_ties"].build()
+    eq, raster = equivalent(scene, scene.raster)
+    kw = dict(**eq.camera.kwargs, model=[d.model for d in eq.draws], cull=raster["cull"],
+              min_bits=4)
+    meshes = [d.mesh for d in eq.draws]
+    geom = _geometry(raster)
+    assert geom.fill_rule == "top-left"
+    assert exact_faces(prepare(meshes, **eq.camera.kwargs, model=kw["model"], raster=geom),
+                       4).all()
+    other = tolerance(meshes, **kw, raster=geom.replace(fill_rule="llvmpipe"))
+    assert other.id_may.mean() > 0.3
+    # a vertex off the 1/16 px grid is not exact (a 4-bit candidate may snap it elsewhere)
+    moved = [d.mesh.vertices.copy() for d in eq.draws]
+    moved[0][0, 0] += 1.0 / 64.0
+    prep = prepare([(moved[0], eq.draws[0].mesh.faces)], **eq.camera.kwargs,
+                   model=kw["model"], raster=geom)
+    ex = exact_faces(prep, 4)
+    touching = (eq.draws[0].mesh.faces == 0).any(axis=1)
+    assert not ex[touching].any() and ex[~touching].all()
 
 
 def test_report_reads_coverage_in_the_depth_direction(gold, tmp_path):
@@ -276,10 +320,9 @@ def test_command_refuses_a_technique_scene_in_one_line(tmp_path, capsys):
     assert cli.main(["generate", "--out", str(tmp_path / "g"), "--scene", "ldi_nested_shells",
                      "--convention", "vulkan"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == ["golden generate: error: scene 'ldi_nested_shells': technique 'ldi' does not "
-                   "honour vulkan's conventions: its allowances (layer face sets) are derived "
-                   "in OpenGL's conventions only (--convention applies to render, clipsurface, "
-                   "cutaway scenes)"]
+    assert len(err) == 1 and err[0].startswith(
+        "golden generate: error: --convention vulkan cannot emit scene 'ldi_nested_shells': "
+        "technique 'ldi' is not drawn again in other conventions: "), err
     assert not (tmp_path / "g").exists()
 
 

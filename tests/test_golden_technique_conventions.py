@@ -138,15 +138,61 @@ def test_wrong_candidates_fail_naming_the_buffer(golds, tmp_path, fault, name):
         assert f"{name}/{key}:" in text, (fault, key, text[:2000])
 
 
-def test_other_techniques_refused_naming_scene_and_why(tmp_path, capsys):
+def test_other_techniques_refused_naming_option_scene_and_why(tmp_path, capsys):
+    """Attack: every registered technique ``--convention`` does not draw again, asked for in
+    another API's conventions, is refused before anything renders, in one line naming the
+    option, the scene, the technique and its own reason (never the generic one), exit 2, no
+    golden written."""
     from refraster.golden import cli
-    for name, why in (("ldi_nested_shells", "layer face sets"), ("edges_building", "edge"),
-                      ("vds_parity_building", "parity"), ("halos4d_figure1", "4D")):
+    from refraster.golden.conventions import REFUSED, TECHNIQUES_IN_CONVENTIONS
+    registry = golden.available_scenes()
+    others = sorted({e.technique for e in registry.values()} - set(TECHNIQUES_IN_CONVENTIONS))
+    assert set(others) == set(REFUSED), others          # a new technique gets its reason
+    for k, technique in enumerate(others):
+        name = next(n for n, e in registry.items() if e.technique == technique)
+        api = ("vulkan", "d3d12", "metal", "webgpu")[k % 4]
         assert cli.main(["generate", "--out", str(tmp_path / "g"), "--scene", name,
-                         "--convention", "metal"]) == 2
+                         "--convention", api]) == 2
         err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and f"scene {name!r}" in err[0] and why in err[0], err
+        assert err == [f"golden generate: error: --convention {api} cannot emit scene "
+                       f"{name!r}: technique {technique!r} is not drawn again in other "
+                       f"conventions: {REFUSED[technique]} (--convention emits render, "
+                       f"clipsurface, cutaway scenes)"], err
+    # a multisampled technique scene (its technique drawn again at one sample only)
+    from refraster.golden.conventions import SAMPLED
+    name = next(n for n, e in registry.items()
+                if e.samples > 1 and e.technique in TECHNIQUES_IN_CONVENTIONS)
+    assert cli.main(["generate", "--out", str(tmp_path / "g"), "--scene", name,
+                     "--convention", "vulkan"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"golden generate: error: --convention vulkan cannot emit scene {name!r}: "
+                   f"technique {registry[name].technique!r} is not drawn again in other "
+                   f"conventions: {SAMPLED} (--convention emits render, clipsurface, "
+                   f"cutaway scenes)"], err
     assert not (tmp_path / "g").exists()
+
+
+def test_a_technique_scene_in_other_conventions_is_refused_under_gl(tmp_path, capsys):
+    """Attack: ``--convention gl`` keeps a scene of another technique that is in OpenGL's
+    conventions as built, but one in others (the reversed-Z peel) cannot be drawn again: one
+    line naming the option, scene and technique, exit 2, no golden; and without ``--scene``
+    the command emits only the techniques it draws again, for ``gl`` too."""
+    from refraster.golden import cli
+    from refraster.golden.cli import _in_convention
+    from refraster.golden.conventions import REFUSED
+    assert cli.main(["-q", "generate", "--out", str(tmp_path / "g"), "--scene",
+                     "reversed_z_peel", "--convention", "gl"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["golden generate: error: --convention gl cannot emit scene "
+                   "'reversed_z_peel': technique 'ldi' is not drawn again in other "
+                   f"conventions: {REFUSED['ldi']} (--convention emits render, clipsurface, "
+                   "cutaway scenes)"], err
+    assert not (tmp_path / "g").exists()
+    registry = golden.available_scenes()
+    for api in ("gl", "vulkan"):
+        names = {e.name for e in _in_convention(api, None, ())}
+        assert "reversed_z_peel" not in names and "vulkan_cube" in names
+        assert all(registry[n].samples == 1 for n in names), api
 
 
 def test_all_scenes_in_a_convention_include_the_techniques():

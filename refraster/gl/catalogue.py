@@ -61,7 +61,7 @@ CLASSES = (
     _C("perspective-correct interpolation", "transforms", "noperspective",
        ("render_cube",), "attributes interpolated linearly in window space"),
     _C("winding under an upper-left origin", "transforms", "winding_not_flipped",
-       ("vulkan_cube", "d3d12_exact_ties"),
+       ("vulkan_cube",),
        "glFrontFace not inverted with the origin (GL negates the polygon area under "
        "GL_UPPER_LEFT): front and back swap"),
     # --- rasterization ----------------------------------------------------------------------
@@ -73,7 +73,7 @@ CLASSES = (
        "allowance moves every edge by the snapping of either); the planted variant snaps to 1 "
        "bit (a half-pixel grid)"),
     _C("fill rule on shared edges", "rasterization", "fill_rule_neither",
-       ("catalogue_pixel_centres", "d3d12_exact_ties"),
+       ("catalogue_pixel_centres",),
        "a pixel centre exactly on an edge shared by two triangles covered by neither",
        "either fill rule (top-left or bottom-left; the centre goes to exactly one of the two "
        "triangles) is allowed; the planted variant gives it to neither (a crack)"),

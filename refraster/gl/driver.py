@@ -174,6 +174,11 @@ class Backend:
             changed = sorted(k for k in conv if conv[k] != CONVENTION_DEFAULTS[k])
             return (f"technique {technique!r} renders OpenGL's conventions only; the scene sets "
                     f"raster {', '.join(changed)}")
+        if scene.get("exact_ties"):
+            return (f"exact_ties: the golden decides pixel centres exactly on edges by "
+                    f"raster.fill_rule {scene.get('raster', {}).get('fill_rule')!r}, which "
+                    f"OpenGL cannot be asked for (llvmpipe owns a centre on a horizontal edge "
+                    f"by the left/bottom rule under either origin)")
         if technique == "ldi" and conv["depth_format"] != "float32":
             return ("ldi: peeling compares gl_FragCoord.z with the previous layer's; it needs "
                     "depth_format 'float32'")

@@ -120,7 +120,9 @@ def _say(args, message):
 
 def _in_convention(api, names, scene_files):
     """The scenes of ``generate --convention API``: the named ones (or, without ``--scene``,
-    every registered scene whose technique honours the conventions) and the TOML scenes, each
+    every single-sample scene whose technique honours the conventions, for ``gl`` too: a scene of
+    another technique may be in other conventions already, ``reversed_z_peel``) and the TOML
+    scenes, each
     drawn in ``api``'s conventions (:func:`refraster.golden.conventions.in_convention`)."""
     from .conventions import TECHNIQUES_IN_CONVENTIONS, in_convention
     from .scenes import available_scenes, load_scene_file
@@ -128,7 +130,7 @@ def _in_convention(api, names, scene_files):
     if names is None:
         names = [] if scene_files else [
             n for n, e in registry.items()
-            if api == "gl" or e.technique in TECHNIQUES_IN_CONVENTIONS]
+            if e.technique in TECHNIQUES_IN_CONVENTIONS and e.samples == 1]
     unknown = [n for n in names if n not in registry]
     if unknown:
         raise ValueError(f"unknown golden scene(s) {unknown}; known: {sorted(registry)}")

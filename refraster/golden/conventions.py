@@ -22,7 +22,7 @@ import numpy as np
 from ..raster.state import DEPTH_RANGES
 
 __all__ = ["API_CONVENTIONS", "convert_projection", "convention_overrides",
-           "TECHNIQUES_IN_CONVENTIONS", "REFUSED", "in_convention"]
+           "TECHNIQUES_IN_CONVENTIONS", "REFUSED", "SAMPLED", "in_convention"]
 
 #: API → the raster fields that API's conventions set (the rest stay the scene's own). The
 #: fill rule: Direct3D's top-left rule is exact; Vulkan, Metal and WebGPU leave ties to the
@@ -44,13 +44,20 @@ API_CONVENTIONS = {
 TECHNIQUES_IN_CONVENTIONS = ("render", "clipsurface", "cutaway")
 #: Technique → why ``--convention`` refuses its scenes.
 REFUSED = {
-    "ldi": "its allowances (layer face sets) are derived in OpenGL's conventions only",
+    "ldi": "the peel is not run again from the built scene with the converted camera and "
+           "raster state, so its layers and their face sets would stay OpenGL's (the "
+           "reversed-Z peel golden is 'reversed_z_peel')",
     "edges": "the edge operators read OpenGL's window depth and their allowances are "
              "derived on it",
     "vds": "its parity decision's probes are derived in OpenGL's conventions only",
     "halos4d": "it does not rasterize through the raster state (4D slicing into its own "
                "volume)",
+    "msaa": "its per-sample allowances are derived in OpenGL's conventions only (depth_func "
+            "'less', a float32 depth buffer cleared to 1)",
 }
+#: Why ``--convention`` refuses a multisampled technique scene (``samples > 1``).
+SAMPLED = ("the scene is multisampled (raster.samples > 1): its per-sample pass is not run "
+           "again with the converted camera and raster state")
 
 
 def convert_projection(proj, depth_range, *, source="negative_one_to_one", reversed=False):
@@ -107,6 +114,8 @@ def in_convention(entry, api, *, reversed=False):
         raise ValueError(f"convention must be one of {', '.join(API_CONVENTIONS)}; got {api!r}")
     if (api != "gl" or reversed) and entry.technique not in TECHNIQUES_IN_CONVENTIONS:
         _refuse(entry.name, entry.technique, api)
+    if (api != "gl" or reversed) and entry.samples > 1:
+        _refuse(entry.name, entry.technique, api, why=SAMPLED)
 
     def build(**params):
         scene = entry.build(**params)
@@ -137,17 +146,18 @@ def in_convention(entry, api, *, reversed=False):
         return out
 
     build.__signature__ = _signature(entry.build)
-    return SceneEntry(entry.name, entry.technique, entry.description, build)
+    return SceneEntry(entry.name, entry.technique, entry.description, build, entry.samples)
 
 
 #: The depth tests reversed-Z turns the usual ones into.
 _REVERSE = {"less": "greater", "lequal": "gequal"}
 
 
-def _refuse(name, technique, api):
-    why = REFUSED.get(technique, "its scenes cannot be rendered again from the built scene")
-    raise ValueError(f"scene {name!r}: technique {technique!r} does not honour {api}'s "
-                     f"conventions: {why} (--convention applies to "
+def _refuse(name, technique, api, why=None):
+    if why is None:
+        why = REFUSED.get(technique, "its scenes cannot be rendered again from the built scene")
+    raise ValueError(f"--convention {api} cannot emit scene {name!r}: technique {technique!r} "
+                     f"is not drawn again in other conventions: {why} (--convention emits "
                      f"{', '.join(TECHNIQUES_IN_CONVENTIONS)} scenes)")
 
 

@@ -97,10 +97,11 @@ def _id_range(name, key, scene, a):
 def _write_scene(root, name, scene):
     """Write one scene under ``root``; return its manifest entry. The allowances are derived
     for the declared candidate bits (:func:`render_task`)."""
-    from .allowances.core import scene_allowances
+    from .allowances.core import decided_tie_faces, scene_allowances
     from .allowances.samples import msaa_allowances
     raster = raster_state(scene.raster)
-    export_package(root / name / "package", name, scene, raster)
+    export_package(root / name / "package", name, scene, raster,
+                   exact_ties=decided_tie_faces(scene, raster) > 0)
     rio.atomic_write_bytes(root / name / "buffers.npz", npz_bytes(scene.buffers))
     # multisampled scenes: per sample, on the scene moved by each sample's offset
     # technique scenes at samples > 1: the single-sample allowances per sample (clip surfaces:

@@ -15,7 +15,10 @@ Conventions it implements (``docs/backends.md``, "refraster.wgpu", walks through
   attachment (``depth32float``, ``depth24plus``, ``depth16unorm``); under the unorm formats the
   candidate's ``depth`` is the depth buffer itself, read with ``textureLoad`` (``k/(2^n − 1)``;
   WebGPU cannot copy ``depth24plus`` to a buffer). The fill rule (``raster.fill_rule``) is not a
-  WebGPU setting: the adapter's decides exact ties, which the goldens allow either way.
+  WebGPU setting: the adapter's decides exact ties, which the goldens allow either way, but
+  in a scene whose ``scene.json`` says ``"exact_ties": true`` (Direct3D's top-left rule
+  decides them there); lavapipe breaks ties top-left as the picture is seen, so it renders
+  those too.
 * Front faces as the scene says, counter-clockwise as the picture is seen (WebGPU's
   ``frontFace`` is defined on the framebuffer, whose row 0 is the image's top row); the arrays
   read back have row 0 at the top already: no flip.

@@ -65,7 +65,8 @@ from refraster.raster.state import RasterState
 from .conventions import covered_by, depth_covered
 from .precision import candidate_bits, declared
 
-__all__ = ["scene_allowances", "tolerant_metrics", "dilate", "surface_step", "TOLERANT_CHECKS"]
+__all__ = ["scene_allowances", "tolerant_metrics", "dilate", "surface_step", "TOLERANT_CHECKS",
+           "decided_tie_faces"]
 
 TOLERANT_CHECKS = ("coverage", "id", "interval", "angle", "masked", "face", "layers", "bounds",
                    "clip")
@@ -191,6 +192,29 @@ def scene_allowances(scene, raster, bits=None):
         arrays, info, checks = gl_allowances(eq_scene, eq_raster)
     move_back(arrays, scene, raster, eq_scene)
     return arrays, info, checks
+
+
+def decided_tie_faces(scene, raster, bits=None):
+    """How many faces of ``scene`` have their exact ties decided by the golden: under a fill
+    rule exact at ties (:data:`refraster.conformance.EXACT_FILL_RULES`, Direct3D's top-left)
+    the faces every allowed candidate places exactly (:func:`refraster.conformance.exact_faces`
+    on the equivalent OpenGL scene, for a candidate of ``bits`` sub-pixel bits, default the
+    declared ones) mark no edge "may": a pixel centre exactly on one of their edges must go to
+    the face the rule names. ``scene.json`` says so (``"exact_ties": true``) when this is not
+    0, and a backend that cannot reproduce the rule at ties refuses the scene
+    (``docs/golden-schema.md``). 0 for a multisampled scene (its per-sample allowances keep
+    every tie "may")."""
+    from ...conformance import EXACT_FILL_RULES, exact_faces
+    from ...raster import prepare
+    from .conventions import equivalent
+    if scene.technique == "msaa" or not scene.draws \
+            or _geometry(raster).fill_rule not in EXACT_FILL_RULES:
+        return 0
+    eq_scene, eq_raster = equivalent(scene, raster)
+    cam = eq_scene.camera
+    prep = prepare([d.mesh for d in eq_scene.draws], **cam.kwargs,
+                   model=[d.model for d in eq_scene.draws], raster=_geometry(eq_raster))
+    return int(exact_faces(prep, candidate_bits() if bits is None else bits).sum())
 
 
 def _geometry(raster):

@@ -89,8 +89,10 @@ def camera_near_far(proj, depth_range="negative_one_to_one"):
     return float(near), (float(far) if np.isfinite(far) else None)
 
 
-def scene_document(name, scene, raster, map_entries):
-    """The ``scene.json`` document of a :class:`GoldenScene` (validated against the schema)."""
+def scene_document(name, scene, raster, map_entries, *, exact_ties=False):
+    """The ``scene.json`` document of a :class:`GoldenScene` (validated against the schema).
+    ``exact_ties``: the golden decides pixel centres exactly on some edges by
+    ``raster.fill_rule`` (written as ``"exact_ties": true``; absent otherwise)."""
     cam = scene.camera
     near, far = camera_near_far(cam.proj, raster.get("depth_range", "negative_one_to_one"))
     doc = {
@@ -112,12 +114,14 @@ def scene_document(name, scene, raster, map_entries):
         "maps": map_entries,
         "parameters": scene.parameters,
     }
+    if exact_ties:
+        doc["exact_ties"] = True
     return validate(doc, SCENE_SCHEMA)
 
 
-def export_package(directory, name, scene, raster):
+def export_package(directory, name, scene, raster, *, exact_ties=False):
     """Write the scene package of ``scene`` into ``directory``; return the files written
-    (paths relative to ``directory``, POSIX)."""
+    (paths relative to ``directory``, POSIX). ``exact_ties`` as :func:`scene_document`."""
     directory = Path(directory)
     written = []
     for d in scene.draws:
@@ -134,6 +138,7 @@ def export_package(directory, name, scene, raster):
         map_entries[key] = {"npy": f"maps/{key}.npy", "png": f"maps/{key}.png",
                             "shape": list(values.shape), "dtype": str(values.dtype),
                             "png_encoding": encoding}
-    rio.write_json(directory / "scene.json", scene_document(name, scene, raster, map_entries))
+    rio.write_json(directory / "scene.json", scene_document(name, scene, raster, map_entries,
+                                                          exact_ties=exact_ties))
     written.append("scene.json")
     return written

@@ -160,6 +160,7 @@ SCENE_SCHEMA = {
             },
         },
         "parameters": {"type": "object"},
+        "exact_ties": {"type": "boolean"},
     },
 }
 
