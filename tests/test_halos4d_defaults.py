@@ -73,6 +73,33 @@ def test_close_pairs_equal_brute_force():
     assert len(got) == len(i)
 
 
+def _brute_pairs(p, radius):
+    """Every pair i < j with the exact test of the pair search, ``einsum(diff, diff) < r²``."""
+    i, j = np.triu_indices(len(p), 1)
+    diff = p[i] - p[j]
+    near = np.einsum("ij,ij->i", diff, diff) < radius * radius
+    return set(zip(i[near].tolist(), j[near].tolist()))
+
+
+def test_close_pairs_decide_borderline_distances_exactly():
+    """Issue 46: the grid kernel sums the squared distance in its own order and leaves pairs
+    within PAIR_MARGIN of the radius to the NumPy test; on a lattice whose spacing is the
+    radius (distance² = r² exactly: not a pair) and with points one ulp either side of it, the
+    pairs are the exact test's (a kernel that kept borderline pairs on its own sum fails)."""
+    r = 0.25
+    g = np.arange(6) * r
+    p = np.stack(np.meshgrid(g, g, g[:3], indexing="ij"), axis=-1).reshape(-1, 3)
+    rng = np.random.default_rng(46)
+    nudge = rng.integers(-2, 3, size=p.shape)
+    p = p + nudge * np.spacing(np.maximum(np.abs(p), r))
+    p = p[rng.permutation(len(p))]
+    i, j = ht._close_pairs(p, r)
+    got = set(zip(i.tolist(), j.tolist()))
+    assert len(got) == len(i)
+    want = _brute_pairs(p, r)
+    assert 0 < len(want) and got == want
+
+
 def test_defaults_carving_grows_with_depth_difference_on_fig1_family():
     rho, delta_d = fig1_defaults()
     carved = carved_by_strip(rho, delta_d)

@@ -436,3 +436,23 @@ def test_gl_backend_port_of_the_paper_split_is_the_same():
         np.testing.assert_array_equal(cyc, ps.steiner)
         rebuilt += len(cyc)
     assert rebuilt > 0
+
+
+# ----------------------------------------------------------------------------- the split cache
+def test_prepare_caches_the_split_and_honours_a_patched_repair(monkeypatch):
+    """Issue 46: :func:`prepare` reuses a surface's split across views (it does not depend on
+    the view), hands out its own copy of the tetrahedra, and a patched repair (the planted
+    faults above) is a new cache entry, not the cached repaired split."""
+    s = h.spun_trefoil(24, 8)
+    a, _ = prepare(s, view=View4D(rotation=h.rotation("zw", 0.3)))
+    b, _ = prepare(s, view=View4D(rotation=h.rotation("zx", 0.7)))
+    assert np.array_equal(a.tets, b.tets) and a.tets is not b.tets
+    a.tets[:] = 0                                        # the caller's copy only
+    c, _ = prepare(s, view=View4D(rotation=h.rotation("zw", 0.3)))
+    assert np.array_equal(c.tets, b.tets)
+    f = s.faces
+    assert np.array_equal(c.tets, split_prisms(f, s.n_vertices).tets)
+    monkeypatch.setattr(thicken, "repair_mismatches", lambda f, d, skip=(): 0)
+    d, _ = prepare(s, view=View4D(rotation=h.rotation("zw", 0.3)))
+    assert np.array_equal(d.tets, split_prisms(f, s.n_vertices).tets)
+    assert not np.array_equal(d.tets, c.tets)

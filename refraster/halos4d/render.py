@@ -61,8 +61,10 @@ __all__ = ["render_halos", "render_halos_pair", "HaloRender", "prepare", "HaloGe
 
 EMPTY, SURFACE, CARVED, HALO, BOUNDARY = 0, 1, 2, 3, 4
 ENGINES = ("fused", "reference")
-#: Rows per band of the fused kernel (each band is one unit of parallel work).
-BAND_ROWS = 8
+#: Rows per band of the fused kernel (each band is one unit of parallel work). The output does
+#: not depend on it (each pixel sees its fragments in draw order in any band); 16 rather than 8:
+#: a slice triangle (a few rows high) falls into fewer bands, so fewer set-ups (issue 46).
+BAND_ROWS = 16
 #: Slice triangles per chunk of the parallel band binning (one unit of parallel work).
 BIN_CHUNK = 1 << 14
 
@@ -128,6 +130,40 @@ def default_antialias(pixel, rho, surface_width):
     return float(min(surface_width, 0.5 * ANTIALIAS_PIXELS * pixel / rho))
 
 
+#: How many prism splits :func:`_split_prisms_cached` keeps (most recent first).
+SPLIT_CACHE_SIZE = 8
+_split_cache = collections.OrderedDict()
+_split_lock = threading.Lock()
+
+
+def _split_prisms_cached(faces, n_vertices, split):
+    """:func:`split_prisms` memoized on a digest of the faces, the vertex count and the split:
+    the tetrahedra do not depend on the view, so a surface drawn again under another rotation
+    (an interactive session) does not split its prisms again (issue 46). The tetrahedra are
+    returned as a copy (``HaloGeometry.tets`` is the caller's to change); the other arrays
+    are only read."""
+    f = np.ascontiguousarray(faces)
+    h = hashlib.blake2b(digest_size=20)
+    h.update(str((f.dtype.str, f.shape, int(n_vertices), split)).encode())
+    h.update(f.data)
+    tk = sys.modules[__package__ + ".thicken"]
+    # the functions it calls are part of the key: a patched one (the tests' planted faults)
+    # is a new entry
+    key = (h.digest(), id(split_prisms), id(tk.repair_mismatches), id(tk.paper_diagonals),
+           id(tk.prism_tetrahedra), id(tk._apex_tets))
+    with _split_lock:
+        hit = _split_cache.get(key)
+        if hit is not None:
+            _split_cache.move_to_end(key)
+    if hit is None:
+        hit = split_prisms(f, n_vertices, split)
+        with _split_lock:
+            _split_cache[key] = hit
+            while len(_split_cache) > SPLIT_CACHE_SIZE:
+                _split_cache.popitem(last=False)
+    return hit._replace(tets=hit.tets.copy())
+
+
 def prepare(surface, *, view=None, rho=None, ambient=AMBIENT, split="paper"):
     """Project, thicken and tetrahedralize ``surface`` (Sec. 4.2–4.4, 5.1). Returns
     ``(HaloGeometry, rho)``; ``view`` a :class:`View4D` (its rotation, projection, eye and scale;
@@ -156,7 +192,7 @@ def prepare(surface, *, view=None, rho=None, ambient=AMBIENT, split="paper"):
     n = surface.n_vertices
     attr = np.column_stack([np.concatenate([pr.depth, pr.depth]), t,
                             np.concatenate([rgb, rgb])])
-    ps = split_prisms(f, n, split)
+    ps = _split_prisms_cached(f, n, split)
     verts = steiner_values(verts, ps.steiner, n)
     attr = steiner_values(attr, ps.steiner, n)
     tets = ps.tets
