@@ -23,9 +23,11 @@ import sys
 import threading
 import time
 
+from ._tiers import RENDER_KERNELS as _RENDER_KERNELS
+
 __all__ = ["SPLIT_KERNEL", "warm_only", "warm_core_split", "KERNEL_MODULES", "CORE_MODULES", "RENDER_KERNELS", "CLIP_KERNELS", "STREAM_KERNELS", "GALLERY_SKIPS", "kernels", "cache_state", "CompileProgress",
            "warm_core", "compile_listener", "CLIPSURFACE_SIDE_KERNELS", "warm_clipsurface_side",
-           "FUSED_CLIP_KERNEL", "warm_fused_clip"]
+           "FUSED_CLIP_KERNEL", "warm_fused_clip", "warm_full_tier"]
 
 #: The modules whose kernels the pipeline (``refraster.render``) compiles.
 CORE_MODULES = ("refraster.mesh", "refraster.raster.primitive", "refraster.raster.rasterizer",
@@ -34,11 +36,7 @@ CORE_MODULES = ("refraster.mesh", "refraster.raster.primitive", "refraster.raste
 #: no face crosses a clipping plane (a mesh framed by the camera), by ``module.qualname``; the
 #: rest of the core's are other paths' (clipping: :data:`CLIP_KERNELS`; the fragment stream,
 #: float64 vertices, smooth normals with creases).
-RENDER_KERNELS = (
-    "refraster.raster.primitive._transform32", "refraster.raster.primitive._vertex_pass",
-    "refraster.raster.primitive._classify", "refraster.raster.rasterizer._bin_pass",
-    "refraster.raster.rasterizer._fused_pass", "refraster.raster.gbuffer.finalize",
-    "refraster.raster.gbuffer.shade")
+RENDER_KERNELS = _RENDER_KERNELS
 #: The kernels of faces crossing a clipping plane (compiled only when a frame has one).
 CLIP_KERNELS = ("refraster.raster.primitive._clip_pass",
                 "refraster.raster.primitive._clip_polygon",
@@ -498,5 +496,58 @@ def warm_fused_clip():
         _fused_clip(prep, tv, tv, 1, _surfaces_in_space([surface], "world", view), None, [None])
 
 
-if __name__ == "__main__":   # the second process of warm_core_split: compile the named kernels
-    warm_only(sys.argv[1:])
+def warm_full_tier(stream=None):
+    """The second process of a quick-tier first render (:mod:`refraster._tiers`): compile the
+    quick twin of :data:`refraster._tiers.SPLIT_KERNEL` (the parent compiles the other six
+    meanwhile), say ``quick`` on ``stream`` (default stdout; the parent waits for that line),
+    then the full tier of the render kernels, all into the cache, at a lower priority. One
+    such process per cache directory at a time (a lock file beside the fused kernel's cache
+    files): a second one only says ``busy`` and ends."""
+    from . import _tiers
+    out = sys.stdout if stream is None else stream
+    lock = _tier_lock()
+    if lock is False:
+        out.write("busy\n")
+        out.flush()
+        return
+    try:
+        try:
+            os.nice(5)
+        except (AttributeError, OSError):
+            pass
+        _tiers.force(_tiers.QUICK)
+        warm_only([_tiers.SPLIT_KERNEL])
+        out.write("quick\n")
+        out.flush()
+        _tiers.force(_tiers.FULL)
+        warm_core(("flat",))
+    finally:
+        if lock is not None:
+            lock.close()
+
+
+def _tier_lock():
+    """An exclusive lock on ``refraster-full-tier.lock`` in the fused kernel's cache
+    directory: the open file (closing it unlocks), ``False`` when another process holds it,
+    ``None`` when locks are not available here (then there is no lock)."""
+    try:
+        import fcntl
+        from . import _tiers
+        path = os.path.join(_tiers._dispatcher(_tiers.SPLIT_KERNEL)._cache._cache_path,
+                            "refraster-full-tier.lock")
+        fh = open(path, "a")
+    except (ImportError, AttributeError, OSError):
+        return None
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        fh.close()
+        return False
+    return fh
+
+
+if __name__ == "__main__":
+    if sys.argv[1:] == ["--full-tier"]:   # the second process of a quick-tier first render
+        warm_full_tier()
+    else:   # the second process of warm_core_split: compile the named kernels
+        warm_only(sys.argv[1:])
