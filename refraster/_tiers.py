@@ -12,8 +12,8 @@ only its frames are slower.
 ``REFRASTER_TIER`` chooses: ``auto`` (default) runs the **full tier** when its kernels are in
 the cache, and otherwise the quick tier while a second process
 (``python -m refraster.warmup --full-tier``, lower priority, outliving this one if need be)
-compiles the full tier into the cache; the process first compiles the quick tier's fused tile
-kernel, about half of the quick tier, so that this one compiles only the other six. Once the
+compiles the full tier into the cache; that process first compiles three of the quick tier's kernels
+(:data:`SPLIT_KERNELS`) while this one compiles the others, the fused tile kernel among them. Once the
 full tier is in the cache the next frame loads and runs it (the swap). ``full`` always runs
 the full tier (compiling it here when it is not cached: the commands that compile ahead,
 ``refraster warmup``, ``gallery``, ``golden generate``, set it); ``quick`` always the quick one.
@@ -33,7 +33,9 @@ import threading
 import time
 import types
 
-__all__ = ["RENDER_KERNELS", "SPLIT_KERNEL", "FULL", "QUICK", "kernel", "current", "force",
+from ._config import QHJIT, QJIT
+
+__all__ = ["RENDER_KERNELS", "SPLIT_KERNELS", "FULL", "QUICK", "kernel", "current", "force",
            "state", "preview", "twin", "cached"]
 
 #: The kernels ``refraster.render`` compiles for a frame and its colour when no face crosses
@@ -43,14 +45,13 @@ RENDER_KERNELS = (
     "refraster.raster.primitive._classify", "refraster.raster.rasterizer._bin_pass",
     "refraster.raster.rasterizer._fused_pass", "refraster.raster.gbuffer.finalize",
     "refraster.raster.gbuffer.shade")
-#: The quick-tier kernel the second process compiles first (about half of the quick tier).
-SPLIT_KERNEL = "refraster.raster.rasterizer._fused_pass"
+#: The quick-tier kernels the second process compiles first, in groups, saying each group's
+#: names when done: binning (this process needs it ~2 s in), then ``finalize`` and ``shade``
+#: (needed after the fused tile kernel, the largest, which this process compiles meanwhile).
+SPLIT_KERNELS = (("refraster.raster.rasterizer._bin_pass",),
+                 ("refraster.raster.gbuffer.finalize", "refraster.raster.gbuffer.shade"))
 
 FULL, QUICK = "full", "quick"
-#: The quick twins' flags: serial, no IR inlining; helpers (only ever called from twins) get
-#: no Python wrapper (its compile is a good part of a small function's).
-_QUICK_KERNEL = dict(cache=True, nogil=True, fastmath=False)
-_QUICK_HELPER = dict(_QUICK_KERNEL, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 _SUFFIX = "__quick"
 #: How often a quick-tier process looks whether the full tier has reached the cache.
 _POLL_SECONDS = 0.5
@@ -58,7 +59,7 @@ _POLL_SECONDS = 0.5
 _lock = threading.RLock()
 _twins = {}
 _st = {"tier": None, "why": "no frame yet", "ran": None, "proc": None, "next_poll": 0.0,
-       "split": None, "full": frozenset()}
+       "split": {}, "said": set(), "full": frozenset()}
 
 
 def _is_kernel(obj):
@@ -87,7 +88,7 @@ def twin(disp, helper=False):
         fn.__qualname__ = py.__qualname__ + _SUFFIX + ("_helper" if helper else "")
         fn.__module__ = py.__module__
         fn.__doc__ = py.__doc__
-        got = njit(**(_QUICK_HELPER if helper else _QUICK_KERNEL))(fn)
+        got = njit(**(QHJIT if helper else QJIT))(fn)
         _twins[key] = got
         # the globals it calls, read when it compiles: their twins (a name it calls itself
         # by, too)
@@ -165,11 +166,12 @@ def _decide():
     _st["why"] = "the full tier is not in the cache: a second process compiles it"
     # a kernel whose full tier is in the cache runs it: the same bytes either way
     _st["full"] = _cached_full_kernels()
-    split = _dispatcher(SPLIT_KERNEL)
     if os.environ.get("REFRASTER_TIER_SECOND", "1") != "0":
         _st["proc"] = _start_second_process()
-        _st["split"] = (None if _st["proc"] is None or id(split) in _st["full"]
-                        or cached(twin(split)) else split)
+        if _st["proc"] is not None:
+            _st["split"] = {id(d): n for n, d in ((n, _dispatcher(n)) for g in SPLIT_KERNELS
+                                                  for n in g)
+                            if id(d) not in _st["full"] and not cached(twin(d))}
     _st["next_poll"] = time.monotonic() + _POLL_SECONDS
     return QUICK
 
@@ -207,17 +209,20 @@ def current():
         return tier
 
 
-def _wait_for_split(disp):
-    """The second process compiles the quick twin of :data:`SPLIT_KERNEL` first and says so on
-    its standard output: wait for that line, then load it from the cache (or compile it here
-    when the process failed)."""
+def _wait_for_split(name):
+    """The second process compiles the quick twins of :data:`SPLIT_KERNELS` first and names
+    each group on its standard output when it is in the cache: wait for ``name`` (then the
+    twin loads from the cache), or for the end of its output (then it compiles here)."""
     proc = _st["proc"]
-    _st["split"] = None
-    if proc is not None:
+    while name not in _st["said"]:
         try:
-            proc.stdout.readline()
+            line = proc.stdout.readline() if proc is not None else ""
         except (OSError, ValueError):
-            pass
+            line = ""
+        if not line:
+            _st["said"].update(_st["split"].values())
+            break
+        _st["said"].update(line.split())
 
 
 def kernel(disp):
@@ -236,10 +241,10 @@ def kernel(disp):
         _st["ran"] = _st["ran"] or FULL
         return disp
     _st["ran"] = QUICK
-    if _st["split"] is disp:
+    name = _st["split"].get(id(disp))
+    if name is not None and name not in _st["said"]:
         with _lock:
-            if _st["split"] is disp:
-                _wait_for_split(disp)
+            _wait_for_split(name)
     return twin(disp)
 
 

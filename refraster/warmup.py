@@ -498,11 +498,12 @@ def warm_fused_clip():
 
 def warm_full_tier(stream=None):
     """The second process of a quick-tier first render (:mod:`refraster._tiers`): compile the
-    quick twin of :data:`refraster._tiers.SPLIT_KERNEL` (the parent compiles the other six
-    meanwhile), say ``quick`` on ``stream`` (default stdout; the parent waits for that line),
-    then the full tier of the render kernels, all into the cache, at a lower priority. One
-    such process per cache directory at a time (a lock file beside the fused kernel's cache
-    files): a second one only says ``busy`` and ends."""
+    quick twins of :data:`refraster._tiers.SPLIT_KERNELS` (the parent compiles the others
+    meanwhile), naming each group on ``stream`` (default stdout; the parent waits for a name
+    before it calls that kernel), then, at a lower priority, the full tier of the render
+    kernels, all into the cache. One such process per cache directory at a time (a lock file
+    beside the fused kernel's cache files): a second one only says ``busy`` and ends (the
+    parent then compiles what it needs)."""
     from . import _tiers
     out = sys.stdout if stream is None else stream
     lock = _tier_lock()
@@ -511,14 +512,15 @@ def warm_full_tier(stream=None):
         out.flush()
         return
     try:
+        _tiers.force(_tiers.QUICK)
+        for group in _tiers.SPLIT_KERNELS:
+            warm_only(list(group))
+            out.write(" ".join(group) + "\n")
+            out.flush()
         try:
             os.nice(5)
         except (AttributeError, OSError):
             pass
-        _tiers.force(_tiers.QUICK)
-        warm_only([_tiers.SPLIT_KERNEL])
-        out.write("quick\n")
-        out.flush()
         _tiers.force(_tiers.FULL)
         warm_core(("flat",))
     finally:
@@ -533,7 +535,7 @@ def _tier_lock():
     try:
         import fcntl
         from . import _tiers
-        path = os.path.join(_tiers._dispatcher(_tiers.SPLIT_KERNEL)._cache._cache_path,
+        path = os.path.join(_tiers._dispatcher(SPLIT_KERNEL)._cache._cache_path,
                             "refraster-full-tier.lock")
         fh = open(path, "a")
     except (ImportError, AttributeError, OSError):
