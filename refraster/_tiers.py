@@ -36,7 +36,7 @@ import types
 from ._config import QHJIT, QJIT
 
 __all__ = ["RENDER_KERNELS", "SPLIT_KERNELS", "FULL", "QUICK", "kernel", "current", "force",
-           "state", "preview", "twin", "cached"]
+           "state", "preview", "twin", "cached", "compiled_here", "split_wanted"]
 
 #: The kernels ``refraster.render`` compiles for a frame and its colour when no face crosses
 #: a clipping plane, by ``module.qualname``: the ones with a quick tier.
@@ -50,6 +50,8 @@ RENDER_KERNELS = (
 #: (needed after the fused tile kernel, the largest, which this process compiles meanwhile).
 SPLIT_KERNELS = (("refraster.raster.rasterizer._bin_pass",),
                  ("refraster.raster.gbuffer.finalize", "refraster.raster.gbuffer.shade"))
+
+_FUSED = "refraster.raster.rasterizer._fused_pass"
 
 FULL, QUICK = "full", "quick"
 _SUFFIX = "__quick"
@@ -116,6 +118,13 @@ def cached(disp):
         return False
 
 
+def split_wanted():
+    """Whether the second process compiles :data:`SPLIT_KERNELS` first: only beside this
+    process's largest compile, the quick fused tile kernel (when the full one is cached,
+    this process has little to compile)."""
+    return not cached(_dispatcher(_FUSED))
+
+
 def _full_cached():
     return all(cached(_dispatcher(n)) for n in RENDER_KERNELS)
 
@@ -168,7 +177,7 @@ def _decide():
     _st["full"] = _cached_full_kernels()
     if os.environ.get("REFRASTER_TIER_SECOND", "1") != "0":
         _st["proc"] = _start_second_process()
-        if _st["proc"] is not None:
+        if _st["proc"] is not None and split_wanted():
             _st["split"] = {id(d): n for n, d in ((n, _dispatcher(n)) for g in SPLIT_KERNELS
                                                   for n in g)
                             if id(d) not in _st["full"] and not cached(twin(d))}
@@ -219,7 +228,7 @@ def _wait_for_split(name):
             line = proc.stdout.readline() if proc is not None else ""
         except (OSError, ValueError):
             line = ""
-        if not line:
+        if not line or line.split() in (["done"], ["busy"]):   # not coming: compile here
             _st["said"].update(_st["split"].values())
             break
         _st["said"].update(line.split())
@@ -246,6 +255,18 @@ def kernel(disp):
         with _lock:
             _wait_for_split(name)
     return twin(disp)
+
+
+def compiled_here():
+    """The quick twins (``module.qualname__quick``) this process compiles in the quick tier:
+    those not in the cache whose full kernel is not either, less the second process's."""
+    out = []
+    for name in RENDER_KERNELS:
+        d = _dispatcher(name)
+        if id(d) in _st["full"] or id(d) in _st["split"] or cached(twin(d)):
+            continue
+        out.append(name + _SUFFIX)
+    return out
 
 
 def preview():

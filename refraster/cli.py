@@ -276,6 +276,8 @@ def _cmd_render(args):
         if _tiers.current() == _tiers.FULL:
             from .warmup import warm_core_split
             warm_core_split((args.normals,), progress=progress)
+        else:
+            progress.expect(_tiers.compiled_here())
     with _progress(args, total=3, desc="render", unit="step") as bar:
         bar.set_postfix_str(f"{len(mesh.faces):,} faces")
         bar.update(1)
@@ -315,8 +317,8 @@ def _cmd_render(args):
     where = {"-": "standard output"}
     from . import _tiers
     if _tiers.state()[0] == _tiers.QUICK:
-        _say(args, "render tier: quick (the same bytes; the full tier's faster frames are "
-                   "being compiled into the cache by a second process)")
+        _say(args, "render tier: quick (the same bytes, slower frames; a second process puts "
+                   "the full tier in the cache for the next runs)")
     _say(args, f"wrote {where.get(out, out)} ({args.width}x{args.height}, "
                f"{len(mesh.faces):,} faces, {int(fb.mask.sum()):,} pixels covered, "
                f"{seconds:.2f} s)" + (f" and {where.get(buffers, buffers)}" if buffers else ""))

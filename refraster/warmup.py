@@ -116,8 +116,10 @@ COMPILING = "compiling kernels, first run only"
 
 
 def _is_kernel(obj):
+    """A refraster kernel (a quick tier's helper twin, compiled into its callers, is not)."""
     from numba.core.registry import CPUDispatcher
-    return isinstance(obj, CPUDispatcher) and obj.py_func.__module__.startswith("refraster.")
+    return (isinstance(obj, CPUDispatcher) and obj.py_func.__module__.startswith("refraster.")
+            and not obj.py_func.__qualname__.endswith("__quick_helper"))
 
 
 def kernels(modules=KERNEL_MODULES):
@@ -208,6 +210,12 @@ class CompileProgress:
     @property
     def total(self):
         return len(self.pending | self.done)
+
+    def expect(self, names):
+        """Count ``names`` (``module.qualname``) as the kernels to compile instead of those not
+        in the cache at the start (a quick-tier render compiles the quick twins instead)."""
+        with self._lock:
+            self.pending = set(names)
 
     def add(self, name):
         """Count the kernel named ``module.qualname`` as compiled (from any process)."""
@@ -512,11 +520,14 @@ def warm_full_tier(stream=None):
         out.flush()
         return
     try:
-        _tiers.force(_tiers.QUICK)
-        for group in _tiers.SPLIT_KERNELS:
-            warm_only(list(group))
-            out.write(" ".join(group) + "\n")
-            out.flush()
+        if _tiers.split_wanted():
+            _tiers.force(_tiers.QUICK)
+            for group in _tiers.SPLIT_KERNELS:
+                warm_only(list(group))
+                out.write(" ".join(group) + "\n")
+                out.flush()
+        out.write("done\n")
+        out.flush()
         try:
             os.nice(5)
         except (AttributeError, OSError):
