@@ -33,6 +33,8 @@ import threading
 import time
 import types
 
+from numba.core.registry import CPUDispatcher
+
 from ._config import QHJIT, QJIT
 
 __all__ = ["RENDER_KERNELS", "SPLIT_KERNELS", "FULL", "QUICK", "kernel", "current", "force",
@@ -65,7 +67,6 @@ _st = {"tier": None, "why": "no frame yet", "ran": None, "proc": None, "next_pol
 
 
 def _is_kernel(obj):
-    from numba.core.registry import CPUDispatcher
     return isinstance(obj, CPUDispatcher) and obj.py_func.__module__.startswith("refraster.")
 
 
@@ -237,14 +238,18 @@ def _wait_for_split(name):
 def kernel(disp):
     """The kernel to call for ``disp`` in this process's tier: ``disp`` itself (full) or its
     quick twin. Anything not a refraster kernel (a stand-in of ``refraster.warmup``) is
-    returned as is."""
-    if _st["tier"] == FULL or not _is_kernel(disp):
-        if _st["ran"] is None and _is_kernel(disp):
-            _st["ran"] = FULL
+    returned as is. In the full tier a dictionary look-up and a comparison (warm frames pay
+    nothing more)."""
+    if _st["tier"] == FULL:
+        return disp
+    return _quick_or_full(disp)
+
+
+def _quick_or_full(disp):
+    if not _is_kernel(disp):
         return disp
     tier = current()
     if tier == FULL:
-        _st["ran"] = FULL
         return disp
     if id(disp) in _st["full"]:
         _st["ran"] = _st["ran"] or FULL
@@ -286,6 +291,8 @@ def preview():
 
 
 def state():
-    """``(ran, why)``: the tier of the last kernel run in this process (``None`` before the
-    first) and why this process runs the tier it runs."""
-    return _st["ran"], _st["why"]
+    """``(ran, why)``: the tier this process's render kernels run (``None`` before the first
+    frame decided it; in a process that has run the quick tier, ``quick`` until the full tier
+    is swapped in) and why."""
+    ran = FULL if _st["tier"] == FULL else _st["ran"]
+    return ran, _st["why"]
