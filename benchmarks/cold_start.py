@@ -10,8 +10,16 @@ events :mod:`benchmarks._compile_log` records): kernel, module, specialisations,
 seconds (exclusive of the kernels compiled inside it), share of the cold run's wall time.
 ``--table LOG.json`` prints the table of a log written before.
 
+``--render``: a user's first ``refraster.render`` of a cube (640×480, colour read) in a fresh
+``NUMBA_CACHE_DIR``, as ``python -c`` would run it: wall and CPU seconds of the process (its own
+and its children's), the tier it ran (``refraster._tiers``), for the default (``auto``: the
+quick tier while a second process compiles the full one) and ``REFRASTER_TIER=full`` in
+alternation; then how long until the full tier is in the cache, the second run, and the median
+frame of each tier once both are cached.
+
 Run from the repository root: ``python -m benchmarks.cold_start [--runs N] [--full]``,
-``python -m benchmarks.cold_start --kernels [--quick] [--log OUT.json]``.
+``python -m benchmarks.cold_start --kernels [--quick] [--log OUT.json]``,
+``python -m benchmarks.cold_start --render [--runs N]``.
 """
 
 from __future__ import annotations
@@ -81,6 +89,92 @@ def _kernels(args):
     return 0
 
 
+_FIRST_RENDER = """
+import resource, sys, time
+t0 = time.perf_counter()
+c0 = time.process_time()
+import numpy as np
+import refraster
+from refraster import _tiers, scenes
+cube = scenes.cube()
+mesh = (np.asarray(cube.vertices, np.float64), np.asarray(cube.faces, np.int64))
+view = refraster.look_at((1.6, 1.2, 2.4), (0, 0, 0))
+proj = refraster.perspective(45.0, 4 / 3, 0.5, 10.0)
+t1 = time.perf_counter()
+fb = refraster.render(mesh, view=view, proj=proj, width=640, height=480)
+np.asarray(fb.color)
+t2 = time.perf_counter()
+tier = _tiers.state()[0]
+frames = []
+for _ in range(int(sys.argv[1])):
+    t = time.perf_counter()
+    fb = refraster.render(mesh, view=view, proj=proj, width=640, height=480)
+    np.asarray(fb.color)
+    frames.append(time.perf_counter() - t)
+ch = resource.getrusage(resource.RUSAGE_CHILDREN)
+print(t2 - t0, t2 - t1, time.process_time() - c0, ch.ru_utime + ch.ru_stime, tier,
+      sorted(frames)[len(frames) // 2] if frames else 0.0)
+"""
+
+
+def _first_render(env, frames=0):
+    t0 = time.perf_counter()
+    r = subprocess.run([sys.executable, "-c", _FIRST_RENDER, str(frames)], env=env, check=True,
+                       capture_output=True, text=True, stdin=subprocess.DEVNULL)
+    wall = time.perf_counter() - t0
+    first, render, cpu, children, tier, frame = r.stdout.split()
+    return dict(wall=wall, first=float(first), render=float(render), cpu=float(cpu),
+                children=float(children), tier=tier, frame_ms=1e3 * float(frame))
+
+
+def _full_tier_cached(env):
+    code = "from refraster import _tiers; print(_tiers._full_cached())"
+    return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                          stdin=subprocess.DEVNULL).stdout.strip() == "True"
+
+
+def _load():
+    return " ".join(f"{x:.1f}" for x in os.getloadavg())
+
+
+def _render(args):
+    rows = []
+    for i in range(args.runs):
+        for setting in ("auto", "full"):
+            with tempfile.TemporaryDirectory(prefix="refraster-cold-") as tmp:
+                env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(tmp) / "numba-cache"),
+                           REFRASTER_TIER=setting)
+                load = _load()
+                r = _first_render(env)
+                t0 = time.perf_counter()
+                while setting == "auto" and not _full_tier_cached(env):
+                    time.sleep(2.0)
+                r["full_after"] = time.perf_counter() - t0 if setting == "auto" else 0.0
+                r["second"] = _first_render(env)["wall"]
+                if setting == "auto" and i == 0:
+                    r["frames"] = {t: _first_render(dict(env, REFRASTER_TIER=t), 15)["frame_ms"]
+                                   for t in ("quick", "full", "quick", "full")}
+                rows.append((setting, load, r))
+    print("first refraster.render of a cube (640x480, colour read), fresh NUMBA_CACHE_DIR; "
+          "CPU = the process's own + its children's (a second process outliving it is not "
+          "counted: see 'full tier cached after')")
+    print("| REFRASTER_TIER | load before | tier ran | python -c wall s | render wall s | "
+          "CPU s | full tier cached after s | second run wall s |")
+    print("|---|---|---|---:|---:|---:|---:|---:|")
+    for setting, load, r in rows:
+        print(f"| {setting} | {load} | {r['tier']} | {r['wall']:.1f} | {r['render']:.1f} | "
+              f"{r['cpu'] + r['children']:.1f} | "
+              f"{r['full_after']:.0f} | {r['second']:.1f} |" if setting == "auto" else
+              f"| {setting} | {load} | {r['tier']} | {r['wall']:.1f} | {r['render']:.1f} | "
+              f"{r['cpu'] + r['children']:.1f} | — | {r['second']:.1f} |")
+    for setting, _, r in rows:
+        if "frames" in r:
+            print("median warm frame, cube 640x480 with colour (15 frames; the later of each "
+                  "tier's two runs): quick "
+                  f"{r['frames']['quick']:.1f} ms, full {r['frames']['full']:.1f} ms")
+    return 0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=1, help="fresh cache directories to try")
@@ -89,7 +183,11 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="with --kernels: the quick gallery")
     ap.add_argument("--log", help="with --kernels: keep the compile log here")
     ap.add_argument("--table", metavar="LOG.json", help="the table of an existing log")
+    ap.add_argument("--render", action="store_true",
+                    help="a first refraster.render of a cube, quick tier and full")
     args = ap.parse_args(argv)
+    if args.render:
+        return _render(args)
     if args.kernels or args.table:
         return _kernels(args)
     rows = []

@@ -167,6 +167,8 @@ def run_groups(module, groups, jobs, *, key, command=None, progress=None, cold_s
                          warm_core)
     command = (lambda group: list(group)) if command is None else command
     env = dict(os.environ, NUMBA_NUM_THREADS="1")
+    if env.get("REFRASTER_TIER", "auto").strip().lower() in ("", "auto"):
+        env["REFRASTER_TIER"] = "full"   # many frames: the full tier (refraster/_tiers.py)
     answers = _queue.Queue()
     running = []
 

@@ -269,9 +269,15 @@ def _cmd_render(args):
         _merge_vertices(mesh)
     progress = getattr(args, "compile_progress", None)
     if progress is not None and progress.n:
-        # first run, options checked: compile the pipeline's kernels on a tiny frame first
-        from .warmup import warm_core_split
-        warm_core_split((args.normals,), progress=progress)
+        # first run, options checked: the quick tier, while a second process compiles the
+        # full one into the cache (refraster/_tiers.py); with REFRASTER_TIER=full, compile
+        # the pipeline's kernels on a tiny frame first, on both cores
+        from . import _tiers
+        if _tiers.current() == _tiers.FULL:
+            from .warmup import warm_core_split
+            warm_core_split((args.normals,), progress=progress)
+        else:
+            progress.expect(_tiers.compiled_here())
     with _progress(args, total=3, desc="render", unit="step") as bar:
         bar.set_postfix_str(f"{len(mesh.faces):,} faces")
         bar.update(1)
@@ -309,6 +315,10 @@ def _cmd_render(args):
             sys.stdout.flush()
         bar.update(1)
     where = {"-": "standard output"}
+    from . import _tiers
+    if _tiers.state()[0] == _tiers.QUICK:
+        _say(args, "render tier: quick (the same bytes, slower frames; a second process puts "
+                   "the full tier in the cache for the next runs)")
     _say(args, f"wrote {where.get(out, out)} ({args.width}x{args.height}, "
                f"{len(mesh.faces):,} faces, {int(fb.mask.sum()):,} pixels covered, "
                f"{seconds:.2f} s)" + (f" and {where.get(buffers, buffers)}" if buffers else ""))
@@ -712,6 +722,7 @@ def _cmd_info(args):
         ("kernel cache", f"{cache} [{how}]"),
         ("kernels", warmth),
         ("fast compile", _compile_speed_state()),
+        ("render tier", _tier_state()),
         ("output pool", _pool_state()),
         ("llvmpipe oracle", f"{'available' if ok else 'not available'} ({detail})"),
     ]
@@ -728,6 +739,16 @@ def _pool_state():
         return "off (REFRASTER_POOL_MB=0: every frame's outputs are new arrays)"
     return (f"up to {limit / (1 << 20):g} MiB of dropped frames' outputs recycled "
             "(REFRASTER_POOL_MB; 0 turns it off)")
+
+
+def _tier_state():
+    """Which tier of the render kernels a ``render`` runs (refraster/_tiers.py)."""
+    from . import _tiers
+    tier, why = _tiers.preview()
+    if tier == _tiers.FULL:
+        return f"full ({why}; REFRASTER_TIER=auto|full|quick)"
+    return (f"quick: serial, helpers not inlined, the same bytes, slower frames ({why}; "
+            "REFRASTER_TIER=auto|full|quick)")
 
 
 def _compile_speed_state():
@@ -758,6 +779,15 @@ def _compile_progress(args):
                            quiet=args.quiet)
 
 
+def _batch_runs_full_tier(args):
+    """``gallery``, ``golden generate`` and ``warmup`` compile ahead and render many frames:
+    the full tier of the render kernels (refraster/_tiers.py), unless ``REFRASTER_TIER`` says
+    otherwise (their workers get the same, refraster/_workers.py)."""
+    from . import _tiers
+    if args.command in ("gallery", "golden", "warmup") and _tiers._setting() == "auto":
+        _tiers.force(_tiers.FULL)
+
+
 def _one_line(exc):
     text = " ".join(str(exc).split())
     return text or type(exc).__name__
@@ -777,6 +807,7 @@ def main(argv=None):
             from ._logs import one_line_logs
             with one_line_logs(PROG, debug=getattr(args, "debug", debug),
                                quiet=getattr(args, "quiet", False)):
+                _batch_runs_full_tier(args)
                 with _compile_progress(args) as progress:
                     args.compile_progress = progress
                     return args.func(args)

@@ -12,6 +12,7 @@ import numpy as np
 
 from ._scratch import OUTPUTS, SCRATCH_FACES, scratch_lease
 from ._threads import frame_work, threads_for
+from ._tiers import kernel as tiered
 from ._validate import as_float_array, as_image_size, as_real
 from .mesh import as_meshes, smooth_normals
 from .raster import DEPTH_FUNCS, Fragments, facing, prepare, resolve
@@ -208,7 +209,7 @@ class _PendingShade:
         if args[10]:   # per-face normals: a fresh array, filled by shade from today's vertices
             args[9] = np.empty((int(args[6][-1]), 3))
         with threads_for(self.work):
-            shade(*args, color)
+            tiered(shade)(*args, color)
         return color
 
 
@@ -349,7 +350,7 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
             readonly(vnormals), smooth, readonly(offsets), readonly(mv), readonly(nmat))
     work = frame_work(offsets[-1], w, h)
     with threads_for(work):
-        finalize(*args, fnormal, per_face, fill_bg, eye_depth, normal, prim, obj, spans)
+        tiered(finalize)(*args, fnormal, per_face, fill_bg, eye_depth, normal, prim, obj, spans)
     color = _PendingShade(*args, _NO_FACE_NORMALS, per_face,
                           int(offsets[-1]) if n_shaded is None else int(n_shaded),
                           readonly(PALETTE), readonly(np.asarray(background, np.float64)),

@@ -23,9 +23,11 @@ import sys
 import threading
 import time
 
+from ._tiers import RENDER_KERNELS as _RENDER_KERNELS
+
 __all__ = ["SPLIT_KERNEL", "warm_only", "warm_core_split", "KERNEL_MODULES", "CORE_MODULES", "RENDER_KERNELS", "CLIP_KERNELS", "STREAM_KERNELS", "GALLERY_SKIPS", "kernels", "cache_state", "CompileProgress",
            "warm_core", "compile_listener", "CLIPSURFACE_SIDE_KERNELS", "warm_clipsurface_side",
-           "FUSED_CLIP_KERNEL", "warm_fused_clip"]
+           "FUSED_CLIP_KERNEL", "warm_fused_clip", "warm_full_tier"]
 
 #: The modules whose kernels the pipeline (``refraster.render``) compiles.
 CORE_MODULES = ("refraster.mesh", "refraster.raster.primitive", "refraster.raster.rasterizer",
@@ -34,11 +36,7 @@ CORE_MODULES = ("refraster.mesh", "refraster.raster.primitive", "refraster.raste
 #: no face crosses a clipping plane (a mesh framed by the camera), by ``module.qualname``; the
 #: rest of the core's are other paths' (clipping: :data:`CLIP_KERNELS`; the fragment stream,
 #: float64 vertices, smooth normals with creases).
-RENDER_KERNELS = (
-    "refraster.raster.primitive._transform32", "refraster.raster.primitive._vertex_pass",
-    "refraster.raster.primitive._classify", "refraster.raster.rasterizer._bin_pass",
-    "refraster.raster.rasterizer._fused_pass", "refraster.raster.gbuffer.finalize",
-    "refraster.raster.gbuffer.shade")
+RENDER_KERNELS = _RENDER_KERNELS
 #: The kernels of faces crossing a clipping plane (compiled only when a frame has one).
 CLIP_KERNELS = ("refraster.raster.primitive._clip_pass",
                 "refraster.raster.primitive._clip_polygon",
@@ -118,8 +116,10 @@ COMPILING = "compiling kernels, first run only"
 
 
 def _is_kernel(obj):
+    """A refraster kernel (a quick tier's helper twin, compiled into its callers, is not)."""
     from numba.core.registry import CPUDispatcher
-    return isinstance(obj, CPUDispatcher) and obj.py_func.__module__.startswith("refraster.")
+    return (isinstance(obj, CPUDispatcher) and obj.py_func.__module__.startswith("refraster.")
+            and not obj.py_func.__qualname__.endswith("__quick_helper"))
 
 
 def kernels(modules=KERNEL_MODULES):
@@ -210,6 +210,12 @@ class CompileProgress:
     @property
     def total(self):
         return len(self.pending | self.done)
+
+    def expect(self, names):
+        """Count ``names`` (``module.qualname``) as the kernels to compile instead of those not
+        in the cache at the start (a quick-tier render compiles the quick twins instead)."""
+        with self._lock:
+            self.pending = set(names)
 
     def add(self, name):
         """Count the kernel named ``module.qualname`` as compiled (from any process)."""
@@ -498,5 +504,63 @@ def warm_fused_clip():
         _fused_clip(prep, tv, tv, 1, _surfaces_in_space([surface], "world", view), None, [None])
 
 
-if __name__ == "__main__":   # the second process of warm_core_split: compile the named kernels
-    warm_only(sys.argv[1:])
+def warm_full_tier(stream=None):
+    """The second process of a quick-tier first render (:mod:`refraster._tiers`): compile the
+    quick twins of :data:`refraster._tiers.SPLIT_KERNELS` (the parent compiles the others
+    meanwhile), naming each group on ``stream`` (default stdout; the parent waits for a name
+    before it calls that kernel), then, at a lower priority, the full tier of the render
+    kernels, all into the cache. One such process per cache directory at a time (a lock file
+    beside the fused kernel's cache files): a second one only says ``busy`` and ends (the
+    parent then compiles what it needs)."""
+    from . import _tiers
+    out = sys.stdout if stream is None else stream
+    lock = _tier_lock()
+    if lock is False:
+        out.write("busy\n")
+        out.flush()
+        return
+    try:
+        if _tiers.split_wanted():
+            _tiers.force(_tiers.QUICK)
+            for group in _tiers.SPLIT_KERNELS:
+                warm_only(list(group))
+                out.write(" ".join(group) + "\n")
+                out.flush()
+        out.write("done\n")
+        out.flush()
+        try:
+            os.nice(5)
+        except (AttributeError, OSError):
+            pass
+        _tiers.force(_tiers.FULL)
+        warm_core(("flat",))
+    finally:
+        if lock is not None:
+            lock.close()
+
+
+def _tier_lock():
+    """An exclusive lock on ``refraster-full-tier.lock`` in the fused kernel's cache
+    directory: the open file (closing it unlocks), ``False`` when another process holds it,
+    ``None`` when locks are not available here (then there is no lock)."""
+    try:
+        import fcntl
+        from . import _tiers
+        path = os.path.join(_tiers._dispatcher(SPLIT_KERNEL)._cache._cache_path,
+                            "refraster-full-tier.lock")
+        fh = open(path, "a")
+    except (ImportError, AttributeError, OSError):
+        return None
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        fh.close()
+        return False
+    return fh
+
+
+if __name__ == "__main__":
+    if sys.argv[1:] == ["--full-tier"]:   # the second process of a quick-tier first render
+        warm_full_tier()
+    else:   # the second process of warm_core_split: compile the named kernels
+        warm_only(sys.argv[1:])

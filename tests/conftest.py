@@ -15,6 +15,11 @@ settings.load_profile("refraster")
 
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 
+# The full tier of the render kernels, whatever the cache holds: no second process compiling
+# it behind the tests' backs, the same frame speed on every run (refraster/_tiers.py;
+# tests/test_tiers.py runs the quick tier, tests/test_warmup.py a first render as users get it).
+os.environ.setdefault("REFRASTER_TIER", "full")
+
 
 def require(module_name, reason=None):
     """Import an optional oracle; skip the test when it is missing, fail under CI=true."""

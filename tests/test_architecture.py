@@ -55,6 +55,7 @@ FLOORS = {
     "refraster._config": "core",
     "refraster._compile_speed": "core",
     "refraster._threads": "core",
+    "refraster._tiers": "core",
     "refraster._scratch": "core",
     "refraster._logs": "core",
     # the techniques: one package per paper

@@ -9,7 +9,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1] / "refraster"
 
 
 def test_flags():
-    for flags in (cfg.JIT, cfg.PJIT, cfg.IJIT):
+    for flags in (cfg.JIT, cfg.PJIT, cfg.IJIT, cfg.QJIT, cfg.QHJIT):
         assert flags["cache"] is True
         assert flags["fastmath"] is False
 

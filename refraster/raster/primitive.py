@@ -39,6 +39,7 @@ import numpy as np
 from numba import njit, prange
 
 from .._config import IJIT, JIT, PJIT
+from .._tiers import kernel as tiered
 
 #: Window coordinates are kept within this many pixels of the viewport centre by clipping.
 GUARD_PIXELS = float(1 << 20)
@@ -107,7 +108,7 @@ def transform_vertices(vertices, mvp, precision="float32", out=None):
     """
     if precision == "float32":
         out = np.zeros((len(vertices), 4), np.float32) if out is None else out
-        _transform32(vertices, mvp.astype(np.float32), out)
+        tiered(_transform32)(vertices, mvp.astype(np.float32), out)
     else:
         out = np.zeros((len(vertices), 4), np.float64) if out is None else out
         _transform64(vertices, mvp.astype(np.float64), out)
@@ -462,12 +463,12 @@ def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8, conv
     vXf = _zeros(scratch, "vXf", nv, np.float32)
     vYf = _zeros(scratch, "vYf", nv, np.float32)
     vcode = _zeros(scratch, "vcode", nv, np.int64)
-    _vertex_pass(c, width, height, subpixel_bits, gx, gy, conv, vX, vY, vZ, vIW, vXf, vYf,
+    tiered(_vertex_pass)(c, width, height, subpixel_bits, gx, gy, conv, vX, vY, vZ, vIW, vXf, vYf,
                  vcode)
     status = _zeros(scratch, "status", len(f), np.int8)
     fbox = _zeros(scratch, "fbox", (len(f), 4), np.int32)
     pad = np.int64(pad)
-    _classify(f, vX, vY, vcode, width, height, subpixel_bits, cull, pad, status, fbox)
+    tiered(_classify)(f, vX, vY, vcode, width, height, subpixel_bits, cull, pad, status, fbox)
     idx = np.flatnonzero(status == CLIPPED)
     nchunks = max((len(idx) + _CHUNK - 1) // _CHUNK, 1)
     counts = np.zeros(nchunks, np.int64)

@@ -43,6 +43,7 @@ import numpy as np
 from numba import njit, prange
 
 from .._config import IJIT, PJIT
+from .._tiers import kernel as tiered
 from .._scratch import OUTPUTS
 from .primitive import CLIPPED, SIMPLE
 
@@ -130,7 +131,7 @@ def bin_primitives(prims, scratch=None):
     st = prims.clipped
     starts2 = np.zeros((nchunks, ntiles), np.int64)
     lists = np.zeros(0, np.int64)
-    _bin_pass(prims.status, prims.bbox, st.prim, st.bbox, ntx, ntiles, counts, starts2, lists,
+    tiered(_bin_pass)(prims.status, prims.bbox, st.prim, st.bbox, ntx, ntiles, counts, starts2, lists,
               False)
     per_tile = counts.sum(axis=0)
     starts = np.zeros(ntiles + 1, np.int64)
@@ -138,7 +139,7 @@ def bin_primitives(prims, scratch=None):
     starts2[:] = starts[:-1][None, :] + np.cumsum(counts, axis=0) - counts
     lists = (np.zeros(int(starts[-1]), np.int64) if scratch is None
              else scratch.zeros("lists", int(starts[-1]), np.int64))
-    _bin_pass(prims.status, prims.bbox, st.prim, st.bbox, ntx, ntiles, counts, starts2, lists,
+    tiered(_bin_pass)(prims.status, prims.bbox, st.prim, st.bbox, ntx, ntiles, counts, starts2, lists,
               True)
     return ntx, nty, starts, lists
 
@@ -597,6 +598,6 @@ def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, sc
         prim.fill(-1)
         front.fill(False)
         bary.fill(0.0)
-    _fused_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits, fill_rule,
+    tiered(_fused_pass)(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits, fill_rule,
                 depth_func, np.float32(clear_depth), depth, prim, front, bary)
     return depth, prim, front, bary
