@@ -2071,6 +2071,147 @@ def case_npr_composite():
                                      profile_color=(0.2, 0.0, 0.0), mask=fb.mask)}
 
 
+# ============================================================================== render_samples
+# defaults: raster=RasterState(samples=S) with sample_locations="standard",
+# interpolation="center"; model=None, background=(1, 1, 1). Every per-sample buffer (colour
+# included) and the sample positions.
+
+
+def _samples(sf):
+    out = dict(sf.arrays())
+    out["positions"] = sf.positions
+    return out
+
+
+def _rs(**fields):
+    import refraster as rf
+    return rf.RasterState(**fields)
+
+
+def _near_cam():
+    """The torus seen from inside its near plane's reach: faces cut into clipped pieces."""
+    return _cam(eye=(0.0, 0.5, 1.4))
+
+
+def case_samples_1():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(), raster=_rs(samples=1)))
+
+
+def case_samples_2_center():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(), raster=_rs(samples=2)))
+
+
+def case_samples_2_centroid():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=2, interpolation="centroid")))
+
+
+def case_samples_2_sample():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=2, interpolation="sample")))
+
+
+def case_samples_4_center():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(), raster=_rs(samples=4)))
+
+
+def case_samples_4_centroid():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=4, interpolation="centroid")))
+
+
+def case_samples_4_sample():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=4, interpolation="sample")))
+
+
+def case_samples_8_center():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(), raster=_rs(samples=8)))
+
+
+def case_samples_8_centroid():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=8, interpolation="centroid")))
+
+
+def case_samples_8_sample():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=8, interpolation="sample")))
+
+
+def case_samples_16_centroid():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=16, interpolation="centroid")))
+
+
+def case_samples_4_gl_llvmpipe():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=4, sample_locations="gl_llvmpipe")))
+
+
+def case_samples_4_user_locations():
+    """Samples on the pixel's corners and edges (0 and 8 sixteenths): ties with the tie
+    scene's edges."""
+    import refraster as rf
+    return _samples(rf.render_samples(
+        _ties(), **_tie_cam(), raster=_rs(samples=4, interpolation="centroid",
+                                          sample_locations=[(0, 0), (8, 0), (0, 8), (8, 8)])))
+
+
+def case_samples_4_ties_top_left():
+    import refraster as rf
+    return _samples(rf.render_samples(
+        _ties(), **_tie_cam(), raster=_rs(samples=4, fill_rule="top-left",
+                                          sample_locations=[(0, 0), (8, 0), (0, 8), (8, 8)])))
+
+
+def case_samples_4_depth_func_greater():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=4, depth_func="greater",
+                                                 clear_depth=0.0)))
+
+
+def case_samples_4_depth_func_lequal():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=4, depth_func="lequal",
+                                                 interpolation="centroid")))
+
+
+def case_samples_4_clipped():
+    import refraster as rf
+    return _samples(rf.render_samples(_torus(), **_near_cam(),
+                                      raster=_rs(samples=4, interpolation="centroid")))
+
+
+def case_samples_8_clipped_sample():
+    import refraster as rf
+    return _samples(rf.render_samples(_torus(), **_near_cam(),
+                                      raster=_rs(samples=8, interpolation="sample")))
+
+
+def case_samples_4_subpixel_bits_4():
+    """Four sub-pixel bits: snapping flips slivers (the snapped edge functions interpolate,
+    the depth from the snapped barycentrics)."""
+    import refraster as rf
+    return _samples(rf.render_samples(_torus(), **_cam(w=48, h=36),
+                                      raster=_rs(samples=4, subpixel_bits=4,
+                                                 interpolation="sample")))
+
+
 # ============================================================================== running
 
 
