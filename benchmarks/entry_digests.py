@@ -50,7 +50,11 @@ Covered: ``refraster.render``, ``draw``, ``resolve``, ``rasterize``,
 depth sprite, ``parity_at``); ``refraster.clipsurface.render_clipped``;
 ``refraster.cutaway.render_cutaway``; ``refraster.halos4d.render_halos`` and
 ``render_halos_pair``; ``refraster.edges.npr.render_mirrored`` and the NPR styles;
-``refraster.edges`` (``edge_gbuffer``, ``edge_map``, ``classify_edges``). Each option case has
+``refraster.edges`` (``edge_gbuffer``, ``edge_map``, ``classify_edges``);
+``refraster.render_samples`` (``samples_*``: 1×, 2×/4×/8× with each interpolation, 16×, the
+``gl_llvmpipe`` and user patterns, ties with the top-left rule, ``greater``/``lequal``, clipped
+pieces, slivers that snapping flips; every per-sample buffer and the positions; recorded with
+``--add`` before the MSAA speed work of issue 43). Each option case has
 a neighbour it differs from (``*_defaults`` or a named base: ``render_twice``,
 ``render_ties``, ``cut_view2``, ``cut_edge_stand_in``, ``clip_vds_resolution_64``,
 ``mirror_model`` …), with scenes chosen so that the option changes bytes (ties at equal
