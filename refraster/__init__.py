@@ -9,6 +9,7 @@ from .mesh import Mesh, as_mesh
 from .raster import Fragments, Resolved, concat, draw, rasterize, resolve
 from .raster.state import RasterState
 from .multisample import SampleFramebuffer, render_samples, resolve_color, resolve_samples
+from .sample_rate import GBufferSampling
 
 try:
     __version__ = _version("refraster")
@@ -19,5 +20,5 @@ __all__ = [
     "render", "draw", "rasterize", "resolve", "concat", "RasterState", "Framebuffer", "Fragments", "Resolved",
     "normalized_linear_depth", "Mesh", "as_mesh", "Camera", "camera", "look_at", "perspective",
     "frustum", "orthographic", "__version__", "render_samples", "resolve_color",
-    "resolve_samples", "SampleFramebuffer",
+    "resolve_samples", "SampleFramebuffer", "GBufferSampling",
 ]

@@ -349,6 +349,9 @@ def peel(meshes, *, view, proj, width, height, max_layers=None, mode="peel", mod
     Returns
     -------
     LayeredDepthImage
+        At ``raster.samples > 1`` each sample peels its own layers (layer k of sample s is the
+        k-th nearest fragment covering s): the arrays gain a sample axis, ``(K, H, W, S)`` and
+        ``count``, ``overflow`` ``(H, W, S)`` (``docs/ldi.md``, "Multisampled depth peeling").
 
     Notes
     -----
@@ -358,10 +361,32 @@ def peel(meshes, *, view, proj, width, height, max_layers=None, mode="peel", mod
     from .raster import draw
     as_choice(mode, "mode", MODES)
     _as_max_layers(max_layers)
-    state = _peel_state(raster)
+    state = as_raster_state(raster)
+    if state.samples != 1 or state.sample_locations != "standard":
+        return _peel_samples(meshes, view, proj, width, height, max_layers, mode, model, state)
+    state = _peel_state(state)
     frags = draw(meshes, view=view, proj=proj, width=width, height=height, model=model,
                  raster=state)
     return peel_fragments(frags, max_layers=max_layers, mode=mode, raster=state)
+
+
+def _peel_samples(meshes, view, proj, width, height, max_layers, mode, model, state):
+    """Depth peeling of a multisampled depth buffer: each sample peels its own layers (layer k
+    of sample s is the k-th nearest fragment covering s, by the same rules as one sample), from
+    the per-sample fragment stream over the sample image ``(H, W·S)``."""
+    from .multisample import draw_samples, sample_image
+    one = _peel_state(sample_image(state))
+    frags = draw_samples(meshes, view=view, proj=proj, width=width, height=height,
+                         model=model, raster=state)
+    lay = peel_fragments(frags, max_layers=max_layers, mode=mode, raster=one)
+    k, h, ws = lay.depth.shape
+    s = state.samples
+    per = (k, h, ws // s, s)
+    return LayeredDepthImage(
+        depth=lay.depth.reshape(per), prim_id=lay.prim_id.reshape(per),
+        object_id=lay.object_id.reshape(per), front_facing=lay.front_facing.reshape(per),
+        index=lay.index.reshape(per), count=lay.count.reshape(per[1:]),
+        overflow=lay.overflow.reshape(per[1:]), mode=lay.mode)
 
 
 # ----------------------------------------------------------------------------- the sprite

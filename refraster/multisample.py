@@ -15,13 +15,13 @@ from ._validate import as_float_array, as_image_size
 from .framebuffer import _build
 from .mesh import as_meshes
 from .raster import _prepare, facing
-from .raster.multisample import rasterize_samples
+from .raster.multisample import rasterize_samples, stream_samples
 from .raster.rasterizer import DEPTH_FUNCS
 from .raster.samples import sample_offsets, sample_points
 from .raster.state import as_raster_state
 
-__all__ = ["SampleFramebuffer", "render_samples", "resolve_color", "resolve_samples",
-           "RESOLVE_MODES"]
+__all__ = ["SampleFramebuffer", "render_samples", "draw_samples", "sample_image",
+           "resolve_color", "resolve_samples", "RESOLVE_MODES"]
 
 #: Vulkan's resolve modes (``VK_RESOLVE_MODE_*``): ``"sample_zero"`` (sample 0's value),
 #: ``"average"`` (the box filter; colour and depth, not ids), ``"min"``, ``"max"``.
@@ -116,6 +116,45 @@ def render_samples(meshes, *, view, proj, width, height, model=None, raster=None
         barycentric=bary, color=lambda: np.asarray(fb.color).reshape(h, w, s, 3),
         positions=sample_points(state),
         raster=state)
+
+
+def draw_samples(meshes, *, view, proj, width, height, model=None, raster=None):
+    """Draw meshes into a per-sample fragment stream: one fragment per covered sample.
+
+    The arguments are :func:`refraster.draw`'s, with ``raster.samples`` samples per pixel at
+    ``raster.sample_locations``. Returns :class:`refraster.Fragments` over the *sample image*
+    ``(H, W·S)`` (``frags.width == W·S``): the fragment of sample ``s`` of pixel ``(row, col)``
+    has ``pixel = (row·W + col)·S + s``, its own depth (the depth plane at the sample), and
+    the barycentrics at ``raster.interpolation``'s point — the pixel centre or centroid
+    (shared by all samples one triangle covers in the pixel: a fragment stage evaluated
+    there decides at **pixel rate**) or the sample's own position (``"sample"``: **sample
+    rate**, ``raster.shading_rate == "sample"``). Within each sample the stream is in draw
+    order, so :func:`refraster.resolve` (with :func:`sample_image`'s single-sample state) is
+    the per-sample depth test, and with no fragment discarded it gives
+    :func:`render_samples`'s buffers bit for bit. A fragment stage over this stream is how
+    the techniques run at ``samples > 1`` (``docs/multisample.md``, "Fragment stages per
+    sample").
+    """
+    from .raster import _fragments_from
+    state = as_raster_state(raster)
+    meshes = as_meshes(meshes)
+    w, h = as_image_size(width, height)
+    with threads_for(frame_work(sum(m.n_faces for m in meshes), w, h)):
+        prep = _prepare(meshes, view=view, proj=proj, width=w, height=h, model=model,
+                        state=state, scratch=None, multisample=True)
+        ox, oy = sample_offsets(state)
+        pixel, depth, prim, front, bary, _ = stream_samples(
+            prep.triangles, ox, oy, fill_rule=prep.fill_rule, interpolation=state.interpolation)
+    frags = _fragments_from(prep, pixel, depth, prim, front, bary)
+    frags.width = w * len(ox)
+    return frags
+
+
+def sample_image(state):
+    """The single-sample state that resolves, peels and shades a sample image ``(H, W·S)``
+    (:func:`draw_samples`): ``state`` with one sample at the centre. Every other field (the
+    depth test, the conventions) is kept."""
+    return state.replace(samples=1, sample_locations="standard", interpolation="center")
 
 
 def _per_sample(values, name):

@@ -44,6 +44,7 @@ FLOORS = {
     "refraster.raster": "core",
     "refraster.framebuffer": "core",
     "refraster.multisample": "core",
+    "refraster.sample_rate": "core",
     "refraster.mesh": "core",
     "refraster.camera": "core",
     "refraster.io": "core",

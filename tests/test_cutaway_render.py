@@ -298,6 +298,6 @@ def test_bad_surface_arguments():
 def test_gallery_quick(tmp_path):
     from refraster.gallery import cutaway
     items = cutaway.render(tmp_path, quick=True)
-    assert len(items) == 12
+    assert len(items) == 13          # the last: the 4x picture (refraster.gallery.multisample)
     for item in items:
         assert item.section == "Adaptive cutaways" and (tmp_path / item.filename).stat().st_size

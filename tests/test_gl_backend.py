@@ -118,7 +118,7 @@ def gold(tmp_path_factory):
 
 def test_candidate_passes_and_every_planted_fault_fails(gold):
     from refraster.gl import (CATALOGUE_FAULTS, CONVENTION_FAULTS, FAULTS, MSAA_FAULTS,
-                              TECHNIQUE_FAULTS)
+                              MSAA_TECHNIQUE_FAULTS, TECHNIQUE_FAULTS)
     from refraster.gl.clipsurface import FAULT_NAMES as CLIP_FAULTS
     _backend_or_skip().release()
     # the clip-surface scenes and faults have their own matrix (tests/test_gl_clipsurface.py),
@@ -127,7 +127,8 @@ def test_candidate_passes_and_every_planted_fault_fails(gold):
     # (tests/test_conformance_catalogue.py), multisampling's theirs (tests/test_gl_msaa.py)
     columns = ["correct", *(f for f in FAULTS if f not in CLIP_FAULTS
                             and f not in TECHNIQUE_FAULTS and f not in CONVENTION_FAULTS
-                            and f not in CATALOGUE_FAULTS and f not in MSAA_FAULTS)]
+                            and f not in CATALOGUE_FAULTS and f not in MSAA_FAULTS
+                            and f not in MSAA_TECHNIQUE_FAULTS)]
     results = fault_matrix(gold, columns, MATRIX_SCENES, EXPECTED, UNTOUCHED, only_scenes=True)
     for column in ("sprite_rows_flipped", "parity_wrong_end"):   # only the parity decision
         if column in results:

@@ -39,7 +39,8 @@ from refraster import RasterState, golden
 
 #: The technique scenes (multisampled scenes have a harness of their own that plants faults per
 #: sample: tests/faults_msaa.py, tests/test_golden_msaa.py).
-TECH = [n for n, e in golden.available_scenes().items() if e.technique not in ("render", "msaa")]
+TECH = [n for n, e in golden.available_scenes().items()
+        if e.technique not in ("render", "msaa") and e.samples == 1]
 #: Buffers whose aim is the filtered one (≤ 30 % admitted).
 FILTERED = {"edge_map", "cutaway_depth", "ghost", "alpha"} | {
     ("halos4d_figure1", "color")} | {("edges_npr_gooch", "npr_color")}   # edge map composited

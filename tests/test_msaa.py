@@ -648,11 +648,11 @@ def test_llvmpipe_4x_is_not_the_standard_picture(oracle):
 
 
 def test_techniques_refuse_a_multisample_state():
-    from refraster.clipsurface import render_clipped
+    # render_clipped and ldi.peel render samples (tests/test_msaa_clipsurface.py)
     from refraster.cutaway import render_cutaway
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32)
     f = np.array([[0, 1, 2]])
-    for fn, args in ((render_clipped, ((v, f), [])), (render_cutaway, ((v, f), (v, f)))):
+    for fn, args in ((render_cutaway, ((v, f), (v, f))),):
         with pytest.raises(ValueError, match="raster.samples must be 1 .*render_samples"):
             fn(*args, view=EYE, proj=EYE, width=8, height=8,
                raster=RasterState(samples=4))

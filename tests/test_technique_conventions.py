@@ -296,7 +296,6 @@ def test_peel_under_greater_is_the_float64_front_to_back_order():
     (dict(depth_func="less", clear_depth=0.5), "raster.clear_depth must be 1.0 under "
                                                "depth_func='less'"),
     (dict(depth_write=False), "raster.depth_write must be True"),
-    (dict(samples=4), "raster.samples must be 1"),
 ])
 def test_directionless_states_are_refused_in_one_line(fields, message):
     state = RasterState(**fields)

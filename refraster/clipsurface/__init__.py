@@ -13,9 +13,10 @@ Modules, each importing only those above it (no circle; tests/test_architecture.
   :class:`ClippedFramebuffer`.
 """
 
-from .render import Caps, ClippedFramebuffer, render_clipped
+from .render import Caps, ClippedFramebuffer, ClippedSampleFramebuffer, render_clipped
 from .surfaces import (ORTHOGONALITY_TOLERANCE, ClipSurface, ReliefClipPlane,  # noqa: F401
                        as_surfaces, clip_function, clip_mask, clipped_at)
 
-__all__ = ["Caps", "ClipSurface", "ReliefClipPlane", "ClippedFramebuffer", "as_surfaces",
+__all__ = ["Caps", "ClipSurface", "ReliefClipPlane", "ClippedFramebuffer",
+           "ClippedSampleFramebuffer", "as_surfaces",
            "clip_function", "clip_mask", "render_clipped"]

@@ -12,13 +12,14 @@ import numpy as np
 from .._validate import as_choice, as_float_array, as_matrix, as_real, as_size
 from ..framebuffer import Framebuffer
 from ..ldi import MAX_RESOLUTION
+from ..multisample import SampleFramebuffer
 from ..raster.state import as_raster_state, require_depth_direction
 from . import capping
 from .fused import _fused_clip
 from .surfaces import as_surfaces, clip_mask, _surfaces_in_space
 from .textures import SolidTexture
 
-__all__ = ["Caps", "ClippedFramebuffer", "render_clipped"]
+__all__ = ["Caps", "ClippedFramebuffer", "ClippedSampleFramebuffer", "render_clipped"]
 
 
 @dataclass(frozen=True)
@@ -357,7 +358,12 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
                          "is used by caps.style='diffuse'")
     # the base pass colours "solid" caps as "diffuse"; texture_caps recolours them
     base_style = "diffuse" if style == "solid" else style
-    state = require_depth_direction(as_raster_state(raster), "render_clipped")
+    state = require_depth_direction(as_raster_state(raster), "render_clipped",
+                                    multisample=True)
+    multi = state.samples != 1 or state.sample_locations != "standard"
+    if multi and caps is not None and mode == "exact":
+        raise ValueError(f"caps.mode must be 'mesh' at raster.samples={state.samples} (the "
+                         "exact caps cast one ray per pixel centre), got 'exact'")
     if caps is not None and mode == "exact" and state.depth_clamp:
         raise ValueError("raster.depth_clamp must be False for caps.mode='exact' (its rays "
                          "span the clip volume between the near and far planes), got True")
@@ -380,7 +386,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
     spacing = (0.015 * float(np.linalg.norm(hi - lo)) or 0.01) \
         if options.hatch_spacing is None else options.hatch_spacing
 
-    fused = _USE_FUSED and (not do_caps or mode != "mesh" or all(
+    fused = _USE_FUSED and not multi and (not do_caps or mode != "mesh" or all(
         isinstance(t, VolumetricDepthSprite) for t in tests))
     draw_list, draw_models = list(solids), list(models)
     sure_flags = []   # per cap draw call: its faces' "surely inside" flags (or None)
@@ -398,7 +404,11 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
     bg = as_float_array(background, "background", shape=(3,))
     geometry = None
     cap_tests = tests if do_caps and mode == "mesh" else None
-    if not fused:
+    if multi:
+        # the per-sample fragment stream with the same stage, at the state's shading rate
+        fb = _render_samples(draw_list, view, proj, width, height, state, draw_models,
+                             _stage(n_solids, surfaces, cap_tests, space, view), bg)
+    elif not fused:
         # duck-typed parity tests: the fragment stream with a Python stage
         fb = render(draw_list, view=view, proj=proj, width=width, height=height,
                     raster=state, model=draw_models,
@@ -426,7 +436,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
     out = ClippedFramebuffer(**fb.field_values(), cap_mask=cap_mask,
         cap_points=np.zeros((0, 3)), n_solids=n_solids, n_surfaces=n_surf)
     if not do_caps:
-        return out
+        return _as_samples(out, state) if multi else out
     if mode == "mesh":
         p = np.asarray(proj, np.float64)
         if (state.front_face == "cw") ^ (state.ndc_y == "down") ^ bool(p[0, 0] * p[1, 1] < 0):
@@ -448,7 +458,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
             hatch_spacing=spacing, frequency=freq, occlusion_radius=occlusion_radius)
         _texture_pass(out, surfaces, textured, style, color, solid_tex, solids, models, view,
                       occlusion_radius)
-        return out
+        return _as_samples(out, state) if multi else out
     else:
         tau, which, origin, direction = capping.exact_caps(
             surfaces, world, tests, view=view, proj=proj, width=width, height=height,
@@ -495,6 +505,69 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
     _texture_pass(out, surfaces, textured, style, color, solid_tex, solids, models, view,
                   occlusion_radius)
     return out
+
+
+def _render_samples(draw_list, view, proj, width, height, state, models, stage, bg):
+    """The frame at ``state.samples`` as a single-sample frame of the sample image
+    ``(H, W·S)`` (:func:`refraster.multisample.draw_samples`): the clip stage keeps or
+    discards each per-sample fragment — at pixel rate all samples of one triangle in one pixel
+    carry the centre's (or centroid's) position and so one decision, at sample rate each its
+    own — and the per-sample depth test is the resolve of the sample image."""
+    from ..framebuffer import Framebuffer
+    from ..multisample import draw_samples, sample_image
+    from ..raster import resolve
+    frags = draw_samples(draw_list, view=view, proj=proj, width=width, height=height,
+                         model=models, raster=state)
+    keep = np.asarray(stage(frags))
+    one = sample_image(state)
+    res = resolve(frags, raster=one, keep=keep)
+    return Framebuffer.from_fragments(frags, res, raster=one, background=bg)
+
+
+def _as_samples(out, state):
+    """A sample-image :class:`ClippedFramebuffer` ``(H, W·S)`` as a
+    :class:`ClippedSampleFramebuffer` ``(H, W, S)``."""
+    from ..raster.samples import sample_points
+    h, ws = out.depth.shape
+    s = state.samples
+    w = ws // s
+    color = np.asarray(out.color)
+    return ClippedSampleFramebuffer(
+        depth=out.depth.reshape(h, w, s), eye_depth=out.eye_depth.reshape(h, w, s),
+        normal=out.normal.reshape(h, w, s, 3), prim_id=out.prim_id.reshape(h, w, s),
+        object_id=out.object_id.reshape(h, w, s),
+        front_facing=out.front_facing.reshape(h, w, s),
+        barycentric=out.barycentric.reshape(h, w, s, 3), color=color.reshape(h, w, s, 3),
+        positions=sample_points(state), raster=state,
+        cap_mask=out.cap_mask.reshape(h, w, s), cap_points=out.cap_points,
+        n_solids=out.n_solids, n_surfaces=out.n_surfaces)
+
+
+class ClippedSampleFramebuffer(SampleFramebuffer):
+    """:func:`render_clipped`'s result at ``raster.samples > 1``: a
+    :class:`refraster.SampleFramebuffer` (buffers ``(H, W, S[, C])``) with the caps marked.
+
+    Extra attributes: ``cap_mask (H, W, S)`` the samples showing a cap; ``cap_points (C, 3)``
+    the world position of each cap sample, in row-major order of ``cap_mask`` (pixel, then
+    sample); ``n_solids``, ``n_surfaces`` (a cap of solid m and surface k has
+    ``object_id = M + m·K + k``)."""
+
+    __slots__ = ("cap_mask", "cap_points", "n_solids", "n_surfaces")
+
+    def __init__(self, *, depth, eye_depth, normal, prim_id, object_id, front_facing,
+                 barycentric, color, positions, raster, cap_mask, cap_points, n_solids,
+                 n_surfaces):
+        super().__init__(depth=depth, eye_depth=eye_depth, normal=normal, prim_id=prim_id,
+                         object_id=object_id, front_facing=front_facing,
+                         barycentric=barycentric, color=color, positions=positions,
+                         raster=raster)
+        self.cap_mask, self.cap_points = cap_mask, cap_points
+        self.n_solids, self.n_surfaces = n_solids, n_surfaces
+
+    def arrays(self):
+        out = super().arrays()
+        out["cap_mask"] = self.cap_mask
+        return out
 
 
 def _passes(depth_func, depth, stored):

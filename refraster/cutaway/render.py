@@ -201,33 +201,45 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
     ...                     cutaway=Cutaway(angle=0.5, floor_normal=(0, 1, 0)),
     ...                     ghosts=GhostLines(distance=1.0, fade=False))  # doctest: +SKIP
     """
-    cutaway = as_option(cutaway, Cutaway, "cutaway")
-    cut_surfaces = as_option(cut_surfaces, CutSurfaces, "cut_surfaces")
-    ghosts = as_option(ghosts, GhostLines, "ghosts", optional=True)
+    ctx = _setup(interest, secondary, stand_ins, view, proj, width, height, cutaway,
+                 cut_surfaces, ghosts, raster, background, "render_cutaway")
+    return _carve(ctx, _flood(ctx, *_rear(ctx, ctx.proj), ctx.proj_gl), ctx.proj)
+
+
+class _Context:
+    """The validated arguments of one cutaway and what follows from them."""
+
+
+def _setup(interest, secondary, stand_ins, view, proj, width, height, cutaway, cut_surfaces,
+           ghosts, raster, background, where, multisample=False):
+    ctx = _Context()
+    ctx.cutaway = cutaway = as_option(cutaway, Cutaway, "cutaway")
+    ctx.cut_surfaces = cut_surfaces = as_option(cut_surfaces, CutSurfaces, "cut_surfaces")
+    ctx.ghosts = ghosts = as_option(ghosts, GhostLines, "ghosts", optional=True)
     interest = as_meshes(interest, "interest") if _nonempty(interest) else []
     secondary = as_meshes(secondary, "secondary") if _nonempty(secondary) else []
     stand_ins = as_meshes(stand_ins, "stand_ins") if _nonempty(stand_ins) else []
     if not interest and not secondary:
         raise ValueError("nothing to draw: interest and secondary are both empty")
-    view = as_matrix(view, "view")
-    proj = as_matrix(proj, "proj")
-    width, height = as_image_size(width, height)
-    state = require_depth_direction(as_raster_state(raster), "render_cutaway")
+    ctx.interest, ctx.secondary, ctx.stand_ins = interest, secondary, stand_ins
+    ctx.view = as_matrix(view, "view")
+    ctx.proj = proj = as_matrix(proj, "proj")
+    ctx.width, ctx.height = as_image_size(width, height)
+    state = as_raster_state(raster)
+    ctx.multisample_state = state
+    if multisample:
+        state = state.replace(samples=1, sample_locations="standard", interpolation="center")
+    ctx.state = state = require_depth_direction(state, where)
+    ctx.background = background
     # the cutaway is computed in OpenGL's clip space (MATH.md §4: NDC depth, near = −1): the
     # frame's conventions map there by T (gl_clip_map) and window depth by d → 1 − d under a
     # reversing depth test, so the paper's arithmetic and its comparisons stay as written
-    rev = reverses(state)
-    clip_map = gl_clip_map(state)
-    proj_gl = proj if clip_map is None else clip_map @ proj
-
-    def ndc(window_depth):
-        """OpenGL-equivalent NDC depth of the frame's window depths (float64)."""
-        z = 2.0 * np.asarray(window_depth, np.float64) - 1.0
-        return -z if rev else z
-
-    cw, ch = cutaway.buffer_size or (width, height)
-    thetas = as_angles(cutaway.angle, "cutaway.angle")
-    hull = interest + stand_ins
+    ctx.rev = reverses(state)
+    ctx.clip_map = gl_clip_map(state)
+    ctx.proj_gl = proj if ctx.clip_map is None else ctx.clip_map @ proj
+    ctx.buffer_size = cutaway.buffer_size or (ctx.width, ctx.height)
+    ctx.thetas = thetas = as_angles(cutaway.angle, "cutaway.angle")
+    ctx.hull = hull = interest + stand_ins
     if len(thetas) > 1 and len(thetas) != len(hull):
         raise ValueError(f"cutaway.angle has {len(thetas)} entries but there are {len(hull)} "
                          "cutaway objects (interest + stand_ins)")
@@ -236,26 +248,62 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
         ghost_distance = ghosts.distance
         if ghost_distance is None:
             ghost_distance = GHOST_DISTANCE_FRACTION * _diagonal(secondary)
+    ctx.ghost_distance = ghost_distance
     cut_color = cut_surfaces.color
     if cut_color is not None:
         cut_color = np.array(cut_color, np.float64)
-    camera = dict(view=view, proj=proj)
+    ctx.cut_color = cut_color
+    return ctx
 
-    # (1)–(2) the cutaway surface at its own resolution
-    if hull:
-        # the farthest surface: the depth test opposite to the frame's, cleared to the near end
-        rear = _fb.render(hull, width=cw, height=ch, raster=state.replace(
-            depth_func="less" if rev else "greater", clear_depth=1.0 if rev else 0.0,
-            cull="none", normals="flat"), **camera)
-        rear_depth = 1.0 - rear.depth.astype(np.float64) if rev else rear.depth
-        buffer = cutaway_surface(rear_depth, rear.object_id, proj=proj_gl, view=view,
-                                 angle=thetas, variant=cutaway.variant,
-                                 perspective_compensation=cutaway.perspective_compensation,
-                                 edge_compression=cutaway.edge_compression,
-                                 floor_normal=cutaway.floor_normal,
-                                 floor_margin=cutaway.floor_margin)
-    else:
-        buffer = np.full((ch, cw), -1.0)
+
+def _ndc(ctx, window_depth):
+    """OpenGL-equivalent NDC depth of the frame's window depths (float64)."""
+    z = 2.0 * np.asarray(window_depth, np.float64) - 1.0
+    return -z if ctx.rev else z
+
+
+def _rear(ctx, proj):
+    """(1) The rear hulls of the cutaway objects at the cutaway buffer's size under ``proj``:
+    ``(rear_depth, object_id)`` in OpenGL's window depth (the near end 0), or None."""
+    if not ctx.hull:
+        return None, None
+    cw, ch = ctx.buffer_size
+    rev = ctx.rev
+    # the farthest surface: the depth test opposite to the frame's, cleared to the near end
+    rear = _fb.render(ctx.hull, width=cw, height=ch, raster=ctx.state.replace(
+        depth_func="less" if rev else "greater", clear_depth=1.0 if rev else 0.0,
+        cull="none", normals="flat"), view=ctx.view, proj=proj)
+    rear_depth = 1.0 - rear.depth.astype(np.float64) if rev else rear.depth
+    return rear_depth, rear.object_id
+
+
+def _flood(ctx, rear_depth, rear_ids, proj_gl):
+    """(2) The cutaway surface at the cutaway buffer's resolution, in OpenGL's NDC depth."""
+    cw, ch = ctx.buffer_size
+    if rear_depth is None:
+        return np.full((ch, cw), -1.0)
+    cutaway = ctx.cutaway
+    return cutaway_surface(rear_depth, rear_ids, proj=proj_gl, view=ctx.view,
+                           angle=ctx.thetas, variant=cutaway.variant,
+                           perspective_compensation=cutaway.perspective_compensation,
+                           edge_compression=cutaway.edge_compression,
+                           floor_normal=cutaway.floor_normal,
+                           floor_margin=cutaway.floor_margin)
+
+
+def _carve(ctx, buffer, proj):
+    """(3)–(6): the cutaway surface ``buffer`` at frame resolution, the frame under ``proj``
+    carved by it, cut surfaces, outlines and ghost lines."""
+    width, height, state, rev = ctx.width, ctx.height, ctx.state, ctx.rev
+    secondary, interest = ctx.secondary, ctx.interest
+    cut_surfaces, ghosts, view = ctx.cut_surfaces, ctx.ghosts, ctx.view
+    ghost_distance, cut_color = ctx.ghost_distance, ctx.cut_color
+    proj_gl = proj if ctx.clip_map is None else ctx.clip_map @ proj
+
+    def ndc(window_depth):
+        return _ndc(ctx, window_depth)
+
+    camera = dict(view=view, proj=proj)
     # (3) at frame resolution
     d_ndc = upsample_bilinear(buffer, height, width)
     d_back = min_filter_3x3(d_ndc) if cut_surfaces.dilation else d_ndc
@@ -273,7 +321,7 @@ def render_cutaway(interest, secondary, *, view, proj, width, height, stand_ins=
         return ~cut
 
     fb = _fb.render(secondary + interest, width=width, height=height, raster=state,
-                    fragment_stage=fragment_stage, background=background, **camera)
+                    fragment_stage=fragment_stage, background=ctx.background, **camera)
 
     # (5) cut surfaces
     cut_mask = fb.mask & ~fb.front_facing & (fb.object_id < n_sec)

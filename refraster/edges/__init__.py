@@ -17,6 +17,8 @@ Modules, each importing only those above it (no circle):
 * :mod:`.operators` — the discontinuity filters and :func:`edge_map` (Sec. 4.1.2).
 * :mod:`.npr` — the NPR styles, :func:`~.npr.composite` and the mirror (Sec. 5); its names
   stay in :mod:`refraster.edges.npr` (``refraster.edges.npr.gooch``, …).
+* :mod:`.multisample` — :func:`edge_map_samples`: the edge map of a multisampled G-buffer,
+  per sample or from the resolved G-buffer (:class:`refraster.GBufferSampling`).
 * :mod:`.classify` — :func:`classify_edges` → :class:`EdgeSet`, object-space edge classes
   (Sec. 3).
 """
@@ -27,10 +29,11 @@ from .gbuffer import EdgeGBuffer, edge_gbuffer, fit_near_far
 from .operators import (DEFAULT_INNER_THRESHOLD, DEFAULT_PROFILE_THRESHOLD, EDGE_PRESETS,
                         c1_depth, diagonal_depth, diagonal_normal, edge_map, object_id_edges,
                         sobel, sobel_depth, sobel_normal)
+from .multisample import SampleEdgeMap, edge_map_samples
 
 __all__ = [
     "EdgeGBuffer", "edge_gbuffer", "fit_near_far", "diagonal_normal", "diagonal_depth",
     "c1_depth", "sobel", "sobel_depth", "sobel_normal", "object_id_edges", "edge_map",
     "EdgeSet", "classify_edges", "EDGE_PRESETS", "DEFAULT_INNER_THRESHOLD",
-    "DEFAULT_PROFILE_THRESHOLD", "DEFAULT_CREASE_ANGLE",
+    "DEFAULT_PROFILE_THRESHOLD", "DEFAULT_CREASE_ANGLE", "SampleEdgeMap", "edge_map_samples",
 ]

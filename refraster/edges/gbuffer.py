@@ -14,7 +14,7 @@ import numpy as np
 
 from .._validate import as_float_array, as_real
 
-__all__ = ["EdgeGBuffer", "fit_near_far", "edge_gbuffer"]
+__all__ = ["EdgeGBuffer", "fit_near_far", "edge_gbuffer", "gbuffer_of"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,13 +126,20 @@ def edge_gbuffer(fb, *, bounds=None, near=None, far=None):
             raise ValueError(f"far must be greater than near, got near={near}, far={far}")
     else:
         near, far = fit_near_far(fb.view, bounds=bounds, meshes=fb.meshes, models=fb.models)
-    normal = np.asarray(fb.normal, np.float32)
-    covered = np.asarray(fb.object_id) >= 0
+    return gbuffer_of(fb.normal, fb.eye_depth, fb.object_id, near, far)
+
+
+def gbuffer_of(normal, eye_depth, object_id, near, far):
+    """The :class:`EdgeGBuffer` of one image's eye-space ``normal (H, W, 3)``, ``eye_depth``
+    and ``object_id (H, W)`` with the planes ``near``/``far`` (:func:`edge_gbuffer`'s
+    encoding; a multisampled frame's sample ``s`` is such an image)."""
+    normal = np.asarray(normal, np.float32)
+    covered = np.asarray(object_id) >= 0
     half = np.float32(0.5)
     encoded = np.where(covered[..., None], half * normal + half, half).astype(np.float32)
-    eye = np.where(covered, np.asarray(fb.eye_depth, np.float64), far)
+    eye = np.where(covered, np.asarray(eye_depth, np.float64), far)
     depth = np.where(covered, np.clip((eye - near) / (far - near), 0.0, 1.0), 1.0)
     depth = depth.astype(np.float32)
     return EdgeGBuffer(normal=encoded, depth=depth,
-                       object_id=np.ascontiguousarray(fb.object_id, np.int32),
+                       object_id=np.ascontiguousarray(object_id, np.int32),
                        near=float(near), far=float(far))

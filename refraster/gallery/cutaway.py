@@ -414,4 +414,6 @@ def render(out_dir: pathlib.Path, *, quick: bool = False) -> list[Item]:
     items.append(_office(out, s))
     items.append(_pan(out, s))
     items.append(_fig10(out, s))
+    from .multisample import picture
+    items += picture("cutaway", SECTION, out, quick)
     return items

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from . import Item
+from .panels import label as _label, side_by_side as _side_by_side
 
 __all__ = ["render"]
 
@@ -39,29 +40,6 @@ def _crop_box(mask, margin):
 
 def _grey(a):
     return np.repeat(np.asarray(a, np.float32)[..., None], 3, axis=2)
-
-
-def _label(image, text):
-    """``image`` with a white strip on top carrying ``text`` (PIL's default bitmap font)."""
-    from PIL import Image, ImageDraw
-    img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
-    strip = 14
-    h, w = img.shape[:2]
-    canvas = Image.new("RGB", (w, h + strip), (255, 255, 255))
-    canvas.paste(Image.fromarray((img * 255.0 + 0.5).astype(np.uint8)), (0, strip))
-    ImageDraw.Draw(canvas).text((2, 1), text, fill=(0, 0, 0))
-    return np.asarray(canvas, np.float32) / 255.0
-
-
-def _side_by_side(images, gap=4):
-    h = max(im.shape[0] for im in images)
-    parts = []
-    for k, im in enumerate(images):
-        if k:
-            parts.append(np.ones((h, gap, 3), np.float32))
-        pad = np.ones((h - im.shape[0],) + im.shape[1:], np.float32)
-        parts.append(np.concatenate([np.asarray(im, np.float32), pad], axis=0))
-    return np.concatenate(parts, axis=1)
 
 
 def _zoom(image, box, factor):
@@ -214,4 +192,5 @@ def render(out_dir, *, quick=False):
          "own G-buffer and edge map (the objects reflected through the mirror plane, clipped at "
          "it, lit by the reflected light) and composited inside the mirror's pixels (Sec. 5.3, "
          "Fig. 8)")
-    return items
+    from .multisample import picture
+    return items + picture("edges", SECTION, out_dir, quick)

@@ -40,6 +40,12 @@ DIAGRAM_AMBIENT = 0.7
 DIAGRAM_ANTIALIAS = 0.05
 
 
+#: Why the section has no multisampled picture (refraster.gallery.multisample).
+NO_MSAA = ("No multisampled picture: the slicing composite refuses raster.samples > 1 (it "
+           "blends each slice per pixel and has no per-sample meaning; halos.antialias is its "
+           "anti-aliasing, docs/halos4d.md).")
+
+
 def views():
     """The 4D rotations of the gallery (applied first, then orthographic projection)."""
     import refraster.halos4d as h
@@ -202,6 +208,7 @@ def render(out_dir: pathlib.Path, *, quick: bool = False, measurements=None,
     slices = 48 if quick else 256
     items = []
     figs = figures(quick)
+    first = figs[0][0]
     if part is not None:
         if part not in (0, 1):
             raise ValueError(f"part must be 0 or 1, got {part!r}")
@@ -210,6 +217,9 @@ def render(out_dir: pathlib.Path, *, quick: bool = False, measurements=None,
     for name, surface, caption, view, halos, style, stacked in figs:
         if only is not None and name not in only:
             continue
+        if name == first:
+            # the other techniques show a 4x picture beside their own; the halos have none
+            caption = f"{caption}. {NO_MSAA[:-1]}"
         # the figure and its halos-off twin from one slicing (render_halos_pair: the same bits
         # as two render_halos calls, ~1/6 less time, issue 27)
         on, off = render_halos_pair(surface, view=view, width=size, height=size, slices=slices,

@@ -19,7 +19,7 @@ On the command line: ``refraster golden candidate GOLDEN_DIR --backend gl --out 
 """
 
 __all__ = ["SUPPORTED_TECHNIQUES", "FAULTS", "TECHNIQUE_FAULTS", "CONVENTION_FAULTS",
-           "CATALOGUE_FAULTS", "MSAA_FAULTS"]
+           "CATALOGUE_FAULTS", "MSAA_FAULTS", "MSAA_TECHNIQUE_FAULTS"]
 
 #: Techniques this backend renders, with what it renders for them.
 SUPPORTED_TECHNIQUES = {
@@ -186,3 +186,13 @@ MSAA_FAULTS = {
                              "sample"),
 }
 FAULTS.update(MSAA_FAULTS)
+
+#: Planted faults of the technique scenes at samples > 1 (issue 44;
+#: :mod:`refraster.gl.msaa_techniques`, tests/test_golden_msaa_techniques.py), also in
+#: :data:`FAULTS`.
+MSAA_TECHNIQUE_FAULTS = {
+    "msaa_edges_resolved_for_per_sample": ("FAULT_MSAA_EDGES_RESOLVED", "every sample's edge "
+                                           "map is sample 0's: the edge map of the resolved "
+                                           "G-buffer where per-sample is declared"),
+}
+FAULTS.update(MSAA_TECHNIQUE_FAULTS)

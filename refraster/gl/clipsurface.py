@@ -160,98 +160,23 @@ def release(loaded):
 
 
 def draw(backend, scene, loaded):
-    """The clip-surface G-buffer → ``{buffer: array}`` as the golden stores it."""
-    ctx, mgl = backend.ctx, backend.mgl
-    prog = programs(backend, SHADERS)["clip"]
-    p = scene["parameters"]
+    """The clip-surface G-buffer → ``{buffer: array}`` as the golden stores it (a scene of
+    ``raster.samples > 1``: :func:`draw_samples`)."""
+    if int(scene["raster"].get("samples", 1)) > 1:
+        return draw_samples(backend, scene, loaded)
+    ctx = backend.ctx
     size = (scene["viewport"]["width"], scene["viewport"]["height"])
     raster, shading = scene["raster"], scene["shading"]
-    view = matrix(scene["camera"]["view"], "camera.view")
-    set_, write = backend._set, backend._write
     targets = [ctx.texture(size, 1, dtype="f4"), ctx.texture(size, 1, dtype="f4"),
                ctx.texture(size, 4, dtype="f4"), ctx.texture(size, 4, dtype="f4"),
                ctx.texture(size, 4, dtype="f4"), ctx.texture(size, 4, dtype="i4")]
     depth = backend._depth_attachment(size)
     fbo = ctx.framebuffer(color_attachments=targets, depth_attachment=depth)
-    surfaces = loaded["surfaces"]
     try:
         fbo.use()
         ctx.viewport = (0, 0, *size)
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=float(raster["clear_depth"]))
-        backend._state(scene)
-        set_(prog, "u_light", tuple(float(shading[k]) for k in
-                                    ("ambient", "diffuse", "specular", "shininess")))
-        set_(prog, "u_smooth", raster["normals"] == "smooth")
-        set_(prog, "u_n_surfaces", len(surfaces))
-        O, Uh, Vh, N, lens, S, enabled = [], [], [], [], [], [], []
-        for e in surfaces:
-            s = e["s"]
-            o, u, v = (np.asarray(s[key], np.float64) for key in ("origin", "u", "v"))
-            lu, lv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
-            uh, vh = u / lu, v / lv
-            O.append(tuple(o))
-            Uh.append(tuple(uh))
-            Vh.append(tuple(vh))
-            N.append(tuple(np.cross(uh, vh)))
-            lens.append((lu, lv))
-            S.append(tuple(float(x) for x in s["scale"]))
-            enabled.append(e["enabled"])
-        pad = MAX_SURFACES - len(surfaces)
-        for name, vals, zero in (("u_O", O, (0.0,) * 3), ("u_Uh", Uh, (0.0,) * 3),
-                                 ("u_Vh", Vh, (0.0,) * 3), ("u_N", N, (0.0,) * 3),
-                                 ("u_len", lens, (1.0, 1.0)), ("u_S", S, (0.0,) * 3)):
-            if name in prog:
-                prog[name].value = [tuple(float(x) for x in t) for t in vals] + [zero] * pad
-        if "u_enabled" in prog:
-            prog["u_enabled"].value = enabled + [False] * pad
-        for k, e in enumerate(surfaces):
-            e["offset"].use(location=k)
-            set_(prog, f"u_offset{k}", k)
-        for k in range(len(surfaces), MAX_SURFACES):
-            set_(prog, f"u_offset{k}", 0)
-        # units: 0-1 offset maps, 2 sprite layers, 3 counts, 4 shading, 5-7 user maps
-        for name, unit in (("u_sprite_depth", 2), ("u_sprite_count", 3), ("u_cap_shading", 4),
-                           ("u_cap_diffuse", 5), ("u_cap_normal", 6), ("u_cap_lightmap", 7)):
-            set_(prog, name, unit)
-        palette = shading["palette"]
-        set_(prog, "u_cap", False)
-        for d in loaded["solids"]:
-            if not d["n_faces"]:
-                continue
-            write(prog, "u_mvp", d["mvp"])
-            write(prog, "u_mv", d["mv"])
-            write(prog, "u_model", d["model"].astype(np.float32))
-            write(prog, "u_nmat", d["nmat"])
-            set_(prog, "u_object", int(d["object_id"]))
-            set_(prog, "u_base", tuple(float(c) for c in palette[d["object_id"] % len(palette)]))
-            backend._vao(d, prog).render(mgl.TRIANGLES)
-        if p.get("caps"):
-            set_(prog, "u_cap", True)
-            set_(prog, "u_smooth", False)
-            write(prog, "u_view_nmat", np.linalg.inv(view[:3, :3]).T.astype(np.float32))
-            set_(prog, "u_cap_color", tuple(float(c) for c in p["cap_color"]))
-            for d in loaded["caps"]:
-                if not d["n_faces"]:
-                    continue
-                arr, cnt, tmat = loaded["sprites"][d["solid"]]
-                arr.use(location=2)
-                cnt.use(location=3)
-                e = surfaces[d["surface"]]
-                e["shading"].use(location=4)
-                for key, unit, flag in (("diffuse", 5, "u_has_diffuse"),
-                                        ("normal", 6, "u_has_normal"),
-                                        ("light", 7, "u_has_lightmap")):
-                    if key in e:
-                        e[key].use(location=unit)
-                    set_(prog, flag, key in e)
-                write(prog, "u_tmat", tmat.astype(np.float32))
-                set_(prog, "u_cap_k", int(d["surface"]))
-                write(prog, "u_mvp", d["mvp"])
-                write(prog, "u_mv", d["mv"])
-                write(prog, "u_model", np.eye(4, dtype=np.float32))
-                write(prog, "u_nmat", d["nmat"])
-                set_(prog, "u_object", int(d["object_id"]))
-                backend._vao(d, prog).render(mgl.TRIANGLES)
+        _passes(backend, scene, loaded)
         ctx.finish()
         win, eye = (backend._read(t, "<f4", 1, size)[..., 0] for t in targets[:2])
         normal, bary, color = (backend._read(t, "<f4", 4, size)[..., :3] for t in targets[2:5])
@@ -275,6 +200,178 @@ def draw(backend, scene, loaded):
         "color": np.where(c3, color, bg).astype(np.float32),
         "cap_mask": object_id >= len(loaded["solids"]),
     }
+
+
+def _passes(backend, scene, loaded):
+    """The two passes (solids, then caps) into the bound targets."""
+    mgl = backend.mgl
+    prog = programs(backend, SHADERS)["clip"]
+    p = scene["parameters"]
+    raster, shading = scene["raster"], scene["shading"]
+    view = matrix(scene["camera"]["view"], "camera.view")
+    set_, write = backend._set, backend._write
+    surfaces = loaded["surfaces"]
+    backend._state(scene)
+    set_(prog, "u_light", tuple(float(shading[k]) for k in
+                                ("ambient", "diffuse", "specular", "shininess")))
+    set_(prog, "u_smooth", raster["normals"] == "smooth")
+    set_(prog, "u_n_surfaces", len(surfaces))
+    O, Uh, Vh, N, lens, S, enabled = [], [], [], [], [], [], []
+    for e in surfaces:
+        s = e["s"]
+        o, u, v = (np.asarray(s[key], np.float64) for key in ("origin", "u", "v"))
+        lu, lv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
+        uh, vh = u / lu, v / lv
+        O.append(tuple(o))
+        Uh.append(tuple(uh))
+        Vh.append(tuple(vh))
+        N.append(tuple(np.cross(uh, vh)))
+        lens.append((lu, lv))
+        S.append(tuple(float(x) for x in s["scale"]))
+        enabled.append(e["enabled"])
+    pad = MAX_SURFACES - len(surfaces)
+    for name, vals, zero in (("u_O", O, (0.0,) * 3), ("u_Uh", Uh, (0.0,) * 3),
+                             ("u_Vh", Vh, (0.0,) * 3), ("u_N", N, (0.0,) * 3),
+                             ("u_len", lens, (1.0, 1.0)), ("u_S", S, (0.0,) * 3)):
+        if name in prog:
+            prog[name].value = [tuple(float(x) for x in t) for t in vals] + [zero] * pad
+    if "u_enabled" in prog:
+        prog["u_enabled"].value = enabled + [False] * pad
+    for k, e in enumerate(surfaces):
+        e["offset"].use(location=k)
+        set_(prog, f"u_offset{k}", k)
+    for k in range(len(surfaces), MAX_SURFACES):
+        set_(prog, f"u_offset{k}", 0)
+    # units: 0-1 offset maps, 2 sprite layers, 3 counts, 4 shading, 5-7 user maps
+    for name, unit in (("u_sprite_depth", 2), ("u_sprite_count", 3), ("u_cap_shading", 4),
+                       ("u_cap_diffuse", 5), ("u_cap_normal", 6), ("u_cap_lightmap", 7)):
+        set_(prog, name, unit)
+    palette = shading["palette"]
+    set_(prog, "u_cap", False)
+    for d in loaded["solids"]:
+        if not d["n_faces"]:
+            continue
+        write(prog, "u_mvp", d["mvp"])
+        write(prog, "u_mv", d["mv"])
+        write(prog, "u_model", d["model"].astype(np.float32))
+        write(prog, "u_nmat", d["nmat"])
+        set_(prog, "u_object", int(d["object_id"]))
+        set_(prog, "u_base", tuple(float(c) for c in palette[d["object_id"] % len(palette)]))
+        backend._vao(d, prog).render(mgl.TRIANGLES)
+    if p.get("caps"):
+        set_(prog, "u_cap", True)
+        set_(prog, "u_smooth", False)
+        write(prog, "u_view_nmat", np.linalg.inv(view[:3, :3]).T.astype(np.float32))
+        set_(prog, "u_cap_color", tuple(float(c) for c in p["cap_color"]))
+        for d in loaded["caps"]:
+            if not d["n_faces"]:
+                continue
+            arr, cnt, tmat = loaded["sprites"][d["solid"]]
+            arr.use(location=2)
+            cnt.use(location=3)
+            e = surfaces[d["surface"]]
+            e["shading"].use(location=4)
+            for key, unit, flag in (("diffuse", 5, "u_has_diffuse"),
+                                    ("normal", 6, "u_has_normal"),
+                                    ("light", 7, "u_has_lightmap")):
+                if key in e:
+                    e[key].use(location=unit)
+                set_(prog, flag, key in e)
+            write(prog, "u_tmat", tmat.astype(np.float32))
+            set_(prog, "u_cap_k", int(d["surface"]))
+            write(prog, "u_mvp", d["mvp"])
+            write(prog, "u_mv", d["mv"])
+            write(prog, "u_model", np.eye(4, dtype=np.float32))
+            write(prog, "u_nmat", d["nmat"])
+            set_(prog, "u_object", int(d["object_id"]))
+            backend._vao(d, prog).render(mgl.TRIANGLES)
+
+
+_GL_SAMPLE_SHADING = 0x8C36
+
+
+def draw_samples(backend, scene, loaded):
+    """The clip-surface G-buffer at ``raster.samples`` (issue 44) → ``sample<s>_<channel>``
+    of :data:`refraster.golden.msaa_clip_scenes.CLIP_SAMPLE_CHANNELS`: the same two passes into
+    multisample targets (a ``DEPTH_COMPONENT32F`` multisample depth, the depth test per
+    sample), at sample rate (``raster.interpolation == "sample"``) with
+    ``glEnable(GL_SAMPLE_SHADING)`` and ``glMinSampleShading(1.0)`` — one invocation per
+    sample, its inputs (the world position of Listing 1's test and the parity test)
+    interpolated at the sample — else at pixel rate (one invocation per pixel, inputs at the
+    centre, its discard removing every covered sample); then each sample read with
+    ``texelFetch`` (:mod:`refraster.gl.msaa`'s fetch pass). Only where the context's own
+    positions are the scene's declared ones."""
+    import ctypes
+
+    from .common import Unsupported, fullscreen, gl_function
+    from .msaa import _SHADERS as FETCH, _depth_texture, _text, sample_pattern
+    raster, shading = scene["raster"], scene["shading"]
+    samples = int(raster["samples"])
+    declared = scene["parameters"]["sample_pattern"]["positions"]
+    own = sample_pattern(backend, samples)
+    if own is None or own["positions"] != declared:
+        raise Unsupported(f"clipsurface: this OpenGL's {samples}x sample positions are "
+                          f"{_text(own['positions']) if own else 'none'}, the scene declares "
+                          f"{_text(declared)} (1/16 pixel, y down)")
+    ctx, mgl = backend.ctx, backend.mgl
+    size = (scene["viewport"]["width"], scene["viewport"]["height"])
+    ms = [ctx.texture(size, c, samples=samples, dtype=d)
+          for c, d in ((1, "f4"), (1, "f4"), (4, "f4"), (4, "f4"), (4, "f4"), (4, "i4"))]
+    depth = _depth_texture(backend, size, samples)
+    fbo = ctx.framebuffer(color_attachments=ms, depth_attachment=depth)
+    single = [ctx.texture(size, 1, dtype="f4"), ctx.texture(size, 4, dtype="f4"),
+              ctx.texture(size, 4, dtype="f4"), ctx.texture(size, 4, dtype="i4")]
+    out_fbo = ctx.framebuffer(color_attachments=single)
+    enable = gl_function("glEnable", None, ctypes.c_uint)
+    disable = gl_function("glDisable", None, ctypes.c_uint)
+    min_shading = gl_function("glMinSampleShading", None, ctypes.c_float)
+    per_sample = raster.get("interpolation", "center") == "sample"
+    bg = np.asarray(shading["background"], np.float32)
+    clear = np.float32(raster["clear_depth"])
+    out = {}
+    try:
+        fbo.use()
+        ctx.viewport = (0, 0, *size)
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=float(clear))
+        if per_sample:
+            enable(_GL_SAMPLE_SHADING)
+            min_shading(1.0)
+        _passes(backend, scene, loaded)
+        disable(_GL_SAMPLE_SHADING)
+        ctx.finish()
+        fetch = programs(backend, FETCH)["fetch"]
+        ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE)
+        for unit, tex in enumerate((depth, ms[3], ms[4], ms[5])):
+            tex.use(location=unit)
+        for name, unit in (("u_depth", 0), ("u_bary", 1), ("u_color", 2), ("u_ids", 3)):
+            backend._set(fetch, name, unit)
+        m = len(loaded["solids"])
+        for s in range(samples):
+            out_fbo.use()
+            out_fbo.clear(0.0, 0.0, 0.0, 0.0)
+            backend._set(fetch, "u_sample", s)
+            fullscreen(backend, fetch)
+            win = backend._read(single[0], "<f4", 1, size)[..., 0]
+            bary = backend._read(single[1], "<f4", 4, size)[..., :3]
+            color = backend._read(single[2], "<f4", 4, size)[..., :3]
+            ids = backend._read(single[3], "<i4", 4, size)
+            covered = ids[..., 3] == 1
+            c3 = covered[..., None]
+            obj = np.where(covered, ids[..., 1], -1).astype(np.int32)
+            out[f"sample{s}_depth"] = np.where(covered, win, clear).astype(np.float32)
+            out[f"sample{s}_prim_id"] = np.where(covered, ids[..., 0], -1).astype(np.int32)
+            out[f"sample{s}_object_id"] = obj
+            out[f"sample{s}_front_facing"] = covered & (ids[..., 2] == 1)
+            out[f"sample{s}_barycentric"] = np.where(c3, bary, 0).astype(np.float32)
+            out[f"sample{s}_color"] = np.where(c3, color, bg).astype(np.float32)
+            out[f"sample{s}_cap_mask"] = obj >= m
+    finally:
+        disable(_GL_SAMPLE_SHADING)
+        backend._default_conventions()
+        backend._parking.use()
+        for obj in (fbo, out_fbo, depth, *ms, *single):
+            obj.release()
+    return out
 
 
 #: The planted faults of this module (test-only ``#define``s of ``shaders/clip.frag``).

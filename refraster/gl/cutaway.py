@@ -183,14 +183,8 @@ def render_cutaway(gl, loaded, package_dir):
             d = draws[i]
             if not d["n_faces"]:
                 continue
-            gl._write(prog, "u_mvp", d["mvp"])
-            gl._write(prog, "u_mv", d["mv"])
-            gl._write(prog, "u_nmat", d["nmat"])
-            gl._set(prog, "u_object", int(d["object_id"]))
             gl._set(prog, "u_secondary", i in sec)
-            gl._set(prog, "u_base", tuple(float(c) for c in
-                                          palette[d["object_id"] % len(palette)]))
-            gl._vao(d, prog).render(mgl.TRIANGLES)
+            gl._draw(prog, d, palette)
         ctx.finish()
         out, covered = gl._read_gbuffer(scene, targets, size)
         cut = gl._read(targets[6], "<i4", 1, size)[..., 0]

@@ -52,6 +52,8 @@ from .halos import supports as halos_supports
 from .msaa import render_msaa
 from .msaa import sample_pattern as _sample_pattern
 from .msaa import supports as msaa_supports
+from .msaa_techniques import render_sampled
+from .msaa_techniques import supports as sampled_supports
 from .package import (CONVENTION_DEFAULTS, PackageError, conventions, matrix, read_map,
                       read_ply, read_scene)
 
@@ -165,6 +167,8 @@ class Backend:
         technique = scene.get("technique")
         if technique == "msaa":           # issue 43: refraster/gl/msaa.py
             return msaa_supports(scene)
+        if scene.get("raster", {}).get("samples", 1) != 1 and technique != "clipsurface":
+            return sampled_supports(scene)   # issue 44: gl/msaa_techniques.py
         conv = conventions(scene.get("raster", {}))
         if technique not in ("render", "vds", "ldi") and conv != CONVENTION_DEFAULTS:
             changed = sorted(k for k in conv if conv[k] != CONVENTION_DEFAULTS[k])
@@ -190,6 +194,10 @@ class Backend:
             return ("vds: only the parity test over one sprite (test 'parity', one axis) is "
                     "implemented")
         if technique == "clipsurface":
+            interp = scene.get("raster", {}).get("interpolation", "center")
+            if scene.get("raster", {}).get("samples", 1) != 1 and interp == "centroid":
+                return ("clipsurface: interpolation 'centroid' at samples > 1 is not "
+                        "implemented (pixel rate at the centre, or sample rate)")
             return clipsurface.supports(scene)
         return None
 
@@ -221,6 +229,10 @@ class Backend:
         reason = self.supports(scene) or self._size_limit(scene)
         if reason is not None:
             raise Unsupported(reason)
+        if scene["raster"].get("samples", 1) != 1 \
+                and scene["technique"] not in ("msaa", "clipsurface"):
+            # issue 44: the technique's passes once per sample (refraster/gl/msaa_techniques.py)
+            return {"scene": scene, "sampled": package_dir, "draws": [], "textures": []}
         if scene["technique"] == "clipsurface":            # issue 26 item 1
             return {"scene": scene, "clip": clipsurface.load(self, package_dir, scene),
                     "draws": [], "textures": []}
@@ -251,6 +263,8 @@ class Backend:
         """Render a :meth:`load`-ed scene → ``{buffer name: array}`` (see :meth:`render`)."""
         if "clip" in loaded:
             return clipsurface.draw(self, loaded["scene"], loaded["clip"])
+        if "sampled" in loaded:                         # issue 44
+            return render_sampled(self, loaded["sampled"], loaded["scene"])
         if loaded["scene"]["technique"] == "edges":    # issue 26: refraster/gl/edges.py
             return render_edges(self, loaded, loaded.get("package_dir"))
         if loaded["scene"]["technique"] == "cutaway":  # issue 26: refraster/gl/cutaway.py
@@ -367,6 +381,18 @@ class Backend:
             # (not with the planted fault matrix_row_major)
             data = m if "matrix_row_major" in self.faults else m.T
             prog[name].write(np.ascontiguousarray(data, np.float32).tobytes())
+
+    def _draw(self, prog, draw, palette=None):
+        """One draw of a G-buffer program: the draw's matrices and object id as uniforms, its
+        palette colour as ``u_base`` when ``palette`` is given, then its triangles."""
+        self._write(prog, "u_mvp", draw["mvp"])
+        self._write(prog, "u_mv", draw["mv"])
+        self._write(prog, "u_nmat", draw["nmat"])
+        self._set(prog, "u_object", int(draw["object_id"]))
+        if palette is not None:
+            self._set(prog, "u_base", tuple(float(c) for c in
+                                            palette[draw["object_id"] % len(palette)]))
+        self._vao(draw, prog).render(self.mgl.TRIANGLES)
 
     def _depth_attachment(self, size, depth_format="float32"):
         """A depth texture re-specified as ``GL_DEPTH_COMPONENT32F`` (moderngl's is 24-bit),

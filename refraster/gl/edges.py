@@ -69,11 +69,7 @@ def render_edges(gl, loaded, package_dir=None):
         for d in draws:
             if not d["n_faces"]:
                 continue
-            gl._write(prog, "u_mvp", d["mvp"])
-            gl._write(prog, "u_mv", d["mv"])
-            gl._write(prog, "u_nmat", d["nmat"])
-            gl._set(prog, "u_object", int(d["object_id"]))
-            gl._vao(d, prog).render(mgl.TRIANGLES)
+            gl._draw(prog, d)
         # pass 2: the operators, full screen, no depth test
         ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE)
         prog = progs["edge"]

@@ -177,13 +177,7 @@ def render_msaa(gl, loaded):
         for d in draws:
             if not d["n_faces"]:
                 continue
-            gl._write(prog, "u_mvp", d["mvp"])
-            gl._write(prog, "u_mv", d["mv"])
-            gl._write(prog, "u_nmat", d["nmat"])
-            gl._set(prog, "u_object", int(d["object_id"]))
-            gl._set(prog, "u_base", tuple(float(c) for c in
-                                          palette[d["object_id"] % len(palette)]))
-            gl._vao(d, prog).render(mgl.TRIANGLES)
+            gl._draw(prog, d, palette)
         f["Enable"](_GL_MULTISAMPLE)
         ctx.finish()
         fetch = programs(gl, _SHADERS)

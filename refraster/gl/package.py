@@ -172,7 +172,10 @@ def read_scene(package_dir):
             if value not in allowed:
                 raise PackageError(f"{path}: raster.{key} must be one of {list(allowed)}, got "
                                    f"{value!r}")
-        if scene.get("technique") == "msaa":
+        if scene.get("technique") == "msaa" or (
+                scene.get("technique") in ("edges", "cutaway", "clipsurface")
+                and raster.get("samples", 1) != 1):
+            # msaa scenes (issue 43) and technique scenes per sample (issue 44)
             _multisample(path, raster, scene.get("parameters"))
         elif raster.get("samples", 1) != 1 or raster.get("sample_locations", "standard") \
                 != "standard":

@@ -103,7 +103,13 @@ def _write_scene(root, name, scene):
     export_package(root / name / "package", name, scene, raster)
     rio.atomic_write_bytes(root / name / "buffers.npz", npz_bytes(scene.buffers))
     # multisampled scenes: per sample, on the scene moved by each sample's offset
-    allowances = msaa_allowances if scene.technique == "msaa" else scene_allowances
+    # technique scenes at samples > 1: the single-sample allowances per sample (clip surfaces:
+    # the clip-surface ones per sample, allowances/samples.py)
+    from .allowances.sampled import sampled_allowances
+    samples = int(raster.get("samples", 1))
+    allowances = (msaa_allowances if scene.technique == "msaa"
+                  or (scene.technique == "clipsurface" and samples > 1)
+                  else sampled_allowances if samples > 1 else scene_allowances)
     try:
         arrays, info, tolerant = allowances(scene, raster)
     except ValueError as exc:

@@ -61,7 +61,8 @@ MULTISAMPLE_DEFAULTS = dict(samples=1, sample_locations="standard", interpolatio
 
 #: Modules imported by :func:`available_scenes`; each registers its scenes on import.
 SCENE_MODULES = ("refraster.golden.technique_scenes", "refraster.golden.convention_scenes",
-                 "refraster.golden.catalogue_scenes", "refraster.golden.msaa_scenes")
+                 "refraster.golden.catalogue_scenes", "refraster.golden.msaa_scenes",
+                 "refraster.golden.msaa_technique_scenes", "refraster.golden.msaa_clip_scenes")
 
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_]*$")
 #: Longest scene or draw name: a name becomes a directory (``<scene>/``, with ``__<sweep>``
@@ -189,6 +190,7 @@ class SceneEntry:
     technique: str
     description: str
     build: object
+    samples: int = 1
 
 
 #: name → :class:`SceneEntry`, in registration order.
@@ -198,11 +200,12 @@ SCENES: dict = {}
 TECHNIQUES: dict = {}
 
 
-def register_scene(name, *, technique, description=""):
+def register_scene(name, *, technique, description="", samples=1):
     """Decorator: register ``fn() -> GoldenScene`` as the golden scene ``name``.
 
     ``name`` is lower-case ``[a-z0-9_]`` (it becomes a directory name). Registering a name twice
-    is an error.
+    is an error. ``samples``: the scene's ``raster.samples`` (a technique scene with more than
+    one joins the 4× technique matrix of ``docs/backends.md`` without being built).
     """
     check_name(name, "scene name")
     if name in SCENES:
@@ -211,7 +214,7 @@ def register_scene(name, *, technique, description=""):
     def decorator(fn):
         if not callable(fn):
             raise TypeError("register_scene decorates a function returning a GoldenScene")
-        SCENES[name] = SceneEntry(name, technique, description, fn)
+        SCENES[name] = SceneEntry(name, technique, description, fn, int(samples))
         return fn
 
     return decorator

@@ -812,6 +812,9 @@ def clipsurface_in_raster(scene, camera, raster):
     its OpenGL equivalent, :func:`_equivalent_camera`)."""
     from ..clipsurface import render_clipped
     from .scenes import as_state
+    if int(raster.get("samples", 1)) > 1:
+        raise ValueError("a multisampled clip-surface scene is derived in OpenGL's conventions "
+                         "only (its per-sample allowances are)")
     params = scene.parameters
     clips = _scene_clips(scene)
     fb = render_clipped([d.mesh for d in scene.draws], clips, **camera.kwargs,

@@ -628,7 +628,7 @@ DEFAULT_STYLE = HaloStyle()
 
 def render_halos(surface, *, view=DEFAULT_VIEW, width=512, height=512, slices=256,
                  halos=DEFAULT_HALOS, style=DEFAULT_STYLE, background=(0.0, 0.0, 0.0),
-                 volume=False, engine="fused"):
+                 volume=False, engine="fused", raster=None):
     """Render a surface in 4D with depth-dependent volumetric halos (Wang et al. 2013).
 
     Parameters
@@ -655,6 +655,10 @@ def render_halos(surface, *, view=DEFAULT_VIEW, width=512, height=512, slices=25
         Also return the ``(N, H, W)`` int8 voxel classes (not with ``view.stereo``).
     engine : {"fused", "reference"}
         Same output bits; ``"reference"`` calls :func:`refraster.rasterize` once per slice.
+    raster : RasterState, optional
+        Only the default single-sample state (or None): the slices are rasterized with the
+        technique's own fixed state, and the slicing composite has no multisampled meaning
+        (``raster.samples > 1`` is refused with one line, :func:`require_halo_raster`).
 
     Returns
     -------
@@ -675,21 +679,46 @@ def render_halos(surface, *, view=DEFAULT_VIEW, width=512, height=512, slices=25
     ...                      width=64, height=64, slices=16,
     ...                      style=h.HaloStyle(opacity=0.6))  # doctest: +SKIP
     """
+    require_halo_raster(raster)
     return _render(surface, view, width, height, slices, halos, style, background, volume,
                    engine, pair=False)
 
 
 def render_halos_pair(surface, *, view=DEFAULT_VIEW, width=512, height=512, slices=256,
                       halos=DEFAULT_HALOS, style=DEFAULT_STYLE, background=(0.0, 0.0, 0.0),
-                      volume=False, engine="fused"):
+                      volume=False, engine="fused", raster=None):
     """``(render_halos(surface, …), render_halos(surface, …, halos=halos.replace(enabled=False)))``
     — the same two results, bit for bit, from one projection, thickening, tetrahedralization,
     slicing and window set-up: only the fill pass runs twice (the slicing does not depend on
     the halos). The parameters are :func:`render_halos`'; ``halos.enabled`` must be True, and
     ``style.boundary_color`` and ``style.halo_opacity`` act on the first picture only, as they
     do without halos."""
+    require_halo_raster(raster)
     return _render(surface, view, width, height, slices, halos, style, background, volume,
                    engine, pair=True)
+
+
+def require_halo_raster(raster):
+    """Refuse, with one line, a raster state the halos cannot honour. ``samples > 1``: the
+    slicing composite blends each slice's fragments into one value per pixel, front to back
+    in slice order, with the surface width's analytic coverage as the slice's anti-aliasing
+    (Wang et al. Sec. 4; ``halos.antialias``) — a per-sample composite would need each slice's
+    coverage at each sample and a resolve of a non-linear blend, which the paper does not
+    define. Any other field than the default: the slices are rasterized with the technique's
+    own fixed state (1/256 px snapping, llvmpipe's fill rule)."""
+    if raster is None:
+        return None
+    from ..raster.state import DEFAULT, as_raster_state
+    state = as_raster_state(raster)
+    if state.samples != 1 or state.sample_locations != "standard":
+        raise ValueError(f"raster.samples must be 1 for refraster.halos4d (the slicing "
+                         f"composite blends each slice per pixel and has no multisampled "
+                         f"meaning; halos.antialias is its anti-aliasing), got samples="
+                         f"{state.samples}")
+    if state != DEFAULT:
+        raise ValueError("raster must be the default RasterState for refraster.halos4d (its "
+                         "slices are rasterized with the technique's own fixed state)")
+    return state
 
 
 def _render(surface, view, width, height, slices, halos, style, background, volume, engine,

@@ -245,3 +245,132 @@ def rasterize_samples(prims, ox, oy, *, fill_rule=0, depth_func=1, clear_depth=1
                np.ascontiguousarray(oy, np.int64), INTERPOLATIONS[interpolation], depth, prim,
                front, bary)
     return depth, prim, front, bary
+
+
+@njit(**PJIT)
+def _sample_stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim,
+                        sfront, sbox, sarea, B, starts, lists, ntx, width, height, bits, rule,
+                        ox, oy, interp, write, counts, offsets, o_pixel, o_depth, o_prim,
+                        o_front, o_bary):
+    ntiles = starts.shape[0] - 1
+    ns = ox.shape[0]
+    one = np.float64(1 << bits)
+    for tile in prange(ntiles):
+        covered = np.zeros(ns, np.bool_)
+        tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
+        o = offsets[tile]
+        for j in range(starts[tile], starts[tile + 1]):
+            item = lists[j]
+            bx0, bx1, by0, by1 = _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1)
+            if bx0 > bx1 or by0 > by1:
+                continue
+            (r0, sx0, sy0, b0, r1, sx1, sy1, b1, r2, sx2, sy2, b2, fx0, fy0, fx1, fy1, fx2, fy2,
+             z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx,
+             dzdy) = _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
+                            sfront, sarea, bits, rule, bx0, by0)
+            # the edges' dx, dy (the steps are their multiples of 2^bits)
+            dx0, dy0 = sy0 >> bits, -(sx0 >> bits)
+            dx1, dy1 = sy1 >> bits, -(sx1 >> bits)
+            dx2, dy2 = sy2 >> bits, -(sx2 >> bits)
+            for y in range(by0, by1 + 1):
+                row = height - 1 - y
+                for i in range(bx1 - bx0 + 1):
+                    x = bx0 + i
+                    # the biased edge values at the pixel centre; a sample adds its offset
+                    e0 = r0 + sx0 * i
+                    e1 = r1 + sx1 * i
+                    e2 = r2 + sx2 * i
+                    n_cov = 0
+                    best = -1
+                    dbest = np.int64(0)
+                    for s in range(ns):
+                        c = (e0 + dx0 * oy[s] - dy0 * ox[s] >= 0
+                             and e1 + dx1 * oy[s] - dy1 * ox[s] >= 0
+                             and e2 + dx2 * oy[s] - dy2 * ox[s] >= 0)
+                        covered[s] = c
+                        if c:
+                            n_cov += 1
+                            d = ox[s] * ox[s] + oy[s] * oy[s]
+                            if best < 0 or d < dbest:
+                                best = s
+                                dbest = d
+                    if n_cov == 0:
+                        continue
+                    if not write:
+                        o += n_cov
+                        continue
+                    # the pixel-rate point: the centre, or the centroid's sample
+                    px = np.int64(0)
+                    py = np.int64(0)
+                    if interp == 1 and n_cov < ns:
+                        px, py = ox[best], oy[best]
+                    q0 = q1 = q2 = np.float32(0.0)
+                    if interp != 2:
+                        l0, l1, l2 = _lambdas_at(
+                            fx0, fy0, fx1, fy1, fx2, fy2, inv_af,
+                            np.float64(x) + 0.5 + np.float64(px) / one,
+                            np.float64(y) + 0.5 + np.float64(py) / one,
+                            e0 + b0 + dx0 * py - dy0 * px, e1 + b1 + dx1 * py - dy1 * px,
+                            e2 + b2 + dx2 * py - dy2 * px, inv_area)
+                        q0, q1, q2 = perspective_bary(iw0, iw1, iw2, piece, front, B, l0, l1,
+                                                      l2)
+                    for s in range(ns):
+                        if not covered[s]:
+                            continue
+                        u0 = e0 + dx0 * oy[s] - dy0 * ox[s] + b0
+                        u1 = e1 + dx1 * oy[s] - dy1 * ox[s] + b1
+                        u2 = e2 + dx2 * oy[s] - dy2 * ox[s] + b2
+                        cx = np.float64(x) + 0.5 + np.float64(ox[s]) / one
+                        cy = np.float64(y) + 0.5 + np.float64(oy[s]) / one
+                        o_pixel[o] = (row * width + x) * ns + s
+                        o_prim[o] = prim
+                        o_front[o] = front
+                        o_depth[o] = _depth_at(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, cx, cy,
+                                               np.float64(u0) * inv_area,
+                                               np.float64(u1) * inv_area,
+                                               np.float64(u2) * inv_area)
+                        if interp == 2:
+                            l0, l1, l2 = _lambdas_at(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, cx,
+                                                     cy, u0, u1, u2, inv_area)
+                            q0, q1, q2 = perspective_bary(iw0, iw1, iw2, piece, front, B, l0,
+                                                          l1, l2)
+                        o_bary[o, 0] = q0
+                        o_bary[o, 1] = q1
+                        o_bary[o, 2] = q2
+                        o += 1
+                r0 += sy0
+                r1 += sy1
+                r2 += sy2
+        if not write:
+            counts[tile] = o - offsets[tile]
+
+
+def stream_samples(prims, ox, oy, *, fill_rule=0, interpolation="center"):
+    """Rasterize into a per-sample fragment stream (``prims`` set up with ``pad`` of half a
+    pixel): one fragment per covered sample, with the sample's depth and the barycentrics at
+    ``interpolation``'s point (the pixel centre or centroid, shared by the samples one
+    triangle covers in one pixel; or the sample's own position).
+
+    Returns ``(pixel, depth, prim, front, bary, tile_offsets)`` as
+    :func:`refraster.raster.rasterizer.stream`, with ``pixel`` an index into the ``(H, W·S)``
+    *sample image* — ``(row·W + col)·S + s`` for sample ``s`` of pixel ``(row, col)`` — so
+    within each sample the fragments are in draw order and the single-sample resolve is the
+    per-sample depth test. Coverage, depth and barycentrics are :func:`rasterize_samples`'s,
+    bit for bit."""
+    ntx, nty, starts, lists = bin_primitives(prims)
+    ntiles = ntx * nty
+    counts = np.zeros(ntiles, np.int64)
+    offsets = np.zeros(ntiles, np.int64)
+    args = (*_geometry(prims), starts, lists, ntx, prims.width, prims.height,
+            prims.subpixel_bits, fill_rule, np.ascontiguousarray(ox, np.int64),
+            np.ascontiguousarray(oy, np.int64), INTERPOLATIONS[interpolation])
+    z = (np.zeros(0, np.int64), np.zeros(0, np.float32), np.zeros(0, np.int64),
+         np.zeros(0, np.bool_), np.zeros((0, 3), np.float32))
+    _sample_stream_pass(*args, False, counts, offsets, *z)
+    tile_offsets = np.zeros(ntiles + 1, np.int64)
+    np.cumsum(counts, out=tile_offsets[1:])
+    n = int(tile_offsets[-1])
+    out = (np.zeros(n, np.int64), np.zeros(n, np.float32), np.zeros(n, np.int64),
+           np.zeros(n, np.bool_), np.zeros((n, 3), np.float32))
+    _sample_stream_pass(*args, True, counts, tile_offsets[:-1].copy(), *out)
+    return (*out, tile_offsets)

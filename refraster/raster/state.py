@@ -251,6 +251,19 @@ class RasterState:
         put("sample_locations", _sample_locations(self.sample_locations, int(n)))
         put("interpolation", _choice(self.interpolation, "interpolation", INTERPOLATIONS))
 
+    @property
+    def shading_rate(self):
+        """``"sample"`` when ``interpolation == "sample"``, else ``"pixel"``: how often a
+        technique's fragment stage (a clip surface's discard, the parity test) runs at
+        ``samples > 1``. At pixel rate it runs once per fragment — one triangle in one pixel —
+        at the centre or centroid, and its discard removes every sample the fragment covers;
+        at sample rate once per covered sample at the sample's position. The GPU mechanism is
+        the same: an input interpolated at the sample (GLSL's ``sample`` qualifier,
+        ``gl_SampleID``/``SV_SampleIndex`` read, or ``GL_SAMPLE_SHADING``/Vulkan's
+        ``sampleShadingEnable`` with a minimum fraction of 1.0) makes the shader run per
+        sample."""
+        return "sample" if self.interpolation == "sample" else "pixel"
+
     def replace(self, **changes):
         """A copy with some fields changed (validated like a new value)."""
         return dataclasses.replace(self, **changes)
@@ -325,14 +338,16 @@ def reverses(state):
     return state.depth_func in ("greater", "gequal")
 
 
-def require_depth_direction(state, where):
+def require_depth_direction(state, where, *, multisample=False):
     """Refuse, with one line naming the field, a state whose depth test has no direction for a
     technique that compares depths itself (cut tests, cap depth tests, peeling): the depth
     function must be ``less``/``lequal`` with the buffer cleared to 1 (the far end) or
     ``greater``/``gequal`` (reversed-Z) cleared to 0, with depth writes on. A multisample state
-    is refused too (:func:`require_single_sample`). The other fields (front face, culling, the
-    API conventions) are the technique's to honour."""
-    require_single_sample(state, where)
+    is refused too (:func:`require_single_sample`) unless the technique renders samples
+    (``multisample=True``). The other fields (front face, culling, the API conventions) are the
+    technique's to honour."""
+    if not multisample:
+        require_single_sample(state, where)
     if state.depth_func not in DIRECTED_DEPTH_FUNCS:
         raise ValueError(f"raster.depth_func must be one of {', '.join(DIRECTED_DEPTH_FUNCS)} "
                          f"for {where} (a direction of depth: nearer is smaller or larger), "

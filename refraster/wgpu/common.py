@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["SHADER_DIR", "VERTEX_BUFFER", "module", "scene_pipeline", "fullscreen_pipeline",
-           "uniform", "fullscreen", "float_texture"]
+           "uniform", "fullscreen", "float_texture", "gbuffer_arrays"]
 
 SHADER_DIR = Path(__file__).with_name("shaders")
 
@@ -128,3 +128,29 @@ def float_texture(backend, arrays):
                                        {"bytes_per_row": 16 * w, "rows_per_image": h},
                                        (w, h, 1))
     return tex
+
+
+def gbuffer_arrays(scene, window_depth, eye, ids, normal, bary, color):
+    """The G-buffer's buffers from a G-buffer pass's read-backs → ``(out, covered)``.
+
+    ``ids`` is the ``(H, W, 4)`` int target (face, object, front facing, covered flag);
+    ``window_depth`` ``(H, W)``, ``eye``, ``normal``, ``bary``, ``color`` the float targets
+    (their first channels used). Uncovered pixels get the package's clear depth, infinite eye
+    depth, zero normal and barycentrics, id −1 and the background colour, as refraster's
+    Framebuffer.
+    """
+    covered = ids[..., 3] == 1
+    c3 = covered[..., None]
+    bg = np.asarray(scene["shading"]["background"], np.float32)
+    out = {
+        "depth": np.where(covered, window_depth,
+                          np.float32(scene["raster"]["clear_depth"])).astype(np.float32),
+        "eye_depth": np.where(covered, eye[..., 0], np.float32(np.inf)).astype(np.float32),
+        "normal": np.where(c3, normal[..., :3], 0).astype(np.float32),
+        "prim_id": np.where(covered, ids[..., 0], -1).astype(np.int32),
+        "object_id": np.where(covered, ids[..., 1], -1).astype(np.int32),
+        "front_facing": covered & (ids[..., 2] == 1),
+        "barycentric": np.where(c3, bary[..., :3], 0).astype(np.float32),
+        "color": np.where(c3, color[..., :3], bg).astype(np.float32),
+    }
+    return out, covered

@@ -29,7 +29,7 @@ import numpy as np
 from ..gl.package import PackageError, cutaway_ghost_lines, cutaway_options, matrix
 from ..gl.package import cutaway_step_schedule as step_schedule
 from ..gl.package import cutaway_supports
-from .common import fullscreen, fullscreen_pipeline, scene_pipeline, uniform
+from .common import fullscreen, fullscreen_pipeline, gbuffer_arrays, scene_pipeline, uniform
 
 __all__ = ["supports", "render", "step_schedule", "schedule"]
 
@@ -267,22 +267,7 @@ def _gbuffer(scene, got):
     """The G-buffer's buffers from the three passes' read-backs → ``(out, covered)``."""
     win, eye, ids, _ = got["fs_cut_ids"]
     normal, bary = got["fs_cut_surface"]
-    color = got["fs_cut_shade"][0]
-    covered = ids[..., 3] == 1
-    c3 = covered[..., None]
-    bg = np.asarray(scene["shading"]["background"], np.float32)
-    out = {
-        "depth": np.where(covered, win[..., 0],
-                          np.float32(scene["raster"]["clear_depth"])).astype(np.float32),
-        "eye_depth": np.where(covered, eye[..., 0], np.float32(np.inf)).astype(np.float32),
-        "normal": np.where(c3, normal[..., :3], 0).astype(np.float32),
-        "prim_id": np.where(covered, ids[..., 0], -1).astype(np.int32),
-        "object_id": np.where(covered, ids[..., 1], -1).astype(np.int32),
-        "front_facing": covered & (ids[..., 2] == 1),
-        "barycentric": np.where(c3, bary[..., :3], 0).astype(np.float32),
-        "color": np.where(c3, color[..., :3], bg).astype(np.float32),
-    }
-    return out, covered
+    return gbuffer_arrays(scene, win[..., 0], eye, ids, normal, bary, got["fs_cut_shade"][0])
 
 
 def _ghost(backend, lay, seg, occ, dtex, view, proj, g_max, opt, state, faults, made):

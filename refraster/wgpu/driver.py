@@ -39,6 +39,7 @@ import numpy as np
 from ..gl.package import PackageError, matrix, read_map, read_ply, read_scene
 from . import FAULTS, LATER_TECHNIQUES, SUPPORTED_TECHNIQUES, TECHNIQUE_FAULTS
 from . import clipsurface, cutaway, edges, halos
+from .common import gbuffer_arrays
 from .device import WGPUUnavailable, adapter, create_device, describe, unclipped_depth
 
 __all__ = ["Backend", "Unsupported", "WGPUUnavailable", "CONVENTION_DEFAULTS", "SHADER"]
@@ -553,22 +554,8 @@ class Backend:
         win, eye, ids = got["fs_ids"]
         normal, bary = got["fs_surface"]
         shade = got["fs_shade_vds" if vds else "fs_shade"]
-        covered = ids[..., 3] == 1
-        c3 = covered[..., None]
-        bg = np.asarray(scene["shading"]["background"], np.float32)
-        raster = scene["raster"]
         written = win[..., 0] if stored is None else stored   # unorm: the depth buffer
-        out = {
-            "depth": np.where(covered, written,
-                              np.float32(raster["clear_depth"])).astype(np.float32),
-            "eye_depth": np.where(covered, eye[..., 0], np.float32(np.inf)).astype(np.float32),
-            "normal": np.where(c3, normal[..., :3], 0).astype(np.float32),
-            "prim_id": np.where(covered, ids[..., 0], -1).astype(np.int32),
-            "object_id": np.where(covered, ids[..., 1], -1).astype(np.int32),
-            "front_facing": covered & (ids[..., 2] == 1),
-            "barycentric": np.where(c3, bary[..., :3], 0).astype(np.float32),
-            "color": np.where(c3, shade[0][..., :3], bg).astype(np.float32),
-        }
+        out, covered = gbuffer_arrays(scene, written, eye, ids, normal, bary, shade[0])
         if vds:
             out["inside"] = covered & (shade[1][..., 0] == 1)
         return out

@@ -276,8 +276,8 @@ MUTANTS = [
            ACORE, "lo32 = np.where(lo32 > lo, np.nextafter(lo32, np.float32(-np.inf)), lo32)",
            "lo32 = np.where(lo32 < lo, np.nextafter(lo32, np.float32(-np.inf)), lo32)", ARITH),
     Mutant("allow_depth_region_may", "allowance", "depth interval applied at \"may\" pixels too",
-           ACORE, 'region &= (arrays["coverage"] == MUST) & depth_covered(cand, clear_depth,',
-           'region &= (arrays["coverage"] >= MAY) & depth_covered(cand, clear_depth,', ARITH),
+           ACORE, 'region &= (arrays["coverage"] == MUST) & covered_by(cand, clear_depth,',
+           'region &= (arrays["coverage"] >= MAY) & covered_by(cand, clear_depth,', ARITH),
     Mutant("allow_interval_step_inwards", "allowance", "the interval's upper end narrowed by "
            "the quantisation step instead of widened", ACORE,
            '            hi = arrays[spec["hi"]].astype(np.float64) + step\n'

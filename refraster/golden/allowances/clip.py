@@ -125,6 +125,11 @@ def clip_allowances(scene, raster, eps, eye_budget):
         if len(faces) else np.zeros((0, 3), np.int64)
     tri = tri + vbase[draw][:, None]
     pts = np.einsum("esk,ekc->esc", np.nan_to_num(beta), verts[tri])       # (E, 5, 3)
+    if p.get("decision_offset") is not None:
+        # a multisampled scene at pixel rate, derived on the scene moved to one sample
+        # (allowances/samples.py): the decision is taken at the pixel centre, offset from
+        # this scene's pixel centre, not where the sample's coverage is
+        pts = _points_at(cam, pix, verts[tri], p["decision_offset"], eps)
     state = np.full(len(faces), 2, np.int8)     # 0 never kept, 1 may be, 2 surely
     is_cap = draw >= n_solids
     # solids: the clip decision of every enabled surface
@@ -172,6 +177,32 @@ def clip_allowances(scene, raster, eps, eye_budget):
             st = np.where(g > delta, 2, np.where(g < -delta, 0, 1)).astype(np.int8)
             state[sel] = np.minimum(state[sel], st)
     return _winners(prep, pix, faces, sure, fragile, lo, hi, state, is_cap, h, w, eye_budget)
+
+
+def _points_at(cam, pix, tri, offset, eps):
+    """World points ``(E, 5, 3)`` of each entry's triangle plane (``tri`` ``(E, 3, 3)`` world)
+    seen through pixel ``pix`` (flat, row 0 at the top) at the window offset ``offset``
+    (pixels, GL window y up) from its centre and at the corners of the ε-square around that
+    point: the ray through the window point met with the plane, in float64."""
+    h, w = cam.height, cam.width
+    inv = np.linalg.inv(np.asarray(cam.proj, np.float64) @ np.asarray(cam.view, np.float64))
+    r, c = np.divmod(np.asarray(pix, np.int64), w)
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    out = np.zeros((len(pix), 5, 3))
+    for j, (dx, dy) in enumerate(((0.0, 0.0), (-eps, -eps), (eps, -eps), (-eps, eps),
+                                  (eps, eps))):
+        x = c + 0.5 + offset[0] + dx
+        y = (h - 1 - r) + 0.5 + offset[1] + dy
+        ndc = np.stack([2.0 * x / w - 1.0, 2.0 * y / h - 1.0], -1)
+        ends = []
+        for z in (-1.0, 1.0):
+            q = np.concatenate([ndc, np.full((len(pix), 1), z), np.ones((len(pix), 1))], 1) @ inv.T
+            ends.append(q[:, :3] / q[:, 3:])
+        o, d = ends[0], ends[1] - ends[0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.einsum("ec,ec->e", tri[:, 0] - o, n) / np.einsum("ec,ec->e", d, n)
+        out[:, j] = o + np.nan_to_num(t)[:, None] * d
+    return out
 
 
 def _eye_interval(lo, hi, proj, budget):

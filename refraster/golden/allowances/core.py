@@ -204,9 +204,11 @@ def _geometry(raster):
                        precision=s.precision)
 
 
-def gl_allowances(scene, raster):
+def gl_allowances(scene, raster, d_bounds=None):
     """Allowances of one scene in OpenGL's conventions, for a candidate of the declared
     sub-pixel bits (:func:`refraster.golden.allowances.precision.candidate_bits`).
+    ``d_bounds``: a cutaway scene's ``(lo, hi, slack)`` of D when it is not derived from the
+    scene itself (:mod:`.sampled`: one surface shared by every sample).
 
     Returns
     -------
@@ -337,8 +339,8 @@ def gl_allowances(scene, raster):
             and (scene.parameters or {}).get("accepted_variants"):
         # cutaways: D_variant − slack ≤ D ≤ D_exact + slack (golden/allowances/cutaway.py)
         from .cutaway import cutaway_bounds
-        arrays["cutaway_depth_lo"], arrays["cutaway_depth_hi"], slack = cutaway_bounds(
-            scene, tol.eps)
+        arrays["cutaway_depth_lo"], arrays["cutaway_depth_hi"], slack = (
+            cutaway_bounds(scene, tol.eps) if d_bounds is None else d_bounds)
         checks["cutaway_depth"] = {"checks": ["bounds"], "lo": "cutaway_depth_lo",
                                    "hi": "cutaway_depth_hi"}
         if raster["depth_func"] == "less" and "cut_mask" in buffers:

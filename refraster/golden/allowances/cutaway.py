@@ -230,13 +230,16 @@ def _floor_slope_max(seeded, cam, p, kw):
     return out
 
 
-def cutaway_bounds(scene, eps):
-    """``(lo, hi)`` float32 (H, W): the window-depth interval of the cutaway depth D."""
+def cutaway_bounds(scene, eps, flood_camera=None):
+    """``(lo, hi)`` float32 (H, W): the window-depth interval of the cutaway depth D.
+    ``flood_camera``: the camera whose projection the flood uses when it is not the one the
+    rear hulls are drawn with (a multisampled cutaway's D flooded from sample 0's rear hulls
+    at the pixel centre's projection, :mod:`.sampled`); the seeds are ``scene.camera``'s."""
     from ...cutaway.surface import cutaway_surface, pixel_ndc
     p = scene.parameters
-    cam = scene.camera
     big, big_seed, small, small_seed, least = _seed_images(scene, set(p["interest"]), eps,
                                                            with_least=True)
+    cam = scene.camera if flood_camera is None else flood_camera
     kw = dict(proj=cam.proj, view=cam.view, angle=p["angle"],
               perspective_compensation=p["perspective_compensation"],
               edge_compression=p["edge_compression"])

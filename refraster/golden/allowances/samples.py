@@ -36,9 +36,10 @@ import dataclasses
 import numpy as np
 
 from ...conformance import COLOR_TOL, MAY, MUST, MUST_NOT
-from .core import BARY_TOL, SHIFT_MARGIN, entry_values, gl_allowances
+from .core import BARY_TOL, entry_values, gl_allowances
 
-__all__ = ["msaa_allowances", "sample_shift", "centroid_ranges", "resolve_bounds"]
+__all__ = ["msaa_allowances", "sample_shift", "centroid_ranges", "headlight_bounds",
+           "resolve_bounds"]
 
 #: The entry values taken at the interpolation point (not at the sample) under ``"center"``.
 _AT_CENTRE = ("set_eye_depth_lo", "set_eye_depth_hi", "set_barycentric_lo",
@@ -77,6 +78,10 @@ def msaa_allowances(scene, raster):
                          "raster differs")
     positions = scene.parameters["sample_pattern"]["positions"]
     interp = raster.get("interpolation", "center")
+    clip = scene.technique == "clipsurface"
+    if clip and interp == "centroid":
+        raise ValueError("a multisampled clip-surface scene's allowances are derived at "
+                         "raster.interpolation 'sample' or 'center', got 'centroid'")
     cam = scene.camera
     plain = _plain_raster(raster)
     overrides = {k: v for k, v in plain.items() if v != DEFAULT_RASTER.get(k)}
@@ -88,13 +93,16 @@ def msaa_allowances(scene, raster):
                        cam.width, cam.height)
         bufs = {ch: scene.buffers[sample_buffer(s, ch)] for ch in SAMPLE_CHANNELS
                 if sample_buffer(s, ch) in scene.buffers}
-        sub = dataclasses.replace(scene, technique="render", camera=moved, buffers=bufs,
-                                  parameters={}, raster=overrides, geometry=True, may=None,
-                                  kinds={}, ids={})
+        if clip:
+            sub = _clip_sample_scene(scene, s, moved, overrides, interp, pos)
+        else:
+            sub = dataclasses.replace(scene, technique="render", camera=moved, buffers=bufs,
+                                      parameters={}, raster=overrides, geometry=True, may=None,
+                                      kinds={}, ids={})
         a, info_s, ch_s = gl_allowances(sub, plain)
         if info is None:
             info = info_s
-        if interp != "sample" and "set_offsets" in a:
+        if interp != "sample" and "set_offsets" in a and not clip:
             if centre is None:
                 centre = _Centre(scene, plain)
             centre.values(a, info_s["eps"])
@@ -113,6 +121,31 @@ def msaa_allowances(scene, raster):
         checks["color"] = {"checks": ["bounds"], "lo": "resolve_color_lo",
                            "hi": "resolve_color_hi"}
     return arrays, info, checks
+
+
+def _clip_sample_scene(scene, s, moved, overrides, interp, position):
+    """Sample ``s`` of a multisampled clip-surface scene as a single-sample clip-surface scene
+    on the camera moved to the sample (its buffers, its own clip-decision "may" pixels); at
+    pixel rate (``interp`` not ``"sample"``) the clip decision and parity test are taken at
+    the pixel centre, offset by minus the sample's offset from the moved scene's centre
+    (``parameters.decision_offset``, pixels, GL window y up; :mod:`.clip`)."""
+    from ..msaa_clip_scenes import CLIP_SAMPLE_CHANNELS
+    from ..msaa_scenes import sample_buffer
+    from ..technique_scenes import _clip_decision_may_multi
+    from .clip import _surfaces
+    bufs = {ch: scene.buffers[sample_buffer(s, ch)] for ch in CLIP_SAMPLE_CHANNELS
+            if sample_buffer(s, ch) in scene.buffers}
+    params = {k: v for k, v in scene.parameters.items() if k != "sample_pattern"}
+    if interp != "sample":
+        params["decision_offset"] = [-(float(position[0]) - 8.0) / 16.0,
+                                     -(8.0 - float(position[1])) / 16.0]
+    sub = dataclasses.replace(scene, camera=moved, buffers=bufs, parameters=params,
+                              raster=overrides, kinds={}, ids={}, may=None)
+    # the clip decision's "may" pixels where the rate takes it: at the sample (the moved
+    # scene's centre) or at the pixel centre (the scene's own)
+    may = _clip_decision_may_multi(scene.draws, moved if interp == "sample" else scene.camera,
+                                   _surfaces(sub), bufs["cap_mask"])
+    return dataclasses.replace(sub, may=may)
 
 
 class _Centre:
@@ -204,7 +237,7 @@ def centroid_ranges(scene, raster, a, bufs, eps):
     for the golden's own face where it covers the sample, and for every face-set entry.
     Barycentrics are ratios of affine functions of the point, so their extremes over the
     (convex) polygon are at its vertices; the colour (a shade of the normal and the view
-    direction) takes the vertices' spread times ``SHIFT_MARGIN``."""
+    direction) its proven range over the polygon (:func:`headlight_bounds`)."""
     from ...framebuffer import _build
     from ...raster import prepare
     from .core import _geometry
@@ -243,12 +276,12 @@ def centroid_ranges(scene, raster, a, bufs, eps):
                 np.full((len(pix), k), 0.5, np.float32), np.repeat(face, k).reshape(-1, k),
                 prep.face_offsets, np.zeros((len(pix), k), np.bool_),
                 np.nan_to_num(beta, nan=0.0).astype(np.float32), normals, np.ones(3))
-    col = fb.color.astype(np.float64)
     b_lo = np.where(ok[:, None], beta.min(axis=1) - BARY_TOL, -np.inf)
     b_hi = np.where(ok[:, None], beta.max(axis=1) + BARY_TOL, np.inf)
-    c_mid = col.mean(axis=1)
-    c_lo = c_mid - SHIFT_MARGIN * (c_mid - col.min(axis=1)) - COLOR_TOL
-    c_hi = c_mid + SHIFT_MARGIN * (col.max(axis=1) - c_mid) + COLOR_TOL
+    eye = np.einsum("ekj,ejc->ekc", np.nan_to_num(beta, nan=0.0), _eye_corners(prep, face))
+    c_lo, c_hi = headlight_bounds(fb.normal.astype(np.float64), eye, _base_colours(prep, face))
+    c_lo = c_lo - COLOR_TOL
+    c_hi = c_hi + COLOR_TOL
     c_lo = np.where(ok[:, None], c_lo, -np.inf)
     c_hi = np.where(ok[:, None], c_hi, np.inf)
     n_own = len(own_pix)
@@ -262,6 +295,84 @@ def centroid_ranges(scene, raster, a, bufs, eps):
             sl, sh = f"set_{key}_lo", f"set_{key}_hi"
             a[sl] = np.minimum(a[sl], lo[n_own:]).astype(np.float32)
             a[sh] = np.maximum(a[sh], hi[n_own:]).astype(np.float32)
+
+
+def _eye_corners(prep, face):
+    """The eye-space corners ``(E, 3, 3)`` float64 of global faces ``face`` (view · model ·
+    vertex, the positions :func:`refraster.raster.gbuffer.shade` interpolates)."""
+    offs = np.asarray(prep.face_offsets, np.int64)
+    draw = np.searchsorted(offs, face, side="right") - 1
+    out = np.zeros((len(face), 3, 3))
+    for k, (mesh, model) in enumerate(zip(prep.meshes, prep.models)):
+        sel = draw == k
+        if sel.any():
+            mv = np.asarray(prep.view, np.float64) @ np.asarray(model, np.float64)
+            v = np.asarray(mesh.vertices, np.float64)[np.asarray(mesh.faces)[face[sel] - offs[k]]]
+            out[sel] = v @ mv[:3, :3].T + mv[:3, 3]
+    return out
+
+
+def _base_colours(prep, face):
+    """The palette colour ``(E, 3)`` of each global face's draw call (``shade``'s ``pk``)."""
+    from ...framebuffer import PALETTE
+    offs = np.asarray(prep.face_offsets, np.int64)
+    draw = np.searchsorted(offs, face, side="right") - 1
+    return np.asarray(PALETTE, np.float64)[draw % len(PALETTE)]
+
+
+def _box(v):
+    """Per entry, the componentwise range ``(lo, hi)`` of points ``v`` ``(E, K, 3)``."""
+    return v.min(axis=1), v.max(axis=1)
+
+
+def _product_range(a_lo, a_hi, b_lo, b_hi):
+    """The range of ``a·b`` for ``a ∈ [a_lo, a_hi]``, ``b ∈ [b_lo, b_hi]`` (elementwise):
+    the extremes of a bilinear function over a box are at its corners."""
+    prods = np.stack([a_lo * b_lo, a_lo * b_hi, a_hi * b_lo, a_hi * b_hi])
+    return prods.min(axis=0), prods.max(axis=0)
+
+
+def _square_range(lo, hi):
+    """The range of ``x²`` for ``x ∈ [lo, hi]`` (elementwise)."""
+    sq_lo = np.where((lo <= 0) & (hi >= 0), 0.0, np.minimum(lo * lo, hi * hi))
+    return sq_lo, np.maximum(lo * lo, hi * hi)
+
+
+def headlight_bounds(normals, eye, base):
+    """A proven range ``(lo, hi) (E, 3)`` of the default colour (:func:`refraster.raster.
+    gbuffer.shade`) over every point of a convex polygon of one face, from the unit normals
+    ``normals`` ``(E, K, 3)`` and eye positions ``eye`` ``(E, K, 3)`` at its ``K`` vertices.
+
+    The eye position is affine in the barycentrics, so it ranges over the vertices' convex
+    hull; the smooth normal before normalising is linear in them, so its direction lies in the
+    cone of the vertices' unit normals (a flat normal is one direction). Taking the two
+    independently over the componentwise boxes of those hulls: ``n·e``, ``|n|²`` and ``|e|²``
+    in interval arithmetic bound ``d = min(|n·e| / (|n|·|e|), 1)``, and the colour
+    ``base·(A + D·d) + S·d⁴⁸`` (clamped to [0, 1]) is non-decreasing in ``d``: its range is
+    the colour at the two ends. Exact arithmetic; the caller adds the float rounding
+    (``COLOR_TOL``)."""
+    from ...raster.gbuffer import AMBIENT, DIFFUSE, SHININESS, SPECULAR
+    n_lo, n_hi = _box(normals)
+    e_lo, e_hi = _box(eye)
+    p_lo, p_hi = _product_range(n_lo, n_hi, e_lo, e_hi)
+    dot_lo, dot_hi = p_lo.sum(axis=1), p_hi.sum(axis=1)
+    abs_lo = np.where((dot_lo <= 0) & (dot_hi >= 0), 0.0,
+                      np.minimum(np.abs(dot_lo), np.abs(dot_hi)))
+    abs_hi = np.maximum(np.abs(dot_lo), np.abs(dot_hi))
+    nn_lo, nn_hi = (x.sum(axis=1) for x in _square_range(n_lo, n_hi))
+    ee_lo, ee_hi = (x.sum(axis=1) for x in _square_range(e_lo, e_hi))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d_lo = np.where(nn_hi * ee_hi > 0, abs_lo / np.sqrt(nn_hi * ee_hi), 0.0)
+        d_hi = np.where(nn_lo * ee_lo > 0, abs_hi / np.sqrt(nn_lo * ee_lo), 1.0)
+    # shade's d is 1 where the eye position is 0 (never in front of the eye)
+    d_lo = np.clip(np.nan_to_num(d_lo, nan=0.0), 0.0, 1.0)
+    d_hi = np.clip(np.nan_to_num(d_hi, nan=1.0), 0.0, 1.0)
+
+    def colour(d):
+        d = d[:, None]
+        return np.clip(base * (AMBIENT + DIFFUSE * d) + SPECULAR * d ** SHININESS, 0.0, 1.0)
+
+    return colour(d_lo), colour(d_hi)
 
 
 def _set_envelope(a, key, h, w):

@@ -348,15 +348,7 @@ struct CutSurface {
 
 @fragment fn fs_cut_shade(i: VOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
     let cut = clip_test(i, front);
-    let n = cut_surface_normal(i, cut);
-    // headlight: d = min(|n · (−e/|e|)|, 1), two-sided
-    let el = length(i.eye);
-    var d = 1.0;
-    if (el > 0.0) {
-        d = min(abs(dot(n, -i.eye / el)), 1.0);
-    }
-    let c = u.base.xyz * (u.light.x + u.light.y * d) + u.light.z * pow(d, u.light.w);
-    return vec4<f32>(clamp(c, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
+    return headlight_normal(i, cut_surface_normal(i, cut));
 }
 
 // --- pass 6: ghost lines (Sec. 4.3, D-C11) ----------------------------------------------------

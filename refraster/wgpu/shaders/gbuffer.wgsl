@@ -123,9 +123,9 @@ struct Surface {
     return o;
 }
 
-// pass 3 (16 bytes per sample): the headlight colour
-fn headlight(i: VOut) -> vec4<f32> {
-    let n = unit_normal(i);
+// pass 3 (16 bytes per sample): the headlight colour of unit normal n at the fragment
+// (two-sided: d = min(|n · (−e/|e|)|, 1)); the cutaway's cut surfaces pass their own normal
+fn headlight_normal(i: VOut, n: vec3<f32>) -> vec4<f32> {
     let el = length(i.eye);
     var d = 1.0;
     if (el > 0.0) {
@@ -133,6 +133,9 @@ fn headlight(i: VOut) -> vec4<f32> {
     }
     let c = u.base.xyz * (u.light.x + u.light.y * d) + u.light.z * pow(d, u.light.w);
     return vec4<f32>(clamp(c, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
+}
+fn headlight(i: VOut) -> vec4<f32> {
+    return headlight_normal(i, unit_normal(i));
 }
 @fragment fn fs_shade(i: VOut) -> @location(0) vec4<f32> {
     return headlight(i);
