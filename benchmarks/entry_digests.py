@@ -50,7 +50,11 @@ Covered: ``refraster.render``, ``draw``, ``resolve``, ``rasterize``,
 depth sprite, ``parity_at``); ``refraster.clipsurface.render_clipped``;
 ``refraster.cutaway.render_cutaway``; ``refraster.halos4d.render_halos`` and
 ``render_halos_pair``; ``refraster.edges.npr.render_mirrored`` and the NPR styles;
-``refraster.edges`` (``edge_gbuffer``, ``edge_map``, ``classify_edges``). Each option case has
+``refraster.edges`` (``edge_gbuffer``, ``edge_map``, ``classify_edges``);
+``refraster.render_samples`` (``samples_*``: 1×, 2×/4×/8× with each interpolation, 16×, the
+``gl_llvmpipe`` and user patterns, ties with the top-left rule, ``greater``/``lequal``, clipped
+pieces, slivers that snapping flips; every per-sample buffer and the positions; recorded with
+``--add`` before the MSAA speed work of issue 43). Each option case has
 a neighbour it differs from (``*_defaults`` or a named base: ``render_twice``,
 ``render_ties``, ``cut_view2``, ``cut_edge_stand_in``, ``clip_vds_resolution_64``,
 ``mirror_model`` …), with scenes chosen so that the option changes bytes (ties at equal
@@ -2069,6 +2073,147 @@ def case_npr_composite():
     return {"default": npr.composite(shade, e),
             "options": npr.composite(shade, e, inner_color=(0.5, 0.5, 0.5),
                                      profile_color=(0.2, 0.0, 0.0), mask=fb.mask)}
+
+
+# ============================================================================== render_samples
+# defaults: raster=RasterState(samples=S) with sample_locations="standard",
+# interpolation="center"; model=None, background=(1, 1, 1). Every per-sample buffer (colour
+# included) and the sample positions.
+
+
+def _samples(sf):
+    out = dict(sf.arrays())
+    out["positions"] = sf.positions
+    return out
+
+
+def _rs(**fields):
+    import refraster as rf
+    return rf.RasterState(**fields)
+
+
+def _near_cam():
+    """The torus seen from inside its near plane's reach: faces cut into clipped pieces."""
+    return _cam(eye=(0.0, 0.5, 1.4))
+
+
+def case_samples_1():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(), raster=_rs(samples=1)))
+
+
+def case_samples_2_center():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(), raster=_rs(samples=2)))
+
+
+def case_samples_2_centroid():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=2, interpolation="centroid")))
+
+
+def case_samples_2_sample():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=2, interpolation="sample")))
+
+
+def case_samples_4_center():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(), raster=_rs(samples=4)))
+
+
+def case_samples_4_centroid():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=4, interpolation="centroid")))
+
+
+def case_samples_4_sample():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=4, interpolation="sample")))
+
+
+def case_samples_8_center():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(), raster=_rs(samples=8)))
+
+
+def case_samples_8_centroid():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=8, interpolation="centroid")))
+
+
+def case_samples_8_sample():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=8, interpolation="sample")))
+
+
+def case_samples_16_centroid():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=16, interpolation="centroid")))
+
+
+def case_samples_4_gl_llvmpipe():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=4, sample_locations="gl_llvmpipe")))
+
+
+def case_samples_4_user_locations():
+    """Samples on the pixel's corners and edges (0 and 8 sixteenths): ties with the tie
+    scene's edges."""
+    import refraster as rf
+    return _samples(rf.render_samples(
+        _ties(), **_tie_cam(), raster=_rs(samples=4, interpolation="centroid",
+                                          sample_locations=[(0, 0), (8, 0), (0, 8), (8, 8)])))
+
+
+def case_samples_4_ties_top_left():
+    import refraster as rf
+    return _samples(rf.render_samples(
+        _ties(), **_tie_cam(), raster=_rs(samples=4, fill_rule="top-left",
+                                          sample_locations=[(0, 0), (8, 0), (0, 8), (8, 8)])))
+
+
+def case_samples_4_depth_func_greater():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=4, depth_func="greater",
+                                                 clear_depth=0.0)))
+
+
+def case_samples_4_depth_func_lequal():
+    import refraster as rf
+    return _samples(rf.render_samples(_twice(), **_cam(),
+                                      raster=_rs(samples=4, depth_func="lequal",
+                                                 interpolation="centroid")))
+
+
+def case_samples_4_clipped():
+    import refraster as rf
+    return _samples(rf.render_samples(_torus(), **_near_cam(),
+                                      raster=_rs(samples=4, interpolation="centroid")))
+
+
+def case_samples_8_clipped_sample():
+    import refraster as rf
+    return _samples(rf.render_samples(_torus(), **_near_cam(),
+                                      raster=_rs(samples=8, interpolation="sample")))
+
+
+def case_samples_4_subpixel_bits_4():
+    """Four sub-pixel bits: snapping flips slivers (the snapped edge functions interpolate,
+    the depth from the snapped barycentrics)."""
+    import refraster as rf
+    return _samples(rf.render_samples(_torus(), **_cam(w=48, h=36),
+                                      raster=_rs(samples=4, subpixel_bits=4,
+                                                 interpolation="sample")))
 
 
 # ============================================================================== running

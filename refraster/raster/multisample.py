@@ -79,6 +79,10 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
         tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
         zbuf = np.full((TILE, TILE, ns), clear, np.float32)
         win = np.full((TILE, TILE, ns), NO_ITEM, np.int64)
+        # each sample's constant offsets of the three edge functions (dx_k·oy − dy_k·ox)
+        d0 = np.zeros(ns, np.int64)
+        d1 = np.zeros(ns, np.int64)
+        d2 = np.zeros(ns, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
             bx0, bx1, by0, by1 = _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1)
@@ -95,21 +99,46 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
             # each sample's row span (row_span: exact, every sample in it is covered), so no
             # edge test and no sample outside the triangle's rows is visited
             nx = bx1 - bx0 + 1
+            for s in range(ns):
+                d0[s] = dx0 * oy[s] - dy0 * ox[s]
+                d1[s] = dx1 * oy[s] - dy1 * ox[s]
+                d2[s] = dx2 * oy[s] - dy2 * ox[s]
+            if inv_af > 0.0:
+                # the depth plane through the unsnapped vertices: _depth_at's expression in
+                # its order, without its fallback's barycentrics
+                zd0 = np.float64(z0)
+                for y in range(by0, by1 + 1):
+                    ly = y - ty0
+                    for s in range(ns):
+                        a, b = row_span(r0 + d0[s], sx0, r1 + d1[s], sx1, r2 + d2[s], sx2, nx)
+                        zy = dzdy * ((np.float64(y) + 0.5 + foy[s]) - fy0)
+                        for x in range(bx0 + a, bx0 + b + 1):
+                            z = zd0 + dzdx * ((np.float64(x) + 0.5 + fox[s]) - fx0) + zy
+                            if z < 0.0:
+                                z = 0.0
+                            elif z > 1.0:
+                                z = 1.0
+                            zf = np.float32(z)
+                            lx = x - tx0
+                            if depth_test(func, zf, zbuf[ly, lx, s]):
+                                zbuf[ly, lx, s] = zf
+                                win[ly, lx, s] = item
+                    r0 += sy0
+                    r1 += sy1
+                    r2 += sy2
+                continue
             for y in range(by0, by1 + 1):
                 ly = y - ty0
                 for s in range(ns):
-                    d0 = dx0 * oy[s] - dy0 * ox[s]
-                    d1 = dx1 * oy[s] - dy1 * ox[s]
-                    d2 = dx2 * oy[s] - dy2 * ox[s]
-                    a, b = row_span(r0 + d0, sx0, r1 + d1, sx1, r2 + d2, sx2, nx)
+                    a, b = row_span(r0 + d0[s], sx0, r1 + d1[s], sx1, r2 + d2[s], sx2, nx)
                     cy = np.float64(y) + 0.5 + foy[s]
                     for i in range(a, b + 1):
                         x = bx0 + i
                         cx = np.float64(x) + 0.5 + fox[s]
                         z = _depth_at(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, cx, cy,
-                                      np.float64(r0 + d0 + sx0 * i + b0) * inv_area,
-                                      np.float64(r1 + d1 + sx1 * i + b1) * inv_area,
-                                      np.float64(r2 + d2 + sx2 * i + b2) * inv_area)
+                                      np.float64(r0 + d0[s] + sx0 * i + b0) * inv_area,
+                                      np.float64(r1 + d1[s] + sx1 * i + b1) * inv_area,
+                                      np.float64(r2 + d2[s] + sx2 * i + b2) * inv_area)
                         lx = x - tx0
                         if depth_test(func, z, zbuf[ly, lx, s]):
                             zbuf[ly, lx, s] = z
