@@ -67,7 +67,8 @@ KERNEL_MODULES = CORE_MODULES + (
     "refraster.clipsurface.surfaces", "refraster.clipsurface.textures",
     "refraster.clipsurface.fused", "refraster.edges.operators", "refraster.edges.npr",
     "refraster.cutaway.flood",
-    "refraster.halos4d.slicing", "refraster.halos4d.render", "refraster.conformance",
+    "refraster.halos4d.thicken", "refraster.halos4d.slicing", "refraster.halos4d.render",
+    "refraster.conformance",
     "refraster.golden.allowances.layers", "refraster.golden.allowances.edges")
 
 #: Kernels ``refraster gallery`` never compiles (other options, the goldens' allowances), so
@@ -76,7 +77,6 @@ KERNEL_MODULES = CORE_MODULES + (
 #: (``python -m benchmarks.cold_start --kernels``, 2026-12-01). A stale entry only makes the
 #: count approximate.
 GALLERY_SKIPS = (
-    "refraster.raster.multisample._msaa_pass",
     "refraster.golden.allowances.edges._absdiff",
     "refraster.golden.allowances.edges._bounds_kernel",
     "refraster.golden.allowances.edges._component_bounds",

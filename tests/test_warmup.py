@@ -516,8 +516,11 @@ def importlib_module(name):
 #: The kernels a cold `refraster gallery` compiles (2026-12-02, 09:42 UTC, a fresh cache: every
 #: kernel of KERNEL_MODULES not in GALLERY_SKIPS was in the cache after it, and no other), plus
 #: issue 46's ``halos4d.slicing._window_vertex``, which ``window_setup`` (compiled by every halo
-#: picture) calls.
-GALLERY_KERNEL_COUNT = 73
+#: picture) calls; and since issue 44's pictures and issue 46's pair search: the δd pair search's
+#: three kernels (``halos4d.thicken``, every halo picture's δd), ``raster.multisample._msaa_pass``
+#: (the 4× edge picture's ``render_samples``) and ``_sample_stream_pass`` (the 4× clip-surface
+#: picture).
+GALLERY_KERNEL_COUNT = 78
 
 
 def test_every_new_kernel_is_classified_for_the_gallery():
