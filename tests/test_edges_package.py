@@ -9,7 +9,7 @@ import pathlib
 
 
 PKG = pathlib.Path(__file__).resolve().parents[1] / "refraster" / "edges"
-MODULES = {"gbuffer", "operators", "npr", "classify"}
+MODULES = {"gbuffer", "operators", "npr", "classify", "multisample"}
 
 
 def _package_imports(path):

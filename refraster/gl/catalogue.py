@@ -22,7 +22,7 @@ GROUPS = ("transforms", "rasterization", "depth", "state", "data", "compositing"
 #: Scenes of the technique passes (their goldens take minutes to generate: the fast CI subset
 #: of tests/test_conformance_catalogue.py leaves out the classes caught only there).
 TECHNIQUE_SCENES = ("clipsurface_building", "edges_building", "edges_sobel", "cutaway_shells",
-                    "cutaway_floor", "halos4d_figure1")
+                    "cutaway_floor", "halos4d_figure1", "edges4gl_building_per_sample")
 
 
 @dataclass(frozen=True)
@@ -185,6 +185,10 @@ CLASSES = (
        "Eq. 3's halo drop-off subtracted (the halo in front of the line)"),
     _C("Eq. 3's drop-off", "technique-specific", "eq3_halved", ("halos4d_figure1",),
        "Eq. 3's drop-off δd halved"),
+    _C("image pass on the resolved G-buffer", "technique-specific",
+       "msaa_edges_resolved_for_per_sample", ("edges4gl_building_per_sample",),
+       "the edge map computed once on the resolved G-buffer (sample 0's) and written for every "
+       "sample where the scene declares the filters per sample"),
 )
 
 
