@@ -136,6 +136,30 @@ def test_background_written_by_finalize_over_a_stale_frame(monkeypatch, fill_in_
     assert out.prim_id.size >= fill_in_kernel or fill_in_kernel > 1 << 30
 
 
+@pytest.mark.parametrize("fill_in_kernel", [0, 1 << 40])
+def test_background_written_by_finalize_into_recycled_outputs(monkeypatch, fill_in_kernel):
+    """A new frame of at least ``FILL_IN_KERNEL`` pixels takes its eye depth, normal and ids
+    from the output pool without a fill (``finalize`` writes the background): recycled arrays
+    holding a dropped frame's sphere must come out as NumPy's fills leave them."""
+    monkeypatch.setattr(fbm, "FILL_IN_KERNEL", fill_in_kernel)
+    big, small = mesh_of(icosphere(3)), mesh_of(cube())
+    kw = camera_kw(w=160, h=120, eye=(0.9, 0.7, 1.4))    # the sphere fills most of the frame
+    kw_far = camera_kw(w=160, h=120, eye=(3.0, 2.2, 4.5))
+    monkeypatch.setattr(fbm, "FILL_IN_KERNEL", 1 << 40)
+    ref = _bytes(rf.render(small, **kw_far))             # NumPy's fills
+    monkeypatch.setattr(fbm, "FILL_IN_KERNEL", fill_in_kernel)
+    fb = rf.render(big, **kw)
+    pooled = ("depth", "eye_depth", "normal", "prim_id", "object_id")   # >= POOL_MIN_BYTES
+    stale = {getattr(fb, f).ctypes.data for f in pooled}
+    del fb
+    fb = rf.render(small, **kw_far)
+    # the dropped frame's memory, recycled (depth and eye depth may trade places)
+    assert {getattr(fb, f).ctypes.data for f in pooled} == stale
+    got = _bytes(fb)
+    for f in FB_FIELDS:
+        assert got[f] == ref[f], f
+
+
 def test_default_threshold_uses_both_background_paths():
     assert 160 * 120 < fbm.FILL_IN_KERNEL <= 512 * 384
 
