@@ -142,6 +142,12 @@ def _pool_limit():
     return _LIMIT[1]
 
 
+def pooling():
+    """Whether the output pool keeps arrays (``REFRASTER_POOL_MB`` > 0): then a frame's outputs
+    are recycled memory in the steady state, not fresh pages."""
+    return _pool_limit() > 0
+
+
 class OutputPool:
     """Arrays handed out as a frame's outputs (a new :class:`~refraster.Framebuffer`'s depth,
     eye depth, normal, ids, facing, barycentrics, its private face image and its colour),

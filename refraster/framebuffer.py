@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._scratch import OUTPUTS, SCRATCH_FACES, scratch_lease
+from ._scratch import OUTPUTS, SCRATCH_FACES, pooling, scratch_lease
 from ._threads import frame_work, threads_for
 from ._tiers import kernel as tiered
 from ._validate import as_float_array, as_image_size, as_real
@@ -326,8 +326,9 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
     # the background: written by finalize in its sweep over every pixel (one sweep instead of
     # five) into a reused framebuffer's arrays and into the output pool's (recycled memory, no
     # page faults in the steady state; 2026-12-04: 0.77x the CPU of NumPy's fills + finalize)
-    # from FILL_IN_KERNEL pixels; NumPy's fills for smaller frames
-    fill_bg = targets is None and h * w >= FILL_IN_KERNEL
+    # from FILL_IN_KERNEL pixels; NumPy's fills for smaller frames and, with the pool off,
+    # into new arrays (first touches in the kernel: ~1.04x the frame's CPU)
+    fill_bg = targets is None and h * w >= FILL_IN_KERNEL and (out is not None or pooling())
     if spans is None:
         spans = np.empty((h, 2), np.int64)
     if targets is not None:
