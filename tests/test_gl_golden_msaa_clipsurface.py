@@ -46,7 +46,7 @@ def test_gl_passes_the_4x_pixel_rate_clip_surface_golden(gold):
 def test_gl_passes_the_4x_sample_rate_clip_surface_golden(gold):
     """Both directions: the correct backend passes; with the divide left to llvmpipe (the
     planted ``msaa_divide_at_centre``) the ids, cap mask and barycentrics fail at every
-    sample (68 samples' ids at the caps' rims, measured 2026-12-04)."""
+    sample index (68 samples' ids at the caps' rims, measured 2026-12-04)."""
     from refraster.golden.candidate import candidate
     gl_backend_or_skip().release()
     scene = ["msaa4gl_clipsurface_sample"]
