@@ -3,18 +3,19 @@ camera, against an exact float64 oracle (the perspective variant of
 ``tests/test_msaa_clipsurface.py`` and ``tests/test_gl_msaa_clipsurface.py``, whose clip w is 1
 everywhere and so cannot tell a perspective-correct input from one divided by the wrong 1/w).
 
-The scene: triangles whose eye depth (clip w) runs from 1.1 to 3.8 across each of them (near
-1, far 4; the 4× clip goldens' far/near is 1.9), cut by an oblique plane clip surface, 32×32 at
-4 samples. The oracle, per sample and face: the window-space barycentrics λ at the point the
-rate evaluates the fragment stage (the sample; the pixel centre; the centroid's sample), the
-perspective-correct barycentrics ``b = (λ/w)/Σ(λ/w)``, the world point ``Σ b·V`` and Listing 1's
-``g = n·(P − O)`` there (kept where ``g ≥ 0``), the depth plane at the sample, and the nearest
-kept covering face: its ``prim_id`` and ``b``. refraster (``render_clipped``) and refraster.gl
-(``draw_samples`` from a scene package) agree on every sure sample: ids equal, barycentrics
-within 2e-4. llvmpipe's own divide at sample rate, ``(a/w at the sample)/(1/w at the centre)``
-(docs/backends.md, "llvmpipe's divide at sample rate"), is off by more than 0.005 on hundreds
-of samples here and flips the discard of some: refraster.gl's planted
-``msaa_divide_at_centre`` fails."""
+The scene: five triangles, three spanning eye depth (clip w) 1.1 … 3.8 across themselves, one
+1.6 … 2.9 crossing them, one behind (near 1, far 4; the 4× clip goldens' far/near is 1.9), cut
+by an oblique plane clip surface, 32×32 at 4 samples. The oracle, per sample and face: the
+window-space barycentrics λ at the point the rate evaluates the fragment stage (the sample; the
+pixel centre; the centroid's sample), the perspective-correct barycentrics
+``b = (λ/w)/Σ(λ/w)``, the world point ``Σ b·V`` and Listing 1's ``g = n·(P − O)`` there (kept
+where ``g ≥ 0``), the depth plane at the sample, and the nearest kept covering face: its
+``prim_id`` and ``b``. refraster (``render_clipped`` at three rates, ``render_samples`` without
+the surface) and refraster.gl (``draw_samples`` from a scene package, sample and pixel rate)
+agree on every sure sample: ids equal, barycentrics within 2e-4. llvmpipe's own divide at
+sample rate, ``(a/w at the sample)/(1/w at the centre)`` (docs/backends.md, "llvmpipe's divide
+at sample rate"), is off by more than 0.005 on hundreds of samples here and flips the discard
+of some: refraster.gl's planted ``msaa_divide_at_centre`` fails."""
 
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ from refraster.raster.samples import sample_points
 from test_msaa_clipsurface import _plane_surface
 
 W = H = 32
-#: eye-space triangles (the view is the identity's look-at: world = eye), eye depth 1.1 … 3.8
+#: eye-space triangles (the view is the identity's look-at: world = eye)
 TRIS = np.array([
     [[-0.42, -0.45, -1.10], [0.48, -0.40, -1.20], [0.05, 1.45, -3.80]],   # floor-like, receding
     [[0.50, -0.52, -1.25], [1.55, 1.45, -3.70], [1.50, -1.55, -3.60]],    # right wall
@@ -52,13 +53,14 @@ def _mesh():
     return v, np.arange(len(v)).reshape(-1, 3)
 
 
-def oracle(state, rate, *, defect=False):
+def oracle(state, rate, *, defect=False, discard=True):
     """Per sample ``(prim (H, W, S), bary (H, W, S, 3), sure (H, W, S))`` in float64, rows top
     first. ``rate``: where the fragment stage evaluates (``"sample"``, ``"center"``,
     ``"centroid"``). ``defect``: llvmpipe's divide at sample rate instead of the exact one —
     ``(λ/w)`` at the evaluation point over ``Σ λ/w`` at the pixel centre. ``sure``: every
     covering face's sample is 0.01 px inside its edges or outside them, no keep decision within
-    1e-4 of ``g = 0`` and no two kept depths within 1e-5."""
+    1e-4 of ``g = 0`` and no two kept depths within 1e-5. ``discard=False``: nothing discarded
+    (``render_samples``' frame)."""
     v, f = _mesh()
     view, proj = _camera()
     clip = np.c_[v.astype(np.float64), np.ones(len(v))] @ (proj @ view).T
@@ -117,8 +119,9 @@ def oracle(state, rate, *, defect=False):
         P = b @ v[ids].astype(np.float64)
         g = (P - np.asarray(ORIGIN)) @ n
         z = ls @ zw[ids]
-        keep = g >= 0
-        sure &= ~(cov & (np.abs(g) < 1e-4))
+        keep = g >= 0 if discard else np.ones_like(cov)
+        if discard:
+            sure &= ~(cov & (np.abs(g) < 1e-4))
         kept_z.append(np.where(cov & keep, z, np.inf))
         win = cov & keep & (z < best)
         best = np.where(win, z, best)
@@ -130,11 +133,11 @@ def oracle(state, rate, *, defect=False):
     return prim, bary, sure
 
 
-def compare(prim, bary, state, rate, *, tol=2e-4):
+def compare(prim, bary, state, rate, *, tol=2e-4, discard=True):
     """``(samples compared, ids that differ, barycentrics off by more than tol)`` against the
-    exact oracle (tol relative where the pixel centre's value is extrapolated beyond ±1); asserts the scene can see the perspective divide (sure > 95 %, the defect's
-    barycentrics more than 0.005 off on 100+ sure samples)."""
-    want, wbary, sure = oracle(state, rate)
+    exact oracle (tol relative where the pixel centre's value is extrapolated beyond ±1);
+    asserts that 95 % of the samples are sure."""
+    want, wbary, sure = oracle(state, rate, discard=discard)
     assert sure.mean() > 0.95
     ids = int(((prim != want) & sure).sum())
     same = sure & (prim == want) & (want >= 0)
@@ -173,6 +176,20 @@ def test_refraster_per_sample_perspective_matches_the_exact_oracle(interpolation
     st = RasterState(samples=4, sample_locations=locations, interpolation=interpolation)
     prim, bary = _ours(st)
     n, ids, off = compare(prim, bary, st, RATES[interpolation])
+    assert ids == 0 and off == 0, (f"{interpolation}: of {n} sure samples {ids} ids and {off} "
+                                   "barycentrics differ from the exact perspective oracle")
+
+
+@pytest.mark.parametrize("interpolation", ["sample", "center", "centroid"])
+def test_render_samples_perspective_matches_the_exact_oracle(interpolation, defect_visible):
+    """The multisampled G-buffer's own pass (``render_samples``, no clip surface): the
+    perspective variant of ``tests/test_msaa.py::test_interpolation_points`` (w = 1 there)."""
+    v, f = _mesh()
+    view, proj = _camera()
+    st = RasterState(samples=4, interpolation=interpolation)
+    sf = refraster.render_samples((v, f), view=view, proj=proj, width=W, height=H, raster=st)
+    n, ids, off = compare(sf.prim_id, sf.barycentric, st, RATES[interpolation],
+                            discard=False)
     assert ids == 0 and off == 0, (f"{interpolation}: of {n} sure samples {ids} ids and {off} "
                                    "barycentrics differ from the exact perspective oracle")
 
