@@ -27,7 +27,7 @@ from conftest import gl_backend_or_skip
 from refraster import RasterState
 from refraster.clipsurface import render_clipped
 from refraster.raster.samples import sample_points
-from test_msaa_clipsurface import _plane_surface
+from test_msaa_clipsurface import _plane_surface, centroid_sample
 
 W = H = 32
 #: eye-space triangles (the view is the identity's look-at: world = eye)
@@ -105,11 +105,7 @@ def oracle(state, rate, *, defect=False, discard=True):
         elif rate == "center":
             ex, ey = CX, CY
         else:                                   # the covered sample nearest the centre
-            d2 = (pts[:, 0] - 0.5) ** 2 + (pts[:, 1] - 0.5) ** 2
-            pick = np.full((H, W), -1)
-            for t in sorted(range(s), key=lambda t: (d2[t], t))[::-1]:
-                pick = np.where(cov[:, :, t], t, pick)
-            pick = np.where(cov.all(axis=2), -1, pick)
+            pick = centroid_sample(cov, (pts[:, 0] - 0.5) ** 2 + (pts[:, 1] - 0.5) ** 2)
             at = np.maximum(pick, 0)
             ex = np.where(pick >= 0, col + pts[at, 0], col + 0.5)[..., None] + 0.0 * SX
             ey = np.where(pick >= 0, H - row - pts[at, 1], H - row - 0.5)[..., None] + 0.0 * SY
