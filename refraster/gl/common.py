@@ -47,8 +47,13 @@ class Unsupported(Exception):
 
 
 def shader_source(name, defines=()):
-    """The text of ``shaders/<name>`` with ``#define`` lines inserted after ``#version``."""
+    """The text of ``shaders/<name>`` with ``#define`` lines inserted after ``#version`` and
+    each ``#include "file"`` line replaced by ``shaders/file``'s text (GLSL has no include;
+    the line may sit inside an ``#ifdef``)."""
     text = (SHADER_DIR / name).read_text(encoding="utf-8")
+    text = "".join((SHADER_DIR / line.split('"')[1]).read_text(encoding="utf-8")
+                   if line.startswith("#include ") else line
+                   for line in text.splitlines(keepends=True))
     if not defines:
         return text
     lines = text.splitlines(keepends=True)

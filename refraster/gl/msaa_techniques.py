@@ -42,7 +42,6 @@ import numpy as np
 from . import cutaway as _cut
 from .common import Unsupported, fullscreen, gl_function, programs
 from .edges import FORMATS
-from .edges import SHADERS as EDGE_SHADERS
 from .edges import near_far as edges_near_far
 from .edges import options as edges_options
 from .msaa import _depth_texture, _text, sample_pattern
@@ -61,6 +60,10 @@ SHADERS = {
     "resolve": ("fullscreen.vert", None, "msaa_resolve.frag"),
     "edge": ("fullscreen.vert", None, "edge_map.frag", ("MSAA",)),
     "seed": ("fullscreen.vert", None, "cutaway_seed.frag", ("MSAA",)),
+    # the geometry passes with the interpolation at the sample done in the shader
+    "gbuffer": ("gbuffer.vert", "gbuffer.geom", "gbuffer.frag", ("SAMPLE_INTERP",)),
+    "tg": ("gbuffer.vert", "gbuffer.geom", "edge_gbuffer.frag", ("SAMPLE_INTERP",)),
+    "carve": ("gbuffer.vert", "gbuffer.geom", "cutaway_gbuffer.frag", ("SAMPLE_INTERP",)),
 }
 
 _FNS = {}
@@ -184,7 +187,7 @@ def _gbuffer_uniforms(gl, prog, scene, size):
     gl._set(prog, "u_light", tuple(float(shading[k]) for k in
                                    ("ambient", "diffuse", "specular", "shininess")))
     gl._set(prog, "u_smooth", scene["raster"]["normals"] == "smooth")
-    gl._set(prog, "u_viewport", tuple(float(s) for s in size))
+    gl._set(prog, "u_viewport_px", tuple(float(s) for s in size))
     gl._set(prog, "u_upper_left", False)
 
 
@@ -200,11 +203,12 @@ def _edges(gl, loaded, pool, positions):
     # the G-buffer at sample rate, each sample read back
     fbo, targets, depth = _ms_gbuffer(gl, pool, scene, samples)
     gl._state(scene)
-    _gbuffer_uniforms(gl, gl.gbuffer, scene, pool.size)
+    prog = mine["gbuffer"]
+    _gbuffer_uniforms(gl, prog, scene, pool.size)
     _sample_rate(gl, True)
     for d in draws:
         if d["n_faces"]:
-            gl._draw(gl.gbuffer, d, scene["shading"]["palette"])
+            gl._draw(prog, d, scene["shading"]["palette"])
     _sample_rate(gl, False)
     out = {}
     for s, (buffers, _, _) in enumerate(_fetch(gl, pool, scene, targets, depth, samples)):
@@ -218,9 +222,9 @@ def _edges(gl, loaded, pool, positions):
     fbo.use()
     fbo.clear(0.0, 0.0, 0.0, 0.0, depth=float(scene["raster"]["clear_depth"]))
     gl._state(scene)
-    prog = programs(gl, EDGE_SHADERS)["gbuffer"]
+    prog = mine["tg"]
     gl._set(prog, "u_smooth", scene["raster"]["normals"] == "smooth")
-    gl._set(prog, "u_viewport", tuple(float(s) for s in pool.size))
+    gl._set(prog, "u_viewport_px", tuple(float(s) for s in pool.size))
     gl._set(prog, "u_near_far", (near, far))
     _sample_rate(gl, True)
     for d in draws:
@@ -326,8 +330,9 @@ def _cutaway(gl, loaded, pool, positions):
     # 5. the clipped G-buffer at sample rate, sample s carved by its own surface
     f, targets, depth = _ms_gbuffer(gl, pool, scene, samples, cut=True)
     gl._state(scene)
-    prog = progs["gbuffer"]
+    prog = programs(gl, SHADERS)["carve"]
     _cut.carve_uniforms(gl, prog, scene, opt)
+    gl._set(prog, "u_viewport_px", tuple(float(s) for s in pool.size))
     _sample_rate(gl, True)
     fns = _fns()
     fns["Enable"](_GL_SAMPLE_MASK)
