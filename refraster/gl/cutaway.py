@@ -33,8 +33,8 @@ from .package import cutaway_step_schedule as step_schedule
 from .package import cutaway_supports as supports
 
 __all__ = ["supports", "step_schedule", "render_cutaway", "feature_segments", "Pool",
-           "seed_uniforms", "flood_surface", "cut_normals", "carve_uniforms", "carve_draws",
-           "ghost_pass"]
+           "rear_hulls", "seed_uniforms", "flood_surface", "cut_normals", "carve_uniforms",
+           "carve_draws", "ghost_pass"]
 
 #: Passes dropped by the planted fault ``schedule_truncated`` (the schedule's last ones).
 TRUNCATED_PASSES = 3
@@ -82,6 +82,28 @@ class Pool:
         for obj in self.owned:
             obj.release()
         self.owned = []
+
+
+def rear_hulls(gl, progs, pool, draws, opt, depth, samples=0):
+    """Pass 1 into new targets of ``samples`` samples (0: single-sample) with the depth
+    attachment ``depth``, GREATER against 0 → ``(rear window depth R32F, hull + 1 R32I)``."""
+    mgl, ctx = gl.mgl, gl.ctx
+    rear, hull = pool.tex(1, "f4", samples), pool.tex(1, "i4", samples)
+    f = pool.fbo([rear, hull], depth)
+    f.use()
+    f.clear(0.0, 0.0, 0.0, 0.0, depth=0.0)
+    ctx.enable_only(mgl.DEPTH_TEST)
+    ctx.depth_func = ">"
+    prog = progs["hull"]
+    for k, i in enumerate(opt["interest"]):
+        d = draws[i]
+        if not d["n_faces"]:
+            continue
+        gl._write(prog, "u_mvp", d["mvp"])
+        gl._set(prog, "u_hull", k)
+        gl._vao(d, prog).render(mgl.TRIANGLES)
+    ctx.disable(mgl.DEPTH_TEST)
+    return rear, hull
 
 
 def seed_uniforms(gl, prog, opt, proj, view, inv_proj):
@@ -235,7 +257,7 @@ def render_cutaway(gl, loaded, package_dir):
     if reason is not None:
         raise Unsupported(reason)
     progs = programs(gl, SHADERS)
-    mgl, ctx = gl.mgl, gl.ctx
+    ctx = gl.ctx
     size = (scene["viewport"]["width"], scene["viewport"]["height"])
     view = matrix(scene["camera"]["view"], "camera.view")
     proj = matrix(scene["camera"]["projection"], "camera.projection")
@@ -243,22 +265,8 @@ def render_cutaway(gl, loaded, package_dir):
     try:
         ctx.viewport = (0, 0, *size)
         # 1. rear hulls
-        rear, hull = pool.tex(1, "f4"), pool.tex(1, "i4")
-        dep0 = pool.keep(gl._depth_attachment(size))
-        f = pool.fbo([rear, hull], dep0)
-        f.use()
-        f.clear(0.0, 0.0, 0.0, 0.0, depth=0.0)
-        ctx.enable_only(mgl.DEPTH_TEST)
-        ctx.depth_func = ">"
-        prog = progs["hull"]
-        for k, i in enumerate(opt["interest"]):
-            d = draws[i]
-            if not d["n_faces"]:
-                continue
-            gl._write(prog, "u_mvp", d["mvp"])
-            gl._set(prog, "u_hull", k)
-            gl._vao(d, prog).render(mgl.TRIANGLES)
-        ctx.disable(mgl.DEPTH_TEST)
+        rear, hull = rear_hulls(gl, progs, pool, draws, opt, pool.keep(
+            gl._depth_attachment(size)))
         # 2.–4. seeds, jump flooding, D_dil and the cut normals
         prog = progs["seed"]
         rear.use(0)

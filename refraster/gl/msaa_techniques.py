@@ -43,9 +43,10 @@ from . import cutaway as _cut
 from .common import Unsupported, fullscreen, gl_function, programs
 from .edges import FORMATS
 from .edges import near_far as edges_near_far
+from .edges import operator_uniforms
 from .edges import options as edges_options
 from .msaa import _depth_texture, _text, sample_pattern
-from .package import DEPTH_FILTERS, NORMAL_FILTERS, matrix
+from .package import matrix
 
 __all__ = ["supports", "render_sampled", "window_shift", "SAMPLED_TECHNIQUES"]
 
@@ -236,15 +237,7 @@ def _edges(gl, loaded, pool, positions):
     prog = mine["edge"]
     tg.use(location=0)
     ids.use(location=1)
-    gl._set(prog, "u_tg", 0)
-    gl._set(prog, "u_ids", 1)
-    gl._set(prog, "u_nmethod", NORMAL_FILTERS[opt["normal_filter"]])
-    gl._set(prog, "u_zmethod", DEPTH_FILTERS[opt["depth_filter"]])
-    gl._set(prog, "u_use_ids", bool(opt["ids"]))
-    for key in ("k_n", "k_z"):
-        gl._set(prog, f"u_{key}", float(opt[key]))
-    gl._set(prog, "u_t_inner", float(opt["inner_threshold"]))
-    gl._set(prog, "u_t_profile", float(opt["profile_threshold"]))
+    operator_uniforms(gl, prog, opt)
     gl._set(prog, "u_sample_zero", not per_sample)
     single = pool.tex(4, fmt)
     if not per_sample:
@@ -287,7 +280,7 @@ def _cutaway(gl, loaded, pool, positions):
     opt, reason = _cut.options(scene)
     if reason is not None:
         raise Unsupported(reason)
-    ctx, mgl = gl.ctx, gl.mgl
+    ctx = gl.ctx
     w, h = pool.size
     view = matrix(scene["camera"]["view"], "camera.view")
     proj = matrix(scene["camera"]["projection"], "camera.projection")
@@ -295,23 +288,10 @@ def _cutaway(gl, loaded, pool, positions):
     per_sample = scene["parameters"]["sampling"]["mode"] == "per_sample"
     progs = programs(gl, _cut.SHADERS)
     # 1. the rear hulls at sample rate (GREATER against a multisample depth cleared to 0)
-    rear, hull = pool.tex(1, "f4", samples), pool.tex(1, "i4", samples)
     rear_depth = pool.keep(_depth_texture(gl, pool.size, samples))
-    f = pool.fbo([rear, hull], rear_depth)
-    f.use()
-    f.clear(0.0, 0.0, 0.0, 0.0, depth=0.0)
-    ctx.enable_only(mgl.DEPTH_TEST)
-    ctx.depth_func = ">"
-    prog = progs["hull"]
     _sample_rate(gl, True)
-    for k, i in enumerate(opt["interest"]):
-        d = draws[i]
-        if d["n_faces"]:
-            gl._write(prog, "u_mvp", d["mvp"])
-            gl._set(prog, "u_hull", k)
-            gl._vao(d, prog).render(mgl.TRIANGLES)
+    _, hull = _cut.rear_hulls(gl, progs, pool, draws, opt, rear_depth, samples)
     _sample_rate(gl, False)
-    ctx.disable(mgl.DEPTH_TEST)
     # 2.–4. each sample's surface (or sample 0's at the pixel centres, shared)
     seed = programs(gl, SHADERS)["seed"]
     surfaces = []
