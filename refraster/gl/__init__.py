@@ -199,5 +199,9 @@ MSAA_TECHNIQUE_FAULTS = {
                                 "drawn without sample shading: one invocation per pixel, its "
                                 "inputs at the pixel centre, where sample-rate interpolation "
                                 "is declared"),
+    "msaa_divide_at_centre": ("FAULT_MSAA_DIVIDE_AT_CENTRE", "the sample-rate inputs (the clip "
+                              "program's, the multisampled technique G-buffers') left to "
+                              "llvmpipe's own perspective divide: a/w at the sample divided by "
+                              "the pixel centre's 1/w"),
 }
 FAULTS.update(MSAA_TECHNIQUE_FAULTS)

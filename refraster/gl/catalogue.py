@@ -23,7 +23,7 @@ GROUPS = ("transforms", "rasterization", "depth", "state", "data", "compositing"
 #: of tests/test_conformance_catalogue.py leaves out the classes caught only there).
 TECHNIQUE_SCENES = ("clipsurface_building", "edges_building", "edges_sobel", "cutaway_shells",
                     "cutaway_floor", "halos4d_figure1", "edges4gl_building_per_sample",
-                    "cutaway4gl_shells_per_sample")
+                    "cutaway4gl_shells_per_sample", "msaa4gl_clipsurface_sample")
 
 
 @dataclass(frozen=True)
@@ -195,6 +195,11 @@ CLASSES = (
                                    "cutaway4gl_shells_per_sample"),
        "the multisampled G-buffer drawn without sample shading (one invocation per pixel, its "
        "inputs at the pixel centre) where the scene declares sample-rate interpolation"),
+    _C("perspective divide at sample rate", "technique-specific", "msaa_divide_at_centre",
+       ("msaa4gl_clipsurface_sample",),
+       "a sample-rate input's a/w evaluated at the sample but divided by the pixel centre's 1/w "
+       "(Mesa 22.3.6 llvmpipe's own smooth interpolation under sample shading): the clip and "
+       "parity tests at a point off the sample"),
 )
 
 

@@ -11,6 +11,11 @@ flat in vec3 gs_corner_eye[3];
 flat in vec3 gs_corner_normal[3];
 
 void sample_interp(out vec3 eye, out vec3 normal, out vec3 bary) {
+#ifdef FAULT_MSAA_DIVIDE_AT_CENTRE
+    // planted fault: the interpolation left to llvmpipe (its divide by the centre's 1/w)
+    eye = gs_eye; normal = gs_normal; bary = gs_bary;
+    return;
+#endif
     vec2 p = gl_FragCoord.xy;
     vec2 a = gs_corner_win[0].xy - p, b = gs_corner_win[1].xy - p, c = gs_corner_win[2].xy - p;
     vec3 l = vec3(b.x * c.y - b.y * c.x, c.x * a.y - c.y * a.x, a.x * b.y - a.y * b.x);
