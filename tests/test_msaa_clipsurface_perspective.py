@@ -26,7 +26,7 @@ import refraster
 from conftest import gl_backend_or_skip
 from refraster import RasterState
 from refraster.clipsurface import render_clipped
-from refraster.raster.samples import sample_points
+from refraster.raster.samples import pattern, sample_points
 from test_msaa_clipsurface import _plane_surface, centroid_sample
 
 W = H = 32
@@ -204,7 +204,6 @@ def test_the_oracle_tells_the_rates_apart(defect_visible):
 
 def _package(tmp, interpolation):
     from refraster.clipsurface import offsetmaps as om
-    from refraster.golden.msaa_scenes import pattern_of
     from refraster.golden.io.package import export_package
     from refraster.camera import Camera
     from refraster.golden.scenes import Draw, GoldenScene, prepare_draws, raster_state
@@ -218,7 +217,9 @@ def _package(tmp, interpolation):
                         draws=prepare_draws([Draw("tris", _mesh())]), buffers={},
                         parameters={"surfaces": [surface], "caps": False, "cap_mode": "mesh",
                                     "evaluation_space": "world",
-                                    "sample_pattern": pattern_of(raster_state(raster))},
+                                    "sample_pattern": {"samples": 4, "positions": [
+                                        [int(x), int(y)] for x, y in
+                                        pattern(RasterState(**raster))]}},
                         maps={"offset_map": np.asarray(om.constant(4, 0.0), np.float32)},
                         raster=raster, geometry=False)
     pkg = tmp / f"persp_{interpolation}"
