@@ -71,6 +71,11 @@ _RATES = {
         {"samples": 4},
         "pixel rate: the clip test and the caps' parity test at the pixel centre, each "
         "fragment's decision written to the samples it covers (Vulkan's standard positions)"),
+    "msaa4_clipsurface_centroid": (
+        {"samples": 4, "interpolation": "centroid"},
+        "pixel rate at a centroid point: the clip test and the caps' parity test at a point "
+        "inside both the pixel and the primitive, each fragment's decision written to the "
+        "samples it covers (Vulkan's standard positions)"),
     "msaa4gl_clipsurface_sample": (
         {"samples": 4, "sample_locations": "gl_llvmpipe", "interpolation": "sample"},
         "sample rate (GL's GL_SAMPLE_SHADING at 1.0), at llvmpipe's GL positions"),

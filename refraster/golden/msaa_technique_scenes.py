@@ -166,6 +166,20 @@ _SAMPLED = {
         "cutaway4gl_shells_per_sample's frame with one cutaway surface flooded from the rear "
         "hulls resolved by sample_zero (sample 0's), at the pixel centre's projection: every "
         "sample of a pixel carved by the pixel's."),
+    "edges4gl_building_resolved_average": (
+        "edges", {"mode": "resolved", "resolve": "average"},
+        "edges4gl_building_per_sample's frame with the edge map of the G-buffer resolved by "
+        "average (the box filter of the encoded normal and the linear depth; ids from "
+        "sample 0), filtered once per pixel."),
+    "cutaway4gl_shells_resolved_min": (
+        "cutaway", {"mode": "resolved", "resolve": "min"},
+        "cutaway4gl_shells_resolved with the rear hulls' depth resolved by min (the nearest "
+        "sample, the clear value 0 where a sample is uncovered; ids from sample 0), flooded "
+        "once at the pixel centre's projection."),
+    "cutaway4gl_shells_resolved_max": (
+        "cutaway", {"mode": "resolved", "resolve": "max"},
+        "cutaway4gl_shells_resolved with the rear hulls' depth resolved by max (the farthest "
+        "sample; ids from sample 0), flooded once at the pixel centre's projection."),
 }
 _BUILDERS = {"edges": _edges_scene, "cutaway": _cutaway_scene}
 
