@@ -194,5 +194,8 @@ MSAA_TECHNIQUE_FAULTS = {
     "msaa_edges_resolved_for_per_sample": ("FAULT_MSAA_EDGES_RESOLVED", "every sample's edge "
                                            "map is sample 0's: the edge map of the resolved "
                                            "G-buffer where per-sample is declared"),
+    "msaa_divide_at_centre": ("FAULT_MSAA_DIVIDE_AT_CENTRE", "the clip program's sample-rate "
+                              "inputs left to llvmpipe's own perspective divide: a/w at the "
+                              "sample divided by the pixel centre's 1/w"),
 }
 FAULTS.update(MSAA_TECHNIQUE_FAULTS)
