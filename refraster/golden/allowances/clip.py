@@ -133,9 +133,9 @@ def clip_allowances(scene, raster, eps, eye_budget):
         pts = _points_at(cam, pix, verts[tri], p["decision_offset"], eps)
         if p.get("decision_point") == "centroid":
             # at any point of the pixel (offset) ∩ the triangle, both grown by ε
-            from .samples import _pixel_triangle
+            from .homogeneous import pixel_triangle
             clip_v = prep.clip[prep.triangles.faces[faces]].astype(np.float64)
-            poly, ok = _pixel_triangle(clip_v, pix, w, h, eps, p["decision_offset"])
+            poly, ok = pixel_triangle(clip_v, pix, w, h, eps, p["decision_offset"])
             region = (_window_to_plane(cam, poly, verts[tri]), ok)
     state = np.full(len(faces), 2, np.int8)     # 0 never kept, 1 may be, 2 surely
     is_cap = draw >= n_solids
