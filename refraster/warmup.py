@@ -81,6 +81,7 @@ GALLERY_SKIPS = (
     "refraster.golden.allowances.edges._bounds_kernel",
     "refraster.golden.allowances.edges._component_bounds",
     "refraster.golden.allowances.edges._depth_op_kernel",
+    "refraster.golden.allowances.edges._diagonals",
     "refraster.golden.allowances.edges._dot_bounds",
     "refraster.golden.allowances.edges._lin",
     "refraster.golden.allowances.edges._mean_bounds_kernel",

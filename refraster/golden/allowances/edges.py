@@ -132,16 +132,22 @@ def _absdiff(alo, ahi, blo, bhi):
 
 
 @njit(**JIT)
+def _diagonals(y, x, h, w):
+    """Flat indices of the diagonal neighbours A, C, F, H of pixel (y, x) (clamp-to-edge) and
+    of the pixel itself."""
+    ym = max(y - 1, 0)
+    yp = min(y + 1, h - 1)
+    xm = max(x - 1, 0)
+    xp = min(x + 1, w - 1)
+    return ym * w + xm, ym * w + xp, yp * w + xm, yp * w + xp, y * w + x
+
+
+@njit(**JIT)
 def _bounds_kernel(off, nrm, ang, bg, zlo, zhi, free, may_bg, may_fg, ddot, dz, dout, lo, hi):
     h, w = lo.shape[:2]
     for y in range(h):
         for x in range(w):
-            ym = max(y - 1, 0)
-            yp = min(y + 1, h - 1)
-            xm = max(x - 1, 0)
-            xp = min(x + 1, w - 1)
-            pa, pc, pf, ph = ym * w + xm, ym * w + xp, yp * w + xm, yp * w + xp
-            p = y * w + x
+            pa, pc, pf, ph, p = _diagonals(y, x, h, w)
             # inner edges (RGB)
             ah_lo, ah_hi = _dot_bounds(pa, ph, off, nrm, ang, bg, free, ddot, False)
             cf_lo, cf_hi = _dot_bounds(pc, pf, off, nrm, ang, bg, free, ddot, False)
@@ -518,12 +524,7 @@ def _mean_bounds_kernel(off, nrm, ang, bg, zlo, zhi, free, n_samples, ddot, dz, 
     n_pix = h * w
     for y in range(h):
         for x in range(w):
-            ym = max(y - 1, 0)
-            yp = min(y + 1, h - 1)
-            xm = max(x - 1, 0)
-            xp = min(x + 1, w - 1)
-            pa, pc, pf, ph = ym * w + xm, ym * w + xp, yp * w + xm, yp * w + xp
-            p = y * w + x
+            pa, pc, pf, ph, p = _diagonals(y, x, h, w)
             ah_lo, ah_hi = _mean_dot_bounds(pa, ph, n_pix, n_samples, off, nrm, ang, bg, free,
                                             ddot)
             cf_lo, cf_hi = _mean_dot_bounds(pc, pf, n_pix, n_samples, off, nrm, ang, bg, free,
