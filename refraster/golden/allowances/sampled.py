@@ -16,7 +16,13 @@ The resolved edge map (``edge_map``):
   samples' lower ends and of their upper ends (rounded outwards, plus 1e−6 for a float32
   mean);
 * ``"resolved"`` with ``resolve = "sample_zero"``: the edge map of sample 0's G-buffer, so
-  sample 0's interval.
+  sample 0's interval;
+* ``"resolved"`` with ``resolve = "average"``: the edge map of the box-filtered G-buffer, from
+  every sample's options (:func:`.edges.mean_edge_map_bounds`).
+
+A cutaway flooded once from rear hulls resolved by ``sample_zero`` floods sample 0's seed
+images; by ``min`` or ``max``, the seed images of :func:`resolved_seed_images` (the resolve of
+the samples' depth intervals, the seeds sample 0's). Both at the pixel centre's projection.
 """
 
 from __future__ import annotations
@@ -27,7 +33,7 @@ import numpy as np
 
 from .samples import sample_shift
 
-__all__ = ["sampled_allowances", "MEAN_ROUNDING"]
+__all__ = ["sampled_allowances", "resolved_seed_images", "MEAN_ROUNDING"]
 
 #: A float32 mean of S float32 values differs from the float64 mean by at most this.
 MEAN_ROUNDING = 1e-6
