@@ -3,7 +3,8 @@ building cut by a Perlin clip surface with caps, at llvmpipe's GL positions, dra
 ``refraster.gl.clipsurface.draw_samples`` into multisample targets — at sample rate with
 ``GL_SAMPLE_SHADING`` (``glMinSampleShading(1.0)``), at pixel rate without — passes both
 4× goldens of its positions; a golden of Vulkan's standard positions is skipped with one line.
-At sample rate the clip program divides noperspective ``a/w`` by ``1/w`` itself: llvmpipe's own
+At sample rate the clip program interpolates at the sample itself (``shaders/sample_interp.glsl``,
+shared with the technique G-buffers): llvmpipe's own
 perspective divide of an input at the sample uses the pixel centre's ``1/w`` (measured here
 against the exact value, :func:`test_llvmpipe_divides_a_sample_input_by_the_centres_w`), and
 the planted ``msaa_divide_at_centre`` (that divide left to llvmpipe) fails the sample-rate

@@ -1,6 +1,7 @@
-"""refraster.gl's interpolation at the sample (issue 44; ``shaders/sample_interp.glsl``,
-``refraster/gl/msaa_techniques.py``): under sample shading llvmpipe interpolates a ``smooth``
-input wrongly, so the multisampled technique passes interpolate in the shader. Both against an
+"""refraster.gl's interpolation at the sample (issue 44; ``shaders/sample_interp.glsl``, used by
+the multisampled technique G-buffers and the clip-surface program at sample rate): under sample
+shading llvmpipe interpolates a ``smooth`` input wrongly, and a ``noperspective`` one on a
+triangle its clipper cuts, so both shader families interpolate in the shader. Against an
 analytic oracle: the perspective-correct barycentrics of a perspective triangle at each of the
 context's sample positions, computed here in float64 from the clip-space corners."""
 
@@ -20,9 +21,13 @@ in vec4 in_clip;
 out vec3 vs_eye;
 out vec3 vs_obj;
 out vec3 vs_normal;
+out vec3 vs_world;
 void main() { gl_Position = in_clip; vs_eye = vec3(0.0, 0.0, -1.0); vs_obj = in_clip.xyz;
-              vs_normal = vec3(0.0, 0.0, 1.0); }
+              vs_normal = vec3(0.0, 0.0, 1.0); vs_world = in_clip.xyz; }
 """
+
+#: The two shader families that interpolate at the sample with sample_interp.glsl.
+FAMILIES = {"gbuffer": ("gbuffer.geom", "gbuffer.frag"), "clip": ("clip.geom", "clip.frag")}
 
 
 def _oracle(positions):
@@ -43,15 +48,21 @@ def _oracle(positions):
     return out
 
 
-def _barycentrics(gl, defines):
-    """The G-buffer's barycentric target at every sample, drawn at sample rate."""
+def _barycentrics(gl, defines, family="gbuffer"):
+    """The G-buffer's barycentric target at every sample, drawn at sample rate by the
+    ``family``'s geometry and fragment shaders."""
     from refraster.gl.common import fullscreen, programs, shader_source
     from refraster.gl.msaa_techniques import SHADERS, _fns, _sample_rate
     ctx = gl.ctx
-    prog = ctx.program(vertex_shader=_VERT,
-                       geometry_shader=shader_source("gbuffer.geom", defines),
-                       fragment_shader=shader_source("gbuffer.frag", defines))
+    if not isinstance(family, str):    # a (vertex, fragment) pair without a geometry stage
+        prog = ctx.program(vertex_shader=family[0], fragment_shader=family[1])
+    else:
+        prog = ctx.program(vertex_shader=_VERT,
+                           geometry_shader=shader_source(FAMILIES[family][0], defines),
+                           fragment_shader=shader_source(FAMILIES[family][1], defines))
     gl._set(prog, "u_viewport_px", tuple(float(s) for s in SIZE))
+    for unit, name in enumerate(("u_sprite_depth", "u_sprite_count", "u_cap_shading"), 2):
+        gl._set(prog, name, unit)          # the clip program's samplers of other types
     gl._write(prog, "u_nmat", np.eye(3))
     ms = [ctx.texture(SIZE, 4, samples=4, dtype="f4") for _ in range(6)]
     fbo = ctx.framebuffer(color_attachments=ms)
@@ -90,13 +101,43 @@ def gl():
         yield backend
 
 
-def test_interpolation_in_the_shader_is_the_analytic_one_at_every_sample(gl):
+@pytest.mark.parametrize("family", sorted(FAMILIES))
+def test_interpolation_in_the_shader_is_the_analytic_one_at_every_sample(gl, family):
+    """At all four samples, on a triangle llvmpipe clips (its noperspective inputs read NaN on
+    part of it: :func:`test_llvmpipes_noperspective_inputs_on_a_clipped_triangle`)."""
     positions = gl.sample_pattern(4)["positions"]
     want = _oracle(positions)
-    got = _barycentrics(gl, ["SAMPLE_INTERP"])
+    got = _barycentrics(gl, ["SAMPLE_INTERP"], family)
     inside = ~np.isnan(want[..., 0])
     assert inside.sum() > 100 and set(np.nonzero(inside)[2]) == {0, 1, 2, 3}
     np.testing.assert_allclose(got[inside], want[inside], atol=2e-6)
+
+
+_NP_VERT = """#version 330 core
+in vec4 in_clip;
+noperspective out vec4 v_np;
+void main() { gl_Position = in_clip;
+              v_np = vec4(vec3(gl_VertexID == 0, gl_VertexID == 1, gl_VertexID == 2), 1.0) / in_clip.w; }
+"""
+_NP_FRAG = """#version 330 core
+noperspective in vec4 v_np;
+layout(location = 3) out vec4 o_bary;
+void main() { o_bary = vec4(v_np.xyz / v_np.w, 0.0); }
+"""
+
+
+def test_llvmpipes_noperspective_inputs_on_a_clipped_triangle(gl):
+    """Why the corners and not noperspective a/w and 1/w: on this triangle (it crosses the
+    viewport's edges; llvmpipe clips it) Mesa 22.3.6's noperspective inputs are NaN on part of
+    it at every sample, with or without sample shading (its clipper's screen-space parameter of
+    an edge whose two ends have the same NDC x is 0/0). When a Mesa fixes it this test fails."""
+    positions = gl.sample_pattern(4)["positions"]
+    want = _oracle(positions)
+    got = _barycentrics(gl, [], (_NP_VERT, _NP_FRAG))
+    inside = ~np.isnan(want[..., 0])
+    nan = np.isnan(got[inside]).any(axis=1)
+    assert nan.any(), "noperspective inputs are no longer NaN on a clipped triangle"
+    np.testing.assert_allclose(got[inside][~nan], want[inside][~nan], atol=2e-6)
 
 
 def test_llvmpipes_own_interpolation_at_the_sample_is_not(gl):

@@ -67,7 +67,10 @@ def _texture(backend, arrays, wrap):
 
 
 #: The program (vertex, geometry, fragment shader), compiled by refraster.gl.common.programs.
-SHADERS = {"clip": ("clip.vert", "clip.geom", "clip.frag")}
+SHADERS = {"clip": ("clip.vert", "clip.geom", "clip.frag"),
+           # sample rate: the inputs interpolated at the sample in the shader, as the
+           # multisampled G-buffers' (shaders/sample_interp.glsl)
+           "clip_sample": ("clip.vert", "clip.geom", "clip.frag", ("SAMPLE_INTERP",))}
 
 
 def load(backend, package_dir, scene):
@@ -202,12 +205,12 @@ def draw(backend, scene, loaded):
     }
 
 
-def _passes(backend, scene, loaded, sample_divide=False):
-    """The two passes (solids, then caps) into the bound targets; ``sample_divide``: the
-    fragment stage divides the noperspective ``a/w`` by ``1/w`` itself (sample rate, where
-    llvmpipe's own divide is the pixel centre's: ``shaders/clip.frag``)."""
+def _passes(backend, scene, loaded, sample_rate=False):
+    """The two passes (solids, then caps) into the bound targets; ``sample_rate``: the program
+    that interpolates its inputs at the sample itself (``shaders/sample_interp.glsl``: llvmpipe's
+    own divide at the sample is the pixel centre's)."""
     mgl = backend.mgl
-    prog = programs(backend, SHADERS)["clip"]
+    prog = programs(backend, SHADERS)["clip_sample" if sample_rate else "clip"]
     p = scene["parameters"]
     raster, shading = scene["raster"], scene["shading"]
     view = matrix(scene["camera"]["view"], "camera.view")
@@ -218,7 +221,8 @@ def _passes(backend, scene, loaded, sample_divide=False):
                                 ("ambient", "diffuse", "specular", "shininess")))
     set_(prog, "u_smooth", raster["normals"] == "smooth")
     set_(prog, "u_n_surfaces", len(surfaces))
-    set_(prog, "u_sample_divide", bool(sample_divide))
+    size = (scene["viewport"]["width"], scene["viewport"]["height"])
+    set_(prog, "u_viewport_px", tuple(float(x) for x in size))
     O, Uh, Vh, N, lens, S, enabled = [], [], [], [], [], [], []
     for e in surfaces:
         s = e["s"]
@@ -300,9 +304,10 @@ def draw_samples(backend, scene, loaded):
     sample), at sample rate (``raster.interpolation == "sample"``) with
     ``glEnable(GL_SAMPLE_SHADING)`` and ``glMinSampleShading(1.0)`` — one invocation per
     sample, its inputs (the world position of Listing 1's test and the parity test) the
-    sample's: ``noperspective`` ``a/w`` and ``1/w`` divided in the shader, since llvmpipe's own
-    divide of a smooth input at the sample is the pixel centre's ``1/w`` — else at pixel rate (one invocation per pixel, inputs at the
-    centre, its discard removing every covered sample); then each sample read with
+    sample's: interpolated in the shader from the corners (``shaders/sample_interp.glsl``),
+    since llvmpipe's own divide of a smooth input at the sample is the pixel centre's ``1/w``
+    — else at pixel rate (one invocation per pixel, inputs at the centre, its discard removing
+    every covered sample); then each sample read with
     ``texelFetch`` (:mod:`refraster.gl.msaa`'s fetch pass). Only where the context's own
     positions are the scene's declared ones."""
     import ctypes
@@ -340,7 +345,7 @@ def draw_samples(backend, scene, loaded):
         if per_sample:
             enable(_GL_SAMPLE_SHADING)
             min_shading(1.0)
-        _passes(backend, scene, loaded, sample_divide=per_sample)
+        _passes(backend, scene, loaded, sample_rate=per_sample)
         disable(_GL_SAMPLE_SHADING)
         ctx.finish()
         fetch = programs(backend, FETCH)["fetch"]

@@ -40,20 +40,17 @@ uniform sampler2D u_cap_normal;          // RGB32F user normal, encoded c = 0.5ย
 uniform sampler2D u_cap_lightmap;        // R32F user light map
 uniform vec3 u_cap_color;
 uniform mat3 u_view_nmat;                // inverse(view[:3,:3])แต€
-// sample rate (GL_SAMPLE_SHADING): the inputs from the noperspective a/w and 1/w divided here.
-// llvmpipe (Mesa 22.3.6) evaluates a smooth input's a/w at the sample but divides it by the
-// pixel centre's 1/w (docs/backends.md, "Clip surfaces at 4x"); a noperspective input at the
-// sample is exact, so (a/w)(sample) / (1/w)(sample) is the perspective-correct value there.
-uniform bool u_sample_divide;
 
 in vec3 gs_eye;
 in vec3 gs_normal;
 in vec3 gs_bary;
 in vec3 gs_world;
-noperspective in vec4 gs_np_world;
-noperspective in vec3 gs_np_eye;
-noperspective in vec3 gs_np_normal;
-noperspective in vec3 gs_np_bary;
+#ifdef SAMPLE_INTERP
+// sample rate (GL_SAMPLE_SHADING): the inputs interpolated at the sample here, as the
+// multisampled G-buffers do (llvmpipe's own are not the sample's, docs/backends.md)
+#include "sample_interp.glsl"
+flat in vec3 gs_corner_world[3];
+#endif
 
 layout(location = 0) out float o_depth;
 layout(location = 1) out float o_eye_depth;
@@ -106,14 +103,11 @@ bool parity_inside(vec3 T) {
 
 void main() {
     vec3 P = gs_world, eye = gs_eye, nrm = gs_normal, bary = gs_bary;
+#ifdef SAMPLE_INTERP
+    sample_interp(eye, nrm, bary);
 #ifndef FAULT_MSAA_DIVIDE_AT_CENTRE
-    if (u_sample_divide) {
-        float w = 1.0 / gs_np_world.w;
-        P = gs_np_world.xyz * w;
-        eye = gs_np_eye * w;
-        nrm = gs_np_normal * w;
-        bary = gs_np_bary * w;
-    }
+    P = at_sample(bary, gs_corner_world);
+#endif
 #endif
     for (int k = 0; k < MAX_SURFACES; ++k) {
         if (k >= u_n_surfaces) break;
