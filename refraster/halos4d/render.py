@@ -24,10 +24,11 @@ z, which about ``2·w_s·ρ/Δz`` slices sample. Each visible surface voxel ther
 ``opacity`` for every slice count (the usual opacity correction of slice-based volume
 rendering); ``Δz`` is the slice spacing.
 
-Two engines give the same bits: ``"fused"`` (default) slices and fills in Numba kernels,
-parallel over bands of rows (each band owns its rows and walks the slices back to front);
-``"reference"`` draws each slice with :func:`refraster.rasterize` and does the per-fragment
-work in NumPy. :func:`render_halos_pair` (fused, no volume) fills the halos picture and its
+Two engines give the same bits: ``"fused"`` (default) slices and fills in one Numba kernel,
+parallel over bands of rows (each band owns its rows, slices the tetrahedra that may touch
+them and walks the slices back to front; no slice triangle is stored, issue 46);
+``"reference"`` slices all tetrahedra (:func:`~refraster.halos4d.slicing.slice_tetrahedra`),
+draws each slice with :func:`refraster.rasterize` and does the per-fragment work in NumPy. :func:`render_halos_pair` (fused, no volume) fills the halos picture and its
 halos-off twin in one pass: they share every fragment and surface fragment, only the depth
 buffer differs.
 """
@@ -428,6 +429,7 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
         tri = np.empty((3, nc))         # one triangle's corner attributes
         ends = np.empty((6, 2), np.int64)
         lams = np.empty(6)
+        qbuf = np.empty((5, width))     # one row span's barycentrics, t and δ
         n_tri = 0
         n_valid = 0
         cur = np.int64(-1)  # int64, not a literal: one _resolve_slice (issue 27)
@@ -510,19 +512,35 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                         e0 += sa * sx0
                         e1 += sa * sx1
                         e2 += sa * sx2
-                        for px in range(x0 + sa, x0 + sb + 1):
-                            # barycentrics as the foundation's fragment stream (w = 1):
-                            # float32(λ_k / Σλ), λ from the unsnapped positions
-                            l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, px, py,
-                                                 e0, e1, e2, inv_area)
+                        xs = x0 + sa
+                        cnt = sb - sa + 1
+                        # the row's barycentrics, t and δ first, stored only into the row
+                        # buffers (a loop the compiler vectorizes; the same operations, so the
+                        # same bits), then the per-voxel updates
+                        for i in range(cnt):
+                            # as the foundation's fragment stream (w = 1): float32(λ_k / Σλ),
+                            # λ from the unsnapped positions
+                            l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, xs + i,
+                                                 py, e0 + i * sx0, e1 + i * sx1, e2 + i * sx2,
+                                                 inv_area)
                             sl = l0 + l1 + l2
                             q0 = np.float64(np.float32(l0 / sl))
                             q1 = np.float64(np.float32(l1 / sl))
                             q2 = np.float64(np.float32(l2 / sl))
                             if swap:
                                 q1, q2 = q2, q1
-                            t = q0 * t0 + q1 * t1 + q2 * t2
-                            d = q0 * d0 + q1 * d1 + q2 * d2
+                            qbuf[0, i] = q0
+                            qbuf[1, i] = q1
+                            qbuf[2, i] = q2
+                            qbuf[3, i] = q0 * t0 + q1 * t1 + q2 * t2
+                            qbuf[4, i] = q0 * d0 + q1 * d1 + q2 * d2
+                        for i in range(cnt):
+                            px = xs + i
+                            q0 = qbuf[0, i]
+                            q1 = qbuf[1, i]
+                            q2 = qbuf[2, i]
+                            t = qbuf[3, i]
+                            d = qbuf[4, i]
                             u = abs(2.0 * t - 1.0)
                             core = u < surface_width + aa
                             if halos:
@@ -549,9 +567,6 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                                 for c in range(3):
                                     surf[li, px, c] = (q0 * tri[0, 2 + c] + q1 * tri[1, 2 + c]
                                                        + q2 * tri[2, 2 + c])
-                            e0 += sx0
-                            e1 += sx1
-                            e2 += sx2
                     lr0 = min(lr0, ra - r0)
                     lr1 = max(lr1, rb - r0)
                     c0 = min(c0, x0)
