@@ -10,7 +10,8 @@ and the paper's GPU figure (GeForce GTX 580, 2013, Table 1: 69.16 / 55.31 / 42.6
 A frame is everything from the 4D surface to the composited image: rotation, projection,
 thickening, tetrahedra, slicing, rasterization and compositing. Compile time (first call minus
 steady state) is printed once. ``--stages``: the CPU time of each stage of the 256-slice frame
-(projection and thickening, the default δd, slicing, window set-up, fill), which a shared
+(projection and thickening, the default δd, slice ranges, band binning, the fused slicing and
+fill), which a shared
 machine inflates less than wall time; ``--stage-minima``: each stage of that frame called
 ``repeats`` times on the frame's own arguments (captured from one frame), the minimum CPU time
 of each, and of the whole frame (steadier than ``--stages`` on a busy machine);
@@ -52,7 +53,7 @@ def stages(surface, size, slices, repeats):
     the whole frame; the δd estimate is cached after the first frame, as in an interactive
     session (render._default_delta_d)."""
     from refraster.halos4d import render as hr
-    names = ("prepare", "default_halo_parameters", "_slice", "_window", "_fused")
+    names = ("prepare", "default_halo_parameters", "_tet_slices", "_window", "_fused")
     spent = {n: 0.0 for n in names}
     saved = {n: getattr(hr, n) for n in names}
 
@@ -82,31 +83,33 @@ def stages(surface, size, slices, repeats):
 
 def stage_minima(surface, size, slices, repeats):
     """Minimum CPU ms of each stage over ``repeats`` calls on the captured arguments of one
-    frame (prepare, slicing, window set-up and band binning, fill), and of the whole frame."""
+    frame (prepare, slice ranges, band binning, the fused slicing and fill), and of the whole
+    frame."""
     import refraster.halos4d as h
     from refraster.halos4d import render as hr
     got = {}
-    fused, slice_ = hr._fused, hr._slice
+    fused, tet_slices = hr._fused, hr._tet_slices
 
     def cap_fused(*a):
         got["fused"] = a
         return fused(*a)
 
-    def cap_slice(*a):
-        got["slice"] = a
-        return slice_(*a)
-    hr._fused, hr._slice = cap_fused, cap_slice
+    def cap_slices(*a):
+        got["slices"] = a
+        return tet_slices(*a)
+    hr._fused, hr._tet_slices = cap_fused, cap_slices
     try:
         frame(surface, size, slices)
     finally:
-        hr._fused, hr._slice = fused, slice_
-    st, width, height, params, volume = got["fused"][:5]
-    win = hr._window(st, width, height)
+        hr._fused, hr._tet_slices = fused, tet_slices
+    ts, width, height, params, volume = got["fused"][:5]
+    win = hr._window(ts, width, height)
     view = h.View4D(rotation=h.compose(("zw", 0.6), ("zx", 0.3), ("yz", 0.4)))
     calls = {"prepare": lambda: hr.prepare(surface, view=view),
-             "slicing": lambda: slice_(*got["slice"]),
-             "window set-up and band binning": lambda: hr._window(st, width, height),
-             "fill and compositing": lambda: fused(st, width, height, params, volume, win),
+             "slice ranges and NDC": lambda: tet_slices(*got["slices"]),
+             "band binning of the tetrahedra": lambda: hr._window(ts, width, height),
+             "slicing, fill and compositing (fused)": lambda: fused(ts, width, height, params,
+                                                                    volume, win),
              "frame": lambda: frame(surface, size, slices)}
     best = {k: np.inf for k in calls}
     for _ in range(repeats):
@@ -159,8 +162,8 @@ def main(argv=None):
         print("|---|---:|")
         labels = {"prepare": "projection, thickening, tetrahedra (prepare)",
                   "default_halo_parameters": "default δd (pair search; cached)",
-                  "_slice": "slicing", "_window": "window set-up and band binning",
-                  "fill": "fill and compositing"}
+                  "_tet_slices": "slice ranges and NDC", "_window": "band binning",
+                  "fill": "slicing, fill and compositing (fused)"}
         for k, label in labels.items():
             print(f"| {label} | {per[k]:.0f} |")
 

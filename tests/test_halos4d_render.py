@@ -368,6 +368,22 @@ def test_render_deterministic_across_runs_and_threads(tmp_path):
     assert outs[0] == outs[1] == outs[2]
 
 
+def _tets_of_triangles(st, centres):
+    """Tetrahedra whose slices are exactly the slice triangles ``st`` (the fused engine slices
+    tetrahedra): triangle i of slice k becomes the three vertices of its corners at z = c_k
+    and an apex half a slice below with a larger global index, so its only slice is k and
+    every corner is ``X_corner + 0·(X_apex − X_corner)``, the corner's own bits."""
+    k = len(st)
+    z = np.concatenate([np.repeat(centres[st.slice], 3), centres[st.slice] - 0.5])
+    ndc = np.concatenate([st.xy.reshape(-1, 2), np.zeros((k, 2))])
+    attr = np.concatenate([st.attr.reshape(3 * k, -1), np.zeros((k, st.attr.shape[2]))])
+    tets = np.column_stack([3 * np.arange(k), 3 * np.arange(k) + 1, 3 * np.arange(k) + 2,
+                            3 * k + np.arange(k)]).astype(np.int64)
+    k0, k1 = hs.slice_ranges(z, tets, centres)
+    assert np.array_equal(k0, st.slice) and np.array_equal(k1, st.slice + 1)
+    return hr._TetSlices(z, ndc, attr, tets, centres, k0, k1)
+
+
 def test_fill_pass_matches_reference_on_snapping_flipped_slivers():
     """The fused fill pass scans each row's exact span and starts the edge functions at the
     span's first pixel (issue 27); they interpolate the attributes of slice triangles that
@@ -404,9 +420,11 @@ def test_fill_pass_matches_reference_on_snapping_flipped_slivers():
     st.starts = np.append(np.arange(0, k, 2), k).astype(np.int64)
     on = (0.3, 2.0, 0.3, 1e-6, 0.6, True, 0.3, 0.0, np.zeros(3), False, 0.15, np.zeros(3))
     off = on[:5] + (False, 0.3, 0.0, np.zeros(3), False) + on[10:]
-    pair = hr._fused(st, W, H, on, False, pair=True)
-    for params, (rgb2, a2) in ((on, pair[:2]), (off, pair[4:6])):
-        rgb, a, vol, _ = hr._fused(st, W, H, params, True)
+    ts = _tets_of_triangles(st, np.arange(k // 2, dtype=np.float64))
+    pair = hr._fused(ts, W, H, on, False, pair=True)
+    assert pair[3] == k and pair[4] == 0
+    for params, (rgb2, a2) in ((on, pair[:2]), (off, pair[5:7])):
+        rgb, a, vol = hr._fused(ts, W, H, params, True)[:3]
         ref_rgb, ref_a, ref_vol, _ = hr._reference(st, W, H, params, True)
         assert ref_a.max() > 0.0
         # the same voxel classes, opacities and colours, to the bit (both engines take the
@@ -437,8 +455,8 @@ def test_band_binning_and_slicing_equal_their_serial_definitions():
     """The fused engine's parallel pieces against the plain definitions, on a frame with
     several binning chunks (hr.BIN_CHUNK) and slices: the slice triangles are those of a
     tetrahedron-major walk (per slice, tetrahedra in index order, each tetrahedron's
-    section corners), and each band lists the valid triangles touching it in draw order,
-    the window set-up being ``setup_window``'s."""
+    section corners), and each band lists every tetrahedron whose valid slice triangles touch
+    it, in index order (a planted fault, one vertex left out of a tetrahedron's rows, was caught)."""
     s = h.spun_trefoil(n_s=100, n_phi=24)
     geo, _ = hr.prepare(s, view=h.View4D(rotation=h.compose(("zw", 0.6), ("zx", 0.3))))
     v = geo.vertices
@@ -454,12 +472,23 @@ def test_band_binning_and_slicing_equal_their_serial_definitions():
               for _ in range(hs._section_corners(*(z[t] - c))[0])]
     assert np.array_equal(st_.tet, expect)
     assert np.array_equal(st_.slice, np.repeat(np.arange(n), np.diff(st_.starts)))
-    # band binning
+    # band binning of the tetrahedra: each band lists, in index order, every tetrahedron with a
+    # valid slice triangle touching its rows (the window set-up being ``setup_window``'s)
     X, Y, order, bbox, valid, _, _ = hs.setup_window(st_.xy, w, hgt)
-    starts, lists, bad = hr._window(st_, w, hgt)
-    assert bad == np.count_nonzero(~valid)
-    nb = (hgt + hr.BAND_ROWS - 1) // hr.BAND_ROWS
-    for band in range(nb):
-        rows = (hgt - 1 - bbox[:, 3]) // hr.BAND_ROWS, (hgt - 1 - bbox[:, 2]) // hr.BAND_ROWS
-        mine = np.flatnonzero(valid & (rows[0] <= band) & (band <= rows[1]))
-        assert np.array_equal(lists[starts[band]:starts[band + 1]], mine), band
+    ts = hr._tet_slices(v, geo.tets, centres, geo.attributes, bounds)
+    assert len(geo.tets) > 2 * hr.BIN_CHUNK
+    for band_rows in (1, hr.BAND_ROWS):     # one row per band: the tightest check
+        nb = (hgt + band_rows - 1) // band_rows
+        starts, lists, first = hr._bin_tets(ts.z, ts.ndc, ts.tets, ts.k0, ts.k1, w, hgt,
+                                            hs.SUBPIXEL_BITS, band_rows, nb)
+        rows = (hgt - 1 - bbox[:, 3]) // band_rows, (hgt - 1 - bbox[:, 2]) // band_rows
+        for band in range(nb):
+            listed = lists[starts[band]:starts[band + 1]]
+            assert np.all(np.diff(listed) > 0), band
+            need = np.unique(st_.tet[valid & (rows[0] <= band) & (band <= rows[1])])
+            assert np.isin(need, listed).all(), (band, np.setdiff1d(need, listed)[:5])
+            assert np.all(first[listed] <= band)
+    # the fused pass counts the slice triangles and the invalid ones as the slicing does
+    params = (0.3, 2.0, 0.3, 1e-6, 0.6, True, 0.3, 0.0, np.zeros(3), False, 0.15, np.zeros(3))
+    _, _, _, n_tri, n_bad = hr._fused(ts, w, hgt, params, False)
+    assert (n_tri, n_bad) == (len(st_), np.count_nonzero(~valid))

@@ -515,12 +515,14 @@ def importlib_module(name):
 
 #: The kernels a cold `refraster gallery` compiles (2026-12-02, 09:42 UTC, a fresh cache: every
 #: kernel of KERNEL_MODULES not in GALLERY_SKIPS was in the cache after it, and no other), plus
-#: issue 46's ``halos4d.slicing._window_vertex``, which ``window_setup`` (compiled by every halo
-#: picture) calls; and since issue 44's pictures and issue 46's pair search: the δd pair search's
+#: issue 46's ``halos4d.slicing._window_vertex``, which the halo kernels (every halo
+#: picture) call; and since issue 44's pictures and issue 46's pair search: the δd pair search's
 #: three kernels (``halos4d.thicken``, every halo picture's δd), ``raster.multisample._msaa_pass``
 #: (the 4× edge picture's ``render_samples``) and ``_sample_stream_pass`` (the 4× clip-surface
-#: picture).
-GALLERY_KERNEL_COUNT = 78
+#: picture). Since issue 46's fused slicing the halo pictures compile ``render._bin_tets`` and
+#: ``_render_tets`` (in place of ``_bin_bands`` and ``_render_bands``) and no longer the
+#: slicing's ``_count_pass``, ``_place``, ``_write_pass`` and ``window_setup`` (now skipped).
+GALLERY_KERNEL_COUNT = 74
 
 
 def test_every_new_kernel_is_classified_for_the_gallery():

@@ -24,10 +24,11 @@ z, which about ``2·w_s·ρ/Δz`` slices sample. Each visible surface voxel ther
 ``opacity`` for every slice count (the usual opacity correction of slice-based volume
 rendering); ``Δz`` is the slice spacing.
 
-Two engines give the same bits: ``"fused"`` (default) slices and fills in Numba kernels,
-parallel over bands of rows (each band owns its rows and walks the slices back to front);
-``"reference"`` draws each slice with :func:`refraster.rasterize` and does the per-fragment
-work in NumPy. :func:`render_halos_pair` (fused, no volume) fills the halos picture and its
+Two engines give the same bits: ``"fused"`` (default) slices and fills in one Numba kernel,
+parallel over bands of rows (each band owns its rows, slices the tetrahedra that may touch
+them and walks the slices back to front; no slice triangle is stored, issue 46);
+``"reference"`` slices all tetrahedra (:func:`~refraster.halos4d.slicing.slice_tetrahedra`),
+draws each slice with :func:`refraster.rasterize` and does the per-fragment work in NumPy. :func:`render_halos_pair` (fused, no volume) fills the halos picture and its
 halos-off twin in one pass: they share every fragment and surface fragment, only the depth
 buffer differs.
 """
@@ -47,8 +48,8 @@ from numba import njit, prange
 from .._config import IJIT, JIT, PJIT
 from .._validate import as_choice, as_float_array, as_image_size, as_option, as_real
 from ..raster.rasterizer import _inv_float_area, lambdas, row_span
-from .slicing import (MAX_SLICES, SUBPIXEL_BITS, _slice, _window_vertex, ortho_ndc,
-                      setup_window)
+from .slicing import (MAX_SLICES, SUBPIXEL_BITS, _section_corners, _slice, _window_vertex,
+                      ortho_ndc, section_edge, setup_window, slice_ranges)
 from .surfaces import Surface4D
 from .thicken import (RHO_FRACTION, default_halo_parameters, split_prisms, steiner_values,
                       thicken, thickening_normals)
@@ -62,11 +63,11 @@ __all__ = ["render_halos", "render_halos_pair", "HaloRender", "prepare", "HaloGe
 EMPTY, SURFACE, CARVED, HALO, BOUNDARY = 0, 1, 2, 3, 4
 ENGINES = ("fused", "reference")
 #: Rows per band of the fused kernel (each band is one unit of parallel work). The output does
-#: not depend on it (each pixel sees its fragments in draw order in any band); 16 rather than 8:
-#: a slice triangle (a few rows high) falls into fewer bands, so fewer set-ups (issue 46).
-BAND_ROWS = 16
-#: Slice triangles per chunk of the parallel band binning (one unit of parallel work).
-BIN_CHUNK = 1 << 14
+#: not depend on it (each pixel sees its fragments in draw order in any band); 32 rather than
+#: 16: a tetrahedron (sliced by each band it may touch) falls into fewer bands (issue 46).
+BAND_ROWS = 32
+#: Tetrahedra per chunk of the parallel band binning (one unit of parallel work).
+BIN_CHUNK = 1 << 12
 
 
 @dataclass(frozen=True, eq=False)
@@ -251,31 +252,43 @@ def _tri_window(xy, j, width, height, bits):
 
 
 @njit(**PJIT)
-def _bin_bands(xy, width, height, bits, band_rows, nbands):
-    """Per band of rows, the valid slice triangles touching it, in draw order (CSR
-    ``(starts (nbands + 1,), lists)``), and the number of triangles that are not valid (zero
-    snapped area, or outside the image). Parallel over chunks of :data:`BIN_CHUNK` triangles
-    and deterministic: a count pass, an exclusive prefix sum over (band, chunk), and a write
-    pass in which each chunk appends its triangles of each band, in index order, after those
-    of the chunks before it."""
-    n = xy.shape[0]
+def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
+    """Per band of rows, the tetrahedra whose slice triangles may touch it, in index order (CSR
+    ``(starts (nbands + 1,), lists)``), and each tetrahedron's first band (``-1`` if no slice
+    cuts it). A tetrahedron's rows are its four vertices' snapped window rows widened by one
+    pixel: a slice corner lies on an edge (``λ ∈ [0, 1]``), within an ulp of the edge's ends,
+    which snapping moves by at most one subpixel. A tetrahedron outside the image keeps the
+    nearest band (its triangles are counted there, as invalid). Parallel over chunks of
+    :data:`BIN_CHUNK` tetrahedra and deterministic (count, prefix sum over (band, chunk), write
+    each chunk's tetrahedra in index order)."""
+    n = tets.shape[0]
+    hw = np.float32(width * 0.5)
+    hh = np.float32(height * 0.5)
+    half = np.float32(0.5)
+    s = np.float32(1 << bits)
     nchunks = (n + BIN_CHUNK - 1) // BIN_CHUNK
     first = np.empty(n, np.int64)
     last = np.empty(n, np.int64)
     counts = np.zeros((nchunks, nbands), np.int64)
-    bad = np.zeros(nchunks, np.int64)
     for c in prange(nchunks):
-        for j in range(c * BIN_CHUNK, min(n, (c + 1) * BIN_CHUNK)):
-            w = _tri_window(xy, j, width, height, bits)
-            if w[0]:
-                first[j] = (height - 1 - w[17]) // band_rows
-                last[j] = (height - 1 - w[16]) // band_rows
-                for band in range(first[j], last[j] + 1):
-                    counts[c, band] += 1
-            else:
-                first[j] = 0
-                last[j] = -1
-                bad[c] += 1
+        for t in range(c * BIN_CHUNK, min(n, (c + 1) * BIN_CHUNK)):
+            if k1[t] <= k0[t]:
+                first[t] = -1
+                last[t] = -2
+                continue
+            ylo = np.int64(1) << 62
+            yhi = -ylo
+            for m in range(4):
+                v = tets[t, m]
+                y = _window_vertex(ndc[v, 0], ndc[v, 1], hw, hh, half, s)[1]
+                ylo = min(ylo, y)
+                yhi = max(yhi, y)
+            py0 = min(max((ylo >> bits) - 1, 0), height - 1)
+            py1 = min(max((yhi >> bits) + 1, 0), height - 1)
+            first[t] = (height - 1 - py1) // band_rows
+            last[t] = (height - 1 - py0) // band_rows
+            for band in range(first[t], last[t] + 1):
+                counts[c, band] += 1
     starts = np.zeros(nbands + 1, np.int64)
     offset = np.zeros((nchunks, nbands), np.int64)
     total = 0
@@ -287,11 +300,11 @@ def _bin_bands(xy, width, height, bits, band_rows, nbands):
     starts[nbands] = total
     lists = np.zeros(total, np.int64)
     for c in prange(nchunks):
-        for j in range(c * BIN_CHUNK, min(n, (c + 1) * BIN_CHUNK)):
-            for band in range(first[j], last[j] + 1):
-                lists[offset[c, band]] = j
+        for t in range(c * BIN_CHUNK, min(n, (c + 1) * BIN_CHUNK)):
+            for band in range(first[t], last[t] + 1):
+                lists[offset[c, band]] = t
                 offset[c, band] += 1
-    return starts, lists, bad.sum()
+    return starts, lists, first
 
 
 @njit(**JIT)
@@ -361,15 +374,24 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
 
 
 @njit(**PJIT)
-def _render_bands(xy, tri_slice, band_starts, band_lists, attr, width, height, bits, band_rows, delta_t, delta_d, surface_width, eps, alpha, halos,
-                  aa, halo_alpha, halo_rgb, boundary, boundary_width, boundary_rgb,
-                  want_volume, out_rgb, out_a, volume, voxel_rgba, pair, out_rgb2, out_a2):
-    """The fill pass, parallel over bands of rows. With ``pair`` (and ``halos``), also the
-    halos-off twin (``halos`` False, ``halo_alpha`` 0, no boundaries, the other parameters the
-    same) into ``out_rgb2``, ``out_a2``: its fragments, barycentrics and surface fragments are
-    the first picture's, only the depth buffer differs (issue 27). ``xy``: the slice triangles'
-    NDC corners, set up per band by :func:`_tri_window`."""
+def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, band_lists,
+                 width, height, bits, band_rows, delta_t, delta_d, surface_width, eps, alpha,
+                 halos, aa, halo_alpha, halo_rgb, boundary, boundary_width, boundary_rgb,
+                 want_volume, out_rgb, out_a, volume, voxel_rgba, pair, out_rgb2, out_a2,
+                 counts):
+    """The slicing and the fill pass in one, parallel over bands of rows: each band slices the
+    tetrahedra of its list (:func:`_bin_tets`) by the planes that cut them, slice by slice
+    back to front and in tetrahedron order within a slice (the draw order of
+    :func:`~refraster.halos4d.slicing.slice_tetrahedra`, the same corner bits), and fills the
+    slice triangles that touch its rows; no slice triangle is stored (issue 46). With ``pair``
+    (and ``halos``), also the halos-off twin (``halos`` False, ``halo_alpha`` 0, no boundaries,
+    the other parameters the same) into ``out_rgb2``, ``out_a2``: its fragments, barycentrics
+    and surface fragments are the first picture's, only the depth buffer differs (issue 27).
+    ``counts[band]``: the slice triangles of the tetrahedra whose first band it is, and the
+    valid ones (non-zero snapped area, inside the image) whose first row lies in it."""
     nbands = band_starts.shape[0] - 1
+    n = centres.shape[0]
+    nc = attr.shape[1]
     for band in prange(nbands):
         r0 = band * band_rows
         r1 = min(height, r0 + band_rows)
@@ -388,101 +410,169 @@ def _render_bands(xy, tri_slice, band_starts, band_lists, attr, width, height, b
         min_d2 = np.full((prow, pcol), np.inf)
         acc2 = np.zeros((prow, pcol, 3))
         acc_a2 = np.zeros((prow, pcol))
+        # the band's (slice, tetrahedron) pairs, slice-major, tetrahedra in index order
+        pstart = np.zeros(n + 1, np.int64)
+        for q in range(band_starts[band], band_starts[band + 1]):
+            t = band_lists[q]
+            for k in range(k0[t], k1[t]):
+                pstart[k + 1] += 1
+        for k in range(n):
+            pstart[k + 1] += pstart[k]
+        cursor = pstart[:n].copy()
+        ptet = np.empty(pstart[n], np.int64)
+        for q in range(band_starts[band], band_starts[band + 1]):
+            t = band_lists[q]
+            for k in range(k0[t], k1[t]):
+                ptet[cursor[k]] = t
+                cursor[k] += 1
+        xy = np.empty((2, 3, 2))        # the current tetrahedron's slice triangles (NDC)
+        tri = np.empty((3, nc))         # one triangle's corner attributes
+        ends = np.empty((6, 2), np.int64)
+        lams = np.empty(6)
+        qbuf = np.empty((5, width))     # one row span's barycentrics, t and δ
+        n_tri = 0
+        n_valid = 0
         cur = np.int64(-1)  # int64, not a literal: one _resolve_slice (issue 27)
         lr0, lr1, c0, c1 = rows, np.int64(-1), width, np.int64(-1)
-        for q in range(band_starts[band], band_starts[band + 1]):
-            j = band_lists[q]
-            if tri_slice[j] != cur:
-                if cur >= 0:
-                    _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d,
-                                   surf_d, surf, hit, acc, acc_a, volume, surf_cov, min_db,
-                                   halo_alpha, halo_rgb, boundary, boundary_rgb, surf_full,
-                                   voxel_rgba, pair, min_d2, acc2, acc_a2)
-                cur = tri_slice[j]
-                lr0, lr1, c0, c1 = rows, -1, width, -1
-            (_, X0, X1, X2, Y0, Y1, Y2, fx0, fx1, fx2, fy0, fy1, fy2, swap, x0, x1, by0, by1,
-             area) = _tri_window(xy, j, width, height, bits)
-            ra = max(height - 1 - by1, r0)
-            rb = min(height - 1 - by0, r1 - 1)
-            lr0 = min(lr0, ra - r0)
-            lr1 = max(lr1, rb - r0)
-            c0 = min(c0, x0)
-            c1 = max(c1, x1)
-            inv_area = 1.0 / np.float64(area)
-            inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
-            # edge k (opposite stored vertex k): value at (x0, py), x step, ownership bias
-            dx0 = X2 - X1
-            dy0 = Y2 - Y1
-            dx1 = X0 - X2
-            dy1 = Y0 - Y2
-            dx2 = X1 - X0
-            dy2 = Y1 - Y0
-            bias0 = 0 if (dy0 < 0 or (dy0 == 0 and dx0 > 0)) else 1
-            bias1 = 0 if (dy1 < 0 or (dy1 == 0 and dx1 > 0)) else 1
-            bias2 = 0 if (dy2 < 0 or (dy2 == 0 and dx2 > 0)) else 1
-            sx0 = -(dy0 << bits)
-            sx1 = -(dy1 << bits)
-            sx2 = -(dy2 << bits)
-            # the triangle's attributes (δ, t) in locals: read once, not per pixel (issue 27)
-            d0, d1, d2 = attr[j, 0, 0], attr[j, 1, 0], attr[j, 2, 0]
-            t0, t1, t2 = attr[j, 0, 1], attr[j, 1, 1], attr[j, 2, 1]
-            for r in range(ra, rb + 1):
-                py = height - 1 - r
-                li = r - r0
-                e0 = dx0 * ((py << bits) - Y1) - dy0 * ((x0 << bits) - X1)
-                e1 = dx1 * ((py << bits) - Y2) - dy1 * ((x0 << bits) - X2)
-                e2 = dx2 * ((py << bits) - Y0) - dy2 * ((x0 << bits) - X0)
-                # the row's exact span (all three biased edge functions ≥ 0): the pixels the
-                # bounding-box scan would accept, without visiting the empty corners (issue 27)
-                sa, sb = row_span(e0 - bias0, sx0, e1 - bias1, sx1, e2 - bias2, sx2,
-                                  x1 - x0 + 1)
-                if sa > sb:
-                    continue
-                e0 += sa * sx0
-                e1 += sa * sx1
-                e2 += sa * sx2
-                for px in range(x0 + sa, x0 + sb + 1):
-                    # barycentrics as the foundation's fragment stream (w = 1):
-                    # float32(λ_k / Σλ), λ from the unsnapped positions
-                    l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, px, py,
-                                         e0, e1, e2, inv_area)
-                    sl = l0 + l1 + l2
-                    q0 = np.float64(np.float32(l0 / sl))
-                    q1 = np.float64(np.float32(l1 / sl))
-                    q2 = np.float64(np.float32(l2 / sl))
-                    if swap:
-                        q1, q2 = q2, q1
-                    t = q0 * t0 + q1 * t1 + q2 * t2
-                    d = q0 * d0 + q1 * d1 + q2 * d2
-                    u = abs(2.0 * t - 1.0)
-                    core = u < surface_width + aa
-                    if halos:
-                        dn = d + max(0.0, u - delta_t) * delta_d
-                        if dn < min_d[li, px]:
-                            min_d[li, px] = dn
-                        if boundary and u + boundary_width <= 1.0:
-                            db = d + max(0.0, u + boundary_width - delta_t) * delta_d
-                            if db < min_db[li, px]:
-                                min_db[li, px] = db
-                    elif core and d < min_d[li, px]:
-                        min_d[li, px] = d
-                    if pair and core and d < min_d2[li, px]:
-                        min_d2[li, px] = d
-                    hit[li, px] = True
-                    full = u < surface_width
-                    # the surface fragment of the voxel: a full-core one (|2t − 1| < w_s)
-                    # before an anti-aliasing fringe one, then the smallest δ
-                    if core and ((full and not surf_full[li, px])
-                                 or (full == surf_full[li, px] and d < surf_d[li, px])):
-                        surf_d[li, px] = d
-                        surf_full[li, px] = full
-                        surf_cov[li, px] = _coverage(u, surface_width, aa)
-                        for c in range(3):
-                            surf[li, px, c] = (q0 * attr[j, 0, 2 + c] + q1 * attr[j, 1, 2 + c]
-                                               + q2 * attr[j, 2, 2 + c])
-                    e0 += sx0
-                    e1 += sx1
-                    e2 += sx2
+        for k in range(n):
+            ck = centres[k]
+            for pi in range(pstart[k], pstart[k + 1]):
+                tt = ptet[pi]
+                g = (tets[tt, 0], tets[tt, 1], tets[tt, 2], tets[tt, 3])
+                sg = (z[g[0]] - ck, z[g[1]] - ck, z[g[2]] - ck, z[g[3]] - ck)
+                nsec, e = _section_corners(sg[0], sg[1], sg[2], sg[3])
+                if tet_first[tt] == band:
+                    n_tri += nsec
+                for corner in range(3 * nsec):
+                    vi, vj, lam = section_edge(g, sg, e, corner)
+                    ends[corner, 0] = vi
+                    ends[corner, 1] = vj
+                    lams[corner] = lam
+                    for q in range(2):
+                        xy[corner // 3, corner % 3, q] = ndc[vi, q] + lam * (ndc[vj, q]
+                                                                             - ndc[vi, q])
+                for m in range(nsec):
+                    (valid, X0, X1, X2, Y0, Y1, Y2, fx0, fx1, fx2, fy0, fy1, fy2, swap, x0, x1,
+                     by0, by1, area) = _tri_window(xy, m, width, height, bits)
+                    if not valid:
+                        continue
+                    if (height - 1 - by1) // band_rows == band:
+                        n_valid += 1
+                    ra = max(height - 1 - by1, r0)
+                    rb = min(height - 1 - by0, r1 - 1)
+                    if ra > rb:
+                        continue
+                    if k != cur:
+                        if cur >= 0:
+                            _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume,
+                                           min_d, surf_d, surf, hit, acc, acc_a, volume,
+                                           surf_cov, min_db, halo_alpha, halo_rgb, boundary,
+                                           boundary_rgb, surf_full, voxel_rgba, pair, min_d2,
+                                           acc2, acc_a2)
+                        cur = k
+                        lr0, lr1, c0, c1 = rows, -1, width, -1
+                    for v in range(3):
+                        corner = 3 * m + v
+                        vi = ends[corner, 0]
+                        vj = ends[corner, 1]
+                        lam = lams[corner]
+                        for q in range(nc):
+                            tri[v, q] = attr[vi, q] + lam * (attr[vj, q] - attr[vi, q])
+                    inv_area = 1.0 / np.float64(area)
+                    inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
+                    # edge k (opposite stored vertex k): value at (x0, py), x step, ownership bias
+                    dx0 = X2 - X1
+                    dy0 = Y2 - Y1
+                    dx1 = X0 - X2
+                    dy1 = Y0 - Y2
+                    dx2 = X1 - X0
+                    dy2 = Y1 - Y0
+                    bias0 = 0 if (dy0 < 0 or (dy0 == 0 and dx0 > 0)) else 1
+                    bias1 = 0 if (dy1 < 0 or (dy1 == 0 and dx1 > 0)) else 1
+                    bias2 = 0 if (dy2 < 0 or (dy2 == 0 and dx2 > 0)) else 1
+                    sx0 = -(dy0 << bits)
+                    sx1 = -(dy1 << bits)
+                    sx2 = -(dy2 << bits)
+                    # the triangle's δ and t in locals: read once, not per pixel (issue 27)
+                    d0, d1, d2 = tri[0, 0], tri[1, 0], tri[2, 0]
+                    t0, t1, t2 = tri[0, 1], tri[1, 1], tri[2, 1]
+                    for r in range(ra, rb + 1):
+                        py = height - 1 - r
+                        li = r - r0
+                        e0 = dx0 * ((py << bits) - Y1) - dy0 * ((x0 << bits) - X1)
+                        e1 = dx1 * ((py << bits) - Y2) - dy1 * ((x0 << bits) - X2)
+                        e2 = dx2 * ((py << bits) - Y0) - dy2 * ((x0 << bits) - X0)
+                        # the row's exact span (all three biased edge functions ≥ 0): the
+                        # pixels the bounding-box scan would accept, without visiting the
+                        # empty corners (issue 27)
+                        sa, sb = row_span(e0 - bias0, sx0, e1 - bias1, sx1, e2 - bias2, sx2,
+                                          x1 - x0 + 1)
+                        if sa > sb:
+                            continue
+                        e0 += sa * sx0
+                        e1 += sa * sx1
+                        e2 += sa * sx2
+                        xs = x0 + sa
+                        cnt = sb - sa + 1
+                        # the row's barycentrics, t and δ first, stored only into the row
+                        # buffers (a loop the compiler vectorizes; the same operations, so the
+                        # same bits), then the per-voxel updates
+                        for i in range(cnt):
+                            # as the foundation's fragment stream (w = 1): float32(λ_k / Σλ),
+                            # λ from the unsnapped positions
+                            l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, xs + i,
+                                                 py, e0 + i * sx0, e1 + i * sx1, e2 + i * sx2,
+                                                 inv_area)
+                            sl = l0 + l1 + l2
+                            q0 = np.float64(np.float32(l0 / sl))
+                            q1 = np.float64(np.float32(l1 / sl))
+                            q2 = np.float64(np.float32(l2 / sl))
+                            if swap:
+                                q1, q2 = q2, q1
+                            qbuf[0, i] = q0
+                            qbuf[1, i] = q1
+                            qbuf[2, i] = q2
+                            qbuf[3, i] = q0 * t0 + q1 * t1 + q2 * t2
+                            qbuf[4, i] = q0 * d0 + q1 * d1 + q2 * d2
+                        for i in range(cnt):
+                            px = xs + i
+                            q0 = qbuf[0, i]
+                            q1 = qbuf[1, i]
+                            q2 = qbuf[2, i]
+                            t = qbuf[3, i]
+                            d = qbuf[4, i]
+                            u = abs(2.0 * t - 1.0)
+                            core = u < surface_width + aa
+                            if halos:
+                                dn = d + max(0.0, u - delta_t) * delta_d
+                                if dn < min_d[li, px]:
+                                    min_d[li, px] = dn
+                                if boundary and u + boundary_width <= 1.0:
+                                    db = d + max(0.0, u + boundary_width - delta_t) * delta_d
+                                    if db < min_db[li, px]:
+                                        min_db[li, px] = db
+                            elif core and d < min_d[li, px]:
+                                min_d[li, px] = d
+                            if pair and core and d < min_d2[li, px]:
+                                min_d2[li, px] = d
+                            hit[li, px] = True
+                            full = u < surface_width
+                            # the surface fragment of the voxel: a full-core one (|2t − 1| < w_s)
+                            # before an anti-aliasing fringe one, then the smallest δ
+                            if core and ((full and not surf_full[li, px])
+                                         or (full == surf_full[li, px] and d < surf_d[li, px])):
+                                surf_d[li, px] = d
+                                surf_full[li, px] = full
+                                surf_cov[li, px] = _coverage(u, surface_width, aa)
+                                for c in range(3):
+                                    surf[li, px, c] = (q0 * tri[0, 2 + c] + q1 * tri[1, 2 + c]
+                                                       + q2 * tri[2, 2 + c])
+                    lr0 = min(lr0, ra - r0)
+                    lr1 = max(lr1, rb - r0)
+                    c0 = min(c0, x0)
+                    c1 = max(c1, x1)
+        counts[band, 0] = n_tri
+        counts[band, 1] = n_valid
         if cur >= 0:
             _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf_d,
                            surf, hit, acc, acc_a, volume, surf_cov, min_db, halo_alpha,
@@ -501,30 +591,53 @@ def _render_bands(xy, tri_slice, band_starts, band_lists, attr, width, height, b
                     out_a2[r0 + li, px] = acc_a2[li, px]
 
 
-def _fused(st, width, height, params, want_volume, win=None, pair=False):
-    """``win``: :func:`_window` of ``st`` computed before (the same for every fill pass).
-    ``pair`` (``params`` with halos, no volume): also the halos-off twin's colour and alpha,
-    from the same pass; they are appended to the result."""
-    band_starts, band_lists, n_invalid = _window(st, width, height) if win is None else win
-    n = len(st.starts) - 1
+class _TetSlices(collections.namedtuple("TetSlices", "z ndc attr tets centres k0 k1")):
+    """What the fused engine slices: the vertices' screen z and NDC xy, their attributes, the
+    tetrahedra, the slice planes and each tetrahedron's slices ``k0 <= k < k1``
+    (:func:`~refraster.halos4d.slicing.slice_ranges`)."""
+
+
+def _tet_slices(vertices, tets, centres, attributes, bounds):
+    """:class:`_TetSlices` of ``vertices (V, 3)`` (screen space) framed by ``bounds``."""
+    z = np.ascontiguousarray(vertices[:, 2])
+    k0, k1 = slice_ranges(z, tets, centres)
+    return _TetSlices(z, np.ascontiguousarray(ortho_ndc(vertices, bounds)),
+                     np.ascontiguousarray(attributes), np.ascontiguousarray(tets), centres, k0,
+                     k1)
+
+
+def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SUBPIXEL_BITS,
+           voxel_rgba=None):
+    """Slice and fill :class:`_TetSlices` ``ts`` (:func:`_render_tets`). ``win``: :func:`_window`
+    of ``ts`` computed before (the same for every fill pass). ``pair`` (``params`` with
+    halos, no volume): also the halos-off twin's colour and alpha, from the same pass; they
+    are appended to the result. ``voxel_rgba (N, H, W, 4)``: also each voxel's surface colour
+    and opacity (with ``want_volume``; the golden's allowance). Returns ``(rgb, alpha,
+    volume or None, slice triangles, invalid slice triangles[, rgb2, alpha2])``."""
+    band_starts, band_lists, first = _window(ts, width, height, bits) if win is None else win
+    n = len(ts.centres)
     rgb = np.zeros((height, width, 3))
     a = np.zeros((height, width))
     vol = np.zeros((n, height, width) if want_volume else (1, 1, 1), np.int8)
     rgb2 = np.zeros((height, width, 3) if pair else (1, 1, 3))
     a2 = np.zeros((height, width) if pair else (1, 1))
-    _render_bands(st.xy, st.slice, band_starts, band_lists, st.attr, width, height, SUBPIXEL_BITS, BAND_ROWS, *params, want_volume, rgb, a, vol,
-                  np.zeros((1, 1, 1, 4)), pair, rgb2, a2)
-    out = rgb, a, (vol if want_volume else None), int(n_invalid)
+    counts = np.zeros((len(band_starts) - 1, 2), np.int64)
+    _render_tets(ts.z, ts.ndc, ts.attr, ts.tets, ts.centres, ts.k0, ts.k1, first, band_starts,
+                 band_lists, width, height, bits, BAND_ROWS, *params, want_volume, rgb, a, vol,
+                 np.zeros((1, 1, 1, 4)) if voxel_rgba is None else voxel_rgba, pair, rgb2, a2,
+                 counts)
+    n_tri = int(counts[:, 0].sum())
+    out = rgb, a, (vol if want_volume else None), n_tri, n_tri - int(counts[:, 1].sum())
     return out + (rgb2, a2) if pair else out
 
 
-def _window(st, width, height):
-    """The fill pass's set-up of slice triangles ``st``: the triangles of each band of rows
-    and the number of invalid ones (independent of the fill parameters; the window
-    coordinates are recomputed per band, :func:`_tri_window`)."""
+def _window(ts, width, height, bits=SUBPIXEL_BITS):
+    """The fill pass's set-up of :class:`_TetSlices` ``ts``: the tetrahedra of each band of
+    rows and each one's first band (independent of the fill parameters; the slice triangles
+    and their window coordinates are computed per band, :func:`_render_tets`)."""
     nbands = (height + BAND_ROWS - 1) // BAND_ROWS
-    return _bin_bands(np.ascontiguousarray(st.xy), width, height, SUBPIXEL_BITS, BAND_ROWS,
-                      nbands)
+    return _bin_tets(ts.z, ts.ndc, ts.tets, ts.k0, ts.k1, width, height, bits, BAND_ROWS,
+                     nbands)
 
 
 # ----------------------------------------------------------------------------- reference engine
@@ -837,27 +950,33 @@ def _draw(geo, views, bounds, centres, width, height, variants, engine, volume, 
             and not variants[1][5] and variants[1][7] == 0.0 and not variants[1][9]
             and all(variants[0][i] == variants[1][i] for i in (0, 1, 2, 3, 4, 6, 10)))
     for verts in views:
-        st = _slice(verts[:, 2].copy(), geo.tets, centres, geo.attributes,
-                    ortho_ndc(verts, bounds))
-        win = _window(st, width, height) if engine == "fused" and len(variants) > 1 else None
-        skipped = None
+        if engine == "fused":
+            ts = _tet_slices(verts, geo.tets, centres, geo.attributes, bounds)
+            win = _window(ts, width, height) if len(variants) > 1 else None
+        else:
+            st = _slice(verts[:, 2].copy(), geo.tets, centres, geo.attributes,
+                        ortho_ndc(verts, bounds))
+            n_tri += len(st)
+            n_skip += int(np.count_nonzero(~setup_window(st.xy, width, height)[4]))
+        counted = None
         if fuse:    # both pictures from one fill pass (issue 27)
-            rgb, a, _, skipped, rgb2, a2 = _fused(st, width, height, variants[0], False, win,
-                                                   pair=True)
+            rgb, a, _, nt, ns, rgb2, a2 = _fused(ts, width, height, variants[0], False, win,
+                                                 pair=True)
+            counted = nt, ns
             for v, (c, al) in enumerate(((rgb, a), (rgb2, a2))):
                 outs[v][0].append(c + (1.0 - al)[..., None] * bg)
                 outs[v][1].append(al)
         for v, params in enumerate(variants if not fuse else ()):
             if engine == "fused":
-                rgb, a, vols[v], skipped = _fused(st, width, height, params, bool(volume), win)
+                rgb, a, vols[v], nt, ns = _fused(ts, width, height, params, bool(volume), win)
+                counted = nt, ns
             else:
                 rgb, a, vols[v], _ = _reference(st, width, height, params, bool(volume))
             outs[v][0].append(rgb + (1.0 - a)[..., None] * bg)
             outs[v][1].append(a)
-        if skipped is None:
-            skipped = int(np.count_nonzero(~setup_window(st.xy, width, height)[4]))
-        n_tri += len(st)
-        n_skip += skipped
+        if counted is not None:
+            n_tri += counted[0]
+            n_skip += counted[1]
     results = []
     for (images, alphas), vol, params in zip(outs, vols, variants):
         if len(views) == 2:    # stereo

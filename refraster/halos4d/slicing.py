@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .._config import JIT, PJIT
+from .._config import IJIT, JIT, PJIT
 from .._validate import as_float_array, as_index_array
 
 __all__ = ["voxel_centres", "slice_tetrahedra", "SliceTriangles", "voxelize", "ortho_ndc",
@@ -133,6 +133,19 @@ def _section_corners(s0, s1, s2, s3):
     return 1, (lone, o1, lone, o2, lone, o3, 0, 0, 0, 0, 0, 0)
 
 
+@njit(**IJIT)
+def section_edge(g, s, e, corner):
+    """Corner ``corner`` of a cross-section (:func:`_section_corners`' edges ``e``) of the
+    tetrahedron with global vertices ``g`` at signed heights ``s``: ``(v_p, v_q, λ)``, the point
+    ``X_p + λ(X_q − X_p)``, from the endpoint with the smaller global index (shared edges agree
+    bitwise)."""
+    i = e[2 * corner]
+    j = e[2 * corner + 1]
+    if g[i] > g[j]:
+        i, j = j, i
+    return g[i], g[j], s[i] / (s[i] - s[j])
+
+
 @njit(**PJIT)
 def _count_pass(tets, z, centres, k0, pair_start, pair_count):
     for t in prange(tets.shape[0]):
@@ -189,14 +202,7 @@ def _write_pass(tets, z, xy, attr, centres, starts, pstarts, ptet, oxy, oattr, o
             s = (z[g[0]] - c, z[g[1]] - c, z[g[2]] - c, z[g[3]] - c)
             n, e = _section_corners(s[0], s[1], s[2], s[3])
             for corner in range(3 * n):
-                # from the endpoint with the smaller global index: shared edges agree bitwise
-                i = e[2 * corner]
-                j = e[2 * corner + 1]
-                if g[i] > g[j]:
-                    i, j = j, i
-                lam = s[i] / (s[i] - s[j])
-                vi = g[i]
-                vj = g[j]
+                vi, vj, lam = section_edge(g, s, e, corner)
                 tri = o + corner // 3
                 slot = corner % 3
                 for q in range(2):
@@ -254,11 +260,17 @@ def slice_tetrahedra(vertices, tets, centres, attributes=None, *, xy=None):
     return _slice(v[:, 2].copy(), tt, c, np.ascontiguousarray(a), np.ascontiguousarray(pos))
 
 
-def _slice(z, tets, centres, attr, xy):
+def slice_ranges(z, tets, centres):
+    """Per tetrahedron, the slices ``k0 <= k < k1`` whose plane cuts it: ``min z < c_k <= max
+    z`` (s = 0 counts as positive); ``k1 <= k0`` where none does."""
     zt = z[tets].reshape(-1, 4)
-    # slice k cuts tetrahedron t iff min z < c_k <= max z (s = 0 counts as positive)
     k0 = np.searchsorted(centres, zt.min(axis=1, initial=np.inf), side="right").astype(np.int64)
     k1 = np.searchsorted(centres, zt.max(axis=1, initial=-np.inf), side="right").astype(np.int64)
+    return k0, k1
+
+
+def _slice(z, tets, centres, attr, xy):
+    k0, k1 = slice_ranges(z, tets, centres)
     pair_start = np.zeros(len(tets) + 1, np.int64)
     np.cumsum(np.maximum(k1 - k0, 0), out=pair_start[1:])
     pair_count = np.zeros(int(pair_start[-1]), np.int64)

@@ -79,9 +79,8 @@ def render_variant(surface, p, *, dsw=0.0, ddt=0.0, eps_scale=1.0, dz=0.0, dxy=(
     Returns (color (H, W, 3), alpha (H, W), volume (N, H, W)) float64 / int8, and with
     ``voxels`` each drawn voxel's (r, g, b, α) (N, H, W, 4) (zero where not drawn)."""
     from ...halos4d import View4D
-    from ...halos4d.render import (_render_bands, _screen_bounds, _bin_bands, BAND_ROWS,
-                                  prepare, slice_alpha)
-    from ...halos4d.slicing import SUBPIXEL_BITS, _slice, ortho_ndc
+    from ...halos4d.render import _fused, _screen_bounds, _tet_slices, prepare, slice_alpha
+    from ...halos4d.slicing import SUBPIXEL_BITS
     w, h, n = int(p["width"]), int(p["height"]), int(p["slices"])
     geo, rho = prepare(surface, view=View4D(rotation=np.asarray(p["rotation"], np.float64),
                                             projection=p["projection"]), rho=p.get("rho"),
@@ -100,18 +99,11 @@ def render_variant(surface, p, *, dsw=0.0, ddt=0.0, eps_scale=1.0, dz=0.0, dxy=(
     v = verts.copy()
     v[:, 0] += dxy[0] * (bounds[1, 0] - bounds[0, 0]) / w
     v[:, 1] += dxy[1] * (bounds[1, 1] - bounds[0, 1]) / h
-    st = _slice(v[:, 2].copy(), geo.tets, centres, attr, ortho_ndc(v, bounds))
-    b = SUBPIXEL_BITS if bits is None else bits
-    nbands = (h + BAND_ROWS - 1) // BAND_ROWS
-    band_starts, band_lists, _ = _bin_bands(st.xy, w, h, b, BAND_ROWS, nbands)
-    rgb = np.zeros((h, w, 3))
-    a = np.zeros((h, w))
-    vol = np.zeros((n, h, w), np.int8)
     vox = np.zeros((n, h, w, 4))
-    _render_bands(st.xy, st.slice, band_starts, band_lists, st.attr, w, h, b, BAND_ROWS,
-                  float(p["delta_t"]) + ddt, float(p["delta_d"]), sw + dsw, eps, alpha,
-                  bool(p["halos"]), aa, 0.0, np.zeros(3), False, 0.15, np.zeros(3), True,
-                  rgb, a, vol, vox, False, np.zeros((1, 1, 3)), np.zeros((1, 1)))
+    params = (float(p["delta_t"]) + ddt, float(p["delta_d"]), sw + dsw, eps, alpha,
+              bool(p["halos"]), aa, 0.0, np.zeros(3), False, 0.15, np.zeros(3))
+    rgb, a, vol = _fused(_tet_slices(v, geo.tets, centres, attr, bounds), w, h, params, True,
+                         bits=SUBPIXEL_BITS if bits is None else bits, voxel_rgba=vox)[:3]
     bg = np.asarray(p.get("background", [0.0, 0.0, 0.0]), np.float64)
     if voxels:
         return rgb + (1.0 - a)[..., None] * bg, a, vol, vox, alpha
