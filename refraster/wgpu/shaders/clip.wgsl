@@ -1,8 +1,8 @@
 // 2.5D clip surfaces with caps of refraster.wgpu (Trapp & Döllner Sec. 3-5, Listing 1;
 // MATH.md §1.1, §1.2, §1.2b, §2.2). Compiled as one module after gbuffer.wgsl (its Draw, VOut,
-// vs, headlight, unit_normal, ids_record, surface_record): the driver's vertex stage with the Draw's tmat set to the model
-// matrix (solids) or the identity (caps, already in world space), so VOut.tex is the world
-// position P.
+// vs, headlight, unit_normal, ids_record, surface_record): the driver's vertex stage with the
+// Draw's tmat set to the model matrix (solids) or the identity (caps, already in world space), so
+// VOut.tex is the world position P.
 //
 // One fragment body (clip_fragment), three entry points for the G-buffer's three passes of at
 // most 32 bytes per sample (fs_clip_ids, fs_clip_surface, fs_clip_shade), each drawing the
