@@ -208,47 +208,62 @@ def _technique_packages(root, quick):
     return cases
 
 
-def _gl_child(packages, repeats):
-    """Runs in the child process: time Backend.draw on each package, print JSON."""
+def _backend_child(backend, packages, repeats):
+    """Runs in the child process: time ``refraster.<backend>.driver.Backend.draw`` on each
+    package, print JSON (a package refraster.wgpu refuses as ``Unsupported``: its reason;
+    refraster.gl draws every package of this benchmark)."""
+    import importlib
     import time
 
-    from refraster.gl.driver import Backend
+    driver = importlib.import_module(f"refraster.{backend}.driver")
+    unsupported = driver.Unsupported if backend == "wgpu" else ()
     out = []
-    with Backend() as gl:
+    with driver.Backend() as gpu:
         for pkg in packages:
             t0 = time.perf_counter()
-            loaded = gl.load(pkg)
+            try:
+                loaded = gpu.load(pkg)
+            except unsupported as exc:
+                out.append(dict(skipped=str(exc)))
+                continue
             load_ms = (time.perf_counter() - t0) * 1e3
-            first = first_ms(lambda: gl.draw(loaded))
-            times = [first_ms(lambda: gl.draw(loaded)) for _ in range(repeats)]
-            layers = gl.draw(loaded)
+            first = first_ms(lambda: gpu.draw(loaded))
+            times = [first_ms(lambda: gpu.draw(loaded)) for _ in range(repeats)]
+            layers = gpu.draw(loaded)
             k = layers["layer_depth"].shape[-1] if "layer_depth" in layers else None
-            gl.unload(loaded)
+            gpu.unload(loaded)
             out.append(dict(load_ms=load_ms, first_ms=first, median_ms=float(np.median(times)),
                             layers=k))
-        out.append({"renderer": gl.renderer})
+        out.append({"renderer": gpu.renderer})
     print(json.dumps(out))
 
 
-def _time_gl(packages, repeats, threads):
+def _time_backend(backend, packages, repeats, threads):
+    """:func:`_backend_child` of ``backend`` (``"gl"``, ``"wgpu"``) in a process of its own with
+    ``LP_NUM_THREADS=threads`` and the tuned malloc → its JSON."""
     env = {**os.environ, "LP_NUM_THREADS": str(threads), "GLIBC_TUNABLES": TUNED_MALLOC,
            "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    code = ("import sys, json; from benchmarks.techniques_gl import _gl_child; "
-            "_gl_child(json.loads(sys.argv[1]), int(sys.argv[2]))")
-    proc = subprocess.run([sys.executable, "-c", code, json.dumps([str(p) for p in packages]),
-                           str(repeats)], capture_output=True, text=True, cwd=ROOT, env=env,
-                          timeout=1800)
+    code = ("import sys, json; from benchmarks.techniques_gl import _backend_child; "
+            "_backend_child(sys.argv[1], json.loads(sys.argv[2]), int(sys.argv[3]))")
+    proc = subprocess.run([sys.executable, "-c", code, backend,
+                           json.dumps([str(p) for p in packages]), str(repeats)],
+                          capture_output=True, text=True, cwd=ROOT, env=env, timeout=1800)
     if proc.returncode != 0:
-        raise SystemExit(f"refraster.gl child failed: {proc.stderr[-2000:]}")
+        raise SystemExit(f"refraster.{backend} child failed: {proc.stderr[-2000:]}")
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def run(argv, doc, backends, techniques_issue):
+    """The command line of this benchmark and of :mod:`benchmarks.techniques_wgpu` (``doc``: the
+    module's docstring; ``techniques_issue``: named in ``--techniques-only``'s help): the cases,
+    each ``backends`` entry (``"gl"``, ``"wgpu"``) timed in its own process with 2 threads and
+    refraster here with 2 Numba threads → ``(Numba threads, [renderer per backend], rows)``, a
+    row ``(case, refraster median ms, refraster first call ms, *one result per backend)``."""
+    ap = argparse.ArgumentParser(description=doc.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="small sizes")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--techniques-only", action="store_true",
-                    help="only the four techniques at their papers' sizes (issue 26 item 7)")
+                    help=f"only the four techniques at their papers' sizes ({techniques_issue})")
     ap.add_argument("--base-only", action="store_true",
                     help="only the G-buffer and the peel")
     args = ap.parse_args(argv)
@@ -258,14 +273,20 @@ def main(argv=None):
         cases = [] if args.techniques_only else _packages(Path(tmp), args.quick)
         if not args.base_only:
             cases += _technique_packages(Path(tmp), args.quick)
-        gl = _time_gl([c[2] for c in cases], args.repeats, threads=2)
-        renderer = gl.pop()["renderer"]
+        timed = [_time_backend(b, [c[2] for c in cases], args.repeats, threads=2)
+                 for b in backends]
+        renderers = [t.pop()["renderer"] for t in timed]
         rows = []
-        for (name, ours, _), g in zip(cases, gl):
+        for (name, ours, _), *got in zip(cases, *timed):
             first = first_ms(ours)
             (median,) = interleaved_medians([ours], args.repeats)
-            rows.append((name, median, first, g))
-    print(f"refraster: {numba.get_num_threads()} Numba threads; refraster.gl: {renderer}, "
+            rows.append((name, median, first, *got))
+    return numba.get_num_threads(), renderers, rows
+
+
+def main(argv=None):
+    threads, (renderer,), rows = run(argv, __doc__, ("gl",), "issue 26 item 7")
+    print(f"refraster: {threads} Numba threads; refraster.gl: {renderer}, "
           "LP_NUM_THREADS=2, tuned malloc")
     print("| case | refraster ms | refraster.gl (llvmpipe) ms | ratio (refraster / gl) | "
           "refraster first call ms | gl first draw ms | gl load+upload ms |")

@@ -1,4 +1,5 @@
 import importlib
+import importlib.machinery
 import json
 import os
 import subprocess
@@ -35,6 +36,15 @@ def require(module_name, reason=None):
 @pytest.fixture
 def oracle():
     return require
+
+
+def package_spec(module):
+    """The module's spec as found in its package's own directories (``None``: not there). Asked
+    of the package's path, not of ``sys.meta_path``: an editable install of another checkout
+    adds a finder there that answers with that checkout's files."""
+    parent = module.rpartition(".")[0]
+    return importlib.machinery.PathFinder.find_spec(
+        module, importlib.import_module(parent).__path__)
 
 
 LLVMPIPE_BACKEND = Path(__file__).with_name("golden_llvmpipe_backend.py")

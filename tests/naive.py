@@ -209,3 +209,55 @@ def d3d_top_left_covered(tri, width, height):
                     break
             out[row, col] = inside
     return out
+
+
+# --- multisample coverage (tests/test_msaa.py's twin, tests/test_msaa_clipsurface.py's oracles)
+
+def sample_grid(positions, width, height):
+    """Every sample of every pixel, y up (array row 0 is the picture's bottom row).
+
+    ``positions`` ``(S, 2)`` in 1/16 pixel, y down from the pixel's upper-left corner (the
+    specifications' own numbers). Returns ``SX, SY`` int64 ``(H, W, S)`` in 1/256 pixel (pixel
+    centres at multiples of 256, the snapped vertices' unit) and ``FX, FY`` float64 ``(H, W, S)``
+    in pixels.
+    """
+    pos = np.asarray(positions, np.int64)
+    px, py = np.meshgrid(np.arange(width), np.arange(height))    # py: picture-up row index
+    SX = (px[..., None] << 8) + (pos[:, 0] - 8) * 16
+    SY = (py[..., None] << 8) + (8 - pos[:, 1]) * 16
+    FX = px[..., None] + 0.5 + (pos[:, 0] - 8) / 16.0
+    FY = py[..., None] + 0.5 + (8 - pos[:, 1]) / 16.0
+    return SX, SY, FX, FY
+
+
+def sample_coverage(X, Y, face, SX, SY, rule="llvmpipe"):
+    """The samples ``(SX, SY)`` (:func:`sample_grid`) the triangle ``face`` of the snapped vertices
+    ``X, Y`` (1/256 px, y up) covers: exact integer edge functions, a sample on an edge owned by
+    the fill rule (``"llvmpipe"``: left and bottom-horizontal edges, y up; else left and
+    top-horizontal) → bool ``(H, W, S)``; None for a zero-area triangle."""
+    a, b, c = face
+    ids = [a, b, c]
+    area = (X[b] - X[a]) * (Y[c] - Y[a]) - (X[c] - X[a]) * (Y[b] - Y[a])
+    if area == 0:
+        return None
+    if area < 0:
+        ids = [a, c, b]
+    cov = np.ones(SX.shape, bool)
+    for k in range(3):
+        p, q = ids[(k + 1) % 3], ids[(k + 2) % 3]
+        dx, dy = X[q] - X[p], Y[q] - Y[p]
+        e = dx * (SY - Y[p]) - dy * (SX - X[p])
+        owns = dy < 0 or (dy == 0 and (dx > 0 if rule == "llvmpipe" else dx < 0))
+        cov &= (e > 0) | ((e == 0) & owns)
+    return cov
+
+
+def sample_plane_depth(xw, yw, zw, face, FX, FY):
+    """The depth plane of ``face`` through its unsnapped window positions ``xw, yw`` and depths
+    ``zw`` at the samples ``(FX, FY)`` (:func:`sample_grid`), float64, clamped to [0, 1]."""
+    a, b, c = face
+    x0, y0, x1, y1, x2, y2 = xw[a], yw[a], xw[b], yw[b], xw[c], yw[c]
+    den = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+    l1 = ((FX - x0) * (y2 - y0) - (x2 - x0) * (FY - y0)) / den
+    l2 = ((x1 - x0) * (FY - y0) - (FX - x0) * (y1 - y0)) / den
+    return np.clip(zw[a] + l1 * (zw[b] - zw[a]) + l2 * (zw[c] - zw[a]), 0.0, 1.0)

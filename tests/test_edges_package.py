@@ -4,9 +4,9 @@ NPR styles are ``refraster.edges.npr``)."""
 
 import ast
 import importlib
-import importlib.machinery
 import pathlib
 
+from conftest import package_spec
 
 PKG = pathlib.Path(__file__).resolve().parents[1] / "refraster" / "edges"
 MODULES = {"gbuffer", "operators", "npr", "classify", "multisample"}
@@ -84,17 +84,8 @@ def test_public_names_are_the_defining_modules_objects():
     assert "render_mirrored" in edges.npr.__all__ and "gooch" in edges.npr.__all__
 
 
-def _package_spec(module):
-    """The module's spec as found in its package's own directories (``None``: not there). Asked
-    of the package's path, not of ``sys.meta_path``: an editable install of another checkout
-    adds a finder there that answers with that checkout's files."""
-    parent = module.rpartition(".")[0]
-    return importlib.machinery.PathFinder.find_spec(
-        module, importlib.import_module(parent).__path__)
-
-
 def test_the_old_npr_module_is_gone():
-    assert _package_spec("refraster.npr") is None, "refraster.npr is back"
-    assert _package_spec("refraster.edges.npr") is not None
-    spec = _package_spec("refraster.edges")
+    assert package_spec("refraster.npr") is None, "refraster.npr is back"
+    assert package_spec("refraster.edges.npr") is not None
+    spec = package_spec("refraster.edges")
     assert spec is not None and spec.submodule_search_locations, "refraster.edges is a package"

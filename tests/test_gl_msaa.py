@@ -11,7 +11,7 @@ import json
 import pytest
 
 from conftest import check_backends_matrix, fault_matrix, generate_gold, gl_backend_or_skip
-from test_golden_msaa import msaa_cell
+from test_golden_msaa import harness_table
 
 GL_SCENES = ["msaa4gl_cube", "msaa4gl_icosphere_smooth", "msaa4gl_multi_draw"]
 OTHER = ["msaa4_cube", "msaa8_cube"]
@@ -54,9 +54,4 @@ def test_gl_passes_the_4x_goldens_and_every_planted_fault_fails(gold):
     stated = json.loads((gold / "cand_correct" / "msaa4gl_cube" / "sample_pattern.json")
                         .read_text())
     assert stated["positions"] == [[6, 14], [14, 10], [2, 6], [10, 2]]
-    head = ["scene"] + [c if c == "correct" else f"`{c}`" for c in columns]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for scene in GL_SCENES:
-        lines.append(f"| {scene} | " + " | ".join(msaa_cell(results[c][scene])
-                                                  for c in columns) + " |")
-    check_backends_matrix(BEGIN, END, "\n".join(lines), "GL multisample matrix")
+    check_backends_matrix(BEGIN, END, harness_table(results, GL_SCENES), "GL multisample matrix")

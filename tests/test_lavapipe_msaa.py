@@ -35,10 +35,10 @@ import pytest
 
 import refraster
 from conftest import require
+from exact_referee import clip_polygon, covers, edge_distance, ndc_depth
 from refraster import RasterState
 from refraster.raster import samples as SP
-from test_lavapipe_oracle import (_RANDOM, SEED, _exact_clip, _exact_covers, _exact_depth, _mvp,
-                                  zero_to_one)
+from test_lavapipe_oracle import _RANDOM, SEED, _mvp, zero_to_one
 from test_msaa import SPEC
 
 #: Required agreement of the per-pixel sample sets (issue 43).
@@ -67,15 +67,8 @@ def _oracle():
 def _edge_distance(poly, xw, yt, width, height, sigma):
     """Smallest distance (pixels) from the window point ``(xw, yt)`` (y from the top) to an edge
     line of the exactly clipped polygon (every vertex with w > 0)."""
-    pts = [((float(p[0] / p[3]) + 1) * width / 2, (1 - sigma * float(p[1] / p[3])) * height / 2)
-           for p in poly]
-    best = np.inf
-    for i in range(len(pts)):
-        (ax, ay), (bx, by) = pts[i], pts[(i + 1) % len(pts)]
-        n = np.hypot(bx - ax, by - ay)
-        if n > 0:
-            best = min(best, abs((bx - ax) * (yt - ay) - (by - ay) * (xw - ax)) / n)
-    return best
+    return edge_distance([((float(p[0] / p[3]) + 1) * width / 2,
+                           (1 - sigma * float(p[1] / p[3])) * height / 2) for p in poly], xw, yt)
 
 
 def referee(tris, r, c, s, pattern, ours, lav, width, height, ndc_y="up"):
@@ -100,12 +93,12 @@ def referee(tris, r, c, s, pattern, ours, lav, width, height, ndc_y="up"):
     cands = sorted({int(g) for g in np.concatenate([ours[r, c], lav[r, c]]) if g >= 0})
     best, snapped = None, False
     for g in cands:
-        poly = _exact_clip(tris[g], PLANES)
+        poly = clip_polygon(tris[g], PLANES)
         if any(p[3] == 0 for p in poly):
             return "ill-conditioned"
         if len(poly) < 3:
             continue
-        inside = _exact_covers(poly, q)
+        inside = covers(poly, q)
         if inside is None or _edge_distance(poly, float(xw), float(yt), width, height,
                                             sigma) < SNAP_MARGIN:
             snapped = True
@@ -113,7 +106,7 @@ def referee(tris, r, c, s, pattern, ours, lav, width, height, ndc_y="up"):
             if inside is None:
                 return "near-edge"
         if inside:
-            z = _exact_depth(tris[g], q)
+            z = ndc_depth(tris[g], q)
             if z is not None and (best is None or z < best[0]):
                 best = (z, g)
     mine, theirs = int(ours[r, c, s]), int(lav[r, c, s])

@@ -46,6 +46,7 @@ import pytest
 
 import refraster as rf
 from conftest import require
+from exact_referee import clip_polygon, covers, ndc_depth
 from oracles import scenes as S
 from refraster.raster.primitive import transform_vertices
 
@@ -197,59 +198,6 @@ def depth_allowance(tri, width, height, ndc_y):
 
 # ------------------------------------------------------------------------------ exact referee
 
-def _exact_clip(tri, planes):
-    """Sutherland–Hodgman in rational arithmetic against ``planes`` (functions of a clip
-    point ``(x, y, z, w)``, inside where ≥ 0) → polygon ``[(x, y, z, w)]``."""
-    poly = [[Fraction(float(x)) for x in p] for p in tri]
-    for dist in planes:
-        out = []
-        for i in range(len(poly)):
-            a, b = poly[i], poly[(i + 1) % len(poly)]
-            da, db = dist(a), dist(b)
-            if da >= 0:
-                out.append(a)
-            if (da >= 0) != (db >= 0):
-                t = da / (da - db)
-                out.append([a[j] + t * (b[j] - a[j]) for j in range(4)])
-        poly = out
-        if not poly:
-            break
-    return poly
-
-
-def _det3(a, b, c):
-    return (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-            + a[2] * (b[0] * c[1] - b[1] * c[0]))
-
-
-def _exact_covers(poly, q):
-    """Whether the cone over ``poly`` (its ``(x, y, w)``) holds ``q = (x_ndc, y_ndc, 1)``;
-    None exactly on an edge."""
-    v = [(p[0], p[1], p[3]) for p in poly]
-    signs = set()
-    for i in range(len(v)):
-        a, b = v[i], v[(i + 1) % len(v)]
-        if a == b:
-            continue
-        d = _det3(a, b, q)
-        if d == 0:
-            return None
-        signs.add(d > 0)
-    return len(v) >= 3 and len(signs) == 1
-
-
-def _exact_depth(tri, q):
-    """``z/w`` of the triangle's plane through the pixel ``q`` (NDC), exactly."""
-    v = [[Fraction(float(x)) for x in p] for p in tri]
-    cols = [(p[0], p[1], p[3]) for p in v]
-    d = _det3(*cols)
-    if d == 0:
-        return None
-    lam = [_det3(q, cols[1], cols[2]) / d, _det3(cols[0], q, cols[2]) / d,
-           _det3(cols[0], cols[1], q) / d]
-    return sum(k * p[2] for k, p in zip(lam, v)) / sum(k * p[3] for k, p in zip(lam, v))
-
-
 def referee(conv, tris, k_ours, k_lav, r, c, width, height):
     """Who is right at pixel ``(r, c)`` where refraster shows face ``k_ours`` and lavapipe
     ``k_lav`` (−1: nothing), taking the float32 clip coordinates as exact: each face clipped
@@ -264,8 +212,8 @@ def referee(conv, tris, k_ours, k_lav, r, c, width, height):
          sigma * (1 - Fraction(2 * int(r) + 1, int(height))), Fraction(1))
     cover, depth = {}, {}
     for k in {k_ours, k_lav} - {-1}:
-        cover[k] = _exact_covers(_exact_clip(tris[k], planes), q)
-        depth[k] = _exact_depth(tris[k], q)
+        cover[k] = covers(clip_polygon(tris[k], planes), q)
+        depth[k] = ndc_depth(tris[k], q)
         if cover[k] is None or depth[k] is None:
             return "undecided"
         if st.depth_clamp:

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 import refraster
+from exact_referee import GL_NEAR_FAR, clip_polygon, covers, edge_distance, gl_window_depth
 from oracles import scenes as S
 from refraster.raster.primitive import transform_vertices
 
@@ -82,71 +83,11 @@ def _compare(index, llvmpipe):
 
 # ------------------------------------------------------------------------------ exact referee
 
-def _exact_clip(tri):
-    """Near/far clipping of a clip-space triangle in rational arithmetic → polygon [(x,y,z,w)]."""
-    poly = [[Fraction(float(x)) for x in p] for p in tri]
-    for sign in (1, -1):      # near: w + z >= 0, far: w - z >= 0
-        out = []
-        for i in range(len(poly)):
-            a, b = poly[i], poly[(i + 1) % len(poly)]
-            da, db = a[3] + sign * a[2], b[3] + sign * b[2]
-            if da >= 0:
-                out.append(a)
-            if (da >= 0) != (db >= 0):
-                t = da / (da - db)
-                out.append([a[j] + t * (b[j] - a[j]) for j in range(4)])
-        poly = out
-        if not poly:
-            break
-    return poly
-
-
-def _det3(a, b, c):
-    return (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-            + a[2] * (b[0] * c[1] - b[1] * c[0]))
-
-
-def _exact_covers(poly, q):
-    """True/False whether the cone over ``poly`` contains ``q = (x_ndc, y_ndc, 1)``; None on an
-    edge."""
-    v = [(p[0], p[1], p[3]) for p in poly]
-    signs = set()
-    for i in range(len(v)):
-        a, b = v[i], v[(i + 1) % len(v)]
-        if a == b:
-            continue
-        d = _det3(a, b, q)
-        if d == 0:
-            return None
-        signs.add(d > 0)
-    return len(v) >= 3 and len(signs) == 1
-
-
-def _exact_depth(tri, q):
-    """Window depth of the triangle's plane at the pixel ``q`` (NDC), exactly."""
-    v = [[Fraction(float(x)) for x in p] for p in tri]
-    cols = [(p[0], p[1], p[3]) for p in v]
-    d = _det3(*cols)
-    if d == 0:
-        return None
-    lam = [_det3(q, cols[1], cols[2]) / d, _det3(cols[0], q, cols[2]) / d,
-           _det3(cols[0], cols[1], q) / d]
-    w = sum(l * p[3] for l, p in zip(lam, v))
-    z = sum(l * p[2] for l, p in zip(lam, v))
-    return z / w / 2 + Fraction(1, 2)
-
-
 def _edge_distance(poly, px, py, width, height):
     """Smallest distance in pixels from the pixel centre to an edge of the clipped polygon."""
-    pts = [((float(p[0] / p[3]) + 1) * width / 2, (float(p[1] / p[3]) + 1) * height / 2)
-           for p in poly if p[3] > 0]
-    best = np.inf
-    for i in range(len(pts)):
-        (ax, ay), (bx, by) = pts[i], pts[(i + 1) % len(pts)]
-        n = np.hypot(bx - ax, by - ay)
-        if n > 0:
-            best = min(best, abs((bx - ax) * (py - ay) - (by - ay) * (px - ax)) / n)
-    return best
+    return edge_distance([((float(p[0] / p[3]) + 1) * width / 2,
+                           (float(p[1] / p[3]) + 1) * height / 2) for p in poly if p[3] > 0],
+                         px, py)
 
 
 def _adjudicate(sc, draws, frags, r, c, ours, gl):
@@ -169,16 +110,16 @@ def _adjudicate(sc, draws, frags, r, c, ours, gl):
     for obj, prim in sorted(cands):
         clip, faces = draws[obj]
         tri = clip[faces[prim]]
-        poly = _exact_clip(tri)
+        poly = clip_polygon(tri, GL_NEAR_FAR)
         if any(p[3] == 0 for p in poly):
             return "ill-conditioned"
-        inside = _exact_covers(poly, q) if len(poly) >= 3 else False
+        inside = covers(poly, q) if len(poly) >= 3 else False
         if inside is None:
             return "tie"
         if len(poly) >= 3 and _edge_distance(poly, px, py, w, h) < SNAP_MARGIN:
             near_edge = True
         if inside:
-            z = _exact_depth(tri, q)
+            z = gl_window_depth(tri, q)
             if z is not None and (best is None or z < best[0]):
                 best = (z, (obj, prim))
     exact = best[1] if best is not None else (-1, -1)

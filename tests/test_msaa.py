@@ -16,6 +16,8 @@ import numpy as np
 import pytest
 
 import refraster
+from exact_referee import GL_NEAR_FAR, clip_polygon, covers, gl_window_depth
+from naive import sample_coverage, sample_grid, sample_plane_depth
 from refraster import RasterState
 from refraster.raster import samples as SP
 from refraster.raster._sample_tables import STANDARD
@@ -183,37 +185,15 @@ def twin(vertices, faces, w, h, positions, rule="llvmpipe"):
     in 1/16 pixel, y down from the pixel's upper-left corner (the spec's own numbers).
     Returns ``prim (H, W, S)``, ``depth (H, W, S)`` float64 and the second-nearest depth."""
     xw, yw, zw, X, Y = _window(vertices, w, h)
-    pos = np.asarray(positions, np.int64)
-    s = len(pos)
-    px, py = np.meshgrid(np.arange(w), np.arange(h))            # py: picture-up row index
-    # fixed point (1/256 px, pixel centres at multiples of 256), y up
-    SX = (px[..., None] << 8) + (pos[:, 0] - 8) * 16
-    SY = (py[..., None] << 8) + (8 - pos[:, 1]) * 16
-    FX = px[..., None] + 0.5 + (pos[:, 0] - 8) / 16.0
-    FY = py[..., None] + 0.5 + (8 - pos[:, 1]) / 16.0
-    best = np.full((h, w, s), 1.0)
-    second = np.full((h, w, s), np.inf)
-    prim = np.full((h, w, s), -1)
-    for i, (a, b, c) in enumerate(faces):
-        ids = [a, b, c]
-        area = (X[b] - X[a]) * (Y[c] - Y[a]) - (X[c] - X[a]) * (Y[b] - Y[a])
-        if area == 0:
+    SX, SY, FX, FY = sample_grid(positions, w, h)
+    best = np.full(SX.shape, 1.0)
+    second = np.full(SX.shape, np.inf)
+    prim = np.full(SX.shape, -1)
+    for i, face in enumerate(faces):
+        cov = sample_coverage(X, Y, face, SX, SY, rule)
+        if cov is None:
             continue
-        if area < 0:
-            ids = [a, c, b]
-        cov = np.ones((h, w, s), bool)
-        for k in range(3):
-            p, q = ids[(k + 1) % 3], ids[(k + 2) % 3]
-            dx, dy = X[q] - X[p], Y[q] - Y[p]
-            e = dx * (SY - Y[p]) - dy * (SX - X[p])
-            owns = dy < 0 or (dy == 0 and (dx > 0 if rule == "llvmpipe" else dx < 0))
-            cov &= (e > 0) | ((e == 0) & owns)
-        # the depth plane through the unsnapped positions, float64
-        x0, y0, x1, y1, x2, y2 = xw[a], yw[a], xw[b], yw[b], xw[c], yw[c]
-        den = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-        l1 = ((FX - x0) * (y2 - y0) - (x2 - x0) * (FY - y0)) / den
-        l2 = ((x1 - x0) * (FY - y0) - (FX - x0) * (y1 - y0)) / den
-        z = np.clip(zw[a] + l1 * (zw[b] - zw[a]) + l2 * (zw[c] - zw[a]), 0.0, 1.0)
+        z = sample_plane_depth(xw, yw, zw, face, FX, FY)
         win = cov & (z.astype(np.float32) < best.astype(np.float32))
         lose = cov & ~win
         second = np.where(win, np.minimum(second, best), np.where(lose, np.minimum(second, z),
@@ -490,8 +470,7 @@ def _referee(sc, draws, r, c, s, pattern, ours, gl):
     ``"llvmpipe"`` (the referee sides with refraster), ``"ill-conditioned"`` (a clip polygon
     reaches w = 0), ``"near-edge"`` (the sample within 1/128 px of a candidate's edge: decided
     by the snapping), ``"tie"`` or ``"refraster"``."""
-    from test_llvmpipe_oracle import (SNAP_MARGIN, _edge_distance, _exact_clip, _exact_covers,
-                                      _exact_depth)
+    from test_llvmpipe_oracle import SNAP_MARGIN, _edge_distance
     w, h = sc.width, sc.height
     x16, y16 = (int(t) for t in pattern[s])
     xw = Fraction(int(c)) + Fraction(x16, 16)
@@ -504,16 +483,16 @@ def _referee(sc, draws, r, c, s, pattern, ours, gl):
         k = int(np.searchsorted(offsets, g, side="right")) - 1
         clip, faces = draws[k]
         tri = clip[faces[g - offsets[k]]]
-        poly = _exact_clip(tri)
+        poly = clip_polygon(tri, GL_NEAR_FAR)
         if any(p[3] == 0 for p in poly):
             return "ill-conditioned"
-        inside = _exact_covers(poly, q) if len(poly) >= 3 else False
+        inside = covers(poly, q) if len(poly) >= 3 else False
         if inside is None:
             return "tie"
         if len(poly) >= 3 and _edge_distance(poly, float(xw), float(yw), w, h) < SNAP_MARGIN:
             near = True
         if inside:
-            z = _exact_depth(tri, q)
+            z = gl_window_depth(tri, q)
             if z is not None and (best is None or z < best[0]):
                 best = (z, g)
     exact = best[1] if best is not None else -1
@@ -532,7 +511,6 @@ def _snapped_referee(draws, offsets, cands, px, py, pos, w, h, mine, theirs):
     llvmpipe's fill rule (integers), the nearest by exact depth wins: ``"snapped"`` when that
     is refraster's answer and not llvmpipe's, else ``"near-edge"`` (counted against
     refraster). Faces crossing a clip plane stay ``"near-edge"``."""
-    from test_llvmpipe_oracle import _exact_depth
     sx = (px << 8) + (pos[0] - 8) * 16
     sy = (py << 8) + (8 - pos[1]) * 16
     q = (Fraction(2 * px * 16 + 2 * pos[0], 16 * w) - 1,
@@ -560,7 +538,7 @@ def _snapped_referee(draws, offsets, cands, px, py, pos, w, h, mine, theirs):
             e = dx * (sy - Y[a]) - dy * (sx - X[a])
             inside &= e > 0 or (e == 0 and (dy < 0 or (dy == 0 and dx > 0)))
         if inside:
-            z = _exact_depth(tri, q)
+            z = gl_window_depth(tri, q)
             if z is not None and (best is None or z < best[0]):
                 best = (z, g)
     exact = best[1] if best is not None else -1

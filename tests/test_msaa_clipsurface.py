@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import refraster
+from naive import sample_coverage, sample_grid, sample_plane_depth
 from refraster import RasterState
 from refraster.clipsurface import (Caps, ClippedSampleFramebuffer, ClipSurface,
                                    render_clipped)
@@ -80,10 +81,7 @@ def _oracle(v, faces, positions, normal, origin, rate, rule="llvmpipe"):
     pos = np.asarray(positions, np.int64)
     s = len(pos)
     px, py = np.meshgrid(np.arange(W), np.arange(H))
-    SX = (px[..., None] << 8) + (pos[:, 0] - 8) * 16
-    SY = (py[..., None] << 8) + (8 - pos[:, 1]) * 16
-    FX = px[..., None] + 0.5 + (pos[:, 0] - 8) / 16.0
-    FY = py[..., None] + 0.5 + (8 - pos[:, 1]) / 16.0
+    SX, SY, FX, FY = sample_grid(pos, W, H)
     CX, CY = px[..., None] + 0.5 + 0.0 * FX, py[..., None] + 0.5 + 0.0 * FY
     n = np.asarray(normal, np.float64)
     n /= np.linalg.norm(n)
@@ -92,19 +90,9 @@ def _oracle(v, faces, positions, normal, origin, rate, rule="llvmpipe"):
     sure = np.ones((H, W, s), bool)
     depths = []
     for i, (a, b, c) in enumerate(faces):
-        ids = [a, b, c]
-        area = (X[b] - X[a]) * (Y[c] - Y[a]) - (X[c] - X[a]) * (Y[b] - Y[a])
-        if area == 0:
+        cov = sample_coverage(X, Y, (a, b, c), SX, SY, rule)
+        if cov is None:
             continue
-        if area < 0:
-            ids = [a, c, b]
-        cov = np.ones((H, W, s), bool)
-        for k in range(3):
-            p, q = ids[(k + 1) % 3], ids[(k + 2) % 3]
-            dx, dy = X[q] - X[p], Y[q] - Y[p]
-            e = dx * (SY - Y[p]) - dy * (SX - X[p])
-            owns = dy < 0 or (dy == 0 and (dx > 0 if rule == "llvmpipe" else dx < 0))
-            cov &= (e > 0) | ((e == 0) & owns)
         x0, y0, x1, y1, x2, y2 = xw[a], yw[a], xw[b], yw[b], xw[c], yw[c]
         den = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
 
@@ -323,33 +311,13 @@ def _peel_oracle(v, faces, positions, mode):
     functions), its float64 depth plane at the sample, sorted front to back (ties in draw
     order); ``"peel"`` keeps the first of each run of equal float32 depths below 1."""
     xw, yw, zw, X, Y = _window(v, W, H)
-    pos = np.asarray(positions, np.int64)
-    s = len(pos)
-    px, py = np.meshgrid(np.arange(W), np.arange(H))
-    SX = (px[..., None] << 8) + (pos[:, 0] - 8) * 16
-    SY = (py[..., None] << 8) + (8 - pos[:, 1]) * 16
-    FX = px[..., None] + 0.5 + (pos[:, 0] - 8) / 16.0
-    FY = py[..., None] + 0.5 + (8 - pos[:, 1]) / 16.0
-    frags = [[[[] for _ in range(s)] for _ in range(W)] for _ in range(H)]
-    for i, (a, b, c) in enumerate(faces):
-        ids = [a, b, c]
-        area = (X[b] - X[a]) * (Y[c] - Y[a]) - (X[c] - X[a]) * (Y[b] - Y[a])
-        if area == 0:
+    SX, SY, FX, FY = sample_grid(positions, W, H)
+    frags = [[[[] for _ in range(len(positions))] for _ in range(W)] for _ in range(H)]
+    for i, face in enumerate(faces):
+        cov = sample_coverage(X, Y, face, SX, SY)
+        if cov is None:
             continue
-        if area < 0:
-            ids = [a, c, b]
-        cov = np.ones((H, W, s), bool)
-        for k in range(3):
-            p, q = ids[(k + 1) % 3], ids[(k + 2) % 3]
-            dx, dy = X[q] - X[p], Y[q] - Y[p]
-            e = dx * (SY - Y[p]) - dy * (SX - X[p])
-            owns = dy < 0 or (dy == 0 and dx > 0)
-            cov &= (e > 0) | ((e == 0) & owns)
-        x0, y0, x1, y1, x2, y2 = xw[a], yw[a], xw[b], yw[b], xw[c], yw[c]
-        den = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-        l1 = ((FX - x0) * (y2 - y0) - (x2 - x0) * (FY - y0)) / den
-        l2 = ((x1 - x0) * (FY - y0) - (FX - x0) * (y1 - y0)) / den
-        z = np.clip(zw[a] + l1 * (zw[b] - zw[a]) + l2 * (zw[c] - zw[a]), 0.0, 1.0)
+        z = sample_plane_depth(xw, yw, zw, face, FX, FY)
         for r, cc, t in np.argwhere(cov):
             frags[H - 1 - r][cc][t].append((float(z[r, cc, t]), i))
     return frags

@@ -230,21 +230,32 @@ def convention_schema():
         props.pop(k)
 
 
-def twin_golden(gold, convention):
-    """``gold/twin_<convention>``: a copy of the golden whose scenes of ``convention`` have the
-    projection ``map @ P`` and the convention's raster fields in scene.json (and the manifest's
-    sha256 of it). Other scenes are left out of the comparison (they stay as generated)."""
-    where = gold / f"twin_{convention}"
+def twin_golden(gold, convention, scenes=None):
+    """``gold/twin_<convention>``: a copy of the golden whose scenes of ``convention`` (or
+    ``scenes``) have the projection ``map @ P`` and the convention's raster fields in scene.json
+    (and the manifest's sha256 of it). Other scenes are left out of the comparison (they stay as
+    generated)."""
+    mapping, fields, own = CONVENTIONS[convention]
+    scenes = own if scenes is None else scenes
+
+    def edit(doc):
+        doc["camera"]["projection"] = (mapping @ np.array(doc["camera"]["projection"])).tolist()
+        doc["raster"].update(fields)
+    return _edited_golden(gold, f"twin_{convention}", scenes, edit)
+
+
+def _edited_golden(gold, name, scenes, edit):
+    """``gold/<name>``: a copy of ``gold/golden`` (made once) whose ``scenes`` have their
+    scene.json changed by ``edit(doc)`` in place, the manifest's sha256 of it following."""
+    where = gold / name
     if where.exists():
         return where
     shutil.copytree(gold / "golden", where)
-    mapping, fields, scenes = CONVENTIONS[convention]
     manifest = json.loads((where / "manifest.json").read_text())
     for scene in scenes:
         rel = manifest["scenes"][scene]["package"]
         doc = json.loads((where / rel).read_text())
-        doc["camera"]["projection"] = (mapping @ np.array(doc["camera"]["projection"])).tolist()
-        doc["raster"].update(fields)
+        edit(doc)
         data = (json.dumps(doc, indent=1, sort_keys=True) + "\n").encode()
         (where / rel).write_bytes(data)
         manifest["files"][rel] = hashlib.sha256(data).hexdigest()
@@ -374,19 +385,7 @@ def _cli(*args):
 def _skip_golden(gold):
     """``gold/skip``: a copy of the golden whose SKIPPED package asks for SKIP_EDIT (the
     manifest's sha256 of its scene.json follows)."""
-    where = gold / "skip"
-    if where.exists():
-        return where
-    shutil.copytree(gold / "golden", where)
-    manifest = json.loads((where / "manifest.json").read_text())
-    rel = manifest["scenes"][SKIPPED]["package"]
-    doc = json.loads((where / rel).read_text())
-    doc["parameters"].update(SKIP_EDIT)
-    data = (json.dumps(doc, indent=1, sort_keys=True) + "\n").encode()
-    (where / rel).write_bytes(data)
-    manifest["files"][rel] = hashlib.sha256(data).hexdigest()
-    (where / "manifest.json").write_text(json.dumps(manifest, indent=1, sort_keys=True) + "\n")
-    return where
+    return _edited_golden(gold, "skip", [SKIPPED], lambda doc: doc["parameters"].update(SKIP_EDIT))
 
 
 def test_candidate_command_writes_and_lists_what_it_skipped(gold):

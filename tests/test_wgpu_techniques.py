@@ -221,30 +221,12 @@ def test_techniques_pass_in_the_vulkan_and_reversed_z_twins(gold):
     projection re-expressed in Vulkan's (NDC y down, [0, 1]) and reversed-Z's (greater, clear
     0) conventions and scene.json's raster saying so pass the golden's allowances (reversed-Z
     depth mapped back, as tests/test_wgpu_backend.py does for the G-buffer)."""
-    import hashlib
-    import shutil
-
     from refraster import golden
     from refraster.golden.candidate import candidate
-    from test_wgpu_backend import CONVENTIONS, unreverse
+    from test_wgpu_backend import twin_golden, unreverse
     backend_or_skip().release()
     for convention, scenes in TWINS.items():
-        mapping, fields, _ = CONVENTIONS[convention]
-        where = gold / f"twin_{convention}"
-        if not where.exists():
-            shutil.copytree(gold / "golden", where)
-            manifest = json.loads((where / "manifest.json").read_text())
-            for scene in scenes:
-                rel = manifest["scenes"][scene]["package"]
-                doc = json.loads((where / rel).read_text())
-                doc["camera"]["projection"] = (mapping @ np.array(doc["camera"]["projection"])
-                                               ).tolist()
-                doc["raster"].update(fields)
-                data = (json.dumps(doc, indent=1, sort_keys=True) + "\n").encode()
-                (where / rel).write_bytes(data)
-                manifest["files"][rel] = hashlib.sha256(data).hexdigest()
-            (where / "manifest.json").write_text(json.dumps(manifest, indent=1,
-                                                            sort_keys=True) + "\n")
+        where = twin_golden(gold, convention, scenes)
         out = gold / f"cand_twin_{convention}"
         r = candidate(where, out, backend="wgpu", scenes=scenes)
         assert sorted(r["rendered"]) == sorted(scenes), r["skipped"]

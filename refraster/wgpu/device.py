@@ -1,6 +1,7 @@
-"""The WebGPU device of refraster.wgpu (and of the lavapipe oracle, ``tests/oracles/lavapipe.py``):
-an adapter, a device created with **WebGPU's default limits** and only the optional features asked
-for by name, and the one wgpu-py work-around both need.
+"""The WebGPU device of refraster.wgpu: an adapter, a device created with **WebGPU's default
+limits** and only the optional features asked for by name, and the one wgpu-py work-around it
+needs (the lavapipe oracles, ``tests/oracles/_vulkan.py``, write their own: they do not import
+the backend they judge).
 
 WebGPU guarantees a set of default limits on every device (the WebGPU specification, "Limits");
 an adapter may offer more (lavapipe grants 128 bytes per sample across the colour targets where

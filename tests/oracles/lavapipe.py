@@ -26,9 +26,11 @@ are de-indexed and each carries its face's global index (draw calls in order), w
 ``r32sint`` target with ``@interpolate(flat)``; facing to an ``r32uint`` one. Images come back
 ``(H, W)`` with row 0 at the top of the picture (WebGPU's first row).
 
-Importing the module makes the device and raises :class:`LavapipeUnavailable` when it cannot
-(no wgpu, no lavapipe, or an adapter that is not Mesa's CPU one), so tests reach it through
-``conftest.require`` and skip (or fail under ``CI=true``).
+The device, the vertex stage and the vertex data are :mod:`oracles._vulkan`'s (shared with
+:mod:`oracles.lavapipe_msaa`; neither imports refraster's WebGPU backend). Importing the module
+makes the device and raises :class:`LavapipeUnavailable` when it cannot (no wgpu, no lavapipe, or
+an adapter that is not Mesa's CPU one), so tests reach it through ``conftest.require`` and skip
+(or fail under ``CI=true``).
 """
 
 from __future__ import annotations
@@ -37,30 +39,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._vulkan import (DEVICE, VERTEX_BUFFER, WGPU, LavapipeUnavailable, renderer,
+                      unclipped_depth, vertex_data, vertex_wgsl)
+from .scenes import clip_positions
+
 __all__ = ["LavapipeUnavailable", "Frame", "clip_positions", "rasterize", "renderer",
            "DEPTH_FORMATS"]
-
-
-class LavapipeUnavailable(RuntimeError):
-    """wgpu or lavapipe is missing, or the adapter found is not Mesa's CPU one."""
 
 
 #: refraster's ``depth_format`` → the WebGPU depth format read back here.
 DEPTH_FORMATS = {"float32": "depth32float", "unorm16": "depth16unorm"}
 
-_SHADER = """
-struct VIn { @location(0) clip: vec4<f32>, @location(1) face: i32 };
-struct VOut {
-    @builtin(position) pos: vec4<f32>,
-    @location(0) @interpolate(flat) face: i32,
-};
-@vertex fn vs(v: VIn) -> VOut {
-    var o: VOut;
-    // ndc_y = "down" (Vulkan) through WebGPU, whose NDC y points up: the clip y negated
-    o.pos = vec4<f32>(v.clip.x, YSIGN * v.clip.y, v.clip.z, v.clip.w);
-    o.face = v.face;
-    return o;
-}
+_FRAGMENT = """
 struct FOut { @location(0) face: i32, @location(1) front: u32 };
 @fragment fn fs(i: VOut, @builtin(front_facing) ff: bool) -> FOut {
     var o: FOut;
@@ -70,41 +60,7 @@ struct FOut { @location(0) face: i32, @location(1) front: u32 };
 }
 """
 
-
-def _device():
-    # the adapter as refraster.wgpu finds it (refraster/wgpu/device.py); the oracle's device
-    # keeps wgpu-py's own limits (it renders two small targets)
-    from refraster.wgpu.device import WGPUUnavailable, adapter
-    try:
-        wgpu, found = adapter(require_lavapipe=True)
-    except WGPUUnavailable as exc:
-        raise LavapipeUnavailable(str(exc)) from exc
-    if "depth-clip-control" not in found.features:
-        raise LavapipeUnavailable("lavapipe does not expose depth-clip-control")
-    device = found.request_device_sync(required_features=["depth-clip-control"])
-    return wgpu, found, device
-
-
-_WGPU, _ADAPTER, _DEVICE = _device()
 _PIPELINES: dict = {}
-
-
-def renderer():
-    """The adapter's device and driver description (for reports)."""
-    info = _ADAPTER.info
-    return f"{info.get('device')} ({info.get('description')}) via wgpu {_WGPU.__version__}"
-
-
-def clip_positions(vertices, mvp):
-    """Clip coordinates ``(V, 4) float32`` of ``vertices (V, 3)`` under one float32 ``mvp``:
-    ``((m0·x + m1·y) + m2·z) + m3`` in float32 without fused multiply-add, the order of
-    refraster's float32 vertex stage."""
-    v = np.asarray(vertices, dtype=np.float64).astype(np.float32)
-    m = np.asarray(mvp, dtype=np.float64).astype(np.float32)
-    out = np.zeros((len(v), 4), np.float32)
-    for r in range(4):
-        out[:, r] = ((m[r, 0] * v[:, 0] + m[r, 1] * v[:, 1]) + m[r, 2] * v[:, 2]) + m[r, 3]
-    return out
 
 
 @dataclass
@@ -120,28 +76,19 @@ class Frame:
         return self.prim_id >= 0
 
 
-#: wgpu-py 0.32 does not pass ``primitive.unclipped_depth`` on: the struct it builds is patched
-#: for the ``with`` body (shared with refraster.wgpu).
-from refraster.wgpu.device import unclipped_depth as _UnclippedDepth  # noqa: E402
-
-
 def _pipeline(ndc_y, compare, unclipped, cull, front_face, fmt):
     key = (ndc_y, compare, unclipped, cull, front_face, fmt)
     if key not in _PIPELINES:
-        ysign = "-1.0" if ndc_y == "down" else "1.0"
-        mod = _DEVICE.create_shader_module(code=_SHADER.replace("YSIGN", ysign))
-        with _UnclippedDepth(unclipped):
+        mod = DEVICE.create_shader_module(code=vertex_wgsl(ndc_y) + _FRAGMENT)
+        with unclipped_depth(unclipped):
             _PIPELINES[key] = _create(mod, compare, unclipped, cull, front_face, fmt)
     return _PIPELINES[key]
 
 
 def _create(mod, compare, unclipped, cull, front_face, fmt):
-    return _DEVICE.create_render_pipeline(
+    return DEVICE.create_render_pipeline(
         layout="auto",
-        vertex={"module": mod, "entry_point": "vs", "buffers": [{
-            "array_stride": 20, "attributes": [
-                {"format": "float32x4", "offset": 0, "shader_location": 0},
-                {"format": "sint32", "offset": 16, "shader_location": 1}]}]},
+        vertex={"module": mod, "entry_point": "vs", "buffers": [VERTEX_BUFFER]},
         primitive={"topology": "triangle-list", "front_face": front_face, "cull_mode": cull,
                    "unclipped_depth": unclipped},
         depth_stencil={"format": fmt, "depth_write_enabled": True, "depth_compare": compare},
@@ -152,7 +99,7 @@ def _create(mod, compare, unclipped, cull, front_face, fmt):
 
 def _read(texture, width, height, dtype):
     size = np.dtype(dtype).itemsize
-    data = _DEVICE.queue.read_texture({"texture": texture, "mip_level": 0, "origin": (0, 0, 0)},
+    data = DEVICE.queue.read_texture({"texture": texture, "mip_level": 0, "origin": (0, 0, 0)},
                                       {"offset": 0, "bytes_per_row": width * size},
                                       (width, height, 1))
     return np.frombuffer(data, dtype).reshape(height, width).copy()
@@ -163,19 +110,14 @@ def rasterize(draws, width, height, *, ndc_y="up", depth_compare="less", clear_d
     """Draw ``draws`` (a list of ``(clip (V, 4) float32, faces (F, 3))``, in order) into one
     ``width × height`` frame with a depth buffer cleared to ``clear_depth`` and the WebGPU
     ``depth_compare``; returns a :class:`Frame`."""
-    wgpu = _WGPU
-    clip = np.concatenate([np.asarray(c, np.float32)[np.asarray(f, np.int64)].reshape(-1, 4)
-                           for c, f in draws]) if draws else np.zeros((0, 4), np.float32)
-    n_faces = sum(len(f) for _, f in draws)
-    data = np.zeros(3 * n_faces, dtype=[("c", "<f4", 4), ("f", "<i4")])
-    data["c"] = clip
-    data["f"] = np.repeat(np.arange(n_faces, dtype=np.int32), 3)
+    wgpu = WGPU
+    data, n_faces = vertex_data(draws)
     fmt = DEPTH_FORMATS[depth_format]
     pipe = _pipeline(ndc_y, depth_compare, bool(unclipped_depth), cull, front_face, fmt)
     usage = wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.COPY_SRC
-    ids, fronts, depth = (_DEVICE.create_texture(size=(width, height, 1), format=f, usage=usage)
+    ids, fronts, depth = (DEVICE.create_texture(size=(width, height, 1), format=f, usage=usage)
                           for f in ("r32sint", "r32uint", fmt))
-    enc = _DEVICE.create_command_encoder()
+    enc = DEVICE.create_command_encoder()
     rp = enc.begin_render_pass(
         color_attachments=[
             {"view": ids.create_view(), "clear_value": (-1, 0, 0, 0), "load_op": "clear",
@@ -186,12 +128,12 @@ def rasterize(draws, width, height, *, ndc_y="up", depth_compare="less", clear_d
                                   "depth_clear_value": float(clear_depth),
                                   "depth_load_op": "clear", "depth_store_op": "store"})
     if n_faces:
-        vb = _DEVICE.create_buffer_with_data(data=data.tobytes(), usage=wgpu.BufferUsage.VERTEX)
+        vb = DEVICE.create_buffer_with_data(data=data.tobytes(), usage=wgpu.BufferUsage.VERTEX)
         rp.set_pipeline(pipe)
         rp.set_vertex_buffer(0, vb)
         rp.draw(3 * n_faces)
     rp.end()
-    _DEVICE.queue.submit([enc.finish()])
+    DEVICE.queue.submit([enc.finish()])
     if fmt == "depth16unorm":
         z = _read(depth, width, height, np.uint16).astype(np.float64) / 65535.0
     else:

@@ -26,7 +26,8 @@ when its x is below that edge, so the number of columns leaving it uncovered is 
 pixel (within 1/128 px); the same with rows for y. No edge lies on a 1/128 px grid point that a
 1/16-pixel position could occupy, so no fill rule is involved.
 
-Importing the module imports :mod:`oracles.lavapipe` (its device; ``LavapipeUnavailable`` when it
+The device, the vertex stage and the vertex data are :mod:`oracles._vulkan`'s (as
+:mod:`oracles.lavapipe`'s). Importing the module makes the device (``LavapipeUnavailable`` when it
 cannot be made): reach this module through ``conftest.require``.
 """
 
@@ -36,26 +37,14 @@ from fractions import Fraction
 
 import numpy as np
 
-from oracles import lavapipe as L
+from ._vulkan import DEVICE, VERTEX_BUFFER, WGPU, vertex_data, vertex_wgsl
 
 __all__ = ["SAMPLES", "rasterize_samples", "probe_sample_positions"]
 
 SAMPLES = 4
 _ID_FORMAT = "r32float"
 
-_SHADER = """
-struct VIn { @location(0) clip: vec4<f32>, @location(1) face: i32 };
-struct VOut {
-    @builtin(position) pos: vec4<f32>,
-    @location(0) @interpolate(flat) face: i32,
-};
-@vertex fn vs(v: VIn) -> VOut {
-    var o: VOut;
-    // ndc_y = "down" (Vulkan) through WebGPU, whose NDC y points up: the clip y negated
-    o.pos = vec4<f32>(v.clip.x, YSIGN * v.clip.y, v.clip.z, v.clip.w);
-    o.face = v.face;
-    return o;
-}
+_FRAGMENT = """
 @fragment fn fs(i: VOut) -> @location(0) vec4<f32> {
     return vec4<f32>(f32(i.face), 0.0, 0.0, 0.0);   // exact below 2^24
 }
@@ -81,15 +70,10 @@ _PIPELINES: dict = {}
 def _pipeline(ndc_y, compare):
     key = (ndc_y, compare)
     if key not in _PIPELINES:
-        dev = L._DEVICE
-        mod = dev.create_shader_module(
-            code=_SHADER.replace("YSIGN", "-1.0" if ndc_y == "down" else "1.0"))
-        _PIPELINES[key] = dev.create_render_pipeline(
+        mod = DEVICE.create_shader_module(code=vertex_wgsl(ndc_y) + _FRAGMENT)
+        _PIPELINES[key] = DEVICE.create_render_pipeline(
             layout="auto",
-            vertex={"module": mod, "entry_point": "vs", "buffers": [{
-                "array_stride": 20, "attributes": [
-                    {"format": "float32x4", "offset": 0, "shader_location": 0},
-                    {"format": "sint32", "offset": 16, "shader_location": 1}]}]},
+            vertex={"module": mod, "entry_point": "vs", "buffers": [VERTEX_BUFFER]},
             primitive={"topology": "triangle-list", "front_face": "ccw", "cull_mode": "none"},
             depth_stencil={"format": "depth32float", "depth_write_enabled": True,
                            "depth_compare": compare},
@@ -100,8 +84,8 @@ def _pipeline(ndc_y, compare):
 
 def _reader():
     if "read" not in _PIPELINES:
-        mod = L._DEVICE.create_shader_module(code=_READ)
-        _PIPELINES["read"] = L._DEVICE.create_compute_pipeline(
+        mod = DEVICE.create_shader_module(code=_READ)
+        _PIPELINES["read"] = DEVICE.create_compute_pipeline(
             layout="auto", compute={"module": mod, "entry_point": "main"})
     return _PIPELINES["read"]
 
@@ -112,16 +96,11 @@ def rasterize_samples(draws, width, height, *, ndc_y="up", depth_compare="less",
     the picture, of ``draws`` (a list of ``(clip (V, 4) float32, faces (F, 3))``, drawn in order
     as one draw call) in a ``width × height`` 4× frame with its depth cleared to ``clear_depth``
     and tested with the WebGPU ``depth_compare``."""
-    wgpu, dev = L._WGPU, L._DEVICE
+    wgpu, dev = WGPU, DEVICE
     width, height = int(width), int(height)
-    clip = np.concatenate([np.asarray(c, np.float32)[np.asarray(f, np.int64)].reshape(-1, 4)
-                           for c, f in draws]) if draws else np.zeros((0, 4), np.float32)
-    n_faces = len(clip) // 3
+    data, n_faces = vertex_data(draws)
     if n_faces >= 1 << 24:
         raise ValueError(f"draws: {n_faces} faces do not fit the oracle's float ids (< 2^24)")
-    data = np.zeros(3 * n_faces, dtype=[("c", "<f4", 4), ("f", "<i4")])
-    data["c"] = clip
-    data["f"] = np.repeat(np.arange(n_faces, dtype=np.int32), 3)
     tu = wgpu.TextureUsage
     ids = dev.create_texture(size=(width, height, 1), format=_ID_FORMAT, sample_count=SAMPLES,
                              usage=tu.RENDER_ATTACHMENT | tu.TEXTURE_BINDING)

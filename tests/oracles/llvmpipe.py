@@ -38,6 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .scenes import clip_positions
+
 __all__ = [
     "LlvmpipeUnavailable", "Frame", "Layers", "GLScene", "clip_positions", "context", "rasterize",
     "peel", "renderer",
@@ -191,20 +193,6 @@ def _check_gl(what):
     err = _STATE["gl"]["GetError"]()
     if err != _GL_NO_ERROR:
         raise RuntimeError(f"OpenGL error 0x{err:04x} after {what}")
-
-
-def clip_positions(vertices, mvp):
-    """Clip coordinates ``(V, 4) float32`` of ``vertices (V, 3)`` under one float32 ``mvp``.
-
-    Evaluates ``((m0·x + m1·y) + m2·z) + m3`` in float32 with no fused multiply-add, the order
-    refraster's float32 vertex stage uses, so the two renderers see the same clip coordinates.
-    """
-    v = np.asarray(vertices, dtype=np.float64).astype(np.float32)
-    m = np.asarray(mvp, dtype=np.float64).astype(np.float32)
-    out = np.zeros((len(v), 4), np.float32)
-    for r in range(4):
-        out[:, r] = ((m[r, 0] * v[:, 0] + m[r, 1] * v[:, 1]) + m[r, 2] * v[:, 2]) + m[r, 3]
-    return out
 
 
 @dataclass

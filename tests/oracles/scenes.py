@@ -19,7 +19,7 @@ import numpy as np
 import trimesh
 
 __all__ = ["Scene", "KINDS", "random_scene", "random_scenes", "look_at", "perspective",
-           "orthographic"]
+           "orthographic", "clip_positions"]
 
 
 @dataclass
@@ -83,6 +83,21 @@ def orthographic(left, right, bottom, top, near, far):
     m[1, 3] = -(top + bottom) / (top - bottom)
     m[2, 3] = -(far + near) / (far - near)
     return m
+
+
+def clip_positions(vertices, mvp):
+    """Clip coordinates ``(V, 4) float32`` of ``vertices (V, 3)`` under one float32 ``mvp``: the
+    clip positions the oracles draw (``oracles.llvmpipe``, ``oracles.lavapipe``).
+
+    Evaluates ``((m0·x + m1·y) + m2·z) + m3`` in float32 with no fused multiply-add, the order
+    refraster's float32 vertex stage uses, so the two renderers see the same clip coordinates.
+    """
+    v = np.asarray(vertices, dtype=np.float64).astype(np.float32)
+    m = np.asarray(mvp, dtype=np.float64).astype(np.float32)
+    out = np.zeros((len(v), 4), np.float32)
+    for r in range(4):
+        out[:, r] = ((m[r, 0] * v[:, 0] + m[r, 1] * v[:, 1]) + m[r, 2] * v[:, 2]) + m[r, 3]
+    return out
 
 
 def _unit(rng):

@@ -1,8 +1,8 @@
 // 2.5D clip surfaces with caps of refraster.wgpu (Trapp & Döllner Sec. 3-5, Listing 1;
 // MATH.md §1.1, §1.2, §1.2b, §2.2). Compiled as one module after gbuffer.wgsl (its Draw, VOut,
-// vs, headlight, unit_normal): the driver's vertex stage with the Draw's tmat set to the model
-// matrix (solids) or the identity (caps, already in world space), so VOut.tex is the world
-// position P.
+// vs, headlight, unit_normal, ids_record, surface_record): the driver's vertex stage with the
+// Draw's tmat set to the model matrix (solids) or the identity (caps, already in world space), so
+// VOut.tex is the world position P.
 //
 // One fragment body (clip_fragment), three entry points for the G-buffer's three passes of at
 // most 32 bytes per sample (fs_clip_ids, fs_clip_surface, fs_clip_shade), each drawing the
@@ -194,20 +194,12 @@ fn clip_fragment(i: VOut) -> ClipFrag {
 }
 
 @fragment fn fs_clip_ids(i: VOut, @builtin(front_facing) front: bool) -> Ids {
-    let f = clip_fragment(i);
-    var o: Ids;
-    o.depth = window_depth(i.pos);
-    o.eye_depth = -i.eye.z;
-    o.ids = vec4<i32>(i.face, u.object_id, select(0, 1, front), 1);
-    return o;
+    _ = clip_fragment(i);           // its discards
+    return ids_record(i, front);
 }
 
 @fragment fn fs_clip_surface(i: VOut) -> Surface {
-    let f = clip_fragment(i);
-    var o: Surface;
-    o.normal = vec4<f32>(f.n, 0.0);
-    o.bary = vec4<f32>(i.bary, 0.0);
-    return o;
+    return surface_record(i, clip_fragment(i).n);
 }
 
 @fragment fn fs_clip_shade(i: VOut) -> @location(0) vec4<f32> {

@@ -1,5 +1,6 @@
 // Adaptive cutaways of refraster.wgpu (Burns & Finkelstein 2008; MATH.md §4, docs/cutaway.md).
-// Compiled as one module after gbuffer.wgsl (its Draw, VOut, vs, window_depth, unit_normal).
+// Compiled as one module after gbuffer.wgsl (its Draw, VOut, vs, convention_clip, window_depth,
+// unit_normal, headlight_normal, the Ids and Surface records and ids_record, surface_record).
 //
 //   fs_hull          pass 1: the rear hulls of the objects of interest (depth test greater
 //                    against depth32float cleared to 0): r32float window depth, r32sint hull + 1.
@@ -326,24 +327,13 @@ struct CutIds {
 };
 @fragment fn fs_cut_ids(i: VOut, @builtin(front_facing) front: bool) -> CutIds {
     let cut = clip_test(i, front);
-    var o: CutIds;
-    o.depth = window_depth(i.pos);
-    o.eye_depth = -i.eye.z;
-    o.ids = vec4<i32>(i.face, u.object_id, select(0, 1, front), 1);
-    o.cut = select(0, 1, cut);
-    return o;
+    let g = ids_record(i, front);
+    return CutIds(g.depth, g.eye_depth, g.ids, select(0, 1, cut));
 }
 
-struct CutSurface {
-    @location(0) normal: vec4<f32>,      // rgba32float
-    @location(1) bary: vec4<f32>,        // rgba32float
-};
-@fragment fn fs_cut_surface(i: VOut, @builtin(front_facing) front: bool) -> CutSurface {
+@fragment fn fs_cut_surface(i: VOut, @builtin(front_facing) front: bool) -> Surface {
     let cut = clip_test(i, front);
-    var o: CutSurface;
-    o.normal = vec4<f32>(cut_surface_normal(i, cut), 0.0);
-    o.bary = vec4<f32>(i.bary, 0.0);
-    return o;
+    return surface_record(i, cut_surface_normal(i, cut));
 }
 
 @fragment fn fs_cut_shade(i: VOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
@@ -362,12 +352,7 @@ struct Ghost {
 @group(0) @binding(46) var occluder: texture_2d<f32>;    // NDC depth of a visible object of
                                                          // interest, else 2
 @vertex fn vs_line(@location(0) pos: vec3<f32>) -> @builtin(position) vec4<f32> {
-    var clip = ghost_u.mvp * vec4<f32>(pos, 1.0);
-    if (DEPTH_REMAP) {
-        clip.z = 0.5 * (clip.z + clip.w);
-    }
-    clip.y = Y_SIGN * clip.y;
-    return clip;
+    return convention_clip(ghost_u.mvp * vec4<f32>(pos, 1.0));
 }
 
 fn eye_depth_of(z: f32) -> f32 {

@@ -55,13 +55,20 @@ struct VOut {
     @location(5) @interpolate(flat) face: i32,
 };
 
-@vertex fn vs(v: VIn) -> VOut {
-    var o: VOut;
-    var clip = u.mvp * vec4<f32>(v.pos, 1.0);
+// the scene's clip coordinates → WebGPU's: DEPTH_REMAP, then Y_SIGN (every scene-space vertex
+// stage: vs here, the cutaway's vs_line)
+fn convention_clip(c: vec4<f32>) -> vec4<f32> {
+    var clip = c;
     if (DEPTH_REMAP) {
         clip.z = 0.5 * (clip.z + clip.w);
     }
     clip.y = Y_SIGN * clip.y;
+    return clip;
+}
+
+@vertex fn vs(v: VIn) -> VOut {
+    var o: VOut;
+    var clip = convention_clip(u.mvp * vec4<f32>(v.pos, 1.0));
     if (HALF_PIXEL) {
         clip.x = clip.x + clip.w / u.viewport.x;
         clip.y = clip.y + clip.w / u.viewport.y;
@@ -103,12 +110,16 @@ struct Ids {
     @location(1) eye_depth: f32,         // r32float
     @location(2) ids: vec4<i32>,         // rgba32sint: face, object, front facing, covered
 };
-@fragment fn fs_ids(i: VOut, @builtin(front_facing) front: bool) -> Ids {
+// (the techniques' G-buffer passes write the same records: ids_record, surface_record)
+fn ids_record(i: VOut, front: bool) -> Ids {
     var o: Ids;
     o.depth = window_depth(i.pos);
     o.eye_depth = -i.eye.z;
     o.ids = vec4<i32>(i.face, u.object_id, select(0, 1, front), 1);
     return o;
+}
+@fragment fn fs_ids(i: VOut, @builtin(front_facing) front: bool) -> Ids {
+    return ids_record(i, front);
 }
 
 // pass 2 (32 bytes per sample): unit normal, barycentrics
@@ -116,11 +127,14 @@ struct Surface {
     @location(0) normal: vec4<f32>,      // rgba32float
     @location(1) bary: vec4<f32>,        // rgba32float
 };
-@fragment fn fs_surface(i: VOut) -> Surface {
+fn surface_record(i: VOut, n: vec3<f32>) -> Surface {
     var o: Surface;
-    o.normal = vec4<f32>(unit_normal(i), 0.0);
+    o.normal = vec4<f32>(n, 0.0);
     o.bary = vec4<f32>(i.bary, 0.0);
     return o;
+}
+@fragment fn fs_surface(i: VOut) -> Surface {
+    return surface_record(i, unit_normal(i));
 }
 
 // pass 3 (16 bytes per sample): the headlight colour of unit normal n at the fragment
