@@ -138,14 +138,14 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
                 F0, T0 = _floor_divmod(e0, m0)
                 F1, T1 = _floor_divmod(e1, m1)
                 F2, T2 = _floor_divmod(e2, m2)
-                for y in range(by0, by1 + 1):
-                    a, b = _walk_span(sx0, F0, T0, 0, nx - 1)
-                    a, b = _walk_span(sx1, F1, T1, a, b)
-                    a, b = _walk_span(sx2, F2, T2, a, b)
-                    ly = y - ty0
-                    if inv_af > 0.0:
-                        # the depth plane through the unsnapped vertices: _depth_at's
-                        # expression in its order, without its fallback's barycentrics
+                if inv_af > 0.0:
+                    # the depth plane through the unsnapped vertices: _depth_at's expression
+                    # in its order, without its fallback's barycentrics
+                    for y in range(by0, by1 + 1):
+                        a, b = _walk_span(sx0, F0, T0, 0, nx - 1)
+                        a, b = _walk_span(sx1, F1, T1, a, b)
+                        a, b = _walk_span(sx2, F2, T2, a, b)
+                        ly = y - ty0
                         zy = dzdy * ((np.float64(y) + 0.5 + foy[s]) - fy0)
                         for x in range(bx0 + a, bx0 + b + 1):
                             z = zd0 + dzdx * ((np.float64(x) + 0.5 + fox[s]) - fx0) + zy
@@ -158,22 +158,30 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
                             if depth_test(func, zf, zbuf[ly, lx, s]):
                                 zbuf[ly, lx, s] = zf
                                 win[ly, lx, s] = item
-                    else:
-                        cy = np.float64(y) + 0.5 + foy[s]
-                        for i in range(a, b + 1):
-                            x = bx0 + i
-                            cx = np.float64(x) + 0.5 + fox[s]
-                            z = _depth_at(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, cx, cy,
-                                          np.float64(e0 + sx0 * i + b0) * inv_area,
-                                          np.float64(e1 + sx1 * i + b1) * inv_area,
-                                          np.float64(e2 + sx2 * i + b2) * inv_area)
-                            lx = x - tx0
-                            if depth_test(func, z, zbuf[ly, lx, s]):
-                                zbuf[ly, lx, s] = z
-                                win[ly, lx, s] = item
-                        e0 += sy0
-                        e1 += sy1
-                        e2 += sy2
+                        F0, T0 = _walk_step(F0, T0, q0, u0, m0)
+                        F1, T1 = _walk_step(F1, T1, q1, u1, m1)
+                        F2, T2 = _walk_step(F2, T2, q2, u2, m2)
+                    continue
+                for y in range(by0, by1 + 1):
+                    a, b = _walk_span(sx0, F0, T0, 0, nx - 1)
+                    a, b = _walk_span(sx1, F1, T1, a, b)
+                    a, b = _walk_span(sx2, F2, T2, a, b)
+                    ly = y - ty0
+                    cy = np.float64(y) + 0.5 + foy[s]
+                    for i in range(a, b + 1):
+                        x = bx0 + i
+                        cx = np.float64(x) + 0.5 + fox[s]
+                        z = _depth_at(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, cx, cy,
+                                      np.float64(e0 + sx0 * i + b0) * inv_area,
+                                      np.float64(e1 + sx1 * i + b1) * inv_area,
+                                      np.float64(e2 + sx2 * i + b2) * inv_area)
+                        lx = x - tx0
+                        if depth_test(func, z, zbuf[ly, lx, s]):
+                            zbuf[ly, lx, s] = z
+                            win[ly, lx, s] = item
+                    e0 += sy0
+                    e1 += sy1
+                    e2 += sy2
                     F0, T0 = _walk_step(F0, T0, q0, u0, m0)
                     F1, T1 = _walk_step(F1, T1, q1, u1, m1)
                     F2, T2 = _walk_step(F2, T2, q2, u2, m2)
