@@ -189,7 +189,7 @@ def _loop(base, a):
           f"load before: {_loadavg()})")
     res = {}
     for _ in range(a.rounds):
-        for case in a.loop_cases.split(","):
+        for case in a.loop_cases.split(";"):
             kinds = LOOP_KINDS if case.startswith("cube") else LOOP_KINDS[:4]
             for kind in kinds:
                 for env, extra in LOOP_ENVS.items():
@@ -207,7 +207,7 @@ def _loop(base, a):
     envs = list(LOOP_ENVS)
     print(f"{'case':22} {'call':13}" + "".join(f" {e + ' cpu':>19} {'faults':>7}" for e in envs)
           + f" {'default/tuned':>14}")
-    for case in a.loop_cases.split(","):
+    for case in a.loop_cases.split(";"):
         for kind in LOOP_KINDS:
             if (case, kind, "default") not in med:
                 continue
@@ -279,8 +279,8 @@ def main(argv=None):
                          "process under two busy loops (one process per round)")
     ap.add_argument("--ab-frames", type=int, default=400)
     ap.add_argument("--loop-frames", type=int, default=200)
-    ap.add_argument("--loop-cases", default=",".join(LOOP_CASES),
-                    help="comma-separated cases of the loop part (default: all)")
+    ap.add_argument("--loop-cases", default=";".join(LOOP_CASES),
+                    help="semicolon-separated cases of the loop part (case names contain commas; default: all)")
     ap.add_argument("--threads", default=None,
                     help="REFRASTER_THREADS for parts 1-2 (default: refraster's choice; 1 gives "
                          "the one-thread CPU times the issue's aims are stated in)")

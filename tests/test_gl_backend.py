@@ -86,13 +86,27 @@ def test_gl_imports_only_numpy_moderngl_and_stdlib():
 
 
 def test_shaders_are_plain_glsl_files_of_at_most_4_3():
-    shaders = sorted((GL_DIR / "shaders").glob("*.*"))
-    assert {p.suffix for p in shaders} <= {".vert", ".geom", ".frag"} and shaders
+    from refraster.gl.common import shader_source
+    files = sorted((GL_DIR / "shaders").glob("*.*"))
+    assert {p.suffix for p in files} <= {".vert", ".geom", ".frag", ".glsl"} and files
+    shaders = [p for p in files if p.suffix != ".glsl"]
     for path in shaders:
         version = next(line for line in path.read_text().splitlines()
                        if line.startswith("#version"))
         number, profile = version.split()[1:3]
         assert int(number) <= 430 and profile == "core", path
+    # a .glsl file is a snippet without #version, pasted by a shader's #include line
+    included = set()
+    for path in shaders:
+        text = path.read_text()
+        included |= {line.split('"')[1] for line in text.splitlines()
+                     if line.startswith("#include ")}
+        expanded = shader_source(path.name)
+        assert "#include" not in expanded and expanded.count("#version") == 1, path
+    snippets = {p.name for p in files if p.suffix == ".glsl"}
+    assert included == snippets
+    for name in snippets:
+        assert "#version" not in (GL_DIR / "shaders" / name).read_text(), name
 
 
 def test_import_refraster_does_not_import_gl():

@@ -56,6 +56,16 @@ def _plane_surface(normal, origin):
     return ClipSurface(origin, u, v, (1, 1, 0), om.constant(4, 0.0)), n
 
 
+def centroid_sample(cov, d2):
+    """Per pixel of ``cov (H, W, S)`` the covered sample nearest the centre (``d2 (S,)``: each
+    sample's squared distance to it; the lowest index among equals), −1 where the face covers
+    every sample or none (the centroid point is then the centre)."""
+    pick = np.full(cov.shape[:2], -1)
+    for t in sorted(range(cov.shape[2]), key=lambda t: (d2[t], t))[::-1]:
+        pick = np.where(cov[:, :, t], t, pick)
+    return np.where(cov.all(axis=2), -1, pick)
+
+
 def _oracle(v, faces, positions, normal, origin, rate, rule="llvmpipe"):
     """Per-sample face of the clipped frame, brute force in float64 (identity matrices: clip
     = world, w = 1). Each face's coverage of each sample: exact integer edge functions of the
@@ -111,11 +121,7 @@ def _oracle(v, faces, positions, normal, origin, rate, rule="llvmpipe"):
         elif rate == "center":
             ex, ey = CX, CY
         else:
-            d2 = (pos[:, 0] - 8) ** 2 + (pos[:, 1] - 8) ** 2
-            pick = np.full((H, W), -1)
-            for t in sorted(range(s), key=lambda t: (d2[t], t))[::-1]:
-                pick = np.where(cov[:, :, t], t, pick)
-            pick = np.where(cov.all(axis=2), -1, pick)
+            pick = centroid_sample(cov, (pos[:, 0] - 8) ** 2 + (pos[:, 1] - 8) ** 2)
             at = np.maximum(pick, 0)
             ex = np.where(pick >= 0, px + 0.5 + (pos[at, 0] - 8) / 16.0, px + 0.5)
             ey = np.where(pick >= 0, py + 0.5 + (8 - pos[at, 1]) / 16.0, py + 0.5)

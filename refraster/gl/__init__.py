@@ -191,8 +191,17 @@ FAULTS.update(MSAA_FAULTS)
 #: :mod:`refraster.gl.msaa_techniques`, tests/test_golden_msaa_techniques.py), also in
 #: :data:`FAULTS`.
 MSAA_TECHNIQUE_FAULTS = {
-    "msaa_edges_resolved_for_per_sample": ("FAULT_MSAA_EDGES_RESOLVED", "every sample's edge "
-                                           "map is sample 0's: the edge map of the resolved "
-                                           "G-buffer where per-sample is declared"),
+    "msaa_edges_resolved_for_per_sample": ("FAULT_MSAA_EDGES_RESOLVED", "the edge operators "
+                                           "read sample 0 at every sample: the edge map of "
+                                           "the resolved G-buffer where per-sample is "
+                                           "declared"),
+    "msaa_gbuffer_pixel_rate": ("FAULT_MSAA_GBUFFER_PIXEL_RATE", "the multisampled G-buffers "
+                                "drawn without sample shading: one invocation per pixel, its "
+                                "inputs at the pixel centre, where sample-rate interpolation "
+                                "is declared"),
+    "msaa_divide_at_centre": ("FAULT_MSAA_DIVIDE_AT_CENTRE", "the sample-rate inputs (the clip "
+                              "program's, the multisampled technique G-buffers') left to "
+                              "llvmpipe's own perspective divide: a/w at the sample divided by "
+                              "the pixel centre's 1/w"),
 }
 FAULTS.update(MSAA_TECHNIQUE_FAULTS)

@@ -22,7 +22,8 @@ GROUPS = ("transforms", "rasterization", "depth", "state", "data", "compositing"
 #: Scenes of the technique passes (their goldens take minutes to generate: the fast CI subset
 #: of tests/test_conformance_catalogue.py leaves out the classes caught only there).
 TECHNIQUE_SCENES = ("clipsurface_building", "edges_building", "edges_sobel", "cutaway_shells",
-                    "cutaway_floor", "halos4d_figure1", "edges4gl_building_per_sample")
+                    "cutaway_floor", "halos4d_figure1", "edges4gl_building_per_sample",
+                    "cutaway4gl_shells_per_sample", "msaa4gl_clipsurface_sample")
 
 
 @dataclass(frozen=True)
@@ -189,6 +190,16 @@ CLASSES = (
        "msaa_edges_resolved_for_per_sample", ("edges4gl_building_per_sample",),
        "the edge map computed once on the resolved G-buffer (sample 0's) and written for every "
        "sample where the scene declares the filters per sample"),
+    _C("interpolation rate of a multisampled G-buffer", "technique-specific",
+       "msaa_gbuffer_pixel_rate", ("edges4gl_building_per_sample",
+                                   "cutaway4gl_shells_per_sample"),
+       "the multisampled G-buffer drawn without sample shading (one invocation per pixel, its "
+       "inputs at the pixel centre) where the scene declares sample-rate interpolation"),
+    _C("perspective divide at sample rate", "technique-specific", "msaa_divide_at_centre",
+       ("msaa4gl_clipsurface_sample",),
+       "a sample-rate input's a/w evaluated at the sample but divided by the pixel centre's 1/w "
+       "(Mesa 22.3.6 llvmpipe's own smooth interpolation under sample shading): the clip and "
+       "parity tests at a point off the sample"),
 )
 
 

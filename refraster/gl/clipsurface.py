@@ -202,8 +202,10 @@ def draw(backend, scene, loaded):
     }
 
 
-def _passes(backend, scene, loaded):
-    """The two passes (solids, then caps) into the bound targets."""
+def _passes(backend, scene, loaded, sample_divide=False):
+    """The two passes (solids, then caps) into the bound targets; ``sample_divide``: the
+    fragment stage divides the noperspective ``a/w`` by ``1/w`` itself (sample rate, where
+    llvmpipe's own divide is the pixel centre's: ``shaders/clip.frag``)."""
     mgl = backend.mgl
     prog = programs(backend, SHADERS)["clip"]
     p = scene["parameters"]
@@ -216,6 +218,7 @@ def _passes(backend, scene, loaded):
                                 ("ambient", "diffuse", "specular", "shininess")))
     set_(prog, "u_smooth", raster["normals"] == "smooth")
     set_(prog, "u_n_surfaces", len(surfaces))
+    set_(prog, "u_sample_divide", bool(sample_divide))
     O, Uh, Vh, N, lens, S, enabled = [], [], [], [], [], [], []
     for e in surfaces:
         s = e["s"]
@@ -296,8 +299,9 @@ def draw_samples(backend, scene, loaded):
     multisample targets (a ``DEPTH_COMPONENT32F`` multisample depth, the depth test per
     sample), at sample rate (``raster.interpolation == "sample"``) with
     ``glEnable(GL_SAMPLE_SHADING)`` and ``glMinSampleShading(1.0)`` — one invocation per
-    sample, its inputs (the world position of Listing 1's test and the parity test)
-    interpolated at the sample — else at pixel rate (one invocation per pixel, inputs at the
+    sample, its inputs (the world position of Listing 1's test and the parity test) the
+    sample's: ``noperspective`` ``a/w`` and ``1/w`` divided in the shader, since llvmpipe's own
+    divide of a smooth input at the sample is the pixel centre's ``1/w`` — else at pixel rate (one invocation per pixel, inputs at the
     centre, its discard removing every covered sample); then each sample read with
     ``texelFetch`` (:mod:`refraster.gl.msaa`'s fetch pass). Only where the context's own
     positions are the scene's declared ones."""
@@ -336,7 +340,7 @@ def draw_samples(backend, scene, loaded):
         if per_sample:
             enable(_GL_SAMPLE_SHADING)
             min_shading(1.0)
-        _passes(backend, scene, loaded)
+        _passes(backend, scene, loaded, sample_divide=per_sample)
         disable(_GL_SAMPLE_SHADING)
         ctx.finish()
         fetch = programs(backend, FETCH)["fetch"]

@@ -47,8 +47,13 @@ class Unsupported(Exception):
 
 
 def shader_source(name, defines=()):
-    """The text of ``shaders/<name>`` with ``#define`` lines inserted after ``#version``."""
+    """The text of ``shaders/<name>`` with ``#define`` lines inserted after ``#version`` and
+    each ``#include "file"`` line replaced by ``shaders/file``'s text (GLSL has no include;
+    the line may sit inside an ``#ifdef``)."""
     text = (SHADER_DIR / name).read_text(encoding="utf-8")
+    text = "".join((SHADER_DIR / line.split('"')[1]).read_text(encoding="utf-8")
+                   if line.startswith("#include ") else line
+                   for line in text.splitlines(keepends=True))
     if not defines:
         return text
     lines = text.splitlines(keepends=True)
@@ -58,18 +63,21 @@ def shader_source(name, defines=()):
 
 def programs(gl, shaders):
     """A technique module's programs: ``shaders`` maps a name to the shader files
-    ``(vertex, geometry or None, fragment)`` under ``shaders/``; they are compiled once per
-    backend (its context, with its planted faults) and cached on it, keyed by ``shaders``.
-    → ``{name: program}``."""
+    ``(vertex, geometry or None, fragment)`` under ``shaders/``, optionally followed by a
+    tuple of ``#define``s of that program's variant (e.g. ``("MSAA",)``); they are compiled
+    once per backend (its context, with its planted faults) and cached on it, keyed by
+    ``shaders``. → ``{name: program}``."""
     key = tuple(shaders.items())
     if key not in gl._programs:
-        defines = [FAULTS[f][0] for f in gl.faults]
-        gl._programs[key] = {
-            name: gl.ctx.program(
+        faults = [FAULTS[f][0] for f in gl.faults]
+        built = {}
+        for name, (vert, geom, frag, *variant) in shaders.items():
+            defines = faults + list(variant[0] if variant else ())
+            built[name] = gl.ctx.program(
                 vertex_shader=shader_source(vert, defines),
                 geometry_shader=None if geom is None else shader_source(geom, defines),
                 fragment_shader=shader_source(frag, defines))
-            for name, (vert, geom, frag) in shaders.items()}
+        gl._programs[key] = built
     return gl._programs[key]
 
 

@@ -236,8 +236,9 @@ class Backend:
             raise Unsupported(reason)
         if scene["raster"].get("samples", 1) != 1 \
                 and scene["technique"] not in ("msaa", "clipsurface"):
-            # issue 44: the technique's passes once per sample (refraster/gl/msaa_techniques.py)
-            return {"scene": scene, "sampled": package_dir, "draws": [], "textures": []}
+            # issue 44: multisampled G-buffers (refraster/gl/msaa_techniques.py)
+            return {"scene": scene, "sampled": True, "draws": self._upload(package_dir, scene),
+                    "textures": [], "package_dir": package_dir}
         if scene["technique"] == "clipsurface":            # issue 26 item 1
             return {"scene": scene, "clip": clipsurface.load(self, package_dir, scene),
                     "draws": [], "textures": []}
@@ -269,7 +270,7 @@ class Backend:
         if "clip" in loaded:
             return clipsurface.draw(self, loaded["scene"], loaded["clip"])
         if "sampled" in loaded:                         # issue 44
-            return render_sampled(self, loaded["sampled"], loaded["scene"])
+            return render_sampled(self, loaded)
         if loaded["scene"]["technique"] == "edges":    # issue 26: refraster/gl/edges.py
             return render_edges(self, loaded, loaded.get("package_dir"))
         if loaded["scene"]["technique"] == "cutaway":  # issue 26: refraster/gl/cutaway.py

@@ -24,7 +24,8 @@ from .package import edges_near_far as near_far
 from .package import edges_options as options
 from .package import edges_supports as supports
 
-__all__ = ["supports", "near_far", "render_edges", "NORMAL_FILTERS", "DEPTH_FILTERS"]
+__all__ = ["supports", "near_far", "render_edges", "operator_uniforms", "NORMAL_FILTERS",
+           "DEPTH_FILTERS"]
 
 FORMATS = {"rgba8": "f1", "rgba32f": "f4", "float32": "f4"}
 
@@ -77,15 +78,7 @@ def render_edges(gl, loaded, package_dir=None):
         ctx.viewport = (0, 0, *size)
         tg.use(location=0)
         ids.use(location=1)
-        gl._set(prog, "u_tg", 0)
-        gl._set(prog, "u_ids", 1)
-        gl._set(prog, "u_nmethod", NORMAL_FILTERS[opt["normal_filter"]])
-        gl._set(prog, "u_zmethod", DEPTH_FILTERS[opt["depth_filter"]])
-        gl._set(prog, "u_use_ids", bool(opt["ids"]))
-        for key in ("k_n", "k_z"):
-            gl._set(prog, f"u_{key}", float(opt[key]))
-        gl._set(prog, "u_t_inner", float(opt["inner_threshold"]))
-        gl._set(prog, "u_t_profile", float(opt["profile_threshold"]))
+        operator_uniforms(gl, prog, opt)
         fullscreen(gl, prog)
         result = edge[0]
         if opt["width"] > 1:
@@ -112,6 +105,19 @@ def render_edges(gl, loaded, package_dir=None):
     if npr is not None:
         out["npr_color"] = npr
     return out
+
+
+def operator_uniforms(gl, prog, opt):
+    """Pass 2's uniforms: T_G on unit 0, the ids on unit 1, the operators and thresholds."""
+    gl._set(prog, "u_tg", 0)
+    gl._set(prog, "u_ids", 1)
+    gl._set(prog, "u_nmethod", NORMAL_FILTERS[opt["normal_filter"]])
+    gl._set(prog, "u_zmethod", DEPTH_FILTERS[opt["depth_filter"]])
+    gl._set(prog, "u_use_ids", bool(opt["ids"]))
+    for key in ("k_n", "k_z"):
+        gl._set(prog, f"u_{key}", float(opt[key]))
+    gl._set(prog, "u_t_inner", float(opt["inner_threshold"]))
+    gl._set(prog, "u_t_profile", float(opt["profile_threshold"]))
 
 
 def _npr_pass(gl, scene, draws, npr, edge_tex, size, prog):

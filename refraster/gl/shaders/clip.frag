@@ -40,11 +40,20 @@ uniform sampler2D u_cap_normal;          // RGB32F user normal, encoded c = 0.5ย
 uniform sampler2D u_cap_lightmap;        // R32F user light map
 uniform vec3 u_cap_color;
 uniform mat3 u_view_nmat;                // inverse(view[:3,:3])แต€
+// sample rate (GL_SAMPLE_SHADING): the inputs from the noperspective a/w and 1/w divided here.
+// llvmpipe (Mesa 22.3.6) evaluates a smooth input's a/w at the sample but divides it by the
+// pixel centre's 1/w (docs/backends.md, "Clip surfaces at 4x"); a noperspective input at the
+// sample is exact, so (a/w)(sample) / (1/w)(sample) is the perspective-correct value there.
+uniform bool u_sample_divide;
 
 in vec3 gs_eye;
 in vec3 gs_normal;
 in vec3 gs_bary;
 in vec3 gs_world;
+noperspective in vec4 gs_np_world;
+noperspective in vec3 gs_np_eye;
+noperspective in vec3 gs_np_normal;
+noperspective in vec3 gs_np_bary;
 
 layout(location = 0) out float o_depth;
 layout(location = 1) out float o_eye_depth;
@@ -96,7 +105,16 @@ bool parity_inside(vec3 T) {
 }
 
 void main() {
-    vec3 P = gs_world;
+    vec3 P = gs_world, eye = gs_eye, nrm = gs_normal, bary = gs_bary;
+#ifndef FAULT_MSAA_DIVIDE_AT_CENTRE
+    if (u_sample_divide) {
+        float w = 1.0 / gs_np_world.w;
+        P = gs_np_world.xyz * w;
+        eye = gs_np_eye * w;
+        nrm = gs_np_normal * w;
+        bary = gs_np_bary * w;
+    }
+#endif
     for (int k = 0; k < MAX_SURFACES; ++k) {
         if (k >= u_n_surfaces) break;
         if (u_cap && k == u_cap_k) continue;          // a cap is never clipped by its own surface
@@ -122,22 +140,22 @@ void main() {
         n = u_view_nmat * nw;
         float len = length(n);
         if (len > 0.0) n /= len;
-        float el = max(length(gs_eye), 1e-30);
-        float shade = light * (0.25 + 0.75 * abs(dot(n, gs_eye)) / el);
+        float el = max(length(eye), 1e-30);
+        float shade = light * (0.25 + 0.75 * abs(dot(n, eye)) / el);
         vec3 base = u_has_diffuse ? texture(u_cap_diffuse, st).rgb : u_cap_color;
         c = base * shade;
     } else {
-        n = gs_normal;
+        n = nrm;
         float len = length(n);
         if (len > 0.0) n /= len;
-        float el = length(gs_eye);
-        float d = el > 0.0 ? min(abs(dot(n, -gs_eye / el)), 1.0) : 1.0;
+        float el = length(eye);
+        float d = el > 0.0 ? min(abs(dot(n, -eye / el)), 1.0) : 1.0;
         c = u_base * (u_light.x + u_light.y * d) + u_light.z * pow(d, u_light.w);
     }
     o_depth = gl_FragCoord.z;
-    o_eye_depth = -gs_eye.z;
+    o_eye_depth = -eye.z;
     o_normal = vec4(n, 0.0);
-    o_bary = vec4(gs_bary, 0.0);
+    o_bary = vec4(bary, 0.0);
     o_color = vec4(clamp(c, 0.0, 1.0), 1.0);
     o_ids = ivec4(gl_PrimitiveID, u_object, front ? 1 : 0, 1);
 }

@@ -17,6 +17,13 @@ out vec3 gs_eye;
 out vec3 gs_normal;
 out vec3 gs_bary;
 out vec3 gs_world;
+// the same attributes divided by clip w, and 1/w, interpolated linearly in window space: at
+// sample rate clip.frag divides them itself (u_sample_divide; llvmpipe's own perspective
+// divide of an input at the sample uses the pixel centre's 1/w, docs/backends.md)
+noperspective out vec4 gs_np_world;   // (world / w, 1 / w)
+noperspective out vec3 gs_np_eye;
+noperspective out vec3 gs_np_normal;
+noperspective out vec3 gs_np_bary;
 
 void main() {
     vec3 face = cross(vs_obj[1] - vs_obj[0], vs_obj[2] - vs_obj[0]);
@@ -27,6 +34,11 @@ void main() {
         gs_normal = u_nmat * (u_smooth ? vs_normal[i] : face);
         gs_bary = vec3(i == 0, i == 1, i == 2);
         gs_world = vs_world[i];
+        float oow = 1.0 / gl_in[i].gl_Position.w;
+        gs_np_world = vec4(gs_world * oow, oow);
+        gs_np_eye = gs_eye * oow;
+        gs_np_normal = gs_normal * oow;
+        gs_np_bary = gs_bary * oow;
         EmitVertex();
     }
     EndPrimitive();

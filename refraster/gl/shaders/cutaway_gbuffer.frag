@@ -18,6 +18,9 @@ uniform vec4 u_light;      // ambient, diffuse, specular, shininess
 INTERP in vec3 gs_eye;
 INTERP in vec3 gs_normal;
 INTERP in vec3 gs_bary;
+#ifdef SAMPLE_INTERP
+#include "sample_interp.glsl"
+#endif
 
 layout(location = 0) out float o_depth;
 layout(location = 1) out float o_eye_depth;
@@ -35,6 +38,10 @@ uniform sampler2D u_cut_normal; // RGBA32F eye-space normal of the cutaway surfa
 
 
 void main() {
+    vec3 eye = gs_eye, nrm = gs_normal, bary = gs_bary;
+#ifdef SAMPLE_INTERP
+    sample_interp(eye, nrm, bary);
+#endif
     ivec2 px = ivec2(gl_FragCoord.xy);
     bool cut = false;
     if (u_secondary) {
@@ -44,13 +51,13 @@ void main() {
         if (z < limit) discard;
         cut = !gl_FrontFacing;
     }
-    vec3 n = gs_normal;
+    vec3 n = nrm;
     float len = length(n);
     if (len > 0.0) n /= len;
     if (cut) n = texelFetch(u_cut_normal, px, 0).xyz;
     // headlight: d = min(|n · (−e/|e|)|, 1), two-sided
-    float el = length(gs_eye);
-    float d = el > 0.0 ? min(abs(dot(n, -gs_eye / el)), 1.0) : 1.0;
+    float el = length(eye);
+    float d = el > 0.0 ? min(abs(dot(n, -eye / el)), 1.0) : 1.0;
     vec3 c = u_base * (u_light.x + u_light.y * d) + u_light.z * pow(d, u_light.w);
     bool front = gl_FrontFacing;
 #ifdef FAULT_FACING_FLIPPED
@@ -58,9 +65,9 @@ void main() {
     front = !front;
 #endif
     o_depth = gl_FragCoord.z;
-    o_eye_depth = -gs_eye.z;
+    o_eye_depth = -eye.z;
     o_normal = vec4(n, 0.0);
-    o_bary = vec4(gs_bary, 0.0);
+    o_bary = vec4(bary, 0.0);
     o_color = vec4(clamp(c, 0.0, 1.0), 1.0);
     o_ids = ivec4(gl_PrimitiveID, u_object, front ? 1 : 0, 1);
     o_cut = cut ? 1 : 0;

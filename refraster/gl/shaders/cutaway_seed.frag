@@ -9,10 +9,22 @@
 // from θ_f as m, and the projected floor normal (tangent units, x right, y up), normalized.
 // Out: 0 RGBA32F (seed column, seed row with row 0 at the top, z, m); column −1: no seed;
 //      1 RGBA32F (m_f, n_x, n_y, 0).
+// MSAA (refraster/gl/msaa_techniques.py): the rear hulls are multisampled (u_rear: the
+// multisample depth attachment, the depth GL kept at each sample) and this pass reads sample
+// u_sample of each pixel: the seeds of that sample's image.
 #version 330 core
-
+#ifdef MSAA
+uniform sampler2DMS u_rear;
+uniform isampler2DMS u_hull;
+uniform int u_sample;
+#define FETCH(t, q) texelFetch(t, q, u_sample)
+#define SIZE(t) textureSize(t)
+#else
 uniform sampler2D u_rear;       // R32F window depth of the rear hulls
 uniform isampler2D u_hull;      // hull index + 1
+#define FETCH(t, q) texelFetch(t, q, 0)
+#define SIZE(t) textureSize(t, 0)
+#endif
 uniform float u_theta[8];       // θ per cutaway object (one entry used when u_n_theta == 1)
 uniform int u_n_theta;
 uniform float u_r;              // edge compression r (0: off)
@@ -39,12 +51,12 @@ float slope(float theta, float z) {
 }
 
 void main() {
-    ivec2 size = textureSize(u_rear, 0);
+    ivec2 size = SIZE(u_rear);
     ivec2 p = ivec2(gl_FragCoord.xy);
-    int hull = texelFetch(u_hull, p, 0).r;
+    int hull = FETCH(u_hull, p).r;
     o_floor = vec4(0.0);
     if (hull == 0) { o_seed = vec4(-1.0, -1.0, 0.0, 0.0); return; }
-    float z = 2.0 * texelFetch(u_rear, p, 0).r - 1.0;
+    float z = 2.0 * FETCH(u_rear, p).r - 1.0;
     vec2 ndc = gl_FragCoord.xy * 2.0 / vec2(size) - 1.0;
     float theta = u_theta[u_n_theta > 1 ? hull - 1 : 0];
     if (u_r > 0.0)

@@ -17,15 +17,22 @@ uniform vec2 u_near_far;   // the planes fitted to the enhanced objects (scene p
 INTERP in vec3 gs_eye;
 INTERP in vec3 gs_normal;
 INTERP in vec3 gs_bary;
+#ifdef SAMPLE_INTERP
+#include "sample_interp.glsl"
+#endif
 
 layout(location = 0) out vec4 o_tg;
 layout(location = 1) out int o_id;
 
 void main() {
-    vec3 n = gs_normal;
+    vec3 eye = gs_eye, nrm = gs_normal, bary = gs_bary;
+#ifdef SAMPLE_INTERP
+    sample_interp(eye, nrm, bary);
+#endif
+    vec3 n = nrm;
     float len = length(n);
     if (len > 0.0) n /= len;
-    float z = clamp((-gs_eye.z - u_near_far.x) / (u_near_far.y - u_near_far.x), 0.0, 1.0);
+    float z = clamp((-eye.z - u_near_far.x) / (u_near_far.y - u_near_far.x), 0.0, 1.0);
     o_tg = vec4(0.5 * n + 0.5, z);
     o_id = u_object + 1;
 }

@@ -13,10 +13,24 @@
 //           3 sobel     min(k_z · sqrt(G_x² + G_y²) / 4, 1)
 // E_N is 0 where X is background; strengths below the thresholds become 0; with id edges an
 // object-id change in the 8-neighbourhood sets E_Z = 1.
+// MSAA (refraster/gl/msaa_techniques.py): T_G and the ids are multisample textures; the pass
+// runs at sample rate and reads each neighbour at its own sample, gl_SampleID (the samples'
+// edge maps), or at sample 0 with u_sample_zero (the G-buffer resolved by sample_zero).
 #version 330 core
-
+#ifdef MSAA
+#extension GL_ARB_sample_shading : require
+uniform sampler2DMS u_tg;
+uniform isampler2DMS u_ids;
+uniform bool u_sample_zero;
+int g_s;                    // the sample read
+#define FETCH(t, q) texelFetch(t, q, g_s)
+#define SIZE(t) textureSize(t)
+#else
 uniform sampler2D u_tg;     // T_G (NEAREST)
 uniform isampler2D u_ids;   // object_id + 1, 0 = background
+#define FETCH(t, q) texelFetch(t, q, 0)
+#define SIZE(t) textureSize(t, 0)
+#endif
 uniform int u_nmethod;
 uniform int u_zmethod;
 uniform bool u_use_ids;
@@ -34,16 +48,16 @@ ivec2 at(int dx, int dy) {
     return clamp(g_x + ivec2(dx, dy), ivec2(0), g_size - 1);
 }
 
-bool covered(int dx, int dy) { return texelFetch(u_ids, at(dx, dy), 0).r != 0; }
+bool covered(int dx, int dy) { return FETCH(u_ids, at(dx, dy)).r != 0; }
 
 vec3 nrm(int dx, int dy) {     // decoded normal; 0 on the background
     if (!covered(dx, dy)) return vec3(0.0);
-    return 2.0 * texelFetch(u_tg, at(dx, dy), 0).rgb - 1.0;
+    return 2.0 * FETCH(u_tg, at(dx, dy)).rgb - 1.0;
 }
 
 float dep(int dx, int dy) {    // linear depth; 1 on the background
     if (!covered(dx, dy)) return 1.0;
-    return texelFetch(u_tg, at(dx, dy), 0).a;
+    return FETCH(u_tg, at(dx, dy)).a;
 }
 
 // the paper's letters with row −1 above X: A(−1,−1) B(0,−1) C(1,−1) D(−1,0) E(1,0) F(−1,1)
@@ -130,16 +144,22 @@ float angle_normal() {
 }
 
 bool id_edge() {
-    int own = texelFetch(u_ids, at(0, 0), 0).r;
+    int own = FETCH(u_ids, at(0, 0)).r;
     for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx)
-            if (texelFetch(u_ids, at(dx, dy), 0).r != own) return true;
+            if (FETCH(u_ids, at(dx, dy)).r != own) return true;
     return false;
 }
 
 void main() {
-    g_size = textureSize(u_tg, 0);
+    g_size = SIZE(u_tg);
     g_x = ivec2(gl_FragCoord.xy);
+#ifdef MSAA
+    g_s = u_sample_zero ? 0 : gl_SampleID;
+#ifdef FAULT_MSAA_EDGES_RESOLVED
+    g_s = 0;      // planted fault: every sample filters sample 0's G-buffer (the resolved one)
+#endif
+#endif
     float e_n = 0.0;
     if (covered(0, 0)) {
         if (u_nmethod == 0) e_n = diagonal_normal();

@@ -17,6 +17,9 @@ uniform vec4 u_light;      // ambient, diffuse, specular, shininess
 INTERP in vec3 gs_eye;
 INTERP in vec3 gs_normal;
 INTERP in vec3 gs_bary;
+#ifdef SAMPLE_INTERP
+#include "sample_interp.glsl"
+#endif
 
 #ifdef FAULT_FILL_RULE_NEITHER
 uniform bool u_upper_left;     // glClipControl's origin: gl_FragCoord.y counted from the top
@@ -67,6 +70,10 @@ bool parity_inside(vec3 T) {
 #endif
 
 void main() {
+    vec3 eye = gs_eye, nrm = gs_normal, bary = gs_bary;
+#ifdef SAMPLE_INTERP
+    sample_interp(eye, nrm, bary);
+#endif
 #ifdef FAULT_FILL_RULE_NEITHER
     // planted fault: a pixel centre exactly on an edge (the edge function exactly 0, as it
     // is in float for window coordinates on a half-pixel grid) belongs to neither triangle
@@ -79,12 +86,12 @@ void main() {
     float e2 = (q0.x - q2.x) * (p.y - q2.y) - (q0.y - q2.y) * (p.x - q2.x);
     if (e0 == 0.0 || e1 == 0.0 || e2 == 0.0) discard;
 #endif
-    vec3 n = gs_normal;
+    vec3 n = nrm;
     float len = length(n);
     if (len > 0.0) n /= len;
     // headlight: d = min(|n · (−e/|e|)|, 1), two-sided
-    float el = length(gs_eye);
-    float d = el > 0.0 ? min(abs(dot(n, -gs_eye / el)), 1.0) : 1.0;
+    float el = length(eye);
+    float d = el > 0.0 ? min(abs(dot(n, -eye / el)), 1.0) : 1.0;
     vec3 c = u_base * (u_light.x + u_light.y * d) + u_light.z * pow(d, u_light.w);
     bool front = gl_FrontFacing;
 #ifdef FAULT_FACING_FLIPPED
@@ -97,16 +104,16 @@ void main() {
     gl_FragDepth = gl_FragCoord.z;
 #endif
 #ifdef FAULT_LINEAR_DEPTH_WRITTEN
-    o_depth = -gs_eye.z;           // planted fault: the linear eye depth as the window depth
+    o_depth = -eye.z;           // planted fault: the linear eye depth as the window depth
 #endif
 #ifdef FAULT_SRGB_ENCODED
     // planted fault: the linear colour sRGB-encoded into the float target
     c = clamp(c, 0.0, 1.0);
     c = mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
 #endif
-    o_eye_depth = -gs_eye.z;
+    o_eye_depth = -eye.z;
     o_normal = vec4(n, 0.0);
-    o_bary = vec4(gs_bary, 0.0);
+    o_bary = vec4(bary, 0.0);
     o_color = vec4(clamp(c, 0.0, 1.0), 1.0);
     o_ids = ivec4(gl_PrimitiveID, u_object, front ? 1 : 0, 1);
 #ifdef VDS

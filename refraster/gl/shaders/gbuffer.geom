@@ -26,6 +26,12 @@ INTERP out vec3 gs_bary;
 uniform vec2 u_viewport;
 flat out vec2 gs_win[3];   // the window positions (×2, pixel centres on odd integers)
 #endif
+#ifdef SAMPLE_INTERP
+uniform vec2 u_viewport_px;            // width, height: the window transform of the corners
+flat out vec3 gs_corner_win[3];
+flat out vec3 gs_corner_eye[3];
+flat out vec3 gs_corner_normal[3];
+#endif
 #ifdef VDS
 in vec3 vs_T[];
 INTERP out vec3 gs_T;
@@ -40,8 +46,22 @@ void main() {
         win[i] = c.w > 0.0 ? (c.xy / c.w * 0.5 + 0.5) * u_viewport * 2.0 : vec2(-1e9);
     }
 #endif
+#ifdef SAMPLE_INTERP
+    vec3 cw[3], ce[3], cn[3];
+    for (int i = 0; i < 3; ++i) {
+        vec4 c = gl_in[i].gl_Position;
+        cw[i] = vec3((c.xy / c.w * 0.5 + 0.5) * u_viewport_px, 1.0 / c.w);
+        ce[i] = vs_eye[i];
+        cn[i] = u_nmat * (u_smooth ? vs_normal[i] : face);
+    }
+#endif
     for (int i = 0; i < 3; ++i) {
         gl_Position = gl_in[i].gl_Position;
+#ifdef SAMPLE_INTERP
+        gs_corner_win = cw;
+        gs_corner_eye = ce;
+        gs_corner_normal = cn;
+#endif
         gl_PrimitiveID = gl_PrimitiveIDIn;
         gs_eye = vs_eye[i];
         gs_normal = u_nmat * (u_smooth ? vs_normal[i] : face);
