@@ -93,8 +93,8 @@ def _technique_packages(root, quick):
     from refraster.golden.io.package import export_package
     from refraster.golden.scenes import (DEFAULT_RASTER, Draw, GoldenScene, _framed,
                                          prepare_draws, render_draws)
-    from refraster.golden.technique_scenes import (_clip_backend_export, _name_derived_maps,
-                                                   clip_caps, cutaway_options, halo_options)
+    from refraster.golden.technique_scenes import (clip_caps, clip_export, cutaway_options,
+                                                   halo_options)
     import refraster.halos4d as h4
     from refraster.scenes import crank, icosphere, solid
 
@@ -122,9 +122,8 @@ def _technique_packages(root, quick):
     clip = ClipSurface(surface["origin"], surface["u"], surface["v"], surface["scale"],
                        offset_map, wrap=surface["wrap"])
     camera = _framed([mesh], w, h, (0.3, 0.7, 1.0))
-    bparams, bmaps = _clip_backend_export(draws, [clip], caps)
     surfaces = [{**surface, "offset_map": "offset_map"}]
-    _name_derived_maps(surfaces, bmaps)
+    bparams, bmaps = clip_export(draws, [clip], caps, surfaces)
     g = GoldenScene(technique="clipsurface", camera=camera, draws=draws, buffers={},
                     parameters={"surfaces": surfaces, **caps, **bparams},
                     maps={"offset_map": offset_map, **bmaps}, geometry=False)

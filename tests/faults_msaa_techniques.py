@@ -13,11 +13,23 @@ fault                          what the candidate computes
 ``per_sample_for_resolved``    the edge map per sample where the resolved G-buffer's is
                                declared; cutaways: each sample flooded to its own surface
                                where one surface from the resolved rear hulls is declared
+``other_resolve``              a resolved scene with another resolve mode than declared:
+                               edges ``average`` ↔ ``sample_zero``; cutaways ``min`` ↔
+                               ``max``, ``sample_zero`` → ``min``
+``average_depth_resolve``      cutaways: the rear hulls' depth resolved by the average of the
+                               samples (no API's depth resolve) where ``min``, ``max`` or
+                               ``sample_zero`` is declared
+``wrong_sample``               the resolved G-buffer (edges) or rear hulls (cutaways) taken
+                               from sample 1 where ``sample_zero`` is declared
 =============================  =============================================================
+
+``RESOLVE_FAULTS`` apply to the ``"resolved"`` scenes only (a per-sample scene's candidate is
+its right frame).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 
@@ -32,10 +44,16 @@ from refraster.golden.io.read import PATTERN_FILE  # noqa: E402
 from refraster.golden.msaa_scenes import pattern_of  # noqa: E402
 from refraster.golden.msaa_technique_scenes import cutaway_buffers, edges_buffers  # noqa: E402
 
-FAULTS = ("none", "resolved_for_per_sample", "per_sample_for_resolved")
+FAULTS = ("none", "resolved_for_per_sample", "per_sample_for_resolved", "other_resolve",
+          "average_depth_resolve", "wrong_sample")
+RESOLVE_FAULTS = ("other_resolve", "average_depth_resolve", "wrong_sample")
+_OTHER = {"edges": {"average": "sample_zero", "sample_zero": "average"},
+          "cutaway": {"min": "max", "max": "min", "sample_zero": "min"}}
 
 
-def _sampling(declared, fault):
+def _sampling(declared, fault, technique):
+    if fault == "other_resolve" and declared["mode"] == "resolved":
+        return {**declared, "resolve": _OTHER[technique][declared["resolve"]]}
     if fault == "resolved_for_per_sample" and declared["mode"] == "per_sample":
         return {"mode": "resolved", "resolve": "sample_zero"}
     if fault == "per_sample_for_resolved" and declared["mode"] == "resolved":
@@ -45,18 +63,41 @@ def _sampling(declared, fault):
 
 def candidate_buffers(name, fault="none"):
     """The candidate's buffers of the technique scene ``name`` with ``fault``."""
-    from refraster.cutaway import render_cutaway_samples
-    from refraster.golden.technique_scenes import cutaway_options
-    from refraster.multisample import render_samples
-    from refraster.sample_rate import GBufferSampling
     if fault not in FAULTS:
         raise ValueError(f"fault must be one of {FAULTS}, got {fault!r}")
     scene = available_scenes()[name].build()
     raster = raster_state(scene.raster)
     params = scene.parameters
     declared = params["sampling"]
-    sampling = _sampling(declared, fault)
+    sampling = _sampling(declared, fault, scene.technique)
     cam = scene.camera
+    with _planted(fault, declared):
+        return _buffers(scene, raster, params, declared, sampling, cam)
+
+
+@contextlib.contextmanager
+def _planted(fault, declared):
+    """The resolve faults planted in refraster's own resolve functions for one candidate."""
+    import refraster.cutaway.multisample as cm
+    import refraster.edges.multisample as em
+    saved = cm.resolve_samples, em.resolve_gbuffer
+    if fault == "average_depth_resolve" and declared["mode"] == "resolved":
+        cm.resolve_samples = lambda depth, mode: depth.mean(axis=2)
+    if fault == "wrong_sample" and declared["mode"] == "resolved" \
+            and declared["resolve"] == "sample_zero":
+        cm.resolve_samples = lambda depth, mode: depth[:, :, 1]
+        em.resolve_gbuffer = lambda gbuffers, mode: gbuffers[1]
+    try:
+        yield
+    finally:
+        cm.resolve_samples, em.resolve_gbuffer = saved
+
+
+def _buffers(scene, raster, params, declared, sampling, cam):
+    from refraster.cutaway import render_cutaway_samples
+    from refraster.golden.technique_scenes import cutaway_options
+    from refraster.multisample import render_samples
+    from refraster.sample_rate import GBufferSampling
     if scene.technique == "edges":
         frame = render_samples([d.mesh for d in scene.draws], **cam.kwargs,
                                model=[d.model for d in scene.draws], raster=as_state(raster))
@@ -93,4 +134,4 @@ def write_candidate(out, names, fault="none"):
     return out
 
 
-__all__ = ["FAULTS", "candidate_buffers", "write_candidate"]
+__all__ = ["FAULTS", "RESOLVE_FAULTS", "candidate_buffers", "write_candidate"]

@@ -148,3 +148,18 @@ def test_golden_scene_table_check_catches_a_missing_row():
     text = (DOCS / "golden.md").read_text(encoding="utf-8")
     row = next(ln for ln in text.splitlines() if ln.startswith("| `render_cube`"))
     assert mod.replaced(text.replace(row + "\n", "")) != text.replace(row + "\n", "")
+
+
+def test_golden_scene_order_does_not_depend_on_import_order():
+    """The registry's order is fixed (this module's scenes, then SCENE_MODULES'), not the order in
+    which a program happened to import the scene modules: importing the multisample scene modules
+    first used to reorder it and stale docs/golden.md's table."""
+    code = ("import refraster.golden.msaa_clip_scenes, refraster.golden.msaa_scenes\n"
+            "from refraster.golden import available_scenes\n"
+            "print(','.join(available_scenes()))")
+    import subprocess
+    import sys
+    first = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           check=True).stdout.strip()
+    from refraster.golden import available_scenes
+    assert first == ",".join(available_scenes())

@@ -19,7 +19,8 @@ from refraster.golden.io.package import npz_bytes
 from refraster.golden.io.read import PATTERN_FILE
 from refraster.golden.scenes import available_scenes
 
-SCENES = ["msaa4_clipsurface_sample", "msaa4_clipsurface_pixel"] if available_scenes() else []
+SCENES = ["msaa4_clipsurface_sample", "msaa4_clipsurface_pixel",
+          "msaa4_clipsurface_centroid"] if available_scenes() else []
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +46,7 @@ def _candidate(gold, tag, names, **changes):
 
 def test_the_golden_declares_its_pattern_and_rate_and_stores_every_sample(gold):
     manifest = json.loads((gold / "golden" / "manifest.json").read_text())
-    for name, interp in zip(SCENES, ("sample", "center")):
+    for name, interp in zip(SCENES, ("sample", "center", "centroid")):
         entry = manifest["scenes"][name]
         assert entry["parameters"]["technique"]["sample_pattern"] == {
             "samples": 4, "positions": [[6, 2], [14, 6], [2, 10], [10, 14]]}
@@ -82,3 +83,19 @@ def test_sample_rate_where_pixel_rate_is_declared_fails(gold):
     assert r.exit_code == 1
     assert any(re.match(rf"{name}/sample[0-9]_(prim_id|object_id): clip", line)
                for line in r.failures()), r.failures()[:5]
+
+
+def test_the_centroid_golden_fails_the_pixel_centre_and_admits_the_samples(gold):
+    """The centroid golden admits any point inside both the pixel and the primitive: the
+    decision at the pixel centre (outside the primitive on partly covered pixels) fails it,
+    naming a per-sample id buffer; the decision at each covered sample (a point inside both)
+    passes — per-sample allowances do not see that sample rate splits a fragment's one
+    decision (docs/tolerance.md, "Clip surfaces at a centroid point")."""
+    name = "msaa4_clipsurface_centroid"
+    cand = _candidate(gold, "centroid_center", [name], interpolation="center")
+    r = compare(gold / "golden", cand, mode="tolerant", scenes=[name])
+    assert r.exit_code == 1
+    assert any(re.match(rf"{name}/sample[0-9]_(prim_id|object_id): clip", line)
+               for line in r.failures()), r.failures()[:5]
+    cand = _candidate(gold, "centroid_sample", [name], interpolation="sample")
+    assert compare(gold / "golden", cand, mode="tolerant", scenes=[name]).exit_code == 0

@@ -14,9 +14,10 @@ draws only where the context's own positions (:func:`refraster.gl.msaa.sample_pa
   sample: the operators at sample rate into a multisample edge map, each invocation reading
   its neighbours at its own sample (``gl_SampleID``), resolved by a float box-filter pass
   (``shaders/msaa_resolve.frag``); resolved (``sample_zero``): the operators once per pixel on
-  sample 0. Cutaways, per sample: each sample's rear hulls seeded (``u_sample``) and flooded on
+  sample 0; resolved (``average``): on ``T_G`` box-filtered in the pass, the ids sample 0's. Cutaways, per sample: each sample's rear hulls seeded (``u_sample``) and flooded on
   their own, and sample ``s`` of the clipped G-buffer carved by its own ``D_s``
-  (``glSampleMaski(0, 1 << s)``); resolved (``sample_zero``): sample 0's rear hulls flooded
+  (``glSampleMaski(0, 1 << s)``); resolved (``sample_zero``, ``min``, ``max``): sample 0's
+  rear hulls (their depth resolved by ``min``/``max`` over the samples in the seed pass) flooded
   once at the pixel centres, every sample carved by that ``D``. The cut normals are unprojected
   at the sample's position (the projection moved by the sample's offset,
   :func:`window_shift`).
@@ -51,6 +52,11 @@ from .package import matrix
 __all__ = ["supports", "render_sampled", "window_shift", "SAMPLED_TECHNIQUES"]
 
 SAMPLED_TECHNIQUES = ("edges", "cutaway")
+#: The resolve modes drawn in the ``"resolved"`` mode: edges, the G-buffer from sample 0 or
+#: box-filtered in the operators' pass; cutaways, the rear hulls' depth from sample 0 or
+#: resolved by min or max in the seed pass (the seeds sample 0's).
+_RESOLVES = {"edges": ("sample_zero", "average"), "cutaway": ("sample_zero", "min", "max")}
+_DEPTH_RESOLVE = {"sample_zero": 0, "min": 1, "max": 2}
 
 _GL_SAMPLE_SHADING = 0x8C36
 _GL_SAMPLE_MASK = 0x8E51
@@ -102,9 +108,10 @@ def supports(scene):
                 f"is drawn, the scene declares {raster.get('interpolation', 'center')!r}")
     params = scene.get("parameters") or {}
     sampling = params.get("sampling") or {}
-    if sampling.get("mode") == "resolved" and sampling.get("resolve") != "sample_zero":
+    if sampling.get("mode") == "resolved" \
+            and sampling.get("resolve") not in _RESOLVES[technique]:
         return (f"{technique} at samples > 1: resolve {sampling.get('resolve')!r} is not drawn "
-                "(sample_zero only)")
+                f"({', '.join(_RESOLVES[technique])})")
     if technique == "edges" and (int(params.get("width", 1)) > 1 or "npr" in params):
         return "edges at samples > 1: width > 1 and the NPR pass are not drawn"
     return None
@@ -239,6 +246,8 @@ def _edges(gl, loaded, pool, positions):
     ids.use(location=1)
     operator_uniforms(gl, prog, opt)
     gl._set(prog, "u_sample_zero", not per_sample)
+    average = not per_sample and params["sampling"].get("resolve") == "average"
+    gl._set(prog, "u_average", samples if average else 0)
     single = pool.tex(4, fmt)
     if not per_sample:
         pool.fbo([single]).use()
@@ -301,6 +310,9 @@ def _cutaway(gl, loaded, pool, positions):
         gl._set(seed, "u_rear", 0)
         gl._set(seed, "u_hull", 1)
         gl._set(seed, "u_sample", s)
+        gl._set(seed, "u_samples", samples)
+        gl._set(seed, "u_depth_resolve", 0 if per_sample else _DEPTH_RESOLVE[
+            scene["parameters"]["sampling"].get("resolve", "sample_zero")])
         p = projs[s] if per_sample else proj
         _cut.seed_uniforms(gl, seed, opt, p, view, np.linalg.inv(p))
         surfaces.append(_cut.flood_surface(gl, progs, pool, seed, opt, p))

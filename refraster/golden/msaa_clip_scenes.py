@@ -17,7 +17,7 @@ import numpy as np
 
 from ..raster.state import RasterState
 from .msaa_scenes import SAMPLE_CHANNELS, pattern_of, sample_buffer
-from .scenes import Draw, GoldenScene, _framed, prepare_draws, raster_state, register_scene
+from .scenes import GoldenScene, raster_state, register_scene
 
 __all__ = ["CLIP_SAMPLE_CHANNELS", "clip_sample_buffers", "msaa_clip_scene_names"]
 
@@ -40,25 +40,14 @@ def clip_sample_buffers(frame):
 def _clip_msaa_scene(raster):
     """The building cut by a Perlin clip surface with diffuse caps (``clipsurface_building``'s
     scene, smaller) at ``raster``'s samples and shading rate."""
-    from ..clipsurface import ClipSurface, render_clipped
-    from ..clipsurface.offsetmaps import perlin_noise
-    from ..scenes import solid
-    from .technique_scenes import _clip_backend_export, _clip_ids, _name_derived_maps, clip_caps
+    from ..clipsurface import render_clipped
+    from .technique_scenes import _clip_ids, clip_caps, clip_export, perlin_building_clip
     state = raster_state(raster)
-    draws = prepare_draws([Draw("building", solid("building"))])
-    camera = _framed([d.mesh for d in draws], 96, 72, (1.2, 0.9, 1.6))
-    offset_map = perlin_noise((64, 64), seed=1)
-    surface = dict(origin=[0.0, 0.0, 3.5], u=[0.0, 6.25, 0.0], v=[10.0, 0.0, 0.0],
-                   scale=[1.0, 1.0, 0.8], wrap="repeat", enabled=True)
-    caps = dict(caps=True, cap_style="diffuse", cap_mode="mesh", cap_color=[0.8, 0.3, 0.25],
-                subdivision=1, vds_resolution=512, space="world")
-    clip = ClipSurface(surface["origin"], surface["u"], surface["v"], surface["scale"],
-                       offset_map, wrap=surface["wrap"])
+    draws, camera, surface, caps, clip, offset_map = perlin_building_clip(96, 72)
     fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs, caps=clip_caps(caps),
                         space=caps["space"], raster=RasterState(**raster))
-    backend_params, backend_maps = _clip_backend_export(draws, [clip], caps)
     surfaces = [{**surface, "offset_map": "offset_map"}]
-    _name_derived_maps(surfaces, backend_maps)
+    backend_params, backend_maps = clip_export(draws, [clip], caps, surfaces)
     rng = _clip_ids(draws, [clip], caps["subdivision"])
     ids = {sample_buffer(s, ch): rng[ch] for s in range(fb.samples)
            for ch in ("prim_id", "object_id")}
@@ -82,6 +71,11 @@ _RATES = {
         {"samples": 4},
         "pixel rate: the clip test and the caps' parity test at the pixel centre, each "
         "fragment's decision written to the samples it covers (Vulkan's standard positions)"),
+    "msaa4_clipsurface_centroid": (
+        {"samples": 4, "interpolation": "centroid"},
+        "pixel rate at a centroid point: the clip test and the caps' parity test at a point "
+        "inside both the pixel and the primitive, each fragment's decision written to the "
+        "samples it covers (Vulkan's standard positions)"),
     "msaa4gl_clipsurface_sample": (
         {"samples": 4, "sample_locations": "gl_llvmpipe", "interpolation": "sample"},
         "sample rate (GL's GL_SAMPLE_SHADING at 1.0), at llvmpipe's GL positions"),

@@ -81,6 +81,24 @@ def edges_buffers(frame, params, sampling):
     return per, res.edge_map
 
 
+def _sampled_scene(technique, camera, draws, per, n_faces, params, sampling, state,
+                   unorm=(), **extra):
+    """A 4× technique GoldenScene from each sample's buffers ``per`` (``sample<s>_<name>``;
+    the names in ``unorm`` of kind ``"unorm"``) and the technique's parameters, with the
+    scene's sample pattern and sampling stored beside them; ``extra``: the resolved buffers
+    (``buffers=``) and other GoldenScene fields."""
+    kinds, ids = {}, {}
+    buffers = _sample_keys(per, kinds, ids, len(draws), n_faces)
+    buffers.update(extra.pop("buffers", {}))
+    for s in range(len(per)):
+        for name in unorm:
+            kinds[f"sample{s}_{name}"] = "unorm"
+    params.update(sample_pattern=pattern_of(state), sampling=dict(sampling))
+    return GoldenScene(technique=technique, camera=camera, draws=draws, buffers=buffers,
+                       parameters=params, raster=dict(SAMPLED_RASTER), kinds=kinds, ids=ids,
+                       may_radius=2, **extra)
+
+
 def _edges_scene(sampling):
     from ..multisample import render_samples
     from ..scenes import solid
@@ -95,30 +113,8 @@ def _edges_scene(sampling):
                   profile_threshold=0.0, width=1, k_n=1.0, k_z=1.0, gbuffer_format="rgba8",
                   output_format="rgba8")
     per, resolved = edges_buffers(frame, {**params, "_view": camera.view}, sampling)
-    kinds, ids = {}, {}
-    buffers = _sample_keys(per, kinds, ids, len(draws), len(draws[0].mesh.faces))
-    buffers["edge_map"] = resolved
-    params.update(sample_pattern=pattern_of(state), sampling=dict(sampling))
-    return GoldenScene(technique="edges", camera=camera, draws=draws, buffers=buffers,
-                       parameters=params, raster=dict(SAMPLED_RASTER), kinds=kinds, ids=ids,
-                       may_radius=2)
-
-
-@register_scene("edges4gl_building_per_sample", technique="edges", samples=4,
-                description="The paper's edge map of the building (edges_building's operator, "
-                            "96×72) at 4 samples (llvmpipe's positions, sample-rate "
-                            "interpolation), per sample: each sample's G-buffer filtered, the "
-                            "four edge maps resolved by the box filter.")
-def _edges4gl_building_per_sample():
-    return _edges_scene({"mode": "per_sample", "resolve": "sample_zero"})
-
-
-@register_scene("edges4gl_building_resolved", technique="edges", samples=4,
-                description="edges4gl_building_per_sample's frame with the edge map of the "
-                            "resolved G-buffer (resolve mode sample_zero: every channel from "
-                            "sample 0), filtered once per pixel.")
-def _edges4gl_building_resolved():
-    return _edges_scene({"mode": "resolved", "resolve": "sample_zero"})
+    return _sampled_scene("edges", camera, draws, per, len(draws[0].mesh.faces), params,
+                          sampling, state, buffers={"edge_map": resolved})
 
 
 def cutaway_buffers(result):
@@ -144,30 +140,59 @@ def _cutaway_scene(sampling):
                                  [named[n] for n in params["secondary"]],
                                  **single.camera.kwargs, **cutaway_options(params),
                                  raster=as_state(state), sampling=GBufferSampling(**sampling))
-    kinds, ids = {}, {}
-    buffers = _sample_keys(cutaway_buffers(res), kinds, ids, len(single.draws),
-                           max(len(d.mesh.faces) for d in single.draws))
-    for s in range(res.samples):
-        kinds[f"sample{s}_cutaway_depth"] = "unorm"
-        kinds[f"sample{s}_ghost"] = "unorm"
-    params.update(sample_pattern=pattern_of(state), sampling=dict(sampling))
-    return GoldenScene(technique="cutaway", camera=single.camera, draws=single.draws,
-                       buffers=buffers, parameters=params, raster=dict(SAMPLED_RASTER),
-                       kinds=kinds, ids=ids, geometry=False, may_radius=2)
+    return _sampled_scene("cutaway", single.camera, single.draws, cutaway_buffers(res),
+                          max(len(d.mesh.faces) for d in single.draws), params, sampling,
+                          state, unorm=("cutaway_depth", "ghost"), geometry=False)
 
 
-@register_scene("cutaway4gl_shells_per_sample", technique="cutaway", samples=4,
-                description="cutaway_shells (jfa+1, 96×72) at 4 samples (llvmpipe's positions, "
-                            "sample shading), per sample: each sample's rear hulls flooded to "
-                            "its own cutaway surface, each sample carved by its own.")
-def _cutaway4gl_shells_per_sample():
-    return _cutaway_scene({"mode": "per_sample", "resolve": "sample_zero"})
+#: name → (technique, sampling, description) of the 4× technique scenes.
+_SAMPLED = {
+    "edges4gl_building_per_sample": (
+        "edges", {"mode": "per_sample", "resolve": "sample_zero"},
+        "The paper's edge map of the building (edges_building's operator, 96×72) at 4 "
+        "samples (llvmpipe's positions, sample-rate interpolation), per sample: each "
+        "sample's G-buffer filtered, the four edge maps resolved by the box filter."),
+    "edges4gl_building_resolved": (
+        "edges", {"mode": "resolved", "resolve": "sample_zero"},
+        "edges4gl_building_per_sample's frame with the edge map of the resolved G-buffer "
+        "(resolve mode sample_zero: every channel from sample 0), filtered once per pixel."),
+    "cutaway4gl_shells_per_sample": (
+        "cutaway", {"mode": "per_sample", "resolve": "sample_zero"},
+        "cutaway_shells (jfa+1, 96×72) at 4 samples (llvmpipe's positions, sample shading), "
+        "per sample: each sample's rear hulls flooded to its own cutaway surface, each "
+        "sample carved by its own."),
+    "cutaway4gl_shells_resolved": (
+        "cutaway", {"mode": "resolved", "resolve": "sample_zero"},
+        "cutaway4gl_shells_per_sample's frame with one cutaway surface flooded from the rear "
+        "hulls resolved by sample_zero (sample 0's), at the pixel centre's projection: every "
+        "sample of a pixel carved by the pixel's."),
+    "edges4gl_building_resolved_average": (
+        "edges", {"mode": "resolved", "resolve": "average"},
+        "edges4gl_building_per_sample's frame with the edge map of the G-buffer resolved by "
+        "average (the box filter of the encoded normal and the linear depth; ids from "
+        "sample 0), filtered once per pixel."),
+    "cutaway4gl_shells_resolved_min": (
+        "cutaway", {"mode": "resolved", "resolve": "min"},
+        "cutaway4gl_shells_resolved with the rear hulls' depth resolved by min (the nearest "
+        "sample, the clear value 0 where a sample is uncovered; ids from sample 0), flooded "
+        "once at the pixel centre's projection."),
+    "cutaway4gl_shells_resolved_max": (
+        "cutaway", {"mode": "resolved", "resolve": "max"},
+        "cutaway4gl_shells_resolved with the rear hulls' depth resolved by max (the farthest "
+        "sample; ids from sample 0), flooded once at the pixel centre's projection."),
+}
+_BUILDERS = {"edges": _edges_scene, "cutaway": _cutaway_scene}
 
 
-@register_scene("cutaway4gl_shells_resolved", technique="cutaway", samples=4,
-                description="cutaway4gl_shells_per_sample's frame with one cutaway surface "
-                            "flooded from the rear hulls resolved by sample_zero (sample 0's), "
-                            "at the pixel centre's projection: every sample of a pixel carved "
-                            "by the pixel's.")
-def _cutaway4gl_shells_resolved():
-    return _cutaway_scene({"mode": "resolved", "resolve": "sample_zero"})
+def _register(name):
+    technique, sampling, description = _SAMPLED[name]
+
+    @register_scene(name, technique=technique, samples=SAMPLED_RASTER["samples"],
+                    description=description)
+    def _scene():
+        return _BUILDERS[technique](dict(sampling))
+    return _scene
+
+
+for _name in _SAMPLED:
+    _register(_name)

@@ -231,10 +231,16 @@ def register_technique(name):
 
 
 def available_scenes():
-    """Import :data:`SCENE_MODULES` (each registers its scenes) and return :data:`SCENES`."""
+    """Import :data:`SCENE_MODULES` (each registers its scenes) and return the registered scenes
+    (name → :class:`SceneEntry`) in a fixed order: this module's scenes, then each of
+    :data:`SCENE_MODULES`' in its order, then any other module's, each in registration order —
+    the same whichever module a program imported first."""
     for module in SCENE_MODULES:
         importlib.import_module(module)
-    return SCENES
+    rank = {m: i for i, m in enumerate((__name__,) + SCENE_MODULES)}
+    order = sorted(SCENES.values(),
+                   key=lambda e: rank.get(getattr(e.build, "__module__", None), len(rank)))
+    return {e.name: e for e in order}
 
 
 def _float32_exact(a):

@@ -132,12 +132,32 @@ def clip_caps(parameters):
                             "(N = −z: the front half is removed), diffuse caps (Trapp & "
                             "Döllner).")
 def _clipsurface_building():
-    from ..clipsurface import ClipSurface, render_clipped
+    from ..clipsurface import render_clipped
+    state = raster_state({})
+    draws, camera, surface, caps, clip, offset_map = perlin_building_clip(160, 120)
+    fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs,
+                        caps=clip_caps(caps), space=caps["space"],
+                        raster=RasterState(cull=state["cull"], precision=state["precision"]))
+    surfaces = [{**surface, "offset_map": "offset_map"}]
+    backend_params, backend_maps = clip_export(draws, [clip], caps, surfaces)
+    return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
+                       buffers={**fb.arrays(), "cap_mask": fb.cap_mask},
+                       ids=_clip_ids(draws, [clip], caps["subdivision"]),
+                       parameters={"surfaces": surfaces, **caps, **backend_params},
+                       maps={"offset_map": offset_map, **backend_maps}, geometry=False,
+                       may=_clip_decision_may(draws, camera, clip, fb.cap_mask))
+
+
+def perlin_building_clip(width, height):
+    """``clipsurface_building``'s scene at ``width × height``: the building, its camera, the
+    Perlin clip surface (stored fields and :class:`refraster.clipsurface.ClipSurface`) and the
+    diffuse caps — ``(draws, camera, surface, caps, clip, offset_map)`` (the multisampled
+    clip-surface scenes, :mod:`.msaa_clip_scenes`, draw the same at 96×72)."""
+    from ..clipsurface import ClipSurface
     from ..clipsurface.offsetmaps import perlin_noise
     from ..scenes import solid
-    state = raster_state({})
     draws = prepare_draws([Draw("building", solid("building"))])
-    camera = _framed([d.mesh for d in draws], 160, 120, (1.2, 0.9, 1.6))
+    camera = _framed([d.mesh for d in draws], width, height, (1.2, 0.9, 1.6))
     offset_map = perlin_noise((64, 64), seed=1)
     surface = dict(origin=[0.0, 0.0, 3.5], u=[0.0, 6.25, 0.0], v=[10.0, 0.0, 0.0],
                    scale=[1.0, 1.0, 0.8], wrap="repeat", enabled=True)
@@ -145,18 +165,15 @@ def _clipsurface_building():
                 subdivision=1, vds_resolution=512, space="world")
     clip = ClipSurface(surface["origin"], surface["u"], surface["v"], surface["scale"],
                        offset_map, wrap=surface["wrap"])
-    fb = render_clipped([d.mesh for d in draws], clip, **camera.kwargs,
-                        caps=clip_caps(caps), space=caps["space"],
-                        raster=RasterState(cull=state["cull"], precision=state["precision"]))
-    backend_params, backend_maps = _clip_backend_export(draws, [clip], caps)
-    surfaces = [{**surface, "offset_map": "offset_map"}]
+    return draws, camera, surface, caps, clip, offset_map
+
+
+def clip_export(draws, clips, caps, surfaces):
+    """:func:`_clip_backend_export` with the derived maps named in ``surfaces`` (the stored
+    surface entries, changed in place): ``(backend_params, backend_maps)``."""
+    backend_params, backend_maps = _clip_backend_export(draws, clips, caps)
     _name_derived_maps(surfaces, backend_maps)
-    return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
-                       buffers={**fb.arrays(), "cap_mask": fb.cap_mask},
-                       ids=_clip_ids(draws, [clip], caps["subdivision"]),
-                       parameters={"surfaces": surfaces, **caps, **backend_params},
-                       maps={"offset_map": offset_map, **backend_maps}, geometry=False,
-                       may=_clip_decision_may(draws, camera, clip, fb.cap_mask))
+    return backend_params, backend_maps
 
 
 def _clip_backend_export(draws, surfaces, caps, occlusion_radius=None):
@@ -450,9 +467,8 @@ def _clipsurface_textured_caps():
         names[key] = [f"cap_{key}_{ch}" for ch in chans]
         for i, name in enumerate(names[key]):
             maps[name] = np.ascontiguousarray(arr[..., i])
-    backend_params, backend_maps = _clip_backend_export(draws, [clip], caps)
     surfaces = [{**surface, "offset_map": "offset_map", "textures": names}]
-    _name_derived_maps(surfaces, backend_maps)
+    backend_params, backend_maps = clip_export(draws, [clip], caps, surfaces)
     return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
                        buffers={**fb.arrays(), "cap_mask": fb.cap_mask},
                        parameters={"surfaces": surfaces, **caps, **backend_params},
@@ -585,8 +601,7 @@ def _clip_scene(draws, camera, surfaces, clips, maps, caps, extra=None):
     fb = render_clipped([d.mesh for d in draws], clips, **camera.kwargs,
                         caps=clip_caps(caps), space=caps["space"],
                         raster=RasterState(cull=state["cull"], precision=state["precision"]))
-    backend_params, backend_maps = _clip_backend_export(draws, clips, caps)
-    _name_derived_maps(surfaces, backend_maps)
+    backend_params, backend_maps = clip_export(draws, clips, caps, surfaces)
     return GoldenScene(technique="clipsurface", camera=camera, draws=draws,
                        buffers={**fb.arrays(), "cap_mask": fb.cap_mask},
                        ids=_clip_ids(draws, clips, caps["subdivision"]),

@@ -11,19 +11,34 @@
 //      1 RGBA32F (m_f, n_x, n_y, 0).
 // MSAA (refraster/gl/msaa_techniques.py): the rear hulls are multisampled (u_rear: the
 // multisample depth attachment, the depth GL kept at each sample) and this pass reads sample
-// u_sample of each pixel: the seeds of that sample's image.
+// u_sample of each pixel: the seeds of that sample's image; with u_depth_resolve 1 (min) or 2
+// (max) the depth resolved over the u_samples samples (Vulkan's depth resolve modes; an
+// uncovered sample holds the clear value 0), the seeds still sample u_sample's.
 #version 330 core
 #ifdef MSAA
 uniform sampler2DMS u_rear;
 uniform isampler2DMS u_hull;
 uniform int u_sample;
+uniform int u_depth_resolve;
+uniform int u_samples;
 #define FETCH(t, q) texelFetch(t, q, u_sample)
 #define SIZE(t) textureSize(t)
+float rear_depth(ivec2 p) {
+    float r = FETCH(u_rear, p).r;
+    if (u_depth_resolve == 0) return r;
+    r = texelFetch(u_rear, p, 0).r;
+    for (int i = 1; i < u_samples; ++i) {
+        float v = texelFetch(u_rear, p, i).r;
+        r = u_depth_resolve == 1 ? min(r, v) : max(r, v);
+    }
+    return r;
+}
 #else
 uniform sampler2D u_rear;       // R32F window depth of the rear hulls
 uniform isampler2D u_hull;      // hull index + 1
 #define FETCH(t, q) texelFetch(t, q, 0)
 #define SIZE(t) textureSize(t, 0)
+float rear_depth(ivec2 p) { return FETCH(u_rear, p).r; }
 #endif
 uniform float u_theta[8];       // θ per cutaway object (one entry used when u_n_theta == 1)
 uniform int u_n_theta;
@@ -56,7 +71,7 @@ void main() {
     int hull = FETCH(u_hull, p).r;
     o_floor = vec4(0.0);
     if (hull == 0) { o_seed = vec4(-1.0, -1.0, 0.0, 0.0); return; }
-    float z = 2.0 * FETCH(u_rear, p).r - 1.0;
+    float z = 2.0 * rear_depth(p) - 1.0;
     vec2 ndc = gl_FragCoord.xy * 2.0 / vec2(size) - 1.0;
     float theta = u_theta[u_n_theta > 1 ? hull - 1 : 0];
     if (u_r > 0.0)

@@ -15,16 +15,26 @@
 // object-id change in the 8-neighbourhood sets E_Z = 1.
 // MSAA (refraster/gl/msaa_techniques.py): T_G and the ids are multisample textures; the pass
 // runs at sample rate and reads each neighbour at its own sample, gl_SampleID (the samples'
-// edge maps), or at sample 0 with u_sample_zero (the G-buffer resolved by sample_zero).
+// edge maps), or at sample 0 with u_sample_zero (the G-buffer resolved by sample_zero); with
+// u_average = S > 0 the G-buffer resolved by average: T_G box-filtered over the S samples (an
+// uncovered sample counts as the background's encoding, normal 0.5 and depth 1, as
+// refraster.edges.gbuffer_of writes it), the ids sample 0's (u_sample_zero).
 #version 330 core
 #ifdef MSAA
 #extension GL_ARB_sample_shading : require
 uniform sampler2DMS u_tg;
 uniform isampler2DMS u_ids;
 uniform bool u_sample_zero;
+uniform int u_average;
 int g_s;                    // the sample read
 #define FETCH(t, q) texelFetch(t, q, g_s)
 #define SIZE(t) textureSize(t)
+vec4 tg_average(ivec2 q) {
+    vec4 acc = vec4(0.0);
+    for (int i = 0; i < u_average; ++i)
+        acc += texelFetch(u_ids, q, i).r != 0 ? texelFetch(u_tg, q, i) : vec4(0.5, 0.5, 0.5, 1.0);
+    return acc / float(u_average);
+}
 #else
 uniform sampler2D u_tg;     // T_G (NEAREST)
 uniform isampler2D u_ids;   // object_id + 1, 0 = background
@@ -51,11 +61,17 @@ ivec2 at(int dx, int dy) {
 bool covered(int dx, int dy) { return FETCH(u_ids, at(dx, dy)).r != 0; }
 
 vec3 nrm(int dx, int dy) {     // decoded normal; 0 on the background
+#ifdef MSAA
+    if (u_average > 0) return 2.0 * tg_average(at(dx, dy)).rgb - 1.0;
+#endif
     if (!covered(dx, dy)) return vec3(0.0);
     return 2.0 * FETCH(u_tg, at(dx, dy)).rgb - 1.0;
 }
 
 float dep(int dx, int dy) {    // linear depth; 1 on the background
+#ifdef MSAA
+    if (u_average > 0) return tg_average(at(dx, dy)).a;
+#endif
     if (!covered(dx, dy)) return 1.0;
     return FETCH(u_tg, at(dx, dy)).a;
 }

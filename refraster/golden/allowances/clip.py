@@ -125,17 +125,28 @@ def clip_allowances(scene, raster, eps, eye_budget):
         if len(faces) else np.zeros((0, 3), np.int64)
     tri = tri + vbase[draw][:, None]
     pts = np.einsum("esk,ekc->esc", np.nan_to_num(beta), verts[tri])       # (E, 5, 3)
+    region = None
     if p.get("decision_offset") is not None:
         # a multisampled scene at pixel rate, derived on the scene moved to one sample
         # (allowances/samples.py): the decision is taken at the pixel centre, offset from
         # this scene's pixel centre, not where the sample's coverage is
         pts = _points_at(cam, pix, verts[tri], p["decision_offset"], eps)
+        if p.get("decision_point") == "centroid":
+            # at any point of the pixel (offset) ∩ the triangle, both grown by ε
+            from .homogeneous import pixel_triangle
+            clip_v = prep.clip[prep.triangles.faces[faces]].astype(np.float64)
+            poly, ok = pixel_triangle(clip_v, pix, w, h, eps, p["decision_offset"])
+            region = (_window_to_plane(cam, poly, verts[tri]), ok)
     state = np.full(len(faces), 2, np.int8)     # 0 never kept, 1 may be, 2 surely
     is_cap = draw >= n_solids
     # solids: the clip decision of every enabled surface
     sol = np.flatnonzero(~is_cap)
     for s in surfaces:
         if not s.enabled or not len(sol):
+            continue
+        if region is not None:
+            st = _region_state(s, region[0][sol], region[1][sol])
+            state[sol] = np.minimum(state[sol], st)
             continue
         q = pts[sol].reshape(-1, 3)
         g = clip_function(q, s).reshape(len(sol), 5)
@@ -163,8 +174,22 @@ def clip_allowances(scene, raster, eps, eye_budget):
             for axis in range(3):
                 for sign in (-1.0, 1.0):
                     probes.append(pts[sel, 0] + sign * texel * np.eye(3)[axis])
+            if region is not None:
+                # the polygon's vertices and centre, each and one texel away
+                poly, ok = region[0][sel], region[1][sel]
+                has = ~np.isnan(poly[:, :, 0])
+                centre = np.nansum(poly, axis=1) / np.maximum(has.sum(axis=1), 1)[:, None]
+                base = [np.where(has[:, j, None], poly[:, j], centre)
+                        for j in range(poly.shape[1])] + [centre]
+                probes = list(base)
+                for q0 in base:
+                    for axis in range(3):
+                        for sign in (-1.0, 1.0):
+                            probes.append(q0 + sign * texel * np.eye(3)[axis])
             inside = np.stack([t.contains(q) for q in probes], axis=1)
             st = np.where(inside.all(axis=1), 2, np.where(~inside.any(axis=1), 0, 1))
+            if region is not None:
+                st = np.where(region[1][sel], st, 1)
             state[sel] = np.minimum(state[sel], st.astype(np.int8))
         # a cap is clipped by the other surfaces as a solid fragment is
         for k, s in enumerate(surfaces):
@@ -175,6 +200,8 @@ def clip_allowances(scene, raster, eps, eye_budget):
             delta = 16.0 * F32 * (np.linalg.norm(pts[sel, 0], axis=1) + abs(float(s.scale[2]))) \
                 + _lookup_error(s, pts[sel, 0])
             st = np.where(g > delta, 2, np.where(g < -delta, 0, 1)).astype(np.int8)
+            if region is not None:
+                st = _region_state(s, region[0][sel], region[1][sel])
             state[sel] = np.minimum(state[sel], st)
     return _winners(prep, pix, faces, sure, fragile, lo, hi, state, is_cap, h, w, eye_budget)
 
@@ -203,6 +230,81 @@ def _points_at(cam, pix, tri, offset, eps):
             t = np.einsum("ec,ec->e", tri[:, 0] - o, n) / np.einsum("ec,ec->e", d, n)
         out[:, j] = o + np.nan_to_num(t)[:, None] * d
     return out
+
+
+def _window_to_plane(cam, poly, tri):
+    """World points ``(E, K, 3)`` of window points ``poly`` ``(E, K, 2)`` (pixels, GL window y
+    up; NaN kept) on each entry's triangle plane (``tri`` ``(E, 3, 3)`` world): the ray through
+    the window point met with the plane, in float64. A projective map keeps lines, so a convex
+    window polygon maps to the convex world polygon of its vertices' images."""
+    h, w = cam.height, cam.width
+    inv = np.linalg.inv(np.asarray(cam.proj, np.float64) @ np.asarray(cam.view, np.float64))
+    e, k = poly.shape[:2]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    ndc = np.stack([2.0 * poly[..., 0] / w - 1.0, 2.0 * poly[..., 1] / h - 1.0], -1)
+    ends = []
+    for z in (-1.0, 1.0):
+        q = np.concatenate([ndc, np.full((e, k, 1), z), np.ones((e, k, 1))], -1) @ inv.T
+        ends.append(q[..., :3] / q[..., 3:])
+    o, d = ends[0], ends[1] - ends[0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.einsum("ekc,ec->ek", tri[:, None, 0] - o, n) / np.einsum("ekc,ec->ek", d, n)
+    return o + t[..., None] * d
+
+
+def _map_range(surface, s_lo, s_hi, t_lo, t_hi):
+    """Per entry, the range ``(lo, hi)`` of ``GL_LINEAR``'s value of ``surface``'s offset map
+    over the texture-coordinate box ``[s_lo, s_hi] × [t_lo, t_hi]``: a bilinear blend lies
+    between its taps' least and largest, and the taps of every point of the box are the
+    texels ``⌊s·W − ½⌋ … ⌊s_hi·W − ½⌋ + 1`` (wrapped) by the rows likewise."""
+    from ...clipsurface.offsetmaps import _wrap_texel
+    from ...clipsurface.surfaces import WRAP_MODES
+    om = np.asarray(surface.offset_map, np.float64)
+    if om.ndim == 1:
+        om = om[None, :]
+    rows, cols = om.shape
+    mode = WRAP_MODES[surface.wrap]
+    lo = np.empty(len(s_lo))
+    hi = np.empty(len(s_lo))
+    for e in range(len(s_lo)):
+        c0, c1 = int(np.floor(s_lo[e] * cols - 0.5)), int(np.floor(s_hi[e] * cols - 0.5)) + 1
+        r0, r1 = int(np.floor(t_lo[e] * rows - 0.5)), int(np.floor(t_hi[e] * rows - 0.5)) + 1
+        cs = (range(cols) if c1 - c0 + 1 >= 2 * cols
+              else sorted({_wrap_texel(i, cols, mode) for i in range(c0, c1 + 1)}))
+        rs = (range(rows) if r1 - r0 + 1 >= 2 * rows
+              else sorted({_wrap_texel(i, rows, mode) for i in range(r0, r1 + 1)}))
+        block = om[np.ix_(list(rs), list(cs))]
+        lo[e], hi[e] = block.min(), block.max()
+    return lo, hi
+
+
+def _region_state(surface, poly, ok):
+    """The clip decision of ``surface`` taken at any point of each entry's convex world
+    polygon ``poly`` ``(E, K, 3)`` (NaN-padded; a centroid-interpolated fragment): 2 kept
+    wherever it is taken, 0 discarded wherever, 1 either. ``g = N·(P − O) + Sz·OM(s, t)``
+    with the linear term and ``(s, t)`` affine in P: their ranges over the polygon are at its
+    vertices; ``OM``'s range over the ``(s, t)`` box is :func:`_map_range`; plus the float32
+    and lookup slack of the module docstring (δ_a, δ_b) at the polygon's vertices."""
+    from ...clipsurface.surfaces import _Packed
+    prm = _Packed([surface]).params[0]
+    has = ~np.isnan(poly[..., 0])
+    ok = ok & has.any(axis=1)
+    first = np.where(np.isnan(poly[:, :1]), 0.0, poly[:, :1])
+    pts = np.where(has[..., None], poly, first)
+    dp = pts - prm[0:3]
+    lin = dp @ prm[9:12]
+    s = (dp @ prm[3:6]) / prm[12] * prm[14]
+    t = (dp @ prm[6:9]) / prm[13] * prm[15]
+    m_lo, m_hi = _map_range(surface, s.min(axis=1), s.max(axis=1), t.min(axis=1),
+                            t.max(axis=1))
+    sz = prm[16]
+    g_lo = lin.min(axis=1) + np.minimum(sz * m_lo, sz * m_hi)
+    g_hi = lin.max(axis=1) + np.maximum(sz * m_lo, sz * m_hi)
+    norm = np.linalg.norm(pts, axis=2).max(axis=1)
+    delta = (16.0 * F32 * (norm + float(np.linalg.norm(surface.origin)) + abs(float(sz)))
+             + _lookup_error(surface, pts.reshape(-1, 3)).reshape(pts.shape[:2]).max(axis=1))
+    st = np.where(g_lo > delta, 2, np.where(g_hi < -delta, 0, 1)).astype(np.int8)
+    return np.where(ok, st, 1).astype(np.int8)
 
 
 def _eye_interval(lo, hi, proj, budget):

@@ -230,15 +230,22 @@ def _floor_slope_max(seeded, cam, p, kw):
     return out
 
 
-def cutaway_bounds(scene, eps, flood_camera=None):
+def cutaway_bounds(scene, eps, flood_camera=None, seeds=None):
     """``(lo, hi)`` float32 (H, W): the window-depth interval of the cutaway depth D.
     ``flood_camera``: the camera whose projection the flood uses when it is not the one the
     rear hulls are drawn with (a multisampled cutaway's D flooded from sample 0's rear hulls
-    at the pixel centre's projection, :mod:`.sampled`); the seeds are ``scene.camera``'s."""
+    at the pixel centre's projection, :mod:`.sampled`); the seeds are ``scene.camera``'s, or
+    ``seeds``: the five images of :func:`_seed_images` (``with_least``) given by the caller
+    (rear hulls resolved by min or max, :func:`.sampled.resolved_seed_images`; the proven
+    bound only)."""
     from ...cutaway.surface import cutaway_surface, pixel_ndc
     p = scene.parameters
-    big, big_seed, small, small_seed, least = _seed_images(scene, set(p["interest"]), eps,
-                                                           with_least=True)
+    if seeds is None:
+        seeds = _seed_images(scene, set(p["interest"]), eps, with_least=True)
+    elif np.size(p["angle"]) != 1:
+        raise ValueError("cutaway_bounds: given seed images need one angle per cutaway (the "
+                         "proven bound)")
+    big, big_seed, small, small_seed, least = seeds
     cam = scene.camera if flood_camera is None else flood_camera
     kw = dict(proj=cam.proj, view=cam.view, angle=p["angle"],
               perspective_compensation=p["perspective_compensation"],

@@ -60,7 +60,8 @@ from numba import njit
 
 from ..._config import JIT
 
-__all__ = ["edge_map_bounds", "npr_color_bounds", "npr_supported", "supported"]
+__all__ = ["edge_map_bounds", "mean_edge_map_bounds", "npr_color_bounds", "npr_supported",
+           "supported"]
 
 Q8 = 1.0 / 255.0
 
@@ -131,16 +132,22 @@ def _absdiff(alo, ahi, blo, bhi):
 
 
 @njit(**JIT)
+def _diagonals(y, x, h, w):
+    """Flat indices of the diagonal neighbours A, C, F, H of pixel (y, x) (clamp-to-edge) and
+    of the pixel itself."""
+    ym = max(y - 1, 0)
+    yp = min(y + 1, h - 1)
+    xm = max(x - 1, 0)
+    xp = min(x + 1, w - 1)
+    return ym * w + xm, ym * w + xp, yp * w + xm, yp * w + xp, y * w + x
+
+
+@njit(**JIT)
 def _bounds_kernel(off, nrm, ang, bg, zlo, zhi, free, may_bg, may_fg, ddot, dz, dout, lo, hi):
     h, w = lo.shape[:2]
     for y in range(h):
         for x in range(w):
-            ym = max(y - 1, 0)
-            yp = min(y + 1, h - 1)
-            xm = max(x - 1, 0)
-            xp = min(x + 1, w - 1)
-            pa, pc, pf, ph = ym * w + xm, ym * w + xp, yp * w + xm, yp * w + xp
-            p = y * w + x
+            pa, pc, pf, ph, p = _diagonals(y, x, h, w)
             # inner edges (RGB)
             ah_lo, ah_hi = _dot_bounds(pa, ph, off, nrm, ang, bg, free, ddot, False)
             cf_lo, cf_hi = _dot_bounds(pc, pf, off, nrm, ang, bg, free, ddot, False)
@@ -154,19 +161,27 @@ def _bounds_kernel(off, nrm, ang, bg, zlo, zhi, free, may_bg, may_fg, ddot, dz, 
             elif may_bg[p] or free[p]:
                 en_lo = 0.0
             # profile edges (A)
-            d1lo, d1hi = _absdiff(zlo[pa] - dz, zhi[pa] + dz, zlo[ph] - dz, zhi[ph] + dz)
-            d2lo, d2hi = _absdiff(zlo[pc] - dz, zhi[pc] + dz, zlo[pf] - dz, zhi[pf] + dz)
-            d1lo, d1hi = min(d1lo, 1.0), min(d1hi, 1.0)
-            d2lo, d2hi = min(d2lo, 1.0), min(d2hi, 1.0)
-            a_hi, a_lo = 1.0 - 0.5 * d1lo, 1.0 - 0.5 * d1hi
-            b_hi, b_lo = 1.0 - 0.5 * d2lo, 1.0 - 0.5 * d2hi
-            ez_lo = 1.0 - (a_hi * a_hi) * (b_hi * b_hi)
-            ez_hi = 1.0 - (a_lo * a_lo) * (b_lo * b_lo)
-            for c in range(3):
-                lo[y, x, c] = max(en_lo - dout, 0.0)
-                hi[y, x, c] = min(en_hi + dout, 1.0)
-            lo[y, x, 3] = max(ez_lo - dout, 0.0)
-            hi[y, x, 3] = min(ez_hi + dout, 1.0)
+            _store(lo, hi, y, x, en_lo, en_hi, zlo[pa], zhi[pa], zlo[ph], zhi[ph], zlo[pc],
+                   zhi[pc], zlo[pf], zhi[pf], dz, dout)
+
+
+@njit(**JIT)
+def _store(lo, hi, y, x, en_lo, en_hi, alo, ahi, hlo, hhi, clo, chi, flo, fhi, dz, dout):
+    """Pixel (y, x) of the diagonal operators' bounds: ``E_N ∈ [en_lo, en_hi]`` in RGB and
+    ``E_Z`` from the depth intervals of A, H, C, F (each ± ``dz``) in A, ± ``dout``."""
+    d1lo, d1hi = _absdiff(alo - dz, ahi + dz, hlo - dz, hhi + dz)
+    d2lo, d2hi = _absdiff(clo - dz, chi + dz, flo - dz, fhi + dz)
+    d1lo, d1hi = min(d1lo, 1.0), min(d1hi, 1.0)
+    d2lo, d2hi = min(d2lo, 1.0), min(d2hi, 1.0)
+    a_hi, a_lo = 1.0 - 0.5 * d1lo, 1.0 - 0.5 * d1hi
+    b_hi, b_lo = 1.0 - 0.5 * d2lo, 1.0 - 0.5 * d2hi
+    ez_lo = 1.0 - (a_hi * a_hi) * (b_hi * b_hi)
+    ez_hi = 1.0 - (a_lo * a_lo) * (b_lo * b_lo)
+    for c in range(3):
+        lo[y, x, c] = max(en_lo - dout, 0.0)
+        hi[y, x, c] = min(en_hi + dout, 1.0)
+    lo[y, x, 3] = max(ez_lo - dout, 0.0)
+    hi[y, x, 3] = min(ez_hi + dout, 1.0)
 
 
 @njit(**JIT)
@@ -476,6 +491,114 @@ def edge_map_bounds(arrays, buffers, params, near, far, *, gbuffer_format="rgba8
         for c in range(4):
             lo[..., c] = dilation(lo[..., c], foot)
             hi[..., c] = dilation(hi[..., c], foot)
+    lo32 = lo.astype(np.float32)
+    hi32 = hi.astype(np.float32)
+    lo32 = np.where(lo32 > lo, np.nextafter(lo32, np.float32(-1)), lo32)
+    hi32 = np.where(hi32 < hi, np.nextafter(hi32, np.float32(2)), hi32)
+    return lo32.astype(np.float32), hi32.astype(np.float32)
+
+
+@njit(**JIT)
+def _mean_dot_bounds(pa, ph, n_pix, n_samples, off, nrm, ang, bg, free, ddot):
+    """Bounds of the dot product of the box-filtered normals of pixels ``pa`` and ``ph``
+    (sample ``s``'s options at ``p + s·n_pix``): ``n̄_A·n̄_H = (1/S²) Σ_{s,t} n_{A,s}·n_{H,t}``,
+    so its interval is the mean of the pairs' intervals (:func:`_dot_bounds` without its
+    rounding term; ``ddot`` added once, for the resolved texture)."""
+    lo = 0.0
+    hi = 0.0
+    for s in range(n_samples):
+        for t in range(n_samples):
+            a, b = _dot_bounds(pa + s * n_pix, ph + t * n_pix, off, nrm, ang, bg, free, 0.0,
+                               False)
+            lo += a
+            hi += b
+    k = float(n_samples * n_samples)
+    return lo / k - ddot, hi / k + ddot
+
+
+@njit(**JIT)
+def _mean_bounds_kernel(off, nrm, ang, bg, zlo, zhi, free, n_samples, ddot, dz, dout, lo, hi):
+    """:func:`_bounds_kernel` on the G-buffer resolved by the box filter (normals and linear
+    depths averaged over the samples, ids — so the background test at X — from sample 0)."""
+    h, w = lo.shape[:2]
+    n_pix = h * w
+    for y in range(h):
+        for x in range(w):
+            pa, pc, pf, ph, p = _diagonals(y, x, h, w)
+            ah_lo, ah_hi = _mean_dot_bounds(pa, ph, n_pix, n_samples, off, nrm, ang, bg, free,
+                                            ddot)
+            cf_lo, cf_hi = _mean_dot_bounds(pc, pf, n_pix, n_samples, off, nrm, ang, bg, free,
+                                            ddot)
+            i_lo = 0.5 * (ah_lo + cf_lo)
+            i_hi = 0.5 * (ah_hi + cf_hi)
+            en_lo = 1.0 - min(max(i_hi, 0.0), 1.0)
+            en_hi = 1.0 - min(max(i_lo, 0.0), 1.0)
+            may_bg = free[p]
+            may_fg = free[p]
+            for i in range(off[p], off[p + 1]):
+                if bg[i]:
+                    may_bg = True
+                else:
+                    may_fg = True
+            if not may_fg:
+                en_lo = 0.0
+                en_hi = 0.0
+            elif may_bg:
+                en_lo = 0.0
+            # the mean depth of each diagonal neighbour: the mean of its samples' intervals
+            zs = np.zeros((4, 2))
+            for k, q in enumerate((pa, ph, pc, pf)):
+                for s in range(n_samples):
+                    zs[k, 0] += zlo[q + s * n_pix]
+                    zs[k, 1] += zhi[q + s * n_pix]
+            zs /= n_samples
+            _store(lo, hi, y, x, en_lo, en_hi, zs[0, 0], zs[0, 1], zs[1, 0], zs[1, 1],
+                   zs[2, 0], zs[2, 1], zs[3, 0], zs[3, 1], dz, dout)
+
+
+def mean_edge_map_bounds(per_arrays, per_buffers, params, near, far, *,
+                         gbuffer_format="rgba8", output_format="rgba8"):
+    """``(lo, hi)``, each ``(H, W, 4)`` float32: what a conformant edge map of the G-buffer
+    resolved by the box filter (``GBufferSampling("resolved", resolve="average")``) may hold,
+    from each sample's allowances ``per_arrays[s]`` and buffers ``per_buffers[s]`` (the
+    paper's diagonal operators only).
+
+    Each sample's options (:func:`_options`) bound its normal and depth; the resolved texture
+    holds their means, so a dot product of two resolved normals lies in the mean of the S²
+    pairs' intervals and a resolved depth in the mean of the samples' intervals (the mean is
+    increasing in each term). An RGBA8 G-buffer rounds each sample (½/255) and the resolve
+    rounds the mean (≤ 1/255 more: to nearest or toward zero): an encoded value is off by
+    ≤ 1.5/255, a decoded component by δ ≤ 3/255, a dot product of two such by ≤ 2·√3·δ + 3·δ²,
+    a depth by ≤ 1.5/255."""
+    if params.get("normal_filter", "diagonal") != "diagonal" \
+            or params.get("depth_filter", "diagonal") != "diagonal" \
+            or not supported(params) or float(params.get("inner_threshold", 0.0)) > 0.0 \
+            or float(params.get("profile_threshold", 0.0)) > 0.0 \
+            or int(params.get("width", 1)) != 1:
+        raise ValueError("the edge map of a G-buffer resolved by 'average' has allowances for "
+                         "the paper's operator only (diagonal filters, no ids, no thresholds, "
+                         "width 1)")
+    parts = [_options(a, b, near, far) for a, b in zip(per_arrays, per_buffers)]
+    h, w = np.asarray(per_buffers[0]["normal"]).shape[:2]
+    n_pix = h * w
+    offs = [p[0] for p in parts]
+    base = np.cumsum([0] + [int(o[-1]) for o in offs[:-1]])
+    off = np.concatenate([o[:-1] + b for o, b in zip(offs, base)] + [[base[-1] + offs[-1][-1]]])
+    off = off.astype(np.int64)
+    nrm = np.concatenate([p[1] for p in parts])
+    ang = np.concatenate([p[2] for p in parts])
+    bg = np.concatenate([p[3] for p in parts])
+    zl = np.concatenate([p[4] for p in parts])
+    zh = np.concatenate([p[5] for p in parts])
+    free = np.concatenate([p[6] for p in parts])
+    assert len(off) == len(parts) * n_pix + 1
+    q_in = 3.0 * Q8 if gbuffer_format == "rgba8" else 0.0    # δ, a decoded component
+    ddot = 2.0 * math.sqrt(3.0) * q_in + 3.0 * q_in * q_in + 1e-6
+    dz = 0.5 * q_in + 1e-6
+    dout = (0.5 * Q8 if output_format == "rgba8" else 0.0) + 1e-6
+    lo = np.zeros((h, w, 4))
+    hi = np.zeros((h, w, 4))
+    _mean_bounds_kernel(off, nrm, ang, bg, zl, zh, free, len(parts), ddot, dz, dout, lo, hi)
     lo32 = lo.astype(np.float32)
     hi32 = hi.astype(np.float32)
     lo32 = np.where(lo32 > lo, np.nextafter(lo32, np.float32(-1)), lo32)

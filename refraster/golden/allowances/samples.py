@@ -79,9 +79,6 @@ def msaa_allowances(scene, raster):
     positions = scene.parameters["sample_pattern"]["positions"]
     interp = raster.get("interpolation", "center")
     clip = scene.technique == "clipsurface"
-    if clip and interp == "centroid":
-        raise ValueError("a multisampled clip-surface scene's allowances are derived at "
-                         "raster.interpolation 'sample' or 'center', got 'centroid'")
     cam = scene.camera
     plain = _plain_raster(raster)
     overrides = {k: v for k, v in plain.items() if v != DEFAULT_RASTER.get(k)}
@@ -107,7 +104,8 @@ def msaa_allowances(scene, raster):
                 centre = _Centre(scene, plain)
             centre.values(a, info_s["eps"])
         if interp == "centroid":
-            centroid_ranges(scene, plain, a, bufs, info_s["eps"])
+            centroid_ranges(scene, plain, a, sub.buffers if clip else bufs, info_s["eps"],
+                            "cs" if clip else "set")
         per_sample.append(a)
         for k, v in a.items():
             arrays[f"s{s}_{k}"] = v
@@ -139,6 +137,9 @@ def _clip_sample_scene(scene, s, moved, overrides, interp, position):
     if interp != "sample":
         params["decision_offset"] = [-(float(position[0]) - 8.0) / 16.0,
                                      -(8.0 - float(position[1])) / 16.0]
+    if interp == "centroid":
+        # the decision at any point of the pixel ∩ the primitive (allowances/clip.py)
+        params["decision_point"] = "centroid"
     sub = dataclasses.replace(scene, camera=moved, buffers=bufs, parameters=params,
                               raster=overrides, kinds={}, ids={}, may=None)
     # the clip decision's "may" pixels where the rate takes it: at the sample (the moved
@@ -172,76 +173,22 @@ class _Centre:
             a[k] = vals[k]
 
 
-def _clip_polygon(poly, a, b, c):
-    """Clip convex polygons ``poly (m, k, 2)`` (NaN-padded) by ``a·x + b·y + c ≥ 0`` per row;
-    returns ``(m, k + 1, 2)``."""
-    m, k, _ = poly.shape
-    out = np.full((m, k + 1, 2), np.nan)
-    count = np.zeros(m, np.int64)
-    valid = ~np.isnan(poly[:, :, 0])
-    n = valid.sum(axis=1)
-    for i in range(k):
-        p = poly[:, i]
-        q = np.where(((i + 1) >= n)[:, None], poly[:, 0], poly[:, min(i + 1, k - 1)])
-        live = i < n
-        dp = a * p[:, 0] + b * p[:, 1] + c
-        dq = a * q[:, 0] + b * q[:, 1] + c
-        keep = live & (dp >= 0)
-        rows = np.flatnonzero(keep)
-        out[rows, count[rows]] = p[rows]
-        count[rows] += 1
-        cross = live & ((dp >= 0) != (dq >= 0))
-        rows = np.flatnonzero(cross)
-        t = (dp[rows] / (dp[rows] - dq[rows]))[:, None]
-        out[rows, count[rows]] = p[rows] + t * (q[rows] - p[rows])
-        count[rows] += 1
-    return out
-
-
-def _pixel_triangle(clip, pix, width, height, eps):
-    """The vertices ``(E, 7, 2)`` (NaN-padded, window pixels, GL y up) of each entry's pixel
-    square grown by ``eps`` clipped by its face's triangle with every edge moved out by
-    ``eps``; ``ok (E,)`` where the face lies in front of the eye and is not degenerate."""
-    rows, cols = np.divmod(pix, width)
-    y0 = (height - 1 - rows).astype(np.float64)
-    x0 = cols.astype(np.float64)
-    e = len(pix)
-    poly = np.full((e, 4, 2), np.nan)
-    poly[:, 0] = np.column_stack([x0 - eps, y0 - eps])
-    poly[:, 1] = np.column_stack([x0 + 1 + eps, y0 - eps])
-    poly[:, 2] = np.column_stack([x0 + 1 + eps, y0 + 1 + eps])
-    poly[:, 3] = np.column_stack([x0 - eps, y0 + 1 + eps])
-    w = clip[:, :, 3]
-    ok = (w > 0).all(axis=1)
-    ws = np.where(ok[:, None], w, 1.0)
-    X = (clip[:, :, 0] / ws + 1.0) * 0.5 * width
-    Y = (clip[:, :, 1] / ws + 1.0) * 0.5 * height
-    area = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0])
-    ok &= area != 0
-    sign = np.where(area < 0, -1.0, 1.0)
-    for k in range(3):
-        i, j = k, (k + 1) % 3
-        # inside: sign·((Xj − Xi)(y − Yi) − (Yj − Yi)(x − Xi)) ≥ −eps·|edge|
-        dx, dy = X[:, j] - X[:, i], Y[:, j] - Y[:, i]
-        length = np.hypot(dx, dy)
-        a = -sign * dy
-        b = sign * dx
-        c = sign * (dy * X[:, i] - dx * Y[:, i]) + eps * length
-        poly = _clip_polygon(poly, a, b, c)
-    return poly, ok
-
-
-def centroid_ranges(scene, raster, a, bufs, eps):
+def centroid_ranges(scene, raster, a, bufs, eps, entries="set"):
     """Widen, in place, the barycentric and colour allowances of one sample's arrays ``a`` to
     what any point inside both the pixel and the primitive gives (centroid interpolation):
     for the golden's own face where it covers the sample, and for every face-set entry.
     Barycentrics are ratios of affine functions of the point, so their extremes over the
     (convex) polygon are at its vertices; the colour (a shade of the normal and the view
-    direction) its proven range over the polygon (:func:`headlight_bounds`)."""
+    direction) its proven range over the polygon (:func:`headlight_bounds`).
+
+    ``entries="cs"``: a clip-surface scene's clip sets (``cs_offsets``, ``cs_face``,
+    ``cs_<key>_lo``); a cap face (not among the scene's draws) is free there already, and
+    where the golden shows a cap its barycentrics and colour become free (the cap's shading
+    has no range bound here)."""
     from ...framebuffer import _build
     from ...raster import prepare
     from .core import _geometry
-    from .homogeneous import face_barycentrics
+    from .homogeneous import face_barycentrics, pixel_triangle
     cam = scene.camera
     w, h = cam.width, cam.height
     prep = prepare([d.mesh for d in scene.draws], **cam.kwargs,
@@ -250,20 +197,31 @@ def centroid_ranges(scene, raster, a, bufs, eps):
     prim = np.asarray(bufs["prim_id"], np.int64)
     obj = np.asarray(bufs.get("object_id", np.zeros_like(prim)), np.int64)
     offsets = np.asarray(prep.face_offsets, np.int64)
+    n_draws = len(scene.draws)
+    if entries == "cs":
+        cap = ((prim >= 0) & (obj >= n_draws)).ravel()
+        for key in ("barycentric", "color"):
+            if f"{key}_lo" in a:
+                a[f"{key}_lo"].reshape(-1, 3)[cap] = -np.inf
+                a[f"{key}_hi"].reshape(-1, 3)[cap] = np.inf
+        obj = np.where(obj < n_draws, obj, -1)
+        prim = np.where(obj >= 0, prim, -1)
     own_pix = np.flatnonzero((prim >= 0).ravel())
     own_face = offsets[obj.ravel()[own_pix]] + prim.ravel()[own_pix]
-    off = a.get("set_offsets")
-    if off is not None and len(a["set_face"]):
+    off = a.get(f"{entries}_offsets")
+    if off is not None and len(a[f"{entries}_face"]):
         set_pix = np.repeat(np.arange(off.size - 1, dtype=np.int64), np.diff(off.astype(np.int64)))
-        set_face = a["set_face"].astype(np.int64)
+        set_face = a[f"{entries}_face"].astype(np.int64)
+        drawn = np.flatnonzero(set_face < int(offsets[-1]))   # not a cap
+        set_pix, set_face = set_pix[drawn], set_face[drawn]
     else:
-        set_pix = set_face = np.zeros(0, np.int64)
+        set_pix = set_face = drawn = np.zeros(0, np.int64)
     pix = np.concatenate([own_pix, set_pix])
     face = np.concatenate([own_face, set_face])
     if not len(pix):
         return
     clip = prep.clip[prep.triangles.faces[face]].astype(np.float64)
-    poly, ok = _pixel_triangle(clip, pix, w, h, eps)
+    poly, ok = pixel_triangle(clip, pix, w, h, eps)
     has = ~np.isnan(poly[:, :, 0])
     ok &= has.any(axis=1)
     # pad each polygon with its first vertex (the extremes are unchanged)
@@ -292,9 +250,13 @@ def centroid_ranges(scene, raster, a, bufs, eps):
             flat_lo[own_pix] = np.minimum(flat_lo[own_pix], lo[:n_own]).astype(np.float32)
             flat_hi[own_pix] = np.maximum(flat_hi[own_pix], hi[:n_own]).astype(np.float32)
         if len(set_pix):
-            sl, sh = f"set_{key}_lo", f"set_{key}_hi"
-            a[sl] = np.minimum(a[sl], lo[n_own:]).astype(np.float32)
-            a[sh] = np.maximum(a[sh], hi[n_own:]).astype(np.float32)
+            sl, sh = f"{entries}_{key}_lo", f"{entries}_{key}_hi"
+            if sl in a:
+                new_lo = np.asarray(a[sl], np.float64).copy()
+                new_hi = np.asarray(a[sh], np.float64).copy()
+                new_lo[drawn] = np.minimum(new_lo[drawn], lo[n_own:])
+                new_hi[drawn] = np.maximum(new_hi[drawn], hi[n_own:])
+                a[sl], a[sh] = new_lo.astype(np.float32), new_hi.astype(np.float32)
 
 
 def _eye_corners(prep, face):
