@@ -292,6 +292,9 @@ def _sample_stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf
     one = np.float64(1 << bits)
     for tile in prange(ntiles):
         covered = np.zeros(ns, np.bool_)
+        # each sample's walk of the three edges (_walk_span, _walk_step): F, T per edge
+        wF = np.zeros((3, ns), np.int64)
+        wT = np.zeros((3, ns), np.int64)
         tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
         o = offsets[tile]
         for j in range(starts[tile], starts[tile + 1]):
@@ -307,9 +310,36 @@ def _sample_stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf
             dx0, dy0 = sy0 >> bits, -(sx0 >> bits)
             dx1, dy1 = sy1 >> bits, -(sx1 >> bits)
             dx2, dy2 = sy2 >> bits, -(sx2 >> bits)
+            nx = bx1 - bx0 + 1
+            m0, m1, m2 = abs(sx0), abs(sx1), abs(sx2)
+            wq0, wu0 = _floor_divmod(sy0, m0)
+            wq1, wu1 = _floor_divmod(sy1, m1)
+            wq2, wu2 = _floor_divmod(sy2, m2)
+            for s in range(ns):
+                wF[0, s], wT[0, s] = _floor_divmod(r0 + dx0 * oy[s] - dy0 * ox[s], m0)
+                wF[1, s], wT[1, s] = _floor_divmod(r1 + dx1 * oy[s] - dy1 * ox[s], m1)
+                wF[2, s], wT[2, s] = _floor_divmod(r2 + dx2 * oy[s] - dy2 * ox[s], m2)
             for y in range(by0, by1 + 1):
                 row = height - 1 - y
-                for i in range(bx1 - bx0 + 1):
+                # the samples' exact spans in this row: their lengths are the count pass's
+                # fragments, their union bounds the pixels the write pass tests (a pixel
+                # outside it has no covered sample)
+                lo = nx
+                hi = np.int64(-1)
+                for s in range(ns):
+                    a, b = _walk_span(sx0, wF[0, s], wT[0, s], 0, nx - 1)
+                    a, b = _walk_span(sx1, wF[1, s], wT[1, s], a, b)
+                    a, b = _walk_span(sx2, wF[2, s], wT[2, s], a, b)
+                    if a <= b:
+                        lo = min(lo, a)
+                        hi = max(hi, b)
+                        o += 0 if write else b - a + 1
+                    wF[0, s], wT[0, s] = _walk_step(wF[0, s], wT[0, s], wq0, wu0, m0)
+                    wF[1, s], wT[1, s] = _walk_step(wF[1, s], wT[1, s], wq1, wu1, m1)
+                    wF[2, s], wT[2, s] = _walk_step(wF[2, s], wT[2, s], wq2, wu2, m2)
+                if not write:
+                    hi = lo - 1
+                for i in range(lo, hi + 1):
                     x = bx0 + i
                     # the biased edge values at the pixel centre; a sample adds its offset
                     e0 = r0 + sx0 * i
@@ -330,9 +360,6 @@ def _sample_stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf
                                 best = s
                                 dbest = d
                     if n_cov == 0:
-                        continue
-                    if not write:
-                        o += n_cov
                         continue
                     # the pixel-rate point: the centre, or the centroid's sample
                     px = np.int64(0)
