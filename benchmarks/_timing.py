@@ -7,11 +7,12 @@ import time
 import numpy as np
 
 
-def first_ms(fn):
-    """Time of one call (the first call of a kernel includes loading or compiling it)."""
-    t0 = time.perf_counter()
+def first_ms(fn, clock=time.perf_counter):
+    """Time of one call (the first call of a kernel includes loading or compiling it);
+    ``clock=time.process_time``: the process's CPU time instead of the wall clock."""
+    t0 = clock()
     fn()
-    return (time.perf_counter() - t0) * 1e3
+    return (clock() - t0) * 1e3
 
 
 def median_ms(fn, repeats, *, warmup=False):
@@ -22,11 +23,12 @@ def median_ms(fn, repeats, *, warmup=False):
     return float(np.median(times))
 
 
-def interleaved_medians(fns, repeats):
+def interleaved_medians(fns, repeats, clock=time.perf_counter):
     """Median ms of each function, timed in rounds (one call of each per round), so that a
-    slow spell of a shared machine falls on all of them alike."""
+    slow spell of a shared machine falls on all of them alike (``clock``: as
+    :func:`first_ms`)."""
     times = [[] for _ in fns]
     for _ in range(repeats):
         for k, fn in enumerate(fns):
-            times[k].append(first_ms(fn))
+            times[k].append(first_ms(fn, clock))
     return [float(np.median(t)) for t in times]

@@ -1,6 +1,6 @@
 """Multisampled G-buffers: 1×, 4× and 8× beside llvmpipe 4×, measured in the same run.
 
-    python -m benchmarks.msaa [--repeats N] [--threads T]
+    python -m benchmarks.msaa [--repeats N] [--threads T] [--cpu]
 
 The 81,920-face icosphere at 1024×768 (``benchmarks/raster.py``'s first case). refraster, in a
 process of its own with ``NUMBA_NUM_THREADS`` = T and the tuned malloc of ``benchmarks.raster``:
@@ -12,7 +12,9 @@ clip positions into a 4-sample ``R32I`` id target with a 4-sample float depth bu
 clear + draw + ``glFinish`` (``tests/oracles/llvmpipe_msaa.py``; nothing is resolved or read
 back), and with the per-sample read-back (``texelFetch`` of the four samples into an
 ``RGBA32I`` target and its read) apart. Prints one JSON line and a Markdown table; the cost per
-sample is each frame's time over the 1× frame's.
+sample is each frame's time over the 1× frame's. ``--cpu`` times refraster's frames in the
+process's CPU time (with ``--threads 1``, one thread's: on a busy shared machine a steadier
+measure of the ratios than the wall clock; llvmpipe stays wall-clock).
 """
 
 from __future__ import annotations
@@ -57,7 +59,8 @@ fns = [lambda: rf.render(mesh, **kw), lambda: rf.render_samples(mesh, **kw, rast
        lambda: rf.render_samples(mesh, **kw, raster=s8)]
 for fn in fns:       # compile and reach the steady state
     fn(); fn()
-t1, t4, t8 = interleaved_medians(fns, int(sys.argv[2]))
+t1, t4, t8 = interleaved_medians(fns, int(sys.argv[2]),
+                                 time.process_time if sys.argv[3] == "cpu" else time.perf_counter)
 print(json.dumps(dict(x1_ms=t1, x4_ms=t4, x8_ms=t8)))
 """ % (W, H)
 
@@ -79,8 +82,8 @@ print(json.dumps(dict(draw_ms=float(np.median(draw)), read_ms=float(np.median(re
 """ % (W, H)
 
 
-def _run(code, path, repeats, env):
-    r = subprocess.run([sys.executable, "-c", code, str(path), str(repeats)], env=env,
+def _run(code, path, repeats, env, clock="wall"):
+    r = subprocess.run([sys.executable, "-c", code, str(path), str(repeats), clock], env=env,
                        capture_output=True, text=True, cwd=ROOT, timeout=3600)
     if r.returncode != 0:
         raise RuntimeError(r.stderr[-2000:])
@@ -91,6 +94,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--cpu", action="store_true",
+                    help="refraster's frames in CPU time (process_time), not wall-clock; on a "
+                         "busy machine with --threads 1 the steadier measure of the ratios")
     a = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         path = pathlib.Path(tmp) / "scene.npz"
@@ -98,17 +104,19 @@ def main(argv=None):
         base = {k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"}
         env = dict(base, NUMBA_NUM_THREADS=str(a.threads), GLIBC_TUNABLES=TUNED,
                    PYTHONPATH=str(ROOT))
-        ours = _run(_REFRASTER, path, a.repeats, env)
+        ours = _run(_REFRASTER, path, a.repeats, env, "cpu" if a.cpu else "wall")
         gl_env = dict(base, LP_NUM_THREADS=str(a.threads), GLIBC_TUNABLES=TUNED)
         try:
             gl = _run(_LLVMPIPE, path, a.repeats, gl_env)
         except RuntimeError as exc:
             gl = {"error": str(exc).splitlines()[-1] if str(exc) else "failed"}
     out = dict(faces=faces, width=W, height=H, threads=a.threads, load=os.getloadavg(),
+               clock="cpu" if a.cpu else "wall",
                refraster=ours, llvmpipe=gl)
     print(json.dumps(out))
     x1 = ours["x1_ms"]
-    print(f"\n| frame ({faces:,} faces, {W}×{H}, {a.threads} threads) | ms | × the 1× frame |")
+    unit = "ms (refraster: CPU)" if a.cpu else "ms"
+    print(f"\n| frame ({faces:,} faces, {W}×{H}, {a.threads} threads) | {unit} | × the 1× frame |")
     print("|---|---|---|")
     print(f"| refraster 1× G-buffer (`render`) | {x1:.1f} | 1.00 |")
     for n in (4, 8):

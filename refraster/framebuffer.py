@@ -603,7 +603,7 @@ def _render_frame(meshes, view, proj, width, height, state, model, fragment_stag
         depth, prim_global, front, bary = fused(
             prep.triangles, fill_rule=prep.fill_rule, depth_func=DEPTH_FUNCS[depth_func],
             clear_depth=clear, scratch=scratch)
-        facing(state, front, prim_global >= 0)
+        facing(state, front, prim_global)
         return _build(prep.meshes, prep.models, prep.view, prep.proj, depth, prim_global,
                       prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg)
     from .raster import _fragments_from
@@ -640,7 +640,7 @@ def _render_into(prep, out, model, bg, scratch):
     depth, prim_global, front, bary = fused(
         prep.triangles, fill_rule=prep.fill_rule, depth_func=DEPTH_FUNCS[depth_func],
         clear_depth=clear, buffers=buffers, scratch=scratch)
-    facing(state, front, prim_global >= 0)
+    facing(state, front, prim_global)
     return _build(prep.meshes, prep.models, prep.view, prep.proj, depth, prim_global,
                   prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg, out=out)
 
@@ -750,7 +750,7 @@ def _render_reusable(prep, out, owners, trusted, arrays, faces, normals, depth_f
               depth_func=DEPTH_FUNCS[depth_func], clear_depth=clear,
               buffers=(depth, faces, front, bary.reshape(h * w, 3)), scratch=scratch,
               cleared=True)
-        facing(prep.state, front, faces >= 0)
+        facing(prep.state, front, faces)
         _build(prep.meshes, prep.models, prep.view, prep.proj, depth, faces,
                prep.face_offsets, front, bary, normals, bg, out=out,
                targets=(eye_depth, normal, prim, obj), spans=spans)

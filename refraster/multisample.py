@@ -103,7 +103,7 @@ def render_samples(meshes, *, view, proj, width, height, model=None, raster=None
             depth_func=DEPTH_FUNCS[state.depth_func], clear_depth=state.clear_depth,
             interpolation=state.interpolation)
         s = len(ox)
-        facing(state, front, prim_global >= 0)
+        facing(state, front, prim_global)
         # the samples as the columns of an (H, W·S) image: the G-buffer's finalize and shade
         # look at each sample's face and barycentrics only, never at its position
         fb = _build(prep.meshes, prep.models, prep.view, prep.proj, depth.reshape(h, w * s),

@@ -270,6 +270,39 @@ def test_one_sample_is_the_single_sample_frame():
             assert np.array_equal(a[:, :, 0], getattr(fb, name)), (interp, name)
 
 
+# ------------------------------------------------------------------ the exact span walk
+
+def test_edge_walk_gives_each_rows_exact_span():
+    """The multisample pass's spans (each edge walked down the rows without divisions) against
+    their definition, enumerated in Python integers: the columns ``i`` of a row of ``n`` where
+    every ``v_k + sx_k·i ≥ 0`` — steep, shallow, horizontal and vertical edges, values past
+    2^53, steps of either sign."""
+    from refraster.raster.multisample import _floor_divmod, _walk_span, _walk_step
+    rng = np.random.default_rng(43)
+    for case in range(400):
+        scale = 1 << int(rng.choice([4, 12, 30, 58]))
+        n = int(rng.integers(1, 24))
+        sx = [int(rng.integers(-scale, scale + 1)) * int(rng.integers(0, 2) or (k == 0))
+              for k in range(3)]
+        sy = [int(rng.integers(-scale, scale + 1)) for _ in range(3)]
+        v = [int(rng.integers(-scale * n, scale * n + 1)) for _ in range(3)]
+        walk = []
+        for k in range(3):
+            m = abs(sx[k])
+            q, u = _floor_divmod(np.int64(sy[k]), np.int64(m))
+            F, T = _floor_divmod(np.int64(v[k]), np.int64(m))
+            walk.append([F, T, q, u, m])
+        for row in range(6):
+            a, b = 0, n - 1
+            for k in range(3):
+                a, b = _walk_span(np.int64(sx[k]), walk[k][0], walk[k][1], a, b)
+            want = [i for i in range(n)
+                    if all(v[k] + sy[k] * row + sx[k] * i >= 0 for k in range(3))]
+            assert list(range(a, b + 1)) == want, (case, row, sx, sy, v)
+            for k in range(3):
+                walk[k][0], walk[k][1] = _walk_step(*walk[k])
+
+
 # ------------------------------------------------------------------ analytic: area
 
 def test_covered_fraction_converges_to_the_area():

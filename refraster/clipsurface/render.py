@@ -423,7 +423,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
         depth, prim_global, front, bary = _fused_clip(
             prep, tv, wv, n_solids, _surfaces_in_space(surfaces, space, view), cap_tests,
             sure_flags, DEPTH_FUNCS[state.depth_func], state.clear_depth)
-        facing(state, front, prim_global >= 0)
+        facing(state, front, prim_global)
         h, w = depth.shape
         identity = all(np.array_equal(m, np.eye(4)) for m in prep.models)
         geometry = (tv, prep.triangles.faces) if identity and space == "world" else None

@@ -38,15 +38,16 @@ def conv_code(state):
     return convention_code(state.depth_range, state.depth_clamp, state.origin, state.ndc_y)
 
 
-def facing(state, front, covered=None):
+def facing(state, front, face=None):
     """Turn the rasterizer's counter-clockwise facing into the state's, in place: under
     ``front_face="cw"`` a fragment is front-facing where the rasterizer found it back-facing
-    (only covered pixels change; the background stays False)."""
+    (with the face image ``face`` (−1 background) only covered pixels change; the background
+    stays False). The coverage mask is made only then (a frame under ``"ccw"`` needs none)."""
     if state.front_face == "cw":
-        if covered is None:
+        if face is None:
             np.logical_not(front, out=front)
         else:
-            np.not_equal(front, covered, out=front)
+            np.not_equal(front, face >= 0, out=front)
     return front
 
 

@@ -26,9 +26,8 @@ import numpy as np
 from numba import njit, prange
 
 from .._config import IJIT, PJIT
-from .rasterizer import (NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geometry,
-                         _inv_float_area, _load, _setup, bin_primitives, depth_test,
-                         perspective_bary, row_span, tile_rect)
+from .rasterizer import (NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geometry, _setup,
+                         _setup_winner, bin_primitives, depth_test, perspective_bary, tile_rect)
 
 #: ``RasterState.interpolation`` names and the kernel's codes.
 INTERPOLATIONS = {"center": 0, "centroid": 1, "sample": 2}
@@ -61,6 +60,40 @@ def _lambdas_at(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, cx, cy, e0, e1, e2, inv_ar
     return np.float64(e0) * inv_area, np.float64(e1) * inv_area, np.float64(e2) * inv_area
 
 
+@njit(**IJIT)
+def _floor_divmod(v, m):
+    """``(⌊v / m⌋, v − m·⌊v / m⌋)`` for ``m > 0`` (exact int64); ``(0, v)`` for ``m = 0``."""
+    if m == 0:
+        return np.int64(0), v
+    q = v // m
+    return q, v - q * m
+
+
+@njit(**IJIT)
+def _walk_span(sx, F, T, a, b):
+    """Narrow the row's span ``[a, b]`` to where one edge ``v + sx·i ≥ 0``, from its walk
+    ``F = ⌊v / |sx|⌋``, ``T = v − |sx|·F`` (``T = v`` when ``sx = 0``): ``i ≥ −F`` for
+    ``sx > 0``, ``i ≤ F`` for ``sx < 0`` — :func:`refraster.raster.rasterizer.row_span`'s
+    span without its divisions."""
+    if sx > 0:
+        return max(a, -F), b
+    if sx < 0:
+        return a, min(b, F)
+    if T < 0:
+        return a, a - 1
+    return a, b
+
+
+@njit(**IJIT)
+def _walk_step(F, T, q, u, m):
+    """One row down an edge's walk: ``v`` grows by the y step ``q·m + u`` (``0 ≤ u < m``;
+    ``q = 0, u`` = the step when ``m = 0``), so ``F`` by ``q`` and the carry of ``T + u``."""
+    t = T + u
+    if t >= m:
+        return F + q + 1, t - m
+    return F + q, t
+
+
 @njit(**PJIT)
 def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront,
                sbox, sarea, B, starts, lists, ntx, width, height, bits, rule, func, clear,
@@ -79,10 +112,6 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
         tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
         zbuf = np.full((TILE, TILE, ns), clear, np.float32)
         win = np.full((TILE, TILE, ns), NO_ITEM, np.int64)
-        # each sample's constant offsets of the three edge functions (dx_k·oy − dy_k·ox)
-        d0 = np.zeros(ns, np.int64)
-        d1 = np.zeros(ns, np.int64)
-        d2 = np.zeros(ns, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
             bx0, bx1, by0, by1 = _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1)
@@ -92,25 +121,31 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
              z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx,
              dzdy) = _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
                             sfront, sarea, bits, rule, bx0, by0)
-            # the edges' dx, dy (the steps are their multiples of 2^bits)
-            dx0, dy0 = sy0 >> bits, -(sx0 >> bits)
-            dx1, dy1 = sy1 >> bits, -(sx1 >> bits)
-            dx2, dy2 = sy2 >> bits, -(sx2 >> bits)
-            # each sample's row span (row_span: exact, every sample in it is covered), so no
-            # edge test and no sample outside the triangle's rows is visited
             nx = bx1 - bx0 + 1
+            # each edge's walk down the rows: |step in x| and the step in y divided by it,
+            # shared by the samples (a sample only starts elsewhere)
+            m0, m1, m2 = abs(sx0), abs(sx1), abs(sx2)
+            q0, u0 = _floor_divmod(sy0, m0)
+            q1, u1 = _floor_divmod(sy1, m1)
+            q2, u2 = _floor_divmod(sy2, m2)
+            zd0 = np.float64(z0)
             for s in range(ns):
-                d0[s] = dx0 * oy[s] - dy0 * ox[s]
-                d1[s] = dx1 * oy[s] - dy1 * ox[s]
-                d2[s] = dx2 * oy[s] - dy2 * ox[s]
-            if inv_af > 0.0:
-                # the depth plane through the unsnapped vertices: _depth_at's expression in
-                # its order, without its fallback's barycentrics
-                zd0 = np.float64(z0)
-                for y in range(by0, by1 + 1):
-                    ly = y - ty0
-                    for s in range(ns):
-                        a, b = row_span(r0 + d0[s], sx0, r1 + d1[s], sx1, r2 + d2[s], sx2, nx)
+                # the sample's edge values at the box's first pixel: the centre's plus the
+                # constant dx_k·oy − dy_k·ox, then walked exactly row by row (_walk_step)
+                e0 = r0 + (sy0 >> bits) * oy[s] + (sx0 >> bits) * ox[s]
+                e1 = r1 + (sy1 >> bits) * oy[s] + (sx1 >> bits) * ox[s]
+                e2 = r2 + (sy2 >> bits) * oy[s] + (sx2 >> bits) * ox[s]
+                F0, T0 = _floor_divmod(e0, m0)
+                F1, T1 = _floor_divmod(e1, m1)
+                F2, T2 = _floor_divmod(e2, m2)
+                if inv_af > 0.0:
+                    # the depth plane through the unsnapped vertices: _depth_at's expression
+                    # in its order, without its fallback's barycentrics
+                    for y in range(by0, by1 + 1):
+                        a, b = _walk_span(sx0, F0, T0, 0, nx - 1)
+                        a, b = _walk_span(sx1, F1, T1, a, b)
+                        a, b = _walk_span(sx2, F2, T2, a, b)
+                        ly = y - ty0
                         zy = dzdy * ((np.float64(y) + 0.5 + foy[s]) - fy0)
                         for x in range(bx0 + a, bx0 + b + 1):
                             z = zd0 + dzdx * ((np.float64(x) + 0.5 + fox[s]) - fx0) + zy
@@ -123,38 +158,40 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
                             if depth_test(func, zf, zbuf[ly, lx, s]):
                                 zbuf[ly, lx, s] = zf
                                 win[ly, lx, s] = item
-                    r0 += sy0
-                    r1 += sy1
-                    r2 += sy2
-                continue
-            for y in range(by0, by1 + 1):
-                ly = y - ty0
-                for s in range(ns):
-                    a, b = row_span(r0 + d0[s], sx0, r1 + d1[s], sx1, r2 + d2[s], sx2, nx)
+                        F0, T0 = _walk_step(F0, T0, q0, u0, m0)
+                        F1, T1 = _walk_step(F1, T1, q1, u1, m1)
+                        F2, T2 = _walk_step(F2, T2, q2, u2, m2)
+                    continue
+                for y in range(by0, by1 + 1):
+                    a, b = _walk_span(sx0, F0, T0, 0, nx - 1)
+                    a, b = _walk_span(sx1, F1, T1, a, b)
+                    a, b = _walk_span(sx2, F2, T2, a, b)
+                    ly = y - ty0
                     cy = np.float64(y) + 0.5 + foy[s]
                     for i in range(a, b + 1):
                         x = bx0 + i
                         cx = np.float64(x) + 0.5 + fox[s]
                         z = _depth_at(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, cx, cy,
-                                      np.float64(r0 + d0[s] + sx0 * i + b0) * inv_area,
-                                      np.float64(r1 + d1[s] + sx1 * i + b1) * inv_area,
-                                      np.float64(r2 + d2[s] + sx2 * i + b2) * inv_area)
+                                      np.float64(e0 + sx0 * i + b0) * inv_area,
+                                      np.float64(e1 + sx1 * i + b1) * inv_area,
+                                      np.float64(e2 + sx2 * i + b2) * inv_area)
                         lx = x - tx0
                         if depth_test(func, z, zbuf[ly, lx, s]):
                             zbuf[ly, lx, s] = z
                             win[ly, lx, s] = item
-                r0 += sy0
-                r1 += sy1
-                r2 += sy2
+                    e0 += sy0
+                    e1 += sy1
+                    e2 += sy2
+                    F0, T0 = _walk_step(F0, T0, q0, u0, m0)
+                    F1, T1 = _walk_step(F1, T1, q1, u1, m1)
+                    F2, T2 = _walk_step(F2, T2, q2, u2, m2)
         # write the winners: face, facing, depth and the barycentrics at the interpolation
         # point; the set-up (_load, 1/areas) is redone only when the item changes, the edge
         # values at the pixel centre once per pixel and item
         last = lists[starts[tile]]
-        (X0, Y0, X1, Y1, X2, Y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
-         iw2, area, prim, front, piece) = _load(last, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
-                                                sIW, sXf, sYf, sprim, sfront, sarea)
-        inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
-        inv_area = 1.0 / np.float64(area)
+        (X0, Y0, X1, Y1, X2, Y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2, area,
+         prim, front, piece, inv_af, inv_area) = _setup_winner(
+            last, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront, sarea)
         e0 = e1 = e2 = c0 = c1 = c2 = np.int64(0)
         q0 = q1 = q2 = np.float32(0.0)
         for y in range(ty0, ty1 + 1):
@@ -169,11 +206,9 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
                         last = item
                         fresh = True
                         (X0, Y0, X1, Y1, X2, Y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0,
-                         iw1, iw2, area, prim, front, piece) = _load(
+                         iw1, iw2, area, prim, front, piece, inv_af, inv_area) = _setup_winner(
                             item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf,
                             sprim, sfront, sarea)
-                        inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
-                        inv_area = 1.0 / np.float64(area)
                     o_depth[row, x, s] = zbuf[y - ty0, x - tx0, s]
                     o_prim[row, x, s] = prim
                     o_front[row, x, s] = front
@@ -257,6 +292,9 @@ def _sample_stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf
     one = np.float64(1 << bits)
     for tile in prange(ntiles):
         covered = np.zeros(ns, np.bool_)
+        # each sample's walk of the three edges (_walk_span, _walk_step): F, T per edge
+        wF = np.zeros((3, ns), np.int64)
+        wT = np.zeros((3, ns), np.int64)
         tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
         o = offsets[tile]
         for j in range(starts[tile], starts[tile + 1]):
@@ -272,9 +310,36 @@ def _sample_stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf
             dx0, dy0 = sy0 >> bits, -(sx0 >> bits)
             dx1, dy1 = sy1 >> bits, -(sx1 >> bits)
             dx2, dy2 = sy2 >> bits, -(sx2 >> bits)
+            nx = bx1 - bx0 + 1
+            m0, m1, m2 = abs(sx0), abs(sx1), abs(sx2)
+            wq0, wu0 = _floor_divmod(sy0, m0)
+            wq1, wu1 = _floor_divmod(sy1, m1)
+            wq2, wu2 = _floor_divmod(sy2, m2)
+            for s in range(ns):
+                wF[0, s], wT[0, s] = _floor_divmod(r0 + dx0 * oy[s] - dy0 * ox[s], m0)
+                wF[1, s], wT[1, s] = _floor_divmod(r1 + dx1 * oy[s] - dy1 * ox[s], m1)
+                wF[2, s], wT[2, s] = _floor_divmod(r2 + dx2 * oy[s] - dy2 * ox[s], m2)
             for y in range(by0, by1 + 1):
                 row = height - 1 - y
-                for i in range(bx1 - bx0 + 1):
+                # the samples' exact spans in this row: their lengths are the count pass's
+                # fragments, their union bounds the pixels the write pass tests (a pixel
+                # outside it has no covered sample)
+                lo = nx
+                hi = np.int64(-1)
+                for s in range(ns):
+                    a, b = _walk_span(sx0, wF[0, s], wT[0, s], 0, nx - 1)
+                    a, b = _walk_span(sx1, wF[1, s], wT[1, s], a, b)
+                    a, b = _walk_span(sx2, wF[2, s], wT[2, s], a, b)
+                    if a <= b:
+                        lo = min(lo, a)
+                        hi = max(hi, b)
+                        o += 0 if write else b - a + 1
+                    wF[0, s], wT[0, s] = _walk_step(wF[0, s], wT[0, s], wq0, wu0, m0)
+                    wF[1, s], wT[1, s] = _walk_step(wF[1, s], wT[1, s], wq1, wu1, m1)
+                    wF[2, s], wT[2, s] = _walk_step(wF[2, s], wT[2, s], wq2, wu2, m2)
+                if not write:
+                    hi = lo - 1
+                for i in range(lo, hi + 1):
                     x = bx0 + i
                     # the biased edge values at the pixel centre; a sample adds its offset
                     e0 = r0 + sx0 * i
@@ -295,9 +360,6 @@ def _sample_stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf
                                 best = s
                                 dbest = d
                     if n_cov == 0:
-                        continue
-                    if not write:
-                        o += n_cov
                         continue
                     # the pixel-rate point: the centre, or the centroid's sample
                     px = np.int64(0)

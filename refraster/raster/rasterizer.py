@@ -321,18 +321,32 @@ def write_winner(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, 
                  sarea, B, bits, rule, x, y, row, width, o_prim, o_front, o_bary):
     """The face, facing and barycentrics of the item that won pixel (x, y) (output ``row``),
     recomputed exactly as the fragment stream computes them."""
-    (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
-     iw2, area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
-                                            sIW, sXf, sYf, sprim, sfront, sarea)
+    (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2, area,
+     prim, front, piece, inv_af, inv_area) = _setup_winner(
+        item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront, sarea)
     o_prim[row, x] = prim
     o_front[row, x] = front
     e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
     e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
     e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
-    l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2,
-                         _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2), x, y,
-                         e0 + b0, e1 + b1, e2 + b2, 1.0 / np.float64(area))
+    l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y, e0 + b0, e1 + b1, e2 + b2,
+                         inv_area)
     fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary, row * width + x)
+
+
+@njit(**IJIT)
+def _setup_winner(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront,
+                  sarea):
+    """:func:`_load`'s values of one binned item and its 1 / unsnapped doubled area
+    (:func:`_inv_float_area`) and 1 / snapped doubled area: the set-up a tile's write-out of
+    the winners redoes once per run of pixels won by one item (and :func:`_setup` starts
+    from)."""
+    (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2,
+     area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
+                                       sIW, sXf, sYf, sprim, sfront, sarea)
+    return (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2,
+            area, prim, front, piece, _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2),
+            1.0 / np.float64(area))
 
 
 @njit(**IJIT)
@@ -342,16 +356,14 @@ def _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
     (px, py) with their steps and biases, unsnapped positions, depths, 1/w, face, facing, piece,
     1/area (snapped and unsnapped) and the depth plane's gradient."""
     (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2,
-     area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
-                                       sIW, sXf, sYf, sprim, sfront, sarea)
+     area, prim, front, piece, inv_af, inv_area) = _setup_winner(
+        item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront, sarea)
     r0, sx0, sy0, b0 = _edge(x1, y1, x2, y2, bits, rule, px, py)
     r1, sx1, sy1, b1 = _edge(x2, y2, x0, y0, bits, rule, px, py)
     r2, sx2, sy2, b2 = _edge(x0, y0, x1, y1, bits, rule, px, py)
-    inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
     dzdx, dzdy = depth_plane(fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, inv_af)
     return (r0, sx0, sy0, b0, r1, sx1, sy1, b1, r2, sx2, sy2, b2, fx0, fy0, fx1, fy1, fx2, fy2,
-            z0, z1, z2, iw0, iw1, iw2, prim, front, piece, 1.0 / np.float64(area), inv_af, dzdx,
-            dzdy)
+            z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx, dzdy)
 
 
 # ------------------------------------------------------------------------------ kernels
@@ -532,11 +544,9 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
         # not called: as a function (Numba cannot inline a loop into a prange body) the
         # post-pass ran ~20 % slower.
         last = lists[starts[tile]]
-        (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
-         iw2, area, prim, front, piece) = _load(last, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ,
-                                                sIW, sXf, sYf, sprim, sfront, sarea)
-        inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
-        inv_area = 1.0 / np.float64(area)
+        (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2, area,
+         prim, front, piece, inv_af, inv_area) = _setup_winner(
+            last, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront, sarea)
         for y in range(ty0, ty1 + 1):
             row = height - 1 - y
             for x in range(tx0, tx1 + 1):
@@ -546,11 +556,9 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 if item != last:
                     last = item
                     (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
-                     iw2, area, prim, front, piece) = _load(item, f, vX, vY, vZ, vIW, vXf, vYf,
-                                                            sX, sY, sZ, sIW, sXf, sYf, sprim,
-                                                            sfront, sarea)
-                    inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
-                    inv_area = 1.0 / np.float64(area)
+                     iw2, area, prim, front, piece, inv_af, inv_area) = _setup_winner(
+                        item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
+                        sfront, sarea)
                 o_depth[row, x] = zbuf[y - ty0, x - tx0]
                 o_prim[row, x] = prim
                 o_front[row, x] = front
