@@ -70,7 +70,10 @@ def _texture(backend, arrays, wrap):
 SHADERS = {"clip": ("clip.vert", "clip.geom", "clip.frag"),
            # sample rate: the inputs interpolated at the sample in the shader, as the
            # multisampled G-buffers' (shaders/sample_interp.glsl)
-           "clip_sample": ("clip.vert", "clip.geom", "clip.frag", ("SAMPLE_INTERP",))}
+           "clip_sample": ("clip.vert", "clip.geom", "clip.frag", ("SAMPLE_INTERP",)),
+           # pixel rate at a centroid point: the same, at the fragment's centroid point
+           "clip_centroid": ("clip.vert", "clip.geom", "clip.frag",
+                             ("SAMPLE_INTERP", "CENTROID_INTERP"))}
 
 
 def load(backend, package_dir, scene):
@@ -205,12 +208,13 @@ def draw(backend, scene, loaded):
     }
 
 
-def _passes(backend, scene, loaded, sample_rate=False):
-    """The two passes (solids, then caps) into the bound targets; ``sample_rate``: the program
-    that interpolates its inputs at the sample itself (``shaders/sample_interp.glsl``: llvmpipe's
-    own divide at the sample is the pixel centre's)."""
+def _passes(backend, scene, loaded, variant="clip"):
+    """The two passes (solids, then caps) into the bound targets with the program ``variant``
+    of :data:`SHADERS`: ``"clip_sample"`` interpolates its inputs at the sample itself
+    (``shaders/sample_interp.glsl``: llvmpipe's own divide at the sample is the pixel
+    centre's), ``"clip_centroid"`` the same way at the fragment's centroid point."""
     mgl = backend.mgl
-    prog = programs(backend, SHADERS)["clip_sample" if sample_rate else "clip"]
+    prog = programs(backend, SHADERS)[variant]
     p = scene["parameters"]
     raster, shading = scene["raster"], scene["shading"]
     view = matrix(scene["camera"]["view"], "camera.view")
@@ -223,6 +227,11 @@ def _passes(backend, scene, loaded, sample_rate=False):
     set_(prog, "u_n_surfaces", len(surfaces))
     size = (scene["viewport"]["width"], scene["viewport"]["height"])
     set_(prog, "u_viewport_px", tuple(float(x) for x in size))
+    if variant == "clip_centroid":      # the declared pattern (1/16 pixel, y down) in GL's y up
+        pos = scene["parameters"]["sample_pattern"]["positions"]
+        set_(prog, "u_samples", len(pos))
+        set_(prog, "u_sample_xy", [(x / 16.0, 1.0 - y / 16.0) for x, y in pos]
+             + [(0.5, 0.5)] * (16 - len(pos)))
     O, Uh, Vh, N, lens, S, enabled = [], [], [], [], [], [], []
     for e in surfaces:
         s = e["s"]
@@ -306,8 +315,10 @@ def draw_samples(backend, scene, loaded):
     sample, its inputs (the world position of Listing 1's test and the parity test) the
     sample's: interpolated in the shader from the corners (``shaders/sample_interp.glsl``),
     since llvmpipe's own divide of a smooth input at the sample is the pixel centre's ``1/w``
-    — else at pixel rate (one invocation per pixel, inputs at the centre, its discard removing
-    every covered sample); then each sample read with
+    — else at pixel rate (one invocation per pixel, its discard removing every covered
+    sample), its inputs at the centre, or (``"centroid"``) interpolated from the corners at the
+    centroid point llvmpipe picks (the centre where all samples are covered, else the first
+    covered sample: inside both the pixel and the primitive); then each sample read with
     ``texelFetch`` (:mod:`refraster.gl.msaa`'s fetch pass). Only where the context's own
     positions are the scene's declared ones."""
     import ctypes
@@ -334,7 +345,8 @@ def draw_samples(backend, scene, loaded):
     enable = gl_function("glEnable", None, ctypes.c_uint)
     disable = gl_function("glDisable", None, ctypes.c_uint)
     min_shading = gl_function("glMinSampleShading", None, ctypes.c_float)
-    per_sample = raster.get("interpolation", "center") == "sample"
+    interp = raster.get("interpolation", "center")
+    per_sample = interp == "sample"
     bg = np.asarray(shading["background"], np.float32)
     clear = np.float32(raster["clear_depth"])
     out = {}
@@ -345,7 +357,8 @@ def draw_samples(backend, scene, loaded):
         if per_sample:
             enable(_GL_SAMPLE_SHADING)
             min_shading(1.0)
-        _passes(backend, scene, loaded, sample_rate=per_sample)
+        _passes(backend, scene, loaded, {"sample": "clip_sample",
+                                         "centroid": "clip_centroid"}.get(interp, "clip"))
         disable(_GL_SAMPLE_SHADING)
         ctx.finish()
         fetch = programs(backend, FETCH)["fetch"]

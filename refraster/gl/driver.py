@@ -199,10 +199,6 @@ class Backend:
             return ("vds: only the parity test over one sprite (test 'parity', one axis) is "
                     "implemented")
         if technique == "clipsurface":
-            interp = scene.get("raster", {}).get("interpolation", "center")
-            if scene.get("raster", {}).get("samples", 1) != 1 and interp == "centroid":
-                return ("clipsurface: interpolation 'centroid' at samples > 1 is not "
-                        "implemented (pixel rate at the centre, or sample rate)")
             return clipsurface.supports(scene)
         return None
 

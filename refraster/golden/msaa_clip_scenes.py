@@ -82,6 +82,10 @@ _RATES = {
     "msaa4gl_clipsurface_pixel": (
         {"samples": 4, "sample_locations": "gl_llvmpipe"},
         "pixel rate (no sample shading), at llvmpipe's GL positions"),
+    "msaa4gl_clipsurface_centroid": (
+        {"samples": 4, "sample_locations": "gl_llvmpipe", "interpolation": "centroid"},
+        "pixel rate at a centroid point (inside both the pixel and the primitive), at "
+        "llvmpipe's GL positions"),
 }
 
 

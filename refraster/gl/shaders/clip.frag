@@ -8,6 +8,9 @@
 //          maps (or the user's normal, light and diffuse maps).
 // Every map is a GL_LINEAR texture with the surface's wrap mode, row 0 at t = 0.
 #version 330 core
+#ifdef CENTROID_INTERP
+#extension GL_ARB_gpu_shader5 : require     // gl_SampleMaskIn
+#endif
 
 #define MAX_SURFACES 2
 
@@ -50,6 +53,23 @@ in vec3 gs_world;
 // multisampled G-buffers do (llvmpipe's own are not the sample's, docs/backends.md)
 #include "sample_interp.glsl"
 flat in vec3 gs_corner_world[3];
+#ifdef CENTROID_INTERP
+// pixel rate at a centroid point (raster.interpolation "centroid"): the inputs interpolated
+// from the corners at the point llvmpipe's `centroid` picks - the pixel centre where every
+// sample is covered, else the first covered sample (gl_SampleMaskIn: this fragment's
+// coverage), a point inside both the pixel and the primitive. Not llvmpipe's own `centroid
+// noperspective` window position: its noperspective inputs fail on triangles it clips
+// (docs/backends.md, "llvmpipe's divide at sample rate").
+uniform int u_samples;
+uniform vec2 u_sample_xy[16];            // sample s's position in the pixel, GL y up
+vec2 centroid_point() {
+    int mask = gl_SampleMaskIn[0];
+    if (mask == (1 << u_samples) - 1) return gl_FragCoord.xy;
+    for (int s = 0; s < u_samples; ++s)
+        if (((mask >> s) & 1) != 0) return floor(gl_FragCoord.xy) + u_sample_xy[s];
+    return gl_FragCoord.xy;
+}
+#endif
 #endif
 
 layout(location = 0) out float o_depth;
@@ -104,7 +124,11 @@ bool parity_inside(vec3 T) {
 void main() {
     vec3 P = gs_world, eye = gs_eye, nrm = gs_normal, bary = gs_bary;
 #ifdef SAMPLE_INTERP
+#ifdef CENTROID_INTERP
+    sample_interp_at(centroid_point(), eye, nrm, bary);
+#else
     sample_interp(eye, nrm, bary);
+#endif
 #ifndef FAULT_MSAA_DIVIDE_AT_CENTRE
     P = at_sample(bary, gs_corner_world);
 #endif

@@ -16,17 +16,21 @@ vec3 at_sample(vec3 bary, vec3 corner[3]) {
     return bary.x * corner[0] + bary.y * corner[1] + bary.z * corner[2];
 }
 
-void sample_interp(out vec3 eye, out vec3 normal, out vec3 bary) {
+// the inputs at window point p (the sample's, or the clip program's centroid point)
+void sample_interp_at(vec2 p, out vec3 eye, out vec3 normal, out vec3 bary) {
 #ifdef FAULT_MSAA_DIVIDE_AT_CENTRE
     // planted fault: the interpolation left to llvmpipe (its divide by the centre's 1/w)
     eye = gs_eye; normal = gs_normal; bary = gs_bary;
     return;
 #endif
-    vec2 p = gl_FragCoord.xy;
     vec2 a = gs_corner_win[0].xy - p, b = gs_corner_win[1].xy - p, c = gs_corner_win[2].xy - p;
     vec3 l = vec3(b.x * c.y - b.y * c.x, c.x * a.y - c.y * a.x, a.x * b.y - a.y * b.x);
     vec3 q = l * vec3(gs_corner_win[0].z, gs_corner_win[1].z, gs_corner_win[2].z);
     bary = q / (q.x + q.y + q.z);
     eye = at_sample(bary, gs_corner_eye);
     normal = at_sample(bary, gs_corner_normal);
+}
+
+void sample_interp(out vec3 eye, out vec3 normal, out vec3 bary) {
+    sample_interp_at(gl_FragCoord.xy, eye, normal, bary);
 }

@@ -137,6 +137,7 @@ def clip_allowances(scene, raster, eps, eye_budget):
             clip_v = prep.clip[prep.triangles.faces[faces]].astype(np.float64)
             poly, ok = pixel_triangle(clip_v, pix, w, h, eps, p["decision_offset"])
             region = (_window_to_plane(cam, poly, verts[tri]), ok)
+            own = _points_at(cam, pix, verts[tri], (0.0, 0.0), 0.0)[:, 0]
     state = np.full(len(faces), 2, np.int8)     # 0 never kept, 1 may be, 2 surely
     is_cap = draw >= n_solids
     # solids: the clip decision of every enabled surface
@@ -181,6 +182,9 @@ def clip_allowances(scene, raster, eps, eye_budget):
                 centre = np.nansum(poly, axis=1) / np.maximum(has.sum(axis=1), 1)[:, None]
                 base = [np.where(has[:, j, None], poly[:, j], centre)
                         for j in range(poly.shape[1])] + [centre]
+                # and the sample itself (this scene's centre: inside both when covered),
+                # the point refraster and llvmpipe pick where the primitive covers it alone
+                base.append(own[sel])
                 probes = list(base)
                 for q0 in base:
                     for axis in range(3):
