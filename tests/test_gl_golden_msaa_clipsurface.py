@@ -19,7 +19,7 @@ import pytest
 from conftest import check_backends_matrix, generate_gold, gl_backend_or_skip
 from refraster.golden.compare.run import compare
 
-GL = ["msaa4gl_clipsurface_sample", "msaa4gl_clipsurface_pixel"]
+GL = ["msaa4gl_clipsurface_sample", "msaa4gl_clipsurface_pixel", "msaa4gl_clipsurface_centroid"]
 OTHER = ["msaa4_clipsurface_sample"]
 ALL = ["msaa4_clipsurface_sample", "msaa4_clipsurface_pixel"] + GL
 BEGIN = "<!-- msaa-clip-matrix:begin (tests/test_gl_golden_msaa_clipsurface.py) -->"
@@ -31,7 +31,11 @@ def gold(tmp_path_factory):
     return generate_gold(tmp_path_factory, "gl_msaa_clip", ALL)
 
 
-def test_gl_passes_the_4x_pixel_rate_clip_surface_golden(gold):
+def test_gl_passes_the_4x_pixel_rate_clip_surface_goldens(gold):
+    """At the centre and at a centroid point (``shaders/clip.frag``'s ``CENTROID_INTERP``:
+    the corners method at the centroid point, :func:`test_the_centroid_point_is_llvmpipes`);
+    the centroid one with the decision at the pixel centre fails (the last column of the
+    matrix, ``msaa_divide_at_centre``: at pixel rate llvmpipe's own inputs are the centre's)."""
     from refraster.golden.candidate import candidate
     gl_backend_or_skip().release()
     out = gold / "cand_gl"
@@ -40,7 +44,8 @@ def test_gl_passes_the_4x_pixel_rate_clip_surface_golden(gold):
     assert r["skipped"]["msaa4_clipsurface_sample"].startswith(
         "clipsurface: this OpenGL's 4x sample positions are (6, 14) (14, 10) (2, 6) (10, 2), "
         "the scene declares (6, 2) (14, 6) (2, 10) (10, 14)")
-    res = compare(gold / "golden", out, mode="tolerant", scenes=["msaa4gl_clipsurface_pixel"])
+    res = compare(gold / "golden", out, mode="tolerant",
+                  scenes=["msaa4gl_clipsurface_pixel", "msaa4gl_clipsurface_centroid"])
     assert res.exit_code == 0, res.failures()[:5]
 
 
@@ -148,6 +153,89 @@ def test_llvmpipe_divides_a_sample_input_by_the_centres_w():
         "docs/backends.md)")
 
 
+_CENTROID_VS = """#version 400 core
+in vec4 p; uniform vec2 vp; noperspective centroid out vec2 v_win;
+void main() { gl_Position = p; v_win = (p.xy / p.w * 0.5 + 0.5) * vp; }"""
+_CENTROID_FS = """#version 400 core
+noperspective centroid in vec2 v_win; uniform vec2 u_sample_xy[4];
+layout(location = 0) out vec4 o_point;
+vec2 centroid_point() {     // as clip.frag's CENTROID_INTERP (4 samples)
+    int mask = gl_SampleMaskIn[0];
+    if (mask == 15) return gl_FragCoord.xy;
+    for (int s = 0; s < 4; ++s)
+        if (((mask >> s) & 1) != 0) return floor(gl_FragCoord.xy) + u_sample_xy[s];
+    return gl_FragCoord.xy;
+}
+void main() { o_point = vec4(centroid_point(), v_win); }"""
+
+
+def test_the_centroid_point_is_llvmpipes():
+    """The point ``clip.frag`` interpolates at under ``CENTROID_INTERP`` (the centre where all
+    4 samples are covered, else the first covered one, from ``gl_SampleMaskIn`` and the
+    declared positions) is the point llvmpipe's own ``centroid noperspective`` window position
+    gives, within 1e-5, at every fragment of a perspective triangle (4×, 16×16, pixel rate:
+    ``gl_FragCoord`` at the centre), and lies inside both the pixel and the triangle (float64
+    edge functions, 1e-6) — the golden's allowance admits any such point. 35 of 127 fragments
+    are partly covered."""
+    import numpy as np
+    from refraster.gl.common import fullscreen, shader_source
+    from refraster.gl.msaa import sample_pattern
+    gl = gl_backend_or_skip()
+    try:
+        ctx, mgl = gl.ctx, gl.mgl
+        w_, h_ = 16, 16
+        clip = np.array([[-0.93, -0.87, 0.3, 1.0], [3.6, -3.2, 0.1, 4.0], [-1.7, 1.9, 0.2, 2.0]],
+                        np.float32)
+        prog = ctx.program(vertex_shader=_CENTROID_VS, fragment_shader=_CENTROID_FS)
+        prog["vp"].value = (w_, h_)
+        pos = sample_pattern(gl, 4)["positions"]
+        prog["u_sample_xy"].value = [(x / 16.0, 1.0 - y / 16.0) for x, y in pos]
+        vbo = ctx.buffer(clip.tobytes())
+        vao = ctx.vertex_array(prog, [(vbo, "4f", "p")])
+        ms = ctx.texture((w_, h_), 4, samples=4, dtype="f4")
+        fbo = ctx.framebuffer(color_attachments=[ms])
+        fbo.use()
+        ctx.viewport = (0, 0, w_, h_)
+        fbo.clear(-1.0, -1.0, -1.0, -1.0)
+        vao.render(mgl.TRIANGLES)
+        fetch = ctx.program(vertex_shader=shader_source("fullscreen.vert"),
+                            fragment_shader=_FETCH_FS)
+        one = ctx.texture((w_, h_), 4, dtype="f4")
+        out = ctx.framebuffer(color_attachments=[one])
+        got = []
+        for s in range(4):
+            out.use()
+            out.clear()
+            ms.use(location=0)
+            fetch["u_tex"].value, fetch["u_sample"].value = 0, s
+            fullscreen(gl, fetch)
+            got.append(np.frombuffer(one.read(), np.float32).reshape(h_, w_, 4))
+        for obj in (vao, vbo, prog, fetch, fbo, out, one, ms):
+            obj.release()
+    finally:
+        gl.release()
+    win = (clip[:, :2].astype(np.float64) / clip[:, 3:] * 0.5 + 0.5) * (w_, h_)
+
+    def cross(a, b):
+        return a[0] * b[1] - a[1] * b[0]
+    area = cross(win[1] - win[0], win[2] - win[0])
+    n = partial = 0
+    for y in range(h_):
+        for x in range(w_):
+            vals = [g[y, x] for g in got if g[y, x, 0] >= 0]
+            if not vals:
+                continue
+            n += 1
+            partial += len(vals) < 4
+            pt = vals[0][:2].astype(np.float64)
+            assert np.abs(vals[0][:2] - vals[0][2:]).max() < 1e-5, (x, y, vals[0])
+            assert x <= pt[0] <= x + 1 and y <= pt[1] <= y + 1, (x, y, pt)
+            edges = [cross(win[(i + 1) % 3] - win[i], pt - win[i]) * np.sign(area)
+                     for i in range(3)]
+            assert min(edges) > -1e-6, (x, y, pt, edges)
+    assert n > 100 and partial > 20, (n, partial)
+
+
 _FETCH_FS = """#version 330 core
 uniform sampler2DMS u_tex; uniform int u_sample; out vec4 o;
 void main() { o = texelFetch(u_tex, ivec2(gl_FragCoord.xy), u_sample); }"""
@@ -171,7 +259,7 @@ def test_the_clip_surface_matrix_at_4x(gold):
     from refraster.golden.candidate import candidate
     from test_golden_msaa_clipsurface import _candidate
     gl_backend_or_skip().release()
-    other = {"sample": "center", "center": "sample"}
+    other = {"sample": "center", "center": "sample", "centroid": "center"}
     rows = ["| scene | rate | refraster | the other rate's frame | refraster.gl | "
             "refraster.gl `msaa_divide_at_centre` |", "|---|---|---|---|---|---|"]
     own = compare(gold / "golden", _candidate(gold, "m_own", ALL), mode="tolerant")
@@ -186,14 +274,14 @@ def test_the_clip_surface_matrix_at_4x(gold):
     bad = {r.name: r for r in compare(gold / "golden", bad_out, mode="tolerant",
                                       scenes=sorted(made["rendered"])).scenes}
     for name in ALL:
-        rate = "sample" if name.endswith("_sample") else "center"
+        rate = name.rsplit("_", 1)[1].replace("pixel", "center")
         flip = compare(gold / "golden", _candidate(gold, f"m_{name}", [name],
                                                    interpolation=other[rate]),
                        mode="tolerant", scenes=[name]).scenes[0]
         skipped = "skipped: another sample pattern"
         gl_cell = _cell(gl[name]) if name in gl else skipped
         bad_cell = _cell(bad[name]) if name in bad else skipped
-        rows.append(f"| {name} | {'sample' if rate == 'sample' else 'pixel'} | "
+        rows.append(f"| {name} | {'pixel' if rate == 'center' else rate} | "
                     f"{_cell(by_name[name])} | {_cell(flip)} | {gl_cell} | {bad_cell} |")
         assert by_name[name].status == "pass"
         assert flip.status != "pass", name
