@@ -92,7 +92,7 @@ def test_llvmpipe_divides_a_sample_input_by_the_centres_w():
     (Mesa 22.3.6): OpenGL 4.6 §14.3.1.1 evaluates a sample's inputs at the sample."""
     import ctypes
     import numpy as np
-    from refraster.gl.common import fullscreen, gl_function, shader_source
+    from refraster.gl.common import gl_function
     gl = gl_backend_or_skip()
     try:
         ctx, mgl = gl.ctx, gl.mgl
@@ -111,20 +111,8 @@ def test_llvmpipe_divides_a_sample_input_by_the_centres_w():
         gl_function("glMinSampleShading", None, ctypes.c_float)(1.0)
         vao.render(mgl.TRIANGLES)
         gl_function("glDisable", None, ctypes.c_uint)(0x8C36)
-        fetch = ctx.program(vertex_shader=shader_source("fullscreen.vert"),
-                            fragment_shader=_FETCH_FS)
-        one = ctx.texture((w_, h_), 4, dtype="f4")
-        out = ctx.framebuffer(color_attachments=[one])
-        got = {}
-        for k, tex in enumerate(ms):
-            for s in range(4):
-                out.use()
-                out.clear()
-                tex.use(location=0)
-                fetch["u_tex"].value, fetch["u_sample"].value = 0, s
-                fullscreen(gl, fetch)
-                got[k, s] = np.frombuffer(one.read(), np.float32).reshape(h_, w_, 4)
-        for obj in (vao, vbo, prog, fetch, fbo, out, one, *ms):
+        got = _read_samples(gl, ms, (w_, h_))
+        for obj in (vao, vbo, prog, fbo, *ms):
             obj.release()
     finally:
         gl.release()
@@ -178,7 +166,6 @@ def test_the_centroid_point_is_llvmpipes():
     edge functions, 1e-6) — the golden's allowance admits any such point. 35 of 127 fragments
     are partly covered."""
     import numpy as np
-    from refraster.gl.common import fullscreen, shader_source
     from refraster.gl.msaa import sample_pattern
     gl = gl_backend_or_skip()
     try:
@@ -198,19 +185,8 @@ def test_the_centroid_point_is_llvmpipes():
         ctx.viewport = (0, 0, w_, h_)
         fbo.clear(-1.0, -1.0, -1.0, -1.0)
         vao.render(mgl.TRIANGLES)
-        fetch = ctx.program(vertex_shader=shader_source("fullscreen.vert"),
-                            fragment_shader=_FETCH_FS)
-        one = ctx.texture((w_, h_), 4, dtype="f4")
-        out = ctx.framebuffer(color_attachments=[one])
-        got = []
-        for s in range(4):
-            out.use()
-            out.clear()
-            ms.use(location=0)
-            fetch["u_tex"].value, fetch["u_sample"].value = 0, s
-            fullscreen(gl, fetch)
-            got.append(np.frombuffer(one.read(), np.float32).reshape(h_, w_, 4))
-        for obj in (vao, vbo, prog, fetch, fbo, out, one, ms):
+        got = [_read_samples(gl, [ms], (w_, h_))[0, s] for s in range(4)]
+        for obj in (vao, vbo, prog, fbo, ms):
             obj.release()
     finally:
         gl.release()
@@ -239,6 +215,29 @@ def test_the_centroid_point_is_llvmpipes():
 _FETCH_FS = """#version 330 core
 uniform sampler2DMS u_tex; uniform int u_sample; out vec4 o;
 void main() { o = texelFetch(u_tex, ivec2(gl_FragCoord.xy), u_sample); }"""
+
+
+def _read_samples(gl, textures, size):
+    """``{(k, s): (h, w, 4) float32}``: sample ``s`` of the 4× RGBA32F texture ``textures[k]``,
+    read with ``texelFetch`` in a full-screen pass."""
+    import numpy as np
+    from refraster.gl.common import fullscreen, shader_source
+    ctx = gl.ctx
+    fetch = ctx.program(vertex_shader=shader_source("fullscreen.vert"), fragment_shader=_FETCH_FS)
+    one = ctx.texture(size, 4, dtype="f4")
+    out = ctx.framebuffer(color_attachments=[one])
+    got = {}
+    for k, tex in enumerate(textures):
+        for s in range(4):
+            out.use()
+            out.clear()
+            tex.use(location=0)
+            fetch["u_tex"].value, fetch["u_sample"].value = 0, s
+            fullscreen(gl, fetch)
+            got[k, s] = np.frombuffer(one.read(), np.float32).reshape(size[1], size[0], 4)
+    for obj in (fetch, out, one):
+        obj.release()
+    return got
 
 
 def _cell(result):
