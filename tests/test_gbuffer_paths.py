@@ -160,6 +160,38 @@ def test_background_written_by_finalize_into_recycled_outputs(monkeypatch, fill_
         assert got[f] == ref[f], f
 
 
+@pytest.mark.parametrize("fill_in_kernel", [None, 1 << 40])
+def test_background_written_by_finalize_into_recycled_sample_outputs(monkeypatch,
+                                                                      fill_in_kernel):
+    """The 4x G-buffer (``render_samples``) builds its sample image ``(H, W·S)`` as a new
+    frame: from ``FILL_IN_KERNEL`` samples (160x120 at 4x is above the default) its eye depth,
+    normal and ids come from the output pool unfilled and ``finalize`` writes their
+    background; recycled arrays holding a dropped 4x frame's sphere must come out as NumPy's
+    fills leave them (the plain path forced by the threshold)."""
+    if fill_in_kernel is None:
+        assert 160 * 120 * 4 >= fbm.FILL_IN_KERNEL
+    else:
+        monkeypatch.setattr(fbm, "FILL_IN_KERNEL", fill_in_kernel)
+    s4 = rf.RasterState(samples=4)
+    big, small = mesh_of(icosphere(3)), mesh_of(cube())
+    kw = camera_kw(w=160, h=120, eye=(0.9, 0.7, 1.4))    # the sphere fills most of the frame
+    kw_far = camera_kw(w=160, h=120, eye=(3.0, 2.2, 4.5))
+    with monkeypatch.context() as m:
+        m.setattr(fbm, "FILL_IN_KERNEL", 1 << 40)
+        ref = {k: a.tobytes() for k, a in rf.render_samples(small, **kw_far, raster=s4)
+               .arrays().items()}                        # NumPy's fills
+    built = ("eye_depth", "normal", "prim_id", "object_id")
+    sfb = rf.render_samples(big, **kw, raster=s4)
+    stale = {getattr(sfb, f).ctypes.data for f in built}
+    del sfb
+    sfb = rf.render_samples(small, **kw_far, raster=s4)
+    # the dropped frame's memory, recycled
+    assert {getattr(sfb, f).ctypes.data for f in built} == stale
+    got = {k: a.tobytes() for k, a in sfb.arrays().items()}
+    for f in ref:
+        assert got[f] == ref[f], f
+
+
 def test_default_threshold_uses_both_background_paths():
     assert 160 * 120 < fbm.FILL_IN_KERNEL <= 512 * 384
 
