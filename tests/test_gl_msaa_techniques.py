@@ -163,3 +163,20 @@ def test_the_backend_states_its_pattern_and_refuses_another(gl, tmp_path):
     with pytest.raises(Unsupported, match=r"^edges at 4x: this OpenGL's sample positions are "
                                           r"\(6, 14\) .* the scene declares \(6, 2\)"):
         render_sampled(gl, {"scene": scene, "draws": []})
+
+
+@pytest.mark.parametrize("key,value", [("origin", "upper_left"),
+                                       ("depth_range", "zero_to_one")])
+def test_a_4x_technique_scene_in_other_conventions_is_refused(key, value):
+    """The corners' interpolation assumes GL's window origin: a 4x edges or cutaway scene in
+    another API's conventions is refused in one line, not drawn wrong (no GL context needed)."""
+    from refraster.gl.driver import Backend
+    for technique in ("edges", "cutaway"):
+        scene = {"technique": technique,
+                 "raster": {"samples": 4, "interpolation": "sample"}, "parameters": {}}
+        assert Backend.supports(scene) is None
+        scene["raster"][key] = value
+        reason = Backend.supports(scene)
+        assert reason is not None and "\n" not in reason
+        assert reason.startswith(f"{technique} at samples > 1 renders OpenGL's conventions only")
+        assert key in reason

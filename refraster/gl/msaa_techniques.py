@@ -47,7 +47,7 @@ from .edges import near_far as edges_near_far
 from .edges import operator_uniforms
 from .edges import options as edges_options
 from .msaa import _depth_texture, _text, sample_pattern
-from .package import matrix
+from .package import CONVENTION_DEFAULTS, conventions, matrix
 
 __all__ = ["supports", "render_sampled", "window_shift", "SAMPLED_TECHNIQUES"]
 
@@ -103,6 +103,13 @@ def supports(scene):
     if technique not in SAMPLED_TECHNIQUES:
         return (f"technique {technique!r} at samples > 1 is not implemented by the gl backend "
                 f"(it draws {', '.join(SAMPLED_TECHNIQUES)} on multisampled G-buffers)")
+    conv = conventions(raster)
+    if conv != CONVENTION_DEFAULTS:
+        # the sample interpolation (shaders/sample_interp.glsl) and the read-back assume GL's
+        # lower-left window origin and depth range: another convention would be drawn wrong
+        changed = sorted(k for k in conv if conv[k] != CONVENTION_DEFAULTS[k])
+        return (f"{technique} at samples > 1 renders OpenGL's conventions only; the scene sets "
+                f"raster {', '.join(changed)}")
     if raster.get("interpolation", "center") != "sample":
         return (f"{technique} at samples > 1: only sample-rate interpolation (GL_SAMPLE_SHADING) "
                 f"is drawn, the scene declares {raster.get('interpolation', 'center')!r}")
