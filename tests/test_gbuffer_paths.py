@@ -1,6 +1,7 @@
 """The G-buffer pass's shortcuts (issue 28, third pass) give the bytes of the plain path.
 
-* flat normals computed once per face (``gbuffer.per_face_normals``) instead of per pixel;
+* flat normals computed once per face (``gbuffer.per_face_normals``) instead of once per run
+  of a face's pixels in a row;
 * ``finalize`` writing the background of a reused framebuffer itself (``FILL_IN_KERNEL``);
 * every kernel input passed read-only, so ``finalize``/``shade`` compile one specialisation;
 * ``render(out=)`` comparing only inputs it has not checked against the same arrays before.

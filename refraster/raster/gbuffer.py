@@ -110,20 +110,30 @@ def _face_normals(vertices, faces, face_offsets, nmat, fnormal):
 
 
 #: Flat normals are computed once per face (into a per-call array, from the vertices as they
-#: are when the kernel runs) instead of once per covered pixel when the frame has at least this
-#: many pixels per face: a face normal costs about what a pixel's does, and a frame's covered
-#: pixels are a fraction of its pixels. Same float64 expression either way, so the same bits.
+#: are when the kernel runs) instead of once per run of a face's pixels in a row when the frame
+#: has at least this many pixels per face: a face normal costs about what a pixel's does, and a
+#: frame's covered pixels are a fraction of its pixels. Same float64 expression either way, so
+#: the same bits.
 FACE_NORMAL_PIXELS = 16
 
 
 @njit(**IJIT)
-def _surface(bary, r, c, g, k, corners, fm, per_face, vertices, faces, vnormals, smooth, mv,
-             nmat):
+def _run_normal(g, k, per_face, fnormal, vertices, faces, nmat):
+    """The flat normal of face ``g`` (draw call ``k``) for a run of its pixels: from ``fnormal``
+    where computed per face (``per_face``), else :func:`_flat_normal` here — once per run of
+    the face's pixels in a row, not once per pixel (the same expression, so the same bits)."""
+    if per_face:
+        return fnormal[g, 0], fnormal[g, 1], fnormal[g, 2]
+    return _flat_normal(g, k, vertices, faces, nmat)
+
+
+@njit(**IJIT)
+def _surface(bary, r, c, g, k, corners, fm, flat, vertices, faces, vnormals, smooth, mv, nmat):
     """The float64 eye-space position and unit eye-space normal of face ``g`` (draw call ``k``)
     at pixel ``(r, c)``'s barycentrics: what :func:`finalize` rounds (it uses z only; LLVM drops
     x and y there) and :func:`shade` lights, one expression (the same bits). ``corners``: the
-    face's :func:`_face_corners`; ``fm``: its normal from ``fnormal`` where ``per_face`` (flat
-    normals computed once per face), else the normal is taken per pixel (:func:`_normal`). The
+    face's :func:`_face_corners`; ``fm``: its flat normal (:func:`_run_normal`) where ``flat``,
+    else the normal is interpolated per pixel (:func:`_normal`). The
     position comes before the normal's branch, in the order the kernels had written it out:
     so both compile to the same instructions as before this helper (with the position after
     the branch, LLVM recomputed the model-view row's address per pixel; finalize ~1.1x)."""
@@ -135,7 +145,7 @@ def _surface(bary, r, c, g, k, corners, fm, per_face, vertices, faces, vnormals,
     ex = ((mv[k, 0, 0] * px + mv[k, 0, 1] * py) + mv[k, 0, 2] * pz) + mv[k, 0, 3]
     ey = ((mv[k, 1, 0] * px + mv[k, 1, 1] * py) + mv[k, 1, 2] * pz) + mv[k, 1, 3]
     ez = ((mv[k, 2, 0] * px + mv[k, 2, 1] * py) + mv[k, 2, 2] * pz) + mv[k, 2, 3]
-    if per_face:
+    if flat:
         mx, my, mz = fm
     else:
         mx, my, mz = _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat)
@@ -187,10 +197,8 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
                 k = _object_of(face_offsets, g)
                 pid = g - face_offsets[k]
                 ax, ay, az, bx, by, bz, cx, cy, cz = _face_corners(g, vertices, faces)
-                if per_face:
-                    fm0 = fnormal[g, 0]
-                    fm1 = fnormal[g, 1]
-                    fm2 = fnormal[g, 2]
+                if not smooth:
+                    fm0, fm1, fm2 = _run_normal(g, k, per_face, fnormal, vertices, faces, nmat)
             if first == w:
                 first = c
             end = c
@@ -198,7 +206,7 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
             object_id[r, c] = k
             _, _, ez, mx, my, mz = _surface(
                 bary, r, c, g, k, (ax, ay, az, bx, by, bz, cx, cy, cz), (fm0, fm1, fm2),
-                per_face, vertices, faces, vnormals, smooth, mv, nmat)
+                not smooth, vertices, faces, vnormals, smooth, mv, nmat)
             eye_depth[r, c] = np.float32(-ez)
             normal[r, c, 0] = np.float32(mx)
             normal[r, c, 1] = np.float32(my)
@@ -270,13 +278,11 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
                 last = g
                 k = _object_of(face_offsets, g)
                 ax, ay, az, bx, by, bz, cx, cy, cz = _face_corners(g, vertices, faces)
-                if per_face:
-                    fm0 = fnormal[g, 0]
-                    fm1 = fnormal[g, 1]
-                    fm2 = fnormal[g, 2]
+                if not smooth:
+                    fm0, fm1, fm2 = _run_normal(g, k, per_face, fnormal, vertices, faces, nmat)
             ex, ey, ez, mx, my, mz = _surface(
                 bary, r, c, g, k, (ax, ay, az, bx, by, bz, cx, cy, cz), (fm0, fm1, fm2),
-                per_face, vertices, faces, vnormals, smooth, mv, nmat)
+                not smooth, vertices, faces, vnormals, smooth, mv, nmat)
             # light at the eye, so the half vector is the view vector
             vl = np.sqrt(ex * ex + ey * ey + ez * ez)
             ndv = 1.0
