@@ -81,6 +81,29 @@ def test_empty_scene_gives_no_layers():
     assert len(lay) == 0 and lay.count.shape == (4, 4) and not lay.count.any()
 
 
+def test_recycled_layers_are_written_in_full():
+    # the layer arrays come from the output pool unfilled: _fill_layers must write every texel,
+    # the empty ones too, or a recycled array shows the previous LDI's ids and depths
+    cam = dict(view=refraster.look_at((0, 0, 3), (0, 0, 0)),
+               proj=refraster.perspective(40, 1.0, 0.5, 10.0), width=128, height=128)
+    big = icosphere(subdivisions=3, radius=1.0)
+    small = icosphere(subdivisions=3, radius=0.4)
+    fresh = peel((small.vertices, small.faces), **cam)
+    expect = {n: getattr(fresh, n).copy() for n in ("depth", "prim_id", "object_id",
+                                                    "front_facing", "index", "count", "overflow")}
+    del fresh
+    first = peel([(big.vertices, big.faces), (small.vertices, small.faces)], max_layers=2, **cam)
+    assert len(first) == 2 and (first.count == 2).mean() > 0.5
+    address = first.depth.ctypes.data
+    del first
+    again = peel((small.vertices, small.faces), **cam)
+    assert again.depth.ctypes.data == address, "the pool did not recycle the layers"
+    for name, want in expect.items():
+        assert np.array_equal(getattr(again, name), want), name
+    empty = np.arange(2)[:, None, None] >= again.count
+    assert empty.any() and np.all(again.prim_id[empty] == -1) and np.all(again.depth[empty] == 1)
+
+
 # ---------------------------------------------------------------- peel = literal multi-pass
 
 def test_peel_equals_multipass_resolve_bit_for_bit():
