@@ -381,15 +381,15 @@ def peel(meshes, *, view, proj, width, height, max_layers=None, mode="peel", mod
     Trapp & Döllner Sec. 5.2 build the LDI with multi-pass depth peeling (Everitt 2001); this is
     the same result from one rasterization. MATH.md §2.3.
     """
-    from .raster import draw
+    from .raster import draw_stream
     as_choice(mode, "mode", MODES)
     _as_max_layers(max_layers)
     state = as_raster_state(raster)
     if state.samples != 1 or state.sample_locations != "standard":
         return _peel_samples(meshes, view, proj, width, height, max_layers, mode, model, state)
     state = _peel_state(state)
-    frags = draw(meshes, view=view, proj=proj, width=width, height=height, model=model,
-                 raster=state)
+    # the layers need no barycentrics: a stream without them (the same fragments, in order)
+    frags = draw_stream(meshes, view, proj, width, height, model, state, bary=False)
     return peel_fragments(frags, max_layers=max_layers, mode=mode, raster=state)
 
 

@@ -104,6 +104,21 @@ def test_recycled_layers_are_written_in_full():
     assert empty.any() and np.all(again.prim_id[empty] == -1) and np.all(again.depth[empty] == 1)
 
 
+def test_peel_stream_without_barycentrics_is_the_draw_stream():
+    # peel draws its stream without barycentrics; every other array must be draw's, in order
+    from refraster.raster import draw_stream
+    for sc in SCENES[:6]:
+        full = _draw(sc)
+        bare = draw_stream(sc.meshes, sc.view, sc.proj, sc.width, sc.height, None, None,
+                           bary=False)
+        assert bare.bary.shape == (0, 3) and len(bare) == len(full), sc.name
+        for name in ("pixel", "depth", "prim_id", "object_id", "front_facing"):
+            assert np.array_equal(getattr(bare, name), getattr(full, name)), (sc.name, name)
+        lay, want = peel(sc.meshes, view=sc.view, proj=sc.proj, width=sc.width,
+                         height=sc.height), peel_fragments(full)
+        assert np.array_equal(lay.index, want.index) and np.array_equal(lay.depth, want.depth)
+
+
 # ---------------------------------------------------------------- peel = literal multi-pass
 
 def test_peel_equals_multipass_resolve_bit_for_bit():
