@@ -329,9 +329,17 @@ def _fragment_bary(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y, e0, e1, e2, inv_a
 
 
 @njit(**IJIT)
-def _halo_depth(d, u, delta_t, delta_d):
-    """Eq. 3: ``d_new = δ + max(0, u − δt)·δd`` for ``u = |2t − 1|``."""
-    return d + max(0.0, u - delta_t) * delta_d
+def _halo_depths(li, px, d, u, min_d, min_db, delta_t, delta_d, boundary, boundary_width):
+    """A fragment's halo depths into the depth buffers at voxel (li, px): Eq. 3's
+    ``d_new = δ + max(0, u − δt)·δd`` (``u = |2t − 1|``) into ``min_d``, and with ``boundary``
+    the same for ``u + boundary_width`` (where ≤ 1) into ``min_db``."""
+    dn = d + max(0.0, u - delta_t) * delta_d
+    if dn < min_d[li, px]:
+        min_d[li, px] = dn
+    if boundary and u + boundary_width <= 1.0:
+        db = d + max(0.0, u + boundary_width - delta_t) * delta_d
+        if db < min_db[li, px]:
+            min_db[li, px] = db
 
 
 @njit(**IJIT)
@@ -406,8 +414,8 @@ def _fill_off_core(spans, n_spans, tris, r0, height, surf_d, min_d, min_db, delt
     have a surface fragment: their halo depths (Eq. 3, and the boundary's) enter the depth
     buffers. Elsewhere an off-core fragment changes nothing drawn (no volume, no halo colour):
     it would only mark a halo voxel. ``spans (n, 4)``: row in the band (the band's first
-    row ``r0``), first pixel, count, triangle; ``tris (m, 14)``: unsnapped x, y of the stored vertices, inv_af,
-    swap, and the corners' t and δ in original order."""
+    row ``r0``), first pixel, count, triangle; ``tris (m, 14)``: unsnapped x, y of the stored
+    vertices, inv_af, swap, and the corners' t and δ in original order."""
     for j in range(n_spans):
         li, xs, cnt, m = spans[j, 0], spans[j, 1], spans[j, 2], spans[j, 3]
         py = height - 1 - (r0 + li)
@@ -420,14 +428,8 @@ def _fill_off_core(spans, n_spans, tris, r0, height, surf_d, min_d, min_db, delt
                                         0.0, tris[m, 7] != 0.0)
             t = q0 * tris[m, 8] + q1 * tris[m, 9] + q2 * tris[m, 10]
             d = q0 * tris[m, 11] + q1 * tris[m, 12] + q2 * tris[m, 13]
-            u = abs(2.0 * t - 1.0)
-            dn = _halo_depth(d, u, delta_t, delta_d)
-            if dn < min_d[li, px]:
-                min_d[li, px] = dn
-            if boundary and u + boundary_width <= 1.0:
-                db = _halo_depth(d, u + boundary_width, delta_t, delta_d)
-                if db < min_db[li, px]:
-                    min_db[li, px] = db
+            _halo_depths(li, px, d, abs(2.0 * t - 1.0), min_d, min_db, delta_t, delta_d,
+                         boundary, boundary_width)
 
 
 @njit(**JIT)
@@ -698,13 +700,8 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                             u = abs(2.0 * t - 1.0)
                             core = u < surface_width + aa
                             if halos:
-                                dn = _halo_depth(d, u, delta_t, delta_d)
-                                if dn < min_d[li, px]:
-                                    min_d[li, px] = dn
-                                if boundary and u + boundary_width <= 1.0:
-                                    db = _halo_depth(d, u + boundary_width, delta_t, delta_d)
-                                    if db < min_db[li, px]:
-                                        min_db[li, px] = db
+                                _halo_depths(li, px, d, u, min_d, min_db, delta_t, delta_d,
+                                             boundary, boundary_width)
                             elif core and d < min_d[li, px]:
                                 min_d[li, px] = d
                             if pair and core and d < min_d2[li, px]:
