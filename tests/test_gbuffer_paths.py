@@ -168,7 +168,8 @@ def test_background_written_by_finalize_into_recycled_sample_outputs(monkeypatch
     frame: from ``FILL_IN_KERNEL`` samples (160x120 at 4x is above the default) its eye depth,
     normal and ids come from the output pool unfilled and ``finalize`` writes their
     background; recycled arrays holding a dropped 4x frame's sphere must come out as NumPy's
-    fills leave them (the plain path forced by the threshold)."""
+    fills leave them (the plain path forced by the threshold). The tile pass's per-sample
+    depth, facing and barycentrics come from the pool too (filled there): the same."""
     if fill_in_kernel is None:
         assert 160 * 120 * 4 >= fbm.FILL_IN_KERNEL
     else:
@@ -181,7 +182,8 @@ def test_background_written_by_finalize_into_recycled_sample_outputs(monkeypatch
         m.setattr(fbm, "FILL_IN_KERNEL", 1 << 40)
         ref = {k: a.tobytes() for k, a in rf.render_samples(small, **kw_far, raster=s4)
                .arrays().items()}                        # NumPy's fills
-    built = ("eye_depth", "normal", "prim_id", "object_id")
+    built = ("eye_depth", "normal", "prim_id", "object_id", "depth", "front_facing",
+             "barycentric")
     sfb = rf.render_samples(big, **kw, raster=s4)
     stale = {getattr(sfb, f).ctypes.data for f in built}
     del sfb

@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from .._config import IJIT, PJIT
+from .._scratch import OUTPUTS
 from .rasterizer import (NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geometry, _setup,
                          _setup_winner, bin_primitives, depth_test, perspective_bary, tile_rect)
 
@@ -279,10 +280,10 @@ def rasterize_samples(prims, ox, oy, *, fill_rule=0, depth_func=1, clear_depth=1
     ntx, nty, starts, lists = bin_primitives(prims)
     h, w = prims.height, prims.width
     ns = len(ox)
-    depth = np.full((h, w, ns), np.float32(clear_depth), np.float32)
-    prim = np.full((h, w, ns), -1, np.int32)
-    front = np.zeros((h, w, ns), np.bool_)
-    bary = np.zeros((h, w, ns, 3), np.float32)
+    depth = OUTPUTS.full((h, w, ns), np.float32(clear_depth), np.float32)
+    prim = OUTPUTS.full((h, w, ns), -1, np.int32)
+    front = OUTPUTS.full((h, w, ns), False, np.bool_)
+    bary = OUTPUTS.full((h, w, ns, 3), 0.0, np.float32)
     _msaa_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits, fill_rule,
                depth_func, np.float32(clear_depth), np.ascontiguousarray(ox, np.int64),
                np.ascontiguousarray(oy, np.int64), INTERPOLATIONS[interpolation], depth, prim,
