@@ -282,8 +282,8 @@ def rasterize_samples(prims, ox, oy, *, fill_rule=0, depth_func=1, clear_depth=1
     ns = len(ox)
     depth = OUTPUTS.full((h, w, ns), np.float32(clear_depth), np.float32)
     prim = OUTPUTS.full((h, w, ns), -1, np.int32)
-    front = OUTPUTS.full((h, w, ns), False, np.bool_)
-    bary = OUTPUTS.full((h, w, ns, 3), 0.0, np.float32)
+    front = OUTPUTS.zeros((h, w, ns), np.bool_)
+    bary = OUTPUTS.zeros((h, w, ns, 3), np.float32)
     _msaa_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits, fill_rule,
                depth_func, np.float32(clear_depth), np.ascontiguousarray(ox, np.int64),
                np.ascontiguousarray(oy, np.int64), INTERPOLATIONS[interpolation], depth, prim,
