@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit, prange
 
 from ._config import IJIT, JIT, PJIT
+from ._scratch import OUTPUTS
 from ._validate import as_choice, as_float_array, as_size
 from .mesh import as_mesh
 from .raster.rasterizer import DEPTH_FUNCS, depth_test
@@ -62,6 +63,10 @@ class NonWatertightWarning(UserWarning):
 
 # ----------------------------------------------------------------------------- kernels
 
+#: Pixels per parallel block of :func:`_fill_layers`.
+FILL_BLOCK = 4096
+
+
 @njit(**JIT)
 def _bucket_by_pixel(pixel, n_pixels):
     """Stable counting sort of fragment indices by pixel → (offsets (P+1), order (N))."""
@@ -71,7 +76,7 @@ def _bucket_by_pixel(pixel, n_pixels):
     for p in range(n_pixels):
         offsets[p + 1] += offsets[p]
     cursor = offsets[:-1].copy()
-    order = np.zeros(pixel.shape[0], np.int64)
+    order = np.empty(pixel.shape[0], np.int64)   # every element written below
     for i in range(pixel.shape[0]):
         p = pixel[i]
         order[cursor[p]] = i
@@ -136,19 +141,35 @@ def _select_layers(order, offsets, depth, mode, func, clear, count):
 
 
 @njit(**PJIT)
-def _fill_layers(order, offsets, count, depth, prim, obj, front, out_index, out_depth,
-                 out_prim, out_obj, out_front):
+def _fill_layers(order, offsets, count, depth, prim, obj, front, clear, out_index, out_depth,
+                 out_prim, out_obj, out_front, out_count, out_overflow):
+    """Every texel of the ``(K, P)`` layers: pixel p's first ``min(count[p], K)`` layers from
+    its selected fragments, the rest empty (index, prim and object −1, depth ``clear``, back);
+    ``out_count`` the layers stored, ``out_overflow`` whether more existed. Parallel over
+    blocks of :data:`FILL_BLOCK` pixels, each layer's block written in pixel order."""
     k_max = out_depth.shape[0]
-    for p in prange(offsets.shape[0] - 1):
-        a = offsets[p]
-        n = min(count[p], k_max)
-        for layer in range(n):
-            i = order[a + layer]
-            out_index[layer, p] = i
-            out_depth[layer, p] = depth[i]
-            out_prim[layer, p] = prim[i]
-            out_obj[layer, p] = obj[i]
-            out_front[layer, p] = front[i]
+    n_pixels = offsets.shape[0] - 1
+    for b in prange((n_pixels + FILL_BLOCK - 1) // FILL_BLOCK):
+        lo = b * FILL_BLOCK
+        hi = min(lo + FILL_BLOCK, n_pixels)
+        for p in range(lo, hi):
+            out_count[p] = min(count[p], k_max)
+            out_overflow[p] = count[p] > k_max
+        for layer in range(k_max):
+            for p in range(lo, hi):
+                if layer < out_count[p]:
+                    i = order[offsets[p] + layer]
+                    out_index[layer, p] = i
+                    out_depth[layer, p] = depth[i]
+                    out_prim[layer, p] = prim[i]
+                    out_obj[layer, p] = obj[i]
+                    out_front[layer, p] = front[i]
+                else:
+                    out_index[layer, p] = -1
+                    out_depth[layer, p] = clear
+                    out_prim[layer, p] = -1
+                    out_obj[layer, p] = -1
+                    out_front[layer, p] = False
 
 
 @njit(**IJIT)
@@ -301,29 +322,31 @@ def peel_fragments(frags, *, max_layers=None, mode="peel", raster=None):
         raise ValueError("frags.pixel has indices outside the image")
     offsets, order = _bucket_by_pixel(pixel, n_pixels)
     _sort_pixels_by_depth(order, offsets, depth, func == 4 or func == 6)
-    count = np.zeros(n_pixels, np.int64)
+    count = np.empty(n_pixels, np.int64)
     _select_layers(order, offsets, depth, mode_code, func, clear, count)
     k_all = int(count.max()) if n_pixels else 0
     k = k_all if k_cap is None else min(k_all, k_cap)
     if k * n_pixels > MAX_LAYER_TEXELS:
         raise ValueError(f"{k} layers of {w}×{h} exceed {MAX_LAYER_TEXELS} texels; "
                          f"pass a smaller max_layers")
-    out_index = np.full((k, n_pixels), -1, np.int64)
-    out_depth = np.full((k, n_pixels), clear, np.float32)
-    out_prim = np.full((k, n_pixels), -1, np.int32)
-    out_obj = np.full((k, n_pixels), -1, np.int32)
-    out_front = np.zeros((k, n_pixels), np.bool_)
+    # every texel is written by _fill_layers: recycled (or new) arrays, no fills
+    out_index = OUTPUTS.empty((k, n_pixels), np.int64)
+    out_depth = OUTPUTS.empty((k, n_pixels), np.float32)
+    out_prim = OUTPUTS.empty((k, n_pixels), np.int32)
+    out_obj = OUTPUTS.empty((k, n_pixels), np.int32)
+    out_front = OUTPUTS.empty((k, n_pixels), np.bool_)
+    out_count = np.empty(n_pixels, np.int32)
+    out_overflow = np.empty(n_pixels, np.bool_)
     _fill_layers(order, offsets, count, depth, np.ascontiguousarray(frags.prim_id, np.int32),
                  np.ascontiguousarray(frags.object_id, np.int32),
-                 np.ascontiguousarray(frags.front_facing, np.bool_),
-                 out_index, out_depth, out_prim, out_obj, out_front)
+                 np.ascontiguousarray(frags.front_facing, np.bool_), clear,
+                 out_index, out_depth, out_prim, out_obj, out_front, out_count, out_overflow)
     shape = (k, h, w)
     return LayeredDepthImage(
         depth=out_depth.reshape(shape), prim_id=out_prim.reshape(shape),
         object_id=out_obj.reshape(shape), front_facing=out_front.reshape(shape),
-        index=out_index.reshape(shape),
-        count=np.minimum(count, k).astype(np.int32).reshape(h, w),
-        overflow=(count > k).reshape(h, w), mode=next(n for n, c in MODES.items() if c == mode_code))
+        index=out_index.reshape(shape), count=out_count.reshape(h, w),
+        overflow=out_overflow.reshape(h, w), mode=next(n for n, c in MODES.items() if c == mode_code))
 
 
 def peel(meshes, *, view, proj, width, height, max_layers=None, mode="peel", model=None,
@@ -358,15 +381,15 @@ def peel(meshes, *, view, proj, width, height, max_layers=None, mode="peel", mod
     Trapp & Döllner Sec. 5.2 build the LDI with multi-pass depth peeling (Everitt 2001); this is
     the same result from one rasterization. MATH.md §2.3.
     """
-    from .raster import draw
+    from .raster import draw_stream
     as_choice(mode, "mode", MODES)
     _as_max_layers(max_layers)
     state = as_raster_state(raster)
     if state.samples != 1 or state.sample_locations != "standard":
         return _peel_samples(meshes, view, proj, width, height, max_layers, mode, model, state)
     state = _peel_state(state)
-    frags = draw(meshes, view=view, proj=proj, width=width, height=height, model=model,
-                 raster=state)
+    # the layers need no barycentrics: a stream without them (the same fragments, in order)
+    frags = draw_stream(meshes, view, proj, width, height, model, state, bary=False)
     return peel_fragments(frags, max_layers=max_layers, mode=mode, raster=state)
 
 

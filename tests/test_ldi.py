@@ -81,6 +81,44 @@ def test_empty_scene_gives_no_layers():
     assert len(lay) == 0 and lay.count.shape == (4, 4) and not lay.count.any()
 
 
+def test_recycled_layers_are_written_in_full():
+    # the layer arrays come from the output pool unfilled: _fill_layers must write every texel,
+    # the empty ones too, or a recycled array shows the previous LDI's ids and depths
+    cam = dict(view=refraster.look_at((0, 0, 3), (0, 0, 0)),
+               proj=refraster.perspective(40, 1.0, 0.5, 10.0), width=128, height=128)
+    big = icosphere(subdivisions=3, radius=1.0)
+    small = icosphere(subdivisions=3, radius=0.4)
+    fresh = peel((small.vertices, small.faces), **cam)
+    expect = {n: getattr(fresh, n).copy() for n in ("depth", "prim_id", "object_id",
+                                                    "front_facing", "index", "count", "overflow")}
+    del fresh
+    first = peel([(big.vertices, big.faces), (small.vertices, small.faces)], max_layers=2, **cam)
+    assert len(first) == 2 and (first.count == 2).mean() > 0.5
+    address = first.depth.ctypes.data
+    del first
+    again = peel((small.vertices, small.faces), **cam)
+    assert again.depth.ctypes.data == address, "the pool did not recycle the layers"
+    for name, want in expect.items():
+        assert np.array_equal(getattr(again, name), want), name
+    empty = np.arange(2)[:, None, None] >= again.count
+    assert empty.any() and np.all(again.prim_id[empty] == -1) and np.all(again.depth[empty] == 1)
+
+
+def test_peel_stream_without_barycentrics_is_the_draw_stream():
+    # peel draws its stream without barycentrics; every other array must be draw's, in order
+    from refraster.raster import draw_stream
+    for sc in SCENES[:6]:
+        full = _draw(sc)
+        bare = draw_stream(sc.meshes, sc.view, sc.proj, sc.width, sc.height, None, None,
+                           bary=False)
+        assert bare.bary.shape == (0, 3) and len(bare) == len(full), sc.name
+        for name in ("pixel", "depth", "prim_id", "object_id", "front_facing"):
+            assert np.array_equal(getattr(bare, name), getattr(full, name)), (sc.name, name)
+        lay, want = peel(sc.meshes, view=sc.view, proj=sc.proj, width=sc.width,
+                         height=sc.height), peel_fragments(full)
+        assert np.array_equal(lay.index, want.index) and np.array_equal(lay.depth, want.depth)
+
+
 # ---------------------------------------------------------------- peel = literal multi-pass
 
 def test_peel_equals_multipass_resolve_bit_for_bit():

@@ -293,13 +293,20 @@ def draw(meshes, *, view, proj, width, height, model=None, raster=None):
         With ``meshes``, ``models``, ``view`` and ``proj`` attached, so ``interpolate`` and
         ``world_position`` work.
     """
+    return draw_stream(meshes, view, proj, width, height, model, raster, bary=True)
+
+
+def draw_stream(meshes, view, proj, width, height, model, raster, *, bary):
+    """:func:`draw`, with the barycentrics only if ``bary`` (else ``Fragments.bary`` is empty,
+    ``(0, 3)``: depth peeling needs none, and they are a fifth of the stream's time)."""
     require_single_sample(as_raster_state(raster), "draw")
     meshes = as_meshes(meshes)
     w, h = as_image_size(width, height)
     with threads_for(frame_work(sum(m.n_faces for m in meshes), w, h)):
         prep = prepare(meshes, view=view, proj=proj, width=w, height=h, model=model,
                        raster=raster)
-        pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
+        pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule,
+                                                    bary=bary)
     return _fragments_from(prep, pixel, depth, prim, front, bary)
 
 

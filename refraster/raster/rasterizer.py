@@ -374,6 +374,7 @@ def _stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, 
                  starts, lists, ntx, width, height, bits, rule, write, counts, offsets,
                  o_pixel, o_depth, o_prim, o_front, o_bary):
     ntiles = starts.shape[0] - 1
+    with_bary = o_bary.shape[0] != 0
     for tile in prange(ntiles):
         tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
         o = offsets[tile]
@@ -401,9 +402,11 @@ def _stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, 
                             o_depth[o] = fragment_depth(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af,
                                                         x, y, e0 + b0, e1 + b1, e2 + b2,
                                                         inv_area)
-                            l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
-                                                 e0 + b0, e1 + b1, e2 + b2, inv_area)
-                            fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary, o)
+                            if with_bary:
+                                l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
+                                                     e0 + b0, e1 + b1, e2 + b2, inv_area)
+                                fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2,
+                                              o_bary, o)
                         o += 1
                     e0 += sx0
                     e1 += sx1
@@ -422,11 +425,12 @@ def _geometry(prims):
             st.area, st.bary)
 
 
-def stream(prims, *, fill_rule=0):
+def stream(prims, *, fill_rule=0, bary=True):
     """Rasterize the primitive stage's output into a fragment stream.
 
     Returns ``(pixel, depth, prim, front, bary, tile_offsets)``: fragments grouped by tile, and
-    within a tile ordered by primitive, then row, then column.
+    within a tile ordered by primitive, then row, then column; ``bary`` is empty, ``(0, 3)``,
+    unless ``bary`` (the other outputs are the same either way).
     """
     ntx, nty, starts, lists = bin_primitives(prims)
     ntiles = ntx * nty
@@ -441,7 +445,7 @@ def stream(prims, *, fill_rule=0):
     np.cumsum(counts, out=tile_offsets[1:])
     n = int(tile_offsets[-1])
     out = (np.zeros(n, np.int64), np.zeros(n, np.float32), np.zeros(n, np.int64),
-           np.zeros(n, np.bool_), np.zeros((n, 3), np.float32))
+           np.zeros(n, np.bool_), np.zeros((n if bary else 0, 3), np.float32))
     _stream_pass(*args, True, counts, tile_offsets[:-1].copy(), *out)
     return (*out, tile_offsets)
 
