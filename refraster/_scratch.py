@@ -218,25 +218,38 @@ class OutputPool:
     def empty(self, shape, dtype):
         """An array of ``shape`` and ``dtype`` whose contents are undefined (as ``np.empty``):
         recycled when a kept one is free, else new (and kept, within the limit)."""
+        return self._get(shape, dtype, np.empty)[0]
+
+    def zeros(self, shape, dtype):
+        """As ``np.zeros(shape, dtype)``: a recycled array zero-filled, or a new one from
+        ``np.zeros`` (``calloc``: memory fresh from the system is zero already, and is touched
+        only where the caller writes — most of a 4× frame's barycentrics are background)."""
+        a, recycled = self._get(shape, dtype, np.zeros)
+        if recycled:
+            a.fill(0)
+        return a
+
+    def _get(self, shape, dtype, new):
+        """``(array, recycled)``: a kept one that is free, else ``new(shape, dtype)``."""
         dtype = np.dtype(dtype)
         nbytes = math.prod(shape) * dtype.itemsize
         if nbytes < POOL_MIN_BYTES:
-            return np.empty(shape, dtype)
+            return new(shape, dtype), False
         limit = _pool_limit()
         if self._lock._is_owned():   # re-entered in this thread: a new array, not kept
-            return np.empty(shape, dtype)
+            return new(shape, dtype), False
         if limit <= 0:
             if len(self._entries) > 1:
                 self.clear()
-            return np.empty(shape, dtype)
+            return new(shape, dtype), False
         with self._lock:
-            return self._take(shape, dtype, nbytes, limit)
+            return self._take(shape, dtype, nbytes, limit, new)
 
-    def _take(self, shape, dtype, nbytes, limit):
+    def _take(self, shape, dtype, nbytes, limit, new):
         a = self._scan(shape, dtype)
         if a is not None:
-            return a
-        a = np.empty(shape, dtype)
+            return a, True
+        a = new(shape, dtype)
         same = [k for k, b in enumerate(self._entries)
                 if k and b.shape == shape and b.dtype == dtype]
         drop = set(same[:max(len(same) + 1 - POOL_PER_KIND, 0)])
@@ -250,7 +263,7 @@ class OutputPool:
         if kept <= limit:
             self._entries = [b for k, b in enumerate(self._entries) if k not in drop]
             self._entries.append(a)
-        return a
+        return a, False
 
     def full(self, shape, value, dtype):
         """As ``np.full(shape, value, dtype)`` (every element written)."""

@@ -252,7 +252,8 @@ def run_groups(module, groups, jobs, *, key, command=None, progress=None, cold_s
             side, n_side = cache_state(KERNEL_MODULES, only=CLIPSURFACE_SIDE_KERNELS)
             for group in cold_start(queue, side < n_side):
                 start(group)
-            warm_core(clip=True, stream=True)   # here: counted by the progress line
+            # here: counted by the progress line
+            warm_core(clip=True, stream=True, multisample=True)
         while queue or running:
             for name, result, error in reap():
                 yield name, result, error

@@ -627,7 +627,7 @@ def _cmd_warmup(args):
 
     from .warmup import cache_state, warm_core
     t0 = time.perf_counter()
-    warm_core(clip=True, stream=True, reusable=True)
+    warm_core(clip=True, stream=True, reusable=True, multisample=True)
     with tempfile.TemporaryDirectory(prefix="refraster-warmup-") as tmp:
         sub = argparse.Namespace(**{**vars(args), "out": str(Path(tmp) / "gallery"),
                                     "quick": True, "quiet": True})

@@ -15,7 +15,7 @@ from ._validate import as_float_array, as_image_size
 from .framebuffer import _build
 from .mesh import as_meshes
 from .raster import _prepare, facing
-from .raster.multisample import rasterize_samples, stream_samples
+from .raster.multisample import MAX_FACES, rasterize_samples, stream_samples
 from .raster.rasterizer import DEPTH_FUNCS
 from .raster.samples import sample_offsets, sample_points
 from .raster.state import as_raster_state
@@ -85,7 +85,8 @@ def render_samples(meshes, *, view, proj, width, height, model=None, raster=None
     each sample's depth is the depth plane at the sample, tested per sample with
     ``raster.depth_func`` (depth writes on); attributes are interpolated at
     ``raster.interpolation``'s point. ``raster.samples=1`` with the standard pattern gives
-    :func:`refraster.render`'s buffers with a sample axis of length 1 (the same bits).
+    :func:`refraster.render`'s buffers with a sample axis of length 1 (the same bits). At
+    most 2³¹ faces over all draw calls (``refraster.raster.multisample.MAX_FACES``).
     """
     state = as_raster_state(raster)
     if not state.depth_write:
@@ -94,7 +95,11 @@ def render_samples(meshes, *, view, proj, width, height, model=None, raster=None
     bg = as_float_array(background, "background", shape=(3,))
     meshes = as_meshes(meshes)
     w, h = as_image_size(width, height)
-    with threads_for(frame_work(sum(m.n_faces for m in meshes), w, h)):
+    n_faces = sum(m.n_faces for m in meshes)
+    if n_faces > MAX_FACES:
+        raise ValueError(f"meshes: {n_faces:,} faces in all; render_samples takes at most "
+                         f"{MAX_FACES:,} (its sample face image is int32)")
+    with threads_for(frame_work(n_faces, w, h)):
         prep = _prepare(meshes, view=view, proj=proj, width=w, height=h, model=model,
                         state=state, scratch=None, multisample=True)
         ox, oy = sample_offsets(state)

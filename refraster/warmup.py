@@ -42,7 +42,8 @@ CLIP_KERNELS = ("refraster.raster.primitive._clip_pass",
                 "refraster.raster.primitive._clip_polygon",
                 "refraster.raster.primitive._clipped_face")
 #: ``RENDER_KERNELS``, ``CLIP_KERNELS`` and the fragment-stream path's
-#: (``warm_core(clip=True, stream=True)``, what the gallery's sections share).
+#: (``warm_core(clip=True, stream=True, multisample=True)``, what the gallery's sections
+#: share).
 STREAM_KERNELS = RENDER_KERNELS + CLIP_KERNELS + (
     "refraster.raster.rasterizer._stream_pass", "refraster.raster.fragments._interpolate_kernel",
     "refraster.raster.resolve._resolve")
@@ -284,13 +285,19 @@ def _box():
     return v, f
 
 
-def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False, reusable=False):
+def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False, reusable=False,
+              multisample=False):
     """Compile the kernels of ``refraster.render`` (and the colour read): a 16×12 frame of a
     cube per normals mode. ``clip=True`` also draws the cube cut by the near plane (the
     clipping kernels), ``stream=True`` through a fragment stage (``draw``, ``resolve``): what
     the gallery's techniques share. ``reusable=True`` also renders twice into a
     :meth:`Framebuffer.reusable <refraster.framebuffer.Framebuffer.reusable>` (its span clear,
-    ``refraster warmup``'s)."""
+    ``refraster warmup``'s). ``multisample=True`` also gives ``finalize`` and ``shade`` their
+    second specialisation, the 4× sample image's int32 face image
+    (``refraster.raster.gbuffer.FACE_IMAGE_DTYPES``), through ``render_samples`` with its tile
+    pass replaced by a no-op for the call (the tile pass compiles where a multisampled frame is
+    first drawn; the replacement is process-wide, as :func:`warm_only`'s): what the gallery's
+    and the goldens' 4× pictures add to the pipeline's kernels."""
     import numpy as np
 
     import refraster
@@ -307,6 +314,14 @@ def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False, reusable=
                 fb = refraster.render(mesh, view=view, proj=proj, width=16, height=12,
                                       raster=state,
                                       fragment_stage=lambda f: f.world_position()[:, 0] <= 0.0)
+                np.asarray(fb.color)
+    if multisample:
+        proj = perspective(40.0, 4 / 3, 0.5, 10.0)
+        with _stubbed(("refraster.raster.multisample._msaa_pass",)):
+            for mode in normals:
+                state = refraster.RasterState(normals=mode, samples=4)
+                fb = refraster.render_samples(mesh, view=view, proj=proj, width=16, height=12,
+                                              raster=state)
                 np.asarray(fb.color)
     if reusable:
         from refraster.framebuffer import Framebuffer

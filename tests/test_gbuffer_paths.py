@@ -3,7 +3,8 @@
 * flat normals computed once per face (``gbuffer.per_face_normals``) instead of once per run
   of a face's pixels in a row;
 * ``finalize`` writing the background of a reused framebuffer itself (``FILL_IN_KERNEL``);
-* every kernel input passed read-only, so ``finalize``/``shade`` compile one specialisation;
+* every kernel input passed read-only, so ``finalize``/``shade`` compile one specialisation per
+  declared face image dtype;
 * ``render(out=)`` comparing only inputs it has not checked against the same arrays before.
 
 Each is compared with the plain path forced by its threshold, on scenes that make a wrong
@@ -169,7 +170,8 @@ def test_background_written_by_finalize_into_recycled_sample_outputs(monkeypatch
     frame: from ``FILL_IN_KERNEL`` samples (160x120 at 4x is above the default) its eye depth,
     normal and ids come from the output pool unfilled and ``finalize`` writes their
     background; recycled arrays holding a dropped 4x frame's sphere must come out as NumPy's
-    fills leave them (the plain path forced by the threshold)."""
+    fills leave them (the plain path forced by the threshold). The tile pass's per-sample
+    depth, facing and barycentrics come from the pool too (filled there): the same."""
     if fill_in_kernel is None:
         assert 160 * 120 * 4 >= fbm.FILL_IN_KERNEL
     else:
@@ -182,7 +184,8 @@ def test_background_written_by_finalize_into_recycled_sample_outputs(monkeypatch
         m.setattr(fbm, "FILL_IN_KERNEL", 1 << 40)
         ref = {k: a.tobytes() for k, a in rf.render_samples(small, **kw_far, raster=s4)
                .arrays().items()}                        # NumPy's fills
-    built = ("eye_depth", "normal", "prim_id", "object_id")
+    built = ("eye_depth", "normal", "prim_id", "object_id", "depth", "front_facing",
+             "barycentric")
     sfb = rf.render_samples(big, **kw, raster=s4)
     stale = {getattr(sfb, f).ctypes.data for f in built}
     del sfb
@@ -235,9 +238,22 @@ def test_default_threshold_uses_both_background_paths():
     assert 160 * 120 < fbm.FILL_IN_KERNEL <= 512 * 384
 
 
-def test_one_specialisation_per_kernel():
+def _face_image_specialisations(kernel):
+    """``kernel``'s specialisations, checked against the declared set: one per dtype of
+    ``gbuffer.FACE_IMAGE_DTYPES`` (the face image, argument 0), the other arguments' types the
+    same in each."""
+    sigs = kernel.signatures
+    got = sorted(str(s[0].dtype) for s in sigs)
+    assert got == sorted(np.dtype(d).name for d in gbuffer.FACE_IMAGE_DTYPES), sigs
+    assert len({s[1:] for s in sigs}) == 1, sigs
+    return sigs
+
+
+def test_one_specialisation_per_face_image_dtype():
     """Writeable and read-only meshes, normals and matrices, one or several draw calls, the
-    fused and the fragment-stream paths: ``finalize`` and ``shade`` compile once each."""
+    fused and the fragment-stream paths, 1x and 4x frames: ``finalize`` and ``shade`` compile
+    once per declared face image dtype (the 1x frame's int64, the 4x sample image's int32:
+    ``gbuffer.FACE_IMAGE_DTYPES``) and for nothing else."""
     box = mesh_of(cube())
     ro = Mesh(box.vertices.copy(), box.faces.copy())
     ro.vertices.flags.writeable = False
@@ -245,6 +261,7 @@ def test_one_specialisation_per_kernel():
     normals = box.vertices / np.linalg.norm(box.vertices, axis=1, keepdims=True)
     normals.flags.writeable = False
     kw = camera_kw(w=32, h=24)
+    s4 = rf.RasterState(samples=4)
     for m in (box, ro):
         rf.render(m, **kw).color
         rf.render(m, **kw, raster=rf.RasterState(normals="smooth")).color
@@ -254,9 +271,39 @@ def test_one_specialisation_per_kernel():
         rf.render(m, **kw, fragment_stage=lambda fr: np.ones(len(fr), bool)).color
         out = rf.render(m, **kw)
         rf.render(m, **kw, out=out).color
-    assert len(gbuffer.finalize.signatures) == 1, gbuffer.finalize.signatures
-    assert len(gbuffer.shade.signatures) == 1, gbuffer.shade.signatures
-    assert not any(t.mutable for t in gbuffer.finalize.signatures[0][:5])
+        rf.render_samples(m, **kw, raster=s4).color
+        rf.render_samples((m.vertices, m.faces, normals), **kw,
+                          raster=s4.replace(normals="smooth")).color
+        rf.render_samples([m, box], **kw, raster=s4).color
+    sigs = _face_image_specialisations(gbuffer.finalize)
+    _face_image_specialisations(gbuffer.shade)
+    assert not any(t.mutable for s in sigs for t in s[:5])
+
+
+def test_face_image_limit_refused_in_one_line(monkeypatch):
+    """``render_samples`` refuses more faces than its int32 sample face image can index
+    (``MAX_FACES``, 2³¹; lowered here to the cube's 12 faces) instead of wrapping them, and
+    takes exactly that many (the outputs' dtypes those of a 1x frame); so does the tile
+    pass's wrapper ``rasterize_samples`` for a caller of its own."""
+    from refraster import multisample as ms
+    from refraster.raster import multisample as rms
+    assert rms.MAX_FACES == 2 ** 31 == np.iinfo(np.int32).max + 1
+    box = mesh_of(cube())
+    kw = camera_kw(w=32, h=24)
+    s4 = rf.RasterState(samples=4)
+    monkeypatch.setattr(ms, "MAX_FACES", 12)
+    fb = rf.render_samples(box, **kw, raster=s4)
+    one = rf.render(box, **kw)
+    for name, a in fb.arrays().items():
+        assert a.dtype == getattr(one, name).dtype, name
+    tri = Mesh(box.vertices, box.faces[:1])
+    with pytest.raises(ValueError, match=r"^meshes: 13 faces in all; render_samples takes at "
+                                         r"most 12 \(its sample face image is int32\)$"):
+        rf.render_samples([box, tri], **kw, raster=s4)
+    monkeypatch.setattr(rms, "MAX_FACES", 11)     # the tile pass's own guard
+    with pytest.raises(ValueError, match=r"^rasterize_samples takes at most 11 faces \(its face "
+                                         r"image is int32\), not 12$"):
+        rf.render_samples(box, **kw, raster=s4)
 
 
 def test_out_input_check_after_good_frames():

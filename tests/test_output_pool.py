@@ -164,6 +164,21 @@ def test_pool_unit():
     assert len(pool) == 0 and pool.nbytes == 0
 
 
+def test_pool_zeros_recycled_or_new_are_zeros():
+    """``OutputPool.zeros``: a new array (``np.zeros``) and a recycled one that held junk both
+    come out all zeros, kept and recycled as ``empty``'s."""
+    pool = OutputPool()
+    a = pool.zeros((256, 256, 3), np.float32)
+    assert not a.any() and len(pool) == 1
+    a[...] = np.nan
+    pa = _addr(a)
+    del a
+    b = pool.zeros((256, 256, 3), np.float32)
+    assert _addr(b) == pa and not b.any() and b.dtype == np.float32
+    small = pool.zeros((4, 4), np.bool_)                  # below POOL_MIN_BYTES: not kept
+    assert small.shape == (4, 4) and not small.any() and len(pool) == 1
+
+
 def test_threads_rendering_at_once(monkeypatch):
     """Several Python threads rendering at once (a threaded Dask scheduler): each frame has
     the bytes of the same scene rendered alone."""

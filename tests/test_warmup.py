@@ -458,13 +458,51 @@ def test_warmup_command_warms_the_reusable_framebuffer_s_span_clear():
             " (0, 0, 0)), proj=perspective(40.0, 4 / 3, near, 10.0), width=40, height=30, out=fb)\n"
             "print(n, len(gbuffer.clear_spans.signatures))\n")
     cli = (Path(warmup.__file__).parent / "cli.py").read_text()
-    assert "warm_core(clip=True, stream=True, reusable=True)" in cli
+    assert "warm_core(clip=True, stream=True, reusable=True, multisample=True)" in cli
     on = subprocess.run([sys.executable, "-c", code, "1"], capture_output=True, text=True,
                         check=True, timeout=600).stdout.split()
     off = subprocess.run([sys.executable, "-c", code, "0"], capture_output=True, text=True,
                          check=True, timeout=600).stdout.split()
     assert on == ["1", "1"]
     assert off == ["0", "0"]
+
+
+_FACE_IMAGES = """
+import json
+import refraster as rf
+from refraster import warmup
+from refraster.raster import gbuffer
+def dtypes():
+    return [sorted(str(s[0].dtype) for s in k.signatures) for k in (gbuffer.finalize, gbuffer.shade)]
+out = []
+warmup.warm_core(("flat",))
+out.append(dtypes())
+warmup.warm_core(("flat", "smooth"), multisample=True)
+out.append(dtypes())
+box = rf.as_mesh(warmup._box())
+cam = rf.camera.frame_bounds(((-1, -1, -1), (1, 1, 1)), width=40, height=30, margin=1.0)
+for raster in (dict(samples=4), dict(samples=4, sample_locations="gl_llvmpipe",
+                                     interpolation="sample", normals="smooth")):
+    rf.render_samples(box, **cam.kwargs, raster=rf.RasterState(**raster)).color
+out.append(dtypes())
+print(json.dumps(out))
+"""
+
+
+def test_multisample_warmup_compiles_the_sample_image_s_finalize_and_shade():
+    """``warm_core(multisample=True)`` (``refraster warmup``'s, and the gallery's and goldens'
+    cold start) gives ``finalize`` and ``shade`` their int32 specialisation (the 4x sample
+    image's face image) beside the int64 one, without the 4x tile pass; real 4x frames (the
+    gallery's raster state among them) then add none. Without the option only the int64 one
+    (so the test can fail). In a process of its own, from this checkout's cache."""
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    r = subprocess.run([sys.executable, "-c", _FACE_IMAGES], env=env, capture_output=True,
+                       text=True, timeout=900, stdin=subprocess.DEVNULL)
+    assert r.returncode == 0, r.stderr
+    plain, warmed, after = json.loads(r.stdout.strip().splitlines()[-1])
+    assert plain == [["int64"], ["int64"]]
+    assert warmed == [["int32", "int64"], ["int32", "int64"]]
+    assert after == warmed
 
 
 def test_fused_clip_warmup_types_the_pass_as_the_golden_clip_scenes_do():

@@ -68,6 +68,12 @@ ENGINES = ("fused", "reference")
 BAND_ROWS = 32
 #: Tetrahedra per chunk of the parallel band binning (one unit of parallel work).
 BIN_CHUNK = 1 << 12
+#: Margin on t of :func:`_span_off_core`: a row span is skipped as off the core only if its t
+#: stays this far outside the core's t interval (the rounding it must absorb is below 2^-17).
+OFF_CORE_MARGIN = 2.0 ** -12
+#: The off-core test is used only on triangles whose barycentrics are this well conditioned
+#: (``inv_af · 2 (W + 2)(H + 2)`` for a W × H pixel bounding box; :func:`_span_off_core`).
+OFF_CORE_MAX_COND = 2.0 ** 24
 
 
 @dataclass(frozen=True, eq=False)
@@ -307,6 +313,125 @@ def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
     return starts, lists, first
 
 
+@njit(**IJIT)
+def _fragment_bary(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y, e0, e1, e2, inv_area, swap):
+    """The barycentrics of the fragment at pixel (x, y), as the foundation's fragment stream
+    (w = 1): ``float32(λ_k / Σλ)``, λ from the unsnapped positions (:func:`lambdas`), in the
+    triangle's original vertex order (``swap``: stored clockwise)."""
+    l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y, e0, e1, e2, inv_area)
+    sl = l0 + l1 + l2
+    q0 = np.float64(np.float32(l0 / sl))
+    q1 = np.float64(np.float32(l1 / sl))
+    q2 = np.float64(np.float32(l2 / sl))
+    if swap:
+        q1, q2 = q2, q1
+    return q0, q1, q2
+
+
+@njit(**IJIT)
+def _halo_depths(li, px, d, u, min_d, min_db, delta_t, delta_d, boundary, boundary_width):
+    """A fragment's halo depths into the depth buffers at voxel (li, px): Eq. 3's
+    ``d_new = δ + max(0, u − δt)·δd`` (``u = |2t − 1|``) into ``min_d``, and with ``boundary``
+    the same for ``u + boundary_width`` (where ≤ 1) into ``min_db``."""
+    dn = d + max(0.0, u - delta_t) * delta_d
+    if dn < min_d[li, px]:
+        min_d[li, px] = dn
+    if boundary and u + boundary_width <= 1.0:
+        db = d + max(0.0, u + boundary_width - delta_t) * delta_d
+        if db < min_db[li, px]:
+            min_db[li, px] = db
+
+
+@njit(**IJIT)
+def _off_core_limits(surface_width, aa):
+    """``(t_lo, t_hi)`` of :func:`_span_off_core`: the core ``|2t − 1| < w_s + a`` is
+    ``(1 − w_s − a)/2 < t < (1 + w_s + a)/2``, widened by :data:`OFF_CORE_MARGIN`."""
+    core_w = surface_width + aa    # the fill's own bound: core = u < surface_width + aa
+    return 0.5 * (1.0 - core_w) - OFF_CORE_MARGIN, 0.5 * (1.0 + core_w) + OFF_CORE_MARGIN
+
+
+@njit(**IJIT)
+def _off_core_usable(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, t0, t1, t2):
+    """Whether :func:`_span_off_core` may be used on a triangle (its proof's conditions): the
+    unsnapped triangle not flattened (``inv_af > 0``), its conditioning ``inv_af · 2 (W + 2)
+    (H + 2)`` at most :data:`OFF_CORE_MAX_COND` (W × H its extent in pixels: a pixel centre of
+    its bounding box lies within a pixel of it), the corners' t in [−1, 1]."""
+    ex = max(fx0, fx1, fx2) - min(fx0, fx1, fx2)
+    ey = max(fy0, fy1, fy2) - min(fy0, fy1, fy2)
+    return (inv_af > 0.0 and inv_af * 2.0 * (ex + 2.0) * (ey + 2.0) <= OFF_CORE_MAX_COND
+            and max(abs(t0), abs(t1), abs(t2)) <= 1.0)
+
+
+@njit(**IJIT)
+def _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, t_lo, t_hi):
+    """True when no fragment of the row span ``xa … xb`` (row y) of a triangle with
+    ``inv_af > 0`` can be a core fragment (``|2t − 1| < w_s + a``): t stays ≥ ``t_hi`` or
+    ≤ ``t_lo`` (the core's t interval widened by :data:`OFF_CORE_MARGIN`); ``s0 … s2`` the
+    corners' t in stored vertex order. Decided without a division, from the span's two ends.
+
+    Why it is exact (docs/halos4d.md, "Off-core spans"): the exact λ_k are affine along the
+    row, so N = Σ λ_k s_k and D = Σ λ_k are, and ``N − t_hi·D`` (``t_lo·D − N``), ≥ 0 at both
+    ends, is ≥ 0 over the span; t = N / D up to rounding. On a triangle whose conditioning
+    (``OFF_CORE_MAX_COND``) bounds each computed λ_k within 2^-26 of the exact one, and with
+    the ends' D in [1/2, 2] and Σ|λ_k| ≤ 16 (checked here), the fragment's computed t (its
+    float32 barycentrics included) lies within 2^-17 of N / D: well inside the margin."""
+    a0, a1, a2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, xa, y, 0, 0, 0, 0.0)
+    b0, b1, b2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, xb, y, 0, 0, 0, 0.0)
+    da = a0 + a1 + a2
+    db = b0 + b1 + b2
+    if not (0.5 <= da <= 2.0 and 0.5 <= db <= 2.0
+            and abs(a0) + abs(a1) + abs(a2) <= 16.0 and abs(b0) + abs(b1) + abs(b2) <= 16.0):
+        return False
+    na = a0 * s0 + a1 * s1 + a2 * s2
+    nb = b0 * s0 + b1 * s1 + b2 * s2
+    return ((na - t_hi * da >= 0.0 and nb - t_hi * db >= 0.0)
+            or (t_lo * da - na >= 0.0 and t_lo * db - nb >= 0.0))
+
+
+@njit(**IJIT)
+def _keep_triangle(rec, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, swap, t0, t1, t2, d0, d1, d2):
+    """A deferred triangle's record (:func:`_fill_off_core`'s ``tris`` row)."""
+    rec[0] = fx0
+    rec[1] = fy0
+    rec[2] = fx1
+    rec[3] = fy1
+    rec[4] = fx2
+    rec[5] = fy2
+    rec[6] = inv_af
+    rec[7] = 1.0 if swap else 0.0
+    rec[8] = t0
+    rec[9] = t1
+    rec[10] = t2
+    rec[11] = d0
+    rec[12] = d1
+    rec[13] = d2
+
+
+@njit(**IJIT)
+def _fill_off_core(spans, n_spans, tris, r0, height, surf_d, min_d, min_db, delta_t, delta_d,
+                   boundary, boundary_width):
+    """The deferred off-core spans of one slice (:func:`_span_off_core`), at the voxels that
+    have a surface fragment: their halo depths (Eq. 3, and the boundary's) enter the depth
+    buffers. Elsewhere an off-core fragment changes nothing drawn (no volume, no halo colour):
+    it would only mark a halo voxel. ``spans (n, 4)``: row in the band (the band's first
+    row ``r0``), first pixel, count, triangle; ``tris (m, 14)``: unsnapped x, y of the stored
+    vertices, inv_af, swap, and the corners' t and δ in original order."""
+    for j in range(n_spans):
+        li, xs, cnt, m = spans[j, 0], spans[j, 1], spans[j, 2], spans[j, 3]
+        py = height - 1 - (r0 + li)
+        for i in range(cnt):
+            px = xs + i
+            if surf_d[li, px] == np.inf:
+                continue
+            q0, q1, q2 = _fragment_bary(tris[m, 0], tris[m, 1], tris[m, 2], tris[m, 3],
+                                        tris[m, 4], tris[m, 5], tris[m, 6], px, py, 0, 0, 0,
+                                        0.0, tris[m, 7] != 0.0)
+            t = q0 * tris[m, 8] + q1 * tris[m, 9] + q2 * tris[m, 10]
+            d = q0 * tris[m, 11] + q1 * tris[m, 12] + q2 * tris[m, 13]
+            _halo_depths(li, px, d, abs(2.0 * t - 1.0), min_d, min_db, delta_t, delta_d,
+                         boundary, boundary_width)
+
+
 @njit(**JIT)
 def _coverage(u, surface_width, aa):
     """Share of a voxel covered by the surface, from t (Sec. 4.6 anti-aliasing): 1 for
@@ -388,7 +513,12 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
     the other parameters the same) into ``out_rgb2``, ``out_a2``: its fragments, barycentrics
     and surface fragments are the first picture's, only the depth buffer differs (issue 27).
     ``counts[band]``: the slice triangles of the tetrahedra whose first band it is, and the
-    valid ones (non-zero snapped area, inside the image) whose first row lies in it."""
+    valid ones (non-zero snapped area, inside the image) whose first row lies in it.
+
+    Without a volume and a halo colour, a row span whose fragments are all off the core
+    (:func:`_span_off_core`) is deferred to the end of its slice and filled only at the voxels
+    that then have a surface fragment (:func:`_fill_off_core`): the depth buffers are minima,
+    which do not depend on the order, and elsewhere such a fragment changes no output."""
     nbands = band_starts.shape[0] - 1
     n = centres.shape[0]
     nc = attr.shape[1]
@@ -430,6 +560,18 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
         ends = np.empty((6, 2), np.int64)
         lams = np.empty(6)
         qbuf = np.empty((5, width))     # one row span's barycentrics, t and δ
+        # the slice's deferred off-core spans and their triangles (_fill_off_core): at most
+        # two triangles per (slice, tetrahedron) pair, a span per row of the band each
+        defer = not want_volume and halo_alpha == 0.0
+        most = 0
+        for k in range(n):
+            most = max(most, pstart[k + 1] - pstart[k])
+        keep = 2 * most if defer and halos else 0
+        off_spans = np.empty((keep * rows, 4), np.int32)
+        off_tris = np.empty((keep, 14))
+        n_off = 0
+        n_off_tris = 0
+        t_lo, t_hi = _off_core_limits(surface_width, aa)
         n_tri = 0
         n_valid = 0
         cur = np.int64(-1)  # int64, not a literal: one _resolve_slice (issue 27)
@@ -464,6 +606,10 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                         continue
                     if k != cur:
                         if cur >= 0:
+                            _fill_off_core(off_spans, n_off, off_tris, r0, height, surf_d, min_d,
+                                           min_db, delta_t, delta_d, boundary, boundary_width)
+                            n_off = 0
+                            n_off_tris = 0
                             _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume,
                                            min_d, surf_d, surf, hit, acc, acc_a, volume,
                                            surf_cov, min_db, halo_alpha, halo_rgb, boundary,
@@ -496,6 +642,10 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                     # the triangle's δ and t in locals: read once, not per pixel (issue 27)
                     d0, d1, d2 = tri[0, 0], tri[1, 0], tri[2, 0]
                     t0, t1, t2 = tri[0, 1], tri[1, 1], tri[2, 1]
+                    off_ok = defer and _off_core_usable(fx0, fy0, fx1, fy1, fx2, fy2, inv_af,
+                                                        t0, t1, t2)
+                    s1, s2 = (t2, t1) if swap else (t1, t2)
+                    slot = -1
                     for r in range(ra, rb + 1):
                         py = height - 1 - r
                         li = r - r0
@@ -509,6 +659,20 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                                           x1 - x0 + 1)
                         if sa > sb:
                             continue
+                        if off_ok and _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, t0,
+                                                     s1, s2, x0 + sa, x0 + sb, py, t_lo, t_hi):
+                            if halos:    # without halos an off-core fragment sets no depth
+                                if slot < 0:
+                                    slot = n_off_tris
+                                    n_off_tris += 1
+                                    _keep_triangle(off_tris[slot], fx0, fy0, fx1, fy1, fx2,
+                                                   fy2, inv_af, swap, t0, t1, t2, d0, d1, d2)
+                                off_spans[n_off, 0] = li
+                                off_spans[n_off, 1] = x0 + sa
+                                off_spans[n_off, 2] = sb - sa + 1
+                                off_spans[n_off, 3] = slot
+                                n_off += 1
+                            continue
                         e0 += sa * sx0
                         e1 += sa * sx1
                         e2 += sa * sx2
@@ -518,17 +682,9 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                         # buffers (a loop the compiler vectorizes; the same operations, so the
                         # same bits), then the per-voxel updates
                         for i in range(cnt):
-                            # as the foundation's fragment stream (w = 1): float32(λ_k / Σλ),
-                            # λ from the unsnapped positions
-                            l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, xs + i,
-                                                 py, e0 + i * sx0, e1 + i * sx1, e2 + i * sx2,
-                                                 inv_area)
-                            sl = l0 + l1 + l2
-                            q0 = np.float64(np.float32(l0 / sl))
-                            q1 = np.float64(np.float32(l1 / sl))
-                            q2 = np.float64(np.float32(l2 / sl))
-                            if swap:
-                                q1, q2 = q2, q1
+                            q0, q1, q2 = _fragment_bary(fx0, fy0, fx1, fy1, fx2, fy2, inv_af,
+                                                        xs + i, py, e0 + i * sx0, e1 + i * sx1,
+                                                        e2 + i * sx2, inv_area, swap)
                             qbuf[0, i] = q0
                             qbuf[1, i] = q1
                             qbuf[2, i] = q2
@@ -544,13 +700,8 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                             u = abs(2.0 * t - 1.0)
                             core = u < surface_width + aa
                             if halos:
-                                dn = d + max(0.0, u - delta_t) * delta_d
-                                if dn < min_d[li, px]:
-                                    min_d[li, px] = dn
-                                if boundary and u + boundary_width <= 1.0:
-                                    db = d + max(0.0, u + boundary_width - delta_t) * delta_d
-                                    if db < min_db[li, px]:
-                                        min_db[li, px] = db
+                                _halo_depths(li, px, d, u, min_d, min_db, delta_t, delta_d,
+                                             boundary, boundary_width)
                             elif core and d < min_d[li, px]:
                                 min_d[li, px] = d
                             if pair and core and d < min_d2[li, px]:
@@ -574,6 +725,8 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
         counts[band, 0] = n_tri
         counts[band, 1] = n_valid
         if cur >= 0:
+            _fill_off_core(off_spans, n_off, off_tris, r0, height, surf_d, min_d, min_db,
+                           delta_t, delta_d, boundary, boundary_width)
             _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf_d,
                            surf, hit, acc, acc_a, volume, surf_cov, min_db, halo_alpha,
                            halo_rgb, boundary, boundary_rgb, surf_full, voxel_rgba, pair,

@@ -161,7 +161,8 @@ def per_face_normals(n_faces, height, width, smooth):
 @njit(**PJIT)
 def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv, nmat,
              fnormal, per_face, fill_bg, eye_depth, normal, prim_id, object_id, spans):
-    """Eye depth, normal and ids of the covered pixels (``prim_global ≥ 0``); the background
+    """Eye depth, normal and ids of the covered pixels of the face image ``prim_global``
+    (global face index, int64 or int32: :data:`FACE_IMAGE_DTYPES`; ``≥ 0``); the background
     (+inf, 0, −1, −1) too when ``fill_bg``, else the caller has filled it. ``per_face``
     (flat normals only): the face normals are computed first, once per face, into ``fnormal``
     (F, 3) float64 scratch (:func:`per_face_normals`). ``spans`` (H, 2) int64: each row's
@@ -298,6 +299,16 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
             for j in range(3):
                 v = palette[pk, j] * (AMBIENT + DIFFUSE * d) + SPECULAR * s
                 color[r, c, j] = np.float32(min(max(v, 0.0), 1.0))
+
+
+#: The face image dtypes :func:`finalize` and :func:`shade` are compiled for, one
+#: specialisation each (every other input goes through :func:`readonly`, so nothing else
+#: varies): int64, the single-sample rasterizer's face image (``render``), and int32, the
+#: multisample sample image's (``render_samples``, ``(H, W·S)``: half the bytes of an int64 one
+#: for the tile pass to write and both kernels to read; at most 2³¹ faces).
+#: ``tests/test_gbuffer_paths.py`` fails on any other specialisation, and the warm-up compiles
+#: both (``refraster.warmup.warm_core(multisample=True)``).
+FACE_IMAGE_DTYPES = (np.int64, np.int32)
 
 
 def readonly(a):

@@ -26,11 +26,17 @@ import numpy as np
 from numba import njit, prange
 
 from .._config import IJIT, PJIT
+from .._scratch import OUTPUTS
 from .rasterizer import (NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geometry, _setup,
                          _setup_winner, bin_primitives, depth_test, perspective_bary, tile_rect)
 
 #: ``RasterState.interpolation`` names and the kernel's codes.
 INTERPOLATIONS = {"center": 0, "centroid": 1, "sample": 2}
+#: The most faces (over all draw calls) :func:`rasterize_samples` takes: its sample face image
+#: is int32 (global face indices 0 … 2³¹ − 1, −1 the background), half the bytes of an int64
+#: one written by the tile pass and read by ``finalize`` and ``shade`` (docs/multisample.md,
+#: "Speed"); ``render_samples`` refuses more.
+MAX_FACES = 1 << 31
 
 
 @njit(**IJIT)
@@ -266,15 +272,18 @@ def rasterize_samples(prims, ox, oy, *, fill_rule=0, depth_func=1, clear_depth=1
     """Rasterize and depth-resolve every sample (``prims`` set up with ``pad`` of half a pixel).
 
     ``ox, oy``: the samples' fixed-point offsets (:func:`refraster.raster.samples.sample_offsets`).
-    Returns ``(depth (H, W, S) float32, prim (H, W, S) int64 face or −1, front (H, W, S) bool,
-    bary (H, W, S, 3) float32)``, row 0 at the top."""
+    Returns ``(depth (H, W, S) float32, prim (H, W, S) int32 face or −1, front (H, W, S) bool,
+    bary (H, W, S, 3) float32)``, row 0 at the top. At most :data:`MAX_FACES` faces."""
+    if prims.n_faces > MAX_FACES:
+        raise ValueError(f"rasterize_samples takes at most {MAX_FACES:,} faces (its face image "
+                         f"is int32), not {prims.n_faces:,}")
     ntx, nty, starts, lists = bin_primitives(prims)
     h, w = prims.height, prims.width
     ns = len(ox)
-    depth = np.full((h, w, ns), np.float32(clear_depth), np.float32)
-    prim = np.full((h, w, ns), -1, np.int64)
-    front = np.zeros((h, w, ns), np.bool_)
-    bary = np.zeros((h, w, ns, 3), np.float32)
+    depth = OUTPUTS.full((h, w, ns), np.float32(clear_depth), np.float32)
+    prim = OUTPUTS.full((h, w, ns), -1, np.int32)
+    front = OUTPUTS.zeros((h, w, ns), np.bool_)
+    bary = OUTPUTS.zeros((h, w, ns, 3), np.float32)
     _msaa_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits, fill_rule,
                depth_func, np.float32(clear_depth), np.ascontiguousarray(ox, np.int64),
                np.ascontiguousarray(oy, np.int64), INTERPOLATIONS[interpolation], depth, prim,

@@ -1,0 +1,133 @@
+"""The fused fill's off-core test (issue 46): a row span it defers holds no core fragment.
+
+``render._span_off_core`` decides, from the two ends of a row span and without a division,
+that every fragment of the span has ``|2t − 1| ≥ w_s + a`` (so the fill may defer it to the
+voxels that get a surface fragment). The oracle here is the fragment's own t, computed the
+slow, obvious way at every pixel of the span (float64 λ from the unsnapped positions, the
+float32 roundings of ``λ_k / Σλ``): random triangles (slivers included), random spans, and
+spans whose t at a pixel centre sits a few float32 ulps beside the core's edge.
+"""
+
+import numpy as np
+import pytest
+
+from refraster.halos4d import render
+from refraster.raster.rasterizer import _inv_float_area
+
+RNG_SEED = 46
+
+
+def fragment_t(fx, fy, inv_af, x, y, t):
+    """The fill's t at pixel (x, y), one operation at a time (w = 1, stored vertex order)."""
+    cx, cy = float(x) + 0.5, float(y) + 0.5
+    l0 = ((fx[2] - fx[1]) * (cy - fy[1]) - (fy[2] - fy[1]) * (cx - fx[1])) * inv_af
+    l1 = ((fx[0] - fx[2]) * (cy - fy[2]) - (fy[0] - fy[2]) * (cx - fx[2])) * inv_af
+    l2 = ((fx[1] - fx[0]) * (cy - fy[0]) - (fy[1] - fy[0]) * (cx - fx[0])) * inv_af
+    s = l0 + l1 + l2
+    q = [float(np.float32(l / s)) for l in (l0, l1, l2)]
+    return q[0] * t[0] + q[1] * t[1] + q[2] * t[2]
+
+
+def random_triangle(rng):
+    """Window-space vertices (float32 values, counter-clockwise), slivers one time in three."""
+    while True:
+        c = rng.uniform(20.0, 40.0, 2)
+        size = rng.uniform(0.3, 12.0)
+        p = c + rng.uniform(-size, size, (3, 2))
+        if rng.random() < 1 / 3:    # a sliver: squash towards the line through two vertices
+            p[2] = p[0] + rng.uniform(0.0, 1.0) * (p[1] - p[0]) + rng.uniform(-1e-2, 1e-2, 2)
+        p = p.astype(np.float32).astype(np.float64)
+        a = (p[1, 0] - p[0, 0]) * (p[2, 1] - p[0, 1]) - (p[2, 0] - p[0, 0]) * (p[1, 1] - p[0, 1])
+        if a < 0:
+            p = p[[0, 2, 1]]
+        fx, fy = p[:, 0], p[:, 1]
+        inv_af = _inv_float_area(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2])
+        if inv_af > 0.0:
+            return fx, fy, inv_af
+
+
+def test_the_oracle_is_the_fills_t():
+    rng = np.random.default_rng(RNG_SEED + 2)
+    for _ in range(50):
+        fx, fy, inv_af = random_triangle(rng)
+        t = rng.uniform(0.0, 1.0, 3)
+        x, y = int(fx.mean()), int(fy.mean())
+        q = render._fragment_bary(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2], inv_af, x, y, 0, 0,
+                                  0, 0.0, False)
+        assert q[0] * t[0] + q[1] * t[1] + q[2] * t[2] == fragment_t(fx, fy, inv_af, x, y, t)
+
+
+def claims(fx, fy, inv_af, t, xa, xb, y, lo, hi):
+    return render._span_off_core(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2], inv_af, t[0], t[1],
+                                 t[2], xa, xb, y, lo, hi)
+
+
+def check_span(fx, fy, inv_af, t, xa, xb, y, core_w, lo, hi):
+    """Whether the test claimed the span off the core; fails if a fragment of it is core."""
+    if not claims(fx, fy, inv_af, t, xa, xb, y, lo, hi):
+        return False
+    for x in range(xa, xb + 1):
+        u = abs(2.0 * fragment_t(fx, fy, inv_af, x, y, t) - 1.0)
+        assert not u < core_w, (fx.tolist(), fy.tolist(), inv_af, list(t), xa, xb, y, x, u)
+    return True
+
+
+@pytest.mark.parametrize("surface_width, aa", [(0.3, 0.027533030000969332), (0.05, 0.0),
+                                               (0.8, 0.1)])
+def test_a_claimed_span_has_no_core_fragment(surface_width, aa):
+    rng = np.random.default_rng(RNG_SEED)
+    core_w = surface_width + aa
+    lo, hi = render._off_core_limits(surface_width, aa)
+    claimed = spans = 0
+    for _ in range(150):
+        fx, fy, inv_af = random_triangle(rng)
+        t = rng.uniform(0.0, 1.0, 3)
+        if not render._off_core_usable(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2], inv_af, *t):
+            continue
+        x_lo, x_hi = int(np.floor(fx.min())) - 1, int(np.ceil(fx.max())) + 1
+        for y in range(int(np.floor(fy.min())) - 1, int(np.ceil(fy.max())) + 1):
+            for _ in range(3):
+                xa, xb = sorted(rng.integers(x_lo, x_hi + 1, 2))
+                spans += 1
+                claimed += check_span(fx, fy, inv_af, t, int(xa), int(xb), y, core_w, lo, hi)
+    assert claimed > 200 and spans - claimed > 200, (claimed, spans)
+
+
+def test_near_the_core_edge():
+    # t at one pixel centre a few float32 ulps beside the core's edge (1 ± w_s ∓ a)/2, and
+    # beside the edge widened by the margin: no claimed pixel may be core
+    rng = np.random.default_rng(RNG_SEED + 1)
+    surface_width, aa = 0.3, 0.027533030000969332
+    core_w = surface_width + aa
+    lo, hi = render._off_core_limits(surface_width, aa)
+    edges = (0.5 * (1.0 + core_w), 0.5 * (1.0 - core_w), hi, lo)
+    tried = 0
+    while tried < 3000:
+        fx, fy, inv_af = random_triangle(rng)
+        x = int(np.floor(fx.mean()))
+        y = int(np.floor(fy.mean()))
+        cx, cy = x + 0.5, y + 0.5
+        lam = [((fx[(k + 2) % 3] - fx[(k + 1) % 3]) * (cy - fy[(k + 1) % 3])
+                - (fy[(k + 2) % 3] - fy[(k + 1) % 3]) * (cx - fx[(k + 1) % 3])) * inv_af
+               for k in range(3)]
+        if abs(lam[2]) < 0.05:
+            continue
+        edge = edges[tried % 4]
+        target = edge + rng.uniform(-8.0, 8.0) * 2.0 ** -24
+        t = list(rng.uniform(0.0, 1.0, 2))
+        t.append((target * sum(lam) - lam[0] * t[0] - lam[1] * t[1]) / lam[2])
+        if not (abs(t[2]) <= 1.0 and render._off_core_usable(fx[0], fy[0], fx[1], fy[1],
+                                                             fx[2], fy[2], inv_af, *t)):
+            continue
+        tried += 1
+        check_span(fx, fy, inv_af, t, x, x, y, core_w, lo, hi)
+        check_span(fx, fy, inv_af, t, x - 2, x + 2, y, core_w, lo, hi)
+
+
+def test_usable_refuses_ill_conditioned_triangles():
+    # a flattened or near-degenerate triangle, or t outside [−1, 1], is never tested
+    u = render._off_core_usable
+    assert u(0.0, 0.0, 4.0, 0.0, 0.0, 4.0, 1 / 16, 0.0, 1.0, 0.5)
+    assert not u(0.0, 0.0, 4.0, 0.0, 0.0, 4.0, 0.0, 0.0, 1.0, 0.5)
+    assert not u(0.0, 0.0, 400.0, 0.0, 0.0, 400.0, 2.0 ** 20, 0.0, 1.0, 0.5)
+    assert not u(0.0, 0.0, 4.0, 0.0, 0.0, 4.0, 1 / 16, 0.0, 1.5, 0.5)
