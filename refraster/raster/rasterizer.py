@@ -45,7 +45,7 @@ from numba import njit, prange
 from .._config import IJIT, PJIT
 from .._tiers import kernel as tiered
 from .._scratch import OUTPUTS
-from .gbuffer import _face_corners, _face_normals, _object_of, _run_normal, _surface
+from .gbuffer import _face_corners, _face_normals, _object_of, _run_normal, gbuffer_pixel
 from .primitive import CLIPPED, SIMPLE
 
 TILE_SHIFT = 6
@@ -327,12 +327,21 @@ def write_winner(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, 
         item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront, sarea)
     o_prim[row, x] = prim
     o_front[row, x] = front
+    winner_bary(x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, inv_area, iw0, iw1,
+                iw2, piece, front, B, bits, rule, x, y, o_bary, row * width + x)
+
+
+@njit(**IJIT)
+def winner_bary(x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, inv_area, iw0, iw1,
+                iw2, piece, front, B, bits, rule, x, y, out, o):
+    """The barycentrics of a set-up triangle (:func:`_setup_winner`'s values) at pixel
+    (x, y) into ``out[o]``, as the fragment stream computes them."""
     e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
     e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
     e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
     l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y, e0 + b0, e1 + b1, e2 + b2,
                          inv_area)
-    fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary, row * width + x)
+    fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, out, o)
 
 
 @njit(**IJIT)
@@ -578,13 +587,9 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 o_depth[row, x] = zbuf[y - ty0, x - tx0]
                 o_prim[row, x] = prim
                 o_front[row, x] = front
-                e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
-                e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
-                e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
-                l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
-                                     e0 + b0, e1 + b1, e2 + b2, inv_area)
-                fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary,
-                              row * width + x)
+                winner_bary(x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, inv_af,
+                            inv_area, iw0, iw1, iw2, piece, front, B, bits, rule, x, y, o_bary,
+                            row * width + x)
     if not gbuf:
         return
     # the G-buffer in row order (fused's gbuffer): every output pixel of each row, from the
@@ -644,21 +649,12 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 o_depth[r, x] = tz[sl, ly, x - xs]
                 o_prim[r, x] = prim
                 o_front[r, x] = front
-                e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
-                e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
-                e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
-                l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
-                                     e0 + b0, e1 + b1, e2 + b2, inv_area)
-                fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary, r * width + x)
-                prim_id[r, x] = pid
-                object_id[r, x] = k
-                _, _, ez, mx, my, mz = _surface(
-                    bary3, r, x, prim, k, (ax, ay, az, bx, by, bz, cx, cy, cz), (fm0, fm1, fm2),
-                    not smooth, vertices, faces, vnormals, smooth, mv, nmat)
-                eye_depth[r, x] = np.float32(-ez)
-                normal[r, x, 0] = np.float32(mx)
-                normal[r, x, 1] = np.float32(my)
-                normal[r, x, 2] = np.float32(mz)
+                winner_bary(x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, inv_af,
+                            inv_area, iw0, iw1, iw2, piece, front, B, bits, rule, x, y, o_bary,
+                            r * width + x)
+                gbuffer_pixel(bary3, r, x, prim, k, pid, (ax, ay, az, bx, by, bz, cx, cy, cz),
+                              (fm0, fm1, fm2), vertices, faces, vnormals, smooth, mv, nmat,
+                              eye_depth, normal, prim_id, object_id)
 
 
 @njit(**IJIT)
