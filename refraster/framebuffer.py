@@ -287,11 +287,19 @@ _NO_FACE_NORMALS = np.zeros((1, 3))
 FILL_IN_KERNEL = 1 << 16
 
 
-def _finalize_inputs(meshes, models, view, face_offsets, normals, h, w, geometry=None):
-    """:func:`~refraster.raster.gbuffer.finalize`'s inputs after the face image and the
-    barycentrics: ``(vertices, faces, vnormals, smooth, face_offsets, mv, nmat, fnormal,
-    per_face)``, the arrays read-only views (one specialisation of each kernel for all callers)
-    but ``fnormal`` (scratch for per-face normals)."""
+def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, bary, normals,
+           background, geometry=None, n_shaded=None, out=None, targets=None, spans=None):
+    """Finalize the G-buffer from the visible primitive (global index over all draw calls,
+    −1 background) and its barycentrics. ``geometry``: the draw calls' vertices and faces
+    already concatenated (faces indexing the concatenation), when the caller has them.
+    ``n_shaded``: only pixels of the first ``n_shaded`` faces get the default colour (the
+    others the background), for a caller that colours the rest itself. ``out``: a framebuffer
+    checked by :func:`_check_out` whose arrays (``depth``, ``front`` and ``bary`` already among
+    them) are filled and returned instead of new ones; ``targets``: the arrays to write its
+    eye depth, normal and ids into (the private memory of a :meth:`Framebuffer.reusable`,
+    already holding the background: then nothing else is filled) instead of ``out``'s own.
+    ``spans``: an (H, 2) int64 array for :func:`finalize`'s record of the covered spans."""
+    h, w = depth.shape
     vn = _normals_per_mesh(meshes, normals)
     if geometry is not None:
         vertices, faces = geometry
@@ -315,52 +323,6 @@ def _finalize_inputs(meshes, models, view, face_offsets, normals, h, w, geometry
     smooth = vn is not None
     per_face = per_face_normals(offsets[-1], h, w, smooth)
     fnormal = np.empty((int(offsets[-1]), 3)) if per_face else _NO_FACE_NORMALS
-    return (readonly(vertices), readonly(faces), readonly(vnormals), smooth, readonly(offsets),
-            readonly(mv), readonly(nmat), fnormal, per_face)
-
-
-def _gbuffer_in_tile_pass(h, w):
-    """Whether a new frame's G-buffer is written whole by the fused pass's row pass
-    (:func:`refraster.raster.rasterizer.fused`'s ``gbuffer``) instead of NumPy's fills, the
-    tile pass's winners and ``finalize``: when ``finalize`` would write the background itself
-    into the output pool's arrays (:data:`FILL_IN_KERNEL`)."""
-    return h * w >= FILL_IN_KERNEL and pooling()
-
-
-def _gbuffer_targets(h, w):
-    """A new frame's eye depth, normal and ids from the output pool, unfilled (every element
-    written by the kernel that takes them)."""
-    return (OUTPUTS.empty((h, w), np.float32), OUTPUTS.empty((h, w, 3), np.float32),
-            OUTPUTS.empty((h, w), np.int32), OUTPUTS.empty((h, w), np.int32))
-
-
-def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, bary, normals,
-           background, geometry=None, n_shaded=None, out=None, targets=None, spans=None,
-           written=None):
-    """Finalize the G-buffer from the visible primitive (global index over all draw calls,
-    −1 background) and its barycentrics. ``geometry``: the draw calls' vertices and faces
-    already concatenated (faces indexing the concatenation), when the caller has them.
-    ``n_shaded``: only pixels of the first ``n_shaded`` faces get the default colour (the
-    others the background), for a caller that colours the rest itself. ``out``: a framebuffer
-    checked by :func:`_check_out` whose arrays (``depth``, ``front`` and ``bary`` already among
-    them) are filled and returned instead of new ones; ``targets``: the arrays to write its
-    eye depth, normal and ids into (the private memory of a :meth:`Framebuffer.reusable`,
-    already holding the background: then nothing else is filled) instead of ``out``'s own.
-    ``spans``: an (H, 2) int64 array for :func:`finalize`'s record of the covered spans.
-    ``written``: ``(inputs, (eye_depth, normal, prim_id, object_id))`` of a new frame whose
-    fused pass wrote them (:func:`_finalize_inputs`, :func:`_gbuffer_targets`): then
-    ``finalize`` does not run."""
-    h, w = depth.shape
-    if written is not None:
-        inputs, (eye_depth, normal, prim, obj) = written
-        vertices, faces, vnormals, smooth, offsets, mv, nmat, _, per_face = inputs
-        args = (readonly(prim_global), readonly(bary), vertices, faces, vnormals, smooth,
-                offsets, mv, nmat)
-        return _framebuffer(args, per_face, n_shaded, background, offsets, w, h, None, out,
-                            depth, eye_depth, normal, prim, obj, front, bary, view, proj, meshes,
-                            models)
-    vertices, faces, vnormals, smooth, offsets, mv, nmat, fnormal, per_face = _finalize_inputs(
-        meshes, models, view, face_offsets, normals, h, w, geometry)
     # the background: written by finalize in its sweep over every pixel (one sweep instead of
     # five) into a reused framebuffer's arrays and into the output pool's (recycled memory, no
     # page faults in the steady state; 2026-12-04: 0.77x the CPU of NumPy's fills + finalize)
@@ -373,7 +335,10 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
         eye_depth, normal, prim, obj = targets
         into = _reusable_color(out, h, w)
     elif out is None and fill_bg:   # every element written by finalize
-        eye_depth, normal, prim, obj = _gbuffer_targets(h, w)
+        eye_depth = OUTPUTS.empty((h, w), np.float32)
+        normal = OUTPUTS.empty((h, w, 3), np.float32)
+        prim = OUTPUTS.empty((h, w), np.int32)
+        obj = OUTPUTS.empty((h, w), np.int32)
         into = None
     elif out is None:
         eye_depth = OUTPUTS.full((h, w), np.inf, np.float32)
@@ -390,22 +355,15 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
             obj.fill(-1)
         into = _reusable_color(out, h, w)
     # every input read-only (views): one specialisation of each kernel for all callers
-    args = (readonly(prim_global), readonly(bary), vertices, faces, vnormals, smooth, offsets,
-            mv, nmat)
-    with threads_for(frame_work(offsets[-1], w, h)):
+    args = (readonly(prim_global), readonly(bary), readonly(vertices), readonly(faces),
+            readonly(vnormals), smooth, readonly(offsets), readonly(mv), readonly(nmat))
+    work = frame_work(offsets[-1], w, h)
+    with threads_for(work):
         tiered(finalize)(*args, fnormal, per_face, fill_bg, eye_depth, normal, prim, obj, spans)
-    return _framebuffer(args, per_face, n_shaded, background, offsets, w, h, into, out, depth,
-                        eye_depth, normal, prim, obj, front, bary, view, proj, meshes, models)
-
-
-def _framebuffer(args, per_face, n_shaded, background, offsets, w, h, into, out, depth,
-                 eye_depth, normal, prim, obj, front, bary, view, proj, meshes, models):
-    """The finished frame: ``out`` filled in, or a new :class:`Framebuffer`, its colour
-    pending (:func:`~refraster.raster.gbuffer.shade`'s ``args`` kept until read)."""
     color = _PendingShade(*args, _NO_FACE_NORMALS, per_face,
                           int(offsets[-1]) if n_shaded is None else int(n_shaded),
                           readonly(PALETTE), readonly(np.asarray(background, np.float64)),
-                          work=frame_work(offsets[-1], w, h), into=into)
+                          work=work, into=into)
     if out is not None:
         out.color = color
         out.view, out.proj, out.meshes, out.models = view, proj, meshes, models
@@ -642,18 +600,12 @@ def _render_frame(meshes, view, proj, width, height, state, model, fragment_stag
             return _render_into(prep, out, model, bg, scratch)
     if fused_path:
         h, w = height, width
-        written = None
-        if _gbuffer_in_tile_pass(h, w):   # the whole G-buffer by the fused pass
-            written = (_finalize_inputs(prep.meshes, prep.models, prep.view, prep.face_offsets,
-                                        normals, h, w), _gbuffer_targets(h, w))
         depth, prim_global, front, bary = fused(
             prep.triangles, fill_rule=prep.fill_rule, depth_func=DEPTH_FUNCS[depth_func],
-            clear_depth=clear, scratch=scratch,
-            gbuffer=None if written is None else (*written[0], *written[1]))
+            clear_depth=clear, scratch=scratch)
         facing(state, front, prim_global)
         return _build(prep.meshes, prep.models, prep.view, prep.proj, depth, prim_global,
-                      prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg,
-                      written=written)
+                      prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg)
     from .raster import _fragments_from
     from .raster.rasterizer import stream
     pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)

@@ -22,7 +22,6 @@ from refraster import framebuffer as fbm
 from refraster.mesh import Mesh
 from refraster.raster import gbuffer
 from refraster.scenes import cube, icosphere
-from refraster.scenes import torus as torus_scene
 
 
 def _bytes(fb):
@@ -194,43 +193,6 @@ def test_background_written_by_finalize_into_recycled_sample_outputs(monkeypatch
     assert {getattr(sfb, f).ctypes.data for f in built} == stale
     got = {k: a.tobytes() for k, a in sfb.arrays().items()}
     for f in ref:
-        assert got[f] == ref[f], f
-
-
-def _row_pass_scenes():
-    box, ico, torus = mesh_of(cube()), mesh_of(icosphere(3)), mesh_of(torus_scene())
-    RS = rf.RasterState
-    kw = camera_kw(w=197, h=131)                         # partial tiles at both edges
-    near = dict(kw, proj=rf.perspective(45, 197 / 131, 2.3, 10))   # clipped pieces
-    return [("sphere", ico, kw),
-            ("two draws, models, smooth", [box, ico],
-             dict(kw, model=[_model(0.4, (-0.5, 0, 0)), _model(-0.9, (0.6, 0.1, -0.2))],
-                  raster=RS(normals="smooth"))),
-            ("clipped pieces", torus, near),
-            ("greater, cw, cull", ico, dict(kw, raster=RS(depth_func="greater", clear_depth=0.0,
-                                                         front_face="cw", cull="back"))),
-            ("lequal, top-left", box, dict(kw, raster=RS(depth_func="lequal",
-                                                        fill_rule="top-left")))]
-
-
-@pytest.mark.parametrize("name", [s[0] for s in _row_pass_scenes()])
-@pytest.mark.parametrize("face_pixels", [0, 10 ** 12])
-def test_row_pass_gives_the_bytes_of_the_tile_writes_and_finalize(monkeypatch, name,
-                                                                  face_pixels):
-    """From ``FILL_IN_KERNEL`` pixels a new frame's G-buffer is written whole by the fused
-    pass's row-order pass (winners and depths kept per tile): every output must be the bytes
-    of NumPy's fills + the tile pass's winners + ``finalize`` (the path forced by the
-    threshold), background and empty tiles included, with per-face or per-run normals."""
-    meshes, kw = next((m, k) for n, m, k in _row_pass_scenes() if n == name)
-    monkeypatch.setattr(gbuffer, "FACE_NORMAL_PIXELS", face_pixels)
-    monkeypatch.setattr(fbm, "FILL_IN_KERNEL", 1 << 40)
-    ref = _bytes(rf.render(meshes, **kw))
-    monkeypatch.setattr(fbm, "FILL_IN_KERNEL", 0)
-    assert fbm._gbuffer_in_tile_pass(kw["height"], kw["width"])
-    # outputs recycled from a dropped frame of another picture (every byte must be written)
-    rf.render(mesh_of(icosphere(3)), **camera_kw(w=197, h=131, eye=(0.9, 0.7, 1.4)))
-    got = _bytes(rf.render(meshes, **kw))
-    for f in FB_FIELDS:
         assert got[f] == ref[f], f
 
 

@@ -152,22 +152,6 @@ def _surface(bary, r, c, g, k, corners, fm, flat, vertices, faces, vnormals, smo
     return ex, ey, ez, mx, my, mz
 
 
-@njit(**IJIT)
-def gbuffer_pixel(bary, r, c, g, k, pid, corners, fm, vertices, faces, vnormals, smooth, mv,
-                  nmat, eye_depth, normal, prim_id, object_id):
-    """Write pixel ``(r, c)`` of face ``g`` (draw call ``k``, its id ``pid`` there, its
-    :func:`_face_corners` and flat normal ``fm``): ids, eye depth and normal from its
-    barycentrics ``bary[r, c]`` (:func:`finalize` and the fused pass's row pass)."""
-    prim_id[r, c] = pid
-    object_id[r, c] = k
-    _, _, ez, mx, my, mz = _surface(bary, r, c, g, k, corners, fm, not smooth, vertices, faces,
-                                    vnormals, smooth, mv, nmat)
-    eye_depth[r, c] = np.float32(-ez)
-    normal[r, c, 0] = np.float32(mx)
-    normal[r, c, 1] = np.float32(my)
-    normal[r, c, 2] = np.float32(mz)
-
-
 def per_face_normals(n_faces, height, width, smooth):
     """Whether :func:`finalize` and :func:`shade` take flat normals per face (see
     :data:`FACE_NORMAL_PIXELS`)."""
@@ -219,9 +203,15 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
             if first == w:
                 first = c
             end = c
-            gbuffer_pixel(bary, r, c, g, k, pid, (ax, ay, az, bx, by, bz, cx, cy, cz),
-                          (fm0, fm1, fm2), vertices, faces, vnormals, smooth, mv, nmat,
-                          eye_depth, normal, prim_id, object_id)
+            prim_id[r, c] = pid
+            object_id[r, c] = k
+            _, _, ez, mx, my, mz = _surface(
+                bary, r, c, g, k, (ax, ay, az, bx, by, bz, cx, cy, cz), (fm0, fm1, fm2),
+                not smooth, vertices, faces, vnormals, smooth, mv, nmat)
+            eye_depth[r, c] = np.float32(-ez)
+            normal[r, c, 0] = np.float32(mx)
+            normal[r, c, 1] = np.float32(my)
+            normal[r, c, 2] = np.float32(mz)
         if end < 0:
             first = 0
         spans[r, 0] = first

@@ -45,7 +45,6 @@ from numba import njit, prange
 from .._config import IJIT, PJIT
 from .._tiers import kernel as tiered
 from .._scratch import OUTPUTS
-from .gbuffer import _face_corners, _face_normals, _object_of, _run_normal, gbuffer_pixel
 from .primitive import CLIPPED, SIMPLE
 
 TILE_SHIFT = 6
@@ -327,21 +326,12 @@ def write_winner(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, 
         item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront, sarea)
     o_prim[row, x] = prim
     o_front[row, x] = front
-    winner_bary(x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, inv_area, iw0, iw1,
-                iw2, piece, front, B, bits, rule, x, y, o_bary, row * width + x)
-
-
-@njit(**IJIT)
-def winner_bary(x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, inv_area, iw0, iw1,
-                iw2, piece, front, B, bits, rule, x, y, out, o):
-    """The barycentrics of a set-up triangle (:func:`_setup_winner`'s values) at pixel
-    (x, y) into ``out[o]``, as the fragment stream computes them."""
     e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
     e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
     e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
     l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y, e0 + b0, e1 + b1, e2 + b2,
                          inv_area)
-    fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, out, o)
+    fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary, row * width + x)
 
 
 @njit(**IJIT)
@@ -464,15 +454,11 @@ def stream(prims, *, fill_rule=0, bary=True):
 def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront,
                 sbox, sarea, B,
                 starts, lists, ntx, width, height, bits, rule, func, clear,
-                o_depth, o_prim, o_front, o_bary, gbuf, slot, twin, tz, vertices, faces,
-                vnormals, smooth, face_offsets, mv, nmat, fnormal, per_face, eye_depth, normal,
-                prim_id, object_id):
-    if gbuf and per_face:
-        _face_normals(vertices, faces, face_offsets, nmat, fnormal)
+                o_depth, o_prim, o_front, o_bary):
     ntiles = starts.shape[0] - 1
     for tile in prange(ntiles):
         if starts[tile] == starts[tile + 1]:
-            continue   # nothing binned: resolved_buffers' clear values, or the row pass's
+            continue   # nothing binned: the tile keeps resolved_buffers' clear values
         tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
         zbuf = np.full((TILE, TILE), clear, np.float32)
         win = np.full((TILE, TILE), NO_ITEM, np.int64)
@@ -555,13 +541,6 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 r0 += sy0
                 r1 += sy1
                 r2 += sy2
-        if gbuf:   # the tile's winners and depths, for the row pass below
-            sl = slot[tile]
-            for yy in range(TILE):
-                for xx in range(TILE):
-                    twin[sl, yy, xx] = win[yy, xx]
-                    tz[sl, yy, xx] = zbuf[yy, xx]
-            continue
         # write the resolved tile where a fragment won (the rest keeps the clear values
         # resolved_buffers filled in): write_winner's computation, with the triangle's set-up
         # (_load, 1/area, 1/unsnapped area) done once per run of pixels won by the same item
@@ -587,106 +566,13 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 o_depth[row, x] = zbuf[y - ty0, x - tx0]
                 o_prim[row, x] = prim
                 o_front[row, x] = front
-                winner_bary(x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, inv_af,
-                            inv_area, iw0, iw1, iw2, piece, front, B, bits, rule, x, y, o_bary,
-                            row * width + x)
-    if not gbuf:
-        return
-    # the G-buffer in row order (fused's gbuffer): every output pixel of each row, from the
-    # tiles' winners twin and depths tz (tile t at slot[t], -1 for a tile nothing was binned
-    # to): the post-pass's winner values (depth, face, facing, barycentrics) and finalize's
-    # (ids, eye depth, normal; from the barycentrics just written, as finalize reads them),
-    # the triangle's and the face's set-up once per run of a winner's pixels; the background
-    # where nothing won, empty tiles' 64-pixel pieces as plain loops. In row order: writing
-    # frame-sized arrays in tile order was 2-5x slower here (docs/performance.md). Written
-    # out here, not called: Numba would not inline it (a prange helper with these arguments).
-    bary3 = o_bary.reshape(height, width, 3)
-    bflat = o_bary.reshape(height * width * 3)
-    nflat = normal.reshape(height, width * 3)
-    for rr in prange(height):
-        r = np.int64(rr)
-        y = height - 1 - r
-        ty = y >> TILE_SHIFT
-        ly = y - (ty << TILE_SHIFT)
-        last = NO_ITEM
-        x0 = y0 = x1 = y1 = x2 = y2 = np.int64(0)
-        fx0 = fy0 = fx1 = fy1 = fx2 = fy2 = 0.0
-        iw0 = iw1 = iw2 = np.float32(0.0)
-        prim = np.int64(0)
-        front = False
-        piece = np.int64(-1)
-        inv_af = inv_area = 0.0
-        k = np.int64(0)
-        pid = np.int64(0)
-        ax = ay = az = bx = by = bz = cx = cy = cz = 0.0
-        fm0 = fm1 = fm2 = 0.0
-        for tx in range(ntx):
-            sl = slot[ty * ntx + tx]
-            xs = tx << TILE_SHIFT
-            xe = min(xs + TILE, width)
-            if sl < 0:
-                _background(r, np.uint64(xs), np.uint64(xe), width, clear, o_depth, o_prim,
-                            o_front, bflat, eye_depth, nflat, prim_id, object_id)
-                continue
-            for x in range(xs, xe):
-                item = twin[sl, ly, x - xs]
-                if item == NO_ITEM:
-                    _background(r, np.uint64(x), np.uint64(x + 1), width, clear, o_depth,
-                                o_prim, o_front, bflat, eye_depth, nflat, prim_id, object_id)
-                    continue
-                if item != last:
-                    last = item
-                    (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1,
-                     iw2, area, prim, front, piece, inv_af, inv_area) = _setup_winner(
-                        item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
-                        sfront, sarea)
-                    k = _object_of(face_offsets, prim)
-                    pid = prim - face_offsets[k]
-                    ax, ay, az, bx, by, bz, cx, cy, cz = _face_corners(prim, vertices, faces)
-                    if not smooth:
-                        fm0, fm1, fm2 = _run_normal(prim, k, per_face, fnormal, vertices, faces,
-                                                    nmat)
-                o_depth[r, x] = tz[sl, ly, x - xs]
-                o_prim[r, x] = prim
-                o_front[r, x] = front
-                winner_bary(x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, inv_af,
-                            inv_area, iw0, iw1, iw2, piece, front, B, bits, rule, x, y, o_bary,
-                            r * width + x)
-                gbuffer_pixel(bary3, r, x, prim, k, pid, (ax, ay, az, bx, by, bz, cx, cy, cz),
-                              (fm0, fm1, fm2), vertices, faces, vnormals, smooth, mv, nmat,
-                              eye_depth, normal, prim_id, object_id)
-
-
-@njit(**IJIT)
-def _background(r, xs, xe, width, clear, o_depth, o_prim, o_front, bflat, eye_depth, nflat,
-                prim_id, object_id):
-    """Row ``r``'s pixels ``[xs, xe)`` (unsigned) as background in all eight outputs: the
-    values of resolved_buffers and finalize (depth ``clear``, face −1, facing False,
-    barycentrics 0, eye depth +inf, normal 0, ids −1), one plain loop per output."""
-    dr = o_depth[r]
-    for x in range(xs, xe):
-        dr[x] = clear
-    pr = o_prim[r]
-    for x in range(xs, xe):
-        pr[x] = -1
-    fr = o_front[r]
-    for x in range(xs, xe):
-        fr[x] = False
-    o = np.uint64(3 * r * width)
-    for j in range(o + np.uint64(3) * xs, o + np.uint64(3) * xe):
-        bflat[j] = 0.0
-    ir = prim_id[r]
-    for x in range(xs, xe):
-        ir[x] = -1
-    jr = object_id[r]
-    for x in range(xs, xe):
-        jr[x] = -1
-    er = eye_depth[r]
-    for x in range(xs, xe):
-        er[x] = np.inf
-    nr = nflat[r]
-    for j in range(np.uint64(3) * xs, np.uint64(3) * xe):
-        nr[j] = 0.0
+                e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
+                e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
+                e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
+                l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
+                                     e0 + b0, e1 + b1, e2 + b2, inv_area)
+                fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary,
+                              row * width + x)
 
 
 def resolved_buffers(height, width, clear_depth):
@@ -700,39 +586,8 @@ def resolved_buffers(height, width, clear_depth):
             OUTPUTS.full((height * width, 3), 0.0, np.float32))
 
 
-def _no_gbuffer():
-    """:func:`fused`'s G-buffer arguments when it writes none: typed as the real ones (one
-    specialisation of the tile kernel), never written."""
-    ro = []
-    for a in (np.zeros((1, 3)), np.zeros((1, 3), np.int64), np.zeros((1, 3)),
-              np.zeros(2, np.int64), np.zeros((1, 4, 4)), np.zeros((1, 3, 3))):
-        a.flags.writeable = False
-        ro.append(a)
-    vertices, faces, vnormals, offsets, mv, nmat = ro
-    return (np.zeros(1, np.int64), np.zeros((1, TILE, TILE), np.int64),
-            np.zeros((1, TILE, TILE), np.float32), vertices, faces, vnormals, False, offsets, mv,
-            nmat, np.zeros((1, 3)), False, np.zeros((1, 1), np.float32),
-            np.zeros((1, 1, 3), np.float32), np.zeros((1, 1), np.int32),
-            np.zeros((1, 1), np.int32))
-
-
-_NO_GBUFFER = _no_gbuffer()
-
-
-def _tile_winners(starts, scratch):
-    """``(slot, twin, tz)`` for the row pass: each tile's place among the tiles something was
-    binned to (−1 for the others) and room for their winners and depths."""
-    binned = starts[1:] > starts[:-1]
-    slot = np.where(binned, np.cumsum(binned) - 1, -1).astype(np.int64)
-    n = max(int(binned.sum()), 1)
-    if scratch is None:
-        return slot, np.zeros((n, TILE, TILE), np.int64), np.zeros((n, TILE, TILE), np.float32)
-    return (slot, scratch.zeros("tile_winners", (n, TILE, TILE), np.int64),
-            scratch.zeros("tile_depths", (n, TILE, TILE), np.float32))
-
-
 def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, scratch=None,
-          cleared=False, gbuffer=None):
+          cleared=False):
     """Rasterize and depth-resolve in one pass (no fragment stream, depth writes on).
 
     Returns ``(depth (H, W) float32, prim (H, W) int64 face index or −1, front (H, W) bool,
@@ -742,19 +597,10 @@ def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, sc
     instead of new ones; with ``cleared`` they already hold the clear values (a
     :meth:`~refraster.framebuffer.Framebuffer.reusable`'s, cleared where the previous frame
     drew) and are not filled again. ``scratch``: for the tile lists (:func:`bin_primitives`).
-    ``gbuffer`` (new outputs only, not with ``buffers``): :func:`~refraster.raster.gbuffer.
-    finalize`'s arguments from ``vertices`` to ``per_face`` and its four outputs (eye depth,
-    normal, ids), written here with the four above in one row-order pass, background
-    included (the bytes of the fills and ``finalize``; then it need not run).
     """
     ntx, nty, starts, lists = bin_primitives(prims, scratch)
     h, w = prims.height, prims.width
-    if gbuffer is not None:   # every element written by the row pass
-        depth, prim, front, bary = (OUTPUTS.empty((h, w), np.float32),
-                                    OUTPUTS.empty((h, w), np.int64),
-                                    OUTPUTS.empty((h, w), np.bool_),
-                                    OUTPUTS.empty((h * w, 3), np.float32))
-    elif buffers is None:
+    if buffers is None:
         depth, prim, front, bary = resolved_buffers(h, w, clear_depth)
     elif cleared:
         depth, prim, front, bary = buffers
@@ -764,8 +610,6 @@ def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, sc
         prim.fill(-1)
         front.fill(False)
         bary.fill(0.0)
-    gb = _NO_GBUFFER if gbuffer is None else (*_tile_winners(starts, scratch), *gbuffer)
     tiered(_fused_pass)(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits, fill_rule,
-                depth_func, np.float32(clear_depth), depth, prim, front, bary,
-                gbuffer is not None, *gb)
+                depth_func, np.float32(clear_depth), depth, prim, front, bary)
     return depth, prim, front, bary
