@@ -180,7 +180,7 @@ def test_first_run_compiles_the_pipeline_here_and_clip_surface_kernels_beside_it
     assert sorted(groups) == sorted([["warm-clipsurface", "warm-fused-clip"],
                                      ["clipsurface_relief_plane"],
                                      ["render_cube", "edges_c1_paper"], ["halos4d_perspective"]])
-    assert calls == [dict(clip=True, stream=True)]
+    assert calls == [dict(clip=True, stream=True, multisample=True)]   # the 4x scenes: int32 twins
     _same_golden(serial, tmp_path / "g")
 
 
