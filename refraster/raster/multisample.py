@@ -144,7 +144,12 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
     for s in range(ns):
         fox[s] = np.float64(ox[s]) / one
         foy[s] = np.float64(oy[s]) / one
-    foxmin, foxmax, foymin, foymax = fox.min(), fox.max(), foy.min(), foy.max()
+    # the samples' least and greatest offsets, by a loop: an array reduction (fox.min())
+    # in this kernel is a parallel loop of its own, 8 s more compile
+    foxmin, foxmax, foymin, foymax = fox[0], fox[0], foy[0], foy[0]
+    for s in range(1, ns):
+        foxmin, foxmax = min(foxmin, fox[s]), max(foxmax, fox[s])
+        foymin, foymax = min(foymin, foy[s]), max(foymax, foy[s])
     for tile in prange(ntiles):
         if starts[tile] == starts[tile + 1]:
             continue
