@@ -93,7 +93,8 @@ def _hidden(func, zl, zbuf, lx0, lx1, ly0, ly1):
     for ly in range(ly0, ly1 + 1):
         for lx in range(lx0, lx1 + 1):
             for s in range(zbuf.shape[2]):
-                if depth_test(func, zf, zbuf[ly, lx, s]):
+                ref = zbuf[ly, lx, s]
+                if zf < ref or (func == 3 and zf == ref):   # depth_test's less / lequal
                     return False
     return True
 
