@@ -285,24 +285,31 @@ def _behind_a_wall(seed, w, h):
     z = rng.uniform(-0.15, 0.9, (600, 1, 1)) + rng.normal(0.0, 0.02, (600, 3, 1))
     z[::7] = rng.uniform(-0.9, 0.9, (len(z[::7]), 3, 1))          # steep
     soup = np.concatenate([xy, z], axis=2).reshape(-1, 3).astype(np.float32)
-    v = np.concatenate([wall, wall, soup])
+    # and 60 small triangles in the wall's plane: ties at every sample of their boxes
+    flat = rng.uniform(-0.6, 0.7, (60, 1, 2)) + rng.normal(0.0, 0.03, (60, 3, 2))
+    flat = np.concatenate([flat, np.full((60, 3, 1), -0.1)], axis=2).astype(np.float32)
+    v = np.concatenate([wall, wall, soup, flat.reshape(-1, 3)])
     f = np.concatenate([[[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]],
-                        8 + np.arange(len(soup)).reshape(-1, 3)])
+                        8 + np.arange(len(soup) + 180).reshape(-1, 3)])
     return v, f
 
 
-@pytest.mark.parametrize("depth_func", ["less", "lequal"])
+@pytest.mark.parametrize("depth_func", ["less", "lequal", "greater", "gequal"])
 @pytest.mark.parametrize("samples", [4, 8])
 def test_triangles_hidden_behind_their_box_are_the_streams_bytes(samples, depth_func):
     """The tile pass skips a triangle whose plane, at its box's lowest corner, is already
     behind every stored sample of the box (``raster/multisample.py``, ``_hidden``); the
     per-sample fragment stream resolved by the single-sample depth test skips nothing. Both
-    give the same bytes, ties of ``lequal`` (the wall's duplicate wins) included."""
+    give the same bytes, ties of ``lequal``/``gequal`` (the wall's duplicate and the small
+    triangles in its plane win) included; ``greater``/``gequal`` on the scene mirrored in depth."""
     from refraster.framebuffer import Framebuffer
     from refraster.multisample import draw_samples, sample_image
     w, h = 150, 140
     v, f = _behind_a_wall(samples, w, h)
-    st = RasterState(samples=samples, depth_func=depth_func)
+    reverse = depth_func in ("greater", "gequal")
+    if reverse:   # mirrored in depth, cleared to 0
+        v[:, 2] = -v[:, 2]
+    st = RasterState(samples=samples, depth_func=depth_func, clear_depth=0.0 if reverse else 1.0)
     sf = refraster.render_samples((v, f), view=EYE, proj=EYE, width=w, height=h, raster=st)
     frags = draw_samples((v, f), view=EYE, proj=EYE, width=w, height=h, raster=st)
     one = sample_image(st)
@@ -310,8 +317,11 @@ def test_triangles_hidden_behind_their_box_are_the_streams_bytes(samples, depth_
     for k in ("depth", "prim_id", "front_facing", "barycentric"):
         np.testing.assert_array_equal(getattr(fb, k).reshape(getattr(sf, k).shape),
                                       getattr(sf, k), err_msg=k)
-    wall = np.isin(sf.prim_id, (2, 3) if depth_func == "lequal" else (0, 1))
+    ties = depth_func in ("lequal", "gequal")
+    wall = np.isin(sf.prim_id, (2, 3) if ties else (0, 1))
     assert wall.mean() > 0.5 and (sf.prim_id > 3).any()
+    flat = np.isin(np.arange(604, 664), sf.prim_id).sum()   # drawn only where ties win
+    assert flat > 40 if ties else flat == 0
 
 
 # ------------------------------------------------------------------ the exact span walk
