@@ -363,6 +363,23 @@ def _off_core_usable(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, t0, t1, t2):
 
 
 @njit(**IJIT)
+def _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, x, y, t_lo, t_hi):
+    """+1 (−1) when the exact ``N − t_hi·D`` (``t_lo·D − N``) of :func:`_span_off_core` is
+    ≥ 0 at the point whose pixel-centre coordinates are ``(x + ½, y + ½)`` and its λ satisfy
+    the proof's bounds (``Σλ`` in [1/2, 2], ``Σ|λ_k|`` ≤ 16), else 0."""
+    a0, a1, a2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y, 0, 0, 0, 0.0)
+    d = a0 + a1 + a2
+    if not (0.5 <= d <= 2.0 and abs(a0) + abs(a1) + abs(a2) <= 16.0):
+        return 0
+    nt = a0 * s0 + a1 * s1 + a2 * s2
+    if nt - t_hi * d >= 0.0:
+        return 1
+    if t_lo * d - nt >= 0.0:
+        return -1
+    return 0
+
+
+@njit(**IJIT)
 def _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, t_lo, t_hi):
     """True when no fragment of the row span ``xa … xb`` (row y) of a triangle with
     ``inv_af > 0`` can be a core fragment (``|2t − 1| < w_s + a``): t stays ≥ ``t_hi`` or
@@ -375,17 +392,30 @@ def _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, 
     (``OFF_CORE_MAX_COND``) bounds each computed λ_k within 2^-26 of the exact one, and with
     the ends' D in [1/2, 2] and Σ|λ_k| ≤ 16 (checked here), the fragment's computed t (its
     float32 barycentrics included) lies within 2^-17 of N / D: well inside the margin."""
-    a0, a1, a2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, xa, y, 0, 0, 0, 0.0)
-    b0, b1, b2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, xb, y, 0, 0, 0, 0.0)
-    da = a0 + a1 + a2
-    db = b0 + b1 + b2
-    if not (0.5 <= da <= 2.0 and 0.5 <= db <= 2.0
-            and abs(a0) + abs(a1) + abs(a2) <= 16.0 and abs(b0) + abs(b1) + abs(b2) <= 16.0):
-        return False
-    na = a0 * s0 + a1 * s1 + a2 * s2
-    nb = b0 * s0 + b1 * s1 + b2 * s2
-    return ((na - t_hi * da >= 0.0 and nb - t_hi * db >= 0.0)
-            or (t_lo * da - na >= 0.0 and t_lo * db - nb >= 0.0))
+    side = _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, y, t_lo, t_hi)
+    return side != 0 and side == _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1,
+                                                s2, xb, y, t_lo, t_hi)
+
+
+@njit(**IJIT)
+def _triangle_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, X0, X1, X2, Y0, Y1,
+                       Y2, bits, t_lo, t_hi):
+    """True when no fragment of the whole triangle can be a core fragment: the test of
+    :func:`_span_off_core` at its three **snapped** vertices ``(X_k, Y_k)`` (window
+    subpixels, the pixel centres' frame: pixel x sits at ``X = x·2^bits``) instead of a
+    span's two ends. Every pixel the fill covers lies in the closed snapped triangle, the
+    convex hull of the three points, where ``N − t_hi·D`` (``t_lo·D − N``), D and Σ|λ_k| are
+    affine or convex; and a snapped vertex lies within 1/2^(bits+1) of the unsnapped one, inside
+    the extent the conditioning bound allows. So the span test's argument holds for every
+    fragment of the triangle (docs/halos4d.md, "Off-core spans")."""
+    sc = 1.0 / (1 << bits)
+    side = _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, X0 * sc, Y0 * sc,
+                          t_lo, t_hi)
+    return (side != 0
+            and side == _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2,
+                                       X1 * sc, Y1 * sc, t_lo, t_hi)
+            and side == _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2,
+                                       X2 * sc, Y2 * sc, t_lo, t_hi))
 
 
 @njit(**IJIT)
@@ -408,28 +438,98 @@ def _keep_triangle(rec, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, swap, t0, t1, t2, 
 
 
 @njit(**IJIT)
-def _fill_off_core(spans, n_spans, tris, r0, height, surf_d, min_d, min_db, delta_t, delta_d,
-                   boundary, boundary_width):
-    """The deferred off-core spans of one slice (:func:`_span_off_core`), at the voxels that
-    have a surface fragment: their halo depths (Eq. 3, and the boundary's) enter the depth
-    buffers. Elsewhere an off-core fragment changes nothing drawn (no volume, no halo colour):
-    it would only mark a halo voxel. ``spans (n, 4)``: row in the band (the band's first
-    row ``r0``), first pixel, count, triangle; ``tris (m, 14)``: unsnapped x, y of the stored
-    vertices, inv_af, swap, and the corners' t and δ in original order."""
+def _edge_setup(X0, X1, X2, Y0, Y1, Y2, bits):
+    """A snapped triangle's edges (edge k opposite stored vertex k): ``(dx_k, dy_k)``, the
+    llvmpipe ownership bias and the step of the edge function per pixel in x, for k = 0, 1, 2."""
+    dx0 = X2 - X1
+    dy0 = Y2 - Y1
+    dx1 = X0 - X2
+    dy1 = Y0 - Y2
+    dx2 = X1 - X0
+    dy2 = Y1 - Y0
+    bias0 = 0 if (dy0 < 0 or (dy0 == 0 and dx0 > 0)) else 1
+    bias1 = 0 if (dy1 < 0 or (dy1 == 0 and dx1 > 0)) else 1
+    bias2 = 0 if (dy2 < 0 or (dy2 == 0 and dx2 > 0)) else 1
+    return (dx0, dy0, dx1, dy1, dx2, dy2, bias0, bias1, bias2, -(dy0 << bits), -(dy1 << bits),
+            -(dy2 << bits))
+
+
+@njit(**IJIT)
+def _any_marked(mask, li, a, b):
+    """Whether row ``li`` of the bit mask ``(rows, ⌈W/64⌉) uint64`` (column x: bit ``x % 64`` of
+    word ``x // 64``) has a bit set among columns ``a … b`` (``a ≤ b``)."""
+    ones = ~np.uint64(0)
+    wa = a >> 6
+    wb = b >> 6
+    for w in range(wa, wb + 1):
+        m = mask[li, w]
+        if w == wa:
+            m &= ones << np.uint64(a & 63)
+        if w == wb:
+            m &= ones >> np.uint64(63 - (b & 63))
+        if m != np.uint64(0):
+            return True
+    return False
+
+
+@njit(**IJIT)
+def _off_fragment(tris, m, li, px, py, min_d, min_db, delta_t, delta_d, boundary,
+                  boundary_width):
+    """The halo depths of deferred triangle ``m``'s fragment at pixel (px, py) (row ``li`` of
+    the band): its barycentrics, t and δ as the fill computes them, into the depth buffers."""
+    q0, q1, q2 = _fragment_bary(tris[m, 0], tris[m, 1], tris[m, 2], tris[m, 3], tris[m, 4],
+                                tris[m, 5], tris[m, 6], px, py, 0, 0, 0, 0.0, tris[m, 7] != 0.0)
+    t = q0 * tris[m, 8] + q1 * tris[m, 9] + q2 * tris[m, 10]
+    d = q0 * tris[m, 11] + q1 * tris[m, 12] + q2 * tris[m, 13]
+    _halo_depths(li, px, d, abs(2.0 * t - 1.0), min_d, min_db, delta_t, delta_d, boundary,
+                 boundary_width)
+
+
+@njit(**IJIT)
+def _fill_off_core(spans, n_spans, tris, whole, n_whole, wins, r0, height, bits, surf_d,
+                   surf_mask, min_d, min_db, delta_t, delta_d, boundary, boundary_width):
+    """The deferred off-core spans and triangles of one slice (:func:`_span_off_core`,
+    :func:`_triangle_off_core`), at the voxels that have a surface fragment: their halo depths
+    (Eq. 3, and the boundary's) enter the depth buffers. Elsewhere an off-core fragment
+    changes nothing drawn (no volume, no halo colour): it would only mark a halo voxel.
+    ``spans (n, 4)``: row in the band (the band's first row ``r0``), first pixel, count,
+    triangle; ``whole (n_whole,)``: triangles deferred as a whole, their rows' exact spans
+    found here, only on rows that have a surface fragment in their bounding box; ``tris (m,
+    14)``: unsnapped x, y of the stored vertices, inv_af, swap, and the corners' t and δ in
+    original order; ``wins (m, 10)``: snapped X0 … X2, Y0 … Y2, the pixel columns and the
+    image rows the triangle covers in the band; ``surf_mask``: the voxels with a surface
+    fragment (:func:`_any_marked`), which lets most rows and spans go unvisited."""
     for j in range(n_spans):
         li, xs, cnt, m = spans[j, 0], spans[j, 1], spans[j, 2], spans[j, 3]
         py = height - 1 - (r0 + li)
-        for i in range(cnt):
-            px = xs + i
-            if surf_d[li, px] == np.inf:
+        if not _any_marked(surf_mask, li, xs, xs + cnt - 1):
+            continue
+        for px in range(xs, xs + cnt):
+            if surf_d[li, px] != np.inf:
+                _off_fragment(tris, m, li, px, py, min_d, min_db, delta_t, delta_d, boundary,
+                              boundary_width)
+    for j in range(n_whole):
+        m = whole[j]
+        X0, X1, X2, Y0, Y1, Y2 = wins[m, 0], wins[m, 1], wins[m, 2], wins[m, 3], wins[m, 4], \
+            wins[m, 5]
+        x0, x1 = wins[m, 6], wins[m, 7]
+        (dx0, dy0, dx1, dy1, dx2, dy2, bias0, bias1, bias2, sx0, sx1,
+         sx2) = _edge_setup(X0, X1, X2, Y0, Y1, Y2, bits)
+        for r in range(wins[m, 8], wins[m, 9] + 1):
+            li = r - r0
+            if not _any_marked(surf_mask, li, x0, x1):
                 continue
-            q0, q1, q2 = _fragment_bary(tris[m, 0], tris[m, 1], tris[m, 2], tris[m, 3],
-                                        tris[m, 4], tris[m, 5], tris[m, 6], px, py, 0, 0, 0,
-                                        0.0, tris[m, 7] != 0.0)
-            t = q0 * tris[m, 8] + q1 * tris[m, 9] + q2 * tris[m, 10]
-            d = q0 * tris[m, 11] + q1 * tris[m, 12] + q2 * tris[m, 13]
-            _halo_depths(li, px, d, abs(2.0 * t - 1.0), min_d, min_db, delta_t, delta_d,
-                         boundary, boundary_width)
+            py = height - 1 - r
+            e0 = dx0 * ((py << bits) - Y1) - dy0 * ((x0 << bits) - X1)
+            e1 = dx1 * ((py << bits) - Y2) - dy1 * ((x0 << bits) - X2)
+            e2 = dx2 * ((py << bits) - Y0) - dy2 * ((x0 << bits) - X0)
+            sa, sb = row_span(e0 - bias0, sx0, e1 - bias1, sx1, e2 - bias2, sx2, x1 - x0 + 1)
+            if sa > sb or not _any_marked(surf_mask, li, x0 + sa, x0 + sb):
+                continue
+            for px in range(x0 + sa, x0 + sb + 1):
+                if surf_d[li, px] != np.inf:
+                    _off_fragment(tris, m, li, px, py, min_d, min_db, delta_t, delta_d,
+                                  boundary, boundary_width)
 
 
 @njit(**JIT)
@@ -569,8 +669,13 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
         keep = 2 * most if defer and halos else 0
         off_spans = np.empty((keep * rows, 4), np.int32)
         off_tris = np.empty((keep, 14))
+        off_wins = np.empty((keep, 10), np.int64)
+        off_whole = np.empty(keep, np.int64)
         n_off = 0
         n_off_tris = 0
+        n_whole = 0
+        # the voxels with a surface fragment in the current slice, a bit each
+        surf_mask = np.zeros((rows, (width + 63) // 64), np.uint64)
         t_lo, t_hi = _off_core_limits(surface_width, aa)
         n_tri = 0
         n_valid = 0
@@ -606,10 +711,14 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                         continue
                     if k != cur:
                         if cur >= 0:
-                            _fill_off_core(off_spans, n_off, off_tris, r0, height, surf_d, min_d,
-                                           min_db, delta_t, delta_d, boundary, boundary_width)
+                            _fill_off_core(off_spans, n_off, off_tris, off_whole, n_whole,
+                                           off_wins, r0, height, bits, surf_d, surf_mask,
+                                           min_d, min_db, delta_t, delta_d, boundary,
+                                           boundary_width)
                             n_off = 0
                             n_off_tris = 0
+                            n_whole = 0
+                            surf_mask[lr0:lr1 + 1] = 0
                             _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume,
                                            min_d, surf_d, surf, hit, acc, acc_a, volume,
                                            surf_cov, min_db, halo_alpha, halo_rgb, boundary,
@@ -626,25 +735,37 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                             tri[v, q] = attr[vi, q] + lam * (attr[vj, q] - attr[vi, q])
                     inv_area = 1.0 / np.float64(area)
                     inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
-                    # edge k (opposite stored vertex k): value at (x0, py), x step, ownership bias
-                    dx0 = X2 - X1
-                    dy0 = Y2 - Y1
-                    dx1 = X0 - X2
-                    dy1 = Y0 - Y2
-                    dx2 = X1 - X0
-                    dy2 = Y1 - Y0
-                    bias0 = 0 if (dy0 < 0 or (dy0 == 0 and dx0 > 0)) else 1
-                    bias1 = 0 if (dy1 < 0 or (dy1 == 0 and dx1 > 0)) else 1
-                    bias2 = 0 if (dy2 < 0 or (dy2 == 0 and dx2 > 0)) else 1
-                    sx0 = -(dy0 << bits)
-                    sx1 = -(dy1 << bits)
-                    sx2 = -(dy2 << bits)
                     # the triangle's δ and t in locals: read once, not per pixel (issue 27)
                     d0, d1, d2 = tri[0, 0], tri[1, 0], tri[2, 0]
                     t0, t1, t2 = tri[0, 1], tri[1, 1], tri[2, 1]
                     off_ok = defer and _off_core_usable(fx0, fy0, fx1, fy1, fx2, fy2, inv_af,
                                                         t0, t1, t2)
                     s1, s2 = (t2, t1) if swap else (t1, t2)
+                    if off_ok:
+                        t_min = min(t0, t1, t2)
+                        t_max = max(t0, t1, t2)
+                        if t_min >= t_hi or t_max <= t_lo:
+                            # corners beyond the core on one side: test the whole triangle
+                            if _triangle_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, t0, s1,
+                                                  s2, X0, X1, X2, Y0, Y1, Y2, bits, t_lo, t_hi):
+                                if halos:    # its rows' spans are found where needed
+                                    _keep_triangle(off_tris[n_off_tris], fx0, fy0, fx1, fy1,
+                                                   fx2, fy2, inv_af, swap, t0, t1, t2, d0, d1,
+                                                   d2)
+                                    w = off_wins[n_off_tris]
+                                    w[0], w[1], w[2], w[3], w[4] = X0, X1, X2, Y0, Y1
+                                    w[5], w[6], w[7], w[8], w[9] = Y2, x0, x1, ra, rb
+                                    off_whole[n_whole] = n_off_tris
+                                    n_whole += 1
+                                    n_off_tris += 1
+                                continue
+                        elif t_lo < t_min and t_max < t_hi:
+                            # corners in the core: its spans are not worth testing (not
+                            # deferring is always exact)
+                            off_ok = False
+                    # edge k (opposite stored vertex k): value at (x0, py), x step, ownership bias
+                    (dx0, dy0, dx1, dy1, dx2, dy2, bias0, bias1, bias2, sx0, sx1,
+                     sx2) = _edge_setup(X0, X1, X2, Y0, Y1, Y2, bits)
                     slot = -1
                     for r in range(ra, rb + 1):
                         py = height - 1 - r
@@ -714,6 +835,7 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                                          or (full == surf_full[li, px] and d < surf_d[li, px])):
                                 surf_d[li, px] = d
                                 surf_full[li, px] = full
+                                surf_mask[li, px >> 6] |= np.uint64(1) << np.uint64(px & 63)
                                 surf_cov[li, px] = _coverage(u, surface_width, aa)
                                 for c in range(3):
                                     surf[li, px, c] = (q0 * tri[0, 2 + c] + q1 * tri[1, 2 + c]
@@ -725,8 +847,9 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
         counts[band, 0] = n_tri
         counts[band, 1] = n_valid
         if cur >= 0:
-            _fill_off_core(off_spans, n_off, off_tris, r0, height, surf_d, min_d, min_db,
-                           delta_t, delta_d, boundary, boundary_width)
+            _fill_off_core(off_spans, n_off, off_tris, off_whole, n_whole, off_wins, r0, height,
+                           bits, surf_d, surf_mask, min_d, min_db, delta_t, delta_d, boundary,
+                           boundary_width)
             _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf_d,
                            surf, hit, acc, acc_a, volume, surf_cov, min_db, halo_alpha,
                            halo_rgb, boundary, boundary_rgb, surf_full, voxel_rgba, pair,
