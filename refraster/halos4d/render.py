@@ -229,21 +229,20 @@ def _screen_bounds(points_list, width, height, margin):
 
 # ----------------------------------------------------------------------------- fused engine
 @njit(**IJIT)
-def _tri_window(xy, j, width, height, bits):
-    """:func:`~refraster.halos4d.slicing.window_setup` of slice triangle ``j`` (NDC ``xy``), in
-    scalars, the same bits: ``(valid, X0, X1, X2, Y0, Y1, Y2, xf0, xf1, xf2, yf0, yf1, yf2,
-    swap, bx0, bx1, by0, by1, area)``, the vertices as stored (``swap``: the original vertices
-    1 and 2 exchanged, clockwise), the pixel bounding box and the doubled snapped area (> 0).
+def _tri_window(cw, cf, m, width, height, bits):
+    """:func:`~refraster.halos4d.slicing.window_setup` of slice triangle ``m`` from its corners'
+    window positions (corners ``3m … 3m + 2`` of ``cw (6, 2)`` snapped and ``cf (6, 2)``
+    float32 window x, y, :func:`~refraster.halos4d.slicing._window_vertex`), in scalars, the
+    same bits: ``(valid, X0, X1, X2, Y0, Y1, Y2, xf0, xf1, xf2, yf0, yf1, yf2, swap, bx0, bx1,
+    by0, by1, area)``, the vertices as stored (``swap``: the original vertices 1 and 2
+    exchanged, clockwise), the pixel bounding box and the doubled snapped area (> 0).
     Recomputed where it is needed instead of stored: a few float32 operations per triangle
     cost less than writing and reading back eight arrays of 1.3 M rows (issue 46)."""
-    hw = np.float32(width * 0.5)
-    hh = np.float32(height * 0.5)
-    half = np.float32(0.5)
-    s = np.float32(1 << bits)
     one = np.int64(1) << bits
-    x0, y0, xf0, yf0 = _window_vertex(xy[j, 0, 0], xy[j, 0, 1], hw, hh, half, s)
-    x1, y1, xf1, yf1 = _window_vertex(xy[j, 1, 0], xy[j, 1, 1], hw, hh, half, s)
-    x2, y2, xf2, yf2 = _window_vertex(xy[j, 2, 0], xy[j, 2, 1], hw, hh, half, s)
+    j = 3 * m
+    x0, y0, xf0, yf0 = cw[j, 0], cw[j, 1], cf[j, 0], cf[j, 1]
+    x1, y1, xf1, yf1 = cw[j + 1, 0], cw[j + 1, 1], cf[j + 1, 0], cf[j + 1, 1]
+    x2, y2, xf2, yf2 = cw[j + 2, 0], cw[j + 2, 1], cf[j + 2, 0], cf[j + 2, 1]
     a = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
     swap = a < 0
     if swap:
@@ -655,7 +654,12 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
             for k in range(k0[t], k1[t]):
                 ptet[cursor[k]] = t
                 cursor[k] += 1
-        xy = np.empty((2, 3, 2))        # the current tetrahedron's slice triangles (NDC)
+        cw = np.empty((6, 2), np.int64)  # the current tetrahedron's slice corners: snapped
+        cf = np.empty((6, 2))            # and float32 window x, y
+        hw = np.float32(width * 0.5)
+        hh = np.float32(height * 0.5)
+        half = np.float32(0.5)
+        sub = np.float32(1 << bits)
         tri = np.empty((3, nc))         # one triangle's corner attributes
         ends = np.empty((6, 2), np.int64)
         lams = np.empty(6)
@@ -691,19 +695,32 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                 if tet_first[tt] == band:
                     n_tri += nsec
                 for corner in range(3 * nsec):
+                    # a quad's second triangle repeats its first's corners 0 and 2
+                    # (_section_corners): copied, the same bits
+                    same = 0 if corner == 3 else (2 if corner == 4 else -1)
+                    if nsec == 2 and same >= 0:
+                        ends[corner, 0] = ends[same, 0]
+                        ends[corner, 1] = ends[same, 1]
+                        lams[corner] = lams[same]
+                        cw[corner, 0] = cw[same, 0]
+                        cw[corner, 1] = cw[same, 1]
+                        cf[corner, 0] = cf[same, 0]
+                        cf[corner, 1] = cf[same, 1]
+                        continue
                     vi, vj, lam = section_edge(g, sg, e, corner)
                     ends[corner, 0] = vi
                     ends[corner, 1] = vj
                     lams[corner] = lam
-                    for q in range(2):
-                        xy[corner // 3, corner % 3, q] = ndc[vi, q] + lam * (ndc[vj, q]
-                                                                             - ndc[vi, q])
+                    (cw[corner, 0], cw[corner, 1], cf[corner, 0],
+                     cf[corner, 1]) = _window_vertex(ndc[vi, 0] + lam * (ndc[vj, 0] - ndc[vi, 0]),
+                                                     ndc[vi, 1] + lam * (ndc[vj, 1] - ndc[vi, 1]),
+                                                     hw, hh, half, sub)
                 for m in range(nsec):
                     (valid, X0, X1, X2, Y0, Y1, Y2, fx0, fx1, fx2, fy0, fy1, fy2, swap, x0, x1,
-                     by0, by1, area) = _tri_window(xy, m, width, height, bits)
+                     by0, by1, area) = _tri_window(cw, cf, m, width, height, bits)
                     if not valid:
                         continue
-                    if (height - 1 - by1) // band_rows == band:
+                    if r0 <= height - 1 - by1 < r1:    # its first row lies in the band
                         n_valid += 1
                     ra = max(height - 1 - by1, r0)
                     rb = min(height - 1 - by0, r1 - 1)
