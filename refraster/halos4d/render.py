@@ -748,9 +748,8 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                         vi = ends[corner, 0]
                         vj = ends[corner, 1]
                         lam = lams[corner]
-                        for q in range(nc):
+                        for q in range(2):    # δ and t; the colour once the triangle is filled
                             tri[v, q] = attr[vi, q] + lam * (attr[vj, q] - attr[vi, q])
-                    inv_area = 1.0 / np.float64(area)
                     inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
                     # the triangle's δ and t in locals: read once, not per pixel (issue 27)
                     d0, d1, d2 = tri[0, 0], tri[1, 0], tri[2, 0]
@@ -780,6 +779,14 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                             # corners in the core: its spans are not worth testing (not
                             # deferring is always exact)
                             off_ok = False
+                    for v in range(3):
+                        corner = 3 * m + v
+                        vi = ends[corner, 0]
+                        vj = ends[corner, 1]
+                        lam = lams[corner]
+                        for q in range(2, nc):
+                            tri[v, q] = attr[vi, q] + lam * (attr[vj, q] - attr[vi, q])
+                    inv_area = 1.0 / np.float64(area)
                     # edge k (opposite stored vertex k): value at (x0, py), x step, ownership bias
                     (dx0, dy0, dx1, dy1, dx2, dy2, bias0, bias1, bias2, sx0, sx1,
                      sx2) = _edge_setup(X0, X1, X2, Y0, Y1, Y2, bits)
