@@ -735,7 +735,8 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                             n_off = 0
                             n_off_tris = 0
                             n_whole = 0
-                            surf_mask[lr0:lr1 + 1] = 0
+                            for li in range(lr0, lr1 + 1):
+                                surf_mask[li, :] = 0
                             _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume,
                                            min_d, surf_d, surf, hit, acc, acc_a, volume,
                                            surf_cov, min_db, halo_alpha, halo_rgb, boundary,
