@@ -256,14 +256,39 @@ def _tri_window(cw, cf, m, width, height, bits):
             by1, abs(a))
 
 
+@njit(**IJIT)
+def _slab_z_range(y, zz, lo, hi):
+    """The z range of the part of a tetrahedron (vertices' window y ``y`` and z ``zz``, four
+    each) between the planes ``y = lo`` and ``y = hi``: over its vertices in the slab and its
+    edges' crossings of the two planes; ``(inf, −inf)`` when the slab misses it."""
+    zmin = np.inf
+    zmax = -np.inf
+    for i in range(4):
+        if lo <= y[i] <= hi:
+            zmin = min(zmin, zz[i])
+            zmax = max(zmax, zz[i])
+        for j in range(i + 1, 4):
+            for plane in (lo, hi):
+                if (y[i] < plane < y[j]) or (y[j] < plane < y[i]):
+                    zc = zz[i] + (plane - y[i]) / (y[j] - y[i]) * (zz[j] - zz[i])
+                    zmin = min(zmin, zc)
+                    zmax = max(zmax, zc)
+    return zmin, zmax
+
+
 @njit(**PJIT)
-def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
+def _bin_tets(z, ndc, tets, centres, k0, k1, width, height, bits, band_rows, nbands):
     """Per band of rows, the tetrahedra whose slice triangles may touch it, in index order (CSR
-    ``(starts (nbands + 1,), lists)``), and each tetrahedron's first band (``-1`` if no slice
-    cuts it). A tetrahedron's rows are its four vertices' snapped window rows widened by one
+    ``(starts (nbands + 1,), lists)``), each entry's slices ``ks (total, 2)`` that may reach
+    the band, and each tetrahedron's first band (``-1`` if no slice cuts it). A tetrahedron's rows are its four vertices' snapped window rows widened by one
     pixel: a slice corner lies on an edge (``λ ∈ [0, 1]``), within an ulp of the edge's ends,
     which snapping moves by at most one subpixel. A tetrahedron outside the image keeps the
-    nearest band (its triangles are counted there, as invalid). Parallel over chunks of
+    nearest band (its triangles are counted there, as invalid). A tetrahedron in several bands
+    is cut, per band, to the slab of the band's rows widened by one pixel on each side
+    (:func:`_slab_z_range`, from the vertices' float64 window y: the corners' float32 window
+    positions and their snapping differ from it by far less than a pixel); its entry's slices
+    are the ones whose plane lies in that part's z range, widened by one slice each side
+    against rounding, so a slice whose triangle reaches the band is never left out. Parallel over chunks of
     :data:`BIN_CHUNK` tetrahedra and deterministic (count, prefix sum over (band, chunk), write
     each chunk's tetrahedra in index order)."""
     n = tets.shape[0]
@@ -304,12 +329,33 @@ def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
             total += counts[c, band]
     starts[nbands] = total
     lists = np.zeros(total, np.int64)
+    ks = np.zeros((total, 2), np.int64)
+    nc = centres.shape[0]
     for c in prange(nchunks):
+        yw = np.empty(4)
+        zz = np.empty(4)
         for t in range(c * BIN_CHUNK, min(n, (c + 1) * BIN_CHUNK)):
+            for m in range(4):
+                yw[m] = ndc[tets[t, m], 1] * (height * 0.5) + height * 0.5
+                zz[m] = z[tets[t, m]]
             for band in range(first[t], last[t] + 1):
-                lists[offset[c, band]] = t
+                q = offset[c, band]
+                lists[q] = t
+                ks[q, 0] = k0[t]
+                ks[q, 1] = k1[t]
+                if first[t] < last[t]:
+                    # window y of the band's pixel centres: py = H − 1 − r, centre py + ½
+                    lo = height - min(height, (band + 1) * band_rows) + 0.5 - 1.0
+                    hi = height - 1 - band * band_rows + 0.5 + 1.0
+                    zmin, zmax = _slab_z_range(yw, zz, lo, hi)
+                    if zmin > zmax:
+                        ks[q, 1] = k0[t]
+                    else:
+                        ks[q, 0] = max(k0[t], np.searchsorted(centres, zmin) - 1)
+                        ks[q, 1] = min(k1[t], np.searchsorted(centres, zmax, "right") + 1,
+                                       nc)
                 offset[c, band] += 1
-    return starts, lists, first
+    return starts, lists, ks, first
 
 
 @njit(**IJIT)
@@ -599,13 +645,15 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
 
 @njit(**PJIT)
 def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, band_lists,
+                 band_ks,
                  width, height, bits, band_rows, delta_t, delta_d, surface_width, eps, alpha,
                  halos, aa, halo_alpha, halo_rgb, boundary, boundary_width, boundary_rgb,
                  want_volume, out_rgb, out_a, volume, voxel_rgba, pair, out_rgb2, out_a2,
                  counts):
     """The slicing and the fill pass in one, parallel over bands of rows: each band slices the
-    tetrahedra of its list (:func:`_bin_tets`) by the planes that cut them, slice by slice
-    back to front and in tetrahedron order within a slice (the draw order of
+    tetrahedra of its list (:func:`_bin_tets`) by the planes that cut them and may reach the
+    band (``band_ks``; in a tetrahedron's first band the other planes are only counted),
+    slice by slice back to front and in tetrahedron order within a slice (the draw order of
     :func:`~refraster.halos4d.slicing.slice_tetrahedra`, the same corner bits), and fills the
     slice triangles that touch its rows; no slice triangle is stored (issue 46). With ``pair``
     (and ``halos``), also the halos-off twin (``halos`` False, ``halo_alpha`` 0, no boundaries,
@@ -639,11 +687,14 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
         min_d2 = np.full((prow, pcol), np.inf)
         acc2 = np.zeros((prow, pcol, 3))
         acc_a2 = np.zeros((prow, pcol))
-        # the band's (slice, tetrahedron) pairs, slice-major, tetrahedra in index order
+        # the band's (slice, tetrahedron) pairs, slice-major, tetrahedra in index order: the
+        # slices that may reach the band (_bin_tets), and in a tetrahedron's first band the
+        # others too, as ~t, only counted
         pstart = np.zeros(n + 1, np.int64)
         for q in range(band_starts[band], band_starts[band + 1]):
             t = band_lists[q]
-            for k in range(k0[t], k1[t]):
+            ka, kb = (k0[t], k1[t]) if tet_first[t] == band else (band_ks[q, 0], band_ks[q, 1])
+            for k in range(ka, kb):
                 pstart[k + 1] += 1
         for k in range(n):
             pstart[k + 1] += pstart[k]
@@ -651,8 +702,9 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
         ptet = np.empty(pstart[n], np.int64)
         for q in range(band_starts[band], band_starts[band + 1]):
             t = band_lists[q]
-            for k in range(k0[t], k1[t]):
-                ptet[cursor[k]] = t
+            ka, kb = (k0[t], k1[t]) if tet_first[t] == band else (band_ks[q, 0], band_ks[q, 1])
+            for k in range(ka, kb):
+                ptet[cursor[k]] = t if band_ks[q, 0] <= k < band_ks[q, 1] else ~t
                 cursor[k] += 1
         cw = np.empty((6, 2), np.int64)  # the current tetrahedron's slice corners: snapped
         cf = np.empty((6, 2))            # and float32 window x, y
@@ -689,11 +741,16 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
             ck = centres[k]
             for pi in range(pstart[k], pstart[k + 1]):
                 tt = ptet[pi]
+                reach = tt >= 0
+                if not reach:
+                    tt = ~tt
                 g = (tets[tt, 0], tets[tt, 1], tets[tt, 2], tets[tt, 3])
                 sg = (z[g[0]] - ck, z[g[1]] - ck, z[g[2]] - ck, z[g[3]] - ck)
                 nsec, e = _section_corners(sg[0], sg[1], sg[2], sg[3])
                 if tet_first[tt] == band:
                     n_tri += nsec
+                if not reach:
+                    continue
                 for corner in range(3 * nsec):
                     # a quad's second triangle repeats its first's corners 0 and 2
                     # (_section_corners): copied, the same bits
@@ -915,7 +972,8 @@ def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SU
     are appended to the result. ``voxel_rgba (N, H, W, 4)``: also each voxel's surface colour
     and opacity (with ``want_volume``; the golden's allowance). Returns ``(rgb, alpha,
     volume or None, slice triangles, invalid slice triangles[, rgb2, alpha2])``."""
-    band_starts, band_lists, first = _window(ts, width, height, bits) if win is None else win
+    band_starts, band_lists, band_ks, first = (_window(ts, width, height, bits) if win is None
+                                               else win)
     n = len(ts.centres)
     rgb = np.zeros((height, width, 3))
     a = np.zeros((height, width))
@@ -924,7 +982,7 @@ def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SU
     a2 = np.zeros((height, width) if pair else (1, 1))
     counts = np.zeros((len(band_starts) - 1, 2), np.int64)
     _render_tets(ts.z, ts.ndc, ts.attr, ts.tets, ts.centres, ts.k0, ts.k1, first, band_starts,
-                 band_lists, width, height, bits, BAND_ROWS, *params, want_volume, rgb, a, vol,
+                 band_lists, band_ks, width, height, bits, BAND_ROWS, *params, want_volume, rgb, a, vol,
                  np.zeros((1, 1, 1, 4)) if voxel_rgba is None else voxel_rgba, pair, rgb2, a2,
                  counts)
     n_tri = int(counts[:, 0].sum())
@@ -937,8 +995,8 @@ def _window(ts, width, height, bits=SUBPIXEL_BITS):
     rows and each one's first band (independent of the fill parameters; the slice triangles
     and their window coordinates are computed per band, :func:`_render_tets`)."""
     nbands = (height + BAND_ROWS - 1) // BAND_ROWS
-    return _bin_tets(ts.z, ts.ndc, ts.tets, ts.k0, ts.k1, width, height, bits, BAND_ROWS,
-                     nbands)
+    return _bin_tets(ts.z, ts.ndc, ts.tets, ts.centres, ts.k0, ts.k1, width, height, bits,
+                     BAND_ROWS, nbands)
 
 
 # ----------------------------------------------------------------------------- reference engine
