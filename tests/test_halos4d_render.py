@@ -482,8 +482,18 @@ def test_band_binning_and_slicing_equal_their_serial_definitions():
     for band_rows in (1, hr.BAND_ROWS):     # one row per band: the tightest check
         clipped = pairs = 0
         nb = (hgt + band_rows - 1) // band_rows
-        starts, lists, ks, first = hr._bin_tets(ts.z, ts.ndc, ts.tets, ts.centres, ts.k0,
-                                                ts.k1, w, hgt, hs.SUBPIXEL_BITS, band_rows, nb)
+        starts, lists, first, last = hr._bin_tets(ts.z, ts.ndc, ts.tets, ts.k0, ts.k1, w, hgt,
+                                                  hs.SUBPIXEL_BITS, band_rows, nb)
+        # each entry's slices: all of its tetrahedron's, cut to the band's slab where it
+        # spans several bands (as the fill does)
+        ks = np.column_stack([ts.k0[lists], ts.k1[lists]])
+        for band in range(nb):
+            r0, r1 = band * band_rows, min(hgt, (band + 1) * band_rows)
+            for q in range(starts[band], starts[band + 1]):
+                t = lists[q]
+                if first[t] < last[t]:
+                    ks[q] = hr._band_slices(ts.z, ts.ndc, ts.tets, t, hgt, hgt - r1 - 0.5,
+                                            hgt - r0 + 0.5, ts.centres, ts.k0[t], ts.k1[t])
         assert np.all((ts.k0[lists] <= ks[:, 0]) & (ks[:, 1] <= np.maximum(ts.k1, ts.k0)[lists]))
         rows = (hgt - 1 - bbox[:, 3]) // band_rows, (hgt - 1 - bbox[:, 2]) // band_rows
         for band in range(nb):

@@ -256,11 +256,18 @@ def _tri_window(cw, cf, m, width, height, bits):
             by1, abs(a))
 
 
-@njit(**IJIT)
-def _slab_z_range(y, zz, lo, hi):
-    """The z range of the part of a tetrahedron (vertices' window y ``y`` and z ``zz``, four
-    each) between the planes ``y = lo`` and ``y = hi``: over its vertices in the slab and its
-    edges' crossings of the two planes; ``(inf, −inf)`` when the slab misses it."""
+@njit(**JIT)
+def _band_slices(z, ndc, tets, t, height, lo, hi, centres, ka, kb):
+    """The slices ``ka <= k < kb`` of tetrahedron ``t`` that may cut its part between the
+    window rows ``y = lo`` and ``y = hi`` (its vertices' window y from the float64 NDC): those
+    whose plane lies in that part's z range (over its vertices in the slab and its edges'
+    crossings of the two planes), widened by one slice on each side against rounding; none
+    when the slab misses it."""
+    hh = height * 0.5
+    g = (tets[t, 0], tets[t, 1], tets[t, 2], tets[t, 3])
+    y = (ndc[g[0], 1] * hh + hh, ndc[g[1], 1] * hh + hh, ndc[g[2], 1] * hh + hh,
+         ndc[g[3], 1] * hh + hh)
+    zz = (z[g[0]], z[g[1]], z[g[2]], z[g[3]])
     zmin = np.inf
     zmax = -np.inf
     for i in range(4):
@@ -273,22 +280,20 @@ def _slab_z_range(y, zz, lo, hi):
                     zc = zz[i] + (plane - y[i]) / (y[j] - y[i]) * (zz[j] - zz[i])
                     zmin = min(zmin, zc)
                     zmax = max(zmax, zc)
-    return zmin, zmax
+    if zmin > zmax:
+        return ka, ka
+    return (max(ka, np.searchsorted(centres, zmin) - 1),
+            min(kb, np.searchsorted(centres, zmax, "right") + 1, centres.shape[0]))
 
 
 @njit(**PJIT)
-def _bin_tets(z, ndc, tets, centres, k0, k1, width, height, bits, band_rows, nbands):
+def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
     """Per band of rows, the tetrahedra whose slice triangles may touch it, in index order (CSR
-    ``(starts (nbands + 1,), lists)``), each entry's slices ``ks (total, 2)`` that may reach
-    the band, and each tetrahedron's first band (``-1`` if no slice cuts it). A tetrahedron's rows are its four vertices' snapped window rows widened by one
+    ``(starts (nbands + 1,), lists)``), and each tetrahedron's first and last band (``-1``,
+    ``-2`` if no slice cuts it). A tetrahedron's rows are its four vertices' snapped window rows widened by one
     pixel: a slice corner lies on an edge (``λ ∈ [0, 1]``), within an ulp of the edge's ends,
     which snapping moves by at most one subpixel. A tetrahedron outside the image keeps the
-    nearest band (its triangles are counted there, as invalid). A tetrahedron in several bands
-    is cut, per band, to the slab of the band's rows widened by one pixel on each side
-    (:func:`_slab_z_range`, from the vertices' float64 window y: the corners' float32 window
-    positions and their snapping differ from it by far less than a pixel); its entry's slices
-    are the ones whose plane lies in that part's z range, widened by one slice each side
-    against rounding, so a slice whose triangle reaches the band is never left out. Parallel over chunks of
+    nearest band (its triangles are counted there, as invalid). Parallel over chunks of
     :data:`BIN_CHUNK` tetrahedra and deterministic (count, prefix sum over (band, chunk), write
     each chunk's tetrahedra in index order)."""
     n = tets.shape[0]
@@ -329,33 +334,12 @@ def _bin_tets(z, ndc, tets, centres, k0, k1, width, height, bits, band_rows, nba
             total += counts[c, band]
     starts[nbands] = total
     lists = np.zeros(total, np.int64)
-    ks = np.zeros((total, 2), np.int64)
-    nc = centres.shape[0]
     for c in prange(nchunks):
-        yw = np.empty(4)
-        zz = np.empty(4)
         for t in range(c * BIN_CHUNK, min(n, (c + 1) * BIN_CHUNK)):
-            for m in range(4):
-                yw[m] = ndc[tets[t, m], 1] * (height * 0.5) + height * 0.5
-                zz[m] = z[tets[t, m]]
             for band in range(first[t], last[t] + 1):
-                q = offset[c, band]
-                lists[q] = t
-                ks[q, 0] = k0[t]
-                ks[q, 1] = k1[t]
-                if first[t] < last[t]:
-                    # window y of the band's pixel centres: py = H − 1 − r, centre py + ½
-                    lo = height - min(height, (band + 1) * band_rows) + 0.5 - 1.0
-                    hi = height - 1 - band * band_rows + 0.5 + 1.0
-                    zmin, zmax = _slab_z_range(yw, zz, lo, hi)
-                    if zmin > zmax:
-                        ks[q, 1] = k0[t]
-                    else:
-                        ks[q, 0] = max(k0[t], np.searchsorted(centres, zmin) - 1)
-                        ks[q, 1] = min(k1[t], np.searchsorted(centres, zmax, "right") + 1,
-                                       nc)
+                lists[offset[c, band]] = t
                 offset[c, band] += 1
-    return starts, lists, ks, first
+    return starts, lists, first, last
 
 
 @njit(**IJIT)
@@ -442,7 +426,7 @@ def _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, 
                                                 s2, xb, y, t_lo, t_hi)
 
 
-@njit(**IJIT)
+@njit(**JIT)    # not inlined: three inlined tests cost seconds of compile time
 def _triangle_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, X0, X1, X2, Y0, Y1,
                        Y2, bits, t_lo, t_hi):
     """True when no fragment of the whole triangle can be a core fragment: the test of
@@ -530,7 +514,7 @@ def _off_fragment(tris, m, li, px, py, min_d, min_db, delta_t, delta_d, boundary
                  boundary_width)
 
 
-@njit(**IJIT)
+@njit(**JIT)    # not inlined: a call per slice, and half the kernel's compile time
 def _fill_off_core(spans, n_spans, tris, whole, n_whole, wins, r0, height, bits, surf_d,
                    surf_mask, min_d, min_db, delta_t, delta_d, boundary, boundary_width):
     """The deferred off-core spans and triangles of one slice (:func:`_span_off_core`,
@@ -544,15 +528,9 @@ def _fill_off_core(spans, n_spans, tris, whole, n_whole, wins, r0, height, bits,
     original order; ``wins (m, 10)``: snapped X0 … X2, Y0 … Y2, the pixel columns and the
     image rows the triangle covers in the band; ``surf_mask``: the voxels with a surface
     fragment (:func:`_any_marked`), which lets most rows and spans go unvisited."""
-    for j in range(n_spans):
-        li, xs, cnt, m = spans[j, 0], spans[j, 1], spans[j, 2], spans[j, 3]
-        py = height - 1 - (r0 + li)
-        if not _any_marked(surf_mask, li, xs, xs + cnt - 1):
-            continue
-        for px in range(xs, xs + cnt):
-            if surf_d[li, px] != np.inf:
-                _off_fragment(tris, m, li, px, py, min_d, min_db, delta_t, delta_d, boundary,
-                              boundary_width)
+    # the whole triangles' rows that have a surface voxel in their columns, as spans after the
+    # recorded ones (room: at most a span per row of the band per triangle slot)
+    n = n_spans
     for j in range(n_whole):
         m = whole[j]
         X0, X1, X2, Y0, Y1, Y2 = wins[m, 0], wins[m, 1], wins[m, 2], wins[m, 3], wins[m, 4], \
@@ -569,12 +547,21 @@ def _fill_off_core(spans, n_spans, tris, whole, n_whole, wins, r0, height, bits,
             e1 = dx1 * ((py << bits) - Y2) - dy1 * ((x0 << bits) - X2)
             e2 = dx2 * ((py << bits) - Y0) - dy2 * ((x0 << bits) - X0)
             sa, sb = row_span(e0 - bias0, sx0, e1 - bias1, sx1, e2 - bias2, sx2, x1 - x0 + 1)
-            if sa > sb or not _any_marked(surf_mask, li, x0 + sa, x0 + sb):
-                continue
-            for px in range(x0 + sa, x0 + sb + 1):
-                if surf_d[li, px] != np.inf:
-                    _off_fragment(tris, m, li, px, py, min_d, min_db, delta_t, delta_d,
-                                  boundary, boundary_width)
+            if sa <= sb:
+                spans[n, 0] = li
+                spans[n, 1] = x0 + sa
+                spans[n, 2] = sb - sa + 1
+                spans[n, 3] = m
+                n += 1
+    for j in range(n):
+        li, xs, cnt, m = spans[j, 0], spans[j, 1], spans[j, 2], spans[j, 3]
+        if not _any_marked(surf_mask, li, xs, xs + cnt - 1):
+            continue
+        py = height - 1 - (r0 + li)
+        for px in range(xs, xs + cnt):
+            if surf_d[li, px] != np.inf:
+                _off_fragment(tris, m, li, px, py, min_d, min_db, delta_t, delta_d, boundary,
+                              boundary_width)
 
 
 @njit(**JIT)
@@ -644,16 +631,18 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
 
 
 @njit(**PJIT)
-def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, band_lists,
-                 band_ks,
+def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_starts,
+                 band_lists,
                  width, height, bits, band_rows, delta_t, delta_d, surface_width, eps, alpha,
                  halos, aa, halo_alpha, halo_rgb, boundary, boundary_width, boundary_rgb,
                  want_volume, out_rgb, out_a, volume, voxel_rgba, pair, out_rgb2, out_a2,
                  counts):
     """The slicing and the fill pass in one, parallel over bands of rows: each band slices the
-    tetrahedra of its list (:func:`_bin_tets`) by the planes that cut them and may reach the
-    band (``band_ks``; in a tetrahedron's first band the other planes are only counted),
-    slice by slice back to front and in tetrahedron order within a slice (the draw order of
+    tetrahedra of its list (:func:`_bin_tets`) by the planes that cut them and, for a
+    tetrahedron in several bands, may reach the band's rows (:func:`_band_slices`, the
+    band's slab widened by a pixel on each side: the corners' float32 window positions and
+    their snapping differ from the float64 ones by far less; in its first band the other
+    planes are only counted), slice by slice back to front and in tetrahedron order within a slice (the draw order of
     :func:`~refraster.halos4d.slicing.slice_tetrahedra`, the same corner bits), and fills the
     slice triangles that touch its rows; no slice triangle is stored (issue 46). With ``pair``
     (and ``halos``), also the halos-off twin (``halos`` False, ``halo_alpha`` 0, no boundaries,
@@ -690,9 +679,21 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
         # the band's (slice, tetrahedron) pairs, slice-major, tetrahedra in index order: the
         # slices that may reach the band (_bin_tets), and in a tetrahedron's first band the
         # others too, as ~t, only counted
+        nq = band_starts[band + 1] - band_starts[band]
+        band_ks = np.empty((nq, 2), np.int64)
+        for q in range(nq):
+            t = band_lists[band_starts[band] + q]
+            band_ks[q, 0] = k0[t]
+            band_ks[q, 1] = k1[t]
+            if tet_first[t] < tet_last[t]:
+                # the window y of the band's pixel centres (row r: py = H − 1 − r, centre
+                # py + ½), widened by a pixel: H − r1 + ½ − 1 … H − 1 − r0 + ½ + 1
+                band_ks[q, 0], band_ks[q, 1] = _band_slices(
+                    z, ndc, tets, t, height, height - r1 - 0.5, height - r0 + 0.5, centres,
+                    k0[t], k1[t])
         pstart = np.zeros(n + 1, np.int64)
-        for q in range(band_starts[band], band_starts[band + 1]):
-            t = band_lists[q]
+        for q in range(nq):
+            t = band_lists[band_starts[band] + q]
             ka, kb = (k0[t], k1[t]) if tet_first[t] == band else (band_ks[q, 0], band_ks[q, 1])
             for k in range(ka, kb):
                 pstart[k + 1] += 1
@@ -700,8 +701,8 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
             pstart[k + 1] += pstart[k]
         cursor = pstart[:n].copy()
         ptet = np.empty(pstart[n], np.int64)
-        for q in range(band_starts[band], band_starts[band + 1]):
-            t = band_lists[q]
+        for q in range(nq):
+            t = band_lists[band_starts[band] + q]
             ka, kb = (k0[t], k1[t]) if tet_first[t] == band else (band_ks[q, 0], band_ks[q, 1])
             for k in range(ka, kb):
                 ptet[cursor[k]] = t if band_ks[q, 0] <= k < band_ks[q, 1] else ~t
@@ -972,8 +973,8 @@ def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SU
     are appended to the result. ``voxel_rgba (N, H, W, 4)``: also each voxel's surface colour
     and opacity (with ``want_volume``; the golden's allowance). Returns ``(rgb, alpha,
     volume or None, slice triangles, invalid slice triangles[, rgb2, alpha2])``."""
-    band_starts, band_lists, band_ks, first = (_window(ts, width, height, bits) if win is None
-                                               else win)
+    band_starts, band_lists, first, last = (_window(ts, width, height, bits) if win is None
+                                            else win)
     n = len(ts.centres)
     rgb = np.zeros((height, width, 3))
     a = np.zeros((height, width))
@@ -981,8 +982,8 @@ def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SU
     rgb2 = np.zeros((height, width, 3) if pair else (1, 1, 3))
     a2 = np.zeros((height, width) if pair else (1, 1))
     counts = np.zeros((len(band_starts) - 1, 2), np.int64)
-    _render_tets(ts.z, ts.ndc, ts.attr, ts.tets, ts.centres, ts.k0, ts.k1, first, band_starts,
-                 band_lists, band_ks, width, height, bits, BAND_ROWS, *params, want_volume, rgb, a, vol,
+    _render_tets(ts.z, ts.ndc, ts.attr, ts.tets, ts.centres, ts.k0, ts.k1, first, last,
+                 band_starts, band_lists, width, height, bits, BAND_ROWS, *params, want_volume, rgb, a, vol,
                  np.zeros((1, 1, 1, 4)) if voxel_rgba is None else voxel_rgba, pair, rgb2, a2,
                  counts)
     n_tri = int(counts[:, 0].sum())
@@ -995,8 +996,8 @@ def _window(ts, width, height, bits=SUBPIXEL_BITS):
     rows and each one's first band (independent of the fill parameters; the slice triangles
     and their window coordinates are computed per band, :func:`_render_tets`)."""
     nbands = (height + BAND_ROWS - 1) // BAND_ROWS
-    return _bin_tets(ts.z, ts.ndc, ts.tets, ts.centres, ts.k0, ts.k1, width, height, bits,
-                     BAND_ROWS, nbands)
+    return _bin_tets(ts.z, ts.ndc, ts.tets, ts.k0, ts.k1, width, height, bits, BAND_ROWS,
+                     nbands)
 
 
 # ----------------------------------------------------------------------------- reference engine
