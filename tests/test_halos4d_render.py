@@ -458,7 +458,7 @@ def test_band_binning_and_slicing_equal_their_serial_definitions():
     section corners), and each band lists every tetrahedron whose valid slice triangles touch
     it, in index order, with every slice of such a triangle in the entry's slice range (planted
     faults caught: one vertex left out of a tetrahedron's rows; the band's slab not widened by
-    the pixel and the slice range not by the slice on each side)."""
+    a pixel in ``_band_slices``)."""
     s = h.spun_trefoil(n_s=100, n_phi=24)
     geo, _ = hr.prepare(s, view=h.View4D(rotation=h.compose(("zw", 0.6), ("zx", 0.3))))
     v = geo.vertices
