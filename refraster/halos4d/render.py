@@ -651,9 +651,10 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
     ``counts[band]``: the slice triangles of the tetrahedra whose first band it is, and the
     valid ones (non-zero snapped area, inside the image) whose first row lies in it.
 
-    Without a volume and a halo colour, a row span whose fragments are all off the core
-    (:func:`_span_off_core`) is deferred to the end of its slice and filled only at the voxels
-    that then have a surface fragment (:func:`_fill_off_core`): the depth buffers are minima,
+    Without a volume and a halo colour, a triangle or a row span whose fragments are all off
+    the core (:func:`_triangle_off_core`, :func:`_span_off_core`) is deferred to the end of
+    its slice and filled only at the voxels that then have a surface fragment
+    (:func:`_fill_off_core`; a deferred triangle's rows are not visited before): the depth buffers are minima,
     which do not depend on the order, and elsewhere such a fragment changes no output."""
     nbands = band_starts.shape[0] - 1
     n = centres.shape[0]
