@@ -270,6 +270,50 @@ def test_one_sample_is_the_single_sample_frame():
             assert np.array_equal(a[:, :, 0], getattr(fb, name)), (interp, name)
 
 
+# ------------------------------------------------- triangles hidden behind their whole box
+
+def _behind_a_wall(seed, w, h):
+    """A wall over most of the window drawn first (window depth ~0.45), its duplicate (ties:
+    ``lequal`` lets the second win), then small triangles behind it, through it and steep
+    ones (depth planes with large gradients), some reaching past the wall's edge. At
+    150 × 140 the middle tile lies inside the wall, so whole boxes are behind it."""
+    rng = np.random.default_rng(seed)
+    wall = np.array([[-0.8, -0.9, -0.1], [0.9, -0.9, -0.1], [0.9, 0.95, -0.1],
+                     [-0.8, 0.95, -0.1]], np.float32)
+    c = rng.uniform(-1.0, 1.0, (600, 1, 2))
+    xy = c + rng.normal(0.0, 0.04, (600, 3, 2))
+    z = rng.uniform(-0.15, 0.9, (600, 1, 1)) + rng.normal(0.0, 0.02, (600, 3, 1))
+    z[::7] = rng.uniform(-0.9, 0.9, (len(z[::7]), 3, 1))          # steep
+    soup = np.concatenate([xy, z], axis=2).reshape(-1, 3).astype(np.float32)
+    v = np.concatenate([wall, wall, soup])
+    f = np.concatenate([[[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]],
+                        8 + np.arange(len(soup)).reshape(-1, 3)])
+    return v, f
+
+
+@pytest.mark.parametrize("depth_func", ["less", "lequal"])
+@pytest.mark.parametrize("samples", [4, 8])
+def test_triangles_hidden_behind_their_box_are_the_streams_bytes(samples, depth_func):
+    """The tile pass skips a triangle whose plane, at its box's lowest corner, is already
+    behind every stored sample of the box (``raster/multisample.py``, ``_hidden``); the
+    per-sample fragment stream resolved by the single-sample depth test skips nothing. Both
+    give the same bytes, ties of ``lequal`` (the wall's duplicate wins) included."""
+    from refraster.framebuffer import Framebuffer
+    from refraster.multisample import draw_samples, sample_image
+    w, h = 150, 140
+    v, f = _behind_a_wall(samples, w, h)
+    st = RasterState(samples=samples, depth_func=depth_func)
+    sf = refraster.render_samples((v, f), view=EYE, proj=EYE, width=w, height=h, raster=st)
+    frags = draw_samples((v, f), view=EYE, proj=EYE, width=w, height=h, raster=st)
+    one = sample_image(st)
+    fb = Framebuffer.from_fragments(frags, refraster.resolve(frags, raster=one), raster=one)
+    for k in ("depth", "prim_id", "front_facing", "barycentric"):
+        np.testing.assert_array_equal(getattr(fb, k).reshape(getattr(sf, k).shape),
+                                      getattr(sf, k), err_msg=k)
+    wall = np.isin(sf.prim_id, (2, 3) if depth_func == "lequal" else (0, 1))
+    assert wall.mean() > 0.5 and (sf.prim_id > 3).any()
+
+
 # ------------------------------------------------------------------ the exact span walk
 
 def test_edge_walk_gives_each_rows_exact_span():

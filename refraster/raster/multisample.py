@@ -67,6 +67,39 @@ def _lambdas_at(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, cx, cy, e0, e1, e2, inv_ar
 
 
 @njit(**IJIT)
+def _plane_floor(zd0, dzdx, dzdy, cxl, cxh, cyl, cyh):
+    """A lower bound of the window depth the pass computes, ``z0 + dz/dx·cx + dz/dy·cy``
+    before its clamp, at every sample offset ``(cx, cy)`` from the first vertex in
+    ``[cxl, cxh] × [cyl, cyh]``: the plane at the rectangle's lowest corner less
+    10⁻⁹·(1 + the largest magnitude of its terms there), far more than the float64 rounding
+    of the pass's four operations (a few 10⁻¹⁶ of that magnitude). NaN when the plane's
+    terms overflow."""
+    tx = dzdx * (cxl if dzdx > 0.0 else cxh)
+    ty = dzdy * (cyl if dzdy > 0.0 else cyh)
+    mag = abs(zd0) + abs(dzdx) * max(abs(cxl), abs(cxh)) + abs(dzdy) * max(abs(cyl), abs(cyh))
+    return zd0 + tx + ty - 1e-9 * (1.0 + mag)
+
+
+@njit(**IJIT)
+def _hidden(func, zl, zbuf, lx0, lx1, ly0, ly1):
+    """Whether a triangle whose every sample depth is ≥ ``zl`` (:func:`_plane_floor`) fails
+    the ``less`` (``func`` 1) or ``lequal`` (3) test at every sample of the tile buffer's box
+    ``[lx0, lx1] × [ly0, ly1]``: the clamp to [0, 1] and the rounding to float32 keep the
+    order, so a sample's depth is ≥ float32(min(zl, 1)), which already fails against every
+    stored depth there. False for ``zl`` ≤ 0 or NaN (no bound)."""
+    if not zl > 0.0:
+        return False
+    zf = np.float32(min(zl, 1.0))
+    for ly in range(ly0, ly1 + 1):
+        for lx in range(lx0, lx1 + 1):
+            for s in range(zbuf.shape[2]):
+                ref = zbuf[ly, lx, s]
+                if zf < ref or (func == 3 and zf == ref):   # depth_test's less / lequal
+                    return False
+    return True
+
+
+@njit(**IJIT)
 def _floor_divmod(v, m):
     """``(⌊v / m⌋, v − m·⌊v / m⌋)`` for ``m > 0`` (exact int64); ``(0, v)`` for ``m = 0``."""
     if m == 0:
@@ -112,6 +145,12 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
     for s in range(ns):
         fox[s] = np.float64(ox[s]) / one
         foy[s] = np.float64(oy[s]) / one
+    # the samples' least and greatest offsets, by a loop: an array reduction (fox.min())
+    # in this kernel is a parallel loop of its own, 8 s more compile
+    foxmin, foxmax, foymin, foymax = fox[0], fox[0], foy[0], foy[0]
+    for s in range(1, ns):
+        foxmin, foxmax = min(foxmin, fox[s]), max(foxmax, fox[s])
+        foymin, foymax = min(foymin, foy[s]), max(foymax, foy[s])
     for tile in prange(ntiles):
         if starts[tile] == starts[tile + 1]:
             continue
@@ -135,6 +174,16 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
             q1, u1 = _floor_divmod(sy1, m1)
             q2, u2 = _floor_divmod(sy2, m2)
             zd0 = np.float64(z0)
+            # a triangle behind everything its box holds already is skipped: for the
+            # G-buffer's `less` about a third of the 82k-face sphere's items (its far side)
+            if (inv_af > 0.0 and (func == 1 or func == 3) and _hidden(
+                    func, _plane_floor(zd0, dzdx, dzdy,
+                                       (np.float64(bx0) + 0.5 + foxmin) - fx0,
+                                       (np.float64(bx1) + 0.5 + foxmax) - fx0,
+                                       (np.float64(by0) + 0.5 + foymin) - fy0,
+                                       (np.float64(by1) + 0.5 + foymax) - fy0),
+                    zbuf, bx0 - tx0, bx1 - tx0, by0 - ty0, by1 - ty0)):
+                continue
             for s in range(ns):
                 # the sample's edge values at the box's first pixel: the centre's plus the
                 # constant dx_k·oy − dy_k·ox, then walked exactly row by row (_walk_step)
