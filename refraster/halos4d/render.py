@@ -994,7 +994,7 @@ def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SU
 
 def _window(ts, width, height, bits=SUBPIXEL_BITS):
     """The fill pass's set-up of :class:`_TetSlices` ``ts``: the tetrahedra of each band of
-    rows and each one's first band (independent of the fill parameters; the slice triangles
+    rows and each one's first and last band (independent of the fill parameters; the slice triangles
     and their window coordinates are computed per band, :func:`_render_tets`)."""
     nbands = (height + BAND_ROWS - 1) // BAND_ROWS
     return _bin_tets(ts.z, ts.ndc, ts.tets, ts.k0, ts.k1, width, height, bits, BAND_ROWS,
