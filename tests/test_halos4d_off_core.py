@@ -1,11 +1,15 @@
-"""The fused fill's off-core test (issue 46): a row span it defers holds no core fragment.
+"""The fused fill's off-core tests (issue 46): a row span or a whole triangle it defers holds
+no core fragment.
 
 ``render._span_off_core`` decides, from the two ends of a row span and without a division,
 that every fragment of the span has ``|2t − 1| ≥ w_s + a`` (so the fill may defer it to the
-voxels that get a surface fragment). The oracle here is the fragment's own t, computed the
-slow, obvious way at every pixel of the span (float64 λ from the unsnapped positions, the
-float32 roundings of ``λ_k / Σλ``): random triangles (slivers included), random spans, and
-spans whose t at a pixel centre sits a few float32 ulps beside the core's edge.
+voxels that get a surface fragment); ``render._triangle_off_core`` decides it for every pixel
+the fill covers, from the three snapped vertices. The oracle here is the fragment's own t,
+computed the slow, obvious way at every pixel of the span or of the triangle's coverage (the
+fill rule evaluated pixel by pixel; float64 λ from the unsnapped positions, the float32
+roundings of ``λ_k / Σλ``): random triangles (slivers included), random spans, spans whose t
+at a pixel centre sits a few float32 ulps beside the core's edge, and triangles that cover a
+pixel centre just outside their unsnapped edge, where t extrapolates past every corner.
 """
 
 import numpy as np
@@ -131,3 +135,137 @@ def test_usable_refuses_ill_conditioned_triangles():
     assert not u(0.0, 0.0, 4.0, 0.0, 0.0, 4.0, 0.0, 0.0, 1.0, 0.5)
     assert not u(0.0, 0.0, 400.0, 0.0, 0.0, 400.0, 2.0 ** 20, 0.0, 1.0, 0.5)
     assert not u(0.0, 0.0, 4.0, 0.0, 0.0, 4.0, 1 / 16, 0.0, 1.5, 0.5)
+
+
+# ----------------------------------------------------------------------------- whole triangles
+SUB = 256    # 1 << SUBPIXEL_BITS
+
+
+def snapped(fx, fy):
+    """The fill's snapped window vertices (float32 ``rint((x − ½)·256)``, window_setup)."""
+    f = np.float32
+    return ([int(np.rint((f(x) - f(0.5)) * f(SUB))) for x in fx],
+            [int(np.rint((f(y) - f(0.5)) * f(SUB))) for y in fy])
+
+
+def covered_pixels(X, Y):
+    """The pixels the fill covers, the slow obvious way: every biased edge function ≥ 0 at the
+    pixel's centre (llvmpipe's rule: a left or bottom edge owns its centres), stored
+    counter-clockwise vertices."""
+    out = []
+    for py in range(min(Y) // SUB - 1, max(Y) // SUB + 2):
+        for px in range(min(X) // SUB - 1, max(X) // SUB + 2):
+            ok = True
+            for k in range(3):
+                a, b = (k + 1) % 3, (k + 2) % 3
+                dx, dy = X[b] - X[a], Y[b] - Y[a]
+                bias = 0 if (dy < 0 or (dy == 0 and dx > 0)) else 1
+                ok &= dx * (py * SUB - Y[a]) - dy * (px * SUB - X[a]) - bias >= 0
+            if ok:
+                out.append((px, py))
+    return out
+
+
+def triangle_claims(fx, fy, inv_af, t, X, Y, lo, hi):
+    return render._triangle_off_core(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2], inv_af, t[0],
+                                     t[1], t[2], X[0], X[1], X[2], Y[0], Y[1], Y[2], 8, lo, hi)
+
+
+def snapped_triangle(rng, size=(0.3, 12.0)):
+    """A random triangle (slivers one time in three) whose snapped and unsnapped vertices are
+    both counter-clockwise (the fill's stored order; else its barycentrics are not usable)."""
+    while True:
+        c = rng.uniform(20.0, 40.0, 2)
+        s = rng.uniform(*size)
+        p = c + rng.uniform(-s, s, (3, 2))
+        if rng.random() < 1 / 3:
+            p[2] = p[0] + rng.uniform(0.0, 1.0) * (p[1] - p[0]) + rng.uniform(-1e-2, 1e-2, 2)
+        p = p.astype(np.float32).astype(np.float64)
+        if (p[1, 0] - p[0, 0]) * (p[2, 1] - p[0, 1]) - (p[2, 0] - p[0, 0]) * (p[1, 1] - p[0, 1]) < 0:
+            p = p[[0, 2, 1]]
+        fx, fy = p[:, 0], p[:, 1]
+        X, Y = snapped(fx, fy)
+        inv_af = _inv_float_area(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2])
+        if inv_af > 0.0 and (X[1] - X[0]) * (Y[2] - Y[0]) - (X[2] - X[0]) * (Y[1] - Y[0]) > 0:
+            return fx, fy, inv_af, X, Y
+
+
+def check_triangle(fx, fy, inv_af, t, X, Y, core_w, lo, hi):
+    """Whether the test claimed the triangle off the core; fails if a covered pixel is core."""
+    if not triangle_claims(fx, fy, inv_af, t, X, Y, lo, hi):
+        return False
+    for x, y in covered_pixels(X, Y):
+        u = abs(2.0 * fragment_t(fx, fy, inv_af, x, y, t) - 1.0)
+        assert not u < core_w, (fx.tolist(), fy.tolist(), list(t), x, y, u)
+    return True
+
+
+@pytest.mark.parametrize("surface_width, aa", [(0.3, 0.027533030000969332), (0.05, 0.0)])
+def test_a_claimed_triangle_has_no_core_fragment(surface_width, aa):
+    rng = np.random.default_rng(RNG_SEED + 3)
+    core_w = surface_width + aa
+    lo, hi = render._off_core_limits(surface_width, aa)
+    claimed = tried = 0
+    while tried < 600:
+        fx, fy, inv_af, X, Y = snapped_triangle(rng)
+        # corners on one side of the core, a few of them just beyond its widened edge
+        side = rng.choice([-1.0, 1.0])
+        edge = hi if side > 0 else lo
+        t = edge + side * rng.choice([rng.uniform(0.0, 0.3, 3), rng.uniform(0.0, 2e-3, 3)])
+        if rng.random() < 0.2:
+            t[rng.integers(3)] = edge - side * rng.uniform(0.0, 2e-3)   # one corner inside
+        if not render._off_core_usable(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2], inv_af, *t):
+            continue
+        tried += 1
+        claimed += check_triangle(fx, fy, inv_af, t, X, Y, core_w, lo, hi)
+    assert 150 < claimed < tried - 100, (claimed, tried)
+
+
+def trap_triangle(rng):
+    """A triangle with an edge passing within 1/256 px of a pixel centre P, P outside the
+    unsnapped triangle: ``(fx, fy, P)`` (float32 vertices, counter-clockwise)."""
+    x, y = int(rng.integers(20, 40)), int(rng.integers(20, 40))
+    p = np.array([x + 0.5, y + 0.5])
+    a = rng.uniform(0.0, 2.0 * np.pi)
+    d = np.array([np.cos(a), np.sin(a)])           # the edge's direction
+    n = np.array([-d[1], d[0]])                    # towards the inside
+    foot = p + rng.uniform(1e-4, 4e-3) * n         # P lies outside, beside the edge
+    v = np.array([foot - rng.uniform(0.3, 3.0) * d, foot + rng.uniform(0.3, 3.0) * d,
+                  foot + rng.uniform(-1.0, 1.0) * d + rng.uniform(0.3, 1.5) * n])
+    v = v.astype(np.float32).astype(np.float64)
+    return v[:, 0], v[:, 1], (x, y)
+
+
+def test_pixels_outside_the_unsnapped_triangle():
+    # a pixel centre inside the snapped triangle but outside the unsnapped one extrapolates t
+    # past every corner: corners just beyond the core's widened edge, t at that centre inside
+    # the core. Tested at the unsnapped vertices such a triangle would be claimed (counted
+    # below: the cases are real); at the snapped ones it must not be.
+    rng = np.random.default_rng(RNG_SEED + 4)
+    surface_width, aa = 0.3, 0.027533030000969332
+    core_w = surface_width + aa
+    lo, hi = render._off_core_limits(surface_width, aa)
+    traps = 0
+    for _ in range(1500):
+        fx, fy, (x, y) = trap_triangle(rng)
+        X, Y = snapped(fx, fy)
+        inv_af = _inv_float_area(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2])
+        if (inv_af <= 0.0 or (X[1] - X[0]) * (Y[2] - Y[0]) - (X[2] - X[0]) * (Y[1] - Y[0]) <= 0
+                or (x, y) not in covered_pixels(X, Y)):
+            continue
+        cx, cy = x + 0.5, y + 0.5
+        lam = [((fx[(k + 2) % 3] - fx[(k + 1) % 3]) * (cy - fy[(k + 1) % 3])
+                - (fy[(k + 2) % 3] - fy[(k + 1) % 3]) * (cx - fx[(k + 1) % 3])) * inv_af
+               for k in range(3)]
+        # corners at lo − 2^-14, vertex 2 (opposite the edge) lower, so that t at the centre
+        # is the core's edge plus 2^-12
+        c = lo - 2.0 ** -14
+        t = [c, c, c - (0.5 * (1.0 - core_w) + 2.0 ** -12 - c) / -lam[2]]
+        if not render._off_core_usable(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2], inv_af, *t):
+            continue
+        assert abs(2.0 * fragment_t(fx, fy, inv_af, x, y, t) - 1.0) < core_w
+        traps += all(render._off_core_side(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2], inv_af, *t,
+                                           fx[m] - 0.5, fy[m] - 0.5, lo, hi) == -1
+                     for m in range(3))
+        check_triangle(fx, fy, inv_af, t, X, Y, core_w, lo, hi)
+    assert traps > 30, traps

@@ -456,7 +456,9 @@ def test_band_binning_and_slicing_equal_their_serial_definitions():
     several binning chunks (hr.BIN_CHUNK) and slices: the slice triangles are those of a
     tetrahedron-major walk (per slice, tetrahedra in index order, each tetrahedron's
     section corners), and each band lists every tetrahedron whose valid slice triangles touch
-    it, in index order (a planted fault, one vertex left out of a tetrahedron's rows, was caught)."""
+    it, in index order, with every slice of such a triangle in the entry's slice range (planted
+    faults caught: one vertex left out of a tetrahedron's rows; the band's slab not widened by
+    a pixel in ``_band_slices``)."""
     s = h.spun_trefoil(n_s=100, n_phi=24)
     geo, _ = hr.prepare(s, view=h.View4D(rotation=h.compose(("zw", 0.6), ("zx", 0.3))))
     v = geo.vertices
@@ -478,16 +480,37 @@ def test_band_binning_and_slicing_equal_their_serial_definitions():
     ts = hr._tet_slices(v, geo.tets, centres, geo.attributes, bounds)
     assert len(geo.tets) > 2 * hr.BIN_CHUNK
     for band_rows in (1, hr.BAND_ROWS):     # one row per band: the tightest check
+        clipped = pairs = 0
         nb = (hgt + band_rows - 1) // band_rows
-        starts, lists, first = hr._bin_tets(ts.z, ts.ndc, ts.tets, ts.k0, ts.k1, w, hgt,
-                                            hs.SUBPIXEL_BITS, band_rows, nb)
+        starts, lists, first, last = hr._bin_tets(ts.z, ts.ndc, ts.tets, ts.k0, ts.k1, w, hgt,
+                                                  hs.SUBPIXEL_BITS, band_rows, nb)
+        # each entry's slices: all of its tetrahedron's, cut to the band's slab where it
+        # spans several bands (as the fill does)
+        ks = np.column_stack([ts.k0[lists], ts.k1[lists]])
+        for band in range(nb):
+            r0, r1 = band * band_rows, min(hgt, (band + 1) * band_rows)
+            for q in range(starts[band], starts[band + 1]):
+                t = lists[q]
+                if first[t] < last[t]:
+                    ks[q] = hr._band_slices(ts.z, ts.ndc, ts.tets, t, hgt, hgt - r1 - 0.5,
+                                            hgt - r0 + 0.5, ts.centres, ts.k0[t], ts.k1[t])
+        assert np.all((ts.k0[lists] <= ks[:, 0]) & (ks[:, 1] <= np.maximum(ts.k1, ts.k0)[lists]))
         rows = (hgt - 1 - bbox[:, 3]) // band_rows, (hgt - 1 - bbox[:, 2]) // band_rows
         for band in range(nb):
             listed = lists[starts[band]:starts[band + 1]]
             assert np.all(np.diff(listed) > 0), band
-            need = np.unique(st_.tet[valid & (rows[0] <= band) & (band <= rows[1])])
+            touch = valid & (rows[0] <= band) & (band <= rows[1])
+            need = np.unique(st_.tet[touch])
             assert np.isin(need, listed).all(), (band, np.setdiff1d(need, listed)[:5])
             assert np.all(first[listed] <= band)
+            # each touching triangle's slice lies in its tetrahedron's entry's slice range
+            at = np.searchsorted(listed, st_.tet[touch]) + starts[band]
+            k = st_.slice[touch]
+            assert np.all((ks[at, 0] <= k) & (k < ks[at, 1])), band
+            clipped += int((ks[starts[band]:starts[band + 1], 1]
+                            - ks[starts[band]:starts[band + 1], 0]).sum())
+            pairs += int((ts.k1 - ts.k0)[listed].sum())
+        assert clipped < pairs    # the ranges are cut where a tetrahedron spans bands
     # the fused pass counts the slice triangles and the invalid ones as the slicing does
     params = (0.3, 2.0, 0.3, 1e-6, 0.6, True, 0.3, 0.0, np.zeros(3), False, 0.15, np.zeros(3))
     _, _, _, n_tri, n_bad = hr._fused(ts, w, hgt, params, False)

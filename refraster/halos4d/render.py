@@ -229,21 +229,20 @@ def _screen_bounds(points_list, width, height, margin):
 
 # ----------------------------------------------------------------------------- fused engine
 @njit(**IJIT)
-def _tri_window(xy, j, width, height, bits):
-    """:func:`~refraster.halos4d.slicing.window_setup` of slice triangle ``j`` (NDC ``xy``), in
-    scalars, the same bits: ``(valid, X0, X1, X2, Y0, Y1, Y2, xf0, xf1, xf2, yf0, yf1, yf2,
-    swap, bx0, bx1, by0, by1, area)``, the vertices as stored (``swap``: the original vertices
-    1 and 2 exchanged, clockwise), the pixel bounding box and the doubled snapped area (> 0).
+def _tri_window(cw, cf, m, width, height, bits):
+    """:func:`~refraster.halos4d.slicing.window_setup` of slice triangle ``m`` from its corners'
+    window positions (corners ``3m … 3m + 2`` of ``cw (6, 2)`` snapped and ``cf (6, 2)``
+    float32 window x, y, :func:`~refraster.halos4d.slicing._window_vertex`), in scalars, the
+    same bits: ``(valid, X0, X1, X2, Y0, Y1, Y2, xf0, xf1, xf2, yf0, yf1, yf2, swap, bx0, bx1,
+    by0, by1, area)``, the vertices as stored (``swap``: the original vertices 1 and 2
+    exchanged, clockwise), the pixel bounding box and the doubled snapped area (> 0).
     Recomputed where it is needed instead of stored: a few float32 operations per triangle
     cost less than writing and reading back eight arrays of 1.3 M rows (issue 46)."""
-    hw = np.float32(width * 0.5)
-    hh = np.float32(height * 0.5)
-    half = np.float32(0.5)
-    s = np.float32(1 << bits)
     one = np.int64(1) << bits
-    x0, y0, xf0, yf0 = _window_vertex(xy[j, 0, 0], xy[j, 0, 1], hw, hh, half, s)
-    x1, y1, xf1, yf1 = _window_vertex(xy[j, 1, 0], xy[j, 1, 1], hw, hh, half, s)
-    x2, y2, xf2, yf2 = _window_vertex(xy[j, 2, 0], xy[j, 2, 1], hw, hh, half, s)
+    j = 3 * m
+    x0, y0, xf0, yf0 = cw[j, 0], cw[j, 1], cf[j, 0], cf[j, 1]
+    x1, y1, xf1, yf1 = cw[j + 1, 0], cw[j + 1, 1], cf[j + 1, 0], cf[j + 1, 1]
+    x2, y2, xf2, yf2 = cw[j + 2, 0], cw[j + 2, 1], cf[j + 2, 0], cf[j + 2, 1]
     a = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
     swap = a < 0
     if swap:
@@ -257,11 +256,41 @@ def _tri_window(xy, j, width, height, bits):
             by1, abs(a))
 
 
+@njit(**JIT)
+def _band_slices(z, ndc, tets, t, height, lo, hi, centres, ka, kb):
+    """The slices ``ka <= k < kb`` of tetrahedron ``t`` that may cut its part between the
+    window rows ``y = lo`` and ``y = hi`` (its vertices' window y from the float64 NDC): those
+    whose plane lies in that part's z range (over its vertices in the slab and its edges'
+    crossings of the two planes), widened by one slice on each side against rounding; none
+    when the slab misses it."""
+    hh = height * 0.5
+    g = (tets[t, 0], tets[t, 1], tets[t, 2], tets[t, 3])
+    y = (ndc[g[0], 1] * hh + hh, ndc[g[1], 1] * hh + hh, ndc[g[2], 1] * hh + hh,
+         ndc[g[3], 1] * hh + hh)
+    zz = (z[g[0]], z[g[1]], z[g[2]], z[g[3]])
+    zmin = np.inf
+    zmax = -np.inf
+    for i in range(4):
+        if lo <= y[i] <= hi:
+            zmin = min(zmin, zz[i])
+            zmax = max(zmax, zz[i])
+        for j in range(i + 1, 4):
+            for plane in (lo, hi):
+                if (y[i] < plane < y[j]) or (y[j] < plane < y[i]):
+                    zc = zz[i] + (plane - y[i]) / (y[j] - y[i]) * (zz[j] - zz[i])
+                    zmin = min(zmin, zc)
+                    zmax = max(zmax, zc)
+    if zmin > zmax:
+        return ka, ka
+    return (max(ka, np.searchsorted(centres, zmin) - 1),
+            min(kb, np.searchsorted(centres, zmax, "right") + 1, centres.shape[0]))
+
+
 @njit(**PJIT)
 def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
     """Per band of rows, the tetrahedra whose slice triangles may touch it, in index order (CSR
-    ``(starts (nbands + 1,), lists)``), and each tetrahedron's first band (``-1`` if no slice
-    cuts it). A tetrahedron's rows are its four vertices' snapped window rows widened by one
+    ``(starts (nbands + 1,), lists)``), and each tetrahedron's first and last band (``-1``,
+    ``-2`` if no slice cuts it). A tetrahedron's rows are its four vertices' snapped window rows widened by one
     pixel: a slice corner lies on an edge (``λ ∈ [0, 1]``), within an ulp of the edge's ends,
     which snapping moves by at most one subpixel. A tetrahedron outside the image keeps the
     nearest band (its triangles are counted there, as invalid). Parallel over chunks of
@@ -310,7 +339,7 @@ def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
             for band in range(first[t], last[t] + 1):
                 lists[offset[c, band]] = t
                 offset[c, band] += 1
-    return starts, lists, first
+    return starts, lists, first, last
 
 
 @njit(**IJIT)
@@ -363,6 +392,23 @@ def _off_core_usable(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, t0, t1, t2):
 
 
 @njit(**IJIT)
+def _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, x, y, t_lo, t_hi):
+    """+1 (−1) when the exact ``N − t_hi·D`` (``t_lo·D − N``) of :func:`_span_off_core` is
+    ≥ 0 at the point whose pixel-centre coordinates are ``(x + ½, y + ½)`` and its λ satisfy
+    the proof's bounds (``Σλ`` in [1/2, 2], ``Σ|λ_k|`` ≤ 16), else 0."""
+    a0, a1, a2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y, 0, 0, 0, 0.0)
+    d = a0 + a1 + a2
+    if not (0.5 <= d <= 2.0 and abs(a0) + abs(a1) + abs(a2) <= 16.0):
+        return 0
+    nt = a0 * s0 + a1 * s1 + a2 * s2
+    if nt - t_hi * d >= 0.0:
+        return 1
+    if t_lo * d - nt >= 0.0:
+        return -1
+    return 0
+
+
+@njit(**IJIT)
 def _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, t_lo, t_hi):
     """True when no fragment of the row span ``xa … xb`` (row y) of a triangle with
     ``inv_af > 0`` can be a core fragment (``|2t − 1| < w_s + a``): t stays ≥ ``t_hi`` or
@@ -375,17 +421,30 @@ def _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, 
     (``OFF_CORE_MAX_COND``) bounds each computed λ_k within 2^-26 of the exact one, and with
     the ends' D in [1/2, 2] and Σ|λ_k| ≤ 16 (checked here), the fragment's computed t (its
     float32 barycentrics included) lies within 2^-17 of N / D: well inside the margin."""
-    a0, a1, a2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, xa, y, 0, 0, 0, 0.0)
-    b0, b1, b2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, xb, y, 0, 0, 0, 0.0)
-    da = a0 + a1 + a2
-    db = b0 + b1 + b2
-    if not (0.5 <= da <= 2.0 and 0.5 <= db <= 2.0
-            and abs(a0) + abs(a1) + abs(a2) <= 16.0 and abs(b0) + abs(b1) + abs(b2) <= 16.0):
-        return False
-    na = a0 * s0 + a1 * s1 + a2 * s2
-    nb = b0 * s0 + b1 * s1 + b2 * s2
-    return ((na - t_hi * da >= 0.0 and nb - t_hi * db >= 0.0)
-            or (t_lo * da - na >= 0.0 and t_lo * db - nb >= 0.0))
+    side = _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, y, t_lo, t_hi)
+    return side != 0 and side == _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1,
+                                                s2, xb, y, t_lo, t_hi)
+
+
+@njit(**JIT)    # not inlined: three inlined tests cost seconds of compile time
+def _triangle_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, X0, X1, X2, Y0, Y1,
+                       Y2, bits, t_lo, t_hi):
+    """True when no fragment of the whole triangle can be a core fragment: the test of
+    :func:`_span_off_core` at its three **snapped** vertices ``(X_k, Y_k)`` (window
+    subpixels, the pixel centres' frame: pixel x sits at ``X = x·2^bits``) instead of a
+    span's two ends. Every pixel the fill covers lies in the closed snapped triangle, the
+    convex hull of the three points, where ``N − t_hi·D`` (``t_lo·D − N``), D and Σ|λ_k| are
+    affine or convex; and a snapped vertex lies within 1/2^(bits+1) of the unsnapped one, inside
+    the extent the conditioning bound allows. So the span test's argument holds for every
+    fragment of the triangle (docs/halos4d.md, "Off-core spans")."""
+    sc = 1.0 / (1 << bits)
+    side = _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, X0 * sc, Y0 * sc,
+                          t_lo, t_hi)
+    return (side != 0
+            and side == _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2,
+                                       X1 * sc, Y1 * sc, t_lo, t_hi)
+            and side == _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2,
+                                       X2 * sc, Y2 * sc, t_lo, t_hi))
 
 
 @njit(**IJIT)
@@ -408,28 +467,101 @@ def _keep_triangle(rec, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, swap, t0, t1, t2, 
 
 
 @njit(**IJIT)
-def _fill_off_core(spans, n_spans, tris, r0, height, surf_d, min_d, min_db, delta_t, delta_d,
-                   boundary, boundary_width):
-    """The deferred off-core spans of one slice (:func:`_span_off_core`), at the voxels that
-    have a surface fragment: their halo depths (Eq. 3, and the boundary's) enter the depth
-    buffers. Elsewhere an off-core fragment changes nothing drawn (no volume, no halo colour):
-    it would only mark a halo voxel. ``spans (n, 4)``: row in the band (the band's first
-    row ``r0``), first pixel, count, triangle; ``tris (m, 14)``: unsnapped x, y of the stored
-    vertices, inv_af, swap, and the corners' t and δ in original order."""
-    for j in range(n_spans):
-        li, xs, cnt, m = spans[j, 0], spans[j, 1], spans[j, 2], spans[j, 3]
-        py = height - 1 - (r0 + li)
-        for i in range(cnt):
-            px = xs + i
-            if surf_d[li, px] == np.inf:
+def _edge_setup(X0, X1, X2, Y0, Y1, Y2, bits):
+    """A snapped triangle's edges (edge k opposite stored vertex k): ``(dx_k, dy_k)``, the
+    llvmpipe ownership bias and the step of the edge function per pixel in x, for k = 0, 1, 2."""
+    dx0 = X2 - X1
+    dy0 = Y2 - Y1
+    dx1 = X0 - X2
+    dy1 = Y0 - Y2
+    dx2 = X1 - X0
+    dy2 = Y1 - Y0
+    bias0 = 0 if (dy0 < 0 or (dy0 == 0 and dx0 > 0)) else 1
+    bias1 = 0 if (dy1 < 0 or (dy1 == 0 and dx1 > 0)) else 1
+    bias2 = 0 if (dy2 < 0 or (dy2 == 0 and dx2 > 0)) else 1
+    return (dx0, dy0, dx1, dy1, dx2, dy2, bias0, bias1, bias2, -(dy0 << bits), -(dy1 << bits),
+            -(dy2 << bits))
+
+
+@njit(**IJIT)
+def _any_marked(mask, li, a, b):
+    """Whether row ``li`` of the bit mask ``(rows, ⌈W/64⌉) uint64`` (column x: bit ``x % 64`` of
+    word ``x // 64``) has a bit set among columns ``a … b`` (``a ≤ b``)."""
+    ones = ~np.uint64(0)
+    wa = a >> 6
+    wb = b >> 6
+    for w in range(wa, wb + 1):
+        m = mask[li, w]
+        if w == wa:
+            m &= ones << np.uint64(a & 63)
+        if w == wb:
+            m &= ones >> np.uint64(63 - (b & 63))
+        if m != np.uint64(0):
+            return True
+    return False
+
+
+@njit(**IJIT)
+def _off_fragment(tris, m, li, px, py, min_d, min_db, delta_t, delta_d, boundary,
+                  boundary_width):
+    """The halo depths of deferred triangle ``m``'s fragment at pixel (px, py) (row ``li`` of
+    the band): its barycentrics, t and δ as the fill computes them, into the depth buffers."""
+    q0, q1, q2 = _fragment_bary(tris[m, 0], tris[m, 1], tris[m, 2], tris[m, 3], tris[m, 4],
+                                tris[m, 5], tris[m, 6], px, py, 0, 0, 0, 0.0, tris[m, 7] != 0.0)
+    t = q0 * tris[m, 8] + q1 * tris[m, 9] + q2 * tris[m, 10]
+    d = q0 * tris[m, 11] + q1 * tris[m, 12] + q2 * tris[m, 13]
+    _halo_depths(li, px, d, abs(2.0 * t - 1.0), min_d, min_db, delta_t, delta_d, boundary,
+                 boundary_width)
+
+
+@njit(**JIT)    # not inlined: a call per slice, and half the kernel's compile time
+def _fill_off_core(spans, n_spans, tris, whole, n_whole, wins, r0, height, bits, surf_d,
+                   surf_mask, min_d, min_db, delta_t, delta_d, boundary, boundary_width):
+    """The deferred off-core spans and triangles of one slice (:func:`_span_off_core`,
+    :func:`_triangle_off_core`), at the voxels that have a surface fragment: their halo depths
+    (Eq. 3, and the boundary's) enter the depth buffers. Elsewhere an off-core fragment
+    changes nothing drawn (no volume, no halo colour): it would only mark a halo voxel.
+    ``spans (n, 4)``: row in the band (the band's first row ``r0``), first pixel, count,
+    triangle; ``whole (n_whole,)``: triangles deferred as a whole, their rows' exact spans
+    found here, only on rows that have a surface fragment in their bounding box; ``tris (m,
+    14)``: unsnapped x, y of the stored vertices, inv_af, swap, and the corners' t and δ in
+    original order; ``wins (m, 10)``: snapped X0 … X2, Y0 … Y2, the pixel columns and the
+    image rows the triangle covers in the band; ``surf_mask``: the voxels with a surface
+    fragment (:func:`_any_marked`), which lets most rows and spans go unvisited."""
+    # the whole triangles' rows that have a surface voxel in their columns, as spans after the
+    # recorded ones (room: at most a span per row of the band per triangle slot)
+    n = n_spans
+    for j in range(n_whole):
+        m = whole[j]
+        X0, X1, X2, Y0, Y1, Y2 = wins[m, 0], wins[m, 1], wins[m, 2], wins[m, 3], wins[m, 4], \
+            wins[m, 5]
+        x0, x1 = wins[m, 6], wins[m, 7]
+        (dx0, dy0, dx1, dy1, dx2, dy2, bias0, bias1, bias2, sx0, sx1,
+         sx2) = _edge_setup(X0, X1, X2, Y0, Y1, Y2, bits)
+        for r in range(wins[m, 8], wins[m, 9] + 1):
+            li = r - r0
+            if not _any_marked(surf_mask, li, x0, x1):
                 continue
-            q0, q1, q2 = _fragment_bary(tris[m, 0], tris[m, 1], tris[m, 2], tris[m, 3],
-                                        tris[m, 4], tris[m, 5], tris[m, 6], px, py, 0, 0, 0,
-                                        0.0, tris[m, 7] != 0.0)
-            t = q0 * tris[m, 8] + q1 * tris[m, 9] + q2 * tris[m, 10]
-            d = q0 * tris[m, 11] + q1 * tris[m, 12] + q2 * tris[m, 13]
-            _halo_depths(li, px, d, abs(2.0 * t - 1.0), min_d, min_db, delta_t, delta_d,
-                         boundary, boundary_width)
+            py = height - 1 - r
+            e0 = dx0 * ((py << bits) - Y1) - dy0 * ((x0 << bits) - X1)
+            e1 = dx1 * ((py << bits) - Y2) - dy1 * ((x0 << bits) - X2)
+            e2 = dx2 * ((py << bits) - Y0) - dy2 * ((x0 << bits) - X0)
+            sa, sb = row_span(e0 - bias0, sx0, e1 - bias1, sx1, e2 - bias2, sx2, x1 - x0 + 1)
+            if sa <= sb:
+                spans[n, 0] = li
+                spans[n, 1] = x0 + sa
+                spans[n, 2] = sb - sa + 1
+                spans[n, 3] = m
+                n += 1
+    for j in range(n):
+        li, xs, cnt, m = spans[j, 0], spans[j, 1], spans[j, 2], spans[j, 3]
+        if not _any_marked(surf_mask, li, xs, xs + cnt - 1):
+            continue
+        py = height - 1 - (r0 + li)
+        for px in range(xs, xs + cnt):
+            if surf_d[li, px] != np.inf:
+                _off_fragment(tris, m, li, px, py, min_d, min_db, delta_t, delta_d, boundary,
+                              boundary_width)
 
 
 @njit(**JIT)
@@ -499,14 +631,18 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
 
 
 @njit(**PJIT)
-def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, band_lists,
+def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_starts,
+                 band_lists,
                  width, height, bits, band_rows, delta_t, delta_d, surface_width, eps, alpha,
                  halos, aa, halo_alpha, halo_rgb, boundary, boundary_width, boundary_rgb,
                  want_volume, out_rgb, out_a, volume, voxel_rgba, pair, out_rgb2, out_a2,
                  counts):
     """The slicing and the fill pass in one, parallel over bands of rows: each band slices the
-    tetrahedra of its list (:func:`_bin_tets`) by the planes that cut them, slice by slice
-    back to front and in tetrahedron order within a slice (the draw order of
+    tetrahedra of its list (:func:`_bin_tets`) by the planes that cut them and, for a
+    tetrahedron in several bands, may reach the band's rows (:func:`_band_slices`, the
+    band's slab widened by a pixel on each side: the corners' float32 window positions and
+    their snapping differ from the float64 ones by far less; in its first band the other
+    planes are only counted), slice by slice back to front and in tetrahedron order within a slice (the draw order of
     :func:`~refraster.halos4d.slicing.slice_tetrahedra`, the same corner bits), and fills the
     slice triangles that touch its rows; no slice triangle is stored (issue 46). With ``pair``
     (and ``halos``), also the halos-off twin (``halos`` False, ``halo_alpha`` 0, no boundaries,
@@ -515,9 +651,10 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
     ``counts[band]``: the slice triangles of the tetrahedra whose first band it is, and the
     valid ones (non-zero snapped area, inside the image) whose first row lies in it.
 
-    Without a volume and a halo colour, a row span whose fragments are all off the core
-    (:func:`_span_off_core`) is deferred to the end of its slice and filled only at the voxels
-    that then have a surface fragment (:func:`_fill_off_core`): the depth buffers are minima,
+    Without a volume and a halo colour, a triangle or a row span whose fragments are all off
+    the core (:func:`_triangle_off_core`, :func:`_span_off_core`) is deferred to the end of
+    its slice and filled only at the voxels that then have a surface fragment
+    (:func:`_fill_off_core`; a deferred triangle's rows are not visited before): the depth buffers are minima,
     which do not depend on the order, and elsewhere such a fragment changes no output."""
     nbands = band_starts.shape[0] - 1
     n = centres.shape[0]
@@ -540,22 +677,43 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
         min_d2 = np.full((prow, pcol), np.inf)
         acc2 = np.zeros((prow, pcol, 3))
         acc_a2 = np.zeros((prow, pcol))
-        # the band's (slice, tetrahedron) pairs, slice-major, tetrahedra in index order
+        # the band's (slice, tetrahedron) pairs, slice-major, tetrahedra in index order: the
+        # slices that may reach the band (_bin_tets), and in a tetrahedron's first band the
+        # others too, as ~t, only counted
+        nq = band_starts[band + 1] - band_starts[band]
+        band_ks = np.empty((nq, 2), np.int64)
+        for q in range(nq):
+            t = band_lists[band_starts[band] + q]
+            band_ks[q, 0] = k0[t]
+            band_ks[q, 1] = k1[t]
+            if tet_first[t] < tet_last[t]:
+                # the window y of the band's pixel centres (row r: py = H − 1 − r, centre
+                # py + ½), widened by a pixel: H − r1 + ½ − 1 … H − 1 − r0 + ½ + 1
+                band_ks[q, 0], band_ks[q, 1] = _band_slices(
+                    z, ndc, tets, t, height, height - r1 - 0.5, height - r0 + 0.5, centres,
+                    k0[t], k1[t])
         pstart = np.zeros(n + 1, np.int64)
-        for q in range(band_starts[band], band_starts[band + 1]):
-            t = band_lists[q]
-            for k in range(k0[t], k1[t]):
+        for q in range(nq):
+            t = band_lists[band_starts[band] + q]
+            ka, kb = (k0[t], k1[t]) if tet_first[t] == band else (band_ks[q, 0], band_ks[q, 1])
+            for k in range(ka, kb):
                 pstart[k + 1] += 1
         for k in range(n):
             pstart[k + 1] += pstart[k]
         cursor = pstart[:n].copy()
         ptet = np.empty(pstart[n], np.int64)
-        for q in range(band_starts[band], band_starts[band + 1]):
-            t = band_lists[q]
-            for k in range(k0[t], k1[t]):
-                ptet[cursor[k]] = t
+        for q in range(nq):
+            t = band_lists[band_starts[band] + q]
+            ka, kb = (k0[t], k1[t]) if tet_first[t] == band else (band_ks[q, 0], band_ks[q, 1])
+            for k in range(ka, kb):
+                ptet[cursor[k]] = t if band_ks[q, 0] <= k < band_ks[q, 1] else ~t
                 cursor[k] += 1
-        xy = np.empty((2, 3, 2))        # the current tetrahedron's slice triangles (NDC)
+        cw = np.empty((6, 2), np.int64)  # the current tetrahedron's slice corners: snapped
+        cf = np.empty((6, 2))            # and float32 window x, y
+        hw = np.float32(width * 0.5)
+        hh = np.float32(height * 0.5)
+        half = np.float32(0.5)
+        sub = np.float32(1 << bits)
         tri = np.empty((3, nc))         # one triangle's corner attributes
         ends = np.empty((6, 2), np.int64)
         lams = np.empty(6)
@@ -569,8 +727,13 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
         keep = 2 * most if defer and halos else 0
         off_spans = np.empty((keep * rows, 4), np.int32)
         off_tris = np.empty((keep, 14))
+        off_wins = np.empty((keep, 10), np.int64)
+        off_whole = np.empty(keep, np.int64)
         n_off = 0
         n_off_tris = 0
+        n_whole = 0
+        # the voxels with a surface fragment in the current slice, a bit each
+        surf_mask = np.zeros((rows, (width + 63) // 64), np.uint64)
         t_lo, t_hi = _off_core_limits(surface_width, aa)
         n_tri = 0
         n_valid = 0
@@ -580,25 +743,43 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
             ck = centres[k]
             for pi in range(pstart[k], pstart[k + 1]):
                 tt = ptet[pi]
+                reach = tt >= 0
+                if not reach:
+                    tt = ~tt
                 g = (tets[tt, 0], tets[tt, 1], tets[tt, 2], tets[tt, 3])
                 sg = (z[g[0]] - ck, z[g[1]] - ck, z[g[2]] - ck, z[g[3]] - ck)
                 nsec, e = _section_corners(sg[0], sg[1], sg[2], sg[3])
                 if tet_first[tt] == band:
                     n_tri += nsec
+                if not reach:
+                    continue
                 for corner in range(3 * nsec):
+                    # a quad's second triangle repeats its first's corners 0 and 2
+                    # (_section_corners): copied, the same bits
+                    same = 0 if corner == 3 else (2 if corner == 4 else -1)
+                    if nsec == 2 and same >= 0:
+                        ends[corner, 0] = ends[same, 0]
+                        ends[corner, 1] = ends[same, 1]
+                        lams[corner] = lams[same]
+                        cw[corner, 0] = cw[same, 0]
+                        cw[corner, 1] = cw[same, 1]
+                        cf[corner, 0] = cf[same, 0]
+                        cf[corner, 1] = cf[same, 1]
+                        continue
                     vi, vj, lam = section_edge(g, sg, e, corner)
                     ends[corner, 0] = vi
                     ends[corner, 1] = vj
                     lams[corner] = lam
-                    for q in range(2):
-                        xy[corner // 3, corner % 3, q] = ndc[vi, q] + lam * (ndc[vj, q]
-                                                                             - ndc[vi, q])
+                    (cw[corner, 0], cw[corner, 1], cf[corner, 0],
+                     cf[corner, 1]) = _window_vertex(ndc[vi, 0] + lam * (ndc[vj, 0] - ndc[vi, 0]),
+                                                     ndc[vi, 1] + lam * (ndc[vj, 1] - ndc[vi, 1]),
+                                                     hw, hh, half, sub)
                 for m in range(nsec):
                     (valid, X0, X1, X2, Y0, Y1, Y2, fx0, fx1, fx2, fy0, fy1, fy2, swap, x0, x1,
-                     by0, by1, area) = _tri_window(xy, m, width, height, bits)
+                     by0, by1, area) = _tri_window(cw, cf, m, width, height, bits)
                     if not valid:
                         continue
-                    if (height - 1 - by1) // band_rows == band:
+                    if r0 <= height - 1 - by1 < r1:    # its first row lies in the band
                         n_valid += 1
                     ra = max(height - 1 - by1, r0)
                     rb = min(height - 1 - by0, r1 - 1)
@@ -606,10 +787,15 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                         continue
                     if k != cur:
                         if cur >= 0:
-                            _fill_off_core(off_spans, n_off, off_tris, r0, height, surf_d, min_d,
-                                           min_db, delta_t, delta_d, boundary, boundary_width)
+                            _fill_off_core(off_spans, n_off, off_tris, off_whole, n_whole,
+                                           off_wins, r0, height, bits, surf_d, surf_mask,
+                                           min_d, min_db, delta_t, delta_d, boundary,
+                                           boundary_width)
                             n_off = 0
                             n_off_tris = 0
+                            n_whole = 0
+                            for li in range(lr0, lr1 + 1):
+                                surf_mask[li, :] = 0
                             _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume,
                                            min_d, surf_d, surf, hit, acc, acc_a, volume,
                                            surf_cov, min_db, halo_alpha, halo_rgb, boundary,
@@ -622,29 +808,48 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                         vi = ends[corner, 0]
                         vj = ends[corner, 1]
                         lam = lams[corner]
-                        for q in range(nc):
+                        for q in range(2):    # δ and t; the colour once the triangle is filled
                             tri[v, q] = attr[vi, q] + lam * (attr[vj, q] - attr[vi, q])
-                    inv_area = 1.0 / np.float64(area)
                     inv_af = _inv_float_area(fx0, fy0, fx1, fy1, fx2, fy2)
-                    # edge k (opposite stored vertex k): value at (x0, py), x step, ownership bias
-                    dx0 = X2 - X1
-                    dy0 = Y2 - Y1
-                    dx1 = X0 - X2
-                    dy1 = Y0 - Y2
-                    dx2 = X1 - X0
-                    dy2 = Y1 - Y0
-                    bias0 = 0 if (dy0 < 0 or (dy0 == 0 and dx0 > 0)) else 1
-                    bias1 = 0 if (dy1 < 0 or (dy1 == 0 and dx1 > 0)) else 1
-                    bias2 = 0 if (dy2 < 0 or (dy2 == 0 and dx2 > 0)) else 1
-                    sx0 = -(dy0 << bits)
-                    sx1 = -(dy1 << bits)
-                    sx2 = -(dy2 << bits)
                     # the triangle's δ and t in locals: read once, not per pixel (issue 27)
                     d0, d1, d2 = tri[0, 0], tri[1, 0], tri[2, 0]
                     t0, t1, t2 = tri[0, 1], tri[1, 1], tri[2, 1]
                     off_ok = defer and _off_core_usable(fx0, fy0, fx1, fy1, fx2, fy2, inv_af,
                                                         t0, t1, t2)
                     s1, s2 = (t2, t1) if swap else (t1, t2)
+                    if off_ok:
+                        t_min = min(t0, t1, t2)
+                        t_max = max(t0, t1, t2)
+                        if t_min >= t_hi or t_max <= t_lo:
+                            # corners beyond the core on one side: test the whole triangle
+                            if _triangle_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, t0, s1,
+                                                  s2, X0, X1, X2, Y0, Y1, Y2, bits, t_lo, t_hi):
+                                if halos:    # its rows' spans are found where needed
+                                    _keep_triangle(off_tris[n_off_tris], fx0, fy0, fx1, fy1,
+                                                   fx2, fy2, inv_af, swap, t0, t1, t2, d0, d1,
+                                                   d2)
+                                    w = off_wins[n_off_tris]
+                                    w[0], w[1], w[2], w[3], w[4] = X0, X1, X2, Y0, Y1
+                                    w[5], w[6], w[7], w[8], w[9] = Y2, x0, x1, ra, rb
+                                    off_whole[n_whole] = n_off_tris
+                                    n_whole += 1
+                                    n_off_tris += 1
+                                continue
+                        elif t_lo < t_min and t_max < t_hi:
+                            # corners in the core: its spans are not worth testing (not
+                            # deferring is always exact)
+                            off_ok = False
+                    for v in range(3):
+                        corner = 3 * m + v
+                        vi = ends[corner, 0]
+                        vj = ends[corner, 1]
+                        lam = lams[corner]
+                        for q in range(2, nc):
+                            tri[v, q] = attr[vi, q] + lam * (attr[vj, q] - attr[vi, q])
+                    inv_area = 1.0 / np.float64(area)
+                    # edge k (opposite stored vertex k): value at (x0, py), x step, ownership bias
+                    (dx0, dy0, dx1, dy1, dx2, dy2, bias0, bias1, bias2, sx0, sx1,
+                     sx2) = _edge_setup(X0, X1, X2, Y0, Y1, Y2, bits)
                     slot = -1
                     for r in range(ra, rb + 1):
                         py = height - 1 - r
@@ -714,6 +919,7 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
                                          or (full == surf_full[li, px] and d < surf_d[li, px])):
                                 surf_d[li, px] = d
                                 surf_full[li, px] = full
+                                surf_mask[li, px >> 6] |= np.uint64(1) << np.uint64(px & 63)
                                 surf_cov[li, px] = _coverage(u, surface_width, aa)
                                 for c in range(3):
                                     surf[li, px, c] = (q0 * tri[0, 2 + c] + q1 * tri[1, 2 + c]
@@ -725,8 +931,9 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, band_starts, ba
         counts[band, 0] = n_tri
         counts[band, 1] = n_valid
         if cur >= 0:
-            _fill_off_core(off_spans, n_off, off_tris, r0, height, surf_d, min_d, min_db,
-                           delta_t, delta_d, boundary, boundary_width)
+            _fill_off_core(off_spans, n_off, off_tris, off_whole, n_whole, off_wins, r0, height,
+                           bits, surf_d, surf_mask, min_d, min_db, delta_t, delta_d, boundary,
+                           boundary_width)
             _resolve_slice(cur, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf_d,
                            surf, hit, acc, acc_a, volume, surf_cov, min_db, halo_alpha,
                            halo_rgb, boundary, boundary_rgb, surf_full, voxel_rgba, pair,
@@ -767,7 +974,8 @@ def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SU
     are appended to the result. ``voxel_rgba (N, H, W, 4)``: also each voxel's surface colour
     and opacity (with ``want_volume``; the golden's allowance). Returns ``(rgb, alpha,
     volume or None, slice triangles, invalid slice triangles[, rgb2, alpha2])``."""
-    band_starts, band_lists, first = _window(ts, width, height, bits) if win is None else win
+    band_starts, band_lists, first, last = (_window(ts, width, height, bits) if win is None
+                                            else win)
     n = len(ts.centres)
     rgb = np.zeros((height, width, 3))
     a = np.zeros((height, width))
@@ -775,8 +983,8 @@ def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SU
     rgb2 = np.zeros((height, width, 3) if pair else (1, 1, 3))
     a2 = np.zeros((height, width) if pair else (1, 1))
     counts = np.zeros((len(band_starts) - 1, 2), np.int64)
-    _render_tets(ts.z, ts.ndc, ts.attr, ts.tets, ts.centres, ts.k0, ts.k1, first, band_starts,
-                 band_lists, width, height, bits, BAND_ROWS, *params, want_volume, rgb, a, vol,
+    _render_tets(ts.z, ts.ndc, ts.attr, ts.tets, ts.centres, ts.k0, ts.k1, first, last,
+                 band_starts, band_lists, width, height, bits, BAND_ROWS, *params, want_volume, rgb, a, vol,
                  np.zeros((1, 1, 1, 4)) if voxel_rgba is None else voxel_rgba, pair, rgb2, a2,
                  counts)
     n_tri = int(counts[:, 0].sum())
@@ -786,7 +994,7 @@ def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SU
 
 def _window(ts, width, height, bits=SUBPIXEL_BITS):
     """The fill pass's set-up of :class:`_TetSlices` ``ts``: the tetrahedra of each band of
-    rows and each one's first band (independent of the fill parameters; the slice triangles
+    rows and each one's first and last band (independent of the fill parameters; the slice triangles
     and their window coordinates are computed per band, :func:`_render_tets`)."""
     nbands = (height + BAND_ROWS - 1) // BAND_ROWS
     return _bin_tets(ts.z, ts.ndc, ts.tets, ts.k0, ts.k1, width, height, bits, BAND_ROWS,
