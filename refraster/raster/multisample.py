@@ -28,7 +28,6 @@ from numba import njit, prange
 from .._config import IJIT, PJIT
 from .._scratch import OUTPUTS
 from .rasterizer import (NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geometry, _setup,
-                         hidden, plane_range,
                          _setup_winner, bin_primitives, depth_test, perspective_bary, tile_rect)
 
 #: ``RasterState.interpolation`` names and the kernel's codes.
@@ -65,6 +64,44 @@ def _lambdas_at(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, cx, cy, e0, e1, e2, inv_ar
         l2 = ((fx1 - fx0) * (cy - fy0) - (fy1 - fy0) * (cx - fx0)) * inv_af
         return l0, l1, l2
     return np.float64(e0) * inv_area, np.float64(e1) * inv_area, np.float64(e2) * inv_area
+
+
+@njit(**IJIT)
+def _plane_range(zd0, dzdx, dzdy, cxl, cxh, cyl, cyh):
+    """Bounds ``(lo, hi)`` of the window depth the pass computes, ``z0 + dz/dx·cx +
+    dz/dy·cy`` before its clamp, at every sample offset ``(cx, cy)`` from the first vertex in
+    ``[cxl, cxh] × [cyl, cyh]``: the plane at the rectangle's lowest and highest corners,
+    widened by 10⁻⁹·(1 + the largest magnitude of its terms there), far more than the float64
+    rounding of the pass's four operations (a few 10⁻¹⁶ of that magnitude). NaN when the
+    plane's terms overflow."""
+    mag = abs(zd0) + abs(dzdx) * max(abs(cxl), abs(cxh)) + abs(dzdy) * max(abs(cyl), abs(cyh))
+    margin = 1e-9 * (1.0 + mag)
+    lo = zd0 + dzdx * (cxl if dzdx > 0.0 else cxh) + dzdy * (cyl if dzdy > 0.0 else cyh)
+    hi = zd0 + dzdx * (cxh if dzdx > 0.0 else cxl) + dzdy * (cyh if dzdy > 0.0 else cyl)
+    return lo - margin, hi + margin
+
+
+@njit(**IJIT)
+def _hidden(func, bounds, zbuf, lx0, lx1, ly0, ly1):
+    """Whether a triangle whose every sample depth lies in ``bounds`` (:func:`_plane_range`)
+    fails the depth test at every sample of the tile buffer's box ``[lx0, lx1] × [ly0, ly1]``.
+    For ``less``/``lequal`` (``func`` 1, 3) every depth is ≥ float32(min(lo, 1)) (the clamp
+    to [0, 1] and the rounding to float32 keep the order), which must fail against every
+    stored depth; for ``greater``/``gequal`` (4, 6) the mirror with ``hi``. False for the
+    other tests and when the bound says nothing (``lo`` ≤ 0, ``hi`` ≥ 1, NaN)."""
+    lo, hi = bounds
+    gt = func == 4 or func == 6
+    if not (func == 1 or func == 3 or gt) or not (hi < 1.0 if gt else lo > 0.0):
+        return False
+    zf = np.float32(max(hi, 0.0) if gt else min(lo, 1.0))
+    ties = func == 3 or func == 6
+    for ly in range(ly0, ly1 + 1):
+        for lx in range(lx0, lx1 + 1):
+            for s in range(zbuf.shape[2]):
+                ref = zbuf[ly, lx, s]
+                if ((zf > ref) if gt else (zf < ref)) or (ties and zf == ref):   # depth_test
+                    return False
+    return True
 
 
 @njit(**IJIT)
@@ -142,10 +179,10 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
             q1, u1 = _floor_divmod(sy1, m1)
             q2, u2 = _floor_divmod(sy2, m2)
             zd0 = np.float64(z0)
-            # a triangle behind everything its box holds already is skipped (rasterizer.hidden):
-            # for the G-buffer's `less` about a third of the 82k-face sphere's items (its far side)
-            if inv_af > 0.0 and hidden(
-                    func, plane_range(zd0, dzdx, dzdy,
+            # a triangle behind everything its box holds already is skipped (_hidden):
+            # for the G-buffer's `less` a third of the 82k-face sphere's items (its far side)
+            if inv_af > 0.0 and _hidden(
+                    func, _plane_range(zd0, dzdx, dzdy,
                                       (np.float64(bx0) + 0.5 + foxmin) - fx0,
                                       (np.float64(bx1) + 0.5 + foxmax) - fx0,
                                       (np.float64(by0) + 0.5 + foymin) - fy0,

@@ -54,10 +54,6 @@ _BIN_CHUNK = 8192
 #: "No fragment won this pixel" in a tile's winner buffer. Binned items are faces (≥ 0) and
 #: clipped pieces −(k + 1) (≤ −1: piece 0 *is* −1), so the sentinel lies below every piece.
 NO_ITEM = -(1 << 62)
-#: The largest box (pixels × samples) whose stored depths a tile pass scans to skip a hidden
-#: triangle (:func:`hidden`): a dense mesh's boxes are a few pixels; a large triangle's scan
-#: would cost about what rasterizing it does.
-HIDDEN_TEST_SAMPLES = 256
 
 DEPTH_FUNCS = {"never": 0, "less": 1, "equal": 2, "lequal": 3, "greater": 4, "notequal": 5,
                "gequal": 6, "always": 7}
@@ -295,60 +291,6 @@ def fragment_depth(fx0, fy0, z0, z1, z2, dzdx, dzdy, inv_af, x, y, e0, e1, e2, i
 
 
 @njit(**IJIT)
-def plane_range(zd0, dzdx, dzdy, cxl, cxh, cyl, cyh):
-    """Bounds ``(lo, hi)`` of the window depth a tile pass computes, ``z0 + dz/dx·cx +
-    dz/dy·cy`` before its clamp, at every offset ``(cx, cy)`` from the first vertex in
-    ``[cxl, cxh] × [cyl, cyh]``: the plane at the rectangle's lowest and highest corners,
-    widened by 10⁻⁹·(1 + the largest magnitude of its terms there), far more than the float64
-    rounding of the passes' four operations (a few 10⁻¹⁶ of that magnitude; each is monotone
-    in its operands, so the corners bound the plane as computed too). NaN when the plane's
-    terms overflow."""
-    mag = abs(zd0) + abs(dzdx) * max(abs(cxl), abs(cxh)) + abs(dzdy) * max(abs(cyl), abs(cyh))
-    margin = 1e-9 * (1.0 + mag)
-    lo = zd0 + dzdx * (cxl if dzdx > 0.0 else cxh) + dzdy * (cyl if dzdy > 0.0 else cyh)
-    hi = zd0 + dzdx * (cxh if dzdx > 0.0 else cxl) + dzdy * (cyh if dzdy > 0.0 else cyl)
-    return lo - margin, hi + margin
-
-
-@njit(**IJIT)
-def hidden(func, bounds, zbuf, lx0, lx1, ly0, ly1):
-    """Whether a triangle whose every depth lies in ``bounds`` (:func:`plane_range`) fails the
-    depth test at every sample of the tile buffer ``zbuf[ly, lx, s]`` in the box
-    ``[lx0, lx1] × [ly0, ly1]`` — then its fragments write nothing and a tile pass skips it.
-    For ``less``/``lequal`` (``func`` 1, 3) every depth is ≥ float32(min(lo, 1)) (the clamp
-    to [0, 1] and the rounding to float32 keep the order), which must fail against every
-    stored depth; for ``greater``/``gequal`` (4, 6) the mirror with ``hi``. False for other
-    tests, when the bound says nothing (``lo`` ≤ 0, ``hi`` ≥ 1, NaN), and for boxes of more
-    than :data:`HIDDEN_TEST_SAMPLES` samples (whose scan would cost what rasterizing does)."""
-    if (lx1 - lx0 + 1) * (ly1 - ly0 + 1) * zbuf.shape[2] > HIDDEN_TEST_SAMPLES:
-        return False
-    lo, hi = bounds
-    if func == 1 or func == 3:
-        if not lo > 0.0:
-            return False
-        zf = np.float32(min(lo, 1.0))
-        for ly in range(ly0, ly1 + 1):
-            for lx in range(lx0, lx1 + 1):
-                for s in range(zbuf.shape[2]):
-                    ref = zbuf[ly, lx, s]
-                    if zf < ref or (func == 3 and zf == ref):   # depth_test's less / lequal
-                        return False
-        return True
-    if func == 4 or func == 6:
-        if not hi < 1.0:
-            return False
-        zf = np.float32(max(hi, 0.0))
-        for ly in range(ly0, ly1 + 1):
-            for lx in range(lx0, lx1 + 1):
-                for s in range(zbuf.shape[2]):
-                    ref = zbuf[ly, lx, s]
-                    if zf > ref or (func == 6 and zf == ref):   # greater / gequal
-                        return False
-        return True
-    return False
-
-
-@njit(**IJIT)
 def perspective_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2):
     """Perspective-correct barycentrics ``(b0, b1, b2)`` (float32) in the original face from the
     screen-space ``λ`` of a set-up triangle (vertex order restored for a clockwise face)."""
@@ -520,7 +462,6 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
         tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
         zbuf = np.full((TILE, TILE), clear, np.float32)
         win = np.full((TILE, TILE), NO_ITEM, np.int64)
-        zbox = zbuf.reshape((TILE, TILE, 1))   # the same memory, as hidden() reads it
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
             bx0, bx1, by0, by1 = _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1)
@@ -530,13 +471,6 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
              z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx,
              dzdy) = _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
                             sfront, sarea, bits, rule, bx0, by0)
-            # a triangle behind everything its box holds already writes nothing: skipped
-            if inv_af > 0.0 and hidden(
-                    func, plane_range(np.float64(z0), dzdx, dzdy,
-                                      (np.float64(bx0) + 0.5) - fx0, (np.float64(bx1) + 0.5) - fx0,
-                                      (np.float64(by0) + 0.5) - fy0, (np.float64(by1) + 0.5) - fy0),
-                    zbox, bx0 - tx0, bx1 - tx0, by0 - ty0, by1 - ty0):
-                continue
             if func == 1 and inv_af > 0.0:
                 # "less" (the default) with the unsnapped depth plane: a loop of its own that
                 # LLVM vectorizes (8 pixels per AVX-512 step here; ~0.7x the pass for the
