@@ -290,12 +290,12 @@ def _band_slices(z, ndc, tets, t, height, lo, hi, centres, ka, kb):
 def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
     """Per band of rows, the tetrahedra whose slice triangles may touch it, in index order (CSR
     ``(starts (nbands + 1,), lists)``), and each tetrahedron's first and last band (``-1``,
-    ``-2`` if no slice cuts it). A tetrahedron's rows are its four vertices' snapped window rows widened by one
-    pixel: a slice corner lies on an edge (``λ ∈ [0, 1]``), within an ulp of the edge's ends,
-    which snapping moves by at most one subpixel. A tetrahedron outside the image keeps the
-    nearest band (its triangles are counted there, as invalid). Parallel over chunks of
-    :data:`BIN_CHUNK` tetrahedra and deterministic (count, prefix sum over (band, chunk), write
-    each chunk's tetrahedra in index order)."""
+    ``-2`` if no slice cuts it). A tetrahedron's rows are its four vertices' snapped window
+    rows widened by one pixel: a slice corner lies on an edge (``λ ∈ [0, 1]``), within an ulp
+    of the edge's ends, which snapping moves by at most one subpixel. A tetrahedron outside
+    the image keeps the nearest band (its triangles are counted there, as invalid). Parallel
+    over chunks of :data:`BIN_CHUNK` tetrahedra and deterministic (count, prefix sum over
+    (band, chunk), write each chunk's tetrahedra in index order)."""
     n = tets.shape[0]
     hw = np.float32(width * 0.5)
     hh = np.float32(height * 0.5)
@@ -632,30 +632,31 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
 
 @njit(**PJIT)
 def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_starts,
-                 band_lists,
-                 width, height, bits, band_rows, delta_t, delta_d, surface_width, eps, alpha,
-                 halos, aa, halo_alpha, halo_rgb, boundary, boundary_width, boundary_rgb,
-                 want_volume, out_rgb, out_a, volume, voxel_rgba, pair, out_rgb2, out_a2,
-                 counts):
+                 band_lists, width, height, bits, band_rows, delta_t, delta_d, surface_width,
+                 eps, alpha, halos, aa, halo_alpha, halo_rgb, boundary, boundary_width,
+                 boundary_rgb, want_volume, out_rgb, out_a, volume, voxel_rgba, pair, out_rgb2,
+                 out_a2, counts):
     """The slicing and the fill pass in one, parallel over bands of rows: each band slices the
     tetrahedra of its list (:func:`_bin_tets`) by the planes that cut them and, for a
     tetrahedron in several bands, may reach the band's rows (:func:`_band_slices`, the
     band's slab widened by a pixel on each side: the corners' float32 window positions and
     their snapping differ from the float64 ones by far less; in its first band the other
-    planes are only counted), slice by slice back to front and in tetrahedron order within a slice (the draw order of
-    :func:`~refraster.halos4d.slicing.slice_tetrahedra`, the same corner bits), and fills the
-    slice triangles that touch its rows; no slice triangle is stored (issue 46). With ``pair``
-    (and ``halos``), also the halos-off twin (``halos`` False, ``halo_alpha`` 0, no boundaries,
-    the other parameters the same) into ``out_rgb2``, ``out_a2``: its fragments, barycentrics
-    and surface fragments are the first picture's, only the depth buffer differs (issue 27).
+    planes are only counted), slice by slice back to front and in tetrahedron order within a
+    slice (the draw order of :func:`~refraster.halos4d.slicing.slice_tetrahedra`, the same
+    corner bits), and fills the slice triangles that touch its rows; no slice triangle is
+    stored (issue 46). With ``pair`` (and ``halos``), also the halos-off twin (``halos``
+    False, ``halo_alpha`` 0, no boundaries, the other parameters the same) into ``out_rgb2``,
+    ``out_a2``: its fragments, barycentrics and surface fragments are the first picture's,
+    only the depth buffer differs (issue 27).
     ``counts[band]``: the slice triangles of the tetrahedra whose first band it is, and the
     valid ones (non-zero snapped area, inside the image) whose first row lies in it.
 
     Without a volume and a halo colour, a triangle or a row span whose fragments are all off
     the core (:func:`_triangle_off_core`, :func:`_span_off_core`) is deferred to the end of
     its slice and filled only at the voxels that then have a surface fragment
-    (:func:`_fill_off_core`; a deferred triangle's rows are not visited before): the depth buffers are minima,
-    which do not depend on the order, and elsewhere such a fragment changes no output."""
+    (:func:`_fill_off_core`; a deferred triangle's rows are not visited before): the depth
+    buffers are minima, which do not depend on the order, and elsewhere such a fragment
+    changes no output."""
     nbands = band_starts.shape[0] - 1
     n = centres.shape[0]
     nc = attr.shape[1]
@@ -984,7 +985,8 @@ def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SU
     a2 = np.zeros((height, width) if pair else (1, 1))
     counts = np.zeros((len(band_starts) - 1, 2), np.int64)
     _render_tets(ts.z, ts.ndc, ts.attr, ts.tets, ts.centres, ts.k0, ts.k1, first, last,
-                 band_starts, band_lists, width, height, bits, BAND_ROWS, *params, want_volume, rgb, a, vol,
+                 band_starts, band_lists, width, height, bits, BAND_ROWS, *params, want_volume,
+                 rgb, a, vol,
                  np.zeros((1, 1, 1, 4)) if voxel_rgba is None else voxel_rgba, pair, rgb2, a2,
                  counts)
     n_tri = int(counts[:, 0].sum())
