@@ -63,8 +63,10 @@ class NonWatertightWarning(UserWarning):
 
 # ----------------------------------------------------------------------------- kernels
 
-#: Pixels per parallel block of :func:`_fill_layers`.
-FILL_BLOCK = 4096
+#: Pixels per parallel block of :func:`_fill_layers` (64 rows at 1024 wide: each layer's
+#: block written whole; 47–49 ms of one thread's CPU for the 8-layer 1024² peel against 56–58
+#: with 4,096-pixel blocks, 2026-12-05).
+FILL_BLOCK = 65536
 
 
 @njit(**JIT)
