@@ -562,7 +562,7 @@ def importlib_module(name):
 #: slicing's ``_count_pass``, ``_place``, ``_write_pass`` and ``window_setup`` (now skipped);
 #: and ``render._fill_off_core``, ``_triangle_off_core`` and ``_band_slices``, which
 #: ``_render_tets`` calls (not inlined, for its compile time) in every default halo picture.
-GALLERY_KERNEL_COUNT = 76
+GALLERY_KERNEL_COUNT = 77
 
 
 def test_every_new_kernel_is_classified_for_the_gallery():

@@ -185,6 +185,38 @@ def _interpolate_kernel(object_id, prim_id, bary, faces, fbase, values, out):
             out[i, j] = (b0 * values[v0, j] + b1 * values[v1, j]) + b2 * values[v2, j]
 
 
+def split_ids(prim_global, face_offsets):
+    """``(object_id, prim_id)`` (int32, the shape of ``prim_global``) of global primitive
+    indices, given the draws' first faces ``face_offsets`` (``F + 1`` entries): as
+    ``obj = numpy.searchsorted(face_offsets[1:], g, side="right")`` and ``g − face_offsets[obj]``,
+    each cast to int32, in one parallel pass."""
+    g = np.ascontiguousarray(prim_global, np.int64)
+    offsets = np.ascontiguousarray(face_offsets, np.int64)
+    obj = np.empty(g.shape, np.int32)
+    prim = np.empty(g.shape, np.int32)
+    _split_kernel(g.reshape(-1), offsets, obj.reshape(-1), prim.reshape(-1))
+    return obj, prim
+
+
+@njit(**PJIT)
+def _split_kernel(g, offsets, obj, prim):
+    """``obj[i]``: the first k with ``offsets[k + 1] > g[i]`` (``len(offsets) − 1`` if none),
+    found by bisection; ``prim[i] = g[i] − offsets[obj[i]]``."""
+    m = offsets.shape[0] - 1
+    for i in prange(g.shape[0]):
+        v = g[i]
+        lo = 0
+        hi = m
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            if offsets[mid + 1] <= v:
+                lo = mid + 1
+            else:
+                hi = mid
+        obj[i] = lo
+        prim[i] = v - offsets[lo]
+
+
 def concat(streams):
     """Concatenate fragment streams drawn one after another (the result keeps draw order).
 
