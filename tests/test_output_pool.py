@@ -251,3 +251,23 @@ def test_the_default_pool_holds_an_8_layer_peel_at_1024():
     again = peel(boxes, max_layers=8, **cam)
     assert {_addr(getattr(again, f)) for f in fields} == old   # every layer array recycled
     assert {f: getattr(again, f).tobytes() for f in fields} == want
+
+
+def test_a_recycled_fragment_stream_gives_the_bytes_of_a_new_one(monkeypatch):
+    """``draw``'s stream (pixel, depth, ids, facing, barycentrics) and its split ids come from
+    the pool unfilled: the kernels must write every element, or a recycled array shows the
+    previous stream's fragments. The pool recycles an array of the same shape: the same two
+    meshes drawn in the other order give as many fragments, in another order, other ids."""
+    fields = ("pixel", "depth", "prim_id", "object_id", "front_facing", "bary")
+    a, b = mesh_of(icosphere(3)), mesh_of(torus())
+    with monkeypatch.context() as m:
+        m.setenv("REFRASTER_POOL_MB", "0")
+        fresh = rf.draw([b, a], **KW)
+        want = {f: getattr(fresh, f).tobytes() for f in fields}
+        del fresh
+    first = rf.draw([a, b], **KW)
+    old = {_addr(getattr(first, f)) for f in fields}
+    del first
+    again = rf.draw([b, a], **KW)
+    assert len(old & {_addr(getattr(again, f)) for f in fields}) >= 5   # recycled
+    assert {f: getattr(again, f).tobytes() for f in fields} == want

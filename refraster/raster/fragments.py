@@ -6,6 +6,7 @@ import numpy as np
 from numba import njit, prange
 
 from .._config import PJIT
+from .._scratch import OUTPUTS
 from .._threads import check_fork
 
 __all__ = ["Fragments", "concat"]
@@ -192,8 +193,8 @@ def split_ids(prim_global, face_offsets):
     each cast to int32, in one parallel pass."""
     g = np.ascontiguousarray(prim_global, np.int64)
     offsets = np.ascontiguousarray(face_offsets, np.int64)
-    obj = np.empty(g.shape, np.int32)
-    prim = np.empty(g.shape, np.int32)
+    obj = OUTPUTS.empty(g.shape, np.int32)    # every element written by the kernel
+    prim = OUTPUTS.empty(g.shape, np.int32)
     _split_kernel(g.reshape(-1), offsets, obj.reshape(-1), prim.reshape(-1))
     return obj, prim
 
@@ -201,18 +202,23 @@ def split_ids(prim_global, face_offsets):
 @njit(**PJIT)
 def _split_kernel(g, offsets, obj, prim):
     """``obj[i]``: the first k with ``offsets[k + 1] > g[i]`` (``len(offsets) − 1`` if none),
-    found by bisection; ``prim[i] = g[i] − offsets[obj[i]]``."""
+    counted for up to 16 draws, else found by bisection; ``prim[i] = g[i] − offsets[obj[i]]``."""
     m = offsets.shape[0] - 1
     for i in prange(g.shape[0]):
         v = g[i]
         lo = 0
-        hi = m
-        while lo < hi:
-            mid = (lo + hi) >> 1
-            if offsets[mid + 1] <= v:
-                lo = mid + 1
-            else:
-                hi = mid
+        if m <= 16:
+            # a few draws: the number of ends ≤ v (the offsets never decrease), branch-free
+            for k in range(m):
+                lo += offsets[k + 1] <= v
+        else:
+            hi = m
+            while lo < hi:
+                mid = (lo + hi) >> 1
+                if offsets[mid + 1] <= v:
+                    lo = mid + 1
+                else:
+                    hi = mid
         obj[i] = lo
         prim[i] = v - offsets[lo]
 
