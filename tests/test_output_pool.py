@@ -271,3 +271,24 @@ def test_a_recycled_fragment_stream_gives_the_bytes_of_a_new_one(monkeypatch):
     again = rf.draw([b, a], **KW)
     assert len(old & {_addr(getattr(again, f)) for f in fields}) >= 5   # recycled
     assert {f: getattr(again, f).tobytes() for f in fields} == want
+
+
+def test_the_default_pool_holds_the_1x_4x_and_8x_frames_in_turn():
+    """1×, 4× and 8× G-buffers of 1024×768 rendered in turn, colour not read (as
+    ``benchmarks.msaa`` does; 442 MiB of outputs):
+    under the default limit each frame's arrays are recycled on the next round; under 256 MiB
+    the 8× frame evicted the 4× one's, so every round took new memory."""
+    box = mesh_of(icosphere(2))
+    kw = camera_kw(1024, 768)
+    states = [None, rf.RasterState(samples=4), rf.RasterState(samples=8)]
+
+    def frame(state):
+        fb = rf.render(box, **kw) if state is None else rf.render_samples(box, **kw,
+                                                                            raster=state)
+        return {_addr(getattr(fb, f)) for f in ("depth", "eye_depth", "normal", "prim_id",
+                                                 "object_id", "barycentric")}
+
+    first = [frame(s) for s in states]
+    again = [frame(s) for s in states]
+    for a, b in zip(first, again):
+        assert a and a == b
