@@ -205,7 +205,10 @@ class _PendingShade:
         if color is None:
             # shade writes every element (recycled memory gives the same bytes)
             color = OUTPUTS.empty(prim_global.shape + (3,), np.float32)
-        args = list(self.args)
+        # read-only again: a deep copy or an unpickled (protocol < 5) frame holds writeable
+        # copies of the inputs, which would compile shade a second time (scratch 9 excepted)
+        args = [readonly(a) if k != 9 and isinstance(a, np.ndarray) else a
+                for k, a in enumerate(self.args)]
         if args[10]:   # per-face normals: a fresh array, filled by shade from today's vertices
             args[9] = np.empty((int(args[6][-1]), 3))
         with threads_for(self.work):

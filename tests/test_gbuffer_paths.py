@@ -13,6 +13,9 @@ vertices changed between the frame and the colour's shading)."""
 
 from __future__ import annotations
 
+import copy
+import pickle
+
 import numpy as np
 import pytest
 
@@ -213,9 +216,9 @@ def _face_image_specialisations(kernel):
 
 def test_one_specialisation_per_face_image_dtype():
     """Writeable and read-only meshes, normals and matrices, one or several draw calls, the
-    fused and the fragment-stream paths, 1x and 4x frames: ``finalize`` and ``shade`` compile
-    once per declared face image dtype (the 1x frame's int64, the 4x sample image's int32:
-    ``gbuffer.FACE_IMAGE_DTYPES``) and for nothing else."""
+    fused and the fragment-stream paths, 1x and 4x frames, deep-copied and unpickled frames:
+    ``finalize`` and ``shade`` compile once per declared face image dtype (the 1x frame's
+    int64, the 4x sample image's int32: ``gbuffer.FACE_IMAGE_DTYPES``) and for nothing else."""
     box = mesh_of(cube())
     ro = Mesh(box.vertices.copy(), box.faces.copy())
     ro.vertices.flags.writeable = False
@@ -233,6 +236,9 @@ def test_one_specialisation_per_face_image_dtype():
         rf.render(m, **kw, fragment_stage=lambda fr: np.ones(len(fr), bool)).color
         out = rf.render(m, **kw)
         rf.render(m, **kw, out=out).color
+        # a pending colour deep-copied or pickled (protocol 4: writeable copies of its inputs)
+        copy.deepcopy(rf.render(m, **kw)).color
+        pickle.loads(pickle.dumps(rf.render(m, **kw), protocol=4)).color
         rf.render_samples(m, **kw, raster=s4).color
         rf.render_samples((m.vertices, m.faces, normals), **kw,
                           raster=s4.replace(normals="smooth")).color
