@@ -114,7 +114,9 @@ class _Token:
 #: glibc's initial mmap threshold and come from malloc's free lists without page faults).
 POOL_MIN_BYTES = 64 << 10
 #: ``REFRASTER_POOL_MB`` (default): the most bytes of outputs the pool keeps; 0 turns it off.
-POOL_MB = 128
+#: 256 MiB holds the largest outputs of the benchmarked frames: an 8-layer peel at 1024²
+#: (168 MiB) and a 4× G-buffer at 1024×768 (135 MiB); an 8× one (270 MiB) does not fit.
+POOL_MB = 256
 #: At most this many arrays of one shape and dtype are kept (a frame asks for at most two:
 #: depth and eye depth; normal and colour), so a user keeping a few frames alive still finds
 #: one free and the scan stays short.
@@ -165,7 +167,7 @@ class OutputPool:
     every byte it would have written into a new array (``full``: the fill value; ``empty``: a
     kernel that writes every element), so a recycled array gives the same bytes as a new one. Like memory malloc reuses, a raw
     pointer (``a.ctypes.data``, ``__array_interface__``) kept past the array's life is not a
-    reference. ``REFRASTER_POOL_MB`` (default 128) bounds the bytes kept (the oldest arrays are
+    reference. ``REFRASTER_POOL_MB`` (default 256) bounds the bytes kept (the oldest arrays are
     dropped first: one that is still held simply stays the user's); ``0`` (or a negative
     number) turns it off; a value that is not a finite number means the default, and one
     above :data:`MAX_POOL_MB` (8 TiB) means that much (no bound). One

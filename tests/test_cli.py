@@ -224,7 +224,7 @@ def test_info_names_the_compile_speedup_switch(tmp_path):
 def test_info_names_the_output_pool_and_its_switch():
     env = {k: v for k, v in os.environ.items() if k != "REFRASTER_POOL_MB"}
     rows = dict(line.split(":", 1) for line in _run("info", env=env).stdout.splitlines())
-    assert rows["output pool"].strip().startswith("up to 128 MiB")
+    assert rows["output pool"].strip().startswith("up to 256 MiB")
     env["REFRASTER_POOL_MB"] = "0"
     rows = dict(line.split(":", 1) for line in _run("info", env=env).stdout.splitlines())
     assert rows["output pool"].strip().startswith("off (REFRASTER_POOL_MB=0")

@@ -230,3 +230,44 @@ def test_held_and_free_told_apart_under_a_tracer(tracer):
         assert _addr(c) == pa and (b == 2.0).all()
     finally:
         sys.settrace(old)
+
+
+def test_the_default_pool_holds_an_8_layer_peel_at_1024():
+    """The default limit (``_scratch.POOL_MB``) keeps every layer array of an 8-layer peel at
+    1024² (168 MiB), so a loop of peels recycles them instead of page-faulting fresh memory in
+    (docs/ldi.md, "Benchmark"); under the former 128 MiB the oldest were dropped."""
+    from refraster.ldi import peel
+    # nested cubes: 8 layers where they all overlap
+    boxes = [cube(size=r) for r in (1.6, 1.2, 0.8, 0.4)]
+    cam = dict(view=rf.look_at((0.4, 0.3, 3.0), (0, 0, 0)), proj=rf.perspective(50, 1.0, 0.5, 10.0),
+               width=1024, height=1024)
+    fields = ("depth", "prim_id", "object_id", "front_facing", "index")
+    lay = peel(boxes, max_layers=8, **cam)
+    assert len(lay) == 8
+    want = {f: getattr(lay, f).tobytes() for f in fields}
+    old = {_addr(getattr(lay, f)) for f in fields}
+    assert sum(getattr(lay, f).nbytes for f in fields) == 168 << 20
+    del lay
+    again = peel(boxes, max_layers=8, **cam)
+    assert {_addr(getattr(again, f)) for f in fields} == old   # every layer array recycled
+    assert {f: getattr(again, f).tobytes() for f in fields} == want
+
+
+def test_a_recycled_fragment_stream_gives_the_bytes_of_a_new_one(monkeypatch):
+    """``draw``'s stream (pixel, depth, ids, facing, barycentrics) and its split ids come from
+    the pool unfilled: the kernels must write every element, or a recycled array shows the
+    previous stream's fragments. The pool recycles an array of the same shape: the same two
+    meshes drawn in the other order give as many fragments, in another order, other ids."""
+    fields = ("pixel", "depth", "prim_id", "object_id", "front_facing", "bary")
+    a, b = mesh_of(icosphere(3)), mesh_of(torus())
+    with monkeypatch.context() as m:
+        m.setenv("REFRASTER_POOL_MB", "0")
+        fresh = rf.draw([b, a], **KW)
+        want = {f: getattr(fresh, f).tobytes() for f in fields}
+        del fresh
+    first = rf.draw([a, b], **KW)
+    old = {_addr(getattr(first, f)) for f in fields}
+    del first
+    again = rf.draw([b, a], **KW)
+    assert len(old & {_addr(getattr(again, f)) for f in fields}) >= 5   # recycled
+    assert {f: getattr(again, f).tobytes() for f in fields} == want

@@ -521,3 +521,21 @@ def test_fused_post_pass_reloads_each_winning_triangle():
     assert np.array_equal(np.where(res.winner >= 0, ffront[res.winner], False), front)
     m = res.winner.ravel() >= 0
     assert fbary[res.winner.ravel()[m]].tobytes() == bary[m].tobytes()
+
+
+def test_split_ids_is_numpys_searchsorted():
+    """``Prepared.split``'s kernel (``fragments.split_ids``) gives what the NumPy expression it
+    replaced gives: ``searchsorted(face_offsets[1:], g, "right")`` and ``g − face_offsets[obj]``,
+    as int32, for empty draws, one draw, indices past the last face and −1 (background)."""
+    from refraster.raster.fragments import split_ids
+    rng = np.random.default_rng(5)
+    cases = [np.array([0, 12]), np.array([0, 0, 5, 5, 9, 20]), np.array([0]),
+             np.concatenate([[0], np.cumsum(rng.integers(0, 50, 40))])]
+    for offs in cases:
+        for g in (rng.integers(-1, int(offs[-1]) + 3, 5000), np.array([], np.int64),
+                  rng.integers(-1, int(offs[-1]) + 1, (7, 9, 4))):
+            obj = np.searchsorted(offs[1:], g, side="right")
+            want = (obj.astype(np.int32), (g - offs[obj]).astype(np.int32))
+            got = split_ids(g, offs)
+            for a, b in zip(got, want):
+                assert a.dtype == np.int32 and a.shape == b.shape and np.array_equal(a, b)

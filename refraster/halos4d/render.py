@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit, prange
+from numba.cpython.unsafe.numbers import trailing_zeros
 
 from .._config import IJIT, JIT, PJIT
 from .._validate import as_choice, as_float_array, as_image_size, as_option, as_real
@@ -578,56 +579,62 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
                    acc, acc_a, volume, surf_cov, min_db, halo_alpha, halo_rgb, boundary,
                    boundary_rgb, surf_full, voxel_rgba, pair, min_d2, acc2, acc_a2):
     """Occlusion rule of one slice over the touched part of a band, composited back to front.
-    With ``want_volume`` and a full-size ``voxel_rgba (N, H, W, 4)``, also each voxel's surface
-    colour (drawn or carved) and opacity (0 if not drawn), for the golden's halo allowance; a
-    (1, 1, 1, 4) one is not written. With ``pair``, also the halos-off twin into ``acc2``,
-    ``acc_a2`` from its depth buffer ``min_d2`` (no halo colour, no boundaries)."""
+    ``hit (rows, ⌈W/64⌉) uint64``: the voxels the slice's fragments hit, a bit each (column x:
+    bit ``x % 64`` of word ``x // 64``, as ``surf_mask``); only their set bits in the words of
+    columns ``c0 … c1`` are visited, resolved and reset (each voxel is independent, so the
+    order does not matter), and the words cleared. With ``want_volume`` and a full-size
+    ``voxel_rgba (N, H, W, 4)``, also each voxel's surface colour (drawn or carved) and opacity
+    (0 if not drawn), for the golden's halo allowance; a (1, 1, 1, 4) one is not written. With
+    ``pair``, also the halos-off twin into ``acc2``, ``acc_a2`` from its depth buffer
+    ``min_d2`` (no halo colour, no boundaries)."""
     per_voxel = want_volume and voxel_rgba.shape[0] == volume.shape[0] and volume.shape[0] > 1
     for li in range(lr0, lr1 + 1):
-        for px in range(c0, c1 + 1):
-            if not hit[li, px]:
-                continue
-            cls = HALO
-            if surf_d[li, px] < np.inf:
-                if surf_d[li, px] <= min_d[li, px] + eps:
-                    cls = SURFACE
-                elif boundary and surf_d[li, px] <= min_db[li, px] + eps:
-                    cls = BOUNDARY
-                else:
-                    cls = CARVED
-            if cls == SURFACE or cls == BOUNDARY:
-                cov = surf_cov[li, px]
-                a = alpha if cov == 1.0 else 1.0 - (1.0 - alpha) ** cov
-                for c in range(3):
-                    col = surf[li, px, c] if cls == SURFACE else boundary_rgb[c]
-                    acc[li, px, c] = acc[li, px, c] * (1.0 - a) + a * col
-                acc_a[li, px] = acc_a[li, px] * (1.0 - a) + a
-                if per_voxel:
-                    voxel_rgba[k, r0 + li, px, 3] = a
-            elif halo_alpha > 0.0:
-                for c in range(3):
-                    acc[li, px, c] = (acc[li, px, c] * (1.0 - halo_alpha)
-                                      + halo_alpha * halo_rgb[c])
-                acc_a[li, px] = acc_a[li, px] * (1.0 - halo_alpha) + halo_alpha
-            if per_voxel and cls != HALO:    # the surface fragment's colour, drawn or carved
-                for c in range(3):
-                    voxel_rgba[k, r0 + li, px, c] = (boundary_rgb[c] if cls == BOUNDARY
-                                                     else surf[li, px, c])
-            if want_volume:
-                volume[k, r0 + li, px] = cls
-            if pair:    # the halos-off twin: the same surface fragment, its own depth buffer
-                if surf_d[li, px] < np.inf and surf_d[li, px] <= min_d2[li, px] + eps:
+        for w in range(c0 >> 6, (c1 >> 6) + 1):
+            bits = hit[li, w]
+            hit[li, w] = 0
+            while bits != np.uint64(0):    # the word's set bits, lowest first
+                px = (w << 6) + trailing_zeros(bits)
+                bits &= bits - np.uint64(1)
+                cls = HALO
+                if surf_d[li, px] < np.inf:
+                    if surf_d[li, px] <= min_d[li, px] + eps:
+                        cls = SURFACE
+                    elif boundary and surf_d[li, px] <= min_db[li, px] + eps:
+                        cls = BOUNDARY
+                    else:
+                        cls = CARVED
+                if cls == SURFACE or cls == BOUNDARY:
                     cov = surf_cov[li, px]
                     a = alpha if cov == 1.0 else 1.0 - (1.0 - alpha) ** cov
                     for c in range(3):
-                        acc2[li, px, c] = acc2[li, px, c] * (1.0 - a) + a * surf[li, px, c]
-                    acc_a2[li, px] = acc_a2[li, px] * (1.0 - a) + a
-                min_d2[li, px] = np.inf
-            hit[li, px] = False
-            min_d[li, px] = np.inf
-            surf_d[li, px] = np.inf
-            min_db[li, px] = np.inf
-            surf_full[li, px] = False
+                        col = surf[li, px, c] if cls == SURFACE else boundary_rgb[c]
+                        acc[li, px, c] = acc[li, px, c] * (1.0 - a) + a * col
+                    acc_a[li, px] = acc_a[li, px] * (1.0 - a) + a
+                    if per_voxel:
+                        voxel_rgba[k, r0 + li, px, 3] = a
+                elif halo_alpha > 0.0:
+                    for c in range(3):
+                        acc[li, px, c] = (acc[li, px, c] * (1.0 - halo_alpha)
+                                          + halo_alpha * halo_rgb[c])
+                    acc_a[li, px] = acc_a[li, px] * (1.0 - halo_alpha) + halo_alpha
+                if per_voxel and cls != HALO:    # the surface fragment's colour, drawn or carved
+                    for c in range(3):
+                        voxel_rgba[k, r0 + li, px, c] = (boundary_rgb[c] if cls == BOUNDARY
+                                                         else surf[li, px, c])
+                if want_volume:
+                    volume[k, r0 + li, px] = cls
+                if pair:    # the halos-off twin: the same surface fragment, its own depth buffer
+                    if surf_d[li, px] < np.inf and surf_d[li, px] <= min_d2[li, px] + eps:
+                        cov = surf_cov[li, px]
+                        a = alpha if cov == 1.0 else 1.0 - (1.0 - alpha) ** cov
+                        for c in range(3):
+                            acc2[li, px, c] = acc2[li, px, c] * (1.0 - a) + a * surf[li, px, c]
+                        acc_a2[li, px] = acc_a2[li, px] * (1.0 - a) + a
+                    min_d2[li, px] = np.inf
+                min_d[li, px] = np.inf
+                surf_d[li, px] = np.inf
+                min_db[li, px] = np.inf
+                surf_full[li, px] = False
 
 
 @njit(**PJIT)
@@ -667,7 +674,7 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
         min_d = np.full((rows, width), np.inf)
         surf_d = np.full((rows, width), np.inf)
         surf = np.zeros((rows, width, 3))
-        hit = np.zeros((rows, width), np.bool_)
+        hit = np.zeros((rows, (width + 63) // 64), np.uint64)
         surf_cov = np.ones((rows, width))
         surf_full = np.zeros((rows, width), np.bool_)
         min_db = np.full((rows, width), np.inf)
@@ -912,7 +919,7 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
                                 min_d[li, px] = d
                             if pair and core and d < min_d2[li, px]:
                                 min_d2[li, px] = d
-                            hit[li, px] = True
+                            hit[li, px >> 6] |= np.uint64(1) << np.uint64(px & 63)
                             full = u < surface_width
                             # the surface fragment of the voxel: a full-core one (|2t − 1| < w_s)
                             # before an anti-aliasing fringe one, then the smallest δ

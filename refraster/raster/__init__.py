@@ -11,7 +11,7 @@ import numpy as np
 from .._threads import check_fork, frame_work, threads_for
 from .._validate import as_float_array, as_image_size, as_index_array, as_matrix
 from ..mesh import as_meshes
-from .fragments import Fragments, concat
+from .fragments import Fragments, concat, split_ids
 from .primitive import CULL, FILL_RULES, W_EPS, convention_code, setup_triangles, \
     transform_vertices
 from .rasterizer import DEPTH_FUNCS, stream
@@ -71,8 +71,7 @@ class Prepared:
 
     def split(self, prim_global):
         """(object_id, prim_id) of global primitive indices (draw-call order)."""
-        obj = np.searchsorted(self.face_offsets[1:], prim_global, side="right")
-        return obj.astype(np.int32), (prim_global - self.face_offsets[obj]).astype(np.int32)
+        return split_ids(prim_global, self.face_offsets)
 
 
 _F32_MAX = float(np.finfo(np.float32).max)

@@ -6,6 +6,7 @@ import numpy as np
 from numba import njit, prange
 
 from .._config import PJIT
+from .._scratch import OUTPUTS
 from .._threads import check_fork
 
 __all__ = ["Fragments", "concat"]
@@ -183,6 +184,43 @@ def _interpolate_kernel(object_id, prim_id, bary, faces, fbase, values, out):
         b0, b1, b2 = bary[i, 0], bary[i, 1], bary[i, 2]
         for j in range(values.shape[1]):
             out[i, j] = (b0 * values[v0, j] + b1 * values[v1, j]) + b2 * values[v2, j]
+
+
+def split_ids(prim_global, face_offsets):
+    """``(object_id, prim_id)`` (int32, the shape of ``prim_global``) of global primitive
+    indices, given the draws' first faces ``face_offsets`` (``F + 1`` entries): as
+    ``obj = numpy.searchsorted(face_offsets[1:], g, side="right")`` and ``g − face_offsets[obj]``,
+    each cast to int32, in one parallel pass."""
+    g = np.ascontiguousarray(prim_global, np.int64)
+    offsets = np.ascontiguousarray(face_offsets, np.int64)
+    obj = OUTPUTS.empty(g.shape, np.int32)    # every element written by the kernel
+    prim = OUTPUTS.empty(g.shape, np.int32)
+    _split_kernel(g.reshape(-1), offsets, obj.reshape(-1), prim.reshape(-1))
+    return obj, prim
+
+
+@njit(**PJIT)
+def _split_kernel(g, offsets, obj, prim):
+    """``obj[i]``: the first k with ``offsets[k + 1] > g[i]`` (``len(offsets) − 1`` if none),
+    counted for up to 16 draws, else found by bisection; ``prim[i] = g[i] − offsets[obj[i]]``."""
+    m = offsets.shape[0] - 1
+    for i in prange(g.shape[0]):
+        v = g[i]
+        lo = 0
+        if m <= 16:
+            # a few draws: the number of ends ≤ v (the offsets never decrease), branch-free
+            for k in range(m):
+                lo += offsets[k + 1] <= v
+        else:
+            hi = m
+            while lo < hi:
+                mid = (lo + hi) >> 1
+                if offsets[mid + 1] <= v:
+                    lo = mid + 1
+                else:
+                    hi = mid
+        obj[i] = lo
+        prim[i] = v - offsets[lo]
 
 
 def concat(streams):

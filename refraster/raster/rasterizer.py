@@ -444,8 +444,9 @@ def stream(prims, *, fill_rule=0, bary=True):
     tile_offsets = np.zeros(ntiles + 1, np.int64)
     np.cumsum(counts, out=tile_offsets[1:])
     n = int(tile_offsets[-1])
-    out = (np.zeros(n, np.int64), np.zeros(n, np.float32), np.zeros(n, np.int64),
-           np.zeros(n, np.bool_), np.zeros((n if bary else 0, 3), np.float32))
+    # the write pass writes every fragment the count pass counted: recycled (or new) arrays
+    out = (OUTPUTS.empty((n,), np.int64), OUTPUTS.empty((n,), np.float32), OUTPUTS.empty((n,), np.int64),
+           OUTPUTS.empty((n,), np.bool_), OUTPUTS.empty((n if bary else 0, 3), np.float32))
     _stream_pass(*args, True, counts, tile_offsets[:-1].copy(), *out)
     return (*out, tile_offsets)
 
