@@ -485,6 +485,49 @@ def test_interpolation_points():
     assert centre.barycentric[keep].min() < -0.05
 
 
+
+def test_triangles_flattened_by_snapping_interpolate_their_snapped_edges():
+    """Slivers whose unsnapped triangle turns the other way (A and B snap onto a sample row,
+    C to 1/256 px above it, unsnapped C lies below line AB): the pass interpolates the snapped
+    triangle (``_lambdas_at``'s fallback, the edge values at the point over the snapped
+    area). Their samples on AB against the snapped triangle's barycentrics by Cramer's rule
+    at the pixel centre (extrapolated: λ_C = −32 or +32 at 1/8 px from AB) and at the sample,
+    and against the per-sample fragment stream, bit for bit."""
+    from refraster.framebuffer import Framebuffer
+    from refraster.multisample import draw_samples, sample_image
+    w = h = 64
+    ys = 10.625 + 6.0 * np.arange(8)[:, None]        # rows of samples with offset ±2/16
+    u = 1.0 / 65536
+    wx = np.broadcast_to([4.0, 20.0, 36.0], (8, 3))
+    wy = ys + np.array([-115, 115, 141]) * u          # snapped: ys, ys, ys + 1/256
+    wz = np.broadcast_to(0.1 * np.arange(8)[:, None] - 0.5, (8, 3))
+    v = np.stack([wx * 2 / w - 1, wy * 2 / h - 1, wz], -1).reshape(-1, 3).astype(np.float32)
+    f = np.arange(24).reshape(-1, 3)
+    for interp in ("center", "sample"):
+        st = RasterState(samples=4, interpolation=interp)
+        sf = refraster.render_samples((v, f), view=EYE, proj=EYE, width=w, height=h, raster=st)
+        r, c, s = np.nonzero(sf.prim_id >= 0)
+        assert len(r) == 8 * 16 and np.array_equal(np.unique(sf.prim_id), np.arange(-1, 8))
+        pts = SP.sample_points(st)
+        off = pts[s] if interp == "sample" else np.full((len(s), 2), 0.5)
+        px, py = c + off[:, 0], h - (r + off[:, 1])      # window position, y up
+        k = sf.prim_id[r, c, s]
+        ax, ay, bx, cx = 4.0, ys[k, 0], 20.0, 36.0
+        cy = ay + 1.0 / 256
+        den = (bx - ax) * (cy - ay)
+        lb = ((px - ax) * (cy - ay) - (cx - ax) * (py - ay)) / den
+        lc = ((bx - ax) * (py - ay)) / den
+        ref = np.column_stack([1 - lb - lc, lb, lc])
+        np.testing.assert_allclose(sf.barycentric[r, c, s], ref, rtol=1e-6, atol=1e-7,
+                                   err_msg=interp)
+        frags = draw_samples((v, f), view=EYE, proj=EYE, width=w, height=h, raster=st)
+        one = sample_image(st)
+        fb = Framebuffer.from_fragments(frags, refraster.resolve(frags, raster=one), raster=one)
+        for name in ("depth", "prim_id", "barycentric"):
+            np.testing.assert_array_equal(
+                getattr(fb, name).reshape(getattr(sf, name).shape), getattr(sf, name),
+                err_msg=f"{interp} {name}")
+
 # ------------------------------------------------------------------ resolve
 
 def test_resolve_modes():

@@ -247,7 +247,7 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
                     F2, T2 = _walk_step(F2, T2, q2, u2, m2)
         # write the winners: face, facing, depth and the barycentrics at the interpolation
         # point; the set-up (_load, 1/areas) is redone only when the item changes, the edge
-        # values at the pixel centre once per pixel and item
+        # values at the pixel centre once per pixel and item where they are read
         last = lists[starts[tile]]
         (X0, Y0, X1, Y1, X2, Y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2, area,
          prim, front, piece, inv_af, inv_area) = _setup_winner(
@@ -279,11 +279,13 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
                         o_bary[row, x, s, 1] = q1
                         o_bary[row, x, s, 2] = q2
                         continue
-                    if fresh:
+                    if fresh and (interp == 1 or inv_af <= 0.0):
+                        # the edge values at the centre: read by the centroid's coverage and
+                        # the flattened triangle's barycentrics only (≈ 1 ms of a 4× frame)
                         e0, _, _, c0 = _edge(X1, Y1, X2, Y2, bits, rule, x, y)
                         e1, _, _, c1 = _edge(X2, Y2, X0, Y0, bits, rule, x, y)
                         e2, _, _, c2 = _edge(X0, Y0, X1, Y1, bits, rule, x, y)
-                        fresh = False
+                    fresh = False
                     # the point: the centre (offset 0) or a sample
                     px = np.int64(0)
                     py = np.int64(0)
