@@ -71,10 +71,14 @@ FILL_BLOCK = 65536
 
 @njit(**JIT)
 def _bucket_by_pixel(pixel, n_pixels):
-    """Stable counting sort of fragment indices by pixel → (offsets (P+1), order (N))."""
+    """Stable counting sort of fragment indices by pixel → (offsets (P+1), order (N), ok):
+    ``ok`` False (and the rest unfinished) if a pixel index lies outside ``[0, n_pixels)``."""
     offsets = np.zeros(n_pixels + 1, np.int64)
     for i in range(pixel.shape[0]):
-        offsets[pixel[i] + 1] += 1
+        p = pixel[i]
+        if p < 0 or p >= n_pixels:
+            return offsets, np.empty(0, np.int64), False
+        offsets[p + 1] += 1
     for p in range(n_pixels):
         offsets[p + 1] += offsets[p]
     cursor = offsets[:-1].copy()
@@ -83,7 +87,7 @@ def _bucket_by_pixel(pixel, n_pixels):
         p = pixel[i]
         order[cursor[p]] = i
         cursor[p] += 1
-    return offsets, order
+    return offsets, order, True
 
 
 @njit(**PJIT)
@@ -312,9 +316,9 @@ def peel_fragments(frags, *, max_layers=None, mode="peel", raster=None):
     n_pixels = h * w
     pixel = np.ascontiguousarray(frags.pixel, np.int64)
     depth = np.ascontiguousarray(frags.depth, np.float32)
-    if pixel.size and (pixel.min() < 0 or pixel.max() >= n_pixels):
-        raise ValueError("frags.pixel has indices outside the image")
-    offsets, order = _bucket_by_pixel(pixel, n_pixels)
+    offsets, order, ok = _bucket_by_pixel(pixel, n_pixels)
+    if not ok:
+        raise ValueError(f"frags.pixel has indices outside the {w}×{h} image")
     count = np.empty(n_pixels, np.int64)
     _sort_select(order, offsets, depth, mode_code, func, clear, count)
     k_all = int(count.max()) if n_pixels else 0

@@ -582,3 +582,17 @@ def test_parity_on_a_layer_entry_closed_exit_open(rule):
     eps = 1e-6
     off = np.array([[0.0, 0.0, 1.0 + eps], [0.0, 0.0, -1.0 - eps], [0.0, 0.0, 1.0 - eps]])
     assert sprite.contains(off, rule=rule).tolist() == [False, False, True]
+
+
+@pytest.mark.parametrize("bad", [-1, 16, 10**12])
+def test_a_stream_with_a_pixel_outside_the_image_is_refused(bad):
+    """``peel_fragments`` checks the pixel indices while it sorts them: one out of range gives
+    one line naming ``frags.pixel``, not a wrong LDI or a crash."""
+    frags = refraster.draw((np.array([[-1.0, -1, 0], [1, -1, 0], [0, 1, 0]]),
+                            np.array([[0, 1, 2]])), **ORTHO)
+    assert len(frags) > 2
+    pixel = frags.pixel.copy()
+    pixel[len(pixel) // 2] = bad
+    with pytest.raises(ValueError, match=r"^frags\.pixel has indices outside the 4×4 image$"):
+        peel_fragments(refraster.Fragments(pixel, frags.depth, frags.prim_id, frags.object_id,
+                                           frags.bary, frags.front_facing, 4, 4))
