@@ -202,23 +202,18 @@ def split_ids(prim_global, face_offsets):
 @njit(**PJIT)
 def _split_kernel(g, offsets, obj, prim):
     """``obj[i]``: the first k with ``offsets[k + 1] > g[i]`` (``len(offsets) − 1`` if none),
-    counted for up to 16 draws, else found by bisection; ``prim[i] = g[i] − offsets[obj[i]]``."""
+    found by bisection; ``prim[i] = g[i] − offsets[obj[i]]``."""
     m = offsets.shape[0] - 1
     for i in prange(g.shape[0]):
         v = g[i]
         lo = 0
-        if m <= 16:
-            # a few draws: the number of ends ≤ v (the offsets never decrease), branch-free
-            for k in range(m):
-                lo += offsets[k + 1] <= v
-        else:
-            hi = m
-            while lo < hi:
-                mid = (lo + hi) >> 1
-                if offsets[mid + 1] <= v:
-                    lo = mid + 1
-                else:
-                    hi = mid
+        hi = m
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            if offsets[mid + 1] <= v:
+                lo = mid + 1
+            else:
+                hi = mid
         obj[i] = lo
         prim[i] = v - offsets[lo]
 

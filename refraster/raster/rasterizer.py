@@ -445,8 +445,9 @@ def stream(prims, *, fill_rule=0, bary=True):
     np.cumsum(counts, out=tile_offsets[1:])
     n = int(tile_offsets[-1])
     # the write pass writes every fragment the count pass counted: recycled (or new) arrays
-    out = (OUTPUTS.empty((n,), np.int64), OUTPUTS.empty((n,), np.float32), OUTPUTS.empty((n,), np.int64),
-           OUTPUTS.empty((n,), np.bool_), OUTPUTS.empty((n if bary else 0, 3), np.float32))
+    out = (OUTPUTS.empty((n,), np.int64), OUTPUTS.empty((n,), np.float32),
+           OUTPUTS.empty((n,), np.int64), OUTPUTS.empty((n,), np.bool_),
+           OUTPUTS.empty((n if bary else 0, 3), np.float32))
     _stream_pass(*args, True, counts, tile_offsets[:-1].copy(), *out)
     return (*out, tile_offsets)
 
