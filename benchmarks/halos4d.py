@@ -106,8 +106,8 @@ def stage_minima(surface, size, slices, repeats):
     win = hr._window(ts, width, height)
     view = h.View4D(rotation=h.compose(("zw", 0.6), ("zx", 0.3), ("yz", 0.4)))
     calls = {"prepare": lambda: hr.prepare(surface, view=view),
-             "slice ranges and NDC": lambda: tet_slices(*got["slices"]),
-             "band binning of the tetrahedra": lambda: hr._window(ts, width, height),
+             "screen z and NDC": lambda: tet_slices(*got["slices"]),
+             "slice ranges and band binning": lambda: hr._window(ts, width, height),
              "slicing, fill and compositing (fused)": lambda: fused(ts, width, height, params,
                                                                     volume, win),
              "frame": lambda: frame(surface, size, slices)}
@@ -162,7 +162,7 @@ def main(argv=None):
         print("|---|---:|")
         labels = {"prepare": "projection, thickening, tetrahedra (prepare)",
                   "default_halo_parameters": "default δd (pair search; cached)",
-                  "_tet_slices": "slice ranges and NDC", "_window": "band binning",
+                  "_tet_slices": "screen z and NDC", "_window": "slice ranges and band binning",
                   "fill": "slicing, fill and compositing (fused)"}
         for k, label in labels.items():
             print(f"| {label} | {per[k]:.0f} |")

@@ -50,7 +50,7 @@ from .._config import IJIT, JIT, PJIT
 from .._validate import as_choice, as_float_array, as_image_size, as_option, as_real
 from ..raster.rasterizer import _inv_float_area, lambdas, row_span
 from .slicing import (MAX_SLICES, SUBPIXEL_BITS, _section_corners, _slice, _window_vertex,
-                      ortho_ndc, section_edge, setup_window, slice_ranges)
+                      ortho_ndc, section_edge, setup_window)
 from .surfaces import Surface4D
 from .thicken import (RHO_FRACTION, default_halo_parameters, split_prisms, steiner_values,
                       thicken, thickening_normals)
@@ -288,10 +288,13 @@ def _band_slices(z, ndc, tets, t, height, lo, hi, centres, ka, kb):
 
 
 @njit(**PJIT)
-def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
-    """Per band of rows, the tetrahedra whose slice triangles may touch it, in index order (CSR
-    ``(starts (nbands + 1,), lists)``), and each tetrahedron's first and last band (``-1``,
-    ``-2`` if no slice cuts it). A tetrahedron's rows are its four vertices' snapped window
+def _bin_tets(z, ndc, tets, centres, width, height, bits, band_rows, nbands):
+    """Each tetrahedron's slices ``k0 <= k < k1`` (``min z < c_k <= max z``, z finite: the
+    bits of :func:`~refraster.halos4d.slicing.slice_ranges`, in the parallel loop rather than
+    serial NumPy) and, per band of rows, the tetrahedra whose slice triangles may touch it, in
+    index order (CSR ``(starts (nbands + 1,), lists)``), and each tetrahedron's first and last
+    band (``-1``, ``-2`` if no slice cuts it): ``(starts, lists, first, last, k0, k1)``. A
+    tetrahedron's rows are its four vertices' snapped window
     rows widened by one pixel: a slice corner lies on an edge (``λ ∈ [0, 1]``), within an ulp
     of the edge's ends, which snapping moves by at most one subpixel. A tetrahedron outside
     the image keeps the nearest band (its triangles are counted there, as invalid). Parallel
@@ -305,9 +308,15 @@ def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
     nchunks = (n + BIN_CHUNK - 1) // BIN_CHUNK
     first = np.empty(n, np.int64)
     last = np.empty(n, np.int64)
+    k0 = np.empty(n, np.int64)
+    k1 = np.empty(n, np.int64)
     counts = np.zeros((nchunks, nbands), np.int64)
     for c in prange(nchunks):
         for t in range(c * BIN_CHUNK, min(n, (c + 1) * BIN_CHUNK)):
+            zlo = min(z[tets[t, 0]], z[tets[t, 1]], z[tets[t, 2]], z[tets[t, 3]])
+            zhi = max(z[tets[t, 0]], z[tets[t, 1]], z[tets[t, 2]], z[tets[t, 3]])
+            k0[t] = np.searchsorted(centres, zlo, side="right")
+            k1[t] = np.searchsorted(centres, zhi, side="right")
             if k1[t] <= k0[t]:
                 first[t] = -1
                 last[t] = -2
@@ -340,7 +349,7 @@ def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
             for band in range(first[t], last[t] + 1):
                 lists[offset[c, band]] = t
                 offset[c, band] += 1
-    return starts, lists, first, last
+    return starts, lists, first, last, k0, k1
 
 
 @njit(**IJIT)
@@ -641,8 +650,8 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
 def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_starts,
                  band_lists, width, height, bits, band_rows, delta_t, delta_d, surface_width,
                  eps, alpha, halos, aa, halo_alpha, halo_rgb, boundary, boundary_width,
-                 boundary_rgb, want_volume, out_rgb, out_a, volume, voxel_rgba, pair, out_rgb2,
-                 out_a2, counts):
+                 boundary_rgb, want_volume, background, out_rgb, out_a, volume, voxel_rgba, pair,
+                 out_rgb2, out_a2, counts):
     """The slicing and the fill pass in one, parallel over bands of rows: each band slices the
     tetrahedra of its list (:func:`_bin_tets`) by the planes that cut them and, for a
     tetrahedron in several bands, may reach the band's rows (:func:`_band_slices`, the
@@ -654,7 +663,9 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
     stored (issue 46). With ``pair`` (and ``halos``), also the halos-off twin (``halos``
     False, ``halo_alpha`` 0, no boundaries, the other parameters the same) into ``out_rgb2``,
     ``out_a2``: its fragments, barycentrics and surface fragments are the first picture's,
-    only the depth buffer differs (issue 27).
+    only the depth buffer differs (issue 27). ``out_rgb`` (``out_rgb2``) receives the colour
+    composited over ``background (3,)``, ``rgb + (1 − α)·background`` (in the parallel loop
+    rather than serial NumPy; a zero background adds +0.0: the bits of ``rgb``).
     ``counts[band]``: the slice triangles of the tetrahedra whose first band it is, and the
     valid ones (non-zero snapped area, inside the image) whose first row lies in it.
 
@@ -949,41 +960,41 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
         for li in range(rows):
             for px in range(width):
                 for c in range(3):
-                    out_rgb[r0 + li, px, c] = acc[li, px, c]
+                    out_rgb[r0 + li, px, c] = acc[li, px, c] + (1.0 - acc_a[li, px]) * background[c]
                 out_a[r0 + li, px] = acc_a[li, px]
         if pair:
             for li in range(rows):
                 for px in range(width):
                     for c in range(3):
-                        out_rgb2[r0 + li, px, c] = acc2[li, px, c]
+                        out_rgb2[r0 + li, px, c] = (acc2[li, px, c]
+                                                    + (1.0 - acc_a2[li, px]) * background[c])
                     out_a2[r0 + li, px] = acc_a2[li, px]
 
 
-class _TetSlices(collections.namedtuple("TetSlices", "z ndc attr tets centres k0 k1")):
+class _TetSlices(collections.namedtuple("TetSlices", "z ndc attr tets centres")):
     """What the fused engine slices: the vertices' screen z and NDC xy, their attributes, the
-    tetrahedra, the slice planes and each tetrahedron's slices ``k0 <= k < k1``
-    (:func:`~refraster.halos4d.slicing.slice_ranges`)."""
+    tetrahedra and the slice planes (each tetrahedron's slices come with the band binning,
+    :func:`_window`)."""
 
 
 def _tet_slices(vertices, tets, centres, attributes, bounds):
     """:class:`_TetSlices` of ``vertices (V, 3)`` (screen space) framed by ``bounds``."""
-    z = np.ascontiguousarray(vertices[:, 2])
-    k0, k1 = slice_ranges(z, tets, centres)
-    return _TetSlices(z, np.ascontiguousarray(ortho_ndc(vertices, bounds)),
-                     np.ascontiguousarray(attributes), np.ascontiguousarray(tets), centres, k0,
-                     k1)
+    return _TetSlices(np.ascontiguousarray(vertices[:, 2]),
+                      np.ascontiguousarray(ortho_ndc(vertices, bounds)),
+                      np.ascontiguousarray(attributes), np.ascontiguousarray(tets), centres)
 
 
 def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SUBPIXEL_BITS,
-           voxel_rgba=None):
+           voxel_rgba=None, background=None):
     """Slice and fill :class:`_TetSlices` ``ts`` (:func:`_render_tets`). ``win``: :func:`_window`
     of ``ts`` computed before (the same for every fill pass). ``pair`` (``params`` with
     halos, no volume): also the halos-off twin's colour and alpha, from the same pass; they
     are appended to the result. ``voxel_rgba (N, H, W, 4)``: also each voxel's surface colour
-    and opacity (with ``want_volume``; the golden's allowance). Returns ``(rgb, alpha,
+    and opacity (with ``want_volume``; the golden's allowance). ``background (3,)``: the colour
+    is composited over it (None: black, the colour as accumulated). Returns ``(rgb, alpha,
     volume or None, slice triangles, invalid slice triangles[, rgb2, alpha2])``."""
-    band_starts, band_lists, first, last = (_window(ts, width, height, bits) if win is None
-                                            else win)
+    band_starts, band_lists, first, last, k0, k1 = (_window(ts, width, height, bits)
+                                                    if win is None else win)
     n = len(ts.centres)
     rgb = np.zeros((height, width, 3))
     a = np.zeros((height, width))
@@ -991,9 +1002,9 @@ def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SU
     rgb2 = np.zeros((height, width, 3) if pair else (1, 1, 3))
     a2 = np.zeros((height, width) if pair else (1, 1))
     counts = np.zeros((len(band_starts) - 1, 2), np.int64)
-    _render_tets(ts.z, ts.ndc, ts.attr, ts.tets, ts.centres, ts.k0, ts.k1, first, last,
+    _render_tets(ts.z, ts.ndc, ts.attr, ts.tets, ts.centres, k0, k1, first, last,
                  band_starts, band_lists, width, height, bits, BAND_ROWS, *params, want_volume,
-                 rgb, a, vol,
+                 np.zeros(3) if background is None else background, rgb, a, vol,
                  np.zeros((1, 1, 1, 4)) if voxel_rgba is None else voxel_rgba, pair, rgb2, a2,
                  counts)
     n_tri = int(counts[:, 0].sum())
@@ -1002,12 +1013,12 @@ def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SU
 
 
 def _window(ts, width, height, bits=SUBPIXEL_BITS):
-    """The fill pass's set-up of :class:`_TetSlices` ``ts``: the tetrahedra of each band of
-    rows and each one's first and last band (independent of the fill parameters; the slice triangles
-    and their window coordinates are computed per band, :func:`_render_tets`)."""
+    """The fill pass's set-up of :class:`_TetSlices` ``ts`` (:func:`_bin_tets`): the tetrahedra
+    of each band of rows, each one's first and last band and its slices (independent of the
+    fill parameters; the slice triangles and their window coordinates are computed per band,
+    :func:`_render_tets`)."""
     nbands = (height + BAND_ROWS - 1) // BAND_ROWS
-    return _bin_tets(ts.z, ts.ndc, ts.tets, ts.k0, ts.k1, width, height, bits, BAND_ROWS,
-                     nbands)
+    return _bin_tets(ts.z, ts.ndc, ts.tets, ts.centres, width, height, bits, BAND_ROWS, nbands)
 
 
 # ----------------------------------------------------------------------------- reference engine
@@ -1331,18 +1342,20 @@ def _draw(geo, views, bounds, centres, width, height, variants, engine, volume, 
         counted = None
         if fuse:    # both pictures from one fill pass (issue 27)
             rgb, a, _, nt, ns, rgb2, a2 = _fused(ts, width, height, variants[0], False, win,
-                                                 pair=True)
+                                                 pair=True, background=bg)
             counted = nt, ns
             for v, (c, al) in enumerate(((rgb, a), (rgb2, a2))):
-                outs[v][0].append(c + (1.0 - al)[..., None] * bg)
+                outs[v][0].append(c)
                 outs[v][1].append(al)
         for v, params in enumerate(variants if not fuse else ()):
-            if engine == "fused":
-                rgb, a, vols[v], nt, ns = _fused(ts, width, height, params, bool(volume), win)
+            if engine == "fused":    # composited over bg in the kernel
+                rgb, a, vols[v], nt, ns = _fused(ts, width, height, params, bool(volume), win,
+                                                 background=bg)
                 counted = nt, ns
             else:
                 rgb, a, vols[v], _ = _reference(st, width, height, params, bool(volume))
-            outs[v][0].append(rgb + (1.0 - a)[..., None] * bg)
+                rgb = rgb + (1.0 - a)[..., None] * bg
+            outs[v][0].append(rgb)
             outs[v][1].append(a)
         if counted is not None:
             n_tri += counted[0]

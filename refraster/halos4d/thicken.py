@@ -39,7 +39,11 @@ __all__ = ["thickening_normals", "thicken", "prism_tetrahedra", "split_prisms", 
 NORMAL_EPS = 1e-6
 
 
-def _face_normal_sum(points, faces):
+def _face_normal_sum(points, faces, which):
+    """Sum of the area-weighted normals of the faces around each vertex of the mask ``which``
+    (other rows: partial sums, not to be read). Only the faces at those vertices are summed,
+    in the same order (face order, for each corner k in turn), so the bits are the whole sum's."""
+    faces = faces[which[faces].any(axis=1)]
     a = points[faces[:, 0]]
     fn = np.cross(points[faces[:, 1]] - a, points[faces[:, 2]] - a)   # 2·area·unit normal
     acc = np.zeros_like(points)
@@ -76,7 +80,7 @@ def thickening_normals(points, tangents, faces):
     out = np.zeros_like(n)
     out[~bad] = n[~bad] / ln[~bad, None]
     if bad.any():
-        fb = _face_normal_sum(p, f)[bad]
+        fb = _face_normal_sum(p, f, bad)[bad]
         lf = np.linalg.norm(fb, axis=1)
         ok = lf > 0.0
         fb[ok] /= lf[ok, None]
