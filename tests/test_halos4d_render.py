@@ -471,6 +471,23 @@ def test_reference_opacity_is_libm_pow_per_value():
         assert hr._opacity(alpha, cov).tobytes() == want.tobytes()
 
 
+def test_slices_below_is_numpys_searchsorted_right():
+    # the binning's slice ranges walk from the index equal spacing predicts: the count of
+    # planes at or below z must be np.searchsorted(centres, z, "right") for any planes in
+    # increasing order (uneven, repeated, one, none) and z on, beside and beyond them
+    rng = np.random.default_rng(11)
+    for centres in (np.linspace(-1.0, 3.0, 256), np.sort(rng.uniform(-2, 2, 40)) ** 3,
+                    np.repeat([0.5, 0.75, 2.0], [3, 1, 4]), np.array([0.25]), np.zeros(0)):
+        zs = np.concatenate([centres, np.nextafter(centres, np.inf),
+                             np.nextafter(centres, -np.inf), rng.uniform(-5, 5, 200),
+                             [-1e300, 1e300, 0.0]])
+        c0 = centres[0] if len(centres) else 0.0
+        span = centres[-1] - c0 if len(centres) > 1 else 0.0
+        inv_step = (len(centres) - 1) / span if span > 0 else 0.0
+        got = [hr._slices_below(centres, zv, c0, inv_step) for zv in zs]
+        assert np.array_equal(got, np.searchsorted(centres, zs, "right"))
+
+
 def test_band_binning_and_slicing_equal_their_serial_definitions():
     """The fused engine's parallel pieces against the plain definitions, on a frame with
     several binning chunks (hr.BIN_CHUNK) and slices: the slice triangles are those of a

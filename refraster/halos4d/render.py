@@ -287,6 +287,22 @@ def _band_slices(z, ndc, tets, t, height, lo, hi, centres, ka, kb):
             min(kb, np.searchsorted(centres, zmax, "right") + 1, centres.shape[0]))
 
 
+@njit(**IJIT)
+def _slices_below(centres, zv, c0, inv_step):
+    """How many slice planes lie at or below ``zv``: ``searchsorted(centres, zv, "right")`` for
+    planes ``centres`` in increasing order (non-decreasing suffices), found by a walk from the
+    index that equal spacing (``c0``, ``1 / step``) predicts; the guess only sets where the
+    walk starts, the comparisons decide (a binary search's mispredicted branches cost more)."""
+    n = centres.shape[0]
+    g = (zv - c0) * inv_step
+    k = 0 if not g > 0.0 else (n if g > n else np.int64(g))
+    while k < n and centres[k] <= zv:
+        k += 1
+    while k > 0 and centres[k - 1] > zv:
+        k -= 1
+    return k
+
+
 @njit(**PJIT)
 def _bin_tets(z, ndc, tets, centres, width, height, bits, band_rows, nbands):
     """Each tetrahedron's slices ``k0 <= k < k1`` (``min z < c_k <= max z``, z finite: the
@@ -311,12 +327,15 @@ def _bin_tets(z, ndc, tets, centres, width, height, bits, band_rows, nbands):
     k0 = np.empty(n, np.int64)
     k1 = np.empty(n, np.int64)
     counts = np.zeros((nchunks, nbands), np.int64)
+    ns = centres.shape[0]
+    c0 = centres[0] if ns > 0 else 0.0
+    inv_step = (ns - 1) / (centres[ns - 1] - c0) if ns > 1 and centres[ns - 1] > c0 else 0.0
     for c in prange(nchunks):
         for t in range(c * BIN_CHUNK, min(n, (c + 1) * BIN_CHUNK)):
             zlo = min(z[tets[t, 0]], z[tets[t, 1]], z[tets[t, 2]], z[tets[t, 3]])
             zhi = max(z[tets[t, 0]], z[tets[t, 1]], z[tets[t, 2]], z[tets[t, 3]])
-            k0[t] = np.searchsorted(centres, zlo, side="right")
-            k1[t] = np.searchsorted(centres, zhi, side="right")
+            k0[t] = _slices_below(centres, zlo, c0, inv_step)
+            k1[t] = _slices_below(centres, zhi, c0, inv_step)
             if k1[t] <= k0[t]:
                 first[t] = -1
                 last[t] = -2
