@@ -519,9 +519,9 @@ def test_band_binning_and_slicing_equal_their_serial_definitions():
     for band_rows in (1, hr.BAND_ROWS):     # one row per band: the tightest check
         clipped = pairs = 0
         nb = (hgt + band_rows - 1) // band_rows
-        starts, lists, first, last, k0, k1 = hr._bin_tets(ts.z, ts.ndc, ts.tets, ts.centres,
-                                                          w, hgt, hs.SUBPIXEL_BITS, band_rows,
-                                                          nb)
+        starts, lists, first, last, k0, k1, _ = hr._bin_tets(ts.z, ts.ndc, ts.tets,
+                                                             ts.centres, w, hgt,
+                                                             hs.SUBPIXEL_BITS, band_rows, nb)
         # the slice ranges, computed with the binning: slice_ranges' bits
         assert all(np.array_equal(a, b) for a, b in zip((k0, k1),
                                                          hs.slice_ranges(ts.z, ts.tets, centres)))
@@ -533,8 +533,8 @@ def test_band_binning_and_slicing_equal_their_serial_definitions():
             for q in range(starts[band], starts[band + 1]):
                 t = lists[q]
                 if first[t] < last[t]:
-                    ks[q] = hr._band_slices(ts.z, ts.ndc, ts.tets, t, hgt, hgt - r1 - 0.5,
-                                            hgt - r0 + 0.5, ts.centres, k0[t], k1[t])
+                    ks[q] = hr._band_slices(ts.z, ts.ndc, ts.tets, t, hgt, r0, r1,
+                                            ts.centres, k0[t], k1[t])
         assert np.all((k0[lists] <= ks[:, 0]) & (ks[:, 1] <= np.maximum(k1, k0)[lists]))
         rows = (hgt - 1 - bbox[:, 3]) // band_rows, (hgt - 1 - bbox[:, 2]) // band_rows
         for band in range(nb):
