@@ -98,6 +98,14 @@ class Scratch:
     def zeros(self, key, shape, dtype):
         """A zero-filled C-contiguous array of ``shape`` and ``dtype`` (as ``np.zeros``),
         a view of the buffer named ``key``: valid until ``key`` is asked for again."""
+        a = self.empty(key, shape, dtype)
+        fill(a, 0)
+        return a
+
+    def empty(self, key, shape, dtype):
+        """As :meth:`zeros` but not filled (as ``np.empty``): for an array whose every element
+        the frame's kernels write before anything reads it (``tests/test_output_pool.py``
+        poisons the buffers and compares the frame's arrays with ``np.zeros``' ones)."""
         dtype = np.dtype(dtype)
         shape = (int(shape),) if isinstance(shape, (int, np.integer)) else \
             tuple(int(s) for s in shape)
@@ -107,12 +115,10 @@ class Scratch:
             size = max(n + n // 4, 64)   # room to grow a little without a new buffer
             if self.nbytes - (0 if buf is None else buf.nbytes) + size > MAX_BYTES:
                 self._bufs.pop(key, None)
-                return np.zeros(shape, dtype)
+                return np.empty(shape, dtype)
             buf = np.empty(size, np.uint8)
             self._bufs[key] = buf
-        a = buf[:n].view(dtype).reshape(shape)
-        a.fill(0)
-        return a
+        return buf[:n].view(dtype).reshape(shape)
 
     def clear(self):
         self._bufs.clear()
