@@ -129,6 +129,8 @@ def _check_w(clip, vfirst, meshes, prec):
         if m.n_faces == 0 or m.n_vertices == 0:
             continue
         w = clip[vfirst[k]:vfirst[k + 1], 3]
+        if abs(float(w[0])) >= W_EPS:   # the largest |w| is too: nothing to refuse, no pass
+            continue
         wmax = float(np.abs(w).max())
         if 0.0 < wmax < W_EPS:
             raise ValueError(f"{_mvp_name(k, len(meshes))} scales clip coordinates below the "
