@@ -362,3 +362,28 @@ def test_scratch_taken_unfilled_is_written_whole(case):
     if case == "near_clipped":
         assert (u.status == 2).any() and (u.vcode != 0).any()   # the case clips
     assert not u.vx[u.vcode != 0].any() and not u.bbox[u.status != 1].any()
+
+
+@pytest.mark.parametrize("poison", [0xAB, 0x01, 0x02])
+def test_render_samples_through_a_poisoned_scratch_gives_a_fresh_frames_bytes(monkeypatch,
+                                                                              poison):
+    """``render_samples`` takes the thread's scratch for its primitive stage and tile lists from
+    ``SCRATCH_FACES`` faces (here every mesh): with every scratch byte ``poison`` first (0x01,
+    0x02: a face status SIMPLE, CLIPPED), its buffers are those of the frame that allocates
+    (the scratch refused)."""
+    from refraster import multisample
+    from refraster._scratch import frame_scratch
+    mesh = mesh_of(torus(major_segments=40, minor_segments=16))
+    kw = camera_kw(eye=(0.0, 0.2, 1.25))     # faces cross the near plane too
+    s4 = rf.RasterState(samples=4, interpolation="centroid")
+    monkeypatch.setattr(multisample, "SCRATCH_FACES", 1 << 40)
+    want = rf.render_samples(mesh, **kw, raster=s4)
+    monkeypatch.setattr(multisample, "SCRATCH_FACES", 0)
+    rf.render_samples(mesh, **kw, raster=s4)
+    assert frame_scratch()._bufs
+    for b in frame_scratch()._bufs.values():
+        b.fill(poison)
+    got = rf.render_samples(mesh, **kw, raster=s4)
+    for f in ("depth", "prim_id", "object_id", "front_facing", "barycentric", "eye_depth",
+              "normal", "color"):
+        assert getattr(got, f).tobytes() == getattr(want, f).tobytes(), f
