@@ -66,7 +66,7 @@ def fill(a, value):
     ``wmemset``; the C library's stores are full cache lines, about 1.3× NumPy's fill on a
     4× frame's 38 MB of barycentrics (docs/performance.md, "Output pool"). Others: NumPy's."""
     if (a.nbytes < FILL_MIN_BYTES or a.dtype.kind not in "biufc"
-            or not (a.flags.c_contiguous and a.flags.writeable)):
+            or not (a.flags.c_contiguous and a.flags.writeable and a.flags.aligned)):
         a.fill(value)
         return
     one = np.empty(1, a.dtype)

@@ -319,6 +319,19 @@ def test_fill_gives_numpys_bytes(dtype, value, shape):
     assert wide[..., 1::2].tobytes() == np.full(shape, 9, dtype).tobytes()
 
 
+def test_fill_leaves_unaligned_arrays_to_numpy(monkeypatch):
+    """``wmemset`` wants its elements aligned (C's rule; x86 forgives it): an unaligned view
+    (a byte buffer's) is filled by NumPy."""
+    def refuse(*args):
+        raise AssertionError("the C library called on an unaligned array")
+    monkeypatch.setattr(_scratch, "_WMEMSET", refuse)
+    raw = np.zeros((1 << 16) * 4 + 1, np.uint8)
+    a = raw[1:].view(np.float32)
+    assert not a.flags.aligned and a.nbytes >= _scratch.FILL_MIN_BYTES
+    _scratch.fill(a, 1.0)
+    assert (a == 1.0).all() and raw[0] == 0
+
+
 def test_fill_leaves_object_arrays_to_numpy():
     a = np.empty(1 << 14, object)
     _scratch.fill(a, "x")
