@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._scratch import SCRATCH_FACES, scratch_lease
 from ._threads import frame_work, threads_for
 from ._validate import as_float_array, as_image_size
 from .framebuffer import _build
@@ -99,14 +100,17 @@ def render_samples(meshes, *, view, proj, width, height, model=None, raster=None
     if n_faces > MAX_FACES:
         raise ValueError(f"meshes: {n_faces:,} faces in all; render_samples takes at most "
                          f"{MAX_FACES:,} (its sample face image is int32)")
-    with threads_for(frame_work(n_faces, w, h)):
+    # the intermediates (primitive stage, tile lists) in this thread's reused buffers, as
+    # render's (none of them is returned or kept; None when a frame of this thread is running)
+    with threads_for(frame_work(n_faces, w, h)), \
+            scratch_lease(n_faces >= SCRATCH_FACES) as scratch:
         prep = _prepare(meshes, view=view, proj=proj, width=w, height=h, model=model,
-                        state=state, scratch=None, multisample=True)
+                        state=state, scratch=scratch, multisample=True)
         ox, oy = sample_offsets(state)
         depth, prim_global, front, bary = rasterize_samples(
             prep.triangles, ox, oy, fill_rule=prep.fill_rule,
             depth_func=DEPTH_FUNCS[state.depth_func], clear_depth=state.clear_depth,
-            interpolation=state.interpolation)
+            interpolation=state.interpolation, scratch=scratch)
         s = len(ox)
         facing(state, front, prim_global)
         # the samples as the columns of an (H, W·S) image: the G-buffer's finalize and shade

@@ -150,3 +150,23 @@ def test_oracle_scenes_at_1e30_still_render():
             fb = refraster.render(sc.meshes, view=sc.view, proj=sc.proj, width=sc.width,
                                   height=sc.height, raster=RasterState(precision=precision))
             assert (fb.prim_id >= 0).sum() > 0
+
+
+def test_clip_check_sums_first_and_looks_again_when_the_sum_overflows():
+    """``_check_clip`` sums the clip coordinates first (finite only if every one is); finite
+    coordinates whose sum overflows float64 are looked at one by one and pass; an inf or a nan
+    anywhere is refused whatever the others."""
+    import refraster
+    from refraster.raster import _check_clip
+    box = refraster.as_mesh(trimesh.creation.box())
+    big = np.full((8, 4), 1.5e308)
+    _check_clip(big, [box], "float64")                       # sum inf, every value finite
+    for bad in (np.inf, -np.inf, np.nan):
+        c = big.copy()
+        c[5, 2] = bad
+        with pytest.raises(ValueError, match=r"meshes\[0\]: clip coordinates overflow"):
+            _check_clip(c, [box], "float64")
+        c = np.ones((8, 4))
+        c[7, 3] = bad
+        with pytest.raises(ValueError, match=r"vertex 7"):
+            _check_clip(c, [box], "float64")

@@ -180,3 +180,21 @@ def test_huge_and_tiny_matrices_give_one_line_and_no_warning(box, prec, which, s
         rf.render(box, **kw, raster=rf.RasterState(precision=prec))
     text = _one_line(e)
     assert "singular" not in text, text
+
+
+def test_the_w_plane_check_decides_on_every_vertex(box):
+    """``_check_w`` looks no further than the first vertex when its |w| reaches the w plane
+    (the largest |w| then does too), else at every vertex: refused only when every |w| is below
+    the plane and one is not 0."""
+    from refraster.raster import W_EPS, _check_w
+    def clip(*ws):
+        c = np.ones((len(ws), 4))
+        c[:, 3] = ws
+        return c
+    meshes = [box]
+    _check_w(clip(5.0, 1e-40, 0.0), [0, 3], meshes, "float64")
+    _check_w(clip(1e-40, 0.0, -W_EPS), [0, 3], meshes, "float64")
+    _check_w(clip(0.0, 0.0, 0.0), [0, 3], meshes, "float64")
+    for ws in [(1e-31, 0.0, 1e-35), (0.0, 0.0, -1e-31), (-1e-31, 2e-31, 0.5 * W_EPS)]:
+        with pytest.raises(ValueError, match="below the w plane"):
+            _check_w(clip(*ws), [0, 3], meshes, "float64")

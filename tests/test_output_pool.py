@@ -292,3 +292,64 @@ def test_the_default_pool_holds_the_1x_4x_and_8x_frames_in_turn():
     again = [frame(s) for s in states]
     for a, b in zip(first, again):
         assert a and a == b
+
+
+FILL_CASES = [(np.float32, 0.0), (np.float32, -0.0), (np.float32, 1.0), (np.float32, np.inf),
+              (np.float32, np.nan), (np.float32, 0.5), (np.int32, -1), (np.int32, 7),
+              (np.uint32, 0xDEADBEEF), (np.int64, -1), (np.int64, 3), (np.float64, 1.0),
+              (np.bool_, True), (np.bool_, False), (np.int8, -3), (np.uint16, 0x0101),
+              (np.complex64, 1 + 2j), (np.dtype(">f4"), 1.0), (np.dtype(">i4"), -2)]
+
+
+@pytest.mark.parametrize("dtype, value", FILL_CASES)
+@pytest.mark.parametrize("shape", [(768, 1024, 3), (1024 + 3,), (5, 7)])
+def test_fill_gives_numpys_bytes(dtype, value, shape):
+    """The pool's fill (the C library's memset / wmemset where the element's bytes allow) writes
+    exactly NumPy's bytes, large or small, into memory holding other bytes; a strided view
+    is left to NumPy and its gaps untouched."""
+    want = np.empty(shape, dtype)
+    want.fill(value)
+    got = np.frombuffer(np.random.default_rng(1).bytes(want.nbytes), np.uint8).copy()
+    got = got.view(want.dtype).reshape(shape)
+    _scratch.fill(got, value)
+    assert got.tobytes() == want.tobytes()
+    wide = np.full(shape[:-1] + (2 * shape[-1],), 9, dtype)
+    _scratch.fill(wide[..., ::2], value)
+    assert wide[..., ::2].tobytes() == want.tobytes()
+    assert wide[..., 1::2].tobytes() == np.full(shape, 9, dtype).tobytes()
+
+
+def test_fill_leaves_unaligned_arrays_to_numpy(monkeypatch):
+    """``wmemset`` wants its elements aligned (C's rule; x86 forgives it): an unaligned view
+    (a byte buffer's) is filled by NumPy."""
+    def refuse(*args):
+        raise AssertionError("the C library called on an unaligned array")
+    monkeypatch.setattr(_scratch, "_WMEMSET", refuse)
+    raw = np.zeros((1 << 16) * 4 + 1, np.uint8)
+    a = raw[1:].view(np.float32)
+    assert not a.flags.aligned and a.nbytes >= _scratch.FILL_MIN_BYTES
+    _scratch.fill(a, 1.0)
+    assert (a == 1.0).all() and raw[0] == 0
+
+
+def test_fill_leaves_object_arrays_to_numpy():
+    a = np.empty(1 << 14, object)
+    _scratch.fill(a, "x")
+    assert a.nbytes >= _scratch.FILL_MIN_BYTES and all(v == "x" for v in a)
+
+
+def test_fill_takes_the_c_library_for_a_4x_frames_outputs(monkeypatch):
+    """The 4× frame's per-sample fills (clear depth 1.0, face −1, facing and barycentrics 0)
+    go through memset / wmemset, not NumPy's slower fill (docs/performance.md)."""
+    calls = []
+    memset, wmemset = _scratch.ctypes.memset, _scratch._WMEMSET
+    if wmemset is None:
+        pytest.skip("this C library's wchar_t is not 4 bytes: no wmemset path")
+    monkeypatch.setattr(_scratch.ctypes, "memset", lambda *a: calls.append("memset") or memset(*a))
+    monkeypatch.setattr(_scratch, "_WMEMSET", lambda *a: calls.append("wmemset") or wmemset(*a))
+    kw = camera_kw(256, 192)
+    s4 = rf.RasterState(samples=4)
+    rf.render_samples(mesh_of(icosphere(2)), **kw, raster=s4)
+    fb = rf.render_samples(mesh_of(icosphere(2)), **kw, raster=s4)
+    assert calls.count("wmemset") >= 1 and calls.count("memset") >= 3, calls
+    assert (fb.depth[0, 0] == 1.0).all() and (fb.prim_id[0, 0] == -1).all()

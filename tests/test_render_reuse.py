@@ -318,3 +318,72 @@ def test_prepare_called_alone_chooses_its_threads(monkeypatch):
     asked.clear()
     rf.render(box, **kw)
     assert asked == [_threads.frame_work(box.n_faces, 160, 120)]
+
+
+POISONS = (0xAB, 0x00, 0xFF)
+
+
+@pytest.mark.parametrize("case", ["plain", "near_clipped", "culled_float64", "msaa"])
+def test_scratch_taken_unfilled_is_written_whole(case):
+    """The primitive stage's per-vertex and per-face arrays, the clip coordinates and the tile
+    lists come from the scratch unfilled (``Scratch.empty``): their kernels write every element.
+    With the buffers poisoned (every byte 0xAB, 0x00 or 0xFF) before each frame, the arrays are
+    byte for byte those of a frame without a scratch (``np.empty`` memory, written whole by the
+    same kernels) and of the ``np.zeros`` bytes where nothing is visible (clipped vertices, faces
+    not set up) — and the frame's buffers are those of a frame with fresh memory."""
+    from refraster._scratch import Scratch
+    from refraster.raster import prepare
+    from refraster.raster.rasterizer import bin_primitives
+    mesh = mesh_of(torus(major_segments=40, minor_segments=16))
+    kw = camera_kw()
+    state = None
+    if case == "near_clipped":      # the eye inside the torus's ring: faces cross the near plane
+        kw = camera_kw(eye=(0.0, 0.2, 1.25))
+    elif case == "culled_float64":
+        state = rf.RasterState(cull="back", precision="float64")
+    elif case == "msaa":
+        state = rf.RasterState(samples=4)
+    want = prepare(mesh, **kw, raster=state)
+    want_lists = bin_primitives(want.triangles)[3]
+    s = Scratch()
+    for poison in POISONS:
+        prepare(mesh, **kw, raster=state, scratch=s)   # the buffers exist after a first frame
+        for b in s._bufs.values():
+            b.fill(poison)
+        got = prepare(mesh, **kw, raster=state, scratch=s)
+        t, u = got.triangles, want.triangles
+        assert t.status.tobytes() == u.status.tobytes(), poison
+        for name in ("vx", "vy", "vz", "v_inv_w", "vxf", "vyf", "vcode", "bbox"):
+            assert getattr(t, name).tobytes() == getattr(u, name).tobytes(), (name, poison)
+        assert got.clip.tobytes() == want.clip.tobytes(), poison
+        lists = bin_primitives(t, s)[3]
+        assert lists.tobytes() == want_lists.tobytes(), poison
+    u = want.triangles
+    if case == "near_clipped":
+        assert (u.status == 2).any() and (u.vcode != 0).any()   # the case clips
+    assert not u.vx[u.vcode != 0].any() and not u.bbox[u.status != 1].any()
+
+
+@pytest.mark.parametrize("poison", [0xAB, 0x01, 0x02])
+def test_render_samples_through_a_poisoned_scratch_gives_a_fresh_frames_bytes(monkeypatch,
+                                                                              poison):
+    """``render_samples`` takes the thread's scratch for its primitive stage and tile lists from
+    ``SCRATCH_FACES`` faces (here every mesh): with every scratch byte ``poison`` first (0x01,
+    0x02: a face status SIMPLE, CLIPPED), its buffers are those of the frame that allocates
+    (the scratch refused)."""
+    from refraster import multisample
+    from refraster._scratch import frame_scratch
+    mesh = mesh_of(torus(major_segments=40, minor_segments=16))
+    kw = camera_kw(eye=(0.0, 0.2, 1.25))     # faces cross the near plane too
+    s4 = rf.RasterState(samples=4, interpolation="centroid")
+    monkeypatch.setattr(multisample, "SCRATCH_FACES", 1 << 40)
+    want = rf.render_samples(mesh, **kw, raster=s4)
+    monkeypatch.setattr(multisample, "SCRATCH_FACES", 0)
+    rf.render_samples(mesh, **kw, raster=s4)
+    assert frame_scratch()._bufs
+    for b in frame_scratch()._bufs.values():
+        b.fill(poison)
+    got = rf.render_samples(mesh, **kw, raster=s4)
+    for f in ("depth", "prim_id", "object_id", "front_facing", "barycentric", "eye_depth",
+              "normal", "color"):
+        assert getattr(got, f).tobytes() == getattr(want, f).tobytes(), f

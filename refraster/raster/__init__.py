@@ -129,6 +129,8 @@ def _check_w(clip, vfirst, meshes, prec):
         if m.n_faces == 0 or m.n_vertices == 0:
             continue
         w = clip[vfirst[k]:vfirst[k + 1], 3]
+        if abs(float(w[0])) >= W_EPS:   # the largest |w| is too: nothing to refuse, no pass
+            continue
         wmax = float(np.abs(w).max())
         if 0.0 < wmax < W_EPS:
             raise ValueError(f"{_mvp_name(k, len(meshes))} scales clip coordinates below the "
@@ -173,7 +175,11 @@ def _check_clip(clip, meshes, prec):
     """Clip coordinates must be finite: a vertex whose transform overflows (1e300 in float32,
     ±3e38 moved by the view) would silently vanish. Far but finite vertices (1e30) are fine:
     the clipper places them (see :mod:`refraster.raster.primitive`)."""
-    if clip.size == 0 or np.isfinite(clip).all():
+    # one sum first: finite only if every coordinate is (an inf or a nan makes it inf or nan;
+    # finite values summing past float64's range are looked at one by one)
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = clip.sum()
+    if clip.size == 0 or np.isfinite(total) or np.isfinite(clip).all():
         return
     first = int(np.argmax(~np.isfinite(clip).all(axis=1)))
     ends = np.cumsum([m.n_vertices for m in meshes])
@@ -225,22 +231,19 @@ def _prepare(meshes, *, view, proj, width, height, model, state, scratch, multis
     _check_projection(proj)
     offsets = np.cumsum([0] + [m.n_faces for m in meshes])
     vfirst = np.cumsum([0] + [m.n_vertices for m in meshes])
-    if len(meshes) == 1 and scratch is not None:   # the common case, into reused buffers
+    # the clip coordinates are written as float64 by the vertex stage (a float32 stage's
+    # values exactly), each draw call once, into the scratch's reused buffer for render
+    if len(meshes) == 1:   # the common case: no copies
         nv = meshes[0].n_vertices
-        c32 = transform_vertices(meshes[0].vertices, mvps[0], prec,
-                                 out=scratch.zeros("clip_" + prec, (nv, 4), prec))
-        clip = c32 if prec == "float64" else scratch.zeros("clip", (nv, 4), np.float64)
-        if clip is not c32:
-            clip[...] = c32
+        clip = (np.zeros((nv, 4)) if scratch is None   # zeros: warm-up stubs the stage
+                else scratch.empty("clip", (nv, 4), np.float64))
+        transform_vertices(meshes[0].vertices, mvps[0], prec, out=clip)
         face = meshes[0].faces
-    elif len(meshes) == 1:   # the common case: no copies
-        clip = transform_vertices(meshes[0].vertices, mvps[0], prec).astype(np.float64)
-        face = meshes[0].faces
-    else:   # each draw call written once into the concatenated arrays
-        clip = np.empty((int(vfirst[-1]), 4))
+    else:
+        clip = np.zeros((int(vfirst[-1]), 4))
         face = np.empty((int(offsets[-1]), 3), np.int64)
         for k, (m, mvp) in enumerate(zip(meshes, mvps)):
-            clip[vfirst[k]:vfirst[k + 1]] = transform_vertices(m.vertices, mvp, prec)
+            transform_vertices(m.vertices, mvp, prec, out=clip[vfirst[k]:vfirst[k + 1]])
             np.add(m.faces, vfirst[k], out=face[offsets[k]:offsets[k + 1]])
     _check_clip(clip, meshes, prec)
     _check_w(clip, vfirst, meshes, prec)

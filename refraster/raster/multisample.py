@@ -324,16 +324,17 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
 
 
 def rasterize_samples(prims, ox, oy, *, fill_rule=0, depth_func=1, clear_depth=1.0,
-                      interpolation="center"):
+                      interpolation="center", scratch=None):
     """Rasterize and depth-resolve every sample (``prims`` set up with ``pad`` of half a pixel).
 
     ``ox, oy``: the samples' fixed-point offsets (:func:`refraster.raster.samples.sample_offsets`).
     Returns ``(depth (H, W, S) float32, prim (H, W, S) int32 face or −1, front (H, W, S) bool,
-    bary (H, W, S, 3) float32)``, row 0 at the top. At most :data:`MAX_FACES` faces."""
+    bary (H, W, S, 3) float32)``, row 0 at the top. At most :data:`MAX_FACES` faces.
+    ``scratch``: a :class:`refraster._scratch.Scratch` for the tile lists."""
     if prims.n_faces > MAX_FACES:
         raise ValueError(f"rasterize_samples takes at most {MAX_FACES:,} faces (its face image "
                          f"is int32), not {prims.n_faces:,}")
-    ntx, nty, starts, lists = bin_primitives(prims)
+    ntx, nty, starts, lists = bin_primitives(prims, scratch)
     h, w = prims.height, prims.width
     ns = len(ox)
     depth = OUTPUTS.full((h, w, ns), np.float32(clear_depth), np.float32)

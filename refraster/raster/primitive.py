@@ -78,9 +78,9 @@ def convention_code(depth_range="negative_one_to_one", depth_clamp=False, origin
 _MAXV = 10
 
 
-@njit(**JIT)
+@njit(**PJIT)
 def _transform32(vertices, m, out):
-    for i in range(vertices.shape[0]):
+    for i in prange(vertices.shape[0]):
         x = np.float32(vertices[i, 0])
         y = np.float32(vertices[i, 1])
         z = np.float32(vertices[i, 2])
@@ -104,7 +104,8 @@ def transform_vertices(vertices, mvp, precision="float32", out=None):
     ``precision="float32"`` (default) rounds the matrix and the positions to float32 and
     evaluates ``((m0·x + m1·y) + m2·z) + m3`` in float32, as a vertex shader would;
     ``"float64"`` does the same in float64. Inputs are assumed validated. ``out``: a
-    zero-filled ``(V, 4)`` array of the precision's dtype to write into.
+    ``(V, 4)`` C-contiguous array to write (every element), of the precision's dtype or
+    float64 (the float32 stage's values stored exactly: what the primitive stage reads).
     """
     if precision == "float32":
         out = np.zeros((len(vertices), 4), np.float32) if out is None else out
@@ -248,6 +249,8 @@ def _vertex_pass(c, width, height, bits, gx, gy, conv, vX, vY, vZ, vIW, vXf, vYf
         if code == 0:
             (vX[i], vY[i], vZ[i], vIW[i], vXf[i],
              vYf[i]) = _window(c[i, 0], c[i, 1], c[i, 2], c[i, 3], hw, hh, scale, conv, top)
+        else:   # never read; written so that the arrays need no zero fill first
+            vX[i], vY[i], vZ[i], vIW[i], vXf[i], vYf[i] = 0, 0, 0.0, 0.0, 0.0, 0.0
 
 
 @njit(**IJIT)
@@ -328,6 +331,11 @@ def _classify(f, vX, vY, vcode, width, height, bits, cull, pad, status, fbox):
     for i in prange(f.shape[0]):
         a, b, d = f[i, 0], f[i, 1], f[i, 2]
         status[i] = SKIP
+        # every face's box written (zeros unless SIMPLE): the array needs no zero fill first
+        fbox[i, 0] = 0
+        fbox[i, 1] = 0
+        fbox[i, 2] = 0
+        fbox[i, 3] = 0
         if vcode[a] & vcode[b] & vcode[d]:
             continue
         if vcode[a] | vcode[b] | vcode[d]:
@@ -438,8 +446,11 @@ class Primitives:
         return int(self.faces.shape[0])
 
 
-def _zeros(scratch, key, shape, dtype):
-    return np.zeros(shape, dtype) if scratch is None else scratch.zeros(key, shape, dtype)
+def _array(scratch, key, shape, dtype):
+    """An array the primitive stage's kernels write whole: reused from ``scratch`` unfilled
+    (``render``), else ``np.zeros`` (``prepare``: also when warm-up replaces the kernels by
+    no-ops, every face stays ``SKIP``)."""
+    return np.zeros(shape, dtype) if scratch is None else scratch.empty(key, shape, dtype)
 
 
 def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8, conv=0,
@@ -456,17 +467,17 @@ def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8, conv
     gx = 2.0 * GUARD_PIXELS / width
     gy = 2.0 * GUARD_PIXELS / height
     nv = len(c)
-    vX = _zeros(scratch, "vX", nv, np.int64)
-    vY = _zeros(scratch, "vY", nv, np.int64)
-    vZ = _zeros(scratch, "vZ", nv, np.float32)
-    vIW = _zeros(scratch, "vIW", nv, np.float64)
-    vXf = _zeros(scratch, "vXf", nv, np.float32)
-    vYf = _zeros(scratch, "vYf", nv, np.float32)
-    vcode = _zeros(scratch, "vcode", nv, np.int64)
+    vX = _array(scratch, "vX", nv, np.int64)
+    vY = _array(scratch, "vY", nv, np.int64)
+    vZ = _array(scratch, "vZ", nv, np.float32)
+    vIW = _array(scratch, "vIW", nv, np.float64)
+    vXf = _array(scratch, "vXf", nv, np.float32)
+    vYf = _array(scratch, "vYf", nv, np.float32)
+    vcode = _array(scratch, "vcode", nv, np.int64)
     tiered(_vertex_pass)(c, width, height, subpixel_bits, gx, gy, conv, vX, vY, vZ, vIW, vXf, vYf,
                  vcode)
-    status = _zeros(scratch, "status", len(f), np.int8)
-    fbox = _zeros(scratch, "fbox", (len(f), 4), np.int32)
+    status = _array(scratch, "status", len(f), np.int8)
+    fbox = _array(scratch, "fbox", (len(f), 4), np.int32)
     pad = np.int64(pad)
     tiered(_classify)(f, vX, vY, vcode, width, height, subpixel_bits, cull, pad, status, fbox)
     idx = np.flatnonzero(status == CLIPPED)

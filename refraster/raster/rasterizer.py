@@ -138,7 +138,7 @@ def bin_primitives(prims, scratch=None):
     np.cumsum(per_tile, out=starts[1:])
     starts2[:] = starts[:-1][None, :] + np.cumsum(counts, axis=0) - counts
     lists = (np.zeros(int(starts[-1]), np.int64) if scratch is None
-             else scratch.zeros("lists", int(starts[-1]), np.int64))
+             else scratch.empty("lists", int(starts[-1]), np.int64))
     tiered(_bin_pass)(prims.status, prims.bbox, st.prim, st.bbox, ntx, ntiles, counts, starts2, lists,
               True)
     return ntx, nty, starts, lists
