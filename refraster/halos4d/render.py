@@ -708,9 +708,9 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
     tetrahedra of its list (:func:`_bin_tets`) by the planes that cut them and, for a
     tetrahedron in several bands, may reach the band's rows (:func:`_band_slices`, the
     band's slab widened by 1/16 px on each side: the corners' float32 window positions and
-    their snapping differ from the float64 ones by far less), slice by slice back to front and in tetrahedron order within a
-    slice (the draw order of :func:`~refraster.halos4d.slicing.slice_tetrahedra`, the same
-    corner bits), and fills the slice triangles that touch its rows; no slice triangle is
+    their snapping differ from the float64 ones by far less), slice by slice back to front
+    and in tetrahedron order within a slice (the draw order of
+    :func:`~refraster.halos4d.slicing.slice_tetrahedra`, the same corner bits), and fills the slice triangles that touch its rows; no slice triangle is
     stored (issue 46). With ``pair`` (and ``halos``), also the halos-off twin (``halos``
     False, ``halo_alpha`` 0, no boundaries, the other parameters the same) into ``out_rgb2``,
     ``out_a2``: its fragments, barycentrics and surface fragments are the first picture's,
