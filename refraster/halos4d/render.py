@@ -157,7 +157,7 @@ def _split_prisms_cached(faces, n_vertices, split):
     returned as a copy (``HaloGeometry.tets`` is the caller's to change); the other arrays
     are only read."""
     f = np.ascontiguousarray(faces)
-    h = hashlib.blake2b(digest_size=20)
+    h = hashlib.sha256()    # SHA-NI: 0.54 ms/MB here against blake2b's 0.95
     h.update(str((f.dtype.str, f.shape, int(n_vertices), split)).encode())
     h.update(f.data)
     tk = sys.modules[__package__ + ".thicken"]
@@ -1164,7 +1164,7 @@ def _default_delta_d(points, depth, spatial, faces, delta_t, rho):
     again under the same rotation and projection does not pay the pair search again, and any
     change of the inputs (or of the module constants it reads) is a new entry, so the result
     is the function's, bit for bit."""
-    h = hashlib.blake2b(digest_size=20)
+    h = hashlib.sha256()
     for a in (points, depth, spatial, faces):
         a = np.ascontiguousarray(a)
         h.update(str((a.dtype.str, a.shape)).encode())
