@@ -10,11 +10,11 @@ and the paper's GPU figure (GeForce GTX 580, 2013, Table 1: 69.16 / 55.31 / 42.6
 A frame is everything from the 4D surface to the composited image: rotation, projection,
 thickening, tetrahedra, slicing, rasterization and compositing. Compile time (first call minus
 steady state) is printed once. ``--stages``: the CPU time of each stage of the 256-slice frame
-(projection and thickening, the default δd, slice ranges, band binning, the fused slicing and
-fill), which a shared
-machine inflates less than wall time; ``--stage-minima``: each stage of that frame called
-``repeats`` times on the frame's own arguments (captured from one frame), the minimum CPU time
-of each, and of the whole frame (steadier than ``--stages`` on a busy machine);
+(projection and thickening, the default δd, screen z and NDC, slice ranges with the band
+binning, the fused slicing and fill), which a shared machine inflates less than wall time;
+``--stage-minima``: each stage of that frame called ``repeats`` times on the frame's own
+arguments (captured from one frame), the minimum CPU time of each, and of the whole frame
+(steadier than ``--stages`` on a busy machine);
 ``--reference-repeats 0`` skips the reference engine.
 """
 
@@ -83,16 +83,16 @@ def stages(surface, size, slices, repeats):
 
 def stage_minima(surface, size, slices, repeats):
     """Minimum CPU ms of each stage over ``repeats`` calls on the captured arguments of one
-    frame (prepare, slice ranges, band binning, the fused slicing and fill), and of the whole
-    frame."""
+    frame (prepare, screen z and NDC, slice ranges with the band binning, the fused slicing
+    and fill), and of the whole frame."""
     import refraster.halos4d as h
     from refraster.halos4d import render as hr
     got = {}
     fused, tet_slices = hr._fused, hr._tet_slices
 
-    def cap_fused(*a):
+    def cap_fused(*a, **k):
         got["fused"] = a
-        return fused(*a)
+        return fused(*a, **k)
 
     def cap_slices(*a):
         got["slices"] = a
