@@ -10,11 +10,11 @@ and the paper's GPU figure (GeForce GTX 580, 2013, Table 1: 69.16 / 55.31 / 42.6
 A frame is everything from the 4D surface to the composited image: rotation, projection,
 thickening, tetrahedra, slicing, rasterization and compositing. Compile time (first call minus
 steady state) is printed once. ``--stages``: the CPU time of each stage of the 256-slice frame
-(projection and thickening, the default δd, slice ranges, band binning, the fused slicing and
-fill), which a shared
-machine inflates less than wall time; ``--stage-minima``: each stage of that frame called
-``repeats`` times on the frame's own arguments (captured from one frame), the minimum CPU time
-of each, and of the whole frame (steadier than ``--stages`` on a busy machine);
+(projection and thickening, the default δd, screen z and NDC, slice ranges with the band
+binning, the fused slicing and fill), which a shared machine inflates less than wall time;
+``--stage-minima``: each stage of that frame called ``repeats`` times on the frame's own
+arguments (captured from one frame), the minimum CPU time of each, and of the whole frame
+(steadier than ``--stages`` on a busy machine);
 ``--reference-repeats 0`` skips the reference engine.
 """
 
@@ -83,16 +83,16 @@ def stages(surface, size, slices, repeats):
 
 def stage_minima(surface, size, slices, repeats):
     """Minimum CPU ms of each stage over ``repeats`` calls on the captured arguments of one
-    frame (prepare, slice ranges, band binning, the fused slicing and fill), and of the whole
-    frame."""
+    frame (prepare, screen z and NDC, slice ranges with the band binning, the fused slicing
+    and fill), and of the whole frame."""
     import refraster.halos4d as h
     from refraster.halos4d import render as hr
     got = {}
     fused, tet_slices = hr._fused, hr._tet_slices
 
-    def cap_fused(*a):
+    def cap_fused(*a, **k):
         got["fused"] = a
-        return fused(*a)
+        return fused(*a, **k)
 
     def cap_slices(*a):
         got["slices"] = a
@@ -106,8 +106,8 @@ def stage_minima(surface, size, slices, repeats):
     win = hr._window(ts, width, height)
     view = h.View4D(rotation=h.compose(("zw", 0.6), ("zx", 0.3), ("yz", 0.4)))
     calls = {"prepare": lambda: hr.prepare(surface, view=view),
-             "slice ranges and NDC": lambda: tet_slices(*got["slices"]),
-             "band binning of the tetrahedra": lambda: hr._window(ts, width, height),
+             "screen z and NDC": lambda: tet_slices(*got["slices"]),
+             "slice ranges and band binning": lambda: hr._window(ts, width, height),
              "slicing, fill and compositing (fused)": lambda: fused(ts, width, height, params,
                                                                     volume, win),
              "frame": lambda: frame(surface, size, slices)}
@@ -162,7 +162,7 @@ def main(argv=None):
         print("|---|---:|")
         labels = {"prepare": "projection, thickening, tetrahedra (prepare)",
                   "default_halo_parameters": "default δd (pair search; cached)",
-                  "_tet_slices": "slice ranges and NDC", "_window": "band binning",
+                  "_tet_slices": "screen z and NDC", "_window": "slice ranges and band binning",
                   "fill": "slicing, fill and compositing (fused)"}
         for k, label in labels.items():
             print(f"| {label} | {per[k]:.0f} |")

@@ -1,5 +1,7 @@
 """4D surfaces, rotations, projection, thickening and the prism split (Wang et al.; MATH.md §5)."""
 
+import importlib
+
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -184,6 +186,24 @@ def test_thickening_normals_unit_and_fallback():
     n2, fb2 = h.thickening_normals(p, t2, [[0, 2, 1]])
     assert fb2 == 3
     np.testing.assert_allclose(n2, [[0, 0, -1]] * 3)
+
+
+def test_fallback_normal_sums_only_the_faces_at_its_vertices_with_the_whole_sums_bits():
+    # the fallback sums the area-weighted normals of the faces around each vertex that needs
+    # it; only those faces are visited, in face order for each corner in turn, as a sum over
+    # all faces would add them (np.add.at): compared with that sum written out, bit for bit
+    tk = importlib.import_module("refraster.halos4d.thicken")
+    rng = np.random.default_rng(3)
+    p = rng.normal(size=(60, 3))
+    f = np.array([rng.choice(60, 3, replace=False) for _ in range(400)])
+    which = np.zeros(60, bool)
+    which[rng.choice(60, 9, replace=False)] = True
+    full = np.zeros_like(p)
+    for k in range(3):
+        for face in f:
+            full[face[k]] += np.cross(p[face[1]] - p[face[0]], p[face[2]] - p[face[0]])
+    got = tk._face_normal_sum(p, f, which)
+    assert np.array_equal(got[which], full[which])
 
 
 def test_thicken_offsets():

@@ -401,7 +401,7 @@ def _tets_of_triangles(st, centres):
                             3 * k + np.arange(k)]).astype(np.int64)
     k0, k1 = hs.slice_ranges(z, tets, centres)
     assert np.array_equal(k0, st.slice) and np.array_equal(k1, st.slice + 1)
-    return hr._TetSlices(z, ndc, attr, tets, centres, k0, k1)
+    return hr._TetSlices(z, ndc, attr, tets, centres)
 
 
 def test_fill_pass_matches_reference_on_snapping_flipped_slivers():
@@ -471,6 +471,23 @@ def test_reference_opacity_is_libm_pow_per_value():
         assert hr._opacity(alpha, cov).tobytes() == want.tobytes()
 
 
+def test_slices_below_is_numpys_searchsorted_right():
+    # the binning's slice ranges walk from the index equal spacing predicts: the count of
+    # planes at or below z must be np.searchsorted(centres, z, "right") for any planes in
+    # increasing order (uneven, repeated, one, none) and z on, beside and beyond them
+    rng = np.random.default_rng(11)
+    for centres in (np.linspace(-1.0, 3.0, 256), np.sort(rng.uniform(-2, 2, 40)) ** 3,
+                    np.repeat([0.5, 0.75, 2.0], [3, 1, 4]), np.array([0.25]), np.zeros(0)):
+        zs = np.concatenate([centres, np.nextafter(centres, np.inf),
+                             np.nextafter(centres, -np.inf), rng.uniform(-5, 5, 200),
+                             [-1e300, 1e300, 0.0]])
+        c0 = centres[0] if len(centres) else 0.0
+        span = centres[-1] - c0 if len(centres) > 1 else 0.0
+        inv_step = (len(centres) - 1) / span if span > 0 else 0.0
+        got = [hr._slices_below(centres, zv, c0, inv_step) for zv in zs]
+        assert np.array_equal(got, np.searchsorted(centres, zs, "right"))
+
+
 def test_band_binning_and_slicing_equal_their_serial_definitions():
     """The fused engine's parallel pieces against the plain definitions, on a frame with
     several binning chunks (hr.BIN_CHUNK) and slices: the slice triangles are those of a
@@ -502,19 +519,23 @@ def test_band_binning_and_slicing_equal_their_serial_definitions():
     for band_rows in (1, hr.BAND_ROWS):     # one row per band: the tightest check
         clipped = pairs = 0
         nb = (hgt + band_rows - 1) // band_rows
-        starts, lists, first, last = hr._bin_tets(ts.z, ts.ndc, ts.tets, ts.k0, ts.k1, w, hgt,
-                                                  hs.SUBPIXEL_BITS, band_rows, nb)
+        starts, lists, first, last, k0, k1, _ = hr._bin_tets(ts.z, ts.ndc, ts.tets,
+                                                             ts.centres, w, hgt,
+                                                             hs.SUBPIXEL_BITS, band_rows, nb)
+        # the slice ranges, computed with the binning: slice_ranges' bits
+        assert all(np.array_equal(a, b) for a, b in zip((k0, k1),
+                                                         hs.slice_ranges(ts.z, ts.tets, centres)))
         # each entry's slices: all of its tetrahedron's, cut to the band's slab where it
         # spans several bands (as the fill does)
-        ks = np.column_stack([ts.k0[lists], ts.k1[lists]])
+        ks = np.column_stack([k0[lists], k1[lists]])
         for band in range(nb):
             r0, r1 = band * band_rows, min(hgt, (band + 1) * band_rows)
             for q in range(starts[band], starts[band + 1]):
                 t = lists[q]
                 if first[t] < last[t]:
-                    ks[q] = hr._band_slices(ts.z, ts.ndc, ts.tets, t, hgt, hgt - r1 - 0.5,
-                                            hgt - r0 + 0.5, ts.centres, ts.k0[t], ts.k1[t])
-        assert np.all((ts.k0[lists] <= ks[:, 0]) & (ks[:, 1] <= np.maximum(ts.k1, ts.k0)[lists]))
+                    ks[q] = hr._band_slices(ts.z, ts.ndc, ts.tets, t, hgt, r0, r1,
+                                            ts.centres, k0[t], k1[t])
+        assert np.all((k0[lists] <= ks[:, 0]) & (ks[:, 1] <= np.maximum(k1, k0)[lists]))
         rows = (hgt - 1 - bbox[:, 3]) // band_rows, (hgt - 1 - bbox[:, 2]) // band_rows
         for band in range(nb):
             listed = lists[starts[band]:starts[band + 1]]
@@ -529,7 +550,7 @@ def test_band_binning_and_slicing_equal_their_serial_definitions():
             assert np.all((ks[at, 0] <= k) & (k < ks[at, 1])), band
             clipped += int((ks[starts[band]:starts[band + 1], 1]
                             - ks[starts[band]:starts[band + 1], 0]).sum())
-            pairs += int((ts.k1 - ts.k0)[listed].sum())
+            pairs += int((k1 - k0)[listed].sum())
         assert clipped < pairs    # the ranges are cut where a tetrahedron spans bands
     # the fused pass counts the slice triangles and the invalid ones as the slicing does
     params = (0.3, 2.0, 0.3, 1e-6, 0.6, True, 0.3, 0.0, np.zeros(3), False, 0.15, np.zeros(3))

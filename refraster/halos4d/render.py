@@ -50,7 +50,7 @@ from .._config import IJIT, JIT, PJIT
 from .._validate import as_choice, as_float_array, as_image_size, as_option, as_real
 from ..raster.rasterizer import _inv_float_area, lambdas, row_span
 from .slicing import (MAX_SLICES, SUBPIXEL_BITS, _section_corners, _slice, _window_vertex,
-                      ortho_ndc, section_edge, setup_window, slice_ranges)
+                      ortho_ndc, section_edge, setup_window)
 from .surfaces import Surface4D
 from .thicken import (RHO_FRACTION, default_halo_parameters, split_prisms, steiner_values,
                       thicken, thickening_normals)
@@ -67,6 +67,12 @@ ENGINES = ("fused", "reference")
 #: not depend on it (each pixel sees its fragments in draw order in any band); 32 rather than
 #: 16: a tetrahedron (sliced by each band it may touch) falls into fewer bands (issue 46).
 BAND_ROWS = 32
+#: :func:`_band_slices`: the band's slab is its pixel centres' rows widened by this many pixels
+#: on each side (the rounding it must absorb is below 0.003 px), and the z range of a
+#: tetrahedron's part in it by this share of the tetrahedron's ``max |z| + z extent`` (the
+#: rounding: a few ulps of it).
+BAND_SLAB_MARGIN = 1.0 / 16.0
+BAND_Z_MARGIN = 2.0 ** -30
 #: Tetrahedra per chunk of the parallel band binning (one unit of parallel work).
 BIN_CHUNK = 1 << 12
 #: Margin on t of :func:`_span_off_core`: a row span is skipped as off the core only if its t
@@ -151,7 +157,7 @@ def _split_prisms_cached(faces, n_vertices, split):
     returned as a copy (``HaloGeometry.tets`` is the caller's to change); the other arrays
     are only read."""
     f = np.ascontiguousarray(faces)
-    h = hashlib.blake2b(digest_size=20)
+    h = hashlib.sha256()    # SHA-NI: 0.54 ms/MB here against blake2b's 0.95
     h.update(str((f.dtype.str, f.shape, int(n_vertices), split)).encode())
     h.update(f.data)
     tk = sys.modules[__package__ + ".thicken"]
@@ -258,12 +264,25 @@ def _tri_window(cw, cf, m, width, height, bits):
 
 
 @njit(**JIT)
-def _band_slices(z, ndc, tets, t, height, lo, hi, centres, ka, kb):
-    """The slices ``ka <= k < kb`` of tetrahedron ``t`` that may cut its part between the
-    window rows ``y = lo`` and ``y = hi`` (its vertices' window y from the float64 NDC): those
-    whose plane lies in that part's z range (over its vertices in the slab and its edges'
-    crossings of the two planes), widened by one slice on each side against rounding; none
-    when the slab misses it."""
+def _band_slices(z, ndc, tets, t, height, r0, r1, centres, ka, kb):
+    """The slices ``ka <= k < kb`` of tetrahedron ``t`` that may have a slice triangle on the
+    band's rows ``r0 … r1 − 1``: those whose plane lies in the z range of the tetrahedron's
+    part between the window rows ``y = lo`` and ``y = hi`` (its vertices' window y from the
+    float64 NDC; over its vertices in that slab and its edges' crossings of the two planes),
+    widened by :data:`BAND_Z_MARGIN` of the tetrahedron's ``max |z| + z extent``; none when
+    the slab misses it. The slab is the band's pixel centres ``H − r1 + ½ … H − r0 − ½``
+    widened by :data:`BAND_SLAB_MARGIN` px on each side.
+
+    Why no slice is lost (docs/halos4d.md, "Band slices"): a triangle touches row py only
+    if its snapped corners' y range holds the row's centre; snapping (2^-9 px) and the
+    corners' float32 window positions (~10^-4 px) put the exact section of the plane within
+    0.003 px of it, inside the slab by 0.06 px. An edge whose crossing of a slab plane is
+    ill-conditioned (a y extent ≪ 1 px) lies within that 0.06 px of the plane, so every point
+    of the tetrahedron within 0.06 px inside the slab has its z within the computed vertices'
+    and crossings' range up to a few ulps of the tetrahedron's z (a corner's λ puts it on its
+    edge at a z within ~2^-51 of the edge's z extent from the plane)."""
+    lo = height - r1 + 0.5 - BAND_SLAB_MARGIN
+    hi = height - r0 - 0.5 + BAND_SLAB_MARGIN
     hh = height * 0.5
     g = (tets[t, 0], tets[t, 1], tets[t, 2], tets[t, 3])
     y = (ndc[g[0], 1] * hh + hh, ndc[g[1], 1] * hh + hh, ndc[g[2], 1] * hh + hh,
@@ -283,15 +302,37 @@ def _band_slices(z, ndc, tets, t, height, lo, hi, centres, ka, kb):
                     zmax = max(zmax, zc)
     if zmin > zmax:
         return ka, ka
-    return (max(ka, np.searchsorted(centres, zmin) - 1),
-            min(kb, np.searchsorted(centres, zmax, "right") + 1, centres.shape[0]))
+    m = BAND_Z_MARGIN * (max(abs(zz[0]), abs(zz[1]), abs(zz[2]), abs(zz[3]))
+                         + max(zz[0], zz[1], zz[2], zz[3]) - min(zz[0], zz[1], zz[2], zz[3]))
+    return (max(ka, np.searchsorted(centres, zmin - m)),
+            min(kb, np.searchsorted(centres, zmax + m, "right")))
+
+
+@njit(**IJIT)
+def _slices_below(centres, zv, c0, inv_step):
+    """How many slice planes lie at or below ``zv``: ``searchsorted(centres, zv, "right")`` for
+    planes ``centres`` in increasing order (non-decreasing suffices), found by a walk from the
+    index that equal spacing (``c0``, ``1 / step``) predicts; the guess only sets where the
+    walk starts, the comparisons decide (a binary search's mispredicted branches cost more)."""
+    n = centres.shape[0]
+    g = (zv - c0) * inv_step
+    k = 0 if not g > 0.0 else (n if g > n else np.int64(g))
+    while k < n and centres[k] <= zv:
+        k += 1
+    while k > 0 and centres[k - 1] > zv:
+        k -= 1
+    return k
 
 
 @njit(**PJIT)
-def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
-    """Per band of rows, the tetrahedra whose slice triangles may touch it, in index order (CSR
-    ``(starts (nbands + 1,), lists)``), and each tetrahedron's first and last band (``-1``,
-    ``-2`` if no slice cuts it). A tetrahedron's rows are its four vertices' snapped window
+def _bin_tets(z, ndc, tets, centres, width, height, bits, band_rows, nbands):
+    """Each tetrahedron's slices ``k0 <= k < k1`` (``min z < c_k <= max z``, z finite: the
+    bits of :func:`~refraster.halos4d.slicing.slice_ranges`, in the parallel loop rather than
+    serial NumPy) and, per band of rows, the tetrahedra whose slice triangles may touch it, in
+    index order (CSR ``(starts (nbands + 1,), lists)``), and each tetrahedron's first and last
+    band (``-1``, ``-2`` if no slice cuts it), and the number of slice triangles: ``(starts,
+    lists, first, last, k0, k1, n_tri)``. A
+    tetrahedron's rows are its four vertices' snapped window
     rows widened by one pixel: a slice corner lies on an edge (``λ ∈ [0, 1]``), within an ulp
     of the edge's ends, which snapping moves by at most one subpixel. A tetrahedron outside
     the image keeps the nearest band (its triangles are counted there, as invalid). Parallel
@@ -305,9 +346,29 @@ def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
     nchunks = (n + BIN_CHUNK - 1) // BIN_CHUNK
     first = np.empty(n, np.int64)
     last = np.empty(n, np.int64)
+    k0 = np.empty(n, np.int64)
+    k1 = np.empty(n, np.int64)
     counts = np.zeros((nchunks, nbands), np.int64)
+    sections = np.zeros(nchunks, np.int64)
+    ns = centres.shape[0]
+    c0 = centres[0] if ns > 0 else 0.0
+    inv_step = (ns - 1) / (centres[ns - 1] - c0) if ns > 1 and centres[ns - 1] > c0 else 0.0
     for c in prange(nchunks):
         for t in range(c * BIN_CHUNK, min(n, (c + 1) * BIN_CHUNK)):
+            za, zb = z[tets[t, 0]], z[tets[t, 1]]
+            zc, zd = z[tets[t, 2]], z[tets[t, 3]]
+            zlo = min(za, zb, zc, zd)
+            zhi = max(za, zb, zc, zd)
+            k0[t] = _slices_below(centres, zlo, c0, inv_step)
+            k1[t] = _slices_below(centres, zhi, c0, inv_step)
+            if k1[t] > k0[t]:
+                # a plane with two vertices on each side (z(1) < c ≤ z(2), the middle two of
+                # the sorted z) cuts a quad, two triangles; the others one (_section_corners)
+                m1 = max(min(za, zb), min(zc, zd))
+                m2 = min(max(za, zb), max(zc, zd))
+                quads = (_slices_below(centres, max(m1, m2), c0, inv_step)
+                         - _slices_below(centres, min(m1, m2), c0, inv_step))
+                sections[c] += k1[t] - k0[t] + quads
             if k1[t] <= k0[t]:
                 first[t] = -1
                 last[t] = -2
@@ -340,7 +401,7 @@ def _bin_tets(z, ndc, tets, k0, k1, width, height, bits, band_rows, nbands):
             for band in range(first[t], last[t] + 1):
                 lists[offset[c, band]] = t
                 offset[c, band] += 1
-    return starts, lists, first, last
+    return starts, lists, first, last, k0, k1, sections.sum()
 
 
 @njit(**IJIT)
@@ -641,22 +702,23 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
 def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_starts,
                  band_lists, width, height, bits, band_rows, delta_t, delta_d, surface_width,
                  eps, alpha, halos, aa, halo_alpha, halo_rgb, boundary, boundary_width,
-                 boundary_rgb, want_volume, out_rgb, out_a, volume, voxel_rgba, pair, out_rgb2,
-                 out_a2, counts):
+                 boundary_rgb, want_volume, background, out_rgb, out_a, volume, voxel_rgba, pair,
+                 out_rgb2, out_a2, counts):
     """The slicing and the fill pass in one, parallel over bands of rows: each band slices the
     tetrahedra of its list (:func:`_bin_tets`) by the planes that cut them and, for a
     tetrahedron in several bands, may reach the band's rows (:func:`_band_slices`, the
-    band's slab widened by a pixel on each side: the corners' float32 window positions and
-    their snapping differ from the float64 ones by far less; in its first band the other
-    planes are only counted), slice by slice back to front and in tetrahedron order within a
-    slice (the draw order of :func:`~refraster.halos4d.slicing.slice_tetrahedra`, the same
-    corner bits), and fills the slice triangles that touch its rows; no slice triangle is
+    band's slab widened by 1/16 px on each side: the corners' float32 window positions and
+    their snapping differ from the float64 ones by far less), slice by slice back to front
+    and in tetrahedron order within a slice (the draw order of
+    :func:`~refraster.halos4d.slicing.slice_tetrahedra`, the same corner bits), and fills the slice triangles that touch its rows; no slice triangle is
     stored (issue 46). With ``pair`` (and ``halos``), also the halos-off twin (``halos``
     False, ``halo_alpha`` 0, no boundaries, the other parameters the same) into ``out_rgb2``,
     ``out_a2``: its fragments, barycentrics and surface fragments are the first picture's,
-    only the depth buffer differs (issue 27).
-    ``counts[band]``: the slice triangles of the tetrahedra whose first band it is, and the
-    valid ones (non-zero snapped area, inside the image) whose first row lies in it.
+    only the depth buffer differs (issue 27). ``out_rgb`` (``out_rgb2``) receives the colour
+    composited over ``background (3,)``, ``rgb + (1 − α)·background`` (in the parallel loop
+    rather than serial NumPy; a zero background adds +0.0: the bits of ``rgb``).
+    ``counts[band]``: the valid slice triangles (non-zero snapped area, inside the image)
+    whose first row lies in it (all of them: :func:`_bin_tets`).
 
     Without a volume and a halo colour, a triangle or a row span whose fragments are all off
     the core (:func:`_triangle_off_core`, :func:`_span_off_core`) is deferred to the end of
@@ -686,8 +748,7 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
         acc2 = np.zeros((prow, pcol, 3))
         acc_a2 = np.zeros((prow, pcol))
         # the band's (slice, tetrahedron) pairs, slice-major, tetrahedra in index order: the
-        # slices that may reach the band (_bin_tets), and in a tetrahedron's first band the
-        # others too, as ~t, only counted
+        # slices that may reach the band (_bin_tets, _band_slices)
         nq = band_starts[band + 1] - band_starts[band]
         band_ks = np.empty((nq, 2), np.int64)
         for q in range(nq):
@@ -695,16 +756,12 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
             band_ks[q, 0] = k0[t]
             band_ks[q, 1] = k1[t]
             if tet_first[t] < tet_last[t]:
-                # the window y of the band's pixel centres (row r: py = H − 1 − r, centre
-                # py + ½), widened by a pixel: H − r1 + ½ − 1 … H − 1 − r0 + ½ + 1
-                band_ks[q, 0], band_ks[q, 1] = _band_slices(
-                    z, ndc, tets, t, height, height - r1 - 0.5, height - r0 + 0.5, centres,
-                    k0[t], k1[t])
+                # the slices that may have a triangle on the band's rows
+                band_ks[q, 0], band_ks[q, 1] = _band_slices(z, ndc, tets, t, height, r0, r1,
+                                                            centres, k0[t], k1[t])
         pstart = np.zeros(n + 1, np.int64)
         for q in range(nq):
-            t = band_lists[band_starts[band] + q]
-            ka, kb = (k0[t], k1[t]) if tet_first[t] == band else (band_ks[q, 0], band_ks[q, 1])
-            for k in range(ka, kb):
+            for k in range(band_ks[q, 0], band_ks[q, 1]):
                 pstart[k + 1] += 1
         for k in range(n):
             pstart[k + 1] += pstart[k]
@@ -712,9 +769,8 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
         ptet = np.empty(pstart[n], np.int64)
         for q in range(nq):
             t = band_lists[band_starts[band] + q]
-            ka, kb = (k0[t], k1[t]) if tet_first[t] == band else (band_ks[q, 0], band_ks[q, 1])
-            for k in range(ka, kb):
-                ptet[cursor[k]] = t if band_ks[q, 0] <= k < band_ks[q, 1] else ~t
+            for k in range(band_ks[q, 0], band_ks[q, 1]):
+                ptet[cursor[k]] = t
                 cursor[k] += 1
         cw = np.empty((6, 2), np.int64)  # the current tetrahedron's slice corners: snapped
         cf = np.empty((6, 2))            # and float32 window x, y
@@ -743,7 +799,6 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
         # the voxels with a surface fragment in the current slice, a bit each
         surf_mask = np.zeros((rows, (width + 63) // 64), np.uint64)
         t_lo, t_hi = _off_core_limits(surface_width, aa)
-        n_tri = 0
         n_valid = 0
         cur = np.int64(-1)  # int64, not a literal: one _resolve_slice (issue 27)
         lr0, lr1, c0, c1 = rows, np.int64(-1), width, np.int64(-1)
@@ -751,16 +806,9 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
             ck = centres[k]
             for pi in range(pstart[k], pstart[k + 1]):
                 tt = ptet[pi]
-                reach = tt >= 0
-                if not reach:
-                    tt = ~tt
                 g = (tets[tt, 0], tets[tt, 1], tets[tt, 2], tets[tt, 3])
                 sg = (z[g[0]] - ck, z[g[1]] - ck, z[g[2]] - ck, z[g[3]] - ck)
                 nsec, e = _section_corners(sg[0], sg[1], sg[2], sg[3])
-                if tet_first[tt] == band:
-                    n_tri += nsec
-                if not reach:
-                    continue
                 for corner in range(3 * nsec):
                     # a quad's second triangle repeats its first's corners 0 and 2
                     # (_section_corners): copied, the same bits
@@ -936,8 +984,7 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
                     lr1 = max(lr1, rb - r0)
                     c0 = min(c0, x0)
                     c1 = max(c1, x1)
-        counts[band, 0] = n_tri
-        counts[band, 1] = n_valid
+        counts[band] = n_valid
         if cur >= 0:
             _fill_off_core(off_spans, n_off, off_tris, off_whole, n_whole, off_wins, r0, height,
                            bits, surf_d, surf_mask, min_d, min_db, delta_t, delta_d, boundary,
@@ -949,65 +996,65 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
         for li in range(rows):
             for px in range(width):
                 for c in range(3):
-                    out_rgb[r0 + li, px, c] = acc[li, px, c]
+                    out_rgb[r0 + li, px, c] = acc[li, px, c] + (1.0 - acc_a[li, px]) * background[c]
                 out_a[r0 + li, px] = acc_a[li, px]
         if pair:
             for li in range(rows):
                 for px in range(width):
                     for c in range(3):
-                        out_rgb2[r0 + li, px, c] = acc2[li, px, c]
+                        out_rgb2[r0 + li, px, c] = (acc2[li, px, c]
+                                                    + (1.0 - acc_a2[li, px]) * background[c])
                     out_a2[r0 + li, px] = acc_a2[li, px]
 
 
-class _TetSlices(collections.namedtuple("TetSlices", "z ndc attr tets centres k0 k1")):
+class _TetSlices(collections.namedtuple("TetSlices", "z ndc attr tets centres")):
     """What the fused engine slices: the vertices' screen z and NDC xy, their attributes, the
-    tetrahedra, the slice planes and each tetrahedron's slices ``k0 <= k < k1``
-    (:func:`~refraster.halos4d.slicing.slice_ranges`)."""
+    tetrahedra and the slice planes (each tetrahedron's slices come with the band binning,
+    :func:`_window`)."""
 
 
 def _tet_slices(vertices, tets, centres, attributes, bounds):
     """:class:`_TetSlices` of ``vertices (V, 3)`` (screen space) framed by ``bounds``."""
-    z = np.ascontiguousarray(vertices[:, 2])
-    k0, k1 = slice_ranges(z, tets, centres)
-    return _TetSlices(z, np.ascontiguousarray(ortho_ndc(vertices, bounds)),
-                     np.ascontiguousarray(attributes), np.ascontiguousarray(tets), centres, k0,
-                     k1)
+    return _TetSlices(np.ascontiguousarray(vertices[:, 2]),
+                      np.ascontiguousarray(ortho_ndc(vertices, bounds)),
+                      np.ascontiguousarray(attributes), np.ascontiguousarray(tets), centres)
 
 
 def _fused(ts, width, height, params, want_volume, win=None, pair=False, bits=SUBPIXEL_BITS,
-           voxel_rgba=None):
+           voxel_rgba=None, background=None):
     """Slice and fill :class:`_TetSlices` ``ts`` (:func:`_render_tets`). ``win``: :func:`_window`
     of ``ts`` computed before (the same for every fill pass). ``pair`` (``params`` with
     halos, no volume): also the halos-off twin's colour and alpha, from the same pass; they
     are appended to the result. ``voxel_rgba (N, H, W, 4)``: also each voxel's surface colour
-    and opacity (with ``want_volume``; the golden's allowance). Returns ``(rgb, alpha,
+    and opacity (with ``want_volume``; the golden's allowance). ``background (3,)``: the colour
+    is composited over it (None: black, the colour as accumulated). Returns ``(rgb, alpha,
     volume or None, slice triangles, invalid slice triangles[, rgb2, alpha2])``."""
-    band_starts, band_lists, first, last = (_window(ts, width, height, bits) if win is None
-                                            else win)
+    band_starts, band_lists, first, last, k0, k1, n_tri = (_window(ts, width, height, bits)
+                                                           if win is None else win)
     n = len(ts.centres)
     rgb = np.zeros((height, width, 3))
     a = np.zeros((height, width))
     vol = np.zeros((n, height, width) if want_volume else (1, 1, 1), np.int8)
     rgb2 = np.zeros((height, width, 3) if pair else (1, 1, 3))
     a2 = np.zeros((height, width) if pair else (1, 1))
-    counts = np.zeros((len(band_starts) - 1, 2), np.int64)
-    _render_tets(ts.z, ts.ndc, ts.attr, ts.tets, ts.centres, ts.k0, ts.k1, first, last,
+    counts = np.zeros(len(band_starts) - 1, np.int64)
+    _render_tets(ts.z, ts.ndc, ts.attr, ts.tets, ts.centres, k0, k1, first, last,
                  band_starts, band_lists, width, height, bits, BAND_ROWS, *params, want_volume,
-                 rgb, a, vol,
+                 np.zeros(3) if background is None else background, rgb, a, vol,
                  np.zeros((1, 1, 1, 4)) if voxel_rgba is None else voxel_rgba, pair, rgb2, a2,
                  counts)
-    n_tri = int(counts[:, 0].sum())
-    out = rgb, a, (vol if want_volume else None), n_tri, n_tri - int(counts[:, 1].sum())
+    n_tri = int(n_tri)
+    out = rgb, a, (vol if want_volume else None), n_tri, n_tri - int(counts.sum())
     return out + (rgb2, a2) if pair else out
 
 
 def _window(ts, width, height, bits=SUBPIXEL_BITS):
-    """The fill pass's set-up of :class:`_TetSlices` ``ts``: the tetrahedra of each band of
-    rows and each one's first and last band (independent of the fill parameters; the slice triangles
-    and their window coordinates are computed per band, :func:`_render_tets`)."""
+    """The fill pass's set-up of :class:`_TetSlices` ``ts`` (:func:`_bin_tets`): the tetrahedra
+    of each band of rows, each one's first and last band and its slices (independent of the
+    fill parameters; the slice triangles and their window coordinates are computed per band,
+    :func:`_render_tets`)."""
     nbands = (height + BAND_ROWS - 1) // BAND_ROWS
-    return _bin_tets(ts.z, ts.ndc, ts.tets, ts.k0, ts.k1, width, height, bits, BAND_ROWS,
-                     nbands)
+    return _bin_tets(ts.z, ts.ndc, ts.tets, ts.centres, width, height, bits, BAND_ROWS, nbands)
 
 
 # ----------------------------------------------------------------------------- reference engine
@@ -1117,7 +1164,7 @@ def _default_delta_d(points, depth, spatial, faces, delta_t, rho):
     again under the same rotation and projection does not pay the pair search again, and any
     change of the inputs (or of the module constants it reads) is a new entry, so the result
     is the function's, bit for bit."""
-    h = hashlib.blake2b(digest_size=20)
+    h = hashlib.sha256()
     for a in (points, depth, spatial, faces):
         a = np.ascontiguousarray(a)
         h.update(str((a.dtype.str, a.shape)).encode())
@@ -1331,18 +1378,20 @@ def _draw(geo, views, bounds, centres, width, height, variants, engine, volume, 
         counted = None
         if fuse:    # both pictures from one fill pass (issue 27)
             rgb, a, _, nt, ns, rgb2, a2 = _fused(ts, width, height, variants[0], False, win,
-                                                 pair=True)
+                                                 pair=True, background=bg)
             counted = nt, ns
             for v, (c, al) in enumerate(((rgb, a), (rgb2, a2))):
-                outs[v][0].append(c + (1.0 - al)[..., None] * bg)
+                outs[v][0].append(c)
                 outs[v][1].append(al)
         for v, params in enumerate(variants if not fuse else ()):
-            if engine == "fused":
-                rgb, a, vols[v], nt, ns = _fused(ts, width, height, params, bool(volume), win)
+            if engine == "fused":    # composited over bg in the kernel
+                rgb, a, vols[v], nt, ns = _fused(ts, width, height, params, bool(volume), win,
+                                                 background=bg)
                 counted = nt, ns
             else:
                 rgb, a, vols[v], _ = _reference(st, width, height, params, bool(volume))
-            outs[v][0].append(rgb + (1.0 - a)[..., None] * bg)
+                rgb = rgb + (1.0 - a)[..., None] * bg
+            outs[v][0].append(rgb)
             outs[v][1].append(a)
         if counted is not None:
             n_tri += counted[0]

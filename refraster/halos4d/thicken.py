@@ -39,7 +39,11 @@ __all__ = ["thickening_normals", "thicken", "prism_tetrahedra", "split_prisms", 
 NORMAL_EPS = 1e-6
 
 
-def _face_normal_sum(points, faces):
+def _face_normal_sum(points, faces, which):
+    """Sum of the area-weighted normals of the faces around each vertex of the mask ``which``
+    (other rows: partial sums, not to be read). Only the faces at those vertices are summed,
+    in the same order (face order, for each corner k in turn), so the bits are the whole sum's."""
+    faces = faces[which[faces[:, 0]] | which[faces[:, 1]] | which[faces[:, 2]]]
     a = points[faces[:, 0]]
     fn = np.cross(points[faces[:, 1]] - a, points[faces[:, 2]] - a)   # 2·area·unit normal
     acc = np.zeros_like(points)
@@ -74,9 +78,9 @@ def thickening_normals(points, tangents, faces):
     scale = np.linalg.norm(t[:, 0], axis=1) * np.linalg.norm(t[:, 1], axis=1)
     bad = ~(ln > NORMAL_EPS * scale) | (scale == 0.0)
     out = np.zeros_like(n)
-    out[~bad] = n[~bad] / ln[~bad, None]
+    np.divide(n, ln[:, None], out=out, where=~bad[:, None])    # the masked quotients' bits
     if bad.any():
-        fb = _face_normal_sum(p, f)[bad]
+        fb = _face_normal_sum(p, f, bad)[bad]
         lf = np.linalg.norm(fb, axis=1)
         ok = lf > 0.0
         fb[ok] /= lf[ok, None]

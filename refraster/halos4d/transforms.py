@@ -140,7 +140,7 @@ def project(vertices, tangents, rotation=None, *, projection="orthographic", eye
         if not np.allclose(r @ r.T, np.eye(4), atol=1e-9, rtol=0.0):
             raise ValueError("rotation must be orthogonal (R Rᵀ = I to 1e-9)")
         v = v @ r.T
-        t = t @ r.T
+        t = (t.reshape(-1, 4) @ r.T).reshape(t.shape)    # one product, not V stacked (2, 4) ones
     kind = as_choice(projection, "projection", PROJECTIONS)
     scale = as_real(scale, "scale", lo=0.0, lo_open=True)
     radius = float(np.abs(v).max()) if v.size else 1.0
