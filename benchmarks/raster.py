@@ -143,6 +143,13 @@ kw = dict(view=rf.look_at([0, 0, 3], [0, 0, 0]), proj=rf.perspective(45, 4/3, .5
 t0 = time.perf_counter(); rf.render(m, **kw); first = time.perf_counter() - t0
 t0 = time.perf_counter(); rf.render(m, **kw); second = time.perf_counter() - t0
 print(first * 1e3, second * 1e3)
+# the quick tier's background compile of the full tier (refraster._tiers) would outlive this
+# process and take a core from the benchmark's next runs: stopped, its cache is thrown away
+from refraster import _tiers
+proc = _tiers._st["proc"]
+if proc is not None:
+    proc.kill()
+    proc.wait()
 """
     out = []
     with tempfile.TemporaryDirectory() as cache:
