@@ -5,8 +5,8 @@ positions, per-face classes and boxes, tile lists; ~6 MB for an 82k-face mesh). 
 default malloc settings, arrays of this size are returned to the system when freed and
 page-faulted in again by the next frame (``GLIBC_TUNABLES`` malloc tuning avoids it; users do
 not have it). :func:`frame_scratch` gives ``render``'s fused path one :class:`Scratch` per
-thread whose buffers outlive the frame: ``zeros`` hands out a zero-filled view of a kept
-buffer, the same bytes ``np.zeros`` would give.
+thread whose buffers outlive the frame: ``empty`` hands out an unfilled view of a kept
+buffer, for arrays the frame's kernels write whole (``render_samples`` takes it too).
 
 Only arrays that die with the frame come from here: never an array ``render`` returns, nor one
 a :class:`~refraster.Framebuffer` (or its pending colour) keeps, nor any array of the public
@@ -95,17 +95,12 @@ class Scratch:
     def nbytes(self):
         return sum(b.nbytes for b in self._bufs.values())
 
-    def zeros(self, key, shape, dtype):
-        """A zero-filled C-contiguous array of ``shape`` and ``dtype`` (as ``np.zeros``),
-        a view of the buffer named ``key``: valid until ``key`` is asked for again."""
-        a = self.empty(key, shape, dtype)
-        fill(a, 0)
-        return a
-
     def empty(self, key, shape, dtype):
-        """As :meth:`zeros` but not filled (as ``np.empty``): for an array whose every element
-        the frame's kernels write before anything reads it (``tests/test_output_pool.py``
-        poisons the buffers and compares the frame's arrays with ``np.zeros``' ones)."""
+        """A C-contiguous array of ``shape`` and ``dtype``, a view of the buffer named ``key``
+        (valid until ``key`` is asked for again), not filled (as ``np.empty``): for an array
+        whose every element the frame's kernels write before anything reads it
+        (``tests/test_render_reuse.py`` poisons the buffers and compares the frame's arrays
+        with those of a frame without the scratch)."""
         dtype = np.dtype(dtype)
         shape = (int(shape),) if isinstance(shape, (int, np.integer)) else \
             tuple(int(s) for s in shape)
