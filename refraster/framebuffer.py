@@ -285,13 +285,16 @@ def _normals_per_mesh(meshes, normals):
 #: Placeholders for the kernels' optional arrays (read-only, so never written).
 _NO_NORMALS = readonly(np.zeros((1, 3)))
 _NO_FACE_NORMALS = np.zeros((1, 3))
+#: ``finalize``'s ``prim_id`` when the face image is the ids (``_build(share_ids=True)``).
+_NO_IDS = np.zeros((0, 0), np.int32)
 #: From this many pixels, ``finalize`` writes the G-buffer's background itself (a reused
 #: framebuffer's and a new one's from the output pool), not NumPy's fills.
 FILL_IN_KERNEL = 1 << 16
 
 
 def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, bary, normals,
-           background, geometry=None, n_shaded=None, out=None, targets=None, spans=None):
+           background, geometry=None, n_shaded=None, out=None, targets=None, spans=None,
+           share_ids=False):
     """Finalize the G-buffer from the visible primitive (global index over all draw calls,
     −1 background) and its barycentrics. ``geometry``: the draw calls' vertices and faces
     already concatenated (faces indexing the concatenation), when the caller has them.
@@ -301,7 +304,10 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
     them) are filled and returned instead of new ones; ``targets``: the arrays to write its
     eye depth, normal and ids into (the private memory of a :meth:`Framebuffer.reusable`,
     already holding the background: then nothing else is filled) instead of ``out``'s own.
-    ``spans``: an (H, 2) int64 array for :func:`finalize`'s record of the covered spans."""
+    ``spans``: an (H, 2) int64 array for :func:`finalize`'s record of the covered spans.
+    ``share_ids``: with one draw call and an int32 face image (a new frame, not ``out``), the
+    face image *is* the ids (face ``g`` of call 0 has id ``g``, the background −1): it becomes
+    ``prim_id`` itself, not written again (``render_samples``: 12.6 MB at 4×, 1024×768)."""
     h, w = depth.shape
     vn = _normals_per_mesh(meshes, normals)
     if geometry is not None:
@@ -334,19 +340,21 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
     fill_bg = targets is None and h * w >= FILL_IN_KERNEL and (out is not None or pooling())
     if spans is None:
         spans = np.empty((h, 2), np.int64)
+    share_ids = (share_ids and len(models) == 1 and out is None and targets is None
+                 and prim_global.dtype == np.int32)
     if targets is not None:
         eye_depth, normal, prim, obj = targets
         into = _reusable_color(out, h, w)
     elif out is None and fill_bg:   # every element written by finalize
         eye_depth = OUTPUTS.empty((h, w), np.float32)
         normal = OUTPUTS.empty((h, w, 3), np.float32)
-        prim = OUTPUTS.empty((h, w), np.int32)
+        prim = _NO_IDS if share_ids else OUTPUTS.empty((h, w), np.int32)
         obj = OUTPUTS.empty((h, w), np.int32)
         into = None
     elif out is None:
         eye_depth = OUTPUTS.full((h, w), np.inf, np.float32)
         normal = OUTPUTS.full((h, w, 3), 0.0, np.float32)
-        prim = OUTPUTS.full((h, w), -1, np.int32)
+        prim = _NO_IDS if share_ids else OUTPUTS.full((h, w), -1, np.int32)
         obj = OUTPUTS.full((h, w), -1, np.int32)
         into = None
     else:
@@ -371,6 +379,8 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
         out.color = color
         out.view, out.proj, out.meshes, out.models = view, proj, meshes, models
         return out
+    if share_ids:
+        prim = prim_global
     return Framebuffer(depth=depth, eye_depth=eye_depth, normal=normal, prim_id=prim,
                        object_id=obj, front_facing=front, barycentric=bary, color=color,
                        view=view, proj=proj, meshes=meshes, models=models)

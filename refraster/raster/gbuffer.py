@@ -167,10 +167,13 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
     (flat normals only): the face normals are computed first, once per face, into ``fnormal``
     (F, 3) float64 scratch (:func:`per_face_normals`). ``spans`` (H, 2) int64: each row's
     first and last covered column (``(0, −1)`` for a row with none), the record a reused
-    framebuffer clears from on its next frame (:func:`clear_spans`)."""
+    framebuffer clears from on its next frame (:func:`clear_spans`). ``prim_id`` of shape
+    ``(0, 0)``: the ids are not written (one draw call, whose ids are the face image itself,
+    which the caller hands out instead: ``render_samples``)."""
     if per_face:
         _face_normals(vertices, faces, face_offsets, nmat, fnormal)
     h, w = prim_global.shape
+    ids = prim_id.shape[0] != 0
     for r in prange(h):
         first = np.int64(w)
         end = np.int64(-1)
@@ -186,7 +189,8 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
             g = prim_global[r, c]
             if g < 0:
                 if fill_bg:
-                    prim_id[r, c] = -1
+                    if ids:
+                        prim_id[r, c] = -1
                     object_id[r, c] = -1
                     eye_depth[r, c] = np.inf
                     normal[r, c, 0] = 0.0
@@ -203,7 +207,8 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
             if first == w:
                 first = c
             end = c
-            prim_id[r, c] = pid
+            if ids:
+                prim_id[r, c] = pid
             object_id[r, c] = k
             _, _, ez, mx, my, mz = _surface(
                 bary, r, c, g, k, (ax, ay, az, bx, by, bz, cx, cy, cz), (fm0, fm1, fm2),
