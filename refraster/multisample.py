@@ -111,7 +111,7 @@ def render_samples(meshes, *, view, proj, width, height, model=None, raster=None
         depth, prim_global, front, bary = rasterize_samples(
             prep.triangles, ox, oy, fill_rule=prep.fill_rule,
             depth_func=DEPTH_FUNCS[state.depth_func], clear_depth=state.clear_depth,
-            interpolation=state.interpolation, scratch=scratch)
+            interpolation=state.interpolation, scratch=scratch, fill=False)
         s = len(ox)
         facing(state, front, prim_global)
         # the samples as the columns of an (H, W·S) image: the G-buffer's finalize and shade
@@ -119,7 +119,7 @@ def render_samples(meshes, *, view, proj, width, height, model=None, raster=None
         fb = _build(prep.meshes, prep.models, prep.view, prep.proj, depth.reshape(h, w * s),
                     prim_global.reshape(h, w * s), prep.face_offsets,
                     front.reshape(h, w * s), bary.reshape(h, w * s, 3), state.normals, bg,
-                    share_ids=True)
+                    share_ids=True, raster_bg=state.clear_depth)
     return SampleFramebuffer(
         depth=depth, eye_depth=fb.eye_depth.reshape(h, w, s),
         normal=fb.normal.reshape(h, w, s, 3), prim_id=fb.prim_id.reshape(h, w, s),

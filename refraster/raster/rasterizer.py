@@ -592,19 +592,24 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                               row * width + x)
 
 
-def resolved_buffers(height, width, clear_depth):
+def resolved_buffers(height, width, clear_depth, fill=True):
     """The outputs of a fused tile pass, holding what a pixel no fragment won keeps: depth
     ``clear_depth``, face −1, facing False, barycentrics 0 (NumPy's fills are ~10× faster than
-    writing the background pixel by pixel in the tile loop)."""
+    writing the background pixel by pixel in the tile loop). ``fill=False``: only the face
+    image filled (the others' background is the caller's: ``finalize``'s sweep)."""
     # from the output pool: recycled once nobody holds them (refraster._scratch.OutputPool)
-    return (OUTPUTS.full((height, width), np.float32(clear_depth), np.float32),
-            OUTPUTS.full((height, width), -1, np.int64),
+    prim = OUTPUTS.full((height, width), -1, np.int64)
+    if not fill:
+        return (OUTPUTS.empty((height, width), np.float32), prim,
+                OUTPUTS.empty((height, width), np.bool_),
+                OUTPUTS.empty((height * width, 3), np.float32))
+    return (OUTPUTS.full((height, width), np.float32(clear_depth), np.float32), prim,
             OUTPUTS.full((height, width), False, np.bool_),
             OUTPUTS.full((height * width, 3), 0.0, np.float32))
 
 
 def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, scratch=None,
-          cleared=False):
+          cleared=False, fill=True):
     """Rasterize and depth-resolve in one pass (no fragment stream, depth writes on).
 
     Returns ``(depth (H, W) float32, prim (H, W) int64 face index or −1, front (H, W) bool,
@@ -614,11 +619,13 @@ def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, sc
     instead of new ones; with ``cleared`` they already hold the clear values (a
     :meth:`~refraster.framebuffer.Framebuffer.reusable`'s, cleared where the previous frame
     drew) and are not filled again. ``scratch``: for the tile lists (:func:`bin_primitives`).
+    ``fill=False`` (new buffers only): depth, facing and barycentrics hold only the pixels a
+    fragment won (:func:`resolved_buffers`), for a caller that writes the rest.
     """
     ntx, nty, starts, lists = bin_primitives(prims, scratch)
     h, w = prims.height, prims.width
     if buffers is None:
-        depth, prim, front, bary = resolved_buffers(h, w, clear_depth)
+        depth, prim, front, bary = resolved_buffers(h, w, clear_depth, fill)
     elif cleared:
         depth, prim, front, bary = buffers
     else:   # the same clear values, written into the caller's arrays
