@@ -37,7 +37,8 @@ class SampleFramebuffer:
     at ``[r, c, s]``, row 0 at the top, the samples in the pattern's index order. Each
     sample's values are those of the fragment that won its depth test, its attributes
     interpolated where ``raster.interpolation`` says. ``color`` is shaded when first read, as
-    :attr:`refraster.Framebuffer.color`. ``positions``: ``(S, 2)`` the samples' positions in
+    :attr:`refraster.Framebuffer.color`, from the buffers as they are then (with one draw
+    call ``prim_id`` is the face image the shade reads: its ids are the call's faces). ``positions``: ``(S, 2)`` the samples' positions in
     pixels from the pixel's upper-left corner as the picture is seen, y down; ``raster``: the
     state it was rendered with.
     """
@@ -110,14 +111,15 @@ def render_samples(meshes, *, view, proj, width, height, model=None, raster=None
         depth, prim_global, front, bary = rasterize_samples(
             prep.triangles, ox, oy, fill_rule=prep.fill_rule,
             depth_func=DEPTH_FUNCS[state.depth_func], clear_depth=state.clear_depth,
-            interpolation=state.interpolation, scratch=scratch)
+            interpolation=state.interpolation, scratch=scratch, fill=False)
         s = len(ox)
         facing(state, front, prim_global)
         # the samples as the columns of an (H, W·S) image: the G-buffer's finalize and shade
         # look at each sample's face and barycentrics only, never at its position
         fb = _build(prep.meshes, prep.models, prep.view, prep.proj, depth.reshape(h, w * s),
                     prim_global.reshape(h, w * s), prep.face_offsets,
-                    front.reshape(h, w * s), bary.reshape(h, w * s, 3), state.normals, bg)
+                    front.reshape(h, w * s), bary.reshape(h, w * s, 3), state.normals, bg,
+                    share_ids=True, raster_bg=state.clear_depth)
     return SampleFramebuffer(
         depth=depth, eye_depth=fb.eye_depth.reshape(h, w, s),
         normal=fb.normal.reshape(h, w, s, 3), prim_id=fb.prim_id.reshape(h, w, s),

@@ -40,7 +40,8 @@ RENDER_KERNELS = _RENDER_KERNELS
 #: The kernels of faces crossing a clipping plane (compiled only when a frame has one).
 CLIP_KERNELS = ("refraster.raster.primitive._clip_pass",
                 "refraster.raster.primitive._clip_polygon",
-                "refraster.raster.primitive._clipped_face")
+                "refraster.raster.primitive._clipped_face",
+                "refraster.raster.primitive.count_pieces")
 #: ``RENDER_KERNELS``, ``CLIP_KERNELS`` and the fragment-stream path's
 #: (``warm_core(clip=True, stream=True, multisample=True)``, what the gallery's sections
 #: share).

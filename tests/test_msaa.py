@@ -270,6 +270,27 @@ def test_one_sample_is_the_single_sample_frame():
             assert np.array_equal(a[:, :, 0], getattr(fb, name)), (interp, name)
 
 
+def test_one_draw_calls_ids_are_its_face_image_and_several_calls_write_theirs():
+    """With one draw call ``render_samples`` hands out the sample face image as ``prim_id``
+    (not written again): the same bytes as with the ids written (the call and an empty second
+    call). With two calls the ids are per call: the second call's faces from 0."""
+    w, h = 41, 27
+    v, f = _soup(5, 60, w, h)
+    kw = dict(view=EYE, proj=EYE, width=w, height=h, raster=RasterState(samples=4))
+    one = refraster.render_samples((v, f), **kw)
+    empty = (np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int64))
+    written = refraster.render_samples([(v, f), empty], **kw)
+    for name, a in one.arrays().items():
+        assert a.tobytes() == getattr(written, name).tobytes(), name
+    assert (one.prim_id >= 0).sum() > 1000
+    two = refraster.render_samples([(v, f[:30]), (v, f[30:])], **kw)
+    second = two.object_id == 1
+    assert second.any() and (two.prim_id >= 0).any()
+    np.testing.assert_array_equal(two.prim_id[second], one.prim_id[second] - 30)
+    np.testing.assert_array_equal(two.prim_id[two.object_id == 0],
+                                  one.prim_id[two.object_id == 0])
+
+
 # ------------------------------------------------- triangles hidden behind their whole box
 
 def _behind_a_wall(seed, w, h):

@@ -339,8 +339,10 @@ def test_fill_leaves_object_arrays_to_numpy():
 
 
 def test_fill_takes_the_c_library_for_a_4x_frames_outputs(monkeypatch):
-    """The 4× frame's per-sample fills (clear depth 1.0, face −1, facing and barycentrics 0)
-    go through memset / wmemset, not NumPy's slower fill (docs/performance.md)."""
+    """The 4× frame's one per-sample fill before the tile pass (the face image, −1) goes
+    through memset, not NumPy's slower fill (docs/performance.md); its depth (clear 1.0,
+    wmemset's pattern), facing and barycentrics are not filled (``finalize``'s sweep writes
+    their background)."""
     calls = []
     memset, wmemset = _scratch.ctypes.memset, _scratch._WMEMSET
     if wmemset is None:
@@ -351,5 +353,39 @@ def test_fill_takes_the_c_library_for_a_4x_frames_outputs(monkeypatch):
     s4 = rf.RasterState(samples=4)
     rf.render_samples(mesh_of(icosphere(2)), **kw, raster=s4)
     fb = rf.render_samples(mesh_of(icosphere(2)), **kw, raster=s4)
-    assert calls.count("wmemset") >= 1 and calls.count("memset") >= 3, calls
+    assert calls.count("wmemset") == 0 and calls.count("memset") >= 1, calls
     assert (fb.depth[0, 0] == 1.0).all() and (fb.prim_id[0, 0] == -1).all()
+
+
+@pytest.mark.parametrize("poison", [0xAB, 0x00, 0xFF])
+@pytest.mark.parametrize("size", [(320, 240), (120, 90)])
+def test_recycled_outputs_poisoned_give_a_fresh_frames_bytes(monkeypatch, poison, size):
+    """The tile passes write only the pixels (samples) a fragment won into recycled depth,
+    facing and barycentrics; ``finalize``'s sweep writes the rest (from ``FILL_IN_KERNEL``
+    pixels; NumPy's fills below, the 120 × 90 frame). With every byte of the pool's free
+    arrays ``poison``, ``render`` and ``render_samples`` (centre and sample interpolation,
+    reversed-Z's clear depth 0) give the bytes of frames made with the pool off."""
+    mesh = mesh_of(torus(major_segments=40, minor_segments=16))
+    kw = camera_kw(*size)
+    cases = [(rf.render, rf.RasterState()),
+             (rf.render, rf.RasterState(depth_func="greater", clear_depth=0.0)),
+             (rf.render_samples, rf.RasterState(samples=4)),
+             (rf.render_samples, rf.RasterState(samples=8, interpolation="sample",
+                                                depth_func="greater", clear_depth=0.0))]
+    for fn, state in cases:
+        with monkeypatch.context() as m:
+            m.setenv("REFRASTER_POOL_MB", "0")
+            want = fn(mesh, **kw, raster=state)
+            want = {f: getattr(want, f).tobytes() for f in FB_FIELDS}
+        for _ in range(2):   # a frame dropped: its arrays in the pool
+            fn(mesh_of(icosphere(2)), **kw, raster=state)
+        poisoned = set()
+        for a in OUTPUTS._entries[1:]:
+            a.view(np.uint8).fill(poison)
+            poisoned.add(_addr(a))
+        del a   # held here, an array would not be handed out again
+        got = fn(mesh, **kw, raster=state)
+        reused = poisoned & {_addr(getattr(got, f)) for f in FB_FIELDS}
+        assert len(reused) >= (5 if size[0] > 200 else 2), (fn.__name__, len(reused))
+        for f in FB_FIELDS:
+            assert getattr(got, f).tobytes() == want[f], (fn.__name__, state, f)

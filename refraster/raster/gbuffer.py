@@ -160,17 +160,25 @@ def per_face_normals(n_faces, height, width, smooth):
 
 @njit(**PJIT)
 def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv, nmat,
-             fnormal, per_face, fill_bg, eye_depth, normal, prim_id, object_id, spans):
+             fnormal, per_face, fill_bg, eye_depth, normal, prim_id, object_id, spans,
+             r_depth, r_front, r_bary, clear_depth):
     """Eye depth, normal and ids of the covered pixels of the face image ``prim_global``
     (global face index, int64 or int32: :data:`FACE_IMAGE_DTYPES`; ``≥ 0``); the background
     (+inf, 0, −1, −1) too when ``fill_bg``, else the caller has filled it. ``per_face``
     (flat normals only): the face normals are computed first, once per face, into ``fnormal``
     (F, 3) float64 scratch (:func:`per_face_normals`). ``spans`` (H, 2) int64: each row's
     first and last covered column (``(0, −1)`` for a row with none), the record a reused
-    framebuffer clears from on its next frame (:func:`clear_spans`)."""
+    framebuffer clears from on its next frame (:func:`clear_spans`). ``prim_id`` of shape
+    ``(0, 0)``: the ids are not written (one draw call, whose ids are the face image itself,
+    which the caller hands out instead: ``render_samples``). ``r_depth``, ``r_front``,
+    ``r_bary`` (the rasterizer's depth, facing and barycentrics, ``(H, W[, 3])``): with
+    ``fill_bg``, their background (``clear_depth``, False, 0) is written in the same sweep
+    (the tile pass wrote only the pixels a fragment won); shape ``(0, …)``: not asked."""
     if per_face:
         _face_normals(vertices, faces, face_offsets, nmat, fnormal)
     h, w = prim_global.shape
+    ids = prim_id.shape[0] != 0
+    rbg = fill_bg and r_depth.shape[0] != 0
     for r in prange(h):
         first = np.int64(w)
         end = np.int64(-1)
@@ -186,12 +194,19 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
             g = prim_global[r, c]
             if g < 0:
                 if fill_bg:
-                    prim_id[r, c] = -1
+                    if ids:
+                        prim_id[r, c] = -1
                     object_id[r, c] = -1
                     eye_depth[r, c] = np.inf
                     normal[r, c, 0] = 0.0
                     normal[r, c, 1] = 0.0
                     normal[r, c, 2] = 0.0
+                    if rbg:
+                        r_depth[r, c] = clear_depth
+                        r_front[r, c] = False
+                        r_bary[r, c, 0] = 0.0
+                        r_bary[r, c, 1] = 0.0
+                        r_bary[r, c, 2] = 0.0
                 continue
             if g != last:
                 last = g
@@ -203,7 +218,8 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
             if first == w:
                 first = c
             end = c
-            prim_id[r, c] = pid
+            if ids:
+                prim_id[r, c] = pid
             object_id[r, c] = k
             _, _, ez, mx, my, mz = _surface(
                 bary, r, c, g, k, (ax, ay, az, bx, by, bz, cx, cy, cz), (fm0, fm1, fm2),

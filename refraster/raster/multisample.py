@@ -324,23 +324,30 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
 
 
 def rasterize_samples(prims, ox, oy, *, fill_rule=0, depth_func=1, clear_depth=1.0,
-                      interpolation="center", scratch=None):
+                      interpolation="center", scratch=None, fill=True):
     """Rasterize and depth-resolve every sample (``prims`` set up with ``pad`` of half a pixel).
 
     ``ox, oy``: the samples' fixed-point offsets (:func:`refraster.raster.samples.sample_offsets`).
     Returns ``(depth (H, W, S) float32, prim (H, W, S) int32 face or −1, front (H, W, S) bool,
     bary (H, W, S, 3) float32)``, row 0 at the top. At most :data:`MAX_FACES` faces.
-    ``scratch``: a :class:`refraster._scratch.Scratch` for the tile lists."""
+    ``scratch``: a :class:`refraster._scratch.Scratch` for the tile lists. ``fill=False``: the
+    depth, facing and barycentrics hold only the samples a fragment won (the face image is −1
+    elsewhere), for a caller that writes the rest (``render_samples``: ``finalize``'s sweep)."""
     if prims.n_faces > MAX_FACES:
         raise ValueError(f"rasterize_samples takes at most {MAX_FACES:,} faces (its face image "
                          f"is int32), not {prims.n_faces:,}")
     ntx, nty, starts, lists = bin_primitives(prims, scratch)
     h, w = prims.height, prims.width
     ns = len(ox)
-    depth = OUTPUTS.full((h, w, ns), np.float32(clear_depth), np.float32)
     prim = OUTPUTS.full((h, w, ns), -1, np.int32)
-    front = OUTPUTS.zeros((h, w, ns), np.bool_)
-    bary = OUTPUTS.zeros((h, w, ns, 3), np.float32)
+    if fill:
+        depth = OUTPUTS.full((h, w, ns), np.float32(clear_depth), np.float32)
+        front = OUTPUTS.zeros((h, w, ns), np.bool_)
+        bary = OUTPUTS.zeros((h, w, ns, 3), np.float32)
+    else:
+        depth = OUTPUTS.empty((h, w, ns), np.float32)
+        front = OUTPUTS.empty((h, w, ns), np.bool_)
+        bary = OUTPUTS.empty((h, w, ns, 3), np.float32)
     _msaa_pass(*_geometry(prims), starts, lists, ntx, w, h, prims.subpixel_bits, fill_rule,
                depth_func, np.float32(clear_depth), np.ascontiguousarray(ox, np.int64),
                np.ascontiguousarray(oy, np.int64), INTERPOLATIONS[interpolation], depth, prim,

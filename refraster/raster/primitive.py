@@ -320,44 +320,108 @@ _CHUNK = 4096
 #: Per-face status after the primitive stage.
 SKIP, SIMPLE, CLIPPED = 0, 1, 2
 
+#: The rasterizer's square tiles (``1 << TILE_SHIFT`` pixels a side) and the faces per chunk
+#: of its binning (:func:`refraster.raster.rasterizer.bin_primitives`), here because the
+#: primitive stage counts its simple faces per chunk and tile (:func:`_classify`).
+TILE_SHIFT = 6
+BIN_CHUNK = 8192
+
+
+def bin_shape(n_faces, width, height):
+    """``(nchunks, ntx, nty)`` of the binning: chunks of :data:`BIN_CHUNK` faces (at least
+    one), tiles across and down."""
+    tile = 1 << TILE_SHIFT
+    return (max((int(n_faces) + BIN_CHUNK - 1) // BIN_CHUNK, 1),
+            (int(width) + tile - 1) >> TILE_SHIFT, (int(height) + tile - 1) >> TILE_SHIFT)
+
 
 @njit(**PJIT)
-def _classify(f, vX, vY, vcode, width, height, bits, cull, pad, status, fbox):
+def _classify(f, vX, vY, vcode, width, height, bits, cull, pad, ntx, status, fbox, counts):
     """Faces that need no clipping are set up in the rasterizer from the vertex pass's window
     positions (status SIMPLE, with their pixel bounding box); faces crossing a clip plane get
     status CLIPPED; culled, degenerate, rejected or centre-less faces SKIP. ``pad`` (fixed
     point) widens the box: the pixels whose centre lies within ``pad`` of the triangle's box
-    (0: pixel centres; half a pixel under multisampling, whose samples leave the centre)."""
-    for i in prange(f.shape[0]):
-        a, b, d = f[i, 0], f[i, 1], f[i, 2]
-        status[i] = SKIP
-        # every face's box written (zeros unless SIMPLE): the array needs no zero fill first
-        fbox[i, 0] = 0
-        fbox[i, 1] = 0
-        fbox[i, 2] = 0
-        fbox[i, 3] = 0
-        if vcode[a] & vcode[b] & vcode[d]:
-            continue
-        if vcode[a] | vcode[b] | vcode[d]:
-            status[i] = CLIPPED
-            continue
-        x0, x1, x2 = vX[a], vX[b], vX[d]
-        y0, y1, y2 = vY[a], vY[b], vY[d]
-        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-        if area == 0 or (cull == 1 and area < 0) or (cull == 2 and area > 0):
-            continue
-        one = np.int64(1) << bits
-        bx0 = max((min(x0, x1, x2) - pad + one - 1) >> bits, 0)
-        bx1 = min((max(x0, x1, x2) + pad) >> bits, width - 1)
-        by0 = max((min(y0, y1, y2) - pad + one - 1) >> bits, 0)
-        by1 = min((max(y0, y1, y2) + pad) >> bits, height - 1)
-        if bx0 > bx1 or by0 > by1:
-            continue
-        status[i] = SIMPLE
-        fbox[i, 0] = bx0
-        fbox[i, 1] = bx1
-        fbox[i, 2] = by0
-        fbox[i, 3] = by1
+    (0: pixel centres; half a pixel under multisampling, whose samples leave the centre).
+    ``counts (nchunks, ntiles)``, zeros: each chunk of :data:`BIN_CHUNK` faces adds its simple
+    faces to the tiles their boxes touch (``ntx`` tiles across), the binning's count of them
+    taken here while the box is at hand (:func:`count_pieces` adds the clipped pieces)."""
+    nf = f.shape[0]
+    nchunks = (nf + BIN_CHUNK - 1) // BIN_CHUNK
+    for ch in prange(nchunks):
+        # unsigned face indices: no negative-index fix-up (signed ones made a microbenchmark
+        # of this loop 1.7× slower)
+        i0, i1 = np.uint64(ch * BIN_CHUNK), np.uint64(min(nf, (ch + 1) * BIN_CHUNK))
+        for i in range(i0, i1):
+            a, b, d = f[i, 0], f[i, 1], f[i, 2]
+            status[i] = SKIP
+            # every face's box written (zeros unless SIMPLE): the array needs no zero fill
+            fbox[i, 0] = 0
+            fbox[i, 1] = 0
+            fbox[i, 2] = 0
+            fbox[i, 3] = 0
+            if vcode[a] & vcode[b] & vcode[d]:
+                continue
+            if vcode[a] | vcode[b] | vcode[d]:
+                status[i] = CLIPPED
+                continue
+            x0, x1, x2 = vX[a], vX[b], vX[d]
+            y0, y1, y2 = vY[a], vY[b], vY[d]
+            area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+            if area == 0 or (cull == 1 and area < 0) or (cull == 2 and area > 0):
+                continue
+            one = np.int64(1) << bits
+            bx0 = max((min(x0, x1, x2) - pad + one - 1) >> bits, 0)
+            bx1 = min((max(x0, x1, x2) + pad) >> bits, width - 1)
+            by0 = max((min(y0, y1, y2) - pad + one - 1) >> bits, 0)
+            by1 = min((max(y0, y1, y2) + pad) >> bits, height - 1)
+            if bx0 > bx1 or by0 > by1:
+                continue
+            status[i] = SIMPLE
+            fbox[i, 0] = bx0
+            fbox[i, 1] = bx1
+            fbox[i, 2] = by0
+            fbox[i, 3] = by1
+        # the chunk's simple faces counted per tile from its status and boxes (still in
+        # cache), a loop of its own (counting in the loop above cost more); a run of faces in
+        # one tile is counted in a register, added when the tile changes
+        cnt = counts[ch]
+        run_t = np.int64(-1)
+        run_n = np.int64(0)
+        for i in range(i0, i1):
+            simple = status[i] == SIMPLE
+            tx0, tx1 = np.int64(fbox[i, 0]) >> TILE_SHIFT, np.int64(fbox[i, 1]) >> TILE_SHIFT
+            ty0, ty1 = np.int64(fbox[i, 2]) >> TILE_SHIFT, np.int64(fbox[i, 3]) >> TILE_SHIFT
+            if simple and (tx0 != tx1 or ty0 != ty1):
+                add_to_tiles(cnt, ntx, tx0, tx1, ty0, ty1)
+                continue
+            # not simple: the run goes on, uncounted (no branch on the status)
+            t = ty0 * ntx + tx0 if simple else run_t
+            if t != run_t:
+                if run_t >= 0:
+                    cnt[run_t] += run_n
+                run_t = t
+                run_n = 0
+            run_n += simple
+        if run_t >= 0:
+            cnt[run_t] += run_n
+
+
+@njit(**IJIT)
+def add_to_tiles(cnt, ntx, tx0, tx1, ty0, ty1):
+    """Count one item in each tile of ``[tx0, tx1] × [ty0, ty1]`` (tile indices)."""
+    for ty in range(ty0, ty1 + 1):
+        for tx in range(tx0, tx1 + 1):
+            cnt[ty * ntx + tx] += 1
+
+
+@njit(**JIT)
+def count_pieces(sprim, sbox, ntx, counts):
+    """Add the clipped pieces (face ``sprim[k]``, box ``sbox[k]``) to the binning's counts per
+    chunk of faces and tile (:func:`_classify`)."""
+    for k in range(sprim.shape[0]):
+        add_to_tiles(counts[sprim[k] // BIN_CHUNK], ntx, np.int64(sbox[k, 0]) >> TILE_SHIFT,
+                     np.int64(sbox[k, 1]) >> TILE_SHIFT, np.int64(sbox[k, 2]) >> TILE_SHIFT,
+                     np.int64(sbox[k, 3]) >> TILE_SHIFT)
 
 
 @njit(**PJIT)
@@ -432,14 +496,16 @@ class Primitives:
     ``vz`` (float32), ``v_inv_w`` and the unsnapped window position ``vxf, vyf`` (float32; valid
     where the vertex's clip outcode ``vcode`` is 0);
     per face ``status`` (``SKIP``, ``SIMPLE``, ``CLIPPED``) and ``bbox (F, 4) int32`` for simple
-    faces; ``clipped``, the :class:`ScreenTriangles` of the clipped faces' pieces. A simple face
+    faces; ``clipped``, the :class:`ScreenTriangles` of the clipped faces' pieces;
+    ``tile_counts (nchunks, ntiles)``, the binning's items per chunk of faces and tile
+    (:func:`bin_shape`; simple faces and clipped pieces). A simple face
     is set up inside the rasterizer, per tile, from the per-vertex arrays — the same integer and
     float operations as a stored triangle, so nothing about the result depends on where it was
     set up.
     """
 
     __slots__ = ("faces", "vx", "vy", "vz", "v_inv_w", "vxf", "vyf", "vcode", "status", "bbox",
-                 "clipped", "width", "height", "subpixel_bits")
+                 "clipped", "tile_counts", "width", "height", "subpixel_bits")
 
     @property
     def n_faces(self):
@@ -479,7 +545,10 @@ def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8, conv
     status = _array(scratch, "status", len(f), np.int8)
     fbox = _array(scratch, "fbox", (len(f), 4), np.int32)
     pad = np.int64(pad)
-    tiered(_classify)(f, vX, vY, vcode, width, height, subpixel_bits, cull, pad, status, fbox)
+    nchunks, ntx, nty = bin_shape(len(f), width, height)
+    tile_counts = np.zeros((nchunks, ntx * nty), np.int64)
+    tiered(_classify)(f, vX, vY, vcode, width, height, subpixel_bits, cull, pad, ntx, status,
+                      fbox, tile_counts)
     idx = np.flatnonzero(status == CLIPPED)
     nchunks = max((len(idx) + _CHUNK - 1) // _CHUNK, 1)
     counts = np.zeros(nchunks, np.int64)
@@ -494,10 +563,12 @@ def setup_triangles(clip, faces, width, height, *, cull=0, subpixel_bits=8, conv
     st = ScreenTriangles()
     (st.x, st.y, st.z, st.inv_w, st.xf, st.yf, st.prim, st.front, st.bbox, st.area,
      st.bary_index, st.bary) = out
+    if len(st.prim):
+        tiered(count_pieces)(st.prim, st.bbox, ntx, tile_counts)
     p = Primitives()
     p.faces, p.vx, p.vy, p.vz, p.v_inv_w, p.vcode = f, vX, vY, vZ, vIW, vcode
     p.vxf, p.vyf = vXf, vYf
-    p.status, p.bbox, p.clipped = status, fbox, st
+    p.status, p.bbox, p.clipped, p.tile_counts = status, fbox, st, tile_counts
     p.width, p.height, p.subpixel_bits = width, height, subpixel_bits
     return p
 

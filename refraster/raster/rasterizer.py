@@ -45,11 +45,10 @@ from numba import njit, prange
 from .._config import IJIT, PJIT
 from .._tiers import kernel as tiered
 from .._scratch import OUTPUTS
-from .primitive import CLIPPED, SIMPLE
+from .primitive import BIN_CHUNK as _BIN_CHUNK
+from .primitive import CLIPPED, SIMPLE, TILE_SHIFT, bin_shape
 
-TILE_SHIFT = 6
 TILE = 1 << TILE_SHIFT
-_BIN_CHUNK = 8192
 
 #: "No fragment won this pixel" in a tile's winner buffer. Binned items are faces (≥ 0) and
 #: clipped pieces −(k + 1) (≤ −1: piece 0 *is* −1), so the sentinel lies below every piece.
@@ -101,20 +100,36 @@ def _add(box, ntx, counts, lists, cursor, item, fill):
 def _bin_pass(status, fbox, sprim, sbox, ntx, ntiles, counts, starts, lists, fill):
     """Per chunk of faces: count (fill=False) or write (fill=True) tile lists. ``counts`` is
     ``(nchunks, ntiles)``; chunk c of tile t writes from ``starts[c, t]``, so the lists are in
-    primitive order whatever the thread count."""
+    primitive order whatever the thread count. ``lists`` holds one slot more per chunk after
+    the lists: ``len(lists) − nchunks + c``, chunk c's junk slot."""
     nf = status.shape[0]
     nchunks = (nf + _BIN_CHUNK - 1) // _BIN_CHUNK
     for ch in prange(nchunks):
         cursor = starts[ch].copy() if fill else starts[0]
         cnt = counts[ch]
+        junk = lists.shape[0] - nchunks + ch
         for i in range(ch * _BIN_CHUNK, min(nf, (ch + 1) * _BIN_CHUNK)):
             s = status[i]
-            if s == SIMPLE:
-                _add(fbox[i], ntx, cnt, lists, cursor, i, fill)
-            elif s == CLIPPED:
+            if s == CLIPPED:   # rare: a branch
                 lo, hi = _pieces(sprim, i)
                 for k in range(lo, hi):
                     _add(sbox[k], ntx, cnt, lists, cursor, -(k + 1), fill)
+                continue
+            # simple or skipped without a branch on which (a fine mesh's faces alternate
+            # between the two at random): a skipped face (box zeros) counts 0 in tile 0 and
+            # is listed in the chunk's junk slot
+            simple = s == SIMPLE
+            x0, x1 = fbox[i, 0] >> TILE_SHIFT, fbox[i, 1] >> TILE_SHIFT
+            y0, y1 = fbox[i, 2] >> TILE_SHIFT, fbox[i, 3] >> TILE_SHIFT
+            if simple and (x0 != x1 or y0 != y1):   # a box over several tiles
+                _add(fbox[i], ntx, cnt, lists, cursor, i, fill)
+                continue
+            t = y0 * ntx + x0 if simple else 0
+            if fill:
+                lists[cursor[t] if simple else junk] = i
+                cursor[t] += simple
+            else:
+                cnt[t] += simple
 
 
 def bin_primitives(prims, scratch=None):
@@ -122,26 +137,26 @@ def bin_primitives(prims, scratch=None):
     ``i``, an item ``−(k + 1)`` clipped piece ``k``; each list is in primitive order.
     ``scratch``: a :class:`refraster._scratch.Scratch` for the lists (then valid until it is
     used again)."""
-    w, h = prims.width, prims.height
-    ntx = (w + TILE - 1) >> TILE_SHIFT
-    nty = (h + TILE - 1) >> TILE_SHIFT
+    nchunks, ntx, nty = bin_shape(prims.n_faces, prims.width, prims.height)
     ntiles = ntx * nty
-    nchunks = max((prims.n_faces + _BIN_CHUNK - 1) // _BIN_CHUNK, 1)
-    counts = np.zeros((nchunks, ntiles), np.int64)
     st = prims.clipped
     starts2 = np.zeros((nchunks, ntiles), np.int64)
-    lists = np.zeros(0, np.int64)
-    tiered(_bin_pass)(prims.status, prims.bbox, st.prim, st.bbox, ntx, ntiles, counts, starts2, lists,
-              False)
+    counts = prims.tile_counts   # counted by the primitive stage
+    if counts is None:
+        counts = np.zeros((nchunks, ntiles), np.int64)
+        lists = np.zeros(0, np.int64)
+        tiered(_bin_pass)(prims.status, prims.bbox, st.prim, st.bbox, ntx, ntiles, counts,
+                          starts2, lists, False)
     per_tile = counts.sum(axis=0)
     starts = np.zeros(ntiles + 1, np.int64)
     np.cumsum(per_tile, out=starts[1:])
     starts2[:] = starts[:-1][None, :] + np.cumsum(counts, axis=0) - counts
-    lists = (np.zeros(int(starts[-1]), np.int64) if scratch is None
-             else scratch.empty("lists", int(starts[-1]), np.int64))
+    n = int(starts[-1])   # and a junk slot per chunk (_bin_pass)
+    lists = (np.zeros(n + nchunks, np.int64) if scratch is None
+             else scratch.empty("lists", n + nchunks, np.int64))
     tiered(_bin_pass)(prims.status, prims.bbox, st.prim, st.bbox, ntx, ntiles, counts, starts2, lists,
               True)
-    return ntx, nty, starts, lists
+    return ntx, nty, starts, lists[:n]
 
 
 # ------------------------------------------------------------------- per-triangle set-up
@@ -577,19 +592,24 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                               row * width + x)
 
 
-def resolved_buffers(height, width, clear_depth):
+def resolved_buffers(height, width, clear_depth, fill=True):
     """The outputs of a fused tile pass, holding what a pixel no fragment won keeps: depth
     ``clear_depth``, face −1, facing False, barycentrics 0 (NumPy's fills are ~10× faster than
-    writing the background pixel by pixel in the tile loop)."""
+    writing the background pixel by pixel in the tile loop). ``fill=False``: only the face
+    image filled (the others' background is the caller's: ``finalize``'s sweep)."""
     # from the output pool: recycled once nobody holds them (refraster._scratch.OutputPool)
-    return (OUTPUTS.full((height, width), np.float32(clear_depth), np.float32),
-            OUTPUTS.full((height, width), -1, np.int64),
+    prim = OUTPUTS.full((height, width), -1, np.int64)
+    if not fill:
+        return (OUTPUTS.empty((height, width), np.float32), prim,
+                OUTPUTS.empty((height, width), np.bool_),
+                OUTPUTS.empty((height * width, 3), np.float32))
+    return (OUTPUTS.full((height, width), np.float32(clear_depth), np.float32), prim,
             OUTPUTS.full((height, width), False, np.bool_),
             OUTPUTS.full((height * width, 3), 0.0, np.float32))
 
 
 def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, scratch=None,
-          cleared=False):
+          cleared=False, fill=True):
     """Rasterize and depth-resolve in one pass (no fragment stream, depth writes on).
 
     Returns ``(depth (H, W) float32, prim (H, W) int64 face index or −1, front (H, W) bool,
@@ -599,11 +619,13 @@ def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, sc
     instead of new ones; with ``cleared`` they already hold the clear values (a
     :meth:`~refraster.framebuffer.Framebuffer.reusable`'s, cleared where the previous frame
     drew) and are not filled again. ``scratch``: for the tile lists (:func:`bin_primitives`).
+    ``fill=False`` (new buffers only): depth, facing and barycentrics hold only the pixels a
+    fragment won (:func:`resolved_buffers`), for a caller that writes the rest.
     """
     ntx, nty, starts, lists = bin_primitives(prims, scratch)
     h, w = prims.height, prims.width
     if buffers is None:
-        depth, prim, front, bary = resolved_buffers(h, w, clear_depth)
+        depth, prim, front, bary = resolved_buffers(h, w, clear_depth, fill)
     elif cleared:
         depth, prim, front, bary = buffers
     else:   # the same clear values, written into the caller's arrays
