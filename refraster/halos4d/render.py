@@ -476,7 +476,7 @@ def _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, x, y, t_lo,
     return 0
 
 
-@njit(**IJIT)
+@njit(**JIT)    # not inlined: the fallback of _plane_span_off_core, seldom called
 def _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, t_lo, t_hi):
     """True when no fragment of the row span ``xa … xb`` (row y) of a triangle with
     ``inv_af > 0`` can be a core fragment (``|2t − 1| < w_s + a``): t stays ≥ ``t_hi`` or
@@ -544,6 +544,30 @@ def _plane_triangle_off_core(s0, gx, gy, fx0, fy0, X0, X1, X2, Y0, Y1, Y2, bits,
     tc = _plane_t(s0, gx, gy, fx0, fy0, X2 * sc, Y2 * sc)
     return (min(ta, tb, tc) >= t_hi + OFF_CORE_PLANE_SLACK
             or max(ta, tb, tc) <= t_lo - OFF_CORE_PLANE_SLACK)
+
+
+@njit(**IJIT)
+def _claim_span(plane, gx, gy, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y,
+                t_lo, t_hi):
+    """Whether the fill defers the row span ``xa … xb`` of row y as off the core: from the
+    plane of t where :func:`_off_core_plane` vouches for it (``plane``), else by the exact test
+    :func:`_span_off_core` (on a triangle :func:`_off_core_usable` accepts)."""
+    if plane:
+        return _plane_span_off_core(s0, gx, gy, fx0, fy0, xa, xb, y, t_lo, t_hi)
+    return _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, t_lo,
+                          t_hi)
+
+
+@njit(**IJIT)
+def _claim_triangle(plane, gx, gy, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, X0, X1,
+                    X2, Y0, Y1, Y2, bits, t_lo, t_hi):
+    """Whether the fill defers the whole triangle as off the core: :func:`_claim_span`'s
+    choice for :func:`_plane_triangle_off_core` and :func:`_triangle_off_core`."""
+    if plane:
+        return _plane_triangle_off_core(s0, gx, gy, fx0, fy0, X0, X1, X2, Y0, Y1, Y2, bits,
+                                        t_lo, t_hi)
+    return _triangle_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, X0, X1, X2, Y0,
+                              Y1, Y2, bits, t_lo, t_hi)
 
 
 @njit(**JIT)    # not inlined: three inlined tests cost seconds of compile time
@@ -939,11 +963,9 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
                         t_max = max(t0, t1, t2)
                         if t_min >= t_hi or t_max <= t_lo:
                             # corners beyond the core on one side: test the whole triangle
-                            if (_plane_triangle_off_core(t0, gx, gy, fx0, fy0, X0, X1, X2, Y0,
-                                                         Y1, Y2, bits, t_lo, t_hi) if plane
-                                    else _triangle_off_core(fx0, fy0, fx1, fy1, fx2, fy2,
-                                                            inv_af, t0, s1, s2, X0, X1, X2, Y0,
-                                                            Y1, Y2, bits, t_lo, t_hi)):
+                            if _claim_triangle(plane, gx, gy, fx0, fy0, fx1, fy1, fx2, fy2,
+                                               inv_af, t0, s1, s2, X0, X1, X2, Y0, Y1, Y2,
+                                               bits, t_lo, t_hi):
                                 if halos:    # its rows' spans are found where needed
                                     _keep_triangle(off_tris[n_off_tris], fx0, fy0, fx1, fy1,
                                                    fx2, fy2, inv_af, swap, t0, t1, t2, d0, d1,
@@ -984,11 +1006,9 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
                                           x1 - x0 + 1)
                         if sa > sb:
                             continue
-                        if off_ok and (_plane_span_off_core(t0, gx, gy, fx0, fy0, x0 + sa,
-                                                            x0 + sb, py, t_lo, t_hi) if plane
-                                       else _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af,
-                                                           t0, s1, s2, x0 + sa, x0 + sb, py,
-                                                           t_lo, t_hi)):
+                        if off_ok and _claim_span(plane, gx, gy, fx0, fy0, fx1, fy1, fx2,
+                                                  fy2, inv_af, t0, s1, s2, x0 + sa, x0 + sb,
+                                                  py, t_lo, t_hi):
                             if halos:    # without halos an off-core fragment sets no depth
                                 if slot < 0:
                                     slot = n_off_tris
