@@ -363,7 +363,6 @@ def test_the_planes_claims_hold_in_exact_arithmetic():
                     for x in range(xa, xb + 1):
                         assert abs(2.0 * fragment_t(fx, fy, inv_af, x, y, t) - 1.0) >= core_w
     assert spans > 300 and whole > 30, (spans, whole)
-    print("COUNTS", spans, whole, near)
 
 
 def sliver_near_a_centre(rng):
@@ -412,7 +411,6 @@ def test_the_plane_refuses_slivers_and_the_exact_test_takes_them():
             refused_claims += sum(span_claim(plane, fx, fy, inv_af, t, x, x, y, lo, hi)
                                   for x, y in pixels)
     assert traps > 20 and refused_claims > 20, (traps, refused_claims)
-    print("COUNTS", traps, refused_claims)
 
 
 def test_the_plane_refuses_far_window_coordinates():

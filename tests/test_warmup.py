@@ -560,9 +560,10 @@ def importlib_module(name):
 #: picture). Since issue 46's fused slicing the halo pictures compile ``render._bin_tets`` and
 #: ``_render_tets`` (in place of ``_bin_bands`` and ``_render_bands``) and no longer the
 #: slicing's ``_count_pass``, ``_place``, ``_write_pass`` and ``window_setup`` (now skipped);
-#: and ``render._fill_off_core``, ``_triangle_off_core`` and ``_band_slices``, which
-#: ``_render_tets`` calls (not inlined, for its compile time) in every default halo picture.
-GALLERY_KERNEL_COUNT = 77
+#: and ``render._fill_off_core``, ``_triangle_off_core``, ``_span_off_core`` and
+#: ``_band_slices``, which ``_render_tets`` calls (not inlined, for its compile time) in every
+#: default halo picture.
+GALLERY_KERNEL_COUNT = 78
 
 
 def test_every_new_kernel_is_classified_for_the_gallery():

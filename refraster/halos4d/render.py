@@ -803,7 +803,7 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
     whose first row lies in it (all of them: :func:`_bin_tets`).
 
     Without a volume and a halo colour, a triangle or a row span whose fragments are all off
-    the core (:func:`_triangle_off_core`, :func:`_span_off_core`) is deferred to the end of
+    the core (:func:`_claim_triangle`, :func:`_claim_span`) is deferred to the end of
     its slice and filled only at the voxels that then have a surface fragment
     (:func:`_fill_off_core`; a deferred triangle's rows are not visited before): the depth
     buffers are minima, which do not depend on the order, and elsewhere such a fragment
