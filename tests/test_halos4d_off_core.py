@@ -372,7 +372,6 @@ def test_the_planes_claims_hold_in_exact_arithmetic():
                     for x in range(part[0], part[1] + 1):
                         assert abs(2.0 * fragment_t(fx, fy, inv_af, x, y, t) - 1.0) >= core_w
     assert spans > 300 and parts > 100 and whole > 30, (spans, parts, whole)
-    print("COUNTS", spans, parts, whole, near)
 
 
 def sliver_near_a_centre(rng):
