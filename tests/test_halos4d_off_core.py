@@ -291,15 +291,9 @@ def plane_of(fx, fy, inv_af, t):
     return render._off_core_plane(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2], inv_af, *t)
 
 
-def part_claim(plane, fx, fy, inv_af, t, xa, xb, y, lo, hi):
-    """The part of the span the fill defers, checked to be the whole span, a prefix or a
-    suffix: ``(a, b)``, or None."""
-    a, b = render._claim_part(plane[0], plane[1], plane[2], fx[0], fy[0], fx[1], fy[1], fx[2],
+def span_claim(plane, fx, fy, inv_af, t, xa, xb, y, lo, hi):
+    return render._claim_span(plane[0], plane[1], plane[2], fx[0], fy[0], fx[1], fy[1], fx[2],
                               fy[2], inv_af, t[0], t[1], t[2], xa, xb, y, lo, hi)
-    if a > b:
-        return None
-    assert xa <= a <= b <= xb and (a == xa or b == xb), (xa, xb, a, b)
-    return a, b
 
 
 def whole_claim(plane, fx, fy, inv_af, t, X, Y, lo, hi):
@@ -317,15 +311,14 @@ def beyond(values, lo, hi):
 def test_the_planes_claims_hold_in_exact_arithmetic():
     # where the plane vouches for a triangle, every covered pixel has D in [1/2, 2] and
     # Σ|λ_k| ≤ 16 (exactly), and a claimed span (triangle) has the exact N / D beyond the
-    # widened core's edge at both ends of the part it defers (a prefix, a suffix or the whole
-    # span; the three snapped vertices), no fragment in the core.
+    # widened core's edge at both ends (the three snapped vertices), no fragment in the core.
     # Half the triangles get corner t that put N / D at a covered pixel centre on that edge up
     # to the float64 rounding of a corner: without the slack the plane's rounding claims some.
     rng = np.random.default_rng(RNG_SEED + 5)
     surface_width, aa = 0.3, 0.027533030000969332
     core_w = surface_width + aa
     lo, hi = render._off_core_limits(surface_width, aa)
-    spans = parts = whole = near = 0
+    spans = whole = near = 0
     while near < 150:
         fx, fy, inv_af, X, Y = snapped_triangle(rng)
         pixels = covered_pixels(X, Y)
@@ -363,15 +356,13 @@ def test_the_planes_claims_hold_in_exact_arithmetic():
         for y in sorted({p[1] for p in pixels}):
             row = [p[0] for p in pixels if p[1] == y]
             for xa, xb in ((min(row), max(row)), (max(row), max(row)), (min(row), min(row))):
-                part = part_claim(plane, fx, fy, inv_af, t, xa, xb, y, lo, hi)
-                if part:
+                if span_claim(plane, fx, fy, inv_af, t, xa, xb, y, lo, hi):
                     spans += 1
-                    parts += part != (xa, xb)
-                    ends = [exact_at(fx, fy, inv_af, t, x, y)[2] for x in part]
-                    assert beyond(ends, lo, hi) != 0, (fx.tolist(), fy.tolist(), t, part, y)
-                    for x in range(part[0], part[1] + 1):
+                    ends = [exact_at(fx, fy, inv_af, t, x, y)[2] for x in (xa, xb)]
+                    assert beyond(ends, lo, hi) != 0, (fx.tolist(), fy.tolist(), t, xa, xb, y)
+                    for x in range(xa, xb + 1):
                         assert abs(2.0 * fragment_t(fx, fy, inv_af, x, y, t) - 1.0) >= core_w
-    assert spans > 300 and parts > 100 and whole > 30, (spans, parts, whole)
+    assert spans > 300 and whole > 30, (spans, whole)
 
 
 def sliver_near_a_centre(rng):
@@ -417,8 +408,8 @@ def test_the_plane_refuses_slivers_and_the_exact_test_takes_them():
             traps += 1
             assert not plane[0], (fx.tolist(), fy.tolist(), inv_af, float(spread))
         if not plane[0]:
-            refused_claims += sum(part_claim(plane, fx, fy, inv_af, t, x, x, y, lo, hi)
-                                  is not None for x, y in pixels)
+            refused_claims += sum(span_claim(plane, fx, fy, inv_af, t, x, x, y, lo, hi)
+                                  for x, y in pixels)
     assert traps > 20 and refused_claims > 20, (traps, refused_claims)
 
 

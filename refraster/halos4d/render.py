@@ -476,7 +476,7 @@ def _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, x, y, t_lo,
     return 0
 
 
-@njit(**JIT)    # not inlined: the fallback of the plane of t (_claim_part), seldom called
+@njit(**JIT)    # not inlined: the fallback of _plane_span_off_core, seldom called
 def _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, t_lo, t_hi):
     """True when no fragment of the row span ``xa … xb`` (row y) of a triangle with
     ``inv_af > 0`` can be a core fragment (``|2t − 1| < w_s + a``): t stays ≥ ``t_hi`` or
@@ -522,10 +522,22 @@ def _plane_t(s0, gx, gy, fx0, fy0, x, y):
 
 
 @njit(**IJIT)
+def _plane_span_off_core(s0, gx, gy, fx0, fy0, xa, xb, y, t_lo, t_hi):
+    """:func:`_span_off_core` from the plane of t (:func:`_off_core_plane`, its ``ok``
+    true), ``t_lo``, ``t_hi`` the widened core's edges: the plane's t at both ends of the span
+    at least :data:`OFF_CORE_PLANE_SLACK` beyond one of them (so the exact N / D is beyond it
+    over the span)."""
+    ta = _plane_t(s0, gx, gy, fx0, fy0, xa, y)
+    tb = _plane_t(s0, gx, gy, fx0, fy0, xb, y)
+    return (min(ta, tb) >= t_hi + OFF_CORE_PLANE_SLACK
+            or max(ta, tb) <= t_lo - OFF_CORE_PLANE_SLACK)
+
+
+@njit(**IJIT)
 def _plane_triangle_off_core(s0, gx, gy, fx0, fy0, X0, X1, X2, Y0, Y1, Y2, bits, t_lo, t_hi):
     """:func:`_triangle_off_core` from the plane of t (:func:`_off_core_plane`, its ``ok``
     true): its t at the three snapped vertices at least :data:`OFF_CORE_PLANE_SLACK` beyond
-    the same edge of the widened core (:func:`_claim_part`'s argument)."""
+    the same edge of the widened core."""
     sc = 1.0 / (1 << bits)
     ta = _plane_t(s0, gx, gy, fx0, fy0, X0 * sc, Y0 * sc)
     tb = _plane_t(s0, gx, gy, fx0, fy0, X1 * sc, Y1 * sc)
@@ -535,53 +547,22 @@ def _plane_triangle_off_core(s0, gx, gy, fx0, fy0, X0, X1, X2, Y0, Y1, Y2, bits,
 
 
 @njit(**IJIT)
-def _claim_part(plane, gx, gy, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y,
+def _claim_span(plane, gx, gy, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y,
                 t_lo, t_hi):
-    """``(a, b)``: the pixels ``a … b`` of the row span ``xa … xb`` (row y) that the fill defers
-    as off the core, the whole span, a prefix or a suffix (none: ``a > b``). With ``plane``
-    (:func:`_off_core_plane`), a part whose two ends have the plane's t (:func:`_plane_t`) at
-    least :data:`OFF_CORE_PLANE_SLACK` beyond the same edge ``t_lo`` or ``t_hi`` of the widened
-    core, so that the exact N / D is beyond it at both ends, hence over the part (it is
-    affine): the whole span if both its ends are, else the end that is, extended inwards
-    while the next pixel is too. Else :func:`_span_off_core` on the whole span."""
-    if not plane:
-        if _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, t_lo,
-                          t_hi):
-            return xa, xb
-        return xa, xa - 1
-    hi = t_hi + OFF_CORE_PLANE_SLACK
-    lo = t_lo - OFF_CORE_PLANE_SLACK
-    ta = _plane_t(s0, gx, gy, fx0, fy0, xa, y)
-    tb = _plane_t(s0, gx, gy, fx0, fy0, xb, y)
-    if (ta >= hi and tb >= hi) or (ta <= lo and tb <= lo):
-        return xa, xb
-    if tb >= hi or tb <= lo:
-        up = tb >= hi
-        a = xb
-        while a > xa:
-            tn = _plane_t(s0, gx, gy, fx0, fy0, a - 1, y)
-            if not (tn >= hi if up else tn <= lo):
-                break
-            a -= 1
-        return a, xb
-    if ta >= hi or ta <= lo:
-        up = ta >= hi
-        b = xa
-        while b < xb:
-            tn = _plane_t(s0, gx, gy, fx0, fy0, b + 1, y)
-            if not (tn >= hi if up else tn <= lo):
-                break
-            b += 1
-        return xa, b
-    return xa, xa - 1
+    """Whether the fill defers the row span ``xa … xb`` of row y as off the core: from the
+    plane of t where :func:`_off_core_plane` vouches for it (``plane``), else by the exact test
+    :func:`_span_off_core` (on a triangle :func:`_off_core_usable` accepts)."""
+    if plane:
+        return _plane_span_off_core(s0, gx, gy, fx0, fy0, xa, xb, y, t_lo, t_hi)
+    return _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, t_lo,
+                          t_hi)
 
 
 @njit(**IJIT)
 def _claim_triangle(plane, gx, gy, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, X0, X1,
                     X2, Y0, Y1, Y2, bits, t_lo, t_hi):
-    """Whether the fill defers the whole triangle as off the core: from the plane of t where
-    :func:`_off_core_plane` vouches for it (:func:`_plane_triangle_off_core`), else by the
-    exact test :func:`_triangle_off_core`."""
+    """Whether the fill defers the whole triangle as off the core: :func:`_claim_span`'s
+    choice for :func:`_plane_triangle_off_core` and :func:`_triangle_off_core`."""
     if plane:
         return _plane_triangle_off_core(s0, gx, gy, fx0, fy0, X0, X1, X2, Y0, Y1, Y2, bits,
                                         t_lo, t_hi)
@@ -822,7 +803,7 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
     whose first row lies in it (all of them: :func:`_bin_tets`).
 
     Without a volume and a halo colour, a triangle or a row span whose fragments are all off
-    the core (:func:`_claim_triangle`, :func:`_claim_part`) is deferred to the end of
+    the core (:func:`_claim_triangle`, :func:`_claim_span`) is deferred to the end of
     its slice and filled only at the voxels that then have a surface fragment
     (:func:`_fill_off_core`; a deferred triangle's rows are not visited before): the depth
     buffers are minima, which do not depend on the order, and elsewhere such a fragment
@@ -1025,29 +1006,21 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
                                           x1 - x0 + 1)
                         if sa > sb:
                             continue
-                        if off_ok:
-                            pa, pb = _claim_part(plane, gx, gy, fx0, fy0, fx1, fy1, fx2, fy2,
-                                                 inv_af, t0, s1, s2, x0 + sa, x0 + sb, py, t_lo,
-                                                 t_hi)
-                            if pa <= pb:
-                                if halos:    # without halos an off-core fragment sets no depth
-                                    if slot < 0:
-                                        slot = n_off_tris
-                                        n_off_tris += 1
-                                        _keep_triangle(off_tris[slot], fx0, fy0, fx1, fy1, fx2,
-                                                       fy2, inv_af, swap, t0, t1, t2, d0, d1,
-                                                       d2)
-                                    off_spans[n_off, 0] = li
-                                    off_spans[n_off, 1] = pa
-                                    off_spans[n_off, 2] = pb - pa + 1
-                                    off_spans[n_off, 3] = slot
-                                    n_off += 1
-                                if pa == x0 + sa and pb == x0 + sb:
-                                    continue
-                                if pa == x0 + sa:
-                                    sa = pb - x0 + 1
-                                else:
-                                    sb = pa - x0 - 1
+                        if off_ok and _claim_span(plane, gx, gy, fx0, fy0, fx1, fy1, fx2,
+                                                  fy2, inv_af, t0, s1, s2, x0 + sa, x0 + sb,
+                                                  py, t_lo, t_hi):
+                            if halos:    # without halos an off-core fragment sets no depth
+                                if slot < 0:
+                                    slot = n_off_tris
+                                    n_off_tris += 1
+                                    _keep_triangle(off_tris[slot], fx0, fy0, fx1, fy1, fx2,
+                                                   fy2, inv_af, swap, t0, t1, t2, d0, d1, d2)
+                                off_spans[n_off, 0] = li
+                                off_spans[n_off, 1] = x0 + sa
+                                off_spans[n_off, 2] = sb - sa + 1
+                                off_spans[n_off, 3] = slot
+                                n_off += 1
+                            continue
                         e0 += sa * sx0
                         e1 += sa * sx1
                         e2 += sa * sx2
