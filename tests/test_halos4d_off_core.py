@@ -12,6 +12,8 @@ at a pixel centre sits a few float32 ulps beside the core's edge, and triangles 
 pixel centre just outside their unsnapped edge, where t extrapolates past every corner.
 """
 
+from fractions import Fraction as Fr
+
 import numpy as np
 import pytest
 
@@ -269,3 +271,151 @@ def test_pixels_outside_the_unsnapped_triangle():
                      for m in range(3))
         check_triangle(fx, fy, inv_af, t, X, Y, core_w, lo, hi)
     assert traps > 30, traps
+
+
+# ----------------------------------------------------------------------------- the plane of t
+def exact_at(fx, fy, inv_af, t, x, y):
+    """``(D, Σ|λ_k|, N / D)`` in exact rational arithmetic at the point ``(x + ½, y + ½)``:
+    λ_k from the unsnapped vertices with exact edge vectors, ``inv_af`` as given (the
+    quantities of the proof in docs/halos4d.md, "Off-core spans")."""
+    X, Y = [Fr(v) for v in fx], [Fr(v) for v in fy]
+    cx, cy = Fr(x) + Fr(1, 2), Fr(y) + Fr(1, 2)
+    lam = [((X[(k + 2) % 3] - X[(k + 1) % 3]) * (cy - Y[(k + 1) % 3])
+            - (Y[(k + 2) % 3] - Y[(k + 1) % 3]) * (cx - X[(k + 1) % 3])) * Fr(inv_af)
+           for k in range(3)]
+    d = sum(lam)
+    return d, sum(abs(v) for v in lam), sum(v * Fr(tk) for v, tk in zip(lam, t)) / d
+
+
+def plane_of(fx, fy, inv_af, t):
+    return render._off_core_plane(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2], inv_af, *t)
+
+
+def span_claim(plane, fx, fy, inv_af, t, xa, xb, y, lo, hi):
+    return render._claim_span(plane[0], plane[1], plane[2], fx[0], fy[0], fx[1], fy[1], fx[2],
+                              fy[2], inv_af, t[0], t[1], t[2], xa, xb, y, lo, hi)
+
+
+def whole_claim(plane, fx, fy, inv_af, t, X, Y, lo, hi):
+    return render._claim_triangle(plane[0], plane[1], plane[2], fx[0], fy[0], fx[1], fy[1],
+                                  fx[2], fy[2], inv_af, t[0], t[1], t[2], X[0], X[1], X[2], Y[0],
+                                  Y[1], Y[2], 8, lo, hi)
+
+
+def beyond(values, lo, hi):
+    """+1 (−1) when every exact value is ≥ hi (≤ lo), else 0."""
+    return 1 if all(v >= Fr(hi) for v in values) else (-1 if all(v <= Fr(lo) for v in values)
+                                                       else 0)
+
+
+def test_the_planes_claims_hold_in_exact_arithmetic():
+    # where the plane vouches for a triangle, every covered pixel has D in [1/2, 2] and
+    # Σ|λ_k| ≤ 16 (exactly), and a claimed span (triangle) has the exact N / D beyond the
+    # widened core's edge at both ends (the three snapped vertices), no fragment in the core.
+    # Half the triangles get corner t that put N / D at a covered pixel centre on that edge up
+    # to the float64 rounding of a corner: without the slack the plane's rounding claims some.
+    rng = np.random.default_rng(RNG_SEED + 5)
+    surface_width, aa = 0.3, 0.027533030000969332
+    core_w = surface_width + aa
+    lo, hi = render._off_core_limits(surface_width, aa)
+    spans = whole = near = 0
+    while near < 150:
+        fx, fy, inv_af, X, Y = snapped_triangle(rng)
+        pixels = covered_pixels(X, Y)
+        if not pixels:
+            continue
+        side = rng.choice([-1.0, 1.0])
+        edge = hi if side > 0 else lo
+        t = list(edge + side * rng.uniform(-0.1, 0.3, 3))
+        on_edge = rng.random() < 0.5
+        if on_edge:    # N / D on the edge at a covered pixel (or at snapped vertex 2)
+            x, y = pixels[rng.integers(len(pixels))] if rng.random() < 0.7 else \
+                (Fr(X[2], SUB), Fr(Y[2], SUB))
+            cx, cy = Fr(x) + Fr(1, 2), Fr(y) + Fr(1, 2)
+            lam = [((Fr(fx[(k + 2) % 3]) - Fr(fx[(k + 1) % 3])) * (cy - Fr(fy[(k + 1) % 3]))
+                    - (Fr(fy[(k + 2) % 3]) - Fr(fy[(k + 1) % 3])) * (cx - Fr(fx[(k + 1) % 3])))
+                   for k in range(3)]
+            if abs(lam[2] / sum(lam)) < 0.05:
+                continue
+            t[2] = float((Fr(edge) * sum(lam) - lam[0] * Fr(t[0]) - lam[1] * Fr(t[1])) / lam[2])
+        if not (max(abs(v) for v in t) <= 1.0
+                and render._off_core_usable(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2], inv_af,
+                                            *t)):
+            continue
+        plane = plane_of(fx, fy, inv_af, t)
+        if not plane[0]:
+            continue
+        near += on_edge
+        for x, y in pixels:
+            d, spread, _ = exact_at(fx, fy, inv_af, t, x, y)
+            assert Fr(1, 2) <= d <= 2 and spread <= 16, (fx.tolist(), fy.tolist(), x, y)
+        if whole_claim(plane, fx, fy, inv_af, t, X, Y, lo, hi):
+            whole += 1
+            ends = [exact_at(fx, fy, inv_af, t, Fr(X[k], SUB), Fr(Y[k], SUB))[2] for k in range(3)]
+            assert beyond(ends, lo, hi) != 0, (fx.tolist(), fy.tolist(), t, X, Y)
+        for y in sorted({p[1] for p in pixels}):
+            row = [p[0] for p in pixels if p[1] == y]
+            for xa, xb in ((min(row), max(row)), (max(row), max(row)), (min(row), min(row))):
+                if span_claim(plane, fx, fy, inv_af, t, xa, xb, y, lo, hi):
+                    spans += 1
+                    ends = [exact_at(fx, fy, inv_af, t, x, y)[2] for x in (xa, xb)]
+                    assert beyond(ends, lo, hi) != 0, (fx.tolist(), fy.tolist(), t, xa, xb, y)
+                    for x in range(xa, xb + 1):
+                        assert abs(2.0 * fragment_t(fx, fy, inv_af, x, y, t) - 1.0) >= core_w
+    assert spans > 300 and whole > 30, (spans, whole)
+
+
+def sliver_near_a_centre(rng):
+    """A float32 sliver (height 10^-6 … 10^-2 px, 3 … 16 px long) passing within 4·10^-3 px of
+    a pixel centre, with its snapped vertices: ``(fx, fy, inv_af, X, Y)`` (both orders
+    counter-clockwise), or None."""
+    p = rng.integers(20, 40, 2) + 0.5
+    a = rng.uniform(0.0, 2.0 * np.pi)
+    d = np.array([np.cos(a), np.sin(a)])
+    n = np.array([-d[1], d[0]])
+    base = p + rng.uniform(-4e-3, 4e-3) * n
+    v = np.array([base - rng.uniform(1.5, 8.0) * d, base + rng.uniform(1.5, 8.0) * d,
+                  base + rng.uniform(-1.0, 1.0) * d + 10.0 ** rng.uniform(-6.0, -2.0) * n])
+    v = v.astype(np.float32).astype(np.float64)
+    fx, fy = v[:, 0], v[:, 1]
+    X, Y = snapped(fx, fy)
+    inv_af = _inv_float_area(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2])
+    if inv_af > 0.0 and (X[1] - X[0]) * (Y[2] - Y[0]) - (X[2] - X[0]) * (Y[1] - Y[0]) > 0:
+        return fx, fy, inv_af, X, Y
+    return None
+
+
+def test_the_plane_refuses_slivers_and_the_exact_test_takes_them():
+    # slivers whose snapped triangle covers a pixel centre where the unsnapped λ extrapolate
+    # (Σ|λ_k| > 16) pass _off_core_usable; the plane must refuse every one of them. Slivers it
+    # refuses go to the exact test, which claims some of their spans.
+    rng = np.random.default_rng(RNG_SEED + 6)
+    lo, hi = render._off_core_limits(0.3, 0.027533030000969332)
+    traps = refused_claims = 0
+    for _ in range(2500):
+        got = sliver_near_a_centre(rng)
+        if got is None:
+            continue
+        fx, fy, inv_af, X, Y = got
+        t = list(hi + rng.uniform(1e-3, 0.3, 3))
+        pixels = covered_pixels(X, Y)
+        if not (pixels and render._off_core_usable(fx[0], fy[0], fx[1], fy[1], fx[2], fy[2],
+                                                   inv_af, *t)):
+            continue
+        plane = plane_of(fx, fy, inv_af, t)
+        spread = max(exact_at(fx, fy, inv_af, t, x, y)[1] for x, y in pixels)
+        if spread > 16:
+            traps += 1
+            assert not plane[0], (fx.tolist(), fy.tolist(), inv_af, float(spread))
+        if not plane[0]:
+            refused_claims += sum(span_claim(plane, fx, fy, inv_af, t, x, x, y, lo, hi)
+                                  for x, y in pixels)
+    assert traps > 20 and refused_claims > 20, (traps, refused_claims)
+
+
+def test_the_plane_refuses_far_window_coordinates():
+    # beyond ±2^14 px a float32 window coordinate's snapping may move it by more than 1/256 px
+    p = render._off_core_plane
+    assert p(100.0, 100.0, 104.0, 100.0, 100.0, 104.0, 1 / 16, 0.0, 1.0, 0.5)[0]
+    assert not p(2.0 ** 15, 100.0, 2.0 ** 15 + 4.0, 100.0, 2.0 ** 15, 104.0, 1 / 16, 0.0, 1.0,
+                 0.5)[0]

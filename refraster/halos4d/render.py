@@ -81,6 +81,13 @@ OFF_CORE_MARGIN = 2.0 ** -12
 #: The off-core test is used only on triangles whose barycentrics are this well conditioned
 #: (``inv_af · 2 (W + 2)(H + 2)`` for a W × H pixel bounding box; :func:`_span_off_core`).
 OFF_CORE_MAX_COND = 2.0 ** 24
+#: :func:`_off_core_plane`: the plane of t is used only on triangles with ``(W + H)·inv_af`` at
+#: most this (then Σ|λ_k| ≤ 9 at every pixel centre the fill covers) and window coordinates
+#: within ±:data:`OFF_CORE_PLANE_MAX_XY` (then snapping moves a vertex by at most 1/256 px).
+OFF_CORE_PLANE_MAX_SPREAD = 512.0
+OFF_CORE_PLANE_MAX_XY = 2.0 ** 14
+#: The plane's t is trusted this far beyond the widened core's edge (its error is below 2^-21).
+OFF_CORE_PLANE_SLACK = 2.0 ** -20
 
 
 @dataclass(frozen=True, eq=False)
@@ -469,7 +476,7 @@ def _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, x, y, t_lo,
     return 0
 
 
-@njit(**IJIT)
+@njit(**JIT)    # not inlined: the fallback of _plane_span_off_core, seldom called
 def _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, t_lo, t_hi):
     """True when no fragment of the row span ``xa … xb`` (row y) of a triangle with
     ``inv_af > 0`` can be a core fragment (``|2t − 1| < w_s + a``): t stays ≥ ``t_hi`` or
@@ -485,6 +492,82 @@ def _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, 
     side = _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, y, t_lo, t_hi)
     return side != 0 and side == _off_core_side(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1,
                                                 s2, xb, y, t_lo, t_hi)
+
+
+@njit(**IJIT)
+def _off_core_plane(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2):
+    """``(ok, gx, gy)``: the gradient of the triangle's interpolated t, ``t ≈ s0 + gx·(x − fx0)
+    + gy·(y − fy0)`` (:func:`_plane_t`), and whether its error is bounded where the fill covers
+    (docs/halos4d.md, "Off-core spans"): on a triangle :func:`_off_core_usable` accepts, with
+    ``(W + H)·inv_af`` ≤ :data:`OFF_CORE_PLANE_MAX_SPREAD` and every window coordinate within
+    ±:data:`OFF_CORE_PLANE_MAX_XY`, :func:`_plane_t` lies within 2^-21 of the exact N / D at
+    every point of the snapped triangle, where also D ∈ [1/2, 2] and Σ|λ_k| ≤ 16."""
+    ex = max(fx0, fx1, fx2) - min(fx0, fx1, fx2)
+    ey = max(fy0, fy1, fy2) - min(fy0, fy1, fy2)
+    ok = ((ex + ey) * inv_af <= OFF_CORE_PLANE_MAX_SPREAD
+          and max(abs(fx0), abs(fx1), abs(fx2), abs(fy0), abs(fy1), abs(fy2))
+          <= OFF_CORE_PLANE_MAX_XY)
+    d1 = s1 - s0
+    d2 = s2 - s0
+    gx = -inv_af * (d1 * (fy0 - fy2) + d2 * (fy1 - fy0))
+    gy = inv_af * (d1 * (fx0 - fx2) + d2 * (fx1 - fx0))
+    return ok, gx, gy
+
+
+@njit(**IJIT)
+def _plane_t(s0, gx, gy, fx0, fy0, x, y):
+    """The plane's t (:func:`_off_core_plane`) at the point whose pixel-centre coordinates are
+    ``(x + ½, y + ½)``, evaluated in the order its error bound assumes."""
+    return (s0 + gy * ((np.float64(y) + 0.5) - fy0)) + gx * ((np.float64(x) + 0.5) - fx0)
+
+
+@njit(**IJIT)
+def _plane_span_off_core(s0, gx, gy, fx0, fy0, xa, xb, y, t_lo, t_hi):
+    """:func:`_span_off_core` from the plane of t (:func:`_off_core_plane`, its ``ok``
+    true), ``t_lo``, ``t_hi`` the widened core's edges: the plane's t at both ends of the span
+    at least :data:`OFF_CORE_PLANE_SLACK` beyond one of them (so the exact N / D is beyond it
+    over the span)."""
+    ta = _plane_t(s0, gx, gy, fx0, fy0, xa, y)
+    tb = _plane_t(s0, gx, gy, fx0, fy0, xb, y)
+    return (min(ta, tb) >= t_hi + OFF_CORE_PLANE_SLACK
+            or max(ta, tb) <= t_lo - OFF_CORE_PLANE_SLACK)
+
+
+@njit(**IJIT)
+def _plane_triangle_off_core(s0, gx, gy, fx0, fy0, X0, X1, X2, Y0, Y1, Y2, bits, t_lo, t_hi):
+    """:func:`_triangle_off_core` from the plane of t (:func:`_off_core_plane`, its ``ok``
+    true): its t at the three snapped vertices at least :data:`OFF_CORE_PLANE_SLACK` beyond
+    the same edge of the widened core."""
+    sc = 1.0 / (1 << bits)
+    ta = _plane_t(s0, gx, gy, fx0, fy0, X0 * sc, Y0 * sc)
+    tb = _plane_t(s0, gx, gy, fx0, fy0, X1 * sc, Y1 * sc)
+    tc = _plane_t(s0, gx, gy, fx0, fy0, X2 * sc, Y2 * sc)
+    return (min(ta, tb, tc) >= t_hi + OFF_CORE_PLANE_SLACK
+            or max(ta, tb, tc) <= t_lo - OFF_CORE_PLANE_SLACK)
+
+
+@njit(**IJIT)
+def _claim_span(plane, gx, gy, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y,
+                t_lo, t_hi):
+    """Whether the fill defers the row span ``xa … xb`` of row y as off the core: from the
+    plane of t where :func:`_off_core_plane` vouches for it (``plane``), else by the exact test
+    :func:`_span_off_core` (on a triangle :func:`_off_core_usable` accepts)."""
+    if plane:
+        return _plane_span_off_core(s0, gx, gy, fx0, fy0, xa, xb, y, t_lo, t_hi)
+    return _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, xa, xb, y, t_lo,
+                          t_hi)
+
+
+@njit(**IJIT)
+def _claim_triangle(plane, gx, gy, fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, X0, X1,
+                    X2, Y0, Y1, Y2, bits, t_lo, t_hi):
+    """Whether the fill defers the whole triangle as off the core: :func:`_claim_span`'s
+    choice for :func:`_plane_triangle_off_core` and :func:`_triangle_off_core`."""
+    if plane:
+        return _plane_triangle_off_core(s0, gx, gy, fx0, fy0, X0, X1, X2, Y0, Y1, Y2, bits,
+                                        t_lo, t_hi)
+    return _triangle_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, s0, s1, s2, X0, X1, X2, Y0,
+                              Y1, Y2, bits, t_lo, t_hi)
 
 
 @njit(**JIT)    # not inlined: three inlined tests cost seconds of compile time
@@ -720,7 +803,7 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
     whose first row lies in it (all of them: :func:`_bin_tets`).
 
     Without a volume and a halo colour, a triangle or a row span whose fragments are all off
-    the core (:func:`_triangle_off_core`, :func:`_span_off_core`) is deferred to the end of
+    the core (:func:`_claim_triangle`, :func:`_claim_span`) is deferred to the end of
     its slice and filled only at the voxels that then have a surface fragment
     (:func:`_fill_off_core`; a deferred triangle's rows are not visited before): the depth
     buffers are minima, which do not depend on the order, and elsewhere such a fragment
@@ -872,13 +955,17 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
                     off_ok = defer and _off_core_usable(fx0, fy0, fx1, fy1, fx2, fy2, inv_af,
                                                         t0, t1, t2)
                     s1, s2 = (t2, t1) if swap else (t1, t2)
+                    plane, gx, gy = False, 0.0, 0.0
                     if off_ok:
+                        plane, gx, gy = _off_core_plane(fx0, fy0, fx1, fy1, fx2, fy2, inv_af,
+                                                        t0, s1, s2)
                         t_min = min(t0, t1, t2)
                         t_max = max(t0, t1, t2)
                         if t_min >= t_hi or t_max <= t_lo:
                             # corners beyond the core on one side: test the whole triangle
-                            if _triangle_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, t0, s1,
-                                                  s2, X0, X1, X2, Y0, Y1, Y2, bits, t_lo, t_hi):
+                            if _claim_triangle(plane, gx, gy, fx0, fy0, fx1, fy1, fx2, fy2,
+                                               inv_af, t0, s1, s2, X0, X1, X2, Y0, Y1, Y2,
+                                               bits, t_lo, t_hi):
                                 if halos:    # its rows' spans are found where needed
                                     _keep_triangle(off_tris[n_off_tris], fx0, fy0, fx1, fy1,
                                                    fx2, fy2, inv_af, swap, t0, t1, t2, d0, d1,
@@ -919,8 +1006,9 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
                                           x1 - x0 + 1)
                         if sa > sb:
                             continue
-                        if off_ok and _span_off_core(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, t0,
-                                                     s1, s2, x0 + sa, x0 + sb, py, t_lo, t_hi):
+                        if off_ok and _claim_span(plane, gx, gy, fx0, fy0, fx1, fy1, fx2,
+                                                  fy2, inv_af, t0, s1, s2, x0 + sa, x0 + sb,
+                                                  py, t_lo, t_hi):
                             if halos:    # without halos an off-core fragment sets no depth
                                 if slot < 0:
                                     slot = n_off_tris
