@@ -290,6 +290,9 @@ _NO_IDS = np.zeros((0, 0), np.int32)
 #: ``finalize``'s rasterizer outputs when it writes no background into them.
 _NO_RASTER = (np.zeros((0, 0), np.float32), np.zeros((0, 0), np.bool_),
               np.zeros((0, 0, 3), np.float32), np.float32(1.0))
+#: From this many pixels, ``finalize`` writes the G-buffer's background itself (a reused
+#: framebuffer's and a new one's from the output pool), not NumPy's fills.
+FILL_IN_KERNEL = 1 << 16
 
 
 def _fill_background(bg, depth, front, bary, clear_depth):
@@ -298,9 +301,6 @@ def _fill_background(bg, depth, front, bary, clear_depth):
     depth[bg] = clear_depth
     front[bg] = False
     bary[bg] = 0.0
-#: From this many pixels, ``finalize`` writes the G-buffer's background itself (a reused
-#: framebuffer's and a new one's from the output pool), not NumPy's fills.
-FILL_IN_KERNEL = 1 << 16
 
 
 def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, bary, normals,

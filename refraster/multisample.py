@@ -38,9 +38,9 @@ class SampleFramebuffer:
     sample's values are those of the fragment that won its depth test, its attributes
     interpolated where ``raster.interpolation`` says. ``color`` is shaded when first read, as
     :attr:`refraster.Framebuffer.color`, from the buffers as they are then (with one draw
-    call ``prim_id`` is the face image the shade reads: its ids are the call's faces). ``positions``: ``(S, 2)`` the samples' positions in
-    pixels from the pixel's upper-left corner as the picture is seen, y down; ``raster``: the
-    state it was rendered with.
+    call ``prim_id`` is the face image the shade reads: its ids are the call's faces).
+    ``positions``: ``(S, 2)`` the samples' positions in pixels from the pixel's upper-left
+    corner as the picture is seen, y down; ``raster``: the state it was rendered with.
     """
 
     __slots__ = ("depth", "eye_depth", "normal", "prim_id", "object_id", "front_facing",

@@ -85,77 +85,64 @@ def _pieces(sprim, i):
 
 
 @njit(**IJIT)
-def _add(box, ntx, counts, lists, cursor, item, fill):
+def _add(box, ntx, lists, cursor, item):
+    """List ``item`` in each tile its pixel box touches (``cursor``: each tile's next slot)."""
     for ty in range(box[2] >> TILE_SHIFT, (box[3] >> TILE_SHIFT) + 1):
         for tx in range(box[0] >> TILE_SHIFT, (box[1] >> TILE_SHIFT) + 1):
             t = ty * ntx + tx
-            if fill:
-                lists[cursor[t]] = item
-                cursor[t] += 1
-            else:
-                counts[t] += 1
+            lists[cursor[t]] = item
+            cursor[t] += 1
 
 
 @njit(**PJIT)
-def _bin_pass(status, fbox, sprim, sbox, ntx, ntiles, counts, starts, lists, fill):
-    """Per chunk of faces: count (fill=False) or write (fill=True) tile lists. ``counts`` is
-    ``(nchunks, ntiles)``; chunk c of tile t writes from ``starts[c, t]``, so the lists are in
-    primitive order whatever the thread count. ``lists`` holds one slot more per chunk after
-    the lists: ``len(lists) − nchunks + c``, chunk c's junk slot."""
+def _bin_pass(status, fbox, sprim, sbox, ntx, starts, lists):
+    """Per chunk of faces, write the tile lists: chunk c of tile t from ``starts[c, t]``
+    (``(nchunks, ntiles)``, from the primitive stage's counts), so the lists are in primitive
+    order whatever the thread count. ``lists`` holds one slot more per chunk after the lists:
+    ``len(lists) − nchunks + c``, chunk c's junk slot."""
     nf = status.shape[0]
     nchunks = (nf + _BIN_CHUNK - 1) // _BIN_CHUNK
     for ch in prange(nchunks):
-        cursor = starts[ch].copy() if fill else starts[0]
-        cnt = counts[ch]
+        cursor = starts[ch].copy()
         junk = lists.shape[0] - nchunks + ch
         for i in range(ch * _BIN_CHUNK, min(nf, (ch + 1) * _BIN_CHUNK)):
             s = status[i]
             if s == CLIPPED:   # rare: a branch
                 lo, hi = _pieces(sprim, i)
                 for k in range(lo, hi):
-                    _add(sbox[k], ntx, cnt, lists, cursor, -(k + 1), fill)
+                    _add(sbox[k], ntx, lists, cursor, -(k + 1))
                 continue
             # simple or skipped without a branch on which (a fine mesh's faces alternate
-            # between the two at random): a skipped face (box zeros) counts 0 in tile 0 and
-            # is listed in the chunk's junk slot
+            # between the two at random): a skipped face (box zeros) is listed in the
+            # chunk's junk slot
             simple = s == SIMPLE
             x0, x1 = fbox[i, 0] >> TILE_SHIFT, fbox[i, 1] >> TILE_SHIFT
             y0, y1 = fbox[i, 2] >> TILE_SHIFT, fbox[i, 3] >> TILE_SHIFT
             if simple and (x0 != x1 or y0 != y1):   # a box over several tiles
-                _add(fbox[i], ntx, cnt, lists, cursor, i, fill)
+                _add(fbox[i], ntx, lists, cursor, i)
                 continue
             t = y0 * ntx + x0 if simple else 0
-            if fill:
-                lists[cursor[t] if simple else junk] = i
-                cursor[t] += simple
-            else:
-                cnt[t] += simple
+            lists[cursor[t] if simple else junk] = i
+            cursor[t] += simple
 
 
 def bin_primitives(prims, scratch=None):
     """Tile lists: ``(ntx, nty, starts (ntiles + 1,), lists)``; an item ``i ≥ 0`` is simple face
-    ``i``, an item ``−(k + 1)`` clipped piece ``k``; each list is in primitive order.
+    ``i``, an item ``−(k + 1)`` clipped piece ``k``; each list is in primitive order. The
+    items per chunk of faces and tile are the primitive stage's (``prims.tile_counts``).
     ``scratch``: a :class:`refraster._scratch.Scratch` for the lists (then valid until it is
     used again)."""
     nchunks, ntx, nty = bin_shape(prims.n_faces, prims.width, prims.height)
-    ntiles = ntx * nty
-    st = prims.clipped
-    starts2 = np.zeros((nchunks, ntiles), np.int64)
-    counts = prims.tile_counts   # counted by the primitive stage
-    if counts is None:
-        counts = np.zeros((nchunks, ntiles), np.int64)
-        lists = np.zeros(0, np.int64)
-        tiered(_bin_pass)(prims.status, prims.bbox, st.prim, st.bbox, ntx, ntiles, counts,
-                          starts2, lists, False)
-    per_tile = counts.sum(axis=0)
-    starts = np.zeros(ntiles + 1, np.int64)
-    np.cumsum(per_tile, out=starts[1:])
-    starts2[:] = starts[:-1][None, :] + np.cumsum(counts, axis=0) - counts
+    counts = prims.tile_counts
+    starts = np.zeros(ntx * nty + 1, np.int64)
+    np.cumsum(counts.sum(axis=0), out=starts[1:])
+    # chunk c of tile t writes from the tile's start plus the earlier chunks' items there
+    starts2 = starts[:-1][None, :] + np.cumsum(counts, axis=0) - counts
     n = int(starts[-1])   # and a junk slot per chunk (_bin_pass)
     lists = (np.zeros(n + nchunks, np.int64) if scratch is None
              else scratch.empty("lists", n + nchunks, np.int64))
-    tiered(_bin_pass)(prims.status, prims.bbox, st.prim, st.bbox, ntx, ntiles, counts, starts2, lists,
-              True)
+    st = prims.clipped
+    tiered(_bin_pass)(prims.status, prims.bbox, st.prim, st.bbox, ntx, starts2, lists)
     return ntx, nty, starts, lists[:n]
 
 
