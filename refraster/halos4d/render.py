@@ -339,11 +339,11 @@ def _bin_tets(z, ndc, tets, centres, width, height, bits, band_rows, nbands):
     index order (CSR ``(starts (nbands + 1,), lists)``), and each tetrahedron's first and last
     band (``-1``, ``-2`` if no slice cuts it), and the number of slice triangles: ``(starts,
     lists, first, last, k0, k1, n_tri)``. A tetrahedron's rows are its four vertices' snapped
-    window rows widened by one pixel: a slice corner lies on an edge (``λ ∈ [0, 1]``), within an ulp
-    of the edge's ends, which snapping moves by at most one subpixel. A tetrahedron outside
+    window rows widened by one pixel: a slice corner lies on an edge (``λ ∈ [0, 1]``), within an
+    ulp of the edge's ends, which snapping moves by at most one subpixel. A tetrahedron outside
     the image keeps the nearest band (its triangles are counted there, as invalid). Parallel
-    over chunks of :data:`BIN_CHUNK` tetrahedra and deterministic (count, prefix sum over
-    (band, chunk), write each chunk's tetrahedra in index order)."""
+    over chunks of :data:`BIN_CHUNK` tetrahedra and deterministic (count, prefix sum over (band,
+    chunk), write each chunk's tetrahedra in index order)."""
     n = tets.shape[0]
     hw = np.float32(width * 0.5)
     hh = np.float32(height * 0.5)
@@ -788,17 +788,18 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
                  out_rgb2, out_a2, counts):
     """The slicing and the fill pass in one, parallel over bands of rows: each band slices the
     tetrahedra of its list (:func:`_bin_tets`) by the planes that cut them and, for a
-    tetrahedron in several bands, may reach the band's rows (:func:`_band_slices`, the
-    band's slab widened by 1/16 px on each side: the corners' float32 window positions and
-    their snapping differ from the float64 ones by far less), slice by slice back to front
-    and in tetrahedron order within a slice (the draw order of
+    tetrahedron in several bands, may reach the band's rows (:func:`_band_slices`, the band's
+    slab widened by 1/16 px on each side: the corners' float32 window positions and their
+    snapping differ from the float64 ones by far less), slice by slice back to front and in
+    tetrahedron order within a slice (the draw order of
     :func:`~refraster.halos4d.slicing.slice_tetrahedra`, the same corner bits), and fills the
-    slice triangles that touch its rows; no slice triangle is stored (issue 46). With ``pair`` (and ``halos``), also the halos-off twin (``halos``
-    False, ``halo_alpha`` 0, no boundaries, the other parameters the same) into ``out_rgb2``,
-    ``out_a2``: its fragments, barycentrics and surface fragments are the first picture's,
-    only the depth buffer differs (issue 27). ``out_rgb`` (``out_rgb2``) receives the colour
-    composited over ``background (3,)``, ``rgb + (1 − α)·background`` (in the parallel loop
-    rather than serial NumPy; a zero background adds +0.0: the bits of ``rgb``).
+    slice triangles that touch its rows; no slice triangle is stored (issue 46). With ``pair``
+    (and ``halos``), also the halos-off twin (``halos`` False, ``halo_alpha`` 0, no boundaries,
+    the other parameters the same) into ``out_rgb2``, ``out_a2``: its fragments, barycentrics
+    and surface fragments are the first picture's, only the depth buffer differs (issue 27).
+    ``out_rgb`` (``out_rgb2``) receives the colour composited over ``background (3,)``,
+    ``rgb + (1 − α)·background`` (in the parallel loop rather than serial NumPy; a zero
+    background adds +0.0: the bits of ``rgb``).
     ``counts[band]``: the valid slice triangles (non-zero snapped area, inside the image)
     whose first row lies in it (all of them: :func:`_bin_tets`).
 
