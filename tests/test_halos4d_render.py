@@ -556,3 +556,74 @@ def test_band_binning_and_slicing_equal_their_serial_definitions():
     params = (0.3, 2.0, 0.3, 1e-6, 0.6, True, 0.3, 0.0, np.zeros(3), False, 0.15, np.zeros(3))
     _, _, _, n_tri, n_bad = hr._fused(ts, w, hgt, params, False)
     assert (n_tri, n_bad) == (len(st_), np.count_nonzero(~valid))
+
+
+def test_section_table_is_section_corners_for_every_sign_pattern():
+    """The fused kernel reads a tetrahedron's section edges from ``SECTION_TABLE`` by its sign
+    pattern (``section_mask``): for each of the 16 patterns, with heights of every magnitude
+    and both zeros (``s ≥ 0`` counts −0.0 as positive), the row is ``_section_corners``' result
+    (planted fault caught: a quad's two triangles' edges exchanged in one row)."""
+    rng = np.random.default_rng(46)
+    seen = set()
+    for _ in range(400):
+        s = rng.choice([-2.5, -1e-300, -0.0, 0.0, 1e-300, 3.0], 4)
+        mask = hs.section_mask.py_func(*s)
+        seen.add(int(mask))
+        n, e = hs._section_corners(*s)
+        assert hs.SECTION_TABLE[mask, 12] == n
+        assert tuple(hs.SECTION_TABLE[mask, :12]) == tuple(e)
+        g = (7, 3, 11, 5)
+        for corner in range(3 * n):
+            assert (hs.table_edge.py_func(g, s, hs.SECTION_TABLE, mask, corner)
+                    == hs.section_edge.py_func(g, s, e, corner))
+    assert seen == set(range(16))
+
+
+def test_column_extrema_are_the_axis_0_reductions_bit_for_bit():
+    """``_column_extrema`` (each column's 1D minimum and maximum) against ``min(axis=0)`` and
+    ``max(axis=0)``, bit for bit, on columns of ±0, ±1, ±2 where the two reduction orders
+    return zeros of different signs (on about a fifth of them), on columns with a NaN or
+    an infinity, and on random data (planted fault caught: the fallback for zero results
+    removed)."""
+    rng = np.random.default_rng(5)
+    differ = 0
+    for trial in range(600):
+        n = int(rng.integers(1, 200))
+        p = rng.choice([0.0, -0.0, 1.0, 2.0], size=(n, 3))
+        p[:, 1] = -p[:, 1]     # zero maxima there
+        if trial % 50 == 0:
+            p[rng.integers(n), rng.integers(3)] = [np.nan, np.inf, -np.inf][trial // 50 % 3]
+        if trial % 7 == 0:
+            p = rng.normal(size=(n, 3))
+        lo, hi = hr._column_extrema(p)
+        ref_lo, ref_hi = p.min(axis=0), p.max(axis=0)
+        assert lo.tobytes() == ref_lo.tobytes() and hi.tobytes() == ref_hi.tobytes()
+        cols = (np.array([p[:, j].min() for j in range(3)]),
+                np.array([p[:, j].max() for j in range(3)]))
+        differ += cols[0].tobytes() != ref_lo.tobytes() or cols[1].tobytes() != ref_hi.tobytes()
+    assert differ > 50
+
+
+def test_fused_float32_pictures_are_the_float64_ones_rounded():
+    """``_fused(…, f32=True)`` (the kernel rounds its pictures to float32, render_halos' path)
+    gives NumPy's ``astype(float32)`` of the float64 pictures, for one picture and for the
+    pair, over a non-black background (planted fault caught: the float32 alpha written before
+    the background's term, i.e. the float32 colour without it)."""
+    s = fig1()
+    geo, _ = hr.prepare(s, view=h.View4D(rotation=h.compose(("zx", 0.5), ("yz", -1.0))))
+    v = geo.vertices
+    w, hgt, n = 64, 56, 32
+    bounds = hr._screen_bounds([v], w, hgt, 0.05)
+    centres = bounds[0, 2] + (np.arange(n) + 0.5) * (bounds[1, 2] - bounds[0, 2]) / n
+    ts = hr._tet_slices(v, geo.tets, centres, geo.attributes, bounds)
+    params = (0.3, 1.0, 0.2, 1e-6, 0.6, True, 0.05, 0.0, np.zeros(3), False, 0.15, np.zeros(3))
+    bg = np.array([0.2, 0.5, 0.9])
+    for pair in (False, True):
+        a = hr._fused(ts, w, hgt, params, False, pair=pair, background=bg)
+        b = hr._fused(ts, w, hgt, params, False, pair=pair, background=bg, f32=True)
+        pics = (0, 1, 5, 6) if pair else (0, 1)
+        for i in pics:
+            assert b[i].dtype == np.float32
+            assert b[i].tobytes() == a[i].astype(np.float32).tobytes()
+        assert a[3:5] == b[3:5]
+        assert np.count_nonzero(a[1]) > 100
