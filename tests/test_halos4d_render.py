@@ -558,27 +558,6 @@ def test_band_binning_and_slicing_equal_their_serial_definitions():
     assert (n_tri, n_bad) == (len(st_), np.count_nonzero(~valid))
 
 
-def test_section_table_is_section_corners_for_every_sign_pattern():
-    """The fused kernel reads a tetrahedron's section edges from ``SECTION_TABLE`` by its sign
-    pattern (``section_mask``): for each of the 16 patterns, with heights of every magnitude
-    and both zeros (``s ≥ 0`` counts −0.0 as positive), the row is ``_section_corners``' result
-    (planted fault caught: a quad's two triangles' edges exchanged in one row)."""
-    rng = np.random.default_rng(46)
-    seen = set()
-    for _ in range(400):
-        s = rng.choice([-2.5, -1e-300, -0.0, 0.0, 1e-300, 3.0], 4)
-        mask = hs.section_mask.py_func(*s)
-        seen.add(int(mask))
-        n, e = hs._section_corners(*s)
-        assert hs.SECTION_TABLE[mask, 12] == n
-        assert tuple(hs.SECTION_TABLE[mask, :12]) == tuple(e)
-        g = (7, 3, 11, 5)
-        for corner in range(3 * n):
-            assert (hs.table_edge.py_func(g, s, hs.SECTION_TABLE, mask, corner)
-                    == hs.section_edge.py_func(g, s, e, corner))
-    assert seen == set(range(16))
-
-
 def test_column_extrema_are_the_axis_0_reductions_bit_for_bit():
     """``_column_extrema`` (each column's 1D minimum and maximum) against ``min(axis=0)`` and
     ``max(axis=0)``, bit for bit, on columns of ±0, ±1, ±2 where the two reduction orders

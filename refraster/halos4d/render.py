@@ -49,8 +49,8 @@ from numba.cpython.unsafe.numbers import trailing_zeros
 from .._config import IJIT, JIT, PJIT
 from .._validate import as_choice, as_float_array, as_image_size, as_option, as_real
 from ..raster.rasterizer import _inv_float_area, lambdas, row_span
-from .slicing import (MAX_SLICES, SECTION_TABLE, SUBPIXEL_BITS, _slice, _window_vertex,
-                      ortho_ndc, section_mask, setup_window, table_edge)
+from .slicing import (MAX_SLICES, SUBPIXEL_BITS, _section_corners, _slice, _window_vertex,
+                      ortho_ndc, section_edge, setup_window)
 from .surfaces import Surface4D
 from .thicken import (RHO_FRACTION, default_halo_parameters, split_prisms, steiner_values,
                       thicken, thickening_normals)
@@ -929,8 +929,7 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
                 tt = ptet[pi]
                 g = (tets[tt, 0], tets[tt, 1], tets[tt, 2], tets[tt, 3])
                 sg = (z[g[0]] - ck, z[g[1]] - ck, z[g[2]] - ck, z[g[3]] - ck)
-                mask = section_mask(sg[0], sg[1], sg[2], sg[3])
-                nsec = SECTION_TABLE[mask, 12]
+                nsec, e = _section_corners(sg[0], sg[1], sg[2], sg[3])
                 for corner in range(3 * nsec):
                     # a quad's second triangle repeats its first's corners 0 and 2
                     # (_section_corners): copied, the same bits
@@ -944,7 +943,7 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
                         cf[corner, 0] = cf[same, 0]
                         cf[corner, 1] = cf[same, 1]
                         continue
-                    vi, vj, lam = table_edge(g, sg, SECTION_TABLE, mask, corner)
+                    vi, vj, lam = section_edge(g, sg, e, corner)
                     ends[corner, 0] = vi
                     ends[corner, 1] = vj
                     lams[corner] = lam

@@ -133,43 +133,6 @@ def _section_corners(s0, s1, s2, s3):
     return 1, (lone, o1, lone, o2, lone, o3, 0, 0, 0, 0, 0, 0)
 
 
-def _section_table():
-    """:func:`_section_corners` for each of the 16 sign patterns of a tetrahedron's four heights
-    (row ``p0 + 2·p1 + 4·p2 + 8·p3``, ``p_i = s_i ≥ 0``): the 12 edge indices and the number of
-    triangles (column 12). The function decides only from the signs, so the row of a
-    tetrahedron's pattern is its result, with one load instead of its branches."""
-    tab = np.zeros((16, 13), np.int64)
-    for mask in range(16):
-        s = [0.0 if mask >> i & 1 else -1.0 for i in range(4)]
-        n, e = _section_corners.py_func(*s)
-        tab[mask, :12] = e
-        tab[mask, 12] = n
-    return tab
-
-
-#: :func:`_section_table`, read by :func:`section_mask`'s callers (a constant in the kernels).
-SECTION_TABLE = _section_table()
-
-
-@njit(**IJIT)
-def section_mask(s0, s1, s2, s3):
-    """The row of :data:`SECTION_TABLE` for signed heights ``s0 … s3`` (``s_i ≥ 0`` as
-    :func:`_section_corners` tests it)."""
-    return ((np.int64(s0 >= 0.0) | (np.int64(s1 >= 0.0) << 1)) | ((np.int64(s2 >= 0.0) << 2)
-            | (np.int64(s3 >= 0.0) << 3)))
-
-
-@njit(**IJIT)
-def table_edge(g, s, tab, mask, corner):
-    """:func:`section_edge` with the edges read from row ``mask`` of ``tab``
-    (:data:`SECTION_TABLE`)."""
-    i = tab[mask, 2 * corner]
-    j = tab[mask, 2 * corner + 1]
-    if g[i] > g[j]:
-        i, j = j, i
-    return g[i], g[j], s[i] / (s[i] - s[j])
-
-
 @njit(**IJIT)
 def section_edge(g, s, e, corner):
     """Corner ``corner`` of a cross-section (:func:`_section_corners`' edges ``e``) of the
