@@ -8,7 +8,7 @@ from hypothesis import given, settings, strategies as st
 
 import refraster as rf
 from refraster.raster.primitive import transform_vertices
-from refraster.raster.rasterizer import DEPTH_FUNCS, fused, stream
+from refraster.raster.rasterizer import DEPTH_FUNCS, NARROW, fused, stream
 
 import naive
 from determinism import outputs_by_thread_count
@@ -131,13 +131,29 @@ def test_fused_pixel_centres_on_shared_edges(func):
     tiled by two triangles split along its diagonal (which passes through every centre
     (k + ½, k + ½)) and by two rectangles sharing the vertical line x = 16.5 px. A tiling covers
     every pixel centre exactly once (the fill rule gives each edge centre to one side): every
-    pixel is covered, and the fused pass equals the fragment stream + resolve."""
+    pixel is covered, and the fused pass equals the fragment stream + resolve. The same with
+    a grid of small triangles whose edges (all three directions) pass through centres."""
     n = 32
     xm = 16.5 / n * 2 - 1   # the vertical edge at x = 16.5 px, exact in binary
     v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0],
                   [xm, -1, 0], [xm, 1, 0]], np.float64)
     scenes = {"diagonal": np.array([[0, 1, 2], [0, 2, 3]]),
               "vertical": np.array([[0, 4, 5], [0, 5, 3], [4, 1, 2], [4, 2, 5]])}
+    # small triangles (boxes at most NARROW pixels wide: the vectorized loops' narrow form):
+    # 4-pixel cells with corners on pixel centres, split along alternating diagonals, so
+    # their horizontal, vertical and diagonal edges all pass through pixel centres
+    k = 9
+    g = (0.5 + 4.0 * np.arange(k)) / n * 2 - 1
+    gx, gy = np.meshgrid(g, g)
+    gv = np.stack([gx.ravel(), gy.ravel(), np.zeros(k * k)], axis=1)
+    cells = []
+    for i in range(k - 1):
+        for j in range(k - 1):
+            a, b, c, d = i * k + j, i * k + j + 1, (i + 1) * k + j + 1, (i + 1) * k + j
+            cells += ([[a, b, c], [a, c, d]] if (i + j) % 2 else [[a, b, d], [b, c, d]])
+    v = np.concatenate([v, gv])
+    scenes["small grid"] = np.array(cells) + 6
+    assert NARROW >= 5   # the grid's boxes (5 pixels a side) take the narrow form
     # each face's corners in its three rotations: the shared edge is edge 0, 1 and 2 in turn
     scenes = {f"{name} {r}": np.roll(f, r, axis=1) for name, f in scenes.items()
               for r in range(3)}
