@@ -1,6 +1,7 @@
 """Rasterizer speed: the G-buffer pass beside Mesa's llvmpipe, measured in the same run.
 
-    python -m benchmarks.raster [--quick] [--repeats N] [--rounds R]
+    python -m benchmarks.raster [--quick] [--repeats N] [--rounds R] [--vertex-order first-use]
+        [--only NAME]
 
 Cases (1024×768): icospheres of 81,920 and 1,310,720 faces and the crank. refraster renders the
 full G-buffer (``refraster.render``: depth, eye depth, normal, ids, facing, barycentrics) with 2
@@ -46,6 +47,24 @@ def _cases(quick):
         cases.append(("icosphere 1,310,720", trimesh.creation.icosphere(8)))
     cases.append(("crank", scenes.crank()))
     return cases
+
+
+def first_use_order(vertices, faces):
+    """The mesh with its vertices renumbered in the order the faces first use them (what a
+    vertex-fetch optimiser does, e.g. meshoptimizer's ``optimizeVertexFetch``): the same
+    triangles, faces in the same order with their corners in the same order, so every output
+    byte is the same; only the vertex arrays' memory order changes (``--vertex-order``)."""
+    faces = np.asarray(faces, np.int64)
+    flat = faces.ravel()
+    _, first = np.unique(flat, return_index=True)
+    used = flat[np.sort(first)]
+    new = np.full(len(vertices), -1, np.int64)
+    new[used] = np.arange(len(used))
+    unused = np.flatnonzero(new < 0)
+    new[unused] = len(used) + np.arange(len(unused))
+    v = np.empty_like(np.asarray(vertices))
+    v[new] = vertices
+    return v, new[faces]
 
 
 def _camera(mesh):
@@ -177,13 +196,22 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=15)
     ap.add_argument("--rounds", type=int, default=3,
                     help="alternating rounds of both renderers per case (median of medians)")
+    ap.add_argument("--vertex-order", choices=("as-given", "first-use"), default="as-given",
+                    help="first-use: each mesh's vertices renumbered in the order its faces "
+                         "first use them, for both renderers (first_use_order)")
+    ap.add_argument("--only", default="", help="run the cases whose name contains this")
     a = ap.parse_args(argv)
     rows, stage_rows = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for name, mesh in _cases(a.quick):
+            if a.only and a.only not in name:
+                continue
             view, proj = _camera(mesh)
             path = pathlib.Path(tmp) / "scene.npz"
-            np.savez(path, vertices=np.asarray(mesh.vertices), faces=np.asarray(mesh.faces),
+            vertices, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+            if a.vertex_order == "first-use":
+                vertices, faces = first_use_order(vertices, faces)
+            np.savez(path, vertices=vertices, faces=faces,
                      view=view, proj=proj, mvp=proj @ view, mv=view, width=W, height=H)
             for threads in (2, 1):
                 # alternate the two renderers over a few rounds and keep the median of each
@@ -200,8 +228,8 @@ def main(argv=None):
                 rows.append((name, len(mesh.faces), threads, float(np.median(ours)),
                              float(np.median(theirs)), float(np.median(colored)),
                              float(np.median(plain))))
-            stage_rows.append((name, _stages(mesh, view, proj, a.repeats)))
-        big = _cases(False)[1][1] if not a.quick else None
+            stage_rows.append((name, _stages((vertices, faces), view, proj, a.repeats)))
+        big = _cases(False)[1][1] if not (a.quick or a.only) else None
     print(f"refraster {W}x{H} G-buffer vs llvmpipe (median over {a.rounds} alternating rounds "
           f"of the median ms/frame of {a.repeats} frames after 3 warm-up frames; "
           f"both processes with GLIBC_TUNABLES={TUNED})")
@@ -224,6 +252,8 @@ def main(argv=None):
               f" {s['raster']:7.2f}"
               f" {s['gbuffer']:7.2f} {s['total']:7.2f} {s['color']:7.2f}"
               f"   ({s['triangles']} triangles set up)")
+    if a.only:
+        return   # one case: no compile and memory measurements
     (cold, steady), (cached, steady2) = _compile_time()
     print(f"\ncompile: first render in a fresh cache {cold:.0f} ms (steady {steady:.1f} ms); "
           f"first render with the cache filled {cached:.0f} ms (steady {steady2:.1f} ms)")
