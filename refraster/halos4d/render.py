@@ -815,26 +815,6 @@ def _resolve_slice(k, r0, lr0, lr1, c0, c1, eps, alpha, want_volume, min_d, surf
                 surf_full[li, px] = False
 
 
-@njit(**IJIT)
-def _copy_out(acc, acc_a, background, r0, out_rgb, out_a, out32_rgb, out32_a, p, f32):
-    """A band's picture (its rows from ``r0``) composited over ``background`` into the float64
-    ``out_rgb``, ``out_a`` or, with ``f32``, rounded into picture ``p`` of ``out32_rgb``,
-    ``out32_a`` (:func:`_render_tets`)."""
-    rows, width = acc_a.shape
-    for li in range(rows):
-        for px in range(width):
-            for c in range(3):
-                v = acc[li, px, c] + (1.0 - acc_a[li, px]) * background[c]
-                if f32:
-                    out32_rgb[p, r0 + li, px, c] = np.float32(v)
-                else:
-                    out_rgb[r0 + li, px, c] = v
-            if f32:
-                out32_a[p, r0 + li, px] = np.float32(acc_a[li, px])
-            else:
-                out_a[r0 + li, px] = acc_a[li, px]
-
-
 @njit(**PJIT)
 def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_starts,
                  band_lists, width, height, bits, band_rows, delta_t, delta_d, surface_width,
@@ -1139,11 +1119,26 @@ def _render_tets(z, ndc, attr, tets, centres, k0, k1, tet_first, tet_last, band_
                            surf, hit, acc, acc_a, volume, surf_cov, min_db, halo_alpha,
                            halo_rgb, boundary, boundary_rgb, surf_full, voxel_rgba, pair,
                            min_d2, acc2, acc_a2)
+        # the pictures composited over the background into the float64 outputs or, with
+        # float32 ones (out32_a not empty), rounded into picture p of them
         f32 = out32_a.shape[0] > 0
-        _copy_out(acc, acc_a, background, r0, out_rgb, out_a, out32_rgb, out32_a, 0, f32)
-        if pair:
-            _copy_out(acc2, acc_a2, background, r0, out_rgb2, out_a2, out32_rgb, out32_a, 1,
-                      f32)
+        for p in range(2 if pair else 1):
+            pa = acc if p == 0 else acc2
+            pa_a = acc_a if p == 0 else acc_a2
+            o = out_rgb if p == 0 else out_rgb2
+            o_a = out_a if p == 0 else out_a2
+            for li in range(rows):
+                for px in range(width):
+                    for c in range(3):
+                        v = pa[li, px, c] + (1.0 - pa_a[li, px]) * background[c]
+                        if f32:
+                            out32_rgb[p, r0 + li, px, c] = np.float32(v)
+                        else:
+                            o[r0 + li, px, c] = v
+                    if f32:
+                        out32_a[p, r0 + li, px] = np.float32(pa_a[li, px])
+                    else:
+                        o_a[r0 + li, px] = pa_a[li, px]
 
 
 class _TetSlices(collections.namedtuple("TetSlices", "z ndc attr tets centres")):
