@@ -15,9 +15,9 @@ from .._config import IJIT, PJIT
 from ..ldi import parity_at
 from ..raster.gbuffer import _object_of
 from ..raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box_in_tile, _geometry, _setup,
-                                 bin_primitives, depth_test, fragment_depth, lambdas,
-                                 perspective_bary, resolved_buffers, row_span, tile_rect,
-                                 write_winner)
+                                 bin_primitives, depth_test, face_image_limit, fragment_depth,
+                                 lambdas, perspective_bary, resolved_buffers, row_span,
+                                 tile_rect, write_winner)
 from .capping import SURE_EXTRAPOLATION
 from .surfaces import _Packed, clipped_at
 
@@ -309,6 +309,7 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests,
     for k, srf in enumerate(surfaces):
         ends = srf.scale[2] * np.array(srf.height_range)
         h_lo[k], h_hi[k] = ends.min(), ends.max()
+    face_image_limit(prims.n_faces, "the clip surfaces' tile pass")
     ntx, _, starts, lists = bin_primitives(prims)
     h, w = prims.height, prims.width
     depth, prim, front, bary = resolved_buffers(h, w, clear_depth)
