@@ -490,12 +490,12 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 # here; ~0.7x the pass for the cube), so reversed-Z costs what the default
                 # costs. The comparison is chosen by ``lt``, ``gt`` (the same for the whole
                 # pass): ``(zf < ref) & lt | (zf > ref) & gt`` is "<" for less and ">" for
-                # greater, NaN failing both, as in depth_test. Every pixel of row_span's span is covered
-                # (the span is exact: where all three biased edge functions are >= 0, checked
-                # exhaustively), so there is no edge test, and the edge functions are not
-                # stepped; the depth is fragment_depth's expression in its order,
-                # (z0 + dz/dx·(x + ½ − x0)) + the row's dz/dy term, clamped as there (NaN
-                # kept), the same bits; the test and the writes are selects (a pixel that
+                # greater, NaN failing both, as in depth_test. Every pixel of row_span's span
+                # is covered (the span is exact: where all three biased edge functions are
+                # >= 0, checked exhaustively), so there is no edge test, and the edge
+                # functions are not stepped; the depth is fragment_depth's expression in its
+                # order, (z0 + dz/dx·(x + ½ − x0)) + the row's dz/dy term, clamped as there
+                # (NaN kept), the same bits; the test and the writes are selects (a pixel that
                 # loses is written its own values back), ties to the first drawn. The column
                 # index is unsigned: no negative-index fix-up per pixel.
                 lt, gt = func == 1, func == 4
@@ -605,8 +605,9 @@ def face_image_limit(n_faces, who):
 
 def resolved_buffers(height, width, clear_depth, fill=True):
     """The outputs of a fused tile pass, holding what a pixel no fragment won keeps: depth
-    ``clear_depth``, face −1 (int32: :data:`MAX_FACES`), facing False, barycentrics 0 (NumPy's fills are ~10× faster than
-    writing the background pixel by pixel in the tile loop). ``fill=False``: only the face
+    ``clear_depth``, face −1 (int32: :data:`MAX_FACES`), facing False, barycentrics 0
+    (NumPy's fills are ~10× faster than writing the background pixel by pixel in the tile
+    loop). ``fill=False``: only the face
     image filled (the others' background is the caller's: ``finalize``'s sweep)."""
     # from the output pool: recycled once nobody holds them (refraster._scratch.OutputPool)
     prim = OUTPUTS.full((height, width), -1, np.int32)
