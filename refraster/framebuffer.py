@@ -19,7 +19,7 @@ from .raster import DEPTH_FUNCS, Fragments, facing, prepare, resolve
 from .raster.state import as_raster_state, require_single_sample
 from .raster.fragments import _interpolate
 from .raster.gbuffer import clear_spans, finalize, per_face_normals, readonly, shade
-from .raster.rasterizer import fused
+from .raster.rasterizer import MAX_FACES, fused
 
 __all__ = ["Framebuffer", "render", "normalized_linear_depth", "PALETTE"]
 
@@ -55,9 +55,10 @@ class Framebuffer:
     color : float32 (H, W, 3)
         Headlight Blinn–Phong shading of :data:`PALETTE` colours by ``object_id``
         (two-sided); ``background`` elsewhere. :func:`render` shades it when it is first
-        read (a G-buffer pass that never reads it does not pay for it), from the meshes and
-        ``barycentric`` as they are then — read it before changing either in place. Once
-        read it is an ordinary array (writes to it stay).
+        read (a G-buffer pass that never reads it does not pay for it), from the meshes,
+        ``barycentric`` and, with one draw call, ``prim_id`` (the face image itself) as they
+        are then — read it before changing them in place. Once read it is an ordinary array
+        (writes to it stay).
     """
 
     depth: np.ndarray
@@ -139,7 +140,10 @@ class Framebuffer:
         idx = win[m]
         h, w = win.shape
         offsets = np.cumsum([0] + [mesh.n_faces for mesh in frags.meshes])
-        prim_global = np.full((h, w), -1, np.int64)
+        if offsets[-1] > MAX_FACES:
+            raise ValueError(f"frags: {int(offsets[-1]):,} faces in all; a framebuffer takes at "
+                             f"most {MAX_FACES:,} (its face image is int32)")
+        prim_global = np.full((h, w), -1, np.int32)
         front = np.zeros((h, w), np.bool_)
         bary = np.zeros((h, w, 3), np.float32)
         prim_global[m] = offsets[frags.object_id[idx]] + frags.prim_id[idx]
@@ -178,7 +182,7 @@ class Framebuffer:
             public[name] = v
         fb = cls(**public, color=np.ones((h, w, 3), np.float32), view=np.eye(4),
                  proj=np.eye(4), meshes=None, models=None)
-        face = np.full((h, w), -1, np.int64)
+        face = np.full((h, w), -1, np.int32)
         fb.__dict__["_prim_scratch"] = face
         fb.__dict__["_owners"] = {name: (public[name], a) for name, a in own.items()}
         fb.__dict__["_owner_id"] = id(fb)   # a copy (copy.copy, deepcopy, pickle) is not it
@@ -324,6 +328,8 @@ def _build(meshes, models, view, proj, depth, prim_global, face_offsets, front, 
     background is written here, in ``finalize``'s sweep, or by NumPy's fills when the sweep
     writes none."""
     h, w = depth.shape
+    if prim_global.dtype != np.int32:   # one specialisation of finalize and shade
+        prim_global = prim_global.astype(np.int32)
     vn = _normals_per_mesh(meshes, normals)
     if geometry is not None:
         vertices, faces = geometry
@@ -601,7 +607,11 @@ def render(meshes, *, view, proj, width, height, raster=None, model=None, fragme
         raise ValueError("out= cannot be combined with fragment_stage")
     meshes = as_meshes(meshes)
     w, h = as_image_size(width, height)
-    with threads_for(frame_work(sum(m.n_faces for m in meshes), w, h)):
+    n_faces = sum(m.n_faces for m in meshes)
+    if n_faces > MAX_FACES:
+        raise ValueError(f"meshes: {n_faces:,} faces in all; render takes at most "
+                         f"{MAX_FACES:,} (its face image is int32)")
+    with threads_for(frame_work(n_faces, w, h)):
         return _render(meshes, view, proj, w, h, state, model, fragment_stage, bg, out)
 
 
@@ -642,7 +652,7 @@ def _render_frame(meshes, view, proj, width, height, state, model, fragment_stag
         facing(state, front, prim_global)
         return _build(prep.meshes, prep.models, prep.view, prep.proj, depth, prim_global,
                       prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg,
-                      raster_bg=clear)
+                      share_ids=True, raster_bg=clear)
     from .raster import _fragments_from
     from .raster.rasterizer import stream
     pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
@@ -668,7 +678,7 @@ def _render_into(prep, out, model, bg, scratch):
                                                  model, bg), owners)
     faces = out.__dict__.get("_prim_scratch")
     if not (isinstance(faces, np.ndarray) and faces.shape == (h, w)):
-        faces = np.empty((h, w), np.int64)   # private: never handed out
+        faces = np.empty((h, w), np.int32)   # private: never handed out
     out.__dict__["_prim_scratch"] = faces
     if owners:
         return _render_reusable(prep, out, owners, trusted, arrays, faces, normals,

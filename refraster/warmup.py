@@ -293,9 +293,8 @@ def warm_core(normals=("flat", "smooth"), *, clip=False, stream=False, reusable=
     clipping kernels), ``stream=True`` through a fragment stage (``draw``, ``resolve``): what
     the gallery's techniques share. ``reusable=True`` also renders twice into a
     :meth:`Framebuffer.reusable <refraster.framebuffer.Framebuffer.reusable>` (its span clear,
-    ``refraster warmup``'s). ``multisample=True`` also gives ``finalize`` and ``shade`` their
-    second specialisation, the 4× sample image's int32 face image
-    (``refraster.raster.gbuffer.FACE_IMAGE_DTYPES``), through ``render_samples`` with its tile
+    ``refraster warmup``'s). ``multisample=True`` also runs ``render_samples`` (its sample
+    positions, the primitive stage's half-pixel pad, ``finalize``'s sample image) with its tile
     pass replaced by a no-op for the call (the tile pass compiles where a multisampled frame is
     first drawn; the replacement is process-wide, as :func:`warm_only`'s): what the gallery's
     and the goldens' 4× pictures add to the pipeline's kernels."""

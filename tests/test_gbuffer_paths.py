@@ -274,6 +274,38 @@ def test_face_image_limit_refused_in_one_line(monkeypatch):
         rf.render_samples(box, **kw, raster=s4)
 
 
+def test_one_sample_face_image_limit_refused_in_one_line(monkeypatch):
+    """``render``'s face image is int32 too (handed out as ``prim_id`` with one draw call):
+    more faces than it indexes (``MAX_FACES``, lowered here to the cube's 12) are refused in
+    one line by ``render``, by the tile pass's wrapper ``fused`` and by
+    ``Framebuffer.from_fragments``, and exactly that many are taken, ids and all."""
+    from refraster import framebuffer as fbm
+    from refraster.raster import rasterizer as rr
+    assert rr.MAX_FACES == 2 ** 31 == np.iinfo(np.int32).max + 1
+    box = mesh_of(cube())
+    kw = camera_kw(w=32, h=24)
+    want = rf.render(box, **kw)
+    monkeypatch.setattr(fbm, "MAX_FACES", 12)
+    fb = rf.render(box, **kw)
+    assert fb.prim_id.dtype == np.int32 and np.array_equal(fb.prim_id, want.prim_id)
+    assert fb.prim_id.max() == 11 and fb.prim_id.min() == -1
+    tri = Mesh(box.vertices, box.faces[:1])
+    with pytest.raises(ValueError, match=r"^meshes: 13 faces in all; render takes at most 12 "
+                                         r"\(its face image is int32\)$"):
+        rf.render([box, tri], **kw)
+    monkeypatch.setattr(rr, "MAX_FACES", 11)      # the tile pass's own guard
+    with pytest.raises(ValueError, match=r"^fused takes at most 11 faces \(its face image is "
+                                         r"int32\), not 12$"):
+        rf.render(box, **kw)
+    frags = rf.draw(box, **kw)                    # and a framebuffer built from a stream
+    res = rf.resolve(frags)
+    assert np.array_equal(rf.Framebuffer.from_fragments(frags, res).prim_id, want.prim_id)
+    monkeypatch.setattr(fbm, "MAX_FACES", 11)
+    with pytest.raises(ValueError, match=r"^frags: 12 faces in all; a framebuffer takes at "
+                                         r"most 11 \(its face image is int32\)$"):
+        rf.Framebuffer.from_fragments(frags, res)
+
+
 def test_out_input_check_after_good_frames():
     """``render(out=)`` compares only inputs it has not checked against the same arrays: after
     good frames, a new input living in ``out``'s memory is still refused."""

@@ -469,39 +469,43 @@ def test_warmup_command_warms_the_reusable_framebuffer_s_span_clear():
 
 _FACE_IMAGES = """
 import json
+import numpy as np
 import refraster as rf
 from refraster import warmup
+from refraster.framebuffer import _build
 from refraster.raster import gbuffer
 def dtypes():
     return [sorted(str(s[0].dtype) for s in k.signatures) for k in (gbuffer.finalize, gbuffer.shade)]
 out = []
 warmup.warm_core(("flat",))
 out.append(dtypes())
-warmup.warm_core(("flat", "smooth"), multisample=True)
-out.append(dtypes())
 box = rf.as_mesh(warmup._box())
 cam = rf.camera.frame_bounds(((-1, -1, -1), (1, 1, 1)), width=40, height=30, margin=1.0)
 for raster in (dict(samples=4), dict(samples=4, sample_locations="gl_llvmpipe",
                                      interpolation="sample", normals="smooth")):
     rf.render_samples(box, **cam.kwargs, raster=rf.RasterState(**raster)).color
+rf.render(box, **cam.kwargs, fragment_stage=lambda f: f.world_position()[:, 0] <= 0.0).color
+faces = np.zeros((2, 3), np.int64)           # an int64 face list, as the allowances pass
+_build([box], [np.eye(4)], cam.view, cam.proj, np.zeros((2, 3), np.float32), faces,
+       np.array([0, 12]), np.zeros((2, 3), np.bool_), np.full((2, 3, 3), 1 / 3, np.float32),
+       None, np.ones(3)).color
 out.append(dtypes())
 print(json.dumps(out))
 """
 
 
-def test_multisample_warmup_compiles_the_sample_image_s_finalize_and_shade():
-    """``warm_core(multisample=True)`` (``refraster warmup``'s, and the gallery's and goldens'
-    cold start) gives ``finalize`` and ``shade`` their int32 specialisation (the 4x sample
-    image's face image) beside the int64 one, without the 4x tile pass; real 4x frames (the
-    gallery's raster state among them) then add none. Without the option only the int64 one
-    (so the test can fail). In a process of its own, from this checkout's cache."""
+def test_finalize_and_shade_compile_once_for_the_int32_face_image():
+    """``warm_core`` (``refraster warmup``'s, and the gallery's and goldens' cold start) gives
+    ``finalize`` and ``shade`` their one specialisation, the int32 face image of every path;
+    4x frames (the gallery's raster state among them), the fragment-stream path and an int64
+    face list given to ``_build`` (the allowances') then add none. In a process of its own,
+    from this checkout's cache."""
     env = dict(os.environ, PYTHONPATH=str(REPO))
     r = subprocess.run([sys.executable, "-c", _FACE_IMAGES], env=env, capture_output=True,
                        text=True, timeout=900, stdin=subprocess.DEVNULL)
     assert r.returncode == 0, r.stderr
-    plain, warmed, after = json.loads(r.stdout.strip().splitlines()[-1])
-    assert plain == [["int64"], ["int64"]]
-    assert warmed == [["int32", "int64"], ["int32", "int64"]]
+    warmed, after = json.loads(r.stdout.strip().splitlines()[-1])
+    assert warmed == [["int32"], ["int32"]]
     assert after == warmed
 
 

@@ -14,10 +14,10 @@ from numba import njit, prange
 from .._config import IJIT, PJIT
 from ..ldi import parity_at
 from ..raster.gbuffer import _object_of
-from ..raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box_in_tile, _geometry, _setup,
-                                 bin_primitives, depth_test, fragment_depth, lambdas,
-                                 perspective_bary, resolved_buffers, row_span, tile_rect,
-                                 write_winner)
+from ..raster.rasterizer import (NARROW, NO_ITEM, TILE_SHIFT, _box_in_tile, _geometry, _setup,
+                                 bin_primitives, depth_test, face_image_limit, fragment_depth,
+                                 lambdas, perspective_bary, resolved_buffers, row_span,
+                                 tile_rect, write_winner)
 from .capping import SURE_EXTRAPOLATION
 from .surfaces import _Packed, clipped_at
 
@@ -118,8 +118,10 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
                 if cls == 0:
                     continue
                 test = cls == 2
+            n = bx1 - bx0 + 1
             for y in range(by0, by1 + 1):
-                a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
+                # the loop tests every pixel's edges: a narrow box's whole row, no division
+                a, b = (0, n - 1) if n <= NARROW else row_span(r0, sx0, r1, sx1, r2, sx2, n)
                 e0 = r0 + sx0 * a
                 e1 = r1 + sx1 * a
                 e2 = r2 + sx2 * a
@@ -309,6 +311,7 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests,
     for k, srf in enumerate(surfaces):
         ends = srf.scale[2] * np.array(srf.height_range)
         h_lo[k], h_hi[k] = ends.min(), ends.max()
+    face_image_limit(prims.n_faces, "the clip surfaces' tile pass")
     ntx, _, starts, lists = bin_primitives(prims)
     h, w = prims.height, prims.width
     depth, prim, front, bary = resolved_buffers(h, w, clear_depth)

@@ -163,7 +163,7 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
              fnormal, per_face, fill_bg, eye_depth, normal, prim_id, object_id, spans,
              r_depth, r_front, r_bary, clear_depth):
     """Eye depth, normal and ids of the covered pixels of the face image ``prim_global``
-    (global face index, int64 or int32: :data:`FACE_IMAGE_DTYPES`; ``≥ 0``); the background
+    (global face index, int32: :data:`FACE_IMAGE_DTYPES`; ``≥ 0``); the background
     (+inf, 0, −1, −1) too when ``fill_bg``, else the caller has filled it. ``per_face``
     (flat normals only): the face normals are computed first, once per face, into ``fnormal``
     (F, 3) float64 scratch (:func:`per_face_normals`). ``spans`` (H, 2) int64: each row's
@@ -319,12 +319,12 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
 
 #: The face image dtypes :func:`finalize` and :func:`shade` are compiled for, one
 #: specialisation each (every other input goes through :func:`readonly`, so nothing else
-#: varies): int64, the single-sample rasterizer's face image (``render``), and int32, the
-#: multisample sample image's (``render_samples``, ``(H, W·S)``: half the bytes of an int64 one
-#: for the tile pass to write and both kernels to read; at most 2³¹ faces).
-#: ``tests/test_gbuffer_paths.py`` fails on any other specialisation, and the warm-up compiles
-#: both (``refraster.warmup.warm_core(multisample=True)``).
-FACE_IMAGE_DTYPES = (np.int64, np.int32)
+#: varies): int32, the face image of ``render`` and the sample image of ``render_samples``
+#: (``(H, W·S)``): half the bytes of an int64 one for the tile passes to write and both kernels
+#: to read; at most 2³¹ faces (:data:`refraster.raster.rasterizer.MAX_FACES`). ``_build``
+#: converts any other (the allowances' face lists). ``tests/test_gbuffer_paths.py`` fails on
+#: any other specialisation.
+FACE_IMAGE_DTYPES = (np.int32,)
 
 
 def readonly(a):

@@ -27,16 +27,12 @@ from numba import njit, prange
 
 from .._config import IJIT, PJIT
 from .._scratch import OUTPUTS
-from .rasterizer import (NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geometry, _setup,
-                         _setup_winner, bin_primitives, depth_test, perspective_bary, tile_rect)
+from .rasterizer import (MAX_FACES, NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geometry,
+                         _setup, _setup_winner, bin_primitives, depth_test, perspective_bary,
+                         tile_rect)
 
 #: ``RasterState.interpolation`` names and the kernel's codes.
 INTERPOLATIONS = {"center": 0, "centroid": 1, "sample": 2}
-#: The most faces (over all draw calls) :func:`rasterize_samples` takes: its sample face image
-#: is int32 (global face indices 0 … 2³¹ − 1, −1 the background), half the bytes of an int64
-#: one written by the tile pass and read by ``finalize`` and ``shade`` (docs/multisample.md,
-#: "Speed"); ``render_samples`` refuses more.
-MAX_FACES = 1 << 31
 
 
 @njit(**IJIT)

@@ -53,6 +53,12 @@ TILE = 1 << TILE_SHIFT
 #: "No fragment won this pixel" in a tile's winner buffer. Binned items are faces (≥ 0) and
 #: clipped pieces −(k + 1) (≤ −1: piece 0 *is* −1), so the sentinel lies below every piece.
 NO_ITEM = -(1 << 62)
+#: The most faces (over all draw calls) a face image indexes: it is int32 (global face
+#: indices 0 … 2³¹ − 1, −1 the background; OpenGL's ``gl_PrimitiveID`` is an int too), half the
+#: bytes of an int64 one written by the tile pass and read by ``finalize`` and ``shade``; with
+#: one draw call it is handed out as ``prim_id`` (docs/performance.md). :func:`fused`,
+#: ``render``, ``render_samples`` and the clip surfaces' pass refuse more.
+MAX_FACES = 1 << 31
 #: Boxes at most this many pixels wide skip :func:`row_span` in the fused pass's vectorized
 #: loops (their rows' pixels tested directly: no division per row, the same bits).
 NARROW = 8
@@ -392,8 +398,10 @@ def _stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, 
              z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx,
              dzdy) = _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
                             sfront, sarea, bits, rule, bx0, by0)
+            n = bx1 - bx0 + 1
             for y in range(by0, by1 + 1):
-                a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
+                # the loop tests every pixel's edges: a narrow box's whole row, no division
+                a, b = (0, n - 1) if n <= NARROW else row_span(r0, sx0, r1, sx1, r2, sx2, n)
                 e0 = r0 + sx0 * a
                 e1 = r1 + sx1 * a
                 e2 = r2 + sx2 * a
@@ -484,12 +492,12 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 # here; ~0.7x the pass for the cube), so reversed-Z costs what the default
                 # costs. The comparison is chosen by ``lt``, ``gt`` (the same for the whole
                 # pass): ``(zf < ref) & lt | (zf > ref) & gt`` is "<" for less and ">" for
-                # greater, NaN failing both, as in depth_test. Every pixel of row_span's span is covered
-                # (the span is exact: where all three biased edge functions are >= 0, checked
-                # exhaustively), so there is no edge test, and the edge functions are not
-                # stepped; the depth is fragment_depth's expression in its order,
-                # (z0 + dz/dx·(x + ½ − x0)) + the row's dz/dy term, clamped as there (NaN
-                # kept), the same bits; the test and the writes are selects (a pixel that
+                # greater, NaN failing both, as in depth_test. Every pixel of row_span's span
+                # is covered (the span is exact: where all three biased edge functions are
+                # >= 0, checked exhaustively), so there is no edge test, and the edge
+                # functions are not stepped; the depth is fragment_depth's expression in its
+                # order, (z0 + dz/dx·(x + ½ − x0)) + the row's dz/dy term, clamped as there
+                # (NaN kept), the same bits; the test and the writes are selects (a pixel that
                 # loses is written its own values back), ties to the first drawn. The column
                 # index is unsigned: no negative-index fix-up per pixel.
                 lt, gt = func == 1, func == 4
@@ -535,8 +543,10 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                     r1 += sy1
                     r2 += sy2
                 continue
+            n = bx1 - bx0 + 1
             for y in range(by0, by1 + 1):
-                a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
+                # the loop tests every pixel's edges: a narrow box's whole row, no division
+                a, b = (0, n - 1) if n <= NARROW else row_span(r0, sx0, r1, sx1, r2, sx2, n)
                 e0 = r0 + sx0 * a
                 e1 = r1 + sx1 * a
                 e2 = r2 + sx2 * a
@@ -589,13 +599,22 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                               row * width + x)
 
 
+def face_image_limit(n_faces, who):
+    """Refuse more faces than an int32 face image indexes (:data:`MAX_FACES`), in one line
+    naming ``who`` takes them."""
+    if n_faces > MAX_FACES:
+        raise ValueError(f"{who} takes at most {MAX_FACES:,} faces (its face image is int32), "
+                         f"not {n_faces:,}")
+
+
 def resolved_buffers(height, width, clear_depth, fill=True):
     """The outputs of a fused tile pass, holding what a pixel no fragment won keeps: depth
-    ``clear_depth``, face −1, facing False, barycentrics 0 (NumPy's fills are ~10× faster than
-    writing the background pixel by pixel in the tile loop). ``fill=False``: only the face
+    ``clear_depth``, face −1 (int32: :data:`MAX_FACES`), facing False, barycentrics 0
+    (NumPy's fills are ~10× faster than writing the background pixel by pixel in the tile
+    loop). ``fill=False``: only the face
     image filled (the others' background is the caller's: ``finalize``'s sweep)."""
     # from the output pool: recycled once nobody holds them (refraster._scratch.OutputPool)
-    prim = OUTPUTS.full((height, width), -1, np.int64)
+    prim = OUTPUTS.full((height, width), -1, np.int32)
     if not fill:
         return (OUTPUTS.empty((height, width), np.float32), prim,
                 OUTPUTS.empty((height, width), np.bool_),
@@ -609,7 +628,7 @@ def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, sc
           cleared=False, fill=True):
     """Rasterize and depth-resolve in one pass (no fragment stream, depth writes on).
 
-    Returns ``(depth (H, W) float32, prim (H, W) int64 face index or −1, front (H, W) bool,
+    Returns ``(depth (H, W) float32, prim (H, W) int32 face index or −1, front (H, W) bool,
     bary (H·W, 3) float32)``; bit-identical to :func:`stream` followed by
     :func:`refraster.raster.resolve.resolve` with the same ``depth_func`` (a test checks it).
     ``buffers``: four such arrays (C-contiguous, checked by the caller) to fill and reuse
@@ -617,8 +636,10 @@ def fused(prims, *, fill_rule=0, depth_func=1, clear_depth=1.0, buffers=None, sc
     :meth:`~refraster.framebuffer.Framebuffer.reusable`'s, cleared where the previous frame
     drew) and are not filled again. ``scratch``: for the tile lists (:func:`bin_primitives`).
     ``fill=False`` (new buffers only): depth, facing and barycentrics hold only the pixels a
-    fragment won (:func:`resolved_buffers`), for a caller that writes the rest.
+    fragment won (:func:`resolved_buffers`), for a caller that writes the rest. At most
+    :data:`MAX_FACES` faces; ``buffers``' face image is int32 too.
     """
+    face_image_limit(prims.n_faces, "fused")
     ntx, nty, starts, lists = bin_primitives(prims, scratch)
     h, w = prims.height, prims.width
     if buffers is None:
