@@ -14,7 +14,7 @@ from numba import njit, prange
 from .._config import IJIT, PJIT
 from ..ldi import parity_at
 from ..raster.gbuffer import _object_of
-from ..raster.rasterizer import (NARROW, NO_ITEM, TILE_SHIFT, _box_in_tile, _geometry, _setup,
+from ..raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box_in_tile, _geometry, _setup,
                                  bin_primitives, depth_test, face_image_limit, fragment_depth,
                                  lambdas, perspective_bary, resolved_buffers, row_span,
                                  tile_rect, write_winner)
@@ -118,10 +118,8 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
                 if cls == 0:
                     continue
                 test = cls == 2
-            n = bx1 - bx0 + 1
             for y in range(by0, by1 + 1):
-                # the loop tests every pixel's edges: a narrow box's whole row, no division
-                a, b = (0, n - 1) if n <= NARROW else row_span(r0, sx0, r1, sx1, r2, sx2, n)
+                a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
                 e0 = r0 + sx0 * a
                 e1 = r1 + sx1 * a
                 e2 = r2 + sx2 * a

@@ -398,10 +398,8 @@ def _stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, 
              z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx,
              dzdy) = _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
                             sfront, sarea, bits, rule, bx0, by0)
-            n = bx1 - bx0 + 1
             for y in range(by0, by1 + 1):
-                # the loop tests every pixel's edges: a narrow box's whole row, no division
-                a, b = (0, n - 1) if n <= NARROW else row_span(r0, sx0, r1, sx1, r2, sx2, n)
+                a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
                 e0 = r0 + sx0 * a
                 e1 = r1 + sx1 * a
                 e2 = r2 + sx2 * a
@@ -543,10 +541,8 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                     r1 += sy1
                     r2 += sy2
                 continue
-            n = bx1 - bx0 + 1
             for y in range(by0, by1 + 1):
-                # the loop tests every pixel's edges: a narrow box's whole row, no division
-                a, b = (0, n - 1) if n <= NARROW else row_span(r0, sx0, r1, sx1, r2, sx2, n)
+                a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
                 e0 = r0 + sx0 * a
                 e1 = r1 + sx1 * a
                 e2 = r2 + sx2 * a
