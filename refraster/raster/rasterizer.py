@@ -61,7 +61,7 @@ NO_ITEM = -(1 << 62)
 MAX_FACES = 1 << 31
 #: Boxes at most this many pixels wide skip :func:`row_span` in the fused pass's vectorized
 #: loops (their rows' pixels tested directly: no division per row, the same bits).
-NARROW = 8
+NARROW = 4
 
 DEPTH_FUNCS = {"never": 0, "less": 1, "equal": 2, "lequal": 3, "greater": 4, "notequal": 5,
                "gequal": 6, "always": 7}
@@ -484,27 +484,22 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
              z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx,
              dzdy) = _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
                             sfront, sarea, bits, rule, bx0, by0)
-            if (func == 1 or func == 4) and inv_af > 0.0:
-                # "less" (the default) and "greater" (reversed-Z) with the unsnapped depth
-                # plane: loops of their own that LLVM vectorizes (8 pixels per AVX-512 step
-                # here; ~0.7x the pass for the cube), so reversed-Z costs what the default
-                # costs. The comparison is chosen by ``lt``, ``gt`` (the same for the whole
-                # pass): ``(zf < ref) & lt | (zf > ref) & gt`` is "<" for less and ">" for
-                # greater, NaN failing both, as in depth_test. Every pixel of row_span's span
-                # is covered (the span is exact: where all three biased edge functions are
-                # >= 0, checked exhaustively), so there is no edge test, and the edge
-                # functions are not stepped; the depth is fragment_depth's expression in its
-                # order, (z0 + dz/dx·(x + ½ − x0)) + the row's dz/dy term, clamped as there
-                # (NaN kept), the same bits; the test and the writes are selects (a pixel that
-                # loses is written its own values back), ties to the first drawn. The column
-                # index is unsigned: no negative-index fix-up per pixel.
-                lt, gt = func == 1, func == 4
+            if func == 1 and inv_af > 0.0:
+                # "less" (the default) with the unsnapped depth plane: a loop of its own that
+                # LLVM vectorizes (8 pixels per AVX-512 step here; ~0.7x the pass for the
+                # cube). Every pixel of row_span's span is covered (the span is exact: where
+                # all three biased edge functions are >= 0, checked exhaustively), so there is
+                # no edge test, and the edge functions are not stepped; the depth is
+                # fragment_depth's expression in its order, (z0 + dz/dx·(x + ½ − x0)) + the
+                # row's dz/dy term, clamped as there (NaN kept), the same bits; the test and
+                # the writes are selects (a pixel that loses is written its own values back).
+                # The column index is unsigned: no negative-index fix-up per pixel.
                 zd0 = np.float64(z0)
                 n = bx1 - bx0 + 1
                 if n <= NARROW:
-                    # a box at most NARROW pixels wide: its rows' pixels tested directly, the
+                    # a box at most NARROW pixels wide: its row's pixels tested directly, the
                     # three biased edge functions at pixel k being r + sx·k (row_span's span
-                    # is where all three are >= 0), so no division finds the span; the same
+                    # is where all three are >= 0), so no division finds the span; same
                     # pixels in the same order, the same depth expression: the same bits
                     for y in range(by0, by1 + 1):
                         zy = dzdy * ((np.float64(y) + 0.5) - fy0)
@@ -517,9 +512,9 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                             zf = np.float32(z)
                             lx = np.uint64(x - tx0)
                             ref = zbuf[ly, lx]
-                            wins = cov & (((zf < ref) & lt) | ((zf > ref) & gt))
-                            zbuf[ly, lx] = zf if wins else ref
-                            win[ly, lx] = item if wins else win[ly, lx]
+                            less = cov & (zf < ref)
+                            zbuf[ly, lx] = zf if less else ref
+                            win[ly, lx] = item if less else win[ly, lx]
                         r0 += sy0
                         r1 += sy1
                         r2 += sy2
@@ -534,9 +529,55 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                         zf = np.float32(z)
                         lx = np.uint64(x - tx0)
                         ref = zbuf[ly, lx]
-                        wins = ((zf < ref) & lt) | ((zf > ref) & gt)
-                        zbuf[ly, lx] = zf if wins else ref
-                        win[ly, lx] = item if wins else win[ly, lx]
+                        less = zf < ref
+                        zbuf[ly, lx] = zf if less else ref
+                        win[ly, lx] = item if less else win[ly, lx]
+                    r0 += sy0
+                    r1 += sy1
+                    r2 += sy2
+                continue
+            if func == 4 and inv_af > 0.0:
+                # "greater" (reversed-Z): the loop above with the comparison turned, so the
+                # reversed-Z convention costs what the default costs (same bits as the
+                # general loop below: the depth in fragment_depth's order, ties to the first)
+                zd0 = np.float64(z0)
+                n = bx1 - bx0 + 1
+                if n <= NARROW:
+                    # a box at most NARROW pixels wide: its row's pixels tested directly, the
+                    # three biased edge functions at pixel k being r + sx·k (row_span's span
+                    # is where all three are >= 0), so no division finds the span; same
+                    # pixels in the same order, the same depth expression: the same bits
+                    for y in range(by0, by1 + 1):
+                        zy = dzdy * ((np.float64(y) + 0.5) - fy0)
+                        ly = y - ty0
+                        for k in range(n):
+                            x = bx0 + k
+                            cov = (r0 + sx0 * k >= 0) & (r1 + sx1 * k >= 0) & (r2 + sx2 * k >= 0)
+                            z = (zd0 + dzdx * ((np.float64(x) + 0.5) - fx0)) + zy
+                            z = 0.0 if z < 0.0 else (1.0 if z > 1.0 else z)
+                            zf = np.float32(z)
+                            lx = np.uint64(x - tx0)
+                            ref = zbuf[ly, lx]
+                            more = cov & (zf > ref)
+                            zbuf[ly, lx] = zf if more else ref
+                            win[ly, lx] = item if more else win[ly, lx]
+                        r0 += sy0
+                        r1 += sy1
+                        r2 += sy2
+                    continue
+                for y in range(by0, by1 + 1):
+                    a, b = row_span(r0, sx0, r1, sx1, r2, sx2, n)
+                    zy = dzdy * ((np.float64(y) + 0.5) - fy0)
+                    ly = y - ty0
+                    for x in range(bx0 + a, bx0 + b + 1):
+                        z = (zd0 + dzdx * ((np.float64(x) + 0.5) - fx0)) + zy
+                        z = 0.0 if z < 0.0 else (1.0 if z > 1.0 else z)
+                        zf = np.float32(z)
+                        lx = np.uint64(x - tx0)
+                        ref = zbuf[ly, lx]
+                        more = zf > ref
+                        zbuf[ly, lx] = zf if more else ref
+                        win[ly, lx] = item if more else win[ly, lx]
                     r0 += sy0
                     r1 += sy1
                     r2 += sy2
