@@ -16,7 +16,8 @@ from ._validate import as_float_array, as_image_size
 from .framebuffer import _build
 from .mesh import as_meshes
 from .raster import _prepare, facing
-from .raster.multisample import MAX_FACES, rasterize_samples, stream_samples
+from .raster.multisample import rasterize_samples, stream_samples
+from .raster.rasterizer import MAX_FACES
 from .raster.rasterizer import DEPTH_FUNCS
 from .raster.samples import sample_offsets, sample_points
 from .raster.state import as_raster_state
@@ -88,7 +89,7 @@ def render_samples(meshes, *, view, proj, width, height, model=None, raster=None
     ``raster.depth_func`` (depth writes on); attributes are interpolated at
     ``raster.interpolation``'s point. ``raster.samples=1`` with the standard pattern gives
     :func:`refraster.render`'s buffers with a sample axis of length 1 (the same bits). At
-    most 2³¹ faces over all draw calls (``refraster.raster.multisample.MAX_FACES``).
+    most 2³¹ faces over all draw calls (``refraster.raster.rasterizer.MAX_FACES``).
     """
     state = as_raster_state(raster)
     if not state.depth_write:

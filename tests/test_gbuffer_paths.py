@@ -254,8 +254,8 @@ def test_face_image_limit_refused_in_one_line(monkeypatch):
     takes exactly that many (the outputs' dtypes those of a 1x frame); so does the tile
     pass's wrapper ``rasterize_samples`` for a caller of its own."""
     from refraster import multisample as ms
-    from refraster.raster import multisample as rms
-    assert rms.MAX_FACES == 2 ** 31 == np.iinfo(np.int32).max + 1
+    from refraster.raster import rasterizer as rr
+    assert rr.MAX_FACES == 2 ** 31 == np.iinfo(np.int32).max + 1
     box = mesh_of(cube())
     kw = camera_kw(w=32, h=24)
     s4 = rf.RasterState(samples=4)
@@ -268,7 +268,7 @@ def test_face_image_limit_refused_in_one_line(monkeypatch):
     with pytest.raises(ValueError, match=r"^meshes: 13 faces in all; render_samples takes at "
                                          r"most 12 \(its sample face image is int32\)$"):
         rf.render_samples([box, tri], **kw, raster=s4)
-    monkeypatch.setattr(rms, "MAX_FACES", 11)     # the tile pass's own guard
+    monkeypatch.setattr(rr, "MAX_FACES", 11)      # the tile pass's own guard
     with pytest.raises(ValueError, match=r"^rasterize_samples takes at most 11 faces \(its face "
                                          r"image is int32\), not 12$"):
         rf.render_samples(box, **kw, raster=s4)

@@ -27,9 +27,9 @@ from numba import njit, prange
 
 from .._config import IJIT, PJIT
 from .._scratch import OUTPUTS
-from .rasterizer import (MAX_FACES, NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geometry,
-                         _setup, _setup_winner, bin_primitives, depth_test, perspective_bary,
-                         tile_rect)
+from .rasterizer import (NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geometry, _setup,
+                         _setup_winner, bin_primitives, depth_test, face_image_limit,
+                         perspective_bary, tile_rect)
 
 #: ``RasterState.interpolation`` names and the kernel's codes.
 INTERPOLATIONS = {"center": 0, "centroid": 1, "sample": 2}
@@ -325,13 +325,11 @@ def rasterize_samples(prims, ox, oy, *, fill_rule=0, depth_func=1, clear_depth=1
 
     ``ox, oy``: the samples' fixed-point offsets (:func:`refraster.raster.samples.sample_offsets`).
     Returns ``(depth (H, W, S) float32, prim (H, W, S) int32 face or −1, front (H, W, S) bool,
-    bary (H, W, S, 3) float32)``, row 0 at the top. At most :data:`MAX_FACES` faces.
+    bary (H, W, S, 3) float32)``, row 0 at the top. At most :data:`~refraster.raster.rasterizer.MAX_FACES` faces.
     ``scratch``: a :class:`refraster._scratch.Scratch` for the tile lists. ``fill=False``: the
     depth, facing and barycentrics hold only the samples a fragment won (the face image is −1
     elsewhere), for a caller that writes the rest (``render_samples``: ``finalize``'s sweep)."""
-    if prims.n_faces > MAX_FACES:
-        raise ValueError(f"rasterize_samples takes at most {MAX_FACES:,} faces (its face image "
-                         f"is int32), not {prims.n_faces:,}")
+    face_image_limit(prims.n_faces, "rasterize_samples")
     ntx, nty, starts, lists = bin_primitives(prims, scratch)
     h, w = prims.height, prims.width
     ns = len(ox)

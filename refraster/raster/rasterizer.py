@@ -650,8 +650,8 @@ def resolved_buffers(height, width, clear_depth, fill=True):
     """The outputs of a fused tile pass, holding what a pixel no fragment won keeps: depth
     ``clear_depth``, face −1 (int32: :data:`MAX_FACES`), facing False, barycentrics 0
     (NumPy's fills are ~10× faster than writing the background pixel by pixel in the tile
-    loop). ``fill=False``: only the face
-    image filled (the others' background is the caller's: ``finalize``'s sweep)."""
+    loop). ``fill=False``: only the face image filled (the others' background is the
+    caller's: ``finalize``'s sweep)."""
     # from the output pool: recycled once nobody holds them (refraster._scratch.OutputPool)
     prim = OUTPUTS.full((height, width), -1, np.int32)
     if not fill:
