@@ -120,6 +120,9 @@ def test_overflowing_clip_coordinates_and_singular_projection_are_errors():
     with pytest.raises(ValueError, match=r"meshes\[1\]: clip coordinates overflow"):
         refraster.render([(v, f), (v * 1e300, f)], **kw)
     refraster.render((v * 1e300, f), raster=RasterState(precision="float64"), **kw)   # fits float64
+    with pytest.raises(ValueError, match=r"meshes\[0\]: clip coordinates overflow .* float64"):
+        refraster.render((v * 1e300, f), raster=RasterState(precision="float64"),
+                         model=np.diag([1e10, 1e10, 1e10, 1.0]), **kw)
     with pytest.raises(ValueError, match="proj is singular"):
         refraster.render((v, f), view=view, proj=np.zeros((4, 4)), width=32, height=24)
     flat = proj.copy()
@@ -150,6 +153,21 @@ def test_oracle_scenes_at_1e30_still_render():
             fb = refraster.render(sc.meshes, view=sc.view, proj=sc.proj, width=sc.width,
                                   height=sc.height, raster=RasterState(precision=precision))
             assert (fb.prim_id >= 0).sum() > 0
+
+
+def test_vertex_stage_counts_the_clip_coordinates_that_are_not_finite():
+    """The vertex stage's count is what lets ``_check_clip`` skip its look at every
+    coordinate: one inf (or nan) coordinate counts one, in either precision."""
+    from refraster.raster.primitive import transform_counted
+    v = np.array([[0.0, 0.0, 0.0], [1e300, 0.0, 0.0], [np.nan, 0.0, 0.0], [1.0, 2.0, 3.0]])
+    m = np.eye(4)
+    assert transform_counted(v[[0, 3]], m, "float32")[1] == 0
+    # float32: 1e300 becomes inf, so 0·inf makes y, z, w nan too; the nan vertex: all four
+    assert transform_counted(v, m, "float32")[1] == 8
+    m64 = np.diag([1e10, 1.0, 1.0, 1.0])
+    assert transform_counted(v[[0, 1, 3]], np.eye(4), "float64")[1] == 0
+    # float64: only x overflows (1e310); the nan vertex's four coordinates are nan
+    assert transform_counted(v, m64, "float64")[1] == 5
 
 
 def test_clip_check_sums_first_and_looks_again_when_the_sum_overflows():

@@ -13,7 +13,7 @@ from .._validate import as_float_array, as_image_size, as_index_array, as_matrix
 from ..mesh import as_meshes
 from .fragments import Fragments, concat, split_ids
 from .primitive import CULL, FILL_RULES, W_EPS, convention_code, setup_triangles, \
-    transform_vertices
+    transform_counted, transform_vertices
 from .rasterizer import DEPTH_FUNCS, stream
 from .resolve import Resolved, resolve
 from .state import RasterState, as_raster_state, require_single_sample
@@ -171,10 +171,13 @@ def _check_divide(prims, clip, vfirst, face_offsets, meshes):
                      "scale the matrices or the mesh down")
 
 
-def _check_clip(clip, meshes, prec):
+def _check_clip(clip, meshes, prec, nonfinite=None):
     """Clip coordinates must be finite: a vertex whose transform overflows (1e300 in float32,
     ±3e38 moved by the view) would silently vanish. Far but finite vertices (1e30) are fine:
-    the clipper places them (see :mod:`refraster.raster.primitive`)."""
+    the clipper places them (see :mod:`refraster.raster.primitive`). ``nonfinite``: how many
+    are not, as the vertex stage counted them (0: nothing to look at; None: not counted)."""
+    if nonfinite == 0:
+        return
     # one sum first: finite only if every coordinate is (an inf or a nan makes it inf or nan;
     # finite values summing past float64's range are looked at one by one)
     with np.errstate(over="ignore", invalid="ignore"):
@@ -237,15 +240,17 @@ def _prepare(meshes, *, view, proj, width, height, model, state, scratch, multis
         nv = meshes[0].n_vertices
         clip = (np.zeros((nv, 4)) if scratch is None   # zeros: warm-up stubs the stage
                 else scratch.empty("clip", (nv, 4), np.float64))
-        transform_vertices(meshes[0].vertices, mvps[0], prec, out=clip)
+        nonfinite = transform_counted(meshes[0].vertices, mvps[0], prec, out=clip)[1]
         face = meshes[0].faces
     else:
         clip = np.zeros((int(vfirst[-1]), 4))
         face = np.empty((int(offsets[-1]), 3), np.int64)
+        nonfinite = 0
         for k, (m, mvp) in enumerate(zip(meshes, mvps)):
-            transform_vertices(m.vertices, mvp, prec, out=clip[vfirst[k]:vfirst[k + 1]])
+            bad = transform_counted(m.vertices, mvp, prec, out=clip[vfirst[k]:vfirst[k + 1]])[1]
+            nonfinite = None if bad is None or nonfinite is None else nonfinite + bad
             np.add(m.faces, vfirst[k], out=face[offsets[k]:offsets[k + 1]])
-    _check_clip(clip, meshes, prec)
+    _check_clip(clip, meshes, prec, nonfinite)
     _check_w(clip, vfirst, meshes, prec)
     p = Prepared()
     p.meshes, p.models, p.view, p.proj = meshes, models, view, proj

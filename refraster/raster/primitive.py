@@ -80,22 +80,32 @@ _MAXV = 10
 
 @njit(**PJIT)
 def _transform32(vertices, m, out):
+    bad = 0   # clip coordinates that are not finite (an int sum: the same on any threads)
     for i in prange(vertices.shape[0]):
         x = np.float32(vertices[i, 0])
         y = np.float32(vertices[i, 1])
         z = np.float32(vertices[i, 2])
         for r in range(4):
-            out[i, r] = ((m[r, 0] * x + m[r, 1] * y) + m[r, 2] * z) + m[r, 3]
+            v = ((m[r, 0] * x + m[r, 1] * y) + m[r, 2] * z) + m[r, 3]
+            out[i, r] = v
+            if not np.isfinite(v):
+                bad += 1
+    return bad
 
 
 @njit(**JIT)
 def _transform64(vertices, m, out):
+    bad = 0
     for i in range(vertices.shape[0]):
         x = vertices[i, 0]
         y = vertices[i, 1]
         z = vertices[i, 2]
         for r in range(4):
-            out[i, r] = ((m[r, 0] * x + m[r, 1] * y) + m[r, 2] * z) + m[r, 3]
+            v = ((m[r, 0] * x + m[r, 1] * y) + m[r, 2] * z) + m[r, 3]
+            out[i, r] = v
+            if not np.isfinite(v):
+                bad += 1
+    return bad
 
 
 def transform_vertices(vertices, mvp, precision="float32", out=None):
@@ -107,13 +117,19 @@ def transform_vertices(vertices, mvp, precision="float32", out=None):
     ``(V, 4)`` C-contiguous array to write (every element), of the precision's dtype or
     float64 (the float32 stage's values stored exactly: what the primitive stage reads).
     """
+    return transform_counted(vertices, mvp, precision, out)[0]
+
+
+def transform_counted(vertices, mvp, precision="float32", out=None):
+    """:func:`transform_vertices`, and how many of the clip coordinates are not finite (None
+    when unknown: the kernel replaced by a warm-up's no-op)."""
     if precision == "float32":
         out = np.zeros((len(vertices), 4), np.float32) if out is None else out
-        tiered(_transform32)(vertices, mvp.astype(np.float32), out)
+        bad = tiered(_transform32)(vertices, mvp.astype(np.float32), out)
     else:
         out = np.zeros((len(vertices), 4), np.float64) if out is None else out
-        _transform64(vertices, mvp.astype(np.float64), out)
-    return out
+        bad = _transform64(vertices, mvp.astype(np.float64), out)
+    return out, bad
 
 
 @njit(**IJIT)
@@ -353,34 +369,32 @@ def _classify(f, vX, vY, vcode, width, height, bits, cull, pad, ntx, status, fbo
         i0, i1 = np.uint64(ch * BIN_CHUNK), np.uint64(min(nf, (ch + 1) * BIN_CHUNK))
         for i in range(i0, i1):
             a, b, d = f[i, 0], f[i, 1], f[i, 2]
-            status[i] = SKIP
+            ca, cb, cd = vcode[a], vcode[b], vcode[d]
             # every face's box written (zeros unless SIMPLE): the array needs no zero fill
-            fbox[i, 0] = 0
-            fbox[i, 1] = 0
-            fbox[i, 2] = 0
-            fbox[i, 3] = 0
-            if vcode[a] & vcode[b] & vcode[d]:
-                continue
-            if vcode[a] | vcode[b] | vcode[d]:
-                status[i] = CLIPPED
+            if ca | cb | cd:
+                status[i] = CLIPPED if (ca & cb & cd) == 0 else SKIP
+                fbox[i, 0] = 0
+                fbox[i, 1] = 0
+                fbox[i, 2] = 0
+                fbox[i, 3] = 0
                 continue
             x0, x1, x2 = vX[a], vX[b], vX[d]
             y0, y1, y2 = vY[a], vY[b], vY[d]
             area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-            if area == 0 or (cull == 1 and area < 0) or (cull == 2 and area > 0):
-                continue
             one = np.int64(1) << bits
             bx0 = max((min(x0, x1, x2) - pad + one - 1) >> bits, 0)
             bx1 = min((max(x0, x1, x2) + pad) >> bits, width - 1)
             by0 = max((min(y0, y1, y2) - pad + one - 1) >> bits, 0)
             by1 = min((max(y0, y1, y2) + pad) >> bits, height - 1)
-            if bx0 > bx1 or by0 > by1:
-                continue
-            status[i] = SIMPLE
-            fbox[i, 0] = bx0
-            fbox[i, 1] = bx1
-            fbox[i, 2] = by0
-            fbox[i, 3] = by1
+            # no branch on whether the box holds a pixel centre (about half the faces of a
+            # dense mesh do not, unpredictably): the status and the box are selected
+            ok = ((area != 0) & ((cull != 1) | (area > 0)) & ((cull != 2) | (area < 0))
+                  & (bx0 <= bx1) & (by0 <= by1))
+            status[i] = SIMPLE if ok else SKIP
+            fbox[i, 0] = bx0 if ok else 0
+            fbox[i, 1] = bx1 if ok else 0
+            fbox[i, 2] = by0 if ok else 0
+            fbox[i, 3] = by1 if ok else 0
         # the chunk's simple faces counted per tile from its status and boxes (still in
         # cache), a loop of its own (counting in the loop above cost more); a run of faces in
         # one tile is counted in a register, added when the tile changes
