@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit, prange
 
 from .._config import IJIT, PJIT
+from ._prefetch import prefetch_row
 
 #: Shading constants of the default colour: ambient, diffuse, specular weight, exponent.
 AMBIENT, DIFFUSE, SPECULAR, SHININESS = 0.18, 0.72, 0.22, 48
@@ -24,6 +25,32 @@ def _object_of(face_offsets, g):
         else:
             hi = mid - 1
     return lo
+
+
+#: How many columns ahead of the pixel in hand :func:`_prefetch_ahead` names the rows a
+#: pixel will read: its face's vertices (and smooth normals) at ``PREFETCH_NEAR``, its
+#: ``faces`` row at ``PREFETCH_FAR`` (read by then, so the near prefetch finds it in cache).
+#: A dense mesh (every pixel its own face: 1.3M faces at 1024×768) took ~30 % less time in
+#: finalize with them (8 and 16; 4–8 and 16–32 did about as well).
+PREFETCH_NEAR = 8
+PREFETCH_FAR = 16
+
+
+@njit(**IJIT)
+def _prefetch_ahead(prim_global, r, c, w, faces, vertices, vnormals, smooth):
+    """Prefetch the rows :func:`_face_corners` (and a smooth normal) will read for the faces
+    of row ``r``'s pixels ``PREFETCH_NEAR`` and ``PREFETCH_FAR`` columns after ``c`` (a hint:
+    no output changes)."""
+    gf = prim_global[r, min(c + PREFETCH_FAR, w - 1)]
+    if gf >= 0:
+        prefetch_row(faces, gf)
+    gn = prim_global[r, min(c + PREFETCH_NEAR, w - 1)]
+    if gn >= 0:
+        for q in range(3):
+            v = faces[gn, q]
+            prefetch_row(vertices, v)
+            if smooth:
+                prefetch_row(vnormals, v)
 
 
 @njit(**IJIT)
@@ -210,6 +237,7 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
                 continue
             if g != last:
                 last = g
+                _prefetch_ahead(prim_global, r, c, w, faces, vertices, vnormals, smooth)
                 k = _object_of(face_offsets, g)
                 pid = g - face_offsets[k]
                 ax, ay, az, bx, by, bz, cx, cy, cz = _face_corners(g, vertices, faces)
@@ -293,6 +321,7 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
                 continue
             if g != last:
                 last = g
+                _prefetch_ahead(prim_global, r, c, w, faces, vertices, vnormals, smooth)
                 k = _object_of(face_offsets, g)
                 ax, ay, az, bx, by, bz, cx, cy, cz = _face_corners(g, vertices, faces)
                 if not smooth:

@@ -45,6 +45,7 @@ from numba import njit, prange
 from .._config import IJIT, PJIT
 from .._tiers import kernel as tiered
 from .._scratch import OUTPUTS
+from ._prefetch import prefetch_row
 from .primitive import BIN_CHUNK as _BIN_CHUNK
 from .primitive import CLIPPED, SIMPLE, TILE_SHIFT, bin_shape
 
@@ -183,6 +184,35 @@ def tile_rect(tile, ntx, shift, width, height):
     x0 = (tile % ntx) << shift
     y0 = (tile // ntx) << shift
     return x0, min(x0 + (1 << shift), width) - 1, y0, min(y0 + (1 << shift), height) - 1
+
+
+#: How many items ahead in a tile's list :func:`_prefetch_items` names the rows the tile
+#: loop will read: the face's vertex data at ``ITEM_PREFETCH_NEAR``, its ``faces`` and box
+#: rows at ``ITEM_PREFETCH_FAR``. A dense mesh's faces scatter their vertices through memory;
+#: at 1.3M faces the tile pass took 14 % less time with them.
+ITEM_PREFETCH_NEAR = 8
+ITEM_PREFETCH_FAR = 16
+
+
+@njit(**IJIT)
+def _prefetch_items(lists, j, end, f, fbox, vX, vY, vZ, vXf, vYf):
+    """Prefetch what :func:`_box` and :func:`_load` read for the unclipped faces
+    ``ITEM_PREFETCH_NEAR`` and ``ITEM_PREFETCH_FAR`` items after ``lists[j]`` (before ``end``).
+    Not 1/w, which the depth loops do not read (prefetching it too made the pass slower): a
+    hint, no output changes."""
+    far = lists[min(j + ITEM_PREFETCH_FAR, end - 1)]
+    if far >= 0:
+        prefetch_row(f, far)
+        prefetch_row(fbox, far)
+    near = lists[min(j + ITEM_PREFETCH_NEAR, end - 1)]
+    if near >= 0:
+        for q in range(3):
+            v = f[near, q]
+            prefetch_row(vX, v)
+            prefetch_row(vY, v)
+            prefetch_row(vZ, v)
+            prefetch_row(vXf, v)
+            prefetch_row(vYf, v)
 
 
 @njit(**IJIT)
@@ -477,6 +507,7 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
         win = np.full((TILE, TILE), NO_ITEM, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
+            _prefetch_items(lists, j, starts[tile + 1], f, fbox, vX, vY, vZ, vXf, vYf)
             bx0, bx1, by0, by1 = _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1)
             if bx0 > bx1 or by0 > by1:
                 continue
