@@ -14,10 +14,10 @@ from numba import njit, prange
 from .._config import IJIT, PJIT
 from ..ldi import parity_at
 from ..raster.gbuffer import _object_of
-from ..raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box_in_tile, _geometry,
-                                 _prefetch_items, _setup, bin_primitives, depth_test,
-                                 face_image_limit, fragment_depth, lambdas, perspective_bary,
-                                 resolved_buffers, row_span, tile_rect, write_winner)
+from ..raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box_in_tile, _geometry, _setup,
+                                 bin_primitives, depth_test, face_image_limit, fragment_depth,
+                                 lambdas, perspective_bary, resolved_buffers, row_span,
+                                 tile_rect, write_winner)
 from .capping import SURE_EXTRAPOLATION
 from .surfaces import _Packed, clipped_at
 
@@ -87,7 +87,6 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
         win = np.full((size, size), NO_ITEM, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
-            _prefetch_items(lists, j, starts[tile + 1], f, fbox, vX, vY, vZ, vXf, vYf)
             bx0, bx1, by0, by1 = _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1)
             if bx0 > bx1 or by0 > by1:
                 continue

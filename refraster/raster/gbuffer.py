@@ -34,6 +34,12 @@ def _object_of(face_offsets, g):
 #: finalize with them (8 and 16; 4–8 and 16–32 did about as well).
 PREFETCH_NEAR = 8
 PREFETCH_FAR = 16
+#: The kernels prefetch only when there are at least one face per ``PREFETCH_ELEMENTS``
+#: elements of the face image (short runs of a face: the gathers wait). With longer runs the
+#: rows come in time anyway and the hint costs: 1 thread, 82k faces, 4 samples (3.1M elements)
+#: 19.1 ms against 18.9 without; the 1× image (0.8M) 5.2 against 5.5, 1.3M faces at 4×
+#: 27.5 against 35.9.
+PREFETCH_ELEMENTS = 16
 
 
 @njit(**IJIT)
@@ -205,6 +211,7 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
         _face_normals(vertices, faces, face_offsets, nmat, fnormal)
     h, w = prim_global.shape
     ids = prim_id.shape[0] != 0
+    pf = faces.shape[0] * PREFETCH_ELEMENTS >= h * w
     rbg = fill_bg and r_depth.shape[0] != 0
     for r in prange(h):
         first = np.int64(w)
@@ -237,7 +244,8 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
                 continue
             if g != last:
                 last = g
-                _prefetch_ahead(prim_global, r, c, w, faces, vertices, vnormals, smooth)
+                if pf:
+                    _prefetch_ahead(prim_global, r, c, w, faces, vertices, vnormals, smooth)
                 k = _object_of(face_offsets, g)
                 pid = g - face_offsets[k]
                 ax, ay, az, bx, by, bz, cx, cy, cz = _face_corners(g, vertices, faces)
@@ -306,6 +314,7 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
     if per_face:
         _face_normals(vertices, faces, face_offsets, nmat, fnormal)
     h, w = prim_global.shape
+    pf = faces.shape[0] * PREFETCH_ELEMENTS >= h * w   # as in finalize
     for r in prange(h):
         # a face's draw call, vertices and (per face) normal loaded once per run of its
         # pixels, as in finalize; the per-pixel arithmetic is finalize's, in its order
@@ -321,7 +330,8 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
                 continue
             if g != last:
                 last = g
-                _prefetch_ahead(prim_global, r, c, w, faces, vertices, vnormals, smooth)
+                if pf:
+                    _prefetch_ahead(prim_global, r, c, w, faces, vertices, vnormals, smooth)
                 k = _object_of(face_offsets, g)
                 ax, ay, az, bx, by, bz, cx, cy, cz = _face_corners(g, vertices, faces)
                 if not smooth:

@@ -27,9 +27,9 @@ from numba import njit, prange
 
 from .._config import IJIT, PJIT
 from .._scratch import OUTPUTS
-from .rasterizer import (NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geometry,
-                         _prefetch_items, _setup, _setup_winner, bin_primitives, depth_test,
-                         face_image_limit, perspective_bary, tile_rect)
+from .rasterizer import (NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geometry, _setup,
+                         _setup_winner, bin_primitives, depth_test, face_image_limit,
+                         perspective_bary, tile_rect)
 
 #: ``RasterState.interpolation`` names and the kernel's codes.
 INTERPOLATIONS = {"center": 0, "centroid": 1, "sample": 2}
@@ -160,7 +160,6 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
         win = np.full((TILE, TILE, ns), NO_ITEM, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
-            _prefetch_items(lists, j, starts[tile + 1], f, fbox, vX, vY, vZ, vXf, vYf)
             bx0, bx1, by0, by1 = _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1)
             if bx0 > bx1 or by0 > by1:
                 continue
