@@ -12,8 +12,7 @@ from .._threads import check_fork, frame_work, threads_for
 from .._validate import as_float_array, as_image_size, as_index_array, as_matrix
 from ..mesh import as_meshes
 from .fragments import Fragments, concat, split_ids
-from .primitive import CULL, FILL_RULES, W_EPS, convention_code, setup_triangles, \
-    transform_counted, transform_vertices
+from .primitive import CULL, FILL_RULES, W_EPS, convention_code, setup_triangles, transform_counted
 from .rasterizer import DEPTH_FUNCS, stream
 from .resolve import Resolved, resolve
 from .state import RasterState, as_raster_state, require_single_sample

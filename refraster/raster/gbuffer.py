@@ -34,7 +34,7 @@ def _object_of(face_offsets, g):
 #: finalize with them (8 and 16; 4–8 and 16–32 did about as well).
 PREFETCH_NEAR = 8
 PREFETCH_FAR = 16
-#: The kernels prefetch only when there are at least one face per ``PREFETCH_ELEMENTS``
+#: The kernels prefetch only when there is at least one face per ``PREFETCH_ELEMENTS``
 #: elements of the face image (short runs of a face: the gathers wait). With longer runs the
 #: rows come in time anyway and the hint costs: 1 thread, 82k faces, 4 samples (3.1M elements)
 #: 19.1 ms against 18.9 without; the 1× image (0.8M) 5.2 against 5.5, 1.3M faces at 4×
