@@ -6,6 +6,8 @@ overlaps only the few pixels its window holds, so a kernel names the rows a pixe
 columns ahead will read; the loads then find them in cache. A prefetch is a hint: it reads
 and writes nothing the kernel sees, cannot fault, and changes no output bit (the entry
 digests say so). Numba has no prefetch of its own, hence this intrinsic (a call of LLVM's).
+Numba's cache keys a kernel on its own file: after changing this one, clear the kernels'
+caches (docs/performance.md, "How a frame is made fast").
 """
 
 from __future__ import annotations
