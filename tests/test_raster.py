@@ -42,6 +42,68 @@ def test_stream_matches_naive_twin(seed, rule):
     assert got == want
 
 
+def _one_pixel_faces(rng, w, h, n):
+    """Clip coordinates and faces of ``n`` triangles smaller than a pixel, each near a pixel
+    centre (so most boxes hold one centre), both windings; every third has an edge through
+    its pixel's centre exactly (horizontal, vertical or diagonal), where the fill rule
+    decides. Window positions are multiples of 1/256 pixel and w = h are powers of two, so
+    the snapped positions are exactly these."""
+    pts = []
+    for i in range(n):
+        cx, cy = rng.integers(0, w) + 0.5, rng.integers(0, h) + 0.5
+        if i % 3 == 0:
+            a = rng.integers(20, 120) / 256
+            kind = i % 9
+            if kind == 0:      # horizontal edge through the centre
+                tri = [(cx - a, cy), (cx + a, cy), (cx, cy + rng.choice([-1, 1]) * a)]
+            elif kind == 3:    # vertical
+                tri = [(cx, cy - a), (cx, cy + a), (cx + rng.choice([-1, 1]) * a, cy)]
+            else:              # diagonal
+                tri = [(cx - a, cy - a), (cx + a, cy + a), (cx + rng.choice([-1, 1]) * a, cy)]
+        else:
+            tri = [(cx + dx, cy + dy) for dx, dy in rng.integers(-200, 201, (3, 2)) / 256]
+        if rng.random() < 0.5:
+            tri = tri[::-1]
+        pts += tri
+    xy = np.asarray(pts)
+    clip = np.zeros((len(xy), 4), np.float32)
+    clip[:, 0] = 2 * xy[:, 0] / w - 1
+    clip[:, 1] = 2 * xy[:, 1] / h - 1
+    clip[:, 2] = rng.uniform(-0.9, 0.9, len(xy))
+    clip[:, 3] = 1
+    return clip, np.arange(len(xy)).reshape(-1, 3)
+
+
+@pytest.mark.parametrize("rule", ["bottom-left", "top-left"])
+def test_one_pixel_boxes_match_naive_twin(rule):
+    """Faces whose box holds one pixel centre: the primitive stage drops those whose centre
+    lies strictly outside an edge (they were set up in the tile pass for nothing), keeps those
+    with the centre on an edge for the fill rule. Against the twin, which tests every pixel
+    of every face; the scene has each kind (covered, not covered, covered only by the rule)."""
+    from refraster.raster import primitive as P
+    w = h = 16
+    clip, f = _one_pixel_faces(np.random.default_rng(5), w, h, 360)
+    ref = naive.raster_unclipped(clip, f, w, h, rule=rule)
+    frags = rf.rasterize(clip, f, w, h, raster=rf.RasterState(fill_rule=rule))
+    got = sorted(zip(frags.prim_id.tolist(), frags.row.tolist(), frags.col.tolist(),
+                     frags.depth.tolist(), map(tuple, frags.bary.tolist()),
+                     frags.front_facing.tolist()))
+    want = sorted((a, b, c, float(d), tuple(e.tolist()), bool(g)) for a, b, c, d, e, g in ref)
+    assert got == want
+    st = P.setup_triangles(clip.astype(np.float64), f, w, h)
+    box = st.bbox.astype(np.int64)
+    one = (box[:, 0] == box[:, 1]) & (box[:, 2] == box[:, 3]) & (st.status == P.SIMPLE)
+    drawn = np.zeros(len(f), bool)
+    drawn[[a for a, *_ in ref]] = True
+    on_edge = one & ~drawn   # kept for the rule, which gave the centre to a neighbour
+    assert one.sum() > 100 and (one & drawn).sum() > 50 and on_edge.sum() > 5
+    assert drawn[~one & (st.status == P.SIMPLE)].all()   # larger boxes here hold fragments
+    assert (st.status == P.SKIP).sum() > 100              # and most centre-less ones dropped
+    # with a pad (multisampling: samples off the centre) no face is dropped for its centre
+    padded = P.setup_triangles(clip.astype(np.float64), f, w, h, pad=128)
+    assert (padded.status == P.SIMPLE).sum() == len(f)
+
+
 def test_vertex_stage_matches_twin():
     rng = np.random.default_rng(1)
     v = rng.normal(size=(500, 3)) * 10
