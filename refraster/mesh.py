@@ -171,16 +171,15 @@ def _mesh_digest(vertices, faces):
         first.append(v[:k])
         second.append(v[k:])
         rest -= k
-    if numba.get_num_threads() < 2:   # the same digest, on this thread alone
-        h.update(_sha256(first))
-        h.update(_sha256(second))
-        return h.digest()
-    out = []
-    t = threading.Thread(target=lambda: out.append(_sha256(second)), daemon=True)
-    t.start()
+    out = []   # the second half's digest, from a thread of its own on a frame of two or more
+    t = None
+    if numba.get_num_threads() >= 2:
+        t = threading.Thread(target=lambda: out.append(_sha256(second)), daemon=True)
+        t.start()
     h.update(_sha256(first))
-    t.join()
-    h.update(out[0] if out else _sha256(second))   # (the thread's only failure: no memory)
+    if t is not None:
+        t.join()
+    h.update(out[0] if out else _sha256(second))   # here on one thread (or if the thread failed)
     return h.digest()
 
 
