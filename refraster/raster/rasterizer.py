@@ -224,7 +224,9 @@ def _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, 
     unsnapped positions (interpolation), depths, 1/w, doubled snapped area, face, facing and
     piece (−1 for an unclipped face)."""
     if item >= 0:
-        a, b, d = f[item, 0], f[item, 1], f[item, 2]
+        # unsigned vertex indices (checked non-negative by the primitive stage): no
+        # negative-index fix-up per gather
+        a, b, d = np.uint64(f[item, 0]), np.uint64(f[item, 1]), np.uint64(f[item, 2])
         x0, y0, x1, y1, x2, y2 = vX[a], vY[a], vX[b], vY[b], vX[d], vY[d]
         area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
         front = area > 0
