@@ -369,7 +369,8 @@ def _classify(f, vX, vY, vcode, width, height, bits, cull, pad, ntx, status, fbo
         # of this loop 1.7× slower)
         i0, i1 = np.uint64(ch * BIN_CHUNK), np.uint64(min(nf, (ch + 1) * BIN_CHUNK))
         for i in range(i0, i1):
-            a, b, d = f[i, 0], f[i, 1], f[i, 2]
+            # unsigned vertex indices too (validated where the faces came in)
+            a, b, d = np.uint64(f[i, 0]), np.uint64(f[i, 1]), np.uint64(f[i, 2])
             ca, cb, cd = vcode[a], vcode[b], vcode[d]
             # every face's box written (zeros unless SIMPLE): the array needs no zero fill
             if ca | cb | cd:
