@@ -62,13 +62,10 @@ def _prefetch_ahead(prim_global, r, c, w, faces, vertices, vnormals, smooth):
 @njit(**IJIT)
 def _face_corners(g, vertices, faces):
     """The three corners of face ``g``: ``(ax, ay, az, bx, by, bz, cx, cy, cz)``, loaded once
-    per run of a face's pixels by :func:`finalize` and :func:`shade`. Unsigned indices (a
-    face ``g >= 0``, vertex indices checked non-negative where the mesh came in): no
-    negative-index fix-up per gather."""
-    u = np.uint64(g)
-    i0 = np.uint64(faces[u, 0])
-    i1 = np.uint64(faces[u, 1])
-    i2 = np.uint64(faces[u, 2])
+    per run of a face's pixels by :func:`finalize` and :func:`shade`."""
+    i0 = faces[g, 0]
+    i1 = faces[g, 1]
+    i2 = faces[g, 2]
     return (vertices[i0, 0], vertices[i0, 1], vertices[i0, 2],
             vertices[i1, 0], vertices[i1, 1], vertices[i1, 2],
             vertices[i2, 0], vertices[i2, 1], vertices[i2, 2])
@@ -103,10 +100,9 @@ def _eye_normal(k, nx, ny, nz, nmat):
 def _flat_normal(g, k, vertices, faces, nmat):
     """Unit eye-space face normal (float64) of face ``g`` of draw call ``k``: the same at
     every pixel of the face (it does not depend on the barycentrics)."""
-    u = np.uint64(g)   # unsigned indices, as in _face_corners
-    i0 = np.uint64(faces[u, 0])
-    i1 = np.uint64(faces[u, 1])
-    i2 = np.uint64(faces[u, 2])
+    i0 = faces[g, 0]
+    i1 = faces[g, 1]
+    i2 = faces[g, 2]
     ax = vertices[i1, 0] - vertices[i0, 0]
     ay = vertices[i1, 1] - vertices[i0, 1]
     az = vertices[i1, 2] - vertices[i0, 2]
@@ -124,10 +120,9 @@ def _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat):
     """Unit eye-space normal (float64) of face ``g`` of draw call ``k`` at barycentrics
     ``(b0, b1, b2)``: the interpolated vertex normal (``smooth``) or the face normal."""
     if smooth:
-        u = np.uint64(g)   # unsigned indices, as in _face_corners
-        i0 = np.uint64(faces[u, 0])
-        i1 = np.uint64(faces[u, 1])
-        i2 = np.uint64(faces[u, 2])
+        i0 = faces[g, 0]
+        i1 = faces[g, 1]
+        i2 = faces[g, 2]
         nx = (b0 * vnormals[i0, 0] + b1 * vnormals[i1, 0]) + b2 * vnormals[i2, 0]
         ny = (b0 * vnormals[i0, 1] + b1 * vnormals[i1, 1]) + b2 * vnormals[i2, 1]
         nz = (b0 * vnormals[i0, 2] + b1 * vnormals[i1, 2]) + b2 * vnormals[i2, 2]

@@ -163,8 +163,9 @@ def bin_primitives(prims, scratch=None):
 def _box(item, fbox, sbox):
     """Pixel bounding box ``(x0, x1, y0, y1)`` of a binned item."""
     if item >= 0:
-        return (np.int64(fbox[item, 0]), np.int64(fbox[item, 1]), np.int64(fbox[item, 2]),
-                np.int64(fbox[item, 3]))
+        u = np.uint64(item)   # unsigned: no negative-index fix-up
+        return (np.int64(fbox[u, 0]), np.int64(fbox[u, 1]), np.int64(fbox[u, 2]),
+                np.int64(fbox[u, 3]))
     k = -item - 1
     return (np.int64(sbox[k, 0]), np.int64(sbox[k, 1]), np.int64(sbox[k, 2]),
             np.int64(sbox[k, 3]))
@@ -203,14 +204,15 @@ def _prefetch_items(lists, j, end, f, fbox, vX, vY, vZ, vXf, vYf):
     ``ITEM_PREFETCH_NEAR`` and ``ITEM_PREFETCH_FAR`` items after ``lists[j]`` (before ``end``).
     Not 1/w, which the depth loops do not read (prefetching it too made the pass slower): a
     hint, no output changes."""
-    far = lists[min(j + ITEM_PREFETCH_FAR, end - 1)]
-    if far >= 0:
+    far = lists[np.uint64(min(j + ITEM_PREFETCH_FAR, end - 1))]   # (unsigned indices: no
+    if far >= 0:                                                   # negative-index fix-up)
         prefetch_row(f, far)
         prefetch_row(fbox, far)
-    near = lists[min(j + ITEM_PREFETCH_NEAR, end - 1)]
+    near = lists[np.uint64(min(j + ITEM_PREFETCH_NEAR, end - 1))]
     if near >= 0:
+        un = np.uint64(near)
         for q in range(3):
-            v = f[near, q]
+            v = np.uint64(f[un, q])
             prefetch_row(vX, v)
             prefetch_row(vY, v)
             prefetch_row(vZ, v)
@@ -226,7 +228,8 @@ def _load(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, 
     if item >= 0:
         # unsigned vertex indices (checked non-negative by the primitive stage): no
         # negative-index fix-up per gather
-        a, b, d = np.uint64(f[item, 0]), np.uint64(f[item, 1]), np.uint64(f[item, 2])
+        u = np.uint64(item)
+        a, b, d = np.uint64(f[u, 0]), np.uint64(f[u, 1]), np.uint64(f[u, 2])
         x0, y0, x1, y1, x2, y2 = vX[a], vY[a], vX[b], vY[b], vX[d], vY[d]
         area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
         front = area > 0
