@@ -552,7 +552,7 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                           zd0 + dzdx * ((np.float64(bx0 + 3) + 0.5) - fx0))
                     for y in range(by0, by1 + 1):
                         zy = dzdy * ((np.float64(y) + 0.5) - fy0)
-                        ly = y - ty0
+                        ly = np.uint64(y - ty0)
                         for k in range(n):
                             x = bx0 + k
                             if (r0 + sx0 * k < 0) | (r1 + sx1 * k < 0) | (r2 + sx2 * k < 0):
@@ -571,7 +571,7 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 for y in range(by0, by1 + 1):
                     a, b = row_span(r0, sx0, r1, sx1, r2, sx2, n)
                     zy = dzdy * ((np.float64(y) + 0.5) - fy0)
-                    ly = y - ty0
+                    ly = np.uint64(y - ty0)
                     for x in range(bx0 + a, bx0 + b + 1):
                         z = (zd0 + dzdx * ((np.float64(x) + 0.5) - fx0)) + zy
                         z = 0.0 if z < 0.0 else (1.0 if z > 1.0 else z)
@@ -610,7 +610,7 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                           zd0 + dzdx * ((np.float64(bx0 + 3) + 0.5) - fx0))
                     for y in range(by0, by1 + 1):
                         zy = dzdy * ((np.float64(y) + 0.5) - fy0)
-                        ly = y - ty0
+                        ly = np.uint64(y - ty0)
                         for k in range(n):
                             x = bx0 + k
                             if (r0 + sx0 * k < 0) | (r1 + sx1 * k < 0) | (r2 + sx2 * k < 0):
@@ -629,7 +629,7 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 for y in range(by0, by1 + 1):
                     a, b = row_span(r0, sx0, r1, sx1, r2, sx2, n)
                     zy = dzdy * ((np.float64(y) + 0.5) - fy0)
-                    ly = y - ty0
+                    ly = np.uint64(y - ty0)
                     for x in range(bx0 + a, bx0 + b + 1):
                         z = (zd0 + dzdx * ((np.float64(x) + 0.5) - fx0)) + zy
                         z = 0.0 if z < 0.0 else (1.0 if z > 1.0 else z)
@@ -674,9 +674,12 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
          prim, front, piece, inv_af, inv_area) = _setup_winner(
             last, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront, sarea)
         for y in range(ty0, ty1 + 1):
-            row = height - 1 - y
+            row = np.uint64(height - 1 - y)   # unsigned indices: no negative-index fix-up
+            ly = np.uint64(y - ty0)
             for x in range(tx0, tx1 + 1):
-                item = win[y - ty0, x - tx0]
+                ux = np.uint64(x)
+                lx = np.uint64(x - tx0)
+                item = win[ly, lx]
                 if item == NO_ITEM:
                     continue
                 if item != last:
@@ -685,16 +688,16 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                      iw2, area, prim, front, piece, inv_af, inv_area) = _setup_winner(
                         item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
                         sfront, sarea)
-                o_depth[row, x] = zbuf[y - ty0, x - tx0]
-                o_prim[row, x] = prim
-                o_front[row, x] = front
+                o_depth[row, ux] = zbuf[ly, lx]
+                o_prim[row, ux] = prim
+                o_front[row, ux] = front
                 e0, _, _, b0 = _edge(x1, y1, x2, y2, bits, rule, x, y)
                 e1, _, _, b1 = _edge(x2, y2, x0, y0, bits, rule, x, y)
                 e2, _, _, b2 = _edge(x0, y0, x1, y1, bits, rule, x, y)
                 l0, l1, l2 = lambdas(fx0, fy0, fx1, fy1, fx2, fy2, inv_af, x, y,
                                      e0 + b0, e1 + b1, e2 + b2, inv_area)
                 fragment_bary(iw0, iw1, iw2, piece, front, B, l0, l1, l2, o_bary,
-                              row * width + x)
+                              row * np.uint64(width) + ux)
 
 
 def face_image_limit(n_faces, who):
