@@ -62,7 +62,7 @@ NO_ITEM = -(1 << 62)
 MAX_FACES = 1 << 31
 #: Boxes at most this many pixels wide skip :func:`row_span` in the fused pass's vectorized
 #: loops (their rows' pixels tested directly: no division per row, the same bits). The narrow
-#: loops compute their columns' depth terms as a tuple of four: change both together.
+#: loops write out their four columns one by one: change both together.
 NARROW = 4
 
 DEPTH_FUNCS = {"never": 0, "less": 1, "equal": 2, "lequal": 3, "greater": 4, "notequal": 5,
@@ -415,6 +415,22 @@ def _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
             z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx, dzdy)
 
 
+@njit(**IJIT)
+def _narrow_pixel(zbuf, win, ly, lx, zx, zy, item, out, greater):
+    """One pixel of a narrow box's row in the fused pass's "less" (``greater`` False) or
+    "greater" loop: unless ``out`` (outside an edge), the depth ``zx + zy`` (its column's
+    and its row's terms), clamped to [0, 1] (NaN kept), tested against and written into the
+    tile's buffers, ``item`` the winner where it passes."""
+    if out:
+        return
+    z = zx + zy
+    z = 0.0 if z < 0.0 else (1.0 if z > 1.0 else z)
+    zf = np.float32(z)
+    if (zf > zbuf[ly, lx]) if greater else (zf < zbuf[ly, lx]):
+        zbuf[ly, lx] = zf
+        win[ly, lx] = item
+
+
 # ------------------------------------------------------------------------------ kernels
 
 @njit(**PJIT)
@@ -540,30 +556,36 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                     # three biased edge functions at pixel k being r + sx·k (row_span's span
                     # is where all three are >= 0), so no division finds the span; same
                     # pixels in the same order, the same depth expression: the same bits.
-                    # The depth's column term zd0 + dz/dx·(x + ½ − x0) is computed once per
-                    # column (NARROW of them), each row adding its dz/dy term: the same
-                    # expression, so the same bits, with five operations a pixel fewer. A
-                    # pixel outside an edge or losing the test is passed over by a branch:
-                    # as selects (all pixels computed and written back) the pass was ~5 %
-                    # slower at 82k faces (docs/changelog.md, 2026-12-05)
-                    zx = (zd0 + dzdx * ((np.float64(bx0) + 0.5) - fx0),
-                          zd0 + dzdx * ((np.float64(bx0 + 1) + 0.5) - fx0),
-                          zd0 + dzdx * ((np.float64(bx0 + 2) + 0.5) - fx0),
-                          zd0 + dzdx * ((np.float64(bx0 + 3) + 0.5) - fx0))
+                    # The row's (at most NARROW = 4) pixels are written out one by one
+                    # (_narrow_pixel), each column's depth term zd0 + dz/dx·(x + ½ − x0)
+                    # computed once per triangle and each row adding its dz/dy term (the
+                    # same expression, so the same bits). A pixel outside an edge or losing
+                    # the test is passed over by a branch. At 82k faces this pass took 7.5 ms
+                    # (one thread) as a loop over k with selects, 7.1 as that loop with
+                    # branches (LLVM then recomputed the column term per pixel behind a jump
+                    # table), 6.3 written out (docs/changelog.md, 2026-12-05)
+                    zx0 = zd0 + dzdx * ((np.float64(bx0) + 0.5) - fx0)
+                    zx1 = zd0 + dzdx * ((np.float64(bx0 + 1) + 0.5) - fx0)
+                    zx2 = zd0 + dzdx * ((np.float64(bx0 + 2) + 0.5) - fx0)
+                    zx3 = zd0 + dzdx * ((np.float64(bx0 + 3) + 0.5) - fx0)
+                    lx0 = np.uint64(bx0 - tx0)
                     for y in range(by0, by1 + 1):
                         zy = dzdy * ((np.float64(y) + 0.5) - fy0)
                         ly = np.uint64(y - ty0)
-                        for k in range(n):
-                            x = bx0 + k
-                            if (r0 + sx0 * k < 0) | (r1 + sx1 * k < 0) | (r2 + sx2 * k < 0):
-                                continue
-                            z = zx[k] + zy
-                            z = 0.0 if z < 0.0 else (1.0 if z > 1.0 else z)
-                            zf = np.float32(z)
-                            lx = np.uint64(x - tx0)
-                            if zf < zbuf[ly, lx]:
-                                zbuf[ly, lx] = zf
-                                win[ly, lx] = item
+                        _narrow_pixel(zbuf, win, ly, lx0, zx0, zy, item,
+                                      (r0 < 0) | (r1 < 0) | (r2 < 0), False)
+                        if n > 1:
+                            _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(1), zx1, zy, item,
+                                          (r0 + sx0 < 0) | (r1 + sx1 < 0) | (r2 + sx2 < 0),
+                                          False)
+                        if n > 2:
+                            _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(2), zx2, zy, item,
+                                          (r0 + 2 * sx0 < 0) | (r1 + 2 * sx1 < 0)
+                                          | (r2 + 2 * sx2 < 0), False)
+                        if n > 3:
+                            _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(3), zx3, zy, item,
+                                          (r0 + 3 * sx0 < 0) | (r1 + 3 * sx1 < 0)
+                                          | (r2 + 3 * sx2 < 0), False)
                         r0 += sy0
                         r1 += sy1
                         r2 += sy2
@@ -598,30 +620,36 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                     # three biased edge functions at pixel k being r + sx·k (row_span's span
                     # is where all three are >= 0), so no division finds the span; same
                     # pixels in the same order, the same depth expression: the same bits.
-                    # The depth's column term zd0 + dz/dx·(x + ½ − x0) is computed once per
-                    # column (NARROW of them), each row adding its dz/dy term: the same
-                    # expression, so the same bits, with five operations a pixel fewer. A
-                    # pixel outside an edge or losing the test is passed over by a branch:
-                    # as selects (all pixels computed and written back) the pass was ~5 %
-                    # slower at 82k faces (docs/changelog.md, 2026-12-05)
-                    zx = (zd0 + dzdx * ((np.float64(bx0) + 0.5) - fx0),
-                          zd0 + dzdx * ((np.float64(bx0 + 1) + 0.5) - fx0),
-                          zd0 + dzdx * ((np.float64(bx0 + 2) + 0.5) - fx0),
-                          zd0 + dzdx * ((np.float64(bx0 + 3) + 0.5) - fx0))
+                    # The row's (at most NARROW = 4) pixels are written out one by one
+                    # (_narrow_pixel), each column's depth term zd0 + dz/dx·(x + ½ − x0)
+                    # computed once per triangle and each row adding its dz/dy term (the
+                    # same expression, so the same bits). A pixel outside an edge or losing
+                    # the test is passed over by a branch. At 82k faces this pass took 7.5 ms
+                    # (one thread) as a loop over k with selects, 7.1 as that loop with
+                    # branches (LLVM then recomputed the column term per pixel behind a jump
+                    # table), 6.3 written out (docs/changelog.md, 2026-12-05)
+                    zx0 = zd0 + dzdx * ((np.float64(bx0) + 0.5) - fx0)
+                    zx1 = zd0 + dzdx * ((np.float64(bx0 + 1) + 0.5) - fx0)
+                    zx2 = zd0 + dzdx * ((np.float64(bx0 + 2) + 0.5) - fx0)
+                    zx3 = zd0 + dzdx * ((np.float64(bx0 + 3) + 0.5) - fx0)
+                    lx0 = np.uint64(bx0 - tx0)
                     for y in range(by0, by1 + 1):
                         zy = dzdy * ((np.float64(y) + 0.5) - fy0)
                         ly = np.uint64(y - ty0)
-                        for k in range(n):
-                            x = bx0 + k
-                            if (r0 + sx0 * k < 0) | (r1 + sx1 * k < 0) | (r2 + sx2 * k < 0):
-                                continue
-                            z = zx[k] + zy
-                            z = 0.0 if z < 0.0 else (1.0 if z > 1.0 else z)
-                            zf = np.float32(z)
-                            lx = np.uint64(x - tx0)
-                            if zf > zbuf[ly, lx]:
-                                zbuf[ly, lx] = zf
-                                win[ly, lx] = item
+                        _narrow_pixel(zbuf, win, ly, lx0, zx0, zy, item,
+                                      (r0 < 0) | (r1 < 0) | (r2 < 0), True)
+                        if n > 1:
+                            _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(1), zx1, zy, item,
+                                          (r0 + sx0 < 0) | (r1 + sx1 < 0) | (r2 + sx2 < 0),
+                                          True)
+                        if n > 2:
+                            _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(2), zx2, zy, item,
+                                          (r0 + 2 * sx0 < 0) | (r1 + 2 * sx1 < 0)
+                                          | (r2 + 2 * sx2 < 0), True)
+                        if n > 3:
+                            _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(3), zx3, zy, item,
+                                          (r0 + 3 * sx0 < 0) | (r1 + 3 * sx1 < 0)
+                                          | (r2 + 3 * sx2 < 0), True)
                         r0 += sy0
                         r1 += sy1
                         r2 += sy2
