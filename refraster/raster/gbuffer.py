@@ -116,18 +116,26 @@ def _flat_normal(g, k, vertices, faces, nmat):
 
 
 @njit(**IJIT)
-def _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat):
-    """Unit eye-space normal (float64) of face ``g`` of draw call ``k`` at barycentrics
-    ``(b0, b1, b2)``: the interpolated vertex normal (``smooth``) or the face normal."""
-    if smooth:
-        i0 = faces[g, 0]
-        i1 = faces[g, 1]
-        i2 = faces[g, 2]
-        nx = (b0 * vnormals[i0, 0] + b1 * vnormals[i1, 0]) + b2 * vnormals[i2, 0]
-        ny = (b0 * vnormals[i0, 1] + b1 * vnormals[i1, 1]) + b2 * vnormals[i2, 1]
-        nz = (b0 * vnormals[i0, 2] + b1 * vnormals[i1, 2]) + b2 * vnormals[i2, 2]
-        return _eye_normal(k, nx, ny, nz, nmat)
-    return _flat_normal(g, k, vertices, faces, nmat)
+def _vertex_normals(g, faces, vnormals):
+    """The three vertex normals of face ``g``, ``(n0x, n0y, n0z, n1x, …, n2z)``: loaded once per
+    run of a face's pixels by :func:`finalize` and :func:`shade` (smooth normals)."""
+    i0 = faces[g, 0]
+    i1 = faces[g, 1]
+    i2 = faces[g, 2]
+    return (vnormals[i0, 0], vnormals[i0, 1], vnormals[i0, 2],
+            vnormals[i1, 0], vnormals[i1, 1], vnormals[i1, 2],
+            vnormals[i2, 0], vnormals[i2, 1], vnormals[i2, 2])
+
+
+@njit(**IJIT)
+def _smooth_normal(k, b0, b1, b2, vn, nmat):
+    """Unit eye-space normal (float64) of draw call ``k`` interpolated at barycentrics
+    ``(b0, b1, b2)`` from a face's vertex normals ``vn`` (:func:`_vertex_normals`)."""
+    n0x, n0y, n0z, n1x, n1y, n1z, n2x, n2y, n2z = vn
+    nx = (b0 * n0x + b1 * n1x) + b2 * n2x
+    ny = (b0 * n0y + b1 * n1y) + b2 * n2y
+    nz = (b0 * n0z + b1 * n1z) + b2 * n2z
+    return _eye_normal(k, nx, ny, nz, nmat)
 
 
 @njit(**IJIT)
@@ -161,12 +169,13 @@ def _run_normal(g, k, per_face, fnormal, vertices, faces, nmat):
 
 
 @njit(**IJIT)
-def _surface(bary, r, c, g, k, corners, fm, flat, vertices, faces, vnormals, smooth, mv, nmat):
+def _surface(bary, r, c, k, corners, fm, flat, vn, mv, nmat):
     """The float64 eye-space position and unit eye-space normal of face ``g`` (draw call ``k``)
     at pixel ``(r, c)``'s barycentrics: what :func:`finalize` rounds (it uses z only; LLVM drops
     x and y there) and :func:`shade` lights, one expression (the same bits). ``corners``: the
     face's :func:`_face_corners`; ``fm``: its flat normal (:func:`_run_normal`) where ``flat``,
-    else the normal is interpolated per pixel (:func:`_normal`). The
+    else the normal is interpolated per pixel from its vertex normals ``vn``
+    (:func:`_vertex_normals`, loaded once per run: :func:`_smooth_normal`). The
     position comes before the normal's branch, in the order the kernels had written it out:
     so both compile to the same instructions as before this helper (with the position after
     the branch, LLVM recomputed the model-view row's address per pixel; finalize ~1.1x)."""
@@ -181,7 +190,7 @@ def _surface(bary, r, c, g, k, corners, fm, flat, vertices, faces, vnormals, smo
     if flat:
         mx, my, mz = fm
     else:
-        mx, my, mz = _normal(g, k, b0, b1, b2, vertices, faces, vnormals, smooth, nmat)
+        mx, my, mz = _smooth_normal(k, b0, b1, b2, vn, nmat)
     return ex, ey, ez, mx, my, mz
 
 
@@ -224,6 +233,7 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
         pid = np.int64(0)
         ax = ay = az = bx = by = bz = cx = cy = cz = 0.0
         fm0 = fm1 = fm2 = 0.0
+        vn = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         for c in range(w):
             g = prim_global[r, c]
             if g < 0:
@@ -249,7 +259,9 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
                 k = _object_of(face_offsets, g)
                 pid = g - face_offsets[k]
                 ax, ay, az, bx, by, bz, cx, cy, cz = _face_corners(g, vertices, faces)
-                if not smooth:
+                if smooth:
+                    vn = _vertex_normals(g, faces, vnormals)
+                else:
                     fm0, fm1, fm2 = _run_normal(g, k, per_face, fnormal, vertices, faces, nmat)
             if first == w:
                 first = c
@@ -258,8 +270,8 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
                 prim_id[r, c] = pid
             object_id[r, c] = k
             _, _, ez, mx, my, mz = _surface(
-                bary, r, c, g, k, (ax, ay, az, bx, by, bz, cx, cy, cz), (fm0, fm1, fm2),
-                not smooth, vertices, faces, vnormals, smooth, mv, nmat)
+                bary, r, c, k, (ax, ay, az, bx, by, bz, cx, cy, cz), (fm0, fm1, fm2),
+                not smooth, vn, mv, nmat)
             eye_depth[r, c] = np.float32(-ez)
             normal[r, c, 0] = np.float32(mx)
             normal[r, c, 1] = np.float32(my)
@@ -322,6 +334,7 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
         k = np.int64(0)
         ax = ay = az = bx = by = bz = cx = cy = cz = 0.0
         fm0 = fm1 = fm2 = 0.0
+        vn = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         for c in range(w):
             g = prim_global[r, c]
             if g < 0 or g >= n_shaded:
@@ -334,11 +347,13 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
                     _prefetch_ahead(prim_global, r, c, w, faces, vertices, vnormals, smooth)
                 k = _object_of(face_offsets, g)
                 ax, ay, az, bx, by, bz, cx, cy, cz = _face_corners(g, vertices, faces)
-                if not smooth:
+                if smooth:
+                    vn = _vertex_normals(g, faces, vnormals)
+                else:
                     fm0, fm1, fm2 = _run_normal(g, k, per_face, fnormal, vertices, faces, nmat)
             ex, ey, ez, mx, my, mz = _surface(
-                bary, r, c, g, k, (ax, ay, az, bx, by, bz, cx, cy, cz), (fm0, fm1, fm2),
-                not smooth, vertices, faces, vnormals, smooth, mv, nmat)
+                bary, r, c, k, (ax, ay, az, bx, by, bz, cx, cy, cz), (fm0, fm1, fm2),
+                not smooth, vn, mv, nmat)
             # light at the eye, so the half vector is the view vector
             vl = np.sqrt(ex * ex + ey * ey + ez * ez)
             ndv = 1.0
