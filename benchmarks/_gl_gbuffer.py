@@ -1,7 +1,8 @@
 """llvmpipe's G-buffer pass, timed in a process of its own (run by benchmarks/raster.py).
 
 The same job as ``refraster.render``'s G-buffer: depth (32-bit float), eye-space normal
-(RGBA32F, flat, from screen derivatives of the eye position), primitive id and facing (RG32I),
+(RGBA32F, flat, from screen derivatives of the eye position; with ``normals`` in the scene
+file, interpolated from them), primitive id and facing (RG32I),
 depth test LESS. Timed per frame: draw + ``glFinish`` + read-back of every target into reused
 arrays, the mesh resident in a VBO. ``LP_NUM_THREADS`` and ``GLIBC_TUNABLES`` are set by the
 parent before this process starts (``../shared/LLVMPIPE.md``).
@@ -27,6 +28,30 @@ out vec3 v_eye;
 void main() {
     v_eye = (mv * vec4(in_pos, 1.0)).xyz;
     gl_Position = mvp * vec4(in_pos, 1.0);
+}
+"""
+#: With vertex normals in the scene (``benchmarks.raster --normals smooth``): the eye-space
+#: normal interpolated from them and renormalized, as refraster's ``normals="smooth"``.
+VS_SMOOTH = """
+#version 330
+uniform mat4 mvp;
+uniform mat4 mv;
+in vec3 in_pos;
+in vec3 in_normal;
+out vec3 v_n;
+void main() {
+    v_n = mat3(mv) * in_normal;
+    gl_Position = mvp * vec4(in_pos, 1.0);
+}
+"""
+FS_SMOOTH = """
+#version 330
+in vec3 v_n;
+layout(location = 0) out vec4 out_normal;
+layout(location = 1) out ivec2 out_id;
+void main() {
+    out_normal = vec4(normalize(v_n), 1.0);
+    out_id = ivec2(gl_PrimitiveID, gl_FrontFacing ? 1 : 0);
 }
 """
 FS = """
@@ -55,13 +80,22 @@ def run(path, repeats):
         mvp = z["mvp"].astype(np.float32)
         mv = z["mv"].astype(np.float32)
         w, h = int(z["width"]), int(z["height"])
+        normals = z["normals"].astype(np.float32) if "normals" in z.files else None
     ctx = moderngl.create_standalone_context(backend="egl")
-    prog = ctx.program(vertex_shader=VS, fragment_shader=FS)
+    if normals is None:
+        prog = ctx.program(vertex_shader=VS, fragment_shader=FS)
+    else:
+        prog = ctx.program(vertex_shader=VS_SMOOTH, fragment_shader=FS_SMOOTH)
     prog["mvp"].write(mvp.T.copy().tobytes())
     prog["mv"].write(mv.T.copy().tobytes())
-    vbo = ctx.buffer(vertices.tobytes())
     ibo = ctx.buffer(faces.tobytes())
-    vao = ctx.vertex_array(prog, [(vbo, "3f", "in_pos")], ibo, index_element_size=4)
+    if normals is None:
+        vbo = ctx.buffer(vertices.tobytes())
+        vao = ctx.vertex_array(prog, [(vbo, "3f", "in_pos")], ibo, index_element_size=4)
+    else:
+        vbo = ctx.buffer(np.hstack([vertices, normals]).tobytes())
+        vao = ctx.vertex_array(prog, [(vbo, "3f 3f", "in_pos", "in_normal")], ibo,
+                               index_element_size=4)
     normal = ctx.texture((w, h), 4, dtype="f4")
     ids = ctx.texture((w, h), 2, dtype="i4")
     depth = ctx.depth_texture((w, h))

@@ -1,7 +1,7 @@
 """Rasterizer speed: the G-buffer pass beside Mesa's llvmpipe, measured in the same run.
 
     python -m benchmarks.raster [--quick] [--repeats N] [--rounds R] [--vertex-order first-use]
-        [--only NAME]
+        [--only NAME] [--normals smooth]
 
 Cases (1024×768): icospheres of 81,920 and 1,310,720 faces and the crank. refraster renders the
 full G-buffer (``refraster.render``: depth, eye depth, normal, ids, facing, barycentrics) with 2
@@ -80,10 +80,13 @@ def _refraster_worker(path, threads, repeats, tuned=True):
 import json, time, numpy as np, refraster as rf
 z = np.load({str(path)!r}, allow_pickle=False)
 # validated once, as llvmpipe's mesh is uploaded once (render() skips the checks for a Mesh)
-mesh = rf.mesh.as_mesh((z['vertices'].astype(np.float64), z['faces'].astype(np.int64)))
+smooth = 'normals' in z.files   # --normals smooth: the mesh's own vertex normals
+mesh = rf.mesh.as_mesh((z['vertices'].astype(np.float64), z['faces'].astype(np.int64))
+                       + ((z['normals'].astype(np.float64),) if smooth else ()))
 view, proj = z['view'], z['proj']
+state = rf.RasterState(normals='smooth') if smooth else None
 def frame(color):
-    fb = rf.render(mesh, view=view, proj=proj, width={W}, height={H})
+    fb = rf.render(mesh, view=view, proj=proj, width={W}, height={H}, raster=state)
     if color:
         fb.color   # the default shade, made when first read
 for _ in range(3):   # steady state, as the llvmpipe worker (benchmarks._gl_gbuffer.WARMUP)
@@ -200,6 +203,9 @@ def main(argv=None):
                     help="first-use: each mesh's vertices renumbered in the order its faces "
                          "first use them, for both renderers (first_use_order)")
     ap.add_argument("--only", default="", help="run the cases whose name contains this")
+    ap.add_argument("--normals", choices=("flat", "smooth"), default="flat",
+                    help="smooth: each mesh's own vertex normals given to both renderers, "
+                         "refraster with normals='smooth', llvmpipe interpolating them")
     a = ap.parse_args(argv)
     rows, stage_rows = [], []
     with tempfile.TemporaryDirectory() as tmp:
@@ -211,8 +217,13 @@ def main(argv=None):
             vertices, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
             if a.vertex_order == "first-use":
                 vertices, faces = first_use_order(vertices, faces)
+            extra = {}
+            if a.normals == "smooth":
+                extra["normals"] = np.asarray(mesh.vertex_normals)
+                if a.vertex_order == "first-use":
+                    raise SystemExit("--normals smooth: not with --vertex-order first-use")
             np.savez(path, vertices=vertices, faces=faces,
-                     view=view, proj=proj, mvp=proj @ view, mv=view, width=W, height=H)
+                     view=view, proj=proj, mvp=proj @ view, mv=view, width=W, height=H, **extra)
             for threads in (2, 1):
                 # alternate the two renderers over a few rounds and keep the median of each
                 # one's medians, so a slow spell of the shared machine hits both alike
@@ -232,7 +243,7 @@ def main(argv=None):
         big = _cases(False)[1][1] if not (a.quick or a.only) else None
     print(f"refraster {W}x{H} G-buffer vs llvmpipe (median over {a.rounds} alternating rounds "
           f"of the median ms/frame of {a.repeats} frames after 3 warm-up frames; "
-          f"both processes with GLIBC_TUNABLES={TUNED})")
+          f"both processes with GLIBC_TUNABLES={TUNED}; {a.normals} normals)")
     print(f"{'case':22} {'faces':>9} {'thr':>3} {'refraster':>10} {'llvmpipe':>9} {'ratio':>6}"
           f" {'Mtri/s':>7} {'Mpx/s':>7} {'+colour':>8} {'ratio':>6} {'default':>8}"
           f" {'ratio':>6} {'dflt/tuned':>10}")
