@@ -62,7 +62,8 @@ def _prefetch_ahead(prim_global, r, c, w, faces, vertices, vnormals, smooth):
 @njit(**IJIT)
 def _face_corners(g, vertices, faces):
     """The three corners of face ``g``: ``(ax, ay, az, bx, by, bz, cx, cy, cz)``, loaded once
-    per run of a face's pixels by :func:`finalize` and :func:`shade`."""
+    per run of a face's pixels by :func:`finalize` and :func:`shade` (of ``vnormals`` for
+    ``vertices``: its three vertex normals)."""
     i0 = faces[g, 0]
     i1 = faces[g, 1]
     i2 = faces[g, 2]
@@ -116,21 +117,10 @@ def _flat_normal(g, k, vertices, faces, nmat):
 
 
 @njit(**IJIT)
-def _vertex_normals(g, faces, vnormals):
-    """The three vertex normals of face ``g``, ``(n0x, n0y, n0z, n1x, …, n2z)``: loaded once per
-    run of a face's pixels by :func:`finalize` and :func:`shade` (smooth normals)."""
-    i0 = faces[g, 0]
-    i1 = faces[g, 1]
-    i2 = faces[g, 2]
-    return (vnormals[i0, 0], vnormals[i0, 1], vnormals[i0, 2],
-            vnormals[i1, 0], vnormals[i1, 1], vnormals[i1, 2],
-            vnormals[i2, 0], vnormals[i2, 1], vnormals[i2, 2])
-
-
-@njit(**IJIT)
 def _smooth_normal(k, b0, b1, b2, vn, nmat):
     """Unit eye-space normal (float64) of draw call ``k`` interpolated at barycentrics
-    ``(b0, b1, b2)`` from a face's vertex normals ``vn`` (:func:`_vertex_normals`)."""
+    ``(b0, b1, b2)`` from a face's three vertex normals ``vn`` (its rows of the normals array:
+    :func:`_face_corners` of ``vnormals``)."""
     n0x, n0y, n0z, n1x, n1y, n1z, n2x, n2y, n2z = vn
     nx = (b0 * n0x + b1 * n1x) + b2 * n2x
     ny = (b0 * n0y + b1 * n1y) + b2 * n2y
@@ -175,7 +165,7 @@ def _surface(bary, r, c, k, corners, fm, flat, vn, mv, nmat):
     x and y there) and :func:`shade` lights, one expression (the same bits). ``corners``: the
     face's :func:`_face_corners`; ``fm``: its flat normal (:func:`_run_normal`) where ``flat``,
     else the normal is interpolated per pixel from its vertex normals ``vn``
-    (:func:`_vertex_normals`, loaded once per run: :func:`_smooth_normal`). The
+    (:func:`_face_corners` of ``vnormals``, loaded once per run: :func:`_smooth_normal`). The
     position comes before the normal's branch, in the order the kernels had written it out:
     so both compile to the same instructions as before this helper (with the position after
     the branch, LLVM recomputed the model-view row's address per pixel; finalize ~1.1x)."""
@@ -260,7 +250,7 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
                 pid = g - face_offsets[k]
                 ax, ay, az, bx, by, bz, cx, cy, cz = _face_corners(g, vertices, faces)
                 if smooth:
-                    vn = _vertex_normals(g, faces, vnormals)
+                    vn = _face_corners(g, vnormals, faces)   # its vertex normals
                 else:
                     fm0, fm1, fm2 = _run_normal(g, k, per_face, fnormal, vertices, faces, nmat)
             if first == w:
@@ -348,7 +338,7 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
                 k = _object_of(face_offsets, g)
                 ax, ay, az, bx, by, bz, cx, cy, cz = _face_corners(g, vertices, faces)
                 if smooth:
-                    vn = _vertex_normals(g, faces, vnormals)
+                    vn = _face_corners(g, vnormals, faces)   # its vertex normals
                 else:
                     fm0, fm1, fm2 = _run_normal(g, k, per_face, fnormal, vertices, faces, nmat)
             ex, ey, ez, mx, my, mz = _surface(

@@ -539,6 +539,50 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
              z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx,
              dzdy) = _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
                             sfront, sarea, bits, rule, bx0, by0)
+            n = bx1 - bx0 + 1
+            if (func == 1 or func == 4) and inv_af > 0.0 and n <= NARROW:
+                # "less" or "greater" (reversed-Z) with the unsnapped depth plane and a box at
+                # most NARROW pixels wide (one copy for both: the comparison is a branch
+                # taken the same way for every pixel): its row's pixels tested directly, the
+                # three biased edge functions at pixel k being r + sx·k (row_span's span
+                # is where all three are >= 0), so no division finds the span; same
+                # pixels in the same order, the same depth expression: the same bits.
+                # The row's (at most NARROW = 4) pixels are written out one by one
+                # (_narrow_pixel), each column's depth term zd0 + dz/dx·(x + ½ − x0)
+                # computed once per triangle and each row adding its dz/dy term (the
+                # same expression, so the same bits). A pixel outside an edge or losing
+                # the test is passed over by a branch. At 82k faces this pass took 7.5 ms
+                # (one thread) as a loop over k with selects, 7.1 as that loop with
+                # branches (LLVM then recomputed the column term per pixel behind a jump
+                # table), 6.3 written out (docs/changelog.md, 2026-12-05)
+                zd0 = np.float64(z0)
+                greater = func == 4
+                zx0 = zd0 + dzdx * ((np.float64(bx0) + 0.5) - fx0)
+                zx1 = zd0 + dzdx * ((np.float64(bx0 + 1) + 0.5) - fx0)
+                zx2 = zd0 + dzdx * ((np.float64(bx0 + 2) + 0.5) - fx0)
+                zx3 = zd0 + dzdx * ((np.float64(bx0 + 3) + 0.5) - fx0)
+                lx0 = np.uint64(bx0 - tx0)
+                for y in range(by0, by1 + 1):
+                    zy = dzdy * ((np.float64(y) + 0.5) - fy0)
+                    ly = np.uint64(y - ty0)
+                    _narrow_pixel(zbuf, win, ly, lx0, zx0, zy, item,
+                                  (r0 < 0) | (r1 < 0) | (r2 < 0), greater)
+                    if n > 1:
+                        _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(1), zx1, zy, item,
+                                      (r0 + sx0 < 0) | (r1 + sx1 < 0) | (r2 + sx2 < 0),
+                                      greater)
+                    if n > 2:
+                        _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(2), zx2, zy, item,
+                                      (r0 + 2 * sx0 < 0) | (r1 + 2 * sx1 < 0)
+                                      | (r2 + 2 * sx2 < 0), greater)
+                    if n > 3:
+                        _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(3), zx3, zy, item,
+                                      (r0 + 3 * sx0 < 0) | (r1 + 3 * sx1 < 0)
+                                      | (r2 + 3 * sx2 < 0), greater)
+                    r0 += sy0
+                    r1 += sy1
+                    r2 += sy2
+                continue
             if func == 1 and inv_af > 0.0:
                 # "less" (the default) with the unsnapped depth plane: a loop of its own that
                 # LLVM vectorizes (8 pixels per AVX-512 step here; ~0.7x the pass for the
@@ -550,46 +594,6 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 # the writes are selects (a pixel that loses is written its own values back).
                 # The column index is unsigned: no negative-index fix-up per pixel.
                 zd0 = np.float64(z0)
-                n = bx1 - bx0 + 1
-                if n <= NARROW:
-                    # a box at most NARROW pixels wide: its row's pixels tested directly, the
-                    # three biased edge functions at pixel k being r + sx·k (row_span's span
-                    # is where all three are >= 0), so no division finds the span; same
-                    # pixels in the same order, the same depth expression: the same bits.
-                    # The row's (at most NARROW = 4) pixels are written out one by one
-                    # (_narrow_pixel), each column's depth term zd0 + dz/dx·(x + ½ − x0)
-                    # computed once per triangle and each row adding its dz/dy term (the
-                    # same expression, so the same bits). A pixel outside an edge or losing
-                    # the test is passed over by a branch. At 82k faces this pass took 7.5 ms
-                    # (one thread) as a loop over k with selects, 7.1 as that loop with
-                    # branches (LLVM then recomputed the column term per pixel behind a jump
-                    # table), 6.3 written out (docs/changelog.md, 2026-12-05)
-                    zx0 = zd0 + dzdx * ((np.float64(bx0) + 0.5) - fx0)
-                    zx1 = zd0 + dzdx * ((np.float64(bx0 + 1) + 0.5) - fx0)
-                    zx2 = zd0 + dzdx * ((np.float64(bx0 + 2) + 0.5) - fx0)
-                    zx3 = zd0 + dzdx * ((np.float64(bx0 + 3) + 0.5) - fx0)
-                    lx0 = np.uint64(bx0 - tx0)
-                    for y in range(by0, by1 + 1):
-                        zy = dzdy * ((np.float64(y) + 0.5) - fy0)
-                        ly = np.uint64(y - ty0)
-                        _narrow_pixel(zbuf, win, ly, lx0, zx0, zy, item,
-                                      (r0 < 0) | (r1 < 0) | (r2 < 0), False)
-                        if n > 1:
-                            _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(1), zx1, zy, item,
-                                          (r0 + sx0 < 0) | (r1 + sx1 < 0) | (r2 + sx2 < 0),
-                                          False)
-                        if n > 2:
-                            _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(2), zx2, zy, item,
-                                          (r0 + 2 * sx0 < 0) | (r1 + 2 * sx1 < 0)
-                                          | (r2 + 2 * sx2 < 0), False)
-                        if n > 3:
-                            _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(3), zx3, zy, item,
-                                          (r0 + 3 * sx0 < 0) | (r1 + 3 * sx1 < 0)
-                                          | (r2 + 3 * sx2 < 0), False)
-                        r0 += sy0
-                        r1 += sy1
-                        r2 += sy2
-                    continue
                 for y in range(by0, by1 + 1):
                     a, b = row_span(r0, sx0, r1, sx1, r2, sx2, n)
                     zy = dzdy * ((np.float64(y) + 0.5) - fy0)
@@ -608,52 +612,12 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                     r2 += sy2
                 continue
             if func == 4 and inv_af > 0.0:
-                # "greater" (reversed-Z): the loops above with the comparison turned, so the
+                # "greater" (reversed-Z): the loop above with the comparison turned, so the
                 # reversed-Z convention costs what the default costs (same bits as the
                 # general loop below: the depth in fragment_depth's order, ties to the first).
                 # A copy, not one loop choosing its comparison per pass: that cost the
                 # crank's tile pass 0.7 ms (docs/changelog.md, 2026-12-05)
                 zd0 = np.float64(z0)
-                n = bx1 - bx0 + 1
-                if n <= NARROW:
-                    # a box at most NARROW pixels wide: its row's pixels tested directly, the
-                    # three biased edge functions at pixel k being r + sx·k (row_span's span
-                    # is where all three are >= 0), so no division finds the span; same
-                    # pixels in the same order, the same depth expression: the same bits.
-                    # The row's (at most NARROW = 4) pixels are written out one by one
-                    # (_narrow_pixel), each column's depth term zd0 + dz/dx·(x + ½ − x0)
-                    # computed once per triangle and each row adding its dz/dy term (the
-                    # same expression, so the same bits). A pixel outside an edge or losing
-                    # the test is passed over by a branch. At 82k faces this pass took 7.5 ms
-                    # (one thread) as a loop over k with selects, 7.1 as that loop with
-                    # branches (LLVM then recomputed the column term per pixel behind a jump
-                    # table), 6.3 written out (docs/changelog.md, 2026-12-05)
-                    zx0 = zd0 + dzdx * ((np.float64(bx0) + 0.5) - fx0)
-                    zx1 = zd0 + dzdx * ((np.float64(bx0 + 1) + 0.5) - fx0)
-                    zx2 = zd0 + dzdx * ((np.float64(bx0 + 2) + 0.5) - fx0)
-                    zx3 = zd0 + dzdx * ((np.float64(bx0 + 3) + 0.5) - fx0)
-                    lx0 = np.uint64(bx0 - tx0)
-                    for y in range(by0, by1 + 1):
-                        zy = dzdy * ((np.float64(y) + 0.5) - fy0)
-                        ly = np.uint64(y - ty0)
-                        _narrow_pixel(zbuf, win, ly, lx0, zx0, zy, item,
-                                      (r0 < 0) | (r1 < 0) | (r2 < 0), True)
-                        if n > 1:
-                            _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(1), zx1, zy, item,
-                                          (r0 + sx0 < 0) | (r1 + sx1 < 0) | (r2 + sx2 < 0),
-                                          True)
-                        if n > 2:
-                            _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(2), zx2, zy, item,
-                                          (r0 + 2 * sx0 < 0) | (r1 + 2 * sx1 < 0)
-                                          | (r2 + 2 * sx2 < 0), True)
-                        if n > 3:
-                            _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(3), zx3, zy, item,
-                                          (r0 + 3 * sx0 < 0) | (r1 + 3 * sx1 < 0)
-                                          | (r2 + 3 * sx2 < 0), True)
-                        r0 += sy0
-                        r1 += sy1
-                        r2 += sy2
-                    continue
                 for y in range(by0, by1 + 1):
                     a, b = row_span(r0, sx0, r1, sx1, r2, sx2, n)
                     zy = dzdy * ((np.float64(y) + 0.5) - fy0)
