@@ -292,14 +292,17 @@ def _no_sprites():
 
 
 def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests,
-                sure_flags=(), depth_func=1, clear_depth=1.0):
+                sure_flags=(), depth_func=1, clear_depth=1.0, fill=True, scratch=None):
     """Rasterize, clip, parity-test and depth-resolve the prepared draw calls in one pass,
     with the depth function ``depth_func`` (:data:`refraster.raster.DEPTH_FUNCS`) against a
     buffer cleared to ``clear_depth``.
     ``sure_flags`` holds, per cap draw call after the solids, the "surely inside" flags of its
     faces (:func:`refraster.clipsurface.capping.surely_inside`) or ``None``.
 
-    Returns ``(depth, prim_global, front, bary)`` as :func:`refraster.raster.rasterizer.fused`.
+    Returns ``(depth, prim_global, front, bary)`` as :func:`refraster.raster.rasterizer.fused`;
+    ``fill=False`` as its ``fill=False`` (depth, facing and barycentrics hold only the pixels a
+    fragment won: the caller's ``finalize`` sweep writes the rest); ``scratch``: for the tile
+    lists (:func:`refraster.raster.rasterizer.bin_primitives`).
     """
     prims = prep.triangles
     packed = _Packed(surfaces)
@@ -310,9 +313,9 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests,
         ends = srf.scale[2] * np.array(srf.height_range)
         h_lo[k], h_hi[k] = ends.min(), ends.max()
     face_image_limit(prims.n_faces, "the clip surfaces' tile pass")
-    ntx, _, starts, lists = bin_primitives(prims)
+    ntx, _, starts, lists = bin_primitives(prims, scratch)
     h, w = prims.height, prims.width
-    depth, prim, front, bary = resolved_buffers(h, w, clear_depth)
+    depth, prim, front, bary = resolved_buffers(h, w, clear_depth, fill)
     sprites = _pack_sprites(tests) if tests else _no_sprites()
     separate = world_vertices is not test_vertices
     sure = np.zeros(int(prep.face_offsets[-1]), np.bool_)

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._scratch import SCRATCH_FACES, scratch_lease
 from .._validate import as_choice, as_float_array, as_matrix, as_real, as_size
 from ..framebuffer import Framebuffer
 from ..ldi import MAX_RESOLUTION
@@ -415,14 +416,18 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
                     fragment_stage=_stage(n_solids, surfaces, cap_tests, space, view),
                     background=bg)
     else:
-        prep = prepare(draw_list, view=view, proj=proj, width=width, height=height,
-                       raster=state, model=draw_models)
-        tv = _concat_vertices(vertices_in(prep.meshes, prep.models, view, space))
-        wv = tv if space == "world" else _concat_vertices(
-            vertices_in(prep.meshes, prep.models, view, "world"))
-        depth, prim_global, front, bary = _fused_clip(
-            prep, tv, wv, n_solids, _surfaces_in_space(surfaces, space, view), cap_tests,
-            sure_flags, DEPTH_FUNCS[state.depth_func], state.clear_depth)
+        # the primitive stage's and binning's intermediates from this thread's reused buffers
+        # (as render: none of them outlives the tile pass), the outputs from the output pool
+        with scratch_lease(sum(m.n_faces for m in draw_list) >= SCRATCH_FACES) as scratch:
+            prep = prepare(draw_list, view=view, proj=proj, width=width, height=height,
+                           raster=state, model=draw_models, scratch=scratch)
+            tv = _concat_vertices(vertices_in(prep.meshes, prep.models, view, space))
+            wv = tv if space == "world" else _concat_vertices(
+                vertices_in(prep.meshes, prep.models, view, "world"))
+            depth, prim_global, front, bary = _fused_clip(
+                prep, tv, wv, n_solids, _surfaces_in_space(surfaces, space, view), cap_tests,
+                sure_flags, DEPTH_FUNCS[state.depth_func], state.clear_depth, fill=False,
+                scratch=scratch)
         facing(state, front, prim_global)
         h, w = depth.shape
         identity = all(np.array_equal(m, np.eye(4)) for m in prep.models)
@@ -430,7 +435,8 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
         # the mesh caps' pixels are coloured by shade_cap_pixels below, not by the default
         fb = _build(prep.meshes, prep.models, view, proj, depth, prim_global, prep.face_offsets,
                     front, bary.reshape(h, w, 3), normals, bg, geometry,
-                    prep.face_offsets[n_solids] if do_caps and mode == "mesh" else None)
+                    prep.face_offsets[n_solids] if do_caps and mode == "mesh" else None,
+                    raster_bg=state.clear_depth)   # the background in finalize's sweep
     h, w = fb.depth.shape
     cap_mask = fb.object_id >= n_solids
     out = ClippedFramebuffer(**fb.field_values(), cap_mask=cap_mask,
