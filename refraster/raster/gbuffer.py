@@ -160,7 +160,7 @@ def _run_normal(g, k, per_face, fnormal, vertices, faces, nmat):
 
 @njit(**IJIT)
 def _surface(bary, r, c, k, corners, fm, flat, vn, mv, nmat):
-    """The float64 eye-space position and unit eye-space normal of face ``g`` (draw call ``k``)
+    """The float64 eye-space position and unit eye-space normal of a face of draw call ``k``
     at pixel ``(r, c)``'s barycentrics: what :func:`finalize` rounds (it uses z only; LLVM drops
     x and y there) and :func:`shade` lights, one expression (the same bits). ``corners``: the
     face's :func:`_face_corners`; ``fm``: its flat normal (:func:`_run_normal`) where ``flat``,

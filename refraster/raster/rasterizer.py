@@ -60,9 +60,9 @@ NO_ITEM = -(1 << 62)
 #: one draw call it is handed out as ``prim_id`` (docs/performance.md). :func:`fused`,
 #: ``render``, ``render_samples`` and the clip surfaces' pass refuse more.
 MAX_FACES = 1 << 31
-#: Boxes at most this many pixels wide skip :func:`row_span` in the fused pass's vectorized
-#: loops (their rows' pixels tested directly: no division per row, the same bits). The narrow
-#: loops write out their four columns one by one: change both together.
+#: Boxes at most this many pixels wide skip :func:`row_span` in the fused pass (their rows'
+#: pixels tested directly: no division per row, the same bits). The narrow block writes out
+#: its four columns one by one: change both together.
 NARROW = 4
 
 DEPTH_FUNCS = {"never": 0, "less": 1, "equal": 2, "lequal": 3, "greater": 4, "notequal": 5,
