@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from ._config import IJIT, JIT, PJIT
+from ._config import IJIT, PJIT
 from ._scratch import OUTPUTS
 from ._validate import as_choice, as_float_array, as_size
 from .mesh import as_mesh
@@ -69,24 +69,96 @@ class NonWatertightWarning(UserWarning):
 FILL_BLOCK = 65536
 
 
-@njit(**JIT)
-def _bucket_by_pixel(pixel, n_pixels):
-    """Stable counting sort of fragment indices by pixel → (offsets (P+1), order (N), ok):
-    ``ok`` False (and the rest unfinished) if a pixel index lies outside ``[0, n_pixels)``."""
-    offsets = np.zeros(n_pixels + 1, np.int64)
-    for i in range(pixel.shape[0]):
-        p = pixel[i]
-        if p < 0 or p >= n_pixels:
-            return offsets, np.empty(0, np.int64), False
-        offsets[p + 1] += 1
-    for p in range(n_pixels):
-        offsets[p + 1] += offsets[p]
-    cursor = offsets[:-1].copy()
-    order = np.empty(pixel.shape[0], np.int64)   # every element written below
-    for i in range(pixel.shape[0]):
-        p = pixel[i]
-        order[cursor[p]] = i
-        cursor[p] += 1
+#: Fragments per chunk of the parallel bucket sort, at least (:func:`bucket_by_pixel`): a
+#: smaller stream is one chunk.
+BUCKET_MIN_CHUNK = 1 << 16
+#: Pixels per block of the bucket sort's parallel prefix sum (:func:`_bucket_scan`).
+SCAN_BLOCK = 1 << 14
+
+
+@njit(**PJIT)
+def _bucket_pass(pixel, n_pixels, bounds, hist, scatter, bad, order):
+    """One pass of the chunked counting sort, parallel over the fragment chunks
+    ``bounds[c]:bounds[c + 1]``. Counting (``scatter`` False): ``hist[c, p]`` = fragments of
+    chunk c at pixel p, ``bad[c]`` True (and the chunk's count left unfinished) at a pixel
+    index outside ``[0, n_pixels)``. Scattering: ``hist[c, p]`` holds chunk c's first slot
+    for pixel p (:func:`_bucket_scan`); each fragment index goes to its pixel's next slot."""
+    for c in prange(bounds.shape[0] - 1):
+        if scatter:
+            for i in range(bounds[c], bounds[c + 1]):
+                p = pixel[i]
+                order[hist[c, p]] = i
+                hist[c, p] += 1
+            continue
+        for p in range(n_pixels):
+            hist[c, p] = 0
+        for i in range(bounds[c], bounds[c + 1]):
+            p = pixel[i]
+            if p < 0 or p >= n_pixels:
+                bad[c] = True
+                break
+            hist[c, p] += 1
+
+
+@njit(**PJIT)
+def _bucket_scan(hist, offsets, sums):
+    """The counts ``hist[c, p]`` → pixel p's first slot ``offsets[p]`` (and the total in
+    ``offsets[P]``) and chunk c's first slot for it, ``offsets[p] + Σ_{c' < c} hist[c', p]``
+    (in place): pixels before chunks, so each pixel's fragments stay in stream order. Two
+    parallel passes over blocks of :data:`SCAN_BLOCK` pixels around a short serial sum."""
+    nch, n_pixels = hist.shape
+    nb = sums.shape[0]
+    for b in prange(nb):
+        lo = b * SCAN_BLOCK
+        hi = min(lo + SCAN_BLOCK, n_pixels)
+        s = 0
+        for c in range(nch):
+            for p in range(lo, hi):
+                s += hist[c, p]
+        sums[b] = s
+    run = 0
+    for b in range(nb):
+        t = sums[b]
+        sums[b] = run
+        run += t
+    offsets[n_pixels] = run
+    for b in prange(nb):
+        lo = b * SCAN_BLOCK
+        hi = min(lo + SCAN_BLOCK, n_pixels)
+        acc = sums[b]
+        for p in range(lo, hi):
+            offsets[p] = acc
+            for c in range(nch):
+                t = hist[c, p]
+                hist[c, p] = acc
+                acc += t
+
+
+def bucket_by_pixel(pixel, n_pixels, chunks=None):
+    """Stable counting sort of fragment indices by pixel → ``(offsets (P+1), order (N), ok)``,
+    ``ok`` False (and the rest empty) if a pixel index lies outside ``[0, n_pixels)``.
+
+    The stream is cut into ``chunks`` equal parts (default: Numba's thread count, fewer for a
+    short stream): each counts its fragments per pixel, a prefix sum over (pixel, chunk) gives
+    every chunk its own slots in each pixel's range, and each scatters into them — the order
+    a serial counting sort gives, whatever the number of chunks (``tests/test_ldi.py`` holds
+    it against NumPy's stable argsort). At 1024² with 2.6M fragments and 2 threads:
+    docs/performance.md, "Depth peeling"."""
+    import numba
+    n = pixel.shape[0]
+    if chunks is None:
+        chunks = numba.get_num_threads()
+    chunks = max(1, min(int(chunks), n // BUCKET_MIN_CHUNK))
+    bounds = (np.arange(chunks + 1, dtype=np.int64) * n) // chunks
+    hist = np.empty((chunks, n_pixels), np.int64)   # zeroed by the counting pass
+    bad = np.zeros(chunks, np.bool_)
+    order = np.empty(n, np.int64)   # every element written by the scattering pass
+    _bucket_pass(pixel, n_pixels, bounds, hist, False, bad, order)
+    if bad.any():
+        return np.zeros(n_pixels + 1, np.int64), np.empty(0, np.int64), False
+    offsets = np.empty(n_pixels + 1, np.int64)
+    _bucket_scan(hist, offsets, np.empty((n_pixels + SCAN_BLOCK - 1) // SCAN_BLOCK, np.int64))
+    _bucket_pass(pixel, n_pixels, bounds, hist, True, bad, order)
     return offsets, order, True
 
 
@@ -316,7 +388,7 @@ def peel_fragments(frags, *, max_layers=None, mode="peel", raster=None):
     n_pixels = h * w
     pixel = np.ascontiguousarray(frags.pixel, np.int64)
     depth = np.ascontiguousarray(frags.depth, np.float32)
-    offsets, order, ok = _bucket_by_pixel(pixel, n_pixels)
+    offsets, order, ok = bucket_by_pixel(pixel, n_pixels)
     if not ok:
         raise ValueError(f"frags.pixel has indices outside the {w}×{h} image")
     count = np.empty(n_pixels, np.int64)

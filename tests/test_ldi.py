@@ -596,3 +596,38 @@ def test_a_stream_with_a_pixel_outside_the_image_is_refused(bad):
     with pytest.raises(ValueError, match=r"^frags\.pixel has indices outside the 4×4 image$"):
         peel_fragments(refraster.Fragments(pixel, frags.depth, frags.prim_id, frags.object_id,
                                            frags.bary, frags.front_facing, 4, 4))
+
+
+@pytest.mark.parametrize("chunks", [1, 2, 3, 7])
+def test_bucket_sort_is_numpys_stable_argsort_for_any_chunking(monkeypatch, chunks):
+    """The chunked counting sort (``bucket_by_pixel``) against NumPy's stable argsort and
+    ``bincount``: the same order for every number of chunks, including chunks that split a
+    pixel's fragments between them, empty pixels and a pixel holding a whole chunk."""
+    monkeypatch.setattr(ldi, "BUCKET_MIN_CHUNK", 1)
+    rng = np.random.default_rng(chunks)
+    n_pixels = 37
+    for n in (0, 1, 5, 200, 5000):
+        pixel = rng.integers(0, n_pixels, n).astype(np.int64)
+        pixel[: n // 3] = 11   # one pixel's run across a chunk boundary
+        offsets, order, ok = ldi.bucket_by_pixel(pixel, n_pixels, chunks)
+        assert ok
+        assert np.array_equal(order, np.argsort(pixel, kind="stable")), n
+        assert np.array_equal(offsets, np.r_[0, np.cumsum(np.bincount(pixel,
+                                                                       minlength=n_pixels))]), n
+    # more pixels than a scan block, fragments of a real stream (tile-grouped)
+    frags = refraster.draw(torus(), **{**ORTHO, "width": 160, "height": 130})
+    assert len(frags) > 10000 and 160 * 130 > ldi.SCAN_BLOCK
+    offsets, order, ok = ldi.bucket_by_pixel(frags.pixel, 160 * 130, chunks)
+    assert ok and np.array_equal(order, np.argsort(frags.pixel, kind="stable"))
+    assert np.array_equal(offsets, np.r_[0, np.cumsum(np.bincount(frags.pixel,
+                                                                   minlength=160 * 130))])
+
+
+@pytest.mark.parametrize("where", [0, 0.5, 0.999])
+def test_bucket_sort_refuses_a_bad_pixel_in_any_chunk(monkeypatch, where):
+    monkeypatch.setattr(ldi, "BUCKET_MIN_CHUNK", 1)
+    pixel = np.arange(300, dtype=np.int64) % 9
+    pixel[int(where * len(pixel))] = 9
+    for chunks in (1, 3):
+        _, order, ok = ldi.bucket_by_pixel(pixel, 9, chunks)
+        assert not ok and order.size == 0
