@@ -653,10 +653,11 @@ def _render_frame(meshes, view, proj, width, height, state, model, fragment_stag
         return _build(prep.meshes, prep.models, prep.view, prep.proj, depth, prim_global,
                       prep.face_offsets, front, bary.reshape(h, w, 3), normals, bg,
                       share_ids=True, raster_bg=clear)
-    from .raster import _fragments_from
+    from .raster import _fragments_of
     from .raster.rasterizer import stream
-    pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
-    frags = _fragments_from(prep, pixel, depth, prim, front, bary)
+    pixel, depth, obj, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule,
+                                                     face_offsets=prep.face_offsets)
+    frags = _fragments_of(prep, pixel, depth, obj, prim, front, bary)
     if fragment_stage is None:
         keep = None
     else:

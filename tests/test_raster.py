@@ -145,7 +145,7 @@ def _assert_fused_equals_resolve(prep, func, clear):
     w, h = prep.width, prep.height
     depth, prim, front, bary = fused(prep.triangles, depth_func=DEPTH_FUNCS[func],
                                      clear_depth=clear)
-    pixel, fd, fprim, ffront, fbary, _ = stream(prep.triangles)
+    pixel, fd, _, fprim, ffront, fbary, _ = stream(prep.triangles)
     frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, w, h)
     res = rf.resolve(frags, raster=rf.RasterState(depth_func=func, clear_depth=clear))
     assert res.depth.tobytes() == depth.tobytes()
@@ -239,7 +239,7 @@ def test_fused_keeps_the_first_clipped_piece():
     prep = rf.raster.prepare(box, view=view, proj=proj, width=160, height=120)
     st = prep.triangles
     depth, prim, front, bary = fused(st)
-    pixel, fd, fprim, ffront, fbary, _ = stream(st)
+    pixel, fd, _, fprim, ffront, fbary, _ = stream(st)
     frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, 160, 120)
     res = rf.resolve(frags)
     want = np.where(res.winner >= 0, fprim[res.winner], -1)
@@ -266,7 +266,7 @@ def test_fused_background_keeps_the_clear_values():
     assert (np.diff(starts) == 0).any()
     assert np.all(depth[bg] == np.float32(0.625)) and not front[bg].any()
     assert not bary[bg.ravel()].any()
-    pixel, fd, fprim, ffront, fbary, _ = stream(prep.triangles)
+    pixel, fd, _, fprim, ffront, fbary, _ = stream(prep.triangles)
     frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, 300, 200)
     res = rf.resolve(frags, raster=rf.RasterState(depth_func="always", clear_depth=0.625))
     assert res.depth.tobytes() == depth.tobytes()
@@ -575,7 +575,7 @@ def test_fused_post_pass_reloads_each_winning_triangle():
     st = setup_triangles(clip, faces, w, h, subpixel_bits=bits)
     assert len(st.clipped) > 0
     depth, prim, front, bary = fused(st)
-    pixel, fd, fprim, ffront, fbary, _ = stream(st)
+    pixel, fd, _, fprim, ffront, fbary, _ = stream(st)
     frags = rf.Fragments(pixel, fd, fprim, np.zeros_like(fprim), fbary, ffront, w, h)
     res = rf.resolve(frags)
     want = np.where(res.winner >= 0, fprim[res.winner], -1)

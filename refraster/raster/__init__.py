@@ -269,6 +269,12 @@ def _prepare(meshes, *, view, proj, width, height, model, state, scratch, multis
 
 def _fragments_from(prep, pixel, depth, prim_global, front, bary):
     obj, prim = prep.split(prim_global)
+    return _fragments_of(prep, pixel, depth, obj, prim, front, bary)
+
+
+def _fragments_of(prep, pixel, depth, obj, prim, front, bary):
+    """The stream of ``prep``'s draw calls from :func:`rasterizer.stream`'s outputs (ids
+    already split per draw call), its facing turned by the state's front face."""
     facing(prep.state, front)
     return Fragments(pixel, depth, prim, obj, bary, front, prep.width, prep.height,
                      meshes=prep.meshes, models=prep.models, view=prep.view, proj=prep.proj)
@@ -311,9 +317,9 @@ def draw_stream(meshes, view, proj, width, height, model, raster, *, bary):
     with threads_for(frame_work(sum(m.n_faces for m in meshes), w, h)):
         prep = prepare(meshes, view=view, proj=proj, width=w, height=h, model=model,
                        raster=raster)
-        pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule,
-                                                    bary=bary)
-    return _fragments_from(prep, pixel, depth, prim, front, bary)
+        pixel, depth, obj, prim, front, bary, _ = stream(
+            prep.triangles, fill_rule=prep.fill_rule, bary=bary, face_offsets=prep.face_offsets)
+    return _fragments_of(prep, pixel, depth, obj, prim, front, bary)
 
 
 def rasterize(clip_positions, faces, width, height, *, raster=None):
@@ -345,8 +351,6 @@ def rasterize(clip_positions, faces, width, height, *, raster=None):
     state = require_single_sample(as_raster_state(raster), "rasterize")
     st = setup_triangles(c, f, width, height, cull=cull_code(state),
                          subpixel_bits=state.subpixel_bits, conv=conv_code(state))
-    pixel, depth, prim, front, bary, _ = stream(st, fill_rule=FILL_RULES[state.fill_rule])
+    pixel, depth, obj, prim, front, bary, _ = stream(st, fill_rule=FILL_RULES[state.fill_rule])
     facing(state, front)
-    return Fragments(pixel, depth, prim.astype(np.int32), np.zeros(len(prim), np.int32), bary,
-                     front,
-                     width, height)
+    return Fragments(pixel, depth, prim, obj, bary, front, width, height)
