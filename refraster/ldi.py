@@ -26,7 +26,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 
 from ._config import IJIT, PJIT
 from ._scratch import OUTPUTS
@@ -142,12 +142,11 @@ def bucket_by_pixel(pixel, n_pixels, chunks=None):
     short stream): each counts its fragments per pixel, a prefix sum over (pixel, chunk) gives
     every chunk its own slots in each pixel's range, and each scatters into them — the order
     a serial counting sort gives, whatever the number of chunks (``tests/test_ldi.py`` holds
-    it against NumPy's stable argsort). At 1024² with 2.6M fragments and 2 threads:
-    docs/performance.md, "Depth peeling"."""
-    import numba
+    it against NumPy's stable argsort). Its time for the 1024² peel's 2.6M fragments:
+    docs/ldi.md, "Benchmark"."""
     n = pixel.shape[0]
     if chunks is None:
-        chunks = numba.get_num_threads()
+        chunks = get_num_threads()
     chunks = max(1, min(int(chunks), n // BUCKET_MIN_CHUNK))
     bounds = (np.arange(chunks + 1, dtype=np.int64) * n) // chunks
     hist = np.empty((chunks, n_pixels), np.int64)   # zeroed by the counting pass

@@ -455,7 +455,7 @@ def _stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, 
                             sfront, sarea, bits, rule, bx0, by0)
             # the face's draw call and its index there, once per triangle (not a pass over
             # the stream afterwards: 6 ms of one thread's CPU for the peel's 2.6 M fragments)
-            draw = _object_of(face_offsets, prim) if write else 0
+            draw = _object_of(face_offsets, prim)
             oid = np.int32(draw)
             local = np.int32(prim - face_offsets[draw])
             for y in range(by0, by1 + 1):
@@ -463,7 +463,8 @@ def _stream_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, 
                 if not write:
                     # the counting pass: row_span's span is exact (every pixel of it passes
                     # the three edge tests below, no other does), so its length is the
-                    # row's count (a third of the peel's stream time, 2026-12-05)
+                    # row's count (the peel's two passes 36.4 → 29.3 ms of one thread,
+                    # 2026-12-05)
                     o += max(b - a + 1, 0)
                     r0 += sy0
                     r1 += sy1
