@@ -314,9 +314,10 @@ def tolerance(meshes, *, view, proj, width, height, model=None, cull="none", eps
     eps = (edge_epsilon(w, h, min_bits=min_bits, ref_bits=prep.triangles.subpixel_bits)
            if eps is None else as_real(eps, "eps", lo=0.0))
     depth_eps = as_real(depth_eps, "depth_eps", lo=0.0)
-    pixel, depth, prim, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
+    pixel, depth, obj, prim32, front, bary, _ = stream(prep.triangles, fill_rule=prep.fill_rule)
+    prim = prim32.astype(np.int64)   # the global face index (one draw call for the stream)
     from .raster import Fragments
-    frags = Fragments(pixel, depth, prim, np.zeros(len(prim), np.int32), bary, front, w, h)
+    frags = Fragments(pixel, depth, prim32, obj, bary, front, w, h)
     res = resolve(frags)
     win = res.winner
     covered = win >= 0
