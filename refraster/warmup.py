@@ -344,9 +344,23 @@ def _nothing(*args):
     return None
 
 
+def _no_fragment_wins(*args):
+    """Stands in for the fused tile pass (``refraster.raster.rasterizer._fused_pass``) in a
+    half of :func:`warm_core_split`: no fragment wins anywhere. The pass itself writes the
+    face image's −1 where nothing won (its ``fill_face``; the face image comes to it
+    unfilled), so this writes it too: the G-buffer kernels after it read that image."""
+    *_, fill_face, _depth, face, _front, _bary = args
+    if fill_face:
+        face.fill(-1)
+
+
+#: Stand-ins other than :func:`_nothing`, by the kernel's module attribute.
+_STAND_INS = {"refraster.raster.rasterizer._fused_pass": _no_fragment_wins}
+
+
 class _stubbed:
-    """Replace module attributes (kernels) by :func:`_nothing` for the body of a ``with``;
-    restored after it, whatever happens."""
+    """Replace module attributes (kernels) by :func:`_nothing` (or their entry of
+    :data:`_STAND_INS`) for the body of a ``with``; restored after it, whatever happens."""
 
     def __init__(self, names):
         self.names = names
@@ -357,7 +371,7 @@ class _stubbed:
             module, attr = name.rsplit(".", 1)
             mod = importlib.import_module(module)
             self.saved.append((mod, attr, getattr(mod, attr)))
-            setattr(mod, attr, _nothing)
+            setattr(mod, attr, _STAND_INS.get(name, _nothing))
         return self
 
     def __exit__(self, *exc):

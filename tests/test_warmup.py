@@ -416,6 +416,26 @@ def test_split_call_sites_are_the_kernels_render_calls():
     assert refraster.framebuffer.shade is ks["refraster.raster.gbuffer.shade"]
 
 
+def test_the_fused_pass_stand_in_leaves_a_valid_empty_face_image():
+    """With the fused tile pass replaced (``_stubbed``, as a half of ``warm_core_split`` runs
+    it), a render sees no fragment anywhere: the face image is −1 everywhere (the pass writes
+    it, not a fill before it), so the G-buffer after it is the background, not whatever the
+    recycled arrays held."""
+    import numpy as np
+
+    import refraster
+    from refraster.camera import look_at, perspective
+    mesh = refraster.as_mesh(warmup._box())
+    kw = dict(view=look_at((0.3, 0.4, 2.0), (0.0, 0.0, 0.0)),
+              proj=perspective(40.0, 4 / 3, 0.5, 10.0), width=16, height=12)
+    for _ in range(2):   # the second frame's arrays are the first's, recycled
+        refraster.render(mesh, **kw)
+        with warmup._stubbed([warmup.SPLIT_KERNEL]):
+            fb = refraster.render(mesh, **kw)
+        assert (fb.prim_id == -1).all() and (fb.object_id == -1).all()
+        assert np.isinf(fb.eye_depth).all() and (fb.normal == 0).all()
+
+
 def test_first_render_compiles_the_fused_kernel_in_a_second_process(tmp_path):
     """A first ``render`` with the fused tile kernel cold (and ``shade``): a second process
     compiles the fused kernel into the cache (this one does not: Numba's cache log of this
