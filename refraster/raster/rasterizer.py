@@ -547,17 +547,16 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 o_depth, o_prim, o_front, o_bary):
     ntiles = starts.shape[0] - 1
     for tile in prange(ntiles):
+        tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
         if starts[tile] == starts[tile + 1]:
             # nothing binned: the tile keeps the clear values (the face image's −1 written
             # here with fill_face, the rest by resolved_buffers or the caller's sweep)
             if fill_face:
-                tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
                 for y in range(ty0, ty1 + 1):
                     row = np.uint64(height - 1 - y)
                     for x in range(tx0, tx1 + 1):
                         o_prim[row, np.uint64(x)] = -1
             continue
-        tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
         zbuf = np.full((TILE, TILE), clear, np.float32)
         win = np.full((TILE, TILE), NO_ITEM, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
@@ -688,8 +687,8 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
                 r2 += sy2
         # write the resolved tile where a fragment won (the rest keeps the clear values
         # resolved_buffers filled in; with fill_face the face image's −1 is written here):
-        # write_winner's computation, with the triangle's set-up
-        # (_load, 1/area, 1/unsnapped area) done once per run of pixels won by the same item
+        # write_winner's computation, with the triangle's set-up (_load, 1/area,
+        # 1/unsnapped area) done once per run of pixels won by the same item
         # instead of once per pixel (the same values, so the same bits). Written out here,
         # not called: as a function (Numba cannot inline a loop into a prange body) the
         # post-pass ran ~20 % slower.
