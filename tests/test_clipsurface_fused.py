@@ -182,6 +182,37 @@ def test_watertight_memo_sees_changed_arrays():
         capping.check_watertight(Mesh(v, f))
 
 
+def test_watertight_check_returns_the_bounds_of_the_arrays_it_was_given():
+    # the check keeps each solid's bounds with its copy: a mesh with other vertices (still
+    # watertight) must get its own bounds, not the remembered ones (a stale box would place
+    # the caps' grid wrongly: a silent wrong picture)
+    box = trimesh.creation.box((1.0, 1.0, 1.0))
+    v = np.array(box.vertices)
+    f = np.array(box.faces)
+    first = capping.check_watertight(Mesh(v, f))
+    np.testing.assert_array_equal(first, bounds(v))
+    again = capping.check_watertight(Mesh(v.copy(), f.copy()))   # remembered: equal bits
+    np.testing.assert_array_equal(again, bounds(v))
+    assert not again.flags.writeable
+    moved = v * 2.0 + 3.0
+    np.testing.assert_array_equal(capping.check_watertight(Mesh(moved, f)), bounds(moved))
+    v[0, 0] = 7.0   # the caller's array changed in place: still watertight, other bounds
+    np.testing.assert_array_equal(capping.check_watertight(Mesh(v, f)), bounds(v))
+
+
+@pytest.mark.parametrize("n_solids", [0, 1, 3, 7])
+def test_cap_pixels_equals_numpy(n_solids):
+    rng = np.random.default_rng(n_solids)
+    for shape in ((1, 1), (5, 9), (64, 33), (200, 301)):
+        obj = rng.integers(-1, 9, size=shape).astype(np.int32)
+        mask, flat = capping.cap_pixels(obj, n_solids)
+        np.testing.assert_array_equal(mask, obj >= n_solids)
+        np.testing.assert_array_equal(flat, np.flatnonzero(obj >= n_solids))
+        assert mask.dtype == np.bool_ and flat.dtype == np.int64
+    mask, flat = capping.cap_pixels(np.full((4, 6), -1, np.int32), 1)   # no cap at all
+    assert not mask.any() and flat.size == 0
+
+
 def test_same_bits_compares_shape_dtype_and_every_word():
     rng = np.random.default_rng(3)
     a = rng.normal(size=(500, 3))

@@ -589,8 +589,10 @@ def importlib_module(name):
 #: default halo picture; and ``primitive.count_pieces`` (the binning's count of clipped
 #: pieces, 2026-12-05), which the gallery's warm-up compiles with the clipping kernels; and
 #: ``ldi._bucket_pass`` and ``_bucket_scan`` in place of ``_bucket_by_pixel`` (the peel's
-#: chunked bucket sort; a cold gallery at 22:41 UTC, 2026-12-05, left all 80 in its cache).
-GALLERY_KERNEL_COUNT = 80
+#: chunked bucket sort; a cold gallery at 22:41 UTC, 2026-12-05, left all 80 in its cache);
+#: and ``capping._cap_rows`` and ``_cap_indices`` (the caps' pixels of every capped clip
+#: picture, 2026-12-06).
+GALLERY_KERNEL_COUNT = 82
 
 
 def test_every_new_kernel_is_classified_for_the_gallery():

@@ -29,6 +29,7 @@ from numba import njit, prange
 from .._config import IJIT, JIT, PJIT
 from .._validate import as_choice, as_float_array, as_real
 from ..mesh import Mesh
+from ..mesh import bounds as mesh_bounds
 from .offsetmaps import WRAP_MODES, _wrap_texel, bilinear_taps, sample
 from .surfaces import _Packed, clip_mask
 from .textures import sample_texture
@@ -45,9 +46,10 @@ CAP_STYLES = ("diffuse", "hatch", "marble", "wood", "noise", "solid")
 _PROCEDURAL = ("hatch", "marble", "wood", "noise")
 
 
-#: Copies of the meshes already found watertight, newest last. Rendering the same solid frame
-#: after frame checks it once; a later mesh counts as checked only when its arrays equal a
-#: copy's bit for bit (a memory comparison, far cheaper than the check or a hash).
+#: Copies of the meshes already found watertight, with their bounds, newest last. Rendering
+#: the same solid frame after frame checks it once; a later mesh counts as checked only when its
+#: arrays equal a copy's bit for bit (a memory comparison, far cheaper than the check or a
+#: hash), and then has the copy's bounds.
 _WATERTIGHT = []
 _WATERTIGHT_SIZE = 8
 
@@ -84,10 +86,12 @@ def _readonly(a):
 
 
 def _known_watertight(v, f):
-    for kv, kf in _WATERTIGHT:
+    """The bounds kept with the copy of a mesh found watertight whose arrays ``v``, ``f`` equal
+    bit for bit, or None."""
+    for kv, kf, box in _WATERTIGHT:
         if _same_bits(kv, v) and _same_bits(kf, f):
-            return True
-    return False
+            return box
+    return None
 
 
 def check_watertight(mesh, name="mesh"):
@@ -95,10 +99,13 @@ def check_watertight(mesh, name="mesh"):
     positions, every undirected edge must be shared by exactly two faces.
 
     Capping needs a closed solid: the parity test is meaningless for an open surface.
+    Returns the mesh's bounds (:func:`refraster.mesh.bounds`, read-only), kept with the
+    check: a solid seen before costs one comparison of its arrays for both.
     """
     v, f = mesh.vertices, mesh.faces
-    if _known_watertight(v, f):
-        return
+    box = _known_watertight(v, f)
+    if box is not None:
+        return box
     if f.shape[0] == 0:
         raise ValueError(f"{name} has no faces; caps need a closed (watertight) solid")
     # merge vertices at bit-equal positions; 1D keys keep the sorts cheap on large meshes
@@ -114,7 +121,9 @@ def check_watertight(mesh, name="mesh"):
             "caps need a closed solid (render with caps=None, or repair the mesh)")
     if len(_WATERTIGHT) >= _WATERTIGHT_SIZE:
         _WATERTIGHT.pop(0)
-    _WATERTIGHT.append((np.array(v), np.array(f)))
+    box = _readonly(mesh_bounds(v))
+    _WATERTIGHT.append((np.array(v), np.array(f), box))
+    return box
 
 
 def _bounds_slab(surface, bounds):
@@ -880,6 +889,46 @@ def light_caps(points, surface_index, surfaces, *, view, occlusion_radius=None):
                           np.ascontiguousarray(surface_index, np.int64),
                           *_lighting_args(surfaces, view, occlusion_radius), shade, normal)
     return normal, shade
+
+
+@njit(**PJIT)
+def _cap_rows(obj, first, mask, counts):
+    """``mask = obj >= first`` (an (H, W) image), and each row's count of such pixels."""
+    for r in prange(obj.shape[0]):
+        n = 0
+        for c in range(obj.shape[1]):
+            m = obj[r, c] >= first
+            mask[r, c] = m
+            n += m
+        counts[r] = n
+
+
+@njit(**PJIT)
+def _cap_indices(mask, starts, flat):
+    """The row-major indices of ``mask``'s True pixels, row r's from ``starts[r]``."""
+    w = mask.shape[1]
+    for r in prange(mask.shape[0]):
+        k = starts[r]
+        for c in range(w):
+            if mask[r, c]:
+                flat[k] = r * w + c
+                k += 1
+
+
+def cap_pixels(object_id, n_solids):
+    """``(mask, flat)``: the pixels of an ``(H, W)`` id image showing a cap
+    (``object_id >= n_solids``) and their row-major indices, as ``np.flatnonzero(mask)``
+    (two parallel passes over the rows instead of NumPy's three single-threaded ones)."""
+    h, w = object_id.shape
+    mask = np.empty((h, w), np.bool_)
+    counts = np.empty(h, np.int64)
+    obj = _readonly(np.ascontiguousarray(object_id, np.int32))
+    _cap_rows(obj, np.int32(n_solids), mask, counts)
+    starts = np.zeros(h, np.int64)
+    np.cumsum(counts[:-1], out=starts[1:])
+    flat = np.empty(int(counts.sum()), np.int64)
+    _cap_indices(_readonly(mask), starts, flat)
+    return mask, flat
 
 
 def shade_cap_pixels(flat, gbuffer, n_solids, n_surf, faces, face_offsets, vertices, surfaces,

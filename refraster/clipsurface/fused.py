@@ -15,7 +15,7 @@ from .._config import IJIT, PJIT
 from ..ldi import parity_at
 from ..raster.gbuffer import _object_of
 from ..raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box_in_tile, _geometry, _setup,
-                                 bin_primitives, depth_test, face_image_limit, fragment_depth,
+                                 bin_primitives, depth_rows, depth_test, face_image_limit, fragment_depth,
                                  lambdas, perspective_bary, resolved_buffers, row_span,
                                  tile_rect, write_winner)
 from .capping import SURE_EXTRAPOLATION
@@ -118,6 +118,10 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
                 if cls == 0:
                     continue
                 test = cls == 2
+            if not test and depth_rows(zbuf, win, item, func, r0, sx0, sy0, r1, sx1, sy1, r2,
+                                       sx2, sy2, fx0, fy0, z0, dzdx, dzdy, inv_af, bx0, bx1,
+                                       by0, by1, tx0, ty0):
+                continue   # no fragment to test: the plain pass's depth-only loops
             for y in range(by0, by1 + 1):
                 a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
                 e0 = r0 + sx0 * a

@@ -376,10 +376,11 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
     do_caps = caps is not None and any(s.enabled for s in surfaces)
     tests = None
     if do_caps:
-        for i, w in enumerate(world):
-            capping.check_watertight(w, f"meshes[{i}]")
+        # the check keeps each solid's bounds (a solid seen before: one comparison for both)
+        boxes = [capping.check_watertight(w, f"meshes[{i}]") for i, w in enumerate(world)]
         tests = _solid_tests(world, vds, options.vds_resolution)
-    boxes = [bounds(w.vertices) if w.n_vertices else None for w in world]
+    else:
+        boxes = [bounds(w.vertices) if w.n_vertices else None for w in world]
     lo = np.min([b[0] for b in boxes if b is not None], axis=0) \
         if any(w.n_vertices for w in world) else np.zeros(3)
     hi = np.max([b[1] for b in boxes if b is not None], axis=0) \
@@ -438,7 +439,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
                     prep.face_offsets[n_solids] if do_caps and mode == "mesh" else None,
                     raster_bg=state.clear_depth)   # the background in finalize's sweep
     h, w = fb.depth.shape
-    cap_mask = fb.object_id >= n_solids
+    cap_mask, cap_flat = capping.cap_pixels(fb.object_id, n_solids)
     out = ClippedFramebuffer(**fb.field_values(), cap_mask=cap_mask,
         cap_points=np.zeros((0, 3)), n_solids=n_solids, n_surfaces=n_surf)
     if not do_caps:
@@ -459,7 +460,7 @@ def render_clipped(meshes, surfaces, *, view, proj, width, height, caps=_DEFAULT
                         np.concatenate([m.faces + vbase[k] for k, m in enumerate(fb.meshes)]))
         face_offsets = np.cumsum([0] + [m.n_faces for m in fb.meshes]).astype(np.int64)
         out.cap_points = capping.shade_cap_pixels(
-            np.flatnonzero(cap_mask), out, n_solids, n_surf, geometry[1], face_offsets,
+            cap_flat, out, n_solids, n_surf, geometry[1], face_offsets,
             geometry[0], surfaces, view=view, style=base_style, color=color,
             hatch_spacing=spacing, frequency=freq, occlusion_radius=occlusion_radius)
         _texture_pass(out, surfaces, textured, style, color, solid_tex, solids, models, view,

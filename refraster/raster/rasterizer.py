@@ -540,6 +540,114 @@ def stream(prims, *, fill_rule=0, bary=True, face_offsets=None):
     return (*out, tile_offsets)
 
 
+@njit(**IJIT)
+def depth_rows(zbuf, win, item, func, r0, sx0, sy0, r1, sx1, sy1, r2, sx2, sy2, fx0, fy0, z0,
+               dzdx, dzdy, inv_af, bx0, bx1, by0, by1, tx0, ty0):
+    """The depth-only loops of the fused tile passes over one item's box (``bx0 … bx1``,
+    ``by0 … by1``, edge functions ``r`` at its first pixel with steps ``sx``, ``sy``) in a tile
+    (``zbuf``, ``win`` from ``tx0``, ``ty0``): ``"less"`` and ``"greater"`` with the unsnapped
+    depth plane (``inv_af > 0``), the same pixels in the same order and the same depth
+    expression as the general loop, so the same bits. Returns False, touching nothing, for
+    any other case (the caller's general loop runs then)."""
+    n = bx1 - bx0 + 1
+    if (func == 1 or func == 4) and inv_af > 0.0 and n <= NARROW:
+        # "less" or "greater" (reversed-Z) with the unsnapped depth plane and a box at
+        # most NARROW pixels wide (one copy for both: the comparison is a branch
+        # taken the same way for every pixel): its row's pixels tested directly, the
+        # three biased edge functions at pixel k being r + sx·k (row_span's span
+        # is where all three are >= 0), so no division finds the span; same
+        # pixels in the same order, the same depth expression: the same bits.
+        # The row's (at most NARROW = 4) pixels are written out one by one
+        # (_narrow_pixel), each column's depth term zd0 + dz/dx·(x + ½ − x0)
+        # computed once per triangle and each row adding its dz/dy term (the
+        # same expression, so the same bits). A pixel outside an edge or losing
+        # the test is passed over by a branch. At 82k faces this pass took 7.5 ms
+        # (one thread) as a loop over k with selects, 7.1 as that loop with
+        # branches (LLVM then recomputed the column term per pixel behind a jump
+        # table), 6.3 written out (docs/changelog.md, 2026-12-05)
+        zd0 = np.float64(z0)
+        greater = func == 4
+        zx0 = zd0 + dzdx * ((np.float64(bx0) + 0.5) - fx0)
+        zx1 = zd0 + dzdx * ((np.float64(bx0 + 1) + 0.5) - fx0)
+        zx2 = zd0 + dzdx * ((np.float64(bx0 + 2) + 0.5) - fx0)
+        zx3 = zd0 + dzdx * ((np.float64(bx0 + 3) + 0.5) - fx0)
+        lx0 = np.uint64(bx0 - tx0)
+        for y in range(by0, by1 + 1):
+            zy = dzdy * ((np.float64(y) + 0.5) - fy0)
+            ly = np.uint64(y - ty0)
+            _narrow_pixel(zbuf, win, ly, lx0, zx0, zy, item,
+                          (r0 < 0) | (r1 < 0) | (r2 < 0), greater)
+            if n > 1:
+                _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(1), zx1, zy, item,
+                              (r0 + sx0 < 0) | (r1 + sx1 < 0) | (r2 + sx2 < 0),
+                              greater)
+            if n > 2:
+                _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(2), zx2, zy, item,
+                              (r0 + 2 * sx0 < 0) | (r1 + 2 * sx1 < 0)
+                              | (r2 + 2 * sx2 < 0), greater)
+            if n > 3:
+                _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(3), zx3, zy, item,
+                              (r0 + 3 * sx0 < 0) | (r1 + 3 * sx1 < 0)
+                              | (r2 + 3 * sx2 < 0), greater)
+            r0 += sy0
+            r1 += sy1
+            r2 += sy2
+        return True
+    if func == 1 and inv_af > 0.0:
+        # "less" (the default) with the unsnapped depth plane: a loop of its own that
+        # LLVM vectorizes (8 pixels per AVX-512 step here; ~0.7x the pass for the
+        # cube). Every pixel of row_span's span is covered (the span is exact: where
+        # all three biased edge functions are >= 0, checked exhaustively), so there is
+        # no edge test, and the edge functions are not stepped; the depth is
+        # fragment_depth's expression in its order, (z0 + dz/dx·(x + ½ − x0)) + the
+        # row's dz/dy term, clamped as there (NaN kept), the same bits; the test and
+        # the writes are selects (a pixel that loses is written its own values back).
+        # The column index is unsigned: no negative-index fix-up per pixel.
+        zd0 = np.float64(z0)
+        for y in range(by0, by1 + 1):
+            a, b = row_span(r0, sx0, r1, sx1, r2, sx2, n)
+            zy = dzdy * ((np.float64(y) + 0.5) - fy0)
+            ly = np.uint64(y - ty0)
+            for x in range(bx0 + a, bx0 + b + 1):
+                z = (zd0 + dzdx * ((np.float64(x) + 0.5) - fx0)) + zy
+                z = 0.0 if z < 0.0 else (1.0 if z > 1.0 else z)
+                zf = np.float32(z)
+                lx = np.uint64(x - tx0)
+                ref = zbuf[ly, lx]
+                less = zf < ref
+                zbuf[ly, lx] = zf if less else ref
+                win[ly, lx] = item if less else win[ly, lx]
+            r0 += sy0
+            r1 += sy1
+            r2 += sy2
+        return True
+    if func == 4 and inv_af > 0.0:
+        # "greater" (reversed-Z): the loop above with the comparison turned, so the
+        # reversed-Z convention costs what the default costs (same bits as the
+        # general loop below: the depth in fragment_depth's order, ties to the first).
+        # A copy, not one loop choosing its comparison per pass: that cost the
+        # crank's tile pass 0.7 ms (docs/changelog.md, 2026-12-05)
+        zd0 = np.float64(z0)
+        for y in range(by0, by1 + 1):
+            a, b = row_span(r0, sx0, r1, sx1, r2, sx2, n)
+            zy = dzdy * ((np.float64(y) + 0.5) - fy0)
+            ly = np.uint64(y - ty0)
+            for x in range(bx0 + a, bx0 + b + 1):
+                z = (zd0 + dzdx * ((np.float64(x) + 0.5) - fx0)) + zy
+                z = 0.0 if z < 0.0 else (1.0 if z > 1.0 else z)
+                zf = np.float32(z)
+                lx = np.uint64(x - tx0)
+                ref = zbuf[ly, lx]
+                more = zf > ref
+                zbuf[ly, lx] = zf if more else ref
+                win[ly, lx] = item if more else win[ly, lx]
+            r0 += sy0
+            r1 += sy1
+            r2 += sy2
+        return True
+    return False
+
+
 @njit(**PJIT)
 def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront,
                 sbox, sarea, B,
@@ -569,101 +677,8 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
              z0, z1, z2, iw0, iw1, iw2, prim, front, piece, inv_area, inv_af, dzdx,
              dzdy) = _setup(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim,
                             sfront, sarea, bits, rule, bx0, by0)
-            n = bx1 - bx0 + 1
-            if (func == 1 or func == 4) and inv_af > 0.0 and n <= NARROW:
-                # "less" or "greater" (reversed-Z) with the unsnapped depth plane and a box at
-                # most NARROW pixels wide (one copy for both: the comparison is a branch
-                # taken the same way for every pixel): its row's pixels tested directly, the
-                # three biased edge functions at pixel k being r + sx·k (row_span's span
-                # is where all three are >= 0), so no division finds the span; same
-                # pixels in the same order, the same depth expression: the same bits.
-                # The row's (at most NARROW = 4) pixels are written out one by one
-                # (_narrow_pixel), each column's depth term zd0 + dz/dx·(x + ½ − x0)
-                # computed once per triangle and each row adding its dz/dy term (the
-                # same expression, so the same bits). A pixel outside an edge or losing
-                # the test is passed over by a branch. At 82k faces this pass took 7.5 ms
-                # (one thread) as a loop over k with selects, 7.1 as that loop with
-                # branches (LLVM then recomputed the column term per pixel behind a jump
-                # table), 6.3 written out (docs/changelog.md, 2026-12-05)
-                zd0 = np.float64(z0)
-                greater = func == 4
-                zx0 = zd0 + dzdx * ((np.float64(bx0) + 0.5) - fx0)
-                zx1 = zd0 + dzdx * ((np.float64(bx0 + 1) + 0.5) - fx0)
-                zx2 = zd0 + dzdx * ((np.float64(bx0 + 2) + 0.5) - fx0)
-                zx3 = zd0 + dzdx * ((np.float64(bx0 + 3) + 0.5) - fx0)
-                lx0 = np.uint64(bx0 - tx0)
-                for y in range(by0, by1 + 1):
-                    zy = dzdy * ((np.float64(y) + 0.5) - fy0)
-                    ly = np.uint64(y - ty0)
-                    _narrow_pixel(zbuf, win, ly, lx0, zx0, zy, item,
-                                  (r0 < 0) | (r1 < 0) | (r2 < 0), greater)
-                    if n > 1:
-                        _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(1), zx1, zy, item,
-                                      (r0 + sx0 < 0) | (r1 + sx1 < 0) | (r2 + sx2 < 0),
-                                      greater)
-                    if n > 2:
-                        _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(2), zx2, zy, item,
-                                      (r0 + 2 * sx0 < 0) | (r1 + 2 * sx1 < 0)
-                                      | (r2 + 2 * sx2 < 0), greater)
-                    if n > 3:
-                        _narrow_pixel(zbuf, win, ly, lx0 + np.uint64(3), zx3, zy, item,
-                                      (r0 + 3 * sx0 < 0) | (r1 + 3 * sx1 < 0)
-                                      | (r2 + 3 * sx2 < 0), greater)
-                    r0 += sy0
-                    r1 += sy1
-                    r2 += sy2
-                continue
-            if func == 1 and inv_af > 0.0:
-                # "less" (the default) with the unsnapped depth plane: a loop of its own that
-                # LLVM vectorizes (8 pixels per AVX-512 step here; ~0.7x the pass for the
-                # cube). Every pixel of row_span's span is covered (the span is exact: where
-                # all three biased edge functions are >= 0, checked exhaustively), so there is
-                # no edge test, and the edge functions are not stepped; the depth is
-                # fragment_depth's expression in its order, (z0 + dz/dx·(x + ½ − x0)) + the
-                # row's dz/dy term, clamped as there (NaN kept), the same bits; the test and
-                # the writes are selects (a pixel that loses is written its own values back).
-                # The column index is unsigned: no negative-index fix-up per pixel.
-                zd0 = np.float64(z0)
-                for y in range(by0, by1 + 1):
-                    a, b = row_span(r0, sx0, r1, sx1, r2, sx2, n)
-                    zy = dzdy * ((np.float64(y) + 0.5) - fy0)
-                    ly = np.uint64(y - ty0)
-                    for x in range(bx0 + a, bx0 + b + 1):
-                        z = (zd0 + dzdx * ((np.float64(x) + 0.5) - fx0)) + zy
-                        z = 0.0 if z < 0.0 else (1.0 if z > 1.0 else z)
-                        zf = np.float32(z)
-                        lx = np.uint64(x - tx0)
-                        ref = zbuf[ly, lx]
-                        less = zf < ref
-                        zbuf[ly, lx] = zf if less else ref
-                        win[ly, lx] = item if less else win[ly, lx]
-                    r0 += sy0
-                    r1 += sy1
-                    r2 += sy2
-                continue
-            if func == 4 and inv_af > 0.0:
-                # "greater" (reversed-Z): the loop above with the comparison turned, so the
-                # reversed-Z convention costs what the default costs (same bits as the
-                # general loop below: the depth in fragment_depth's order, ties to the first).
-                # A copy, not one loop choosing its comparison per pass: that cost the
-                # crank's tile pass 0.7 ms (docs/changelog.md, 2026-12-05)
-                zd0 = np.float64(z0)
-                for y in range(by0, by1 + 1):
-                    a, b = row_span(r0, sx0, r1, sx1, r2, sx2, n)
-                    zy = dzdy * ((np.float64(y) + 0.5) - fy0)
-                    ly = np.uint64(y - ty0)
-                    for x in range(bx0 + a, bx0 + b + 1):
-                        z = (zd0 + dzdx * ((np.float64(x) + 0.5) - fx0)) + zy
-                        z = 0.0 if z < 0.0 else (1.0 if z > 1.0 else z)
-                        zf = np.float32(z)
-                        lx = np.uint64(x - tx0)
-                        ref = zbuf[ly, lx]
-                        more = zf > ref
-                        zbuf[ly, lx] = zf if more else ref
-                        win[ly, lx] = item if more else win[ly, lx]
-                    r0 += sy0
-                    r1 += sy1
-                    r2 += sy2
+            if depth_rows(zbuf, win, item, func, r0, sx0, sy0, r1, sx1, sy1, r2, sx2, sy2, fx0,
+                          fy0, z0, dzdx, dzdy, inv_af, bx0, bx1, by0, by1, tx0, ty0):
                 continue
             for y in range(by0, by1 + 1):
                 a, b = row_span(r0, sx0, r1, sx1, r2, sx2, bx1 - bx0 + 1)
