@@ -213,6 +213,22 @@ def test_cap_pixels_equals_numpy(n_solids):
     assert not mask.any() and flat.size == 0
 
 
+def test_a_kept_cap_mask_is_not_reused_by_the_next_frame(crank_scene):
+    # cap_pixels takes the mask from the recycled output pool (a frame of 400×300 is above its
+    # smallest size): a frame the caller still holds must keep its mask
+    mesh, ragged, _, _, sprite = crank_scene
+    cams = [frame_bounds(mesh.bounds, width=400, height=300, direction=d)
+            for d in ((0.3, 0.7, 1.0), (-0.6, 0.4, 1.0))]
+    first = render_clipped(mesh, ragged, **cams[0].kwargs, vds=[sprite])
+    kept = first.cap_mask.copy()
+    assert kept.any()
+    for _ in range(3):
+        other = render_clipped(mesh, ragged, **cams[1].kwargs, vds=[sprite])
+        assert not np.array_equal(other.cap_mask, kept)
+        del other
+    np.testing.assert_array_equal(first.cap_mask, kept)
+
+
 def test_same_bits_compares_shape_dtype_and_every_word():
     rng = np.random.default_rng(3)
     a = rng.normal(size=(500, 3))
