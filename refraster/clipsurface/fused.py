@@ -15,9 +15,9 @@ from .._config import IJIT, PJIT
 from ..ldi import parity_at
 from ..raster.gbuffer import _object_of
 from ..raster.rasterizer import (NO_ITEM, TILE_SHIFT, _box_in_tile, _geometry, _setup,
-                                 bin_primitives, depth_rows, depth_test, face_image_limit, fragment_depth,
-                                 lambdas, perspective_bary, resolved_buffers, row_span,
-                                 tile_rect, write_winner)
+                                 bin_primitives, depth_rows, depth_test, face_image_limit,
+                                 fragment_depth, lambdas, perspective_bary, resolved_buffers,
+                                 row_span, tile_rect, write_winner)
 from .capping import SURE_EXTRAPOLATION
 from .surfaces import _Packed, clipped_at
 

@@ -624,7 +624,7 @@ def depth_rows(zbuf, win, item, func, r0, sx0, sy0, r1, sx1, sy1, r2, sx2, sy2, 
     if func == 4 and inv_af > 0.0:
         # "greater" (reversed-Z): the loop above with the comparison turned, so the
         # reversed-Z convention costs what the default costs (same bits as the
-        # general loop below: the depth in fragment_depth's order, ties to the first).
+        # callers' general loop: the depth in fragment_depth's order, ties to the first).
         # A copy, not one loop choosing its comparison per pass: that cost the
         # crank's tile pass 0.7 ms (docs/changelog.md, 2026-12-05)
         zd0 = np.float64(z0)
@@ -705,8 +705,10 @@ def _fused_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, s
         # write_winner's computation, with the triangle's set-up (_load, 1/area,
         # 1/unsnapped area) done once per run of pixels won by the same item
         # instead of once per pixel (the same values, so the same bits). Written out here,
-        # not called: as a function (Numba cannot inline a loop into a prange body) the
-        # post-pass ran ~20 % slower.
+        # not called: a call with its 33 arguments is one CPython makes through
+        # CALL_FUNCTION_EX (more than 30), which Numba cannot inline into a prange body
+        # ("Calling a closure with *args"), and as a called function the post-pass ran
+        # ~20 % slower.
         last = lists[starts[tile]]
         (x0, y0, x1, y1, x2, y2, fx0, fy0, fx1, fy1, fx2, fy2, z0, z1, z2, iw0, iw1, iw2, area,
          prim, front, piece, inv_af, inv_area) = _setup_winner(
