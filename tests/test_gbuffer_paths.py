@@ -336,3 +336,71 @@ def test_out_input_check_after_good_frames():
     out.eye_depth = eye.reshape(out.eye_depth.shape)     # now it is
     with pytest.raises(ValueError, match="out.eye_depth shares memory with an input"):
         rf.render(box, **kw2, out=out)
+
+
+def _runs_image(rng, h, w, n_faces):
+    """A face image whose rows alternate runs of background (−1) of every length from 0 to
+    20 with runs of 1 to 3 covered pixels (face 0 among them), from any column."""
+    prim = np.full((h, w), -1, np.int32)
+    for r in range(h):
+        c = int(rng.integers(0, 3))
+        while c < w:
+            c += int(rng.integers(0, 21))
+            n = int(rng.integers(1, 4))
+            prim[r, c:c + n] = rng.integers(0, n_faces, size=len(prim[r, c:c + n]))
+            c += n
+    prim[0, :9] = 0          # a row starting covered
+    prim[1, -9:] = -1        # and one ending in background
+    return prim
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_background_runs_of_every_length(monkeypatch, seed):
+    """``finalize`` and ``shade`` find runs of background eight columns a step and fill each
+    array's stretch in a loop of its own: every background pixel gets the clear values, every
+    covered one (next to runs of any length and phase) its face's ids and eye depth (NumPy,
+    in the kernel's order of operations: the same bits), and the tile pass's depth, facing and
+    barycentrics of a covered pixel are left as they were. The colour against the same frame
+    with the background made of a face beyond ``n_shaded``, which ``shade`` colours pixel by
+    pixel: the same bytes."""
+    monkeypatch.setattr(fbm, "FILL_IN_KERNEL", 0)    # the background written in the kernel
+    rng = np.random.default_rng(seed)
+    h, w, n_faces = 7, 203, 5
+    v = rng.normal(size=(3 * n_faces + 3, 3)) + [0.0, 0.0, -4.0]
+    f = np.arange(3 * n_faces + 3, dtype=np.int64).reshape(-1, 3)
+    mesh = Mesh(v, f)
+    kw = camera_kw(w=w, h=h)
+    prim = _runs_image(rng, h, w, n_faces)
+    bary = rng.random((h, w, 3)).astype(np.float32)
+    depth = rng.random((h, w)).astype(np.float32)
+    front = rng.random((h, w)) < 0.5
+    bg = (0.2, 0.4, 0.6)
+
+    def build(face_image):
+        return fbm._build([mesh], [np.eye(4)], kw["view"], kw["proj"], depth.copy(),
+                          face_image, [0, n_faces + 1], front.copy(), bary.copy(), "flat", bg,
+                          n_shaded=n_faces, raster_bg=0.75)
+
+    fb = build(prim)
+    cov = prim >= 0
+    assert np.all(fb.eye_depth[~cov] == np.inf) and np.all(fb.normal[~cov] == 0.0)
+    assert np.all(fb.prim_id[~cov] == -1) and np.all(fb.object_id[~cov] == -1)
+    assert np.all(fb.depth[~cov] == np.float32(0.75)) and not fb.front_facing[~cov].any()
+    assert np.all(fb.barycentric[~cov] == 0.0)
+    assert np.array_equal(fb.prim_id[cov], prim[cov]) and np.all(fb.object_id[cov] == 0)
+    assert np.array_equal(fb.depth[cov], depth[cov])
+    assert np.array_equal(fb.front_facing[cov], front[cov])
+    assert np.array_equal(fb.barycentric[cov], bary[cov])
+    mv = kw["view"]
+    corners = v[f[prim[cov]]]                                        # (n, 3 corners, 3)
+    b = bary[cov].astype(np.float64)
+    p = [(b[:, 0] * corners[:, 0, j] + b[:, 1] * corners[:, 1, j]) + b[:, 2] * corners[:, 2, j]
+         for j in range(3)]
+    ez = ((mv[2, 0] * p[0] + mv[2, 1] * p[1]) + mv[2, 2] * p[2]) + mv[2, 3]
+    assert np.array_equal(fb.eye_depth[cov], (-ez).astype(np.float32))
+    assert np.all(np.linalg.norm(fb.normal[cov], axis=1) > 0.99)
+    # the colour: runs of background against pixel-by-pixel background (the face n_faces)
+    ref = build(np.where(cov, prim, n_faces).astype(np.int32))
+    color = np.asarray(fb.color)
+    assert np.all(color[~cov] == np.float32(bg))
+    assert color.tobytes() == np.asarray(ref.color).tobytes()

@@ -190,6 +190,56 @@ def per_face_normals(n_faces, height, width, smooth):
     return (not smooth) and int(n_faces) * FACE_NORMAL_PIXELS <= int(height) * int(width)
 
 
+@njit(**IJIT)
+def _background_end(prim, r, c, w):
+    """The end (exclusive) of the run of background (``< 0``) in row ``r`` of the face image
+    ``prim`` from column ``c``: eight columns a step while their AND is negative (all eight
+    are), then one by one."""
+    ur = np.uint64(r)
+    e = np.uint64(c)
+    uw = np.uint64(w)
+    while e + np.uint64(8) <= uw:
+        m = (prim[ur, e] & prim[ur, e + np.uint64(1)] & prim[ur, e + np.uint64(2)]
+             & prim[ur, e + np.uint64(3)] & prim[ur, e + np.uint64(4)]
+             & prim[ur, e + np.uint64(5)] & prim[ur, e + np.uint64(6)]
+             & prim[ur, e + np.uint64(7)])
+        if m >= 0:
+            break
+        e += np.uint64(8)
+    while e < uw and prim[ur, e] < 0:
+        e += np.uint64(1)
+    return np.int64(e)
+
+
+@njit(**IJIT)
+def _background_run(r, a, b, ids, rbg, prim_id, object_id, eye_depth, normal, r_depth,
+                    r_front, r_bary, clear_depth):
+    """The background (+inf, 0, −1, −1; with ``rbg`` the rasterizer's ``clear_depth``,
+    False, 0) in columns ``a … b − 1`` of row ``r``: :func:`finalize`'s fill. The indices are
+    unsigned: no negative-index fix-up per store."""
+    r = np.uint64(r)
+    ua = np.uint64(a)
+    ub = np.uint64(b)
+    if ids:
+        for c in range(ua, ub):
+            prim_id[r, c] = -1
+    for c in range(ua, ub):
+        object_id[r, c] = -1
+    for c in range(ua, ub):
+        eye_depth[r, c] = np.inf
+    nrow = normal[r].reshape(-1)
+    for c in range(np.uint64(3) * ua, np.uint64(3) * ub):
+        nrow[c] = 0.0
+    if rbg:
+        for c in range(ua, ub):
+            r_depth[r, c] = clear_depth
+        for c in range(ua, ub):
+            r_front[r, c] = False
+        brow = r_bary[r].reshape(-1)
+        for c in range(np.uint64(3) * ua, np.uint64(3) * ub):
+            brow[c] = 0.0
+
+
 @njit(**PJIT)
 def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv, nmat,
              fnormal, per_face, fill_bg, eye_depth, normal, prim_id, object_id, spans,
@@ -205,7 +255,8 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
     which the caller hands out instead: ``render_samples``). ``r_depth``, ``r_front``,
     ``r_bary`` (the rasterizer's depth, facing and barycentrics, ``(H, W[, 3])``): with
     ``fill_bg``, their background (``clear_depth``, False, 0) is written in the same sweep
-    (the tile pass wrote only the pixels a fragment won); shape ``(0, …)``: not asked."""
+    (the tile pass wrote only the pixels a fragment won); shape ``(0, …)``: not asked.
+"""
     if per_face:
         _face_normals(vertices, faces, face_offsets, nmat, fnormal)
     h, w = prim_global.shape
@@ -224,23 +275,21 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
         ax = ay = az = bx = by = bz = cx = cy = cz = 0.0
         fm0 = fm1 = fm2 = 0.0
         vn = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        for c in range(w):
+        c = np.int64(-1)
+        while c < w - 1:
+            c += 1
             g = prim_global[r, c]
             if g < 0:
+                # a run of background: found eight columns a step and, with fill_bg, each
+                # array's stretch filled by a loop of its own (stores only, which LLVM
+                # vectorizes). Pixel by pixel, among the covered pixels' branches, this took
+                # 8.6 ms of one thread for a 1024×768 4× sample image with nothing covered,
+                # against 4.6 (NumPy's fills of the same arrays: 3.7)
+                e = _background_end(prim_global, r, c + 1, w)
                 if fill_bg:
-                    if ids:
-                        prim_id[r, c] = -1
-                    object_id[r, c] = -1
-                    eye_depth[r, c] = np.inf
-                    normal[r, c, 0] = 0.0
-                    normal[r, c, 1] = 0.0
-                    normal[r, c, 2] = 0.0
-                    if rbg:
-                        r_depth[r, c] = clear_depth
-                        r_front[r, c] = False
-                        r_bary[r, c, 0] = 0.0
-                        r_bary[r, c, 1] = 0.0
-                        r_bary[r, c, 2] = 0.0
+                    _background_run(r, c, e, ids, rbg, prim_id, object_id, eye_depth,
+                                    normal, r_depth, r_front, r_bary, clear_depth)
+                c = e - 1
                 continue
             if g != last:
                 last = g
@@ -325,9 +374,20 @@ def shade(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv
         ax = ay = az = bx = by = bz = cx = cy = cz = 0.0
         fm0 = fm1 = fm2 = 0.0
         vn = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        for c in range(w):
+        c = np.int64(-1)
+        while c < w - 1:
+            c += 1
             g = prim_global[r, c]
-            if g < 0 or g >= n_shaded:
+            if g < 0:
+                # a run of background, as in finalize
+                e = _background_end(prim_global, r, c + 1, w)
+                for q in range(np.uint64(c), np.uint64(e)):
+                    color[np.uint64(r), q, 0] = background[0]
+                    color[np.uint64(r), q, 1] = background[1]
+                    color[np.uint64(r), q, 2] = background[2]
+                c = e - 1
+                continue
+            if g >= n_shaded:
                 for j in range(3):
                     color[r, c, j] = background[j]
                 continue
