@@ -31,6 +31,10 @@ from .rasterizer import (NO_ITEM, TILE, TILE_SHIFT, _box_in_tile, _edge, _geomet
                          _setup_winner, bin_primitives, depth_test, face_image_limit,
                          perspective_bary, tile_rect)
 
+#: The widest box (pixels) whose samples :func:`_msaa_pass` tests pixel by pixel instead of
+#: walking each edge's span down the rows.
+NARROW = 8
+
 #: ``RasterState.interpolation`` names and the kernel's codes.
 INTERPOLATIONS = {"center": 0, "centroid": 1, "sample": 2}
 
@@ -184,6 +188,35 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
                                       (np.float64(by0) + 0.5 + foymin) - fy0,
                                       (np.float64(by1) + 0.5 + foymax) - fy0),
                     zbuf, bx0 - tx0, bx1 - tx0, by0 - ty0, by1 - ty0):
+                continue
+            if inv_af > 0.0 and nx <= NARROW:
+                # a narrow box: each pixel's three biased edge values tested directly
+                # (e + sx·i ≥ 0, the walk's span without its six divisions per sample),
+                # the same pixels in the same order, the same depth expression
+                for s in range(ns):
+                    e0 = r0 + (sy0 >> bits) * oy[s] + (sx0 >> bits) * ox[s]
+                    e1 = r1 + (sy1 >> bits) * oy[s] + (sx1 >> bits) * ox[s]
+                    e2 = r2 + (sy2 >> bits) * oy[s] + (sx2 >> bits) * ox[s]
+                    for y in range(by0, by1 + 1):
+                        ly = y - ty0
+                        zy = dzdy * ((np.float64(y) + 0.5 + foy[s]) - fy0)
+                        for i in range(nx):
+                            if (e0 + sx0 * i < 0) | (e1 + sx1 * i < 0) | (e2 + sx2 * i < 0):
+                                continue
+                            x = bx0 + i
+                            z = zd0 + dzdx * ((np.float64(x) + 0.5 + fox[s]) - fx0) + zy
+                            if z < 0.0:
+                                z = 0.0
+                            elif z > 1.0:
+                                z = 1.0
+                            zf = np.float32(z)
+                            lx = x - tx0
+                            if depth_test(func, zf, zbuf[ly, lx, s]):
+                                zbuf[ly, lx, s] = zf
+                                win[ly, lx, s] = item
+                        e0 += sy0
+                        e1 += sy1
+                        e2 += sy2
                 continue
             for s in range(ns):
                 # the sample's edge values at the box's first pixel: the centre's plus the
