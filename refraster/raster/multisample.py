@@ -162,6 +162,8 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
         tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, TILE_SHIFT, width, height)
         zbuf = np.full((TILE, TILE, ns), clear, np.float32)
         win = np.full((TILE, TILE, ns), NO_ITEM, np.int64)
+        # the union of the drawn items' boxes: the write-out looks only there
+        ux0, ux1, uy0, uy1 = tx1 + 1, tx0 - 1, ty1 + 1, ty0 - 1
         for j in range(starts[tile], starts[tile + 1]):
             item = lists[j]
             bx0, bx1, by0, by1 = _box_in_tile(item, fbox, sbox, tx0, tx1, ty0, ty1)
@@ -189,6 +191,8 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
                                       (np.float64(by1) + 0.5 + foymax) - fy0),
                     zbuf, bx0 - tx0, bx1 - tx0, by0 - ty0, by1 - ty0):
                 continue
+            ux0, ux1 = min(ux0, bx0), max(ux1, bx1)
+            uy0, uy1 = min(uy0, by0), max(uy1, by1)
             if inv_af > 0.0 and nx <= NARROW:
                 # a narrow box: each pixel's three biased edge values tested directly
                 # (e + sx·i ≥ 0, the walk's span without its six divisions per sample),
@@ -283,9 +287,9 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
             last, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf, sprim, sfront, sarea)
         e0 = e1 = e2 = c0 = c1 = c2 = np.int64(0)
         q0 = q1 = q2 = np.float32(0.0)
-        for y in range(ty0, ty1 + 1):
+        for y in range(uy0, uy1 + 1):
             row = height - 1 - y
-            for x in range(tx0, tx1 + 1):
+            for x in range(ux0, ux1 + 1):
                 fresh = True
                 for s in range(ns):
                     item = win[y - ty0, x - tx0, s]
