@@ -246,6 +246,30 @@ def test_coverage_and_depth_per_sample_match_the_twin(samples, grid):
     _agree(sf, twin(v, f, w, h, SPEC[samples]), f"{samples}x grid={grid}")
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_depths_at_the_ends_of_the_range_match_the_twin(seed):
+    """Triangles lying within 0.001 of the far plane (window depth 0.999 … 1, a vertex on it)
+    and of the near plane (0 … 0.001, a vertex on it), in front of and behind each other: the
+    covered samples' depths agree with the float64 twin's plane clamped to [0, 1] (a far
+    sample at 1.0 loses `less` against the clear depth 1.0, as in the twin). Samples deeper
+    than 0.999 and nearer than 0.001 must win: a clamp short of either end changes them."""
+    w, h = 37, 23
+    rng = np.random.default_rng(seed)
+    n = 24
+    xy = rng.uniform(-1.0, 1.0, (n, 1, 2)) + rng.normal(0.0, 1.0, (n, 3, 2)) * 0.3
+    far = rng.random(n) < 0.5
+    z = np.where(far[:, None], 1.0 - rng.uniform(0.0, 0.002, (n, 3)),
+                 -1.0 + rng.uniform(0.0, 0.002, (n, 3)))
+    z[:, 0] = np.where(far, 1.0, -1.0)          # a vertex on the plane
+    v = np.concatenate([xy, z[:, :, None]], axis=2).reshape(-1, 3).astype(np.float32)
+    f = np.arange(3 * n).reshape(n, 3)
+    sf = _render(v, f, w, h, samples=4)
+    tw = twin(v, f, w, h, SPEC[4])
+    prim, best, _ = tw
+    assert (best[prim >= 0] > 0.999).sum() > 0 and (best[prim >= 0] < 0.001).sum() > 0
+    _agree(sf, tw, f"ends seed={seed}")
+
+
 @pytest.mark.parametrize("state", [
     dict(samples=4, sample_locations="gl_llvmpipe"),
     dict(samples=2, sample_locations=((0, 0), (15, 15))),

@@ -105,6 +105,28 @@ def _hidden(func, bounds, zbuf, lx0, lx1, ly0, ly1):
 
 
 @njit(**IJIT)
+def _sample_edge(r, sx, sy, bits, ox, oy):
+    """An edge's biased value at the sample of fixed-point offset ``(ox, oy)`` from the
+    pixel centre where it is ``r`` (steps ``sx``, ``sy`` per pixel): ``r + dx·oy − dy·ox``."""
+    return r + (sy >> bits) * oy + (sx >> bits) * ox
+
+
+@njit(**IJIT)
+def _plane_sample(zbuf, win, item, func, ly, lx, s, z):
+    """Sample ``s`` of the tile pixel ``(ly, lx)`` at the depth plane's value ``z``: clamped
+    to [0, 1] (NaN kept), rounded to float32, tested against the tile's depth and written there
+    with ``item`` as the winner where it passes (ties to the first drawn)."""
+    if z < 0.0:
+        z = 0.0
+    elif z > 1.0:
+        z = 1.0
+    zf = np.float32(z)
+    if depth_test(func, zf, zbuf[ly, lx, s]):
+        zbuf[ly, lx, s] = zf
+        win[ly, lx, s] = item
+
+
+@njit(**IJIT)
 def _floor_divmod(v, m):
     """``(⌊v / m⌋, v − m·⌊v / m⌋)`` for ``m > 0`` (exact int64); ``(0, v)`` for ``m = 0``."""
     if m == 0:
@@ -198,9 +220,9 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
                 # (e + sx·i ≥ 0, the walk's span without its six divisions per sample),
                 # the same pixels in the same order, the same depth expression
                 for s in range(ns):
-                    e0 = r0 + (sy0 >> bits) * oy[s] + (sx0 >> bits) * ox[s]
-                    e1 = r1 + (sy1 >> bits) * oy[s] + (sx1 >> bits) * ox[s]
-                    e2 = r2 + (sy2 >> bits) * oy[s] + (sx2 >> bits) * ox[s]
+                    e0 = _sample_edge(r0, sx0, sy0, bits, ox[s], oy[s])
+                    e1 = _sample_edge(r1, sx1, sy1, bits, ox[s], oy[s])
+                    e2 = _sample_edge(r2, sx2, sy2, bits, ox[s], oy[s])
                     for y in range(by0, by1 + 1):
                         ly = y - ty0
                         zy = dzdy * ((np.float64(y) + 0.5 + foy[s]) - fy0)
@@ -208,16 +230,9 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
                             if (e0 + sx0 * i < 0) | (e1 + sx1 * i < 0) | (e2 + sx2 * i < 0):
                                 continue
                             x = bx0 + i
-                            z = zd0 + dzdx * ((np.float64(x) + 0.5 + fox[s]) - fx0) + zy
-                            if z < 0.0:
-                                z = 0.0
-                            elif z > 1.0:
-                                z = 1.0
-                            zf = np.float32(z)
-                            lx = x - tx0
-                            if depth_test(func, zf, zbuf[ly, lx, s]):
-                                zbuf[ly, lx, s] = zf
-                                win[ly, lx, s] = item
+                            _plane_sample(zbuf, win, item, func, ly, x - tx0, s,
+                                          zd0 + dzdx * ((np.float64(x) + 0.5 + fox[s]) - fx0)
+                                          + zy)
                         e0 += sy0
                         e1 += sy1
                         e2 += sy2
@@ -225,9 +240,9 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
             for s in range(ns):
                 # the sample's edge values at the box's first pixel: the centre's plus the
                 # constant dx_k·oy − dy_k·ox, then walked exactly row by row (_walk_step)
-                e0 = r0 + (sy0 >> bits) * oy[s] + (sx0 >> bits) * ox[s]
-                e1 = r1 + (sy1 >> bits) * oy[s] + (sx1 >> bits) * ox[s]
-                e2 = r2 + (sy2 >> bits) * oy[s] + (sx2 >> bits) * ox[s]
+                e0 = _sample_edge(r0, sx0, sy0, bits, ox[s], oy[s])
+                e1 = _sample_edge(r1, sx1, sy1, bits, ox[s], oy[s])
+                e2 = _sample_edge(r2, sx2, sy2, bits, ox[s], oy[s])
                 F0, T0 = _floor_divmod(e0, m0)
                 F1, T1 = _floor_divmod(e1, m1)
                 F2, T2 = _floor_divmod(e2, m2)
@@ -241,16 +256,9 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
                         ly = y - ty0
                         zy = dzdy * ((np.float64(y) + 0.5 + foy[s]) - fy0)
                         for x in range(bx0 + a, bx0 + b + 1):
-                            z = zd0 + dzdx * ((np.float64(x) + 0.5 + fox[s]) - fx0) + zy
-                            if z < 0.0:
-                                z = 0.0
-                            elif z > 1.0:
-                                z = 1.0
-                            zf = np.float32(z)
-                            lx = x - tx0
-                            if depth_test(func, zf, zbuf[ly, lx, s]):
-                                zbuf[ly, lx, s] = zf
-                                win[ly, lx, s] = item
+                            _plane_sample(zbuf, win, item, func, ly, x - tx0, s,
+                                          zd0 + dzdx * ((np.float64(x) + 0.5 + fox[s]) - fx0)
+                                          + zy)
                         F0, T0 = _walk_step(F0, T0, q0, u0, m0)
                         F1, T1 = _walk_step(F1, T1, q1, u1, m1)
                         F2, T2 = _walk_step(F2, T2, q2, u2, m2)
