@@ -255,8 +255,7 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
     which the caller hands out instead: ``render_samples``). ``r_depth``, ``r_front``,
     ``r_bary`` (the rasterizer's depth, facing and barycentrics, ``(H, W[, 3])``): with
     ``fill_bg``, their background (``clear_depth``, False, 0) is written in the same sweep
-    (the tile pass wrote only the pixels a fragment won); shape ``(0, …)``: not asked.
-"""
+    (the tile pass wrote only the pixels a fragment won); shape ``(0, …)``: not asked."""
     if per_face:
         _face_normals(vertices, faces, face_offsets, nmat, fnormal)
     h, w = prim_global.shape

@@ -217,7 +217,7 @@ def _msaa_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, sYf, sp
             uy0, uy1 = min(uy0, by0), max(uy1, by1)
             if inv_af > 0.0 and nx <= NARROW:
                 # a narrow box: each pixel's three biased edge values tested directly
-                # (e + sx·i ≥ 0, the walk's span without its six divisions per sample),
+                # (e + sx·i ≥ 0: the walk's span without its floor division per edge),
                 # the same pixels in the same order, the same depth expression
                 for s in range(ns):
                     e0 = _sample_edge(r0, sx0, sy0, bits, ox[s], oy[s])
