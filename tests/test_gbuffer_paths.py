@@ -340,32 +340,39 @@ def test_out_input_check_after_good_frames():
 
 def _runs_image(rng, h, w, n_faces):
     """A face image whose rows alternate runs of background (−1) of every length from 0 to
-    20 with runs of 1 to 3 covered pixels (face 0 among them), from any column."""
+    20 (the last rows: 40 to 400, long enough for streaming stores) with runs of 1 to 3
+    covered pixels (face 0 among them), from any column."""
     prim = np.full((h, w), -1, np.int32)
     for r in range(h):
         c = int(rng.integers(0, 3))
+        lo, hi = (0, 21) if r < h - 3 else (40, 401)
         while c < w:
-            c += int(rng.integers(0, 21))
+            c += int(rng.integers(lo, hi))
             n = int(rng.integers(1, 4))
             prim[r, c:c + n] = rng.integers(0, n_faces, size=len(prim[r, c:c + n]))
             c += n
     prim[0, :9] = 0          # a row starting covered
     prim[1, -9:] = -1        # and one ending in background
+    prim[2, :] = -1          # and one with nothing covered
     return prim
 
 
+@pytest.mark.parametrize("stream", [False, True], ids=["stores", "streaming"])
 @pytest.mark.parametrize("seed", range(3))
-def test_background_runs_of_every_length(monkeypatch, seed):
+def test_background_runs_of_every_length(monkeypatch, seed, stream):
     """``finalize`` and ``shade`` find runs of background eight columns a step and fill each
-    array's stretch in a loop of its own: every background pixel gets the clear values, every
-    covered one (next to runs of any length and phase) its face's ids and eye depth (NumPy,
-    in the kernel's order of operations: the same bits), and the tile pass's depth, facing and
-    barycentrics of a covered pixel are left as they were. The colour against the same frame
-    with the background made of a face beyond ``n_shaded``, which ``shade`` colours pixel by
-    pixel: the same bytes."""
+    array's stretch in a loop of its own (with ``stream``, its aligned 32-byte blocks by
+    streaming stores): every background pixel gets the clear values, every covered one (next
+    to runs of any length and phase) its face's ids and eye depth (NumPy, in the kernel's
+    order of operations: the same bits), and the tile pass's depth, facing and barycentrics of
+    a covered pixel are left as they were. The output arrays start as garbage, so a pixel the
+    fill misses is seen. The colour against the same frame with the background made of a face
+    beyond ``n_shaded``, which ``shade`` colours pixel by pixel: the same bytes."""
     monkeypatch.setattr(fbm, "FILL_IN_KERNEL", 0)    # the background written in the kernel
+    monkeypatch.setattr(fbm, "STREAM_FROM_BYTES", 0 if stream else 1 << 62)
+    monkeypatch.setattr(fbm.OUTPUTS, "empty", lambda shape, dtype: np.full(shape, 7, dtype))
     rng = np.random.default_rng(seed)
-    h, w, n_faces = 7, 203, 5
+    h, w, n_faces = 9, 611, 5
     v = rng.normal(size=(3 * n_faces + 3, 3)) + [0.0, 0.0, -4.0]
     f = np.arange(3 * n_faces + 3, dtype=np.int64).reshape(-1, 3)
     mesh = Mesh(v, f)

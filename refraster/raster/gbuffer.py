@@ -9,6 +9,7 @@ from numba import njit, prange
 
 from .._config import IJIT, PJIT
 from ._prefetch import prefetch_row
+from ._stream import fill_stretch, stream_fence
 
 #: Shading constants of the default colour: ambient, diffuse, specular weight, exponent.
 AMBIENT, DIFFUSE, SPECULAR, SHININESS = 0.18, 0.72, 0.22, 48
@@ -213,7 +214,7 @@ def _background_end(prim, r, c, w):
 
 @njit(**IJIT)
 def _background_run(r, a, b, ids, rbg, prim_id, object_id, eye_depth, normal, r_depth,
-                    r_front, r_bary, clear_depth):
+                    r_front, r_bary, clear_depth, stream):
     """The background (+inf, 0, −1, −1; with ``rbg`` the rasterizer's ``clear_depth``,
     False, 0) in columns ``a … b − 1`` of row ``r``: :func:`finalize`'s fill. The indices are
     unsigned: no negative-index fix-up per store."""
@@ -221,28 +222,21 @@ def _background_run(r, a, b, ids, rbg, prim_id, object_id, eye_depth, normal, r_
     ua = np.uint64(a)
     ub = np.uint64(b)
     if ids:
-        for c in range(ua, ub):
-            prim_id[r, c] = -1
-    for c in range(ua, ub):
-        object_id[r, c] = -1
-    for c in range(ua, ub):
-        eye_depth[r, c] = np.inf
-    nrow = normal[r].reshape(-1)
-    for c in range(np.uint64(3) * ua, np.uint64(3) * ub):
-        nrow[c] = 0.0
+        fill_stretch(prim_id[r], ua, ub, np.int32(-1), stream)
+    fill_stretch(object_id[r], ua, ub, np.int32(-1), stream)
+    fill_stretch(eye_depth[r], ua, ub, np.float32(np.inf), stream)
+    fill_stretch(normal[r].reshape(-1), np.uint64(3) * ua, np.uint64(3) * ub, np.float32(0.0),
+                 stream)
     if rbg:
-        for c in range(ua, ub):
-            r_depth[r, c] = clear_depth
-        for c in range(ua, ub):
-            r_front[r, c] = False
-        brow = r_bary[r].reshape(-1)
-        for c in range(np.uint64(3) * ua, np.uint64(3) * ub):
-            brow[c] = 0.0
+        fill_stretch(r_depth[r], ua, ub, clear_depth, stream)
+        fill_stretch(r_front[r], ua, ub, False, stream)
+        fill_stretch(r_bary[r].reshape(-1), np.uint64(3) * ua, np.uint64(3) * ub,
+                     np.float32(0.0), stream)
 
 
 @njit(**PJIT)
 def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets, mv, nmat,
-             fnormal, per_face, fill_bg, eye_depth, normal, prim_id, object_id, spans,
+             fnormal, per_face, fill_bg, stream, eye_depth, normal, prim_id, object_id, spans,
              r_depth, r_front, r_bary, clear_depth):
     """Eye depth, normal and ids of the covered pixels of the face image ``prim_global``
     (global face index, int32: :data:`FACE_IMAGE_DTYPES`; ``≥ 0``); the background
@@ -287,7 +281,7 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
                 e = _background_end(prim_global, r, c + 1, w)
                 if fill_bg:
                     _background_run(r, c, e, ids, rbg, prim_id, object_id, eye_depth,
-                                    normal, r_depth, r_front, r_bary, clear_depth)
+                                    normal, r_depth, r_front, r_bary, clear_depth, stream)
                 c = e - 1
                 continue
             if g != last:
@@ -318,6 +312,8 @@ def finalize(prim_global, bary, vertices, faces, vnormals, smooth, face_offsets,
             first = 0
         spans[r, 0] = first
         spans[r, 1] = end
+        if stream:
+            stream_fence()   # after the row's streaming stores (_background_run)
 
 
 @njit(**PJIT)
