@@ -62,3 +62,20 @@ def test_streaming_path_compiles_to_non_temporal_stores():
 def test_last_level_cache_is_a_size():
     n = last_level_cache()
     assert isinstance(n, int) and (1 << 16) <= n <= (1 << 34)
+
+
+@pytest.mark.parametrize("texts, expect", [
+    ({3: "32768K\n", 2: "1024K\n"}, 32 << 20), ({2: "2M"}, 2 << 20), ({3: "512"}, 512),
+    ({3: "garbage", 2: "1024K"}, 1 << 20), ({3: "0K"}, 32 << 20), ({}, 32 << 20)])
+def test_last_level_cache_reads_sys_and_falls_back(monkeypatch, texts, expect):
+    """The size as ``/sys`` gives it (L3, else L2; K, M or plain bytes); 32 MiB when neither
+    file is there or says something else."""
+    import refraster.raster._stream as st
+
+    def read_text(self):
+        for index, text in texts.items():
+            if f"index{index}" in str(self):
+                return text
+        raise OSError("no such file")
+    monkeypatch.setattr(st.Path, "read_text", read_text)
+    assert st.last_level_cache() == expect

@@ -14,7 +14,6 @@ this one, clear the kernels' caches (docs/performance.md, "How a frame is made f
 
 from __future__ import annotations
 
-import os
 import platform
 from pathlib import Path
 
@@ -108,9 +107,9 @@ def fill_stretch(row, a, b, v, stream):
     """``row[a:b] = v`` for a 1-D C-contiguous ``row`` (unsigned ``a``, ``b``); with
     ``stream``, the whole ``STREAM_BYTES`` blocks inside a stretch of at least
     ``STREAM_MIN_BYTES`` by streaming stores, the rest (and shorter stretches) by ordinary
-    ones. The streaming part lies within
-    ``[a, b)`` and ``row``; the ordinary stores are ``row``'s own indexing (bounds-checked
-    under ``NUMBA_BOUNDSCHECK``). Call :func:`stream_fence` after the kernel's last fill."""
+    ones. The streaming part lies within ``[a, b)`` and ``row``; the ordinary stores are
+    ``row``'s own indexing (bounds-checked under ``NUMBA_BOUNDSCHECK``). Call
+    :func:`stream_fence` after the kernel's last fill."""
     a = np.uint64(a)
     b = np.uint64(b)
     isz = np.uint64(row.itemsize)
@@ -131,15 +130,8 @@ def fill_stretch(row, a, b, v, stream):
 
 
 def last_level_cache():
-    """The bytes of the machine's last-level (L3, else L2) data cache, as Linux reports it
-    (``sysconf``, else ``/sys``); 32 MiB where neither says."""
-    for name in ("SC_LEVEL3_CACHE_SIZE", "SC_LEVEL2_CACHE_SIZE"):
-        try:
-            n = os.sysconf(name)
-        except (ValueError, OSError, AttributeError):
-            n = 0
-        if n > 0:
-            return int(n)
+    """The bytes of the machine's last-level (L3, else L2) data cache, as Linux reports it in
+    ``/sys``; 32 MiB where it does not say (CPython's ``os.sysconf`` has no cache names)."""
     for index in (3, 2):
         try:
             text = Path(f"/sys/devices/system/cpu/cpu0/cache/index{index}/size").read_text()
