@@ -69,20 +69,6 @@ def _store_stream(typingctx, arr, i, v):
 
 
 @intrinsic
-def _address(typingctx, arr):
-    """The address of ``arr``'s first element (an unsigned integer)."""
-    if not isinstance(arr, types.Array):
-        return None
-    sig = types.uint64(arr)
-
-    def codegen(context, builder, signature, args):
-        ary = context.make_array(signature.args[0])(context, builder, args[0])
-        return builder.ptrtoint(ary.data, ir.IntType(64))
-
-    return sig, codegen
-
-
-@intrinsic
 def stream_fence(typingctx):
     """Order the streaming stores before it ahead of every later store (``sfence`` on x86,
     a sequentially consistent fence elsewhere)."""
@@ -117,7 +103,7 @@ def fill_stretch(row, a, b, v, stream):
     i = a
     e = min(b, np.uint64(row.shape[0]))
     if stream and e > a and (e - a) * isz >= np.uint64(STREAM_MIN_BYTES):
-        base = _address(row)
+        base = np.uint64(row.ctypes.data)   # the first element's address
         # ordinary stores up to the first aligned block
         while i < e and (base + i * isz) % np.uint64(STREAM_BYTES) != np.uint64(0):
             row[i] = v
