@@ -364,3 +364,24 @@ def test_surely_inside_flags_change_no_pixel(crank_scene, monkeypatch):
             plain = render_clipped(mesh, surfaces, **kw)
         assert flagged.cap_mask.sum() > 200
         assert_same(flagged, plain)
+
+
+@pytest.mark.parametrize("caps", [Caps(style="hatch"), None], ids=["caps", "no caps"])
+def test_fused_pass_writes_the_face_images_background(crank_scene, monkeypatch, caps):
+    """The fused clip pass writes the face image's −1 itself (in tiles nothing was binned to,
+    and in a binned tile's pixels no fragment won): with the output pool handing out garbage
+    the frame still equals the fragment stream's, and the frame has both kinds of pixel."""
+    from refraster._scratch import OUTPUTS
+
+    mesh, ragged, _, _, sprite = crank_scene
+    # wide enough for tiles with nothing binned beside the crank
+    cam = frame_bounds(mesh.bounds, width=420, height=150, direction=(0.3, 0.7, 1.0))
+    kw = dict(**cam.kwargs, vds=[sprite], caps=caps)
+    ref = staged(monkeypatch, mesh, ragged, **kw)
+    with monkeypatch.context() as m:
+        m.setattr(OUTPUTS, "empty", lambda shape, dtype: np.full(shape, 7, dtype))
+        got = render_clipped(mesh, ragged, **kw)
+    assert_same(got, ref)
+    bg = ref.prim_id < 0
+    assert bg[:, :64].all() and bg[:, -64:].all()        # whole empty tiles on either side
+    assert bg[:, 64:-64].any() and (~bg).any()

@@ -76,13 +76,20 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
     when its fragments provably stay in the box the flag was decided over
     (:func:`_fragments_stay_near`); they would all pass. The tile size comes in as an
     argument, not as the rasterizer's constant: Numba's cache does not see another module's
-    constants change."""
+    constants change. The face image ``o_prim`` comes unfilled: the pass writes its −1 where no
+    fragment won (the other outputs' background is the caller's)."""
     ntiles = starts.shape[0] - 1
     for tile in prange(ntiles):
-        if starts[tile] == starts[tile + 1]:
-            continue   # nothing binned: the tile keeps resolved_buffers' clear values
-        size = 1 << tile_shift
         tx0, tx1, ty0, ty1 = tile_rect(tile, ntx, tile_shift, width, height)
+        if starts[tile] == starts[tile + 1]:
+            # nothing binned: the tile keeps resolved_buffers' clear values (the face
+            # image's −1 written here, in parallel, as the rasterizer's pass does)
+            for y in range(ty0, ty1 + 1):
+                row = np.uint64(height - 1 - y)
+                for x in range(tx0, tx1 + 1):
+                    o_prim[row, np.uint64(x)] = -1
+            continue
+        size = 1 << tile_shift
         zbuf = np.full((size, size), clear, np.float32)
         win = np.full((size, size), NO_ITEM, np.int64)
         for j in range(starts[tile], starts[tile + 1]):
@@ -159,7 +166,9 @@ def _fused_clip_pass(f, vX, vY, vZ, vIW, vXf, vYf, fbox, sX, sY, sZ, sIW, sXf, s
             row = height - 1 - y
             for x in range(tx0, tx1 + 1):
                 item = win[y - ty0, x - tx0]
-                if item != NO_ITEM:
+                if item == NO_ITEM:
+                    o_prim[np.uint64(row), np.uint64(x)] = -1
+                else:
                     o_depth[row, x] = zbuf[y - ty0, x - tx0]
                     write_winner(item, f, vX, vY, vZ, vIW, vXf, vYf, sX, sY, sZ, sIW, sXf, sYf,
                                  sprim, sfront, sarea, B, bits, rule, x, y, row, width, o_prim,
@@ -319,7 +328,7 @@ def _fused_clip(prep, test_vertices, world_vertices, n_solids, surfaces, tests,
     face_image_limit(prims.n_faces, "the clip surfaces' tile pass")
     ntx, _, starts, lists = bin_primitives(prims, scratch)
     h, w = prims.height, prims.width
-    depth, prim, front, bary = resolved_buffers(h, w, clear_depth, fill)
+    depth, prim, front, bary = resolved_buffers(h, w, clear_depth, fill, face=False)
     sprites = _pack_sprites(tests) if tests else _no_sprites()
     separate = world_vertices is not test_vertices
     sure = np.zeros(int(prep.face_offsets[-1]), np.bool_)
